@@ -1,0 +1,165 @@
+#include "cli.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stages/core/parallel.h"
+#include "stages/core/progress.h"
+
+static const sy_opt global_opts[] = {
+    {"--json", OPT_FLAG, NULL, NULL, "machine-readable output on stdout"},
+    {"--quiet", OPT_FLAG, NULL, NULL, "no progress output"},
+    {"--threads", OPT_INT, NULL, "N", "worker threads (default: all cores)"},
+    {"--seed", OPT_INT, NULL, "N", "random seed (default 1)"},
+    {"--help", OPT_FLAG, NULL, NULL, "this help"},
+    {NULL, 0, NULL, NULL, NULL},
+};
+
+static void print_opts(const sy_opt *opts)
+{
+    for (const sy_opt *o = opts; o && o->name; o++) {
+        char left[64];
+        snprintf(left, sizeof left, "%s%s%s", o->name, o->metavar ? " " : "", o->metavar ? o->metavar : "");
+        printf("  %-24s %s\n", left, o->help);
+    }
+}
+
+static void print_help(const sy_cmd_spec *s)
+{
+    printf("usage: sylva %s [options] %s\n\n%s\n", s->name, s->usage, s->summary);
+    if (s->details) printf("\n%s\n", s->details);
+    if (s->opts && s->opts->name) {
+        printf("\noptions:\n");
+        print_opts(s->opts);
+    }
+    printf("\ncommon options:\n");
+    print_opts(global_opts);
+}
+
+static int parse_number(const char *cmd, const char *name, const char *text, int is_int, double *out)
+{
+    char *end;
+    errno = 0;
+    double v = is_int ? (double)strtoll(text, &end, 10) : strtod(text, &end);
+    if (errno || end == text || *end) {
+        fprintf(stderr, "sylva %s: %s expects a %s, got '%s'\n", cmd, name, is_int ? "whole number" : "number",
+                text);
+        return SY_EUSAGE;
+    }
+    *out = v;
+    return SY_OK;
+}
+
+/* Reads n comma-separated numbers ("1,2,3"). */
+static int parse_list(const char *cmd, const char *name, const char *text, int n, double *out)
+{
+    const char *p = text;
+    for (int i = 0; i < n; i++) {
+        char *end;
+        errno = 0;
+        out[i] = strtod(p, &end);
+        if (errno || end == p || (i + 1 < n ? *end != ',' : *end != '\0')) {
+            fprintf(stderr, "sylva %s: %s expects %d comma-separated numbers, got '%s'\n", cmd, name, n, text);
+            return SY_EUSAGE;
+        }
+        p = end + 1;
+    }
+    return SY_OK;
+}
+
+static int apply(const char *cmd, const sy_opt *o, const char *value)
+{
+    double v;
+    switch (o->kind) {
+    case OPT_FLAG: *(int *)o->target = 1; return SY_OK;
+    case OPT_STRING: *(const char **)o->target = value; return SY_OK;
+    case OPT_INT:
+        if (parse_number(cmd, o->name, value, 1, &v)) return SY_EUSAGE;
+        *(int *)o->target = (int)v;
+        return SY_OK;
+    case OPT_DOUBLE:
+        if (parse_number(cmd, o->name, value, 0, &v)) return SY_EUSAGE;
+        *(double *)o->target = v;
+        return SY_OK;
+    case OPT_DOUBLE3: return parse_list(cmd, o->name, value, 3, o->target);
+    case OPT_DOUBLE6: return parse_list(cmd, o->name, value, 6, o->target);
+    }
+    return SY_EUSAGE;
+}
+
+int sy_cli_parse(const sy_cmd_spec *spec, int argc, char **argv, sy_cli *cli, const char **pos,
+                 int max, int *n_pos)
+{
+    *n_pos = 0;
+    int only_positional = 0;
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        if (only_positional || a[0] != '-' || a[1] == '\0') {
+            if (spec->max_pos >= 0 && *n_pos >= spec->max_pos) {
+                fprintf(stderr, "sylva %s: unexpected argument '%s' (see --help)\n", spec->name, a);
+                return SY_EUSAGE;
+            }
+            if (*n_pos >= max) {
+                fprintf(stderr, "sylva %s: too many arguments\n", spec->name);
+                return SY_EUSAGE;
+            }
+            pos[(*n_pos)++] = a;
+            continue;
+        }
+        if (strcmp(a, "--") == 0) {
+            only_positional = 1;
+            continue;
+        }
+        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+            print_help(spec);
+            return -1;
+        }
+        if (strcmp(a, "--json") == 0) { cli->json = 1; continue; }
+        if (strcmp(a, "--quiet") == 0 || strcmp(a, "-q") == 0) { cli->quiet = 1; continue; }
+        if (strcmp(a, "--threads") == 0 || strcmp(a, "--seed") == 0) {
+            double v = 0;
+            if (i + 1 >= argc) {
+                fprintf(stderr, "sylva %s: %s needs a value\n", spec->name, a);
+                return SY_EUSAGE;
+            }
+            if (parse_number(spec->name, a, argv[++i], 1, &v) || v < 0) {
+                if (v < 0) fprintf(stderr, "sylva %s: %s must not be negative\n", spec->name, a);
+                return SY_EUSAGE;
+            }
+            if (a[2] == 't') cli->threads = (int)v;
+            else cli->seed = (unsigned long long)v;
+            continue;
+        }
+        const sy_opt *match = NULL;
+        for (const sy_opt *o = spec->opts; o && o->name; o++)
+            if (strcmp(o->name, a) == 0) match = o;
+        if (!match) {
+            fprintf(stderr, "sylva %s: unknown option '%s' (see --help)\n", spec->name, a);
+            return SY_EUSAGE;
+        }
+        const char *value = NULL;
+        if (match->kind != OPT_FLAG) {
+            if (i + 1 >= argc) {
+                fprintf(stderr, "sylva %s: %s needs a value\n", spec->name, a);
+                return SY_EUSAGE;
+            }
+            value = argv[++i];
+        }
+        if (apply(spec->name, match, value)) return SY_EUSAGE;
+    }
+    if (*n_pos < spec->min_pos) {
+        fprintf(stderr, "sylva %s: missing argument (usage: sylva %s %s)\n", spec->name, spec->name, spec->usage);
+        return SY_EUSAGE;
+    }
+    sy_progress_set_quiet(cli->quiet || cli->json);
+    sy_set_threads(cli->threads);
+    return SY_OK;
+}
+
+int sy_cli_report(const sy_error *err)
+{
+    fprintf(stderr, "sylva: %s\n", err->msg[0] ? err->msg : "failed");
+    return err->code ? (int)err->code : SY_EINTERNAL;
+}

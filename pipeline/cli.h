@@ -1,0 +1,54 @@
+/* The `sylva` command line: global options, a declarative option table per
+ * subcommand, generated --help, and the subcommand registry. */
+#ifndef SYLVA_CLI_H
+#define SYLVA_CLI_H
+
+#include "stages/core/status.h"
+
+/* Options every subcommand accepts. */
+typedef struct {
+    int json;     /* --json: machine-readable stdout */
+    int quiet;    /* --quiet: no progress */
+    int threads;  /* --threads N (0: all cores) */
+    unsigned long long seed; /* --seed N */
+} sy_cli;
+
+typedef enum { OPT_FLAG, OPT_INT, OPT_DOUBLE, OPT_STRING, OPT_DOUBLE3, OPT_DOUBLE6 } sy_opt_kind;
+
+typedef struct {
+    const char *name;    /* "--voxel" */
+    sy_opt_kind kind;
+    void *target;        /* int*, double*, const char** or double[3]/[6] */
+    const char *metavar; /* "SIZE" (NULL for flags) */
+    const char *help;
+} sy_opt;
+
+typedef struct {
+    const char *name;
+    const char *usage;    /* "FILE..." */
+    const char *summary;  /* one line */
+    const char *details;  /* more lines for --help, may be NULL */
+    const sy_opt *opts;   /* terminated by {NULL} */
+    int min_pos, max_pos; /* positional argument counts (-1: unbounded) */
+} sy_cmd_spec;
+
+/* Parses argv (argv[0] is the subcommand name). Positional arguments land in
+ * pos (capacity max). Returns SY_OK, SY_EUSAGE (message already printed), or
+ * -1 when --help was printed (exit 0). */
+int sy_cli_parse(const sy_cmd_spec *spec, int argc, char **argv, sy_cli *cli, const char **pos,
+                 int max, int *n_pos);
+
+/* Prints "sylva: <msg>" on stderr and returns err->code (the exit status). */
+int sy_cli_report(const sy_error *err);
+
+typedef int (*sy_cmd_fn)(int argc, char **argv, sy_cli *cli);
+typedef struct {
+    const char *name;
+    const char *summary;
+    sy_cmd_fn fn;
+} sy_command;
+
+/* The registry, defined in pipeline/commands.c. */
+extern const sy_command sy_commands[];
+
+#endif

@@ -1,0 +1,10 @@
+/* The subcommand registry: one line per stage command. */
+#include "pipeline/cli.h"
+#include "pipeline/commands.h"
+
+const sy_command sy_commands[] = {
+    {"info", "describe point-cloud files: format, count, bounds, attributes, CRS", cmd_info},
+    {"convert", "convert a point cloud between formats (PLY, LAS, XYZ)", cmd_convert},
+    {"preprocess", "clean a scan: up-axis, crop, voxel, outliers, ground, normals", cmd_preprocess},
+    {NULL, NULL, NULL},
+};

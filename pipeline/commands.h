@@ -1,0 +1,11 @@
+/* Entry points of the subcommands, one file each (pipeline/cmd_<name>.c). */
+#ifndef SYLVA_COMMANDS_H
+#define SYLVA_COMMANDS_H
+
+#include "pipeline/cli.h"
+
+int cmd_info(int argc, char **argv, sy_cli *cli);
+int cmd_convert(int argc, char **argv, sy_cli *cli);
+int cmd_preprocess(int argc, char **argv, sy_cli *cli);
+
+#endif

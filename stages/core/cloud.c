@@ -1,0 +1,232 @@
+#include "cloud.h"
+
+#include <float.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+sy_code sy_cloud_init(sy_cloud *c, size_t n, sy_error *err)
+{
+    memset(c, 0, sizeof *c);
+    c->meta.point_format = -1;
+    c->xyz = sy_calloc(n, 3 * sizeof(float), err, "point positions");
+    if (!c->xyz) return SY_EINTERNAL;
+    c->n = n;
+    return SY_OK;
+}
+
+void sy_cloud_free(sy_cloud *c)
+{
+    if (!c) return;
+    free(c->xyz);
+    free(c->normal);
+    free(c->intensity);
+    free(c->rgb);
+    free(c->nir);
+    free(c->classification);
+    free(c->return_number);
+    free(c->num_returns);
+    free(c->gps_time);
+    for (size_t i = 0; i < c->n_attrs; i++) free(c->attrs[i].values);
+    free(c->attrs);
+    free(c->meta.crs);
+    free(c->meta.vlr_summary);
+    memset(c, 0, sizeof *c);
+}
+
+/* Allocates *slot with n*width elements of size bytes if absent. */
+static sy_code add_array(void **slot, size_t n, size_t width, size_t size, sy_error *err,
+                         const char *what)
+{
+    if (*slot) return SY_OK;
+    *slot = sy_calloc(n ? n * width : 1, size, err, what);
+    return *slot ? SY_OK : SY_EINTERNAL;
+}
+
+sy_code sy_cloud_add_normals(sy_cloud *c, sy_error *err)
+{
+    return add_array((void **)&c->normal, c->n, 3, sizeof(float), err, "normals");
+}
+sy_code sy_cloud_add_intensity(sy_cloud *c, sy_error *err)
+{
+    return add_array((void **)&c->intensity, c->n, 1, sizeof(uint16_t), err, "intensity");
+}
+sy_code sy_cloud_add_rgb(sy_cloud *c, sy_error *err)
+{
+    return add_array((void **)&c->rgb, c->n, 3, sizeof(uint16_t), err, "colours");
+}
+sy_code sy_cloud_add_classification(sy_cloud *c, sy_error *err)
+{
+    return add_array((void **)&c->classification, c->n, 1, 1, err, "classification");
+}
+sy_code sy_cloud_add_returns(sy_cloud *c, sy_error *err)
+{
+    sy_code rc = add_array((void **)&c->return_number, c->n, 1, 1, err, "return numbers");
+    if (rc) return rc;
+    return add_array((void **)&c->num_returns, c->n, 1, 1, err, "return counts");
+}
+sy_code sy_cloud_add_gps_time(sy_cloud *c, sy_error *err)
+{
+    return add_array((void **)&c->gps_time, c->n, 1, sizeof(double), err, "GPS time");
+}
+
+double *sy_cloud_attr(const sy_cloud *c, const char *name)
+{
+    for (size_t i = 0; i < c->n_attrs; i++)
+        if (strcmp(c->attrs[i].name, name) == 0) return c->attrs[i].values;
+    return NULL;
+}
+
+double *sy_cloud_add_attr(sy_cloud *c, const char *name, sy_error *err)
+{
+    double *v = sy_cloud_attr(c, name);
+    if (v) return v;
+    sy_attr *grown = realloc(c->attrs, (c->n_attrs + 1) * sizeof *grown);
+    if (!grown) {
+        sy_fail(err, SY_EINTERNAL, "attribute %s: out of memory", name);
+        return NULL;
+    }
+    c->attrs = grown;
+    sy_attr *a = &c->attrs[c->n_attrs];
+    memset(a, 0, sizeof *a);
+    snprintf(a->name, sizeof a->name, "%s", name);
+    a->values = sy_calloc(c->n, sizeof(double), err, name);
+    if (!a->values) return NULL;
+    c->n_attrs++;
+    return a->values;
+}
+
+void sy_cloud_bounds(const sy_cloud *c, double min[3], double max[3])
+{
+    float lo[3] = {FLT_MAX, FLT_MAX, FLT_MAX}, hi[3] = {-FLT_MAX, -FLT_MAX, -FLT_MAX};
+    for (size_t i = 0; i < c->n; i++)
+        for (int k = 0; k < 3; k++) {
+            float v = c->xyz[3 * i + k];
+            if (v < lo[k]) lo[k] = v;
+            if (v > hi[k]) hi[k] = v;
+        }
+    for (int k = 0; k < 3; k++) {
+        min[k] = c->n ? c->origin[k] + lo[k] : 0.0;
+        max[k] = c->n ? c->origin[k] + hi[k] : 0.0;
+    }
+}
+
+/* Compacts one array of n elements of elem bytes in place. */
+static void compact(void *base, size_t n, size_t elem, const uint8_t *keep)
+{
+    if (!base) return;
+    unsigned char *b = base;
+    size_t j = 0;
+    for (size_t i = 0; i < n; i++)
+        if (keep[i]) {
+            if (i != j) memmove(b + j * elem, b + i * elem, elem);
+            j++;
+        }
+}
+
+sy_code sy_cloud_filter(sy_cloud *c, const uint8_t *keep, sy_error *err)
+{
+    (void)err;
+    size_t kept = 0;
+    for (size_t i = 0; i < c->n; i++) kept += keep[i] != 0;
+    compact(c->xyz, c->n, 3 * sizeof(float), keep);
+    compact(c->normal, c->n, 3 * sizeof(float), keep);
+    compact(c->intensity, c->n, sizeof(uint16_t), keep);
+    compact(c->rgb, c->n, 3 * sizeof(uint16_t), keep);
+    compact(c->nir, c->n, sizeof(uint16_t), keep);
+    compact(c->classification, c->n, 1, keep);
+    compact(c->return_number, c->n, 1, keep);
+    compact(c->num_returns, c->n, 1, keep);
+    compact(c->gps_time, c->n, sizeof(double), keep);
+    for (size_t a = 0; a < c->n_attrs; a++) compact(c->attrs[a].values, c->n, sizeof(double), keep);
+    c->n = kept;
+    return SY_OK;
+}
+
+static void *dup_array(const void *src, size_t bytes, sy_error *err, int *failed)
+{
+    if (!src || *failed) return NULL;
+    void *p = sy_calloc(bytes ? bytes : 1, 1, err, "point cloud copy");
+    if (!p) {
+        *failed = 1;
+        return NULL;
+    }
+    memcpy(p, src, bytes);
+    return p;
+}
+
+static char *dup_string(const char *s, int *failed)
+{
+    if (!s || *failed) return NULL;
+    size_t len = strlen(s) + 1;
+    char *p = malloc(len);
+    if (!p) *failed = 1;
+    else memcpy(p, s, len);
+    return p;
+}
+
+sy_code sy_cloud_copy(sy_cloud *dst, const sy_cloud *src, sy_error *err)
+{
+    int failed = 0;
+    size_t n = src->n;
+    memset(dst, 0, sizeof *dst);
+    dst->n = n;
+    memcpy(dst->origin, src->origin, sizeof dst->origin);
+    dst->meta = src->meta;
+    dst->meta.crs = dup_string(src->meta.crs, &failed);
+    dst->meta.vlr_summary = dup_string(src->meta.vlr_summary, &failed);
+    dst->xyz = dup_array(src->xyz, n * 3 * sizeof(float), err, &failed);
+    dst->normal = dup_array(src->normal, n * 3 * sizeof(float), err, &failed);
+    dst->intensity = dup_array(src->intensity, n * sizeof(uint16_t), err, &failed);
+    dst->rgb = dup_array(src->rgb, n * 3 * sizeof(uint16_t), err, &failed);
+    dst->nir = dup_array(src->nir, n * sizeof(uint16_t), err, &failed);
+    dst->classification = dup_array(src->classification, n, err, &failed);
+    dst->return_number = dup_array(src->return_number, n, err, &failed);
+    dst->num_returns = dup_array(src->num_returns, n, err, &failed);
+    dst->gps_time = dup_array(src->gps_time, n * sizeof(double), err, &failed);
+    if (src->n_attrs && !failed) {
+        dst->attrs = sy_calloc(src->n_attrs, sizeof(sy_attr), err, "attributes");
+        if (!dst->attrs) failed = 1;
+        for (size_t a = 0; a < src->n_attrs && !failed; a++) {
+            memcpy(dst->attrs[a].name, src->attrs[a].name, sizeof dst->attrs[a].name);
+            dst->attrs[a].values = dup_array(src->attrs[a].values, n * sizeof(double), err, &failed);
+            if (!failed) dst->n_attrs++;
+        }
+    }
+    if (failed) {
+        sy_cloud_free(dst);
+        return sy_fail(err, SY_EINTERNAL, "point cloud copy: out of memory");
+    }
+    return SY_OK;
+}
+
+void sy_cloud_rebase(sy_cloud *c)
+{
+    if (c->n == 0) return;
+    double min[3], max[3];
+    sy_cloud_bounds(c, min, max);
+    for (int k = 0; k < 3; k++) {
+        double shift = floor(min[k]) - c->origin[k];
+        for (size_t i = 0; i < c->n; i++) c->xyz[3 * i + k] = (float)(c->xyz[3 * i + k] - shift);
+        c->origin[k] += shift;
+    }
+}
+
+void sy_cloud_attribute_names(const sy_cloud *c, char *buf, size_t size)
+{
+    struct { const void *p; const char *name; } fixed[] = {
+        {c->xyz, "xyz"},           {c->normal, "normal"},
+        {c->intensity, "intensity"}, {c->rgb, "rgb"},
+        {c->nir, "nir"},           {c->classification, "classification"},
+        {c->return_number, "return_number"}, {c->num_returns, "number_of_returns"},
+        {c->gps_time, "gps_time"},
+    };
+    size_t used = 0;
+    buf[0] = '\0';
+    for (size_t i = 0; i < sizeof fixed / sizeof fixed[0]; i++)
+        if (fixed[i].p && used < size)
+            used += snprintf(buf + used, size - used, "%s%s", used ? "," : "", fixed[i].name);
+    for (size_t a = 0; a < c->n_attrs && used < size; a++)
+        used += snprintf(buf + used, size - used, "%s%s", used ? "," : "", c->attrs[a].name);
+}

@@ -1,0 +1,27 @@
+/* A small streaming JSON writer for `--json` output and truth/report files.
+ * It tracks commas and nesting so callers only name keys and values. */
+#ifndef SYLVA_JSON_H
+#define SYLVA_JSON_H
+
+#include <stdio.h>
+
+typedef struct {
+    FILE *fp;
+    int depth;
+    int need_comma[32];
+    char closer[32]; /* ']' or '}' per open level */
+    int pretty;
+} sy_json;
+
+void sy_json_begin(sy_json *j, FILE *fp, int pretty);
+void sy_json_object(sy_json *j, const char *key); /* key NULL inside arrays / at top */
+void sy_json_array(sy_json *j, const char *key);
+void sy_json_end(sy_json *j);                     /* closes the innermost object/array */
+void sy_json_string(sy_json *j, const char *key, const char *value);
+void sy_json_number(sy_json *j, const char *key, double value); /* NaN/Inf become null */
+void sy_json_int(sy_json *j, const char *key, long long value);
+void sy_json_bool(sy_json *j, const char *key, int value);
+void sy_json_numbers(sy_json *j, const char *key, const double *v, int n);
+void sy_json_finish(sy_json *j); /* trailing newline */
+
+#endif

@@ -1,0 +1,162 @@
+#include "skeleton.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+sy_code sy_skeleton_init(sy_skeleton *s, size_t n, sy_error *err)
+{
+    memset(s, 0, sizeof *s);
+    if (n == 0) return SY_OK;
+    s->pos = sy_calloc(n, 3 * sizeof(float), err, "skeleton");
+    s->radius = sy_calloc(n, sizeof(float), err, "skeleton");
+    s->parent = sy_calloc(n, sizeof(int32_t), err, "skeleton");
+    s->order = sy_calloc(n, 1, err, "skeleton");
+    s->branch = sy_calloc(n, sizeof(int32_t), err, "skeleton");
+    if (!s->pos || !s->radius || !s->parent || !s->order || !s->branch) {
+        sy_skeleton_free(s);
+        return SY_EINTERNAL;
+    }
+    s->n = n;
+    return SY_OK;
+}
+
+void sy_skeleton_free(sy_skeleton *s)
+{
+    free(s->pos);
+    free(s->radius);
+    free(s->parent);
+    free(s->order);
+    free(s->branch);
+    free(s->support_start);
+    free(s->support);
+    memset(s, 0, sizeof *s);
+}
+
+/* Grows every per-node array to hold cap nodes. */
+static int grow(sy_skeleton *s, size_t cap)
+{
+    void *p;
+    if (!(p = realloc(s->pos, cap * 3 * sizeof(float)))) return 0;
+    s->pos = p;
+    if (!(p = realloc(s->radius, cap * sizeof(float)))) return 0;
+    s->radius = p;
+    if (!(p = realloc(s->parent, cap * sizeof(int32_t)))) return 0;
+    s->parent = p;
+    if (!(p = realloc(s->order, cap))) return 0;
+    s->order = p;
+    if (!(p = realloc(s->branch, cap * sizeof(int32_t)))) return 0;
+    s->branch = p;
+    return 1;
+}
+
+int32_t sy_skeleton_add(sy_skeleton *s, const float pos[3], float radius, int32_t parent, int order,
+                        int32_t branch, sy_error *err)
+{
+    /* Capacity doubles at powers of two, so n itself tells when to grow. */
+    size_t n = s->n;
+    if (n >= INT32_MAX) {
+        sy_fail(err, SY_EINTERNAL, "skeleton: too many nodes");
+        return -1;
+    }
+    if ((n & (n - 1)) == 0 && !grow(s, n ? 2 * n : 1)) {
+        sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
+        return -1;
+    }
+    memcpy(s->pos + 3 * n, pos, 3 * sizeof(float));
+    s->radius[n] = radius;
+    s->parent[n] = parent;
+    s->order[n] = (uint8_t)(order < 0 ? 0 : order > 255 ? 255 : order);
+    s->branch[n] = branch;
+    s->n = n + 1;
+    return (int32_t)n;
+}
+
+sy_code sy_skeleton_validate(const sy_skeleton *s, sy_error *err)
+{
+    size_t roots = 0;
+    for (size_t i = 0; i < s->n; i++) {
+        if (s->parent[i] < -1 || s->parent[i] >= (int32_t)s->n || s->parent[i] == (int32_t)i)
+            return sy_fail(err, SY_EINPUT, "skeleton: node %zu has invalid parent %d", i, s->parent[i]);
+        if (s->parent[i] == -1) roots++;
+        for (int k = 0; k < 3; k++)
+            if (!isfinite(s->pos[3 * i + k])) return sy_fail(err, SY_EINPUT, "skeleton: node %zu position is not finite", i);
+        if (!(s->radius[i] > 0) || !isfinite(s->radius[i]))
+            return sy_fail(err, SY_EINPUT, "skeleton: node %zu radius %g is not positive", i, s->radius[i]);
+    }
+    if (s->n && roots != 1) return sy_fail(err, SY_EINPUT, "skeleton: %zu roots, expected exactly one", roots);
+    /* Cycle check: walking up from any node must reach the root within n steps. */
+    uint8_t *state = calloc(s->n ? s->n : 1, 1); /* 0 unknown, 1 on path, 2 reaches root */
+    if (!state) return sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
+    for (size_t i = 0; i < s->n; i++) {
+        int32_t v = (int32_t)i;
+        while (v >= 0 && state[v] == 0) {
+            state[v] = 1;
+            v = s->parent[v];
+        }
+        if (v >= 0 && state[v] == 1) {
+            free(state);
+            return sy_fail(err, SY_EINPUT, "skeleton: parent links form a cycle through node %d", v);
+        }
+        for (v = (int32_t)i; v >= 0 && state[v] == 1; v = s->parent[v]) state[v] = 2;
+    }
+    free(state);
+    return SY_OK;
+}
+
+int32_t sy_skeleton_branch_count(const sy_skeleton *s)
+{
+    int32_t m = -1;
+    for (size_t i = 0; i < s->n; i++)
+        if (s->branch[i] > m) m = s->branch[i];
+    return m + 1;
+}
+
+double sy_skeleton_length(const sy_skeleton *s)
+{
+    double total = 0;
+    for (size_t i = 0; i < s->n; i++) {
+        int32_t p = s->parent[i];
+        if (p < 0) continue;
+        double d2 = 0;
+        for (int k = 0; k < 3; k++) {
+            double d = s->pos[3 * i + k] - s->pos[3 * p + k];
+            d2 += d * d;
+        }
+        total += sqrt(d2);
+    }
+    return total;
+}
+
+void sy_leaves_free(sy_leaves *l)
+{
+    free(l->pos);
+    free(l->rot);
+    free(l->scale);
+    free(l->node);
+    memset(l, 0, sizeof *l);
+}
+
+sy_code sy_leaves_add(sy_leaves *l, const float pos[3], const float rot[4], float scale, int32_t node,
+                      sy_error *err)
+{
+    size_t n = l->n;
+    if ((n & (n - 1)) == 0) {
+        size_t cap = n ? 2 * n : 1;
+        void *a = realloc(l->pos, cap * 3 * sizeof(float));
+        if (a) l->pos = a;
+        void *b = realloc(l->rot, cap * 4 * sizeof(float));
+        if (b) l->rot = b;
+        void *c = realloc(l->scale, cap * sizeof(float));
+        if (c) l->scale = c;
+        void *d = realloc(l->node, cap * sizeof(int32_t));
+        if (d) l->node = d;
+        if (!a || !b || !c || !d) return sy_fail(err, SY_EINTERNAL, "leaves: out of memory");
+    }
+    memcpy(l->pos + 3 * n, pos, 3 * sizeof(float));
+    memcpy(l->rot + 4 * n, rot, 4 * sizeof(float));
+    l->scale[n] = scale;
+    l->node[n] = node;
+    l->n = n + 1;
+    return SY_OK;
+}

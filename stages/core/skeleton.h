@@ -1,0 +1,59 @@
+/* Skeleton: a rooted tree of nodes, the shared product of tree generation
+ * (Weber-Penn) and reconstruction (shortest-path skeletons, QSM import), read by
+ * meshing, export, encoding and evaluation. Z is up, metres, positions relative
+ * to origin. Node 0 is the root; parent[i] < i is NOT required, but parent
+ * links never form a cycle and exactly one node has parent -1. */
+#ifndef SYLVA_SKELETON_H
+#define SYLVA_SKELETON_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "status.h"
+
+typedef struct {
+    size_t n;
+    double origin[3];
+    float *pos;       /* 3n */
+    float *radius;    /* n, metres */
+    int32_t *parent;  /* n, -1 for the root */
+    uint8_t *order;   /* n, branch order: 0 trunk, 1 its branches, ... */
+    int32_t *branch;  /* n, branch id: the nodes of one stem (trunk, or one branch
+                         from its base to its tip) share an id; a branch's first
+                         node's parent lies on the parent branch */
+    /* Optional: the input points that support each node (reconstruction only).
+     * Points of node i are support[support_start[i] .. support_start[i+1]). */
+    uint32_t *support_start; /* n+1 or NULL */
+    uint32_t *support;       /* or NULL */
+} sy_skeleton;
+
+sy_code sy_skeleton_init(sy_skeleton *s, size_t n, sy_error *err);
+void sy_skeleton_free(sy_skeleton *s);
+/* Appends a node, growing arrays; returns its index or -1 (err set). */
+int32_t sy_skeleton_add(sy_skeleton *s, const float pos[3], float radius, int32_t parent, int order,
+                        int32_t branch, sy_error *err);
+/* Checks the invariants (one root, no cycles, parents in range, finite
+ * positions, radius > 0); the message names the first violation. */
+sy_code sy_skeleton_validate(const sy_skeleton *s, sy_error *err);
+/* Number of branches (max branch id + 1). */
+int32_t sy_skeleton_branch_count(const sy_skeleton *s);
+/* Total length of all edges in metres. */
+double sy_skeleton_length(const sy_skeleton *s);
+
+/* Leaf placements of a generated tree: each leaf is a card of size scale,
+ * positioned at pos, oriented by the unit quaternion rot (x, y, z, w) whose
+ * local +Y is the leaf's axis (stem to tip) and +Z its normal, attached to
+ * skeleton node `node`. */
+typedef struct {
+    size_t n;
+    float *pos;    /* 3n, same frame as the skeleton */
+    float *rot;    /* 4n */
+    float *scale;  /* n, leaf length in metres */
+    int32_t *node; /* n */
+} sy_leaves;
+
+void sy_leaves_free(sy_leaves *l);
+sy_code sy_leaves_add(sy_leaves *l, const float pos[3], const float rot[4], float scale, int32_t node,
+                      sy_error *err);
+
+#endif

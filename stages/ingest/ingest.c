@@ -1,0 +1,70 @@
+/* Format detection and dispatch for the readers and writers. */
+#include "ingest.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "../core/fileio.h"
+
+sy_code sy_check_finite(const char *path, double x, double y, double z, size_t index, sy_error *err)
+{
+    if (isfinite(x) && isfinite(y) && isfinite(z)) return SY_OK;
+    return sy_fail(err, SY_EINPUT, "%s: point %zu has a non-finite coordinate (%g %g %g)", path, index, x, y, z);
+}
+
+static int starts_with(const sy_buffer *b, const char *magic)
+{
+    size_t n = strlen(magic);
+    return b->size >= n && memcmp(b->data, magic, n) == 0;
+}
+
+/* PCD files open with comment lines or a VERSION line. */
+static int looks_like_pcd(const sy_buffer *b, const char *ext)
+{
+    if (strcmp(ext, "pcd") == 0) return 1;
+    return starts_with(b, "# .PCD") || starts_with(b, "VERSION .7") || starts_with(b, "VERSION 0.7");
+}
+
+sy_code sy_read_cloud(const char *path, sy_cloud *out, sy_error *err)
+{
+    memset(out, 0, sizeof *out);
+    if (sy_is_directory(path)) return sy_read_colmap_dir(path, out, err);
+    char ext[16];
+    sy_extension(path, ext, sizeof ext);
+    sy_buffer b;
+    sy_code rc = sy_read_file(path, &b, err);
+    if (rc) return rc;
+    if (b.size == 0) {
+        sy_buffer_free(&b);
+        return sy_fail(err, SY_EINPUT, "%s: empty file", path);
+    }
+    if (starts_with(&b, "LASF")) rc = sy_read_las_mem(path, b.data, b.size, out, err);
+    else if (strcmp(ext, "laz") == 0 || strcmp(ext, "las") == 0)
+        rc = sy_fail(err, SY_EINPUT, "%s: not a LAS file (no LASF signature)", path);
+    else if (starts_with(&b, "ply\n") || starts_with(&b, "ply\r\n")) rc = sy_read_ply_mem(path, b.data, b.size, out, err);
+    else if (strcmp(ext, "ply") == 0) rc = sy_fail(err, SY_EINPUT, "%s: not a PLY file (no 'ply' magic line)", path);
+    else if (looks_like_pcd(&b, ext)) rc = sy_read_pcd_mem(path, b.data, b.size, out, err);
+    else if (strcmp(path + strlen(path) - (strlen(path) >= 11 ? 11 : 0), "points3D.bin") == 0 ||
+             strcmp(ext, "bin") == 0)
+        rc = sy_read_colmap_points_mem(path, b.data, b.size, 'b', out, err);
+    else if (strstr(path, "points3D.txt")) rc = sy_read_colmap_points_mem(path, b.data, b.size, 't', out, err);
+    else rc = sy_read_xyz_mem(path, b.data, b.size, out, err);
+    sy_buffer_free(&b);
+    if (rc == SY_OK && out->n == 0) {
+        sy_cloud_free(out);
+        return sy_fail(err, SY_EINPUT, "%s: no points", path);
+    }
+    if (rc) sy_cloud_free(out);
+    return rc;
+}
+
+sy_code sy_write_cloud(const char *path, const sy_cloud *c, sy_error *err)
+{
+    char ext[16];
+    sy_extension(path, ext, sizeof ext);
+    if (strcmp(ext, "ply") == 0) return sy_write_ply(path, c, err);
+    if (strcmp(ext, "las") == 0) return sy_write_las(path, c, err);
+    if (strcmp(ext, "xyz") == 0 || strcmp(ext, "txt") == 0) return sy_write_xyz(path, c, err);
+    if (strcmp(ext, "laz") == 0) return sy_fail(err, SY_EUSAGE, "%s: writing LAZ is not supported yet; use .las", path);
+    return sy_fail(err, SY_EUSAGE, "%s: unknown output format '.%s' (use .ply, .las, .xyz or .txt)", path, ext);
+}

@@ -1,0 +1,142 @@
+/* Core plumbing: cloud arrays, filtering, bounds, atomic writes, JSON. */
+#include "testutil.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stages/core/cloud.h"
+#include "stages/core/fileio.h"
+#include "stages/core/json.h"
+#include "stages/core/parallel.h"
+
+static void filter_keeps_every_array_aligned(void **state)
+{
+    (void)state;
+    sy_cloud c;
+    sy_error err = {0};
+    assert_int_equal(sy_cloud_init(&c, 5, &err), SY_OK);
+    assert_int_equal(sy_cloud_add_intensity(&c, &err), SY_OK);
+    double *id = sy_cloud_add_attr(&c, "treeID", &err);
+    assert_non_null(id);
+    for (int i = 0; i < 5; i++) {
+        c.xyz[3 * i] = (float)i;
+        c.intensity[i] = (uint16_t)(100 + i);
+        id[i] = 10 + i;
+    }
+    uint8_t keep[5] = {1, 0, 1, 0, 1};
+    assert_int_equal(sy_cloud_filter(&c, keep, &err), SY_OK);
+    assert_int_equal(c.n, 3);
+    assert_float_equal(c.xyz[3], 2.0f, 0);
+    assert_int_equal(c.intensity[2], 104);
+    assert_float_equal(sy_cloud_attr(&c, "treeID")[1], 12.0, 0);
+    char names[256];
+    sy_cloud_attribute_names(&c, names, sizeof names);
+    assert_string_equal(names, "xyz,intensity,treeID");
+    sy_cloud_free(&c);
+}
+
+static void rebase_keeps_world_positions(void **state)
+{
+    (void)state;
+    sy_cloud c;
+    sy_error err = {0};
+    sy_cloud_init(&c, 2, &err);
+    c.origin[0] = 1176000.0;
+    c.xyz[0] = 136.25f;
+    c.xyz[3] = 142.5f;
+    sy_cloud_rebase(&c);
+    double lo[3], hi[3];
+    sy_cloud_bounds(&c, lo, hi);
+    assert_float_equal(lo[0], 1176136.25, 1e-9);
+    assert_float_equal(hi[0], 1176142.5, 1e-9);
+    assert_float_equal(c.origin[0], 1176136.0, 0);
+    sy_cloud_free(&c);
+}
+
+static void atomic_write_leaves_nothing_on_abort(void **state)
+{
+    (void)state;
+    const char *dir = tmp_path("atomic");
+    char cmd[4200];
+    snprintf(cmd, sizeof cmd, "mkdir -p %s", dir);
+    assert_int_equal(system(cmd), 0);
+    char path[4200];
+    snprintf(path, sizeof path, "%s/out.bin", dir);
+    sy_atomic_file f;
+    sy_error err = {0};
+    assert_int_equal(sy_atomic_open(&f, path, &err), SY_OK);
+    fputs("half", f.fp);
+    sy_atomic_abort(&f);
+    assert_int_equal(dir_entry_count(dir), 0);
+    assert_int_equal(sy_write_file_atomic(path, "whole", 5, &err), SY_OK);
+    assert_int_equal(dir_entry_count(dir), 1);
+    sy_buffer b;
+    assert_int_equal(sy_read_file(path, &b, &err), SY_OK);
+    assert_int_equal(b.size, 5);
+    sy_buffer_free(&b);
+    /* A directory is refused with its name in the message. */
+    assert_int_equal(sy_read_file(dir, &b, &err), SY_EINPUT);
+    assert_non_null(strstr(err.msg, "directory"));
+}
+
+static void json_nests_and_escapes(void **state)
+{
+    (void)state;
+    char *text = NULL;
+    size_t len = 0;
+    FILE *fp = open_memstream(&text, &len);
+    sy_json j;
+    sy_json_begin(&j, fp, 0);
+    sy_json_object(&j, NULL);
+    sy_json_string(&j, "a", "q\"x");
+    sy_json_array(&j, "b");
+    sy_json_int(&j, NULL, 1);
+    sy_json_number(&j, NULL, NAN);
+    sy_json_end(&j);
+    sy_json_object(&j, "c");
+    sy_json_end(&j);
+    sy_json_end(&j);
+    fclose(fp);
+    assert_string_equal(text, "{\"a\":\"q\\\"x\",\"b\":[1,null],\"c\":{}}");
+    free(text);
+}
+
+typedef struct {
+    double partial[64];
+} sum_ctx;
+
+static void sum_chunk(void *ctx, size_t b, size_t e, size_t chunk)
+{
+    double s = 0;
+    for (size_t i = b; i < e; i++) s += 1.0 / (1.0 + i);
+    ((sum_ctx *)ctx)->partial[chunk] = s;
+}
+
+static void parallel_result_independent_of_threads(void **state)
+{
+    (void)state;
+    double totals[2];
+    for (int t = 0; t < 2; t++) {
+        sy_set_threads(t ? 4 : 1);
+        sum_ctx ctx = {{0}};
+        sy_parallel_for(6400, 100, sum_chunk, &ctx);
+        totals[t] = 0;
+        for (int c = 0; c < 64; c++) totals[t] += ctx.partial[c];
+    }
+    assert_true(totals[0] == totals[1]);
+    assert_true(totals[0] > 9.0);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(filter_keeps_every_array_aligned),
+        cmocka_unit_test(rebase_keeps_world_positions),
+        cmocka_unit_test(atomic_write_leaves_nothing_on_abort),
+        cmocka_unit_test(json_nests_and_escapes),
+        cmocka_unit_test(parallel_result_independent_of_threads),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
