@@ -1,0 +1,21 @@
+/* Species materials: bark (baseColor + normal map derived from the bark photo)
+ * and leaf (baseColor with alpha MASK, normal map, diffuse transmission) from
+ * the texture files a species names. Images are decoded, resized to a
+ * game-friendly power of two and stored as PNG bytes in the asset. */
+#ifndef SYLVA_SPECIES_MATERIALS_H
+#define SYLVA_SPECIES_MATERIALS_H
+
+#include "stages/core/asset.h"
+
+typedef struct {
+    const char *bark_image;  /* path or NULL for a neutral procedural bark */
+    const char *leaf_image;  /* RGBA leaf/twig card or NULL for a plain green card */
+    float leaf_translucency; /* diffuse transmission factor 0..1 (default 0.4) */
+    int max_size;            /* longest side after resizing (default 512) */
+} sy_material_spec;
+
+/* Adds the bark and leaf materials (and their images) to the asset. */
+sy_code sy_species_materials(const sy_material_spec *spec, sy_asset *asset, int *bark_material,
+                             int *leaf_material, sy_error *err);
+
+#endif

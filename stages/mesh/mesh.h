@@ -1,0 +1,38 @@
+/* Mesh: skeleton + leaf placements -> a game-ready Asset (branch meshes as
+ * generalised cylinders, instanced leaf cards, LOD chain ending in a
+ * billboard/impostor level, wind attributes). The same code serves generated
+ * and reconstructed trees. Input is Z-up (Sylva's frame); the Asset is Y-up
+ * (glTF's frame). Deterministic for a given seed. */
+#ifndef SYLVA_MESH_H
+#define SYLVA_MESH_H
+
+#include <stdint.h>
+
+#include "stages/core/asset.h"
+#include "stages/core/skeleton.h"
+
+typedef struct {
+    int radial_segments;       /* ring vertices at LOD0 on the trunk (default 16); thinner
+                                  branches use fewer, never below 3 */
+    float segment_length;      /* target metres between rings along a branch at LOD0
+                                  (default: adaptive to curvature and radius) */
+    int n_lods;                /* mesh levels before the impostor (default 4); each halves
+                                  rings and segments and drops thin branches */
+    int impostor;              /* add the final cross-card impostor level (default 1) */
+    int impostor_size;         /* impostor texture size in pixels (default 512) */
+    float leaf_aspect;         /* leaf card width / length (default 0.6) */
+    int leaf_shape;            /* Weber-Penn leafShape, picks the card outline (default 0) */
+    uint64_t seed;             /* leaf pruning order */
+    /* Materials to use (indices into the asset's materials, which the caller
+     * adds first, e.g. with sy_species_materials); -1 gives plain defaults. */
+    int bark_material;
+    int leaf_material;
+} sy_mesh_options;
+
+sy_mesh_options sy_mesh_options_default(void);
+
+/* Builds the asset. leaves may be NULL or empty (leafless tree). */
+sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_mesh_options *opt, sy_asset *out,
+                     sy_error *err);
+
+#endif
