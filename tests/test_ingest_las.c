@@ -63,6 +63,7 @@ typedef struct {
     size_t n_eb;
     const char *wkt;
     int wkt_as_evlr;
+    unsigned n_empty_vlrs; /* extra zero-length VLRs, user "test" */
 } las_spec;
 
 static const unsigned base_size[11] = {20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67};
@@ -146,6 +147,7 @@ static size_t build_las(const las_spec *s, unsigned char *buf, size_t cap)
         pos += 54 + strlen(s->wkt) + 1;
         n_vlrs++;
     }
+    for (unsigned k = 0; k < s->n_empty_vlrs; k++, pos += 54, n_vlrs++) put_vlr(buf + pos, "test", k, 0, 0);
     put32(buf + 96, (uint32_t)pos);
     put32(buf + 100, n_vlrs);
     buf[104] = (unsigned char)s->format;
@@ -467,6 +469,29 @@ static void wkt_crs_from_vlr_and_evlr(void **state)
     }
 }
 
+static void long_wkt_is_cut_and_many_vlrs_are_counted(void **state)
+{
+    (void)state;
+    static char wkt[2000];
+    snprintf(wkt, sizeof wkt, "PROJCS[\"Long\",");
+    while (strlen(wkt) < sizeof wkt - 20) strcat(wkt, "PARAMETER[\"x\",1],");
+    strcat(wkt, "]");
+    las_spec s = {.format = 1, .minor = 2, .n = 3, .wkt = wkt, .n_empty_vlrs = 100};
+    sy_cloud c;
+    sy_error err = {0};
+    if (read_built(&s, &c, &err) != SY_OK) fail_msg("%s", err.msg);
+    assert_int_equal(strlen(c.meta.crs), 512 + 3);
+    assert_memory_equal(c.meta.crs, wkt, 512);
+    assert_string_equal(c.meta.crs + 512, "...");
+    /* 101 VLRs: 64 lines, then a count of the rest. */
+    size_t lines = 1;
+    for (const char *p = c.meta.vlr_summary; *p; p++) lines += *p == '\n';
+    assert_int_equal(lines, 65);
+    assert_non_null(strstr(c.meta.vlr_summary, "\n... and 37 more VLRs"));
+    assert_non_null(strstr(c.meta.vlr_summary, "test/62: "));
+    sy_cloud_free(&c);
+}
+
 /* ---- malformed input ---- */
 
 typedef enum {
@@ -738,6 +763,7 @@ int main(void)
         cmocka_unit_test(every_extra_bytes_type_decodes),
         cmocka_unit_test(unknown_extra_type_stops_the_layout),
         cmocka_unit_test(wkt_crs_from_vlr_and_evlr),
+        cmocka_unit_test(long_wkt_is_cut_and_many_vlrs_are_counted),
         cmocka_unit_test(malformed_files_fail_with_the_path),
         cmocka_unit_test(round_trip_format_6),
         cmocka_unit_test(round_trip_format_7_rgb),

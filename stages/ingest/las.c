@@ -112,6 +112,23 @@ static sy_code parse_header(const char *path, const unsigned char *d, size_t siz
     return SY_OK;
 }
 
+static int summary_line(las_vlrs *v, const char *line)
+{
+    size_t len = strlen(line);
+    if (v->summary_len + len + 2 > v->summary_cap) {
+        size_t cap = v->summary_cap ? 2 * v->summary_cap : 1024;
+        char *grown = realloc(v->summary, cap);
+        if (!grown) return -1;
+        v->summary = grown;
+        v->summary_cap = cap;
+    }
+    if (v->summary_len) v->summary[v->summary_len++] = '\n';
+    memcpy(v->summary + v->summary_len, line, len + 1);
+    v->summary_len += len;
+    return 0;
+}
+
+/* One line per VLR, up to SUMMARY_MAX_LINES; the rest are counted. */
 static int summary_append(las_vlrs *v, const char *user, unsigned record_id, const char *desc)
 {
     if (v->summary_lines >= SUMMARY_MAX_LINES) {
@@ -119,19 +136,9 @@ static int summary_append(las_vlrs *v, const char *user, unsigned record_id, con
         return 0;
     }
     char line[128];
-    int len = snprintf(line, sizeof line, "%s%s/%u: %s", v->summary_len ? "\n" : "", user, record_id, desc);
-    if (len < 0) return 0;
-    if (v->summary_len + (size_t)len + 64 > v->summary_cap) {
-        size_t cap = v->summary_cap ? 2 * v->summary_cap : 1024;
-        char *grown = realloc(v->summary, cap);
-        if (!grown) return -1;
-        v->summary = grown;
-        v->summary_cap = cap;
-    }
-    memcpy(v->summary + v->summary_len, line, (size_t)len + 1);
-    v->summary_len += (size_t)len;
+    snprintf(line, sizeof line, "%s/%u: %s", user, record_id, desc);
     v->summary_lines++;
-    return 0;
+    return summary_line(v, line);
 }
 
 /* Records one (E)VLR: its summary line and the payloads the reader uses. */
@@ -465,9 +472,8 @@ static sy_code fill_meta(const char *path, const las_header *h, las_vlrs *v, sy_
     c->meta.header_count = h->count;
     if (v->summary_dropped) {
         char more[64];
-        snprintf(more, sizeof more, "%u more", v->summary_dropped);
-        v->summary_lines = 0; /* let the closing line through */
-        if (summary_append(v, "...", 0, more)) return sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
+        snprintf(more, sizeof more, "... and %u more VLRs", v->summary_dropped);
+        if (summary_line(v, more)) return sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
     }
     c->meta.vlr_summary = v->summary;
     v->summary = NULL;
