@@ -1,0 +1,301 @@
+/* LAS 1.4 writer: point format 6 (7 with RGB, 8 with near infrared), named
+ * attributes as extra bytes, CRS carried over as GeoTIFF EPSG keys or WKT.
+ *
+ * Scale 0.0001 m with offset = the cloud origin: positions are float offsets
+ * from the origin, whose precision near 100 m is ~8 um, so 0.1 mm steps lose
+ * nothing real and still reach +-214 km. Wider clouds get a coarser decimal
+ * scale so every coordinate fits in int32. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "../core/fileio.h"
+#include "ingest.h"
+#include "las_format.h"
+
+enum { CHUNK_POINTS = 4096, MAX_DESCRIPTORS = 65535 / LAS_EB_DESCRIPTOR };
+
+typedef struct {
+    int format;
+    unsigned record_length;
+    double scale;
+    int32_t lo[3], hi[3]; /* quantised bounds */
+    uint64_t by_return[15];
+    unsigned char *eb_types; /* per attribute: LAS_EB_INT32 or LAS_EB_DOUBLE */
+    unsigned char *header;   /* header + VLRs */
+    size_t header_len;
+} las_plan;
+
+static int32_t quantise(float v, double scale) { return (int32_t)llround((double)v / scale); }
+
+/* Smallest decimal scale >= 0.0001 that keeps every coordinate in int32. */
+static sy_code choose_scale(const char *path, const sy_cloud *c, las_plan *p, sy_error *err)
+{
+    double reach = 0.0;
+    for (size_t i = 0; i < 3 * c->n; i++) {
+        double a = fabs((double)c->xyz[i]);
+        if (!isfinite(a))
+            return sy_fail(err, SY_EINPUT, "%s: point %zu has a non-finite coordinate", path, i / 3);
+        if (a > reach) reach = a;
+    }
+    for (int k = 0; k < 3; k++)
+        if (!isfinite(c->origin[k])) return sy_fail(err, SY_EINPUT, "%s: the cloud origin is not finite", path);
+    p->scale = 0.0001;
+    while (reach / p->scale > 2.0e9) p->scale *= 10.0;
+    return SY_OK;
+}
+
+static void scan_points(const sy_cloud *c, las_plan *p)
+{
+    for (int k = 0; k < 3; k++) {
+        p->lo[k] = INT32_MAX;
+        p->hi[k] = INT32_MIN;
+    }
+    for (size_t i = 0; i < c->n; i++)
+        for (int k = 0; k < 3; k++) {
+            int32_t q = quantise(c->xyz[3 * i + k], p->scale);
+            if (q < p->lo[k]) p->lo[k] = q;
+            if (q > p->hi[k]) p->hi[k] = q;
+        }
+    if (c->n == 0)
+        for (int k = 0; k < 3; k++) p->lo[k] = p->hi[k] = 0;
+    if (c->return_number)
+        for (size_t i = 0; i < c->n; i++) {
+            unsigned r = c->return_number[i] & 0x0F;
+            if (r >= 1) p->by_return[r - 1]++;
+        }
+}
+
+/* int32 when every value is integral and fits (ids, counts), else double.
+ * NaN (no value) is allowed in int32 columns: it is written as no_data. */
+static unsigned char attr_type(const sy_attr *a, size_t n)
+{
+    for (size_t i = 0; i < n; i++) {
+        double v = a->values[i];
+        if (isnan(v)) continue;
+        if (!(v > INT32_MIN && v <= INT32_MAX) || v != floor(v)) return LAS_EB_DOUBLE;
+    }
+    return LAS_EB_INT32;
+}
+
+static void put_text(unsigned char *dst, size_t width, const char *s)
+{
+    size_t n = strlen(s);
+    memcpy(dst, s, n < width ? n : width);
+}
+
+static unsigned char *put_vlr_header(unsigned char *q, const char *user, unsigned record_id, size_t len,
+                                     const char *desc)
+{
+    put_text(q + 2, 16, user);
+    las_put_u16(q + 18, (uint16_t)record_id);
+    las_put_u16(q + 20, (uint16_t)len);
+    put_text(q + 22, 32, desc);
+    return q + LAS_VLR_HEADER;
+}
+
+static void put_descriptor(unsigned char *d, const sy_attr *a, unsigned char type, size_t n)
+{
+    double lo = NAN, hi = NAN;
+    int any_nan = 0;
+    for (size_t i = 0; i < n; i++) {
+        double v = a->values[i];
+        any_nan |= isnan(v);
+        if (isnan(v)) continue;
+        if (isnan(lo) || v < lo) lo = v;
+        if (isnan(hi) || v > hi) hi = v;
+    }
+    int has_range = !isnan(lo) && !isinf(lo) && !isinf(hi);
+    int no_data = any_nan && type == LAS_EB_INT32;
+    d[LAS_EB_TYPE] = type;
+    d[LAS_EB_OPTIONS] = (unsigned char)((has_range ? LAS_EB_OPT_MIN | LAS_EB_OPT_MAX : 0) |
+                                        (no_data ? LAS_EB_OPT_NO_DATA : 0));
+    put_text(d + LAS_EB_NAME, 32, a->name);
+    if (type == LAS_EB_INT32) {
+        if (no_data) las_put_u64(d + LAS_EB_NO_DATA, (uint64_t)(int64_t)INT32_MIN);
+        if (has_range) {
+            las_put_u64(d + LAS_EB_MIN, (uint64_t)(int64_t)lo);
+            las_put_u64(d + LAS_EB_MAX, (uint64_t)(int64_t)hi);
+        }
+    } else if (has_range) {
+        las_put_f64(d + LAS_EB_MIN, lo);
+        las_put_f64(d + LAS_EB_MAX, hi);
+    }
+    char desc[32];
+    snprintf(desc, sizeof desc, "%.20s (%s)", a->name, type == LAS_EB_INT32 ? "integer" : "real");
+    put_text(d + LAS_EB_DESCRIPTION, 32, desc);
+}
+
+/* A WKT CRS starts with an upper-case keyword and '[' (PROJCS[, GEOGCRS[ ...);
+ * summaries the reader cut with "..." are not valid WKT any more. */
+static int is_wkt(const char *s)
+{
+    size_t k = 0;
+    while ((s[k] >= 'A' && s[k] <= 'Z') || s[k] == '_') k++;
+    size_t len = strlen(s);
+    return k > 0 && s[k] == '[' && !(len >= 3 && strcmp(s + len - 3, "...") == 0);
+}
+
+/* GeoKeyDirectory with GTModelType and the projected or geographic EPSG key. */
+static size_t geokeys_payload(unsigned char *q, unsigned code)
+{
+    int geographic = code >= 4000 && code < 5000; /* EPSG's geographic 2D range */
+    uint16_t keys[12] = {1, 1, 0, 2, 1024, 0, 1, (uint16_t)(geographic ? 2 : 1),
+                         (uint16_t)(geographic ? 2048 : 3072), 0, 1, (uint16_t)code};
+    for (int i = 0; i < 12; i++) las_put_u16(q + 2 * i, keys[i]);
+    return sizeof keys;
+}
+
+static void put_header(unsigned char *h, const sy_cloud *c, const las_plan *p, uint32_t n_vlrs, int wkt)
+{
+    memcpy(h, "LASF", 4);
+    las_put_u16(h + 6, wkt ? LAS_GLOBAL_WKT : 0);
+    h[LAS_VERSION_MAJOR] = 1;
+    h[LAS_VERSION_MINOR] = 4;
+    put_text(h + LAS_SYSTEM_ID, 32, "Sylva");
+    put_text(h + LAS_SOFTWARE, 32, "Sylva " SYLVA_VERSION);
+    /* SOURCE_DATE_EPOCH makes output reproducible when a build asks for it. */
+    const char *epoch = getenv("SOURCE_DATE_EPOCH");
+    time_t now = epoch && *epoch ? (time_t)strtoll(epoch, NULL, 10) : time(NULL);
+    struct tm tm;
+    if (gmtime_r(&now, &tm)) {
+        las_put_u16(h + LAS_CREATION_DAY, (uint16_t)(tm.tm_yday + 1));
+        las_put_u16(h + LAS_CREATION_YEAR, (uint16_t)(tm.tm_year + 1900));
+    }
+    las_put_u16(h + LAS_HEADER_SIZE, LAS_HDR_14);
+    las_put_u32(h + LAS_POINT_OFFSET, (uint32_t)p->header_len);
+    las_put_u32(h + LAS_N_VLRS, n_vlrs);
+    h[LAS_POINT_FORMAT] = (unsigned char)p->format;
+    las_put_u16(h + LAS_RECORD_LENGTH, (uint16_t)p->record_length);
+    /* Legacy counts stay 0: LAS 1.4 requires that for point formats 6-10. */
+    for (int k = 0; k < 3; k++) {
+        las_put_f64(h + LAS_SCALE + 8 * k, p->scale);
+        las_put_f64(h + LAS_OFFSET + 8 * k, c->origin[k]);
+        las_put_f64(h + LAS_BOUNDS + 16 * k, p->hi[k] * p->scale + c->origin[k]);
+        las_put_f64(h + LAS_BOUNDS + 16 * k + 8, p->lo[k] * p->scale + c->origin[k]);
+    }
+    las_put_u64(h + LAS_COUNT64, (uint64_t)c->n);
+    for (int r = 0; r < 15; r++) las_put_u64(h + LAS_BY_RETURN64 + 8 * r, p->by_return[r]);
+}
+
+/* Builds header and VLRs into p->header. */
+static sy_code build_header(const char *path, const sy_cloud *c, las_plan *p, sy_error *err)
+{
+    if (c->n_attrs > MAX_DESCRIPTORS)
+        return sy_fail(err, SY_EINPUT, "%s: %zu attributes exceed the %d a LAS extra-bytes record can describe",
+                       path, c->n_attrs, MAX_DESCRIPTORS);
+    const char *crs = c->meta.crs;
+    unsigned epsg = 0;
+    if (crs && strncmp(crs, "EPSG:", 5) == 0) {
+        unsigned long v = strtoul(crs + 5, NULL, 10);
+        epsg = v > 0 && v < 32767 ? (unsigned)v : 0;
+    }
+    int wkt = !epsg && crs && is_wkt(crs) && strlen(crs) < 65535;
+    size_t eb_len = c->n_attrs * LAS_EB_DESCRIPTOR;
+    size_t len = LAS_HDR_14 + (eb_len ? LAS_VLR_HEADER + eb_len : 0) + (epsg ? LAS_VLR_HEADER + 24 : 0) +
+                 (wkt ? LAS_VLR_HEADER + strlen(crs) + 1 : 0);
+    p->header = sy_calloc(len, 1, err, "LAS header");
+    if (!p->header) return SY_EINTERNAL;
+    p->header_len = len;
+    unsigned char *q = p->header + LAS_HDR_14;
+    uint32_t n_vlrs = 0;
+    if (eb_len) {
+        q = put_vlr_header(q, "LASF_Spec", 4, eb_len, "Extra bytes: Sylva attributes");
+        for (size_t a = 0; a < c->n_attrs; a++)
+            put_descriptor(q + a * LAS_EB_DESCRIPTOR, &c->attrs[a], p->eb_types[a], c->n);
+        q += eb_len;
+        n_vlrs++;
+    }
+    if (epsg) {
+        q = put_vlr_header(q, "LASF_Projection", 34735, 24, "GeoKeyDirectoryTag");
+        q += geokeys_payload(q, epsg);
+        n_vlrs++;
+    }
+    if (wkt) {
+        size_t wlen = strlen(crs) + 1;
+        q = put_vlr_header(q, "LASF_Projection", 2112, wlen, "OGC coordinate system WKT");
+        memcpy(q, crs, wlen);
+        n_vlrs++;
+    }
+    put_header(p->header, c, p, n_vlrs, wkt);
+    return SY_OK;
+}
+
+static void encode_point(unsigned char *r, const sy_cloud *c, const las_plan *p, size_t i)
+{
+    memset(r, 0, p->record_length);
+    for (int k = 0; k < 3; k++) las_put_u32(r + 4 * k, (uint32_t)quantise(c->xyz[3 * i + k], p->scale));
+    if (c->intensity) las_put_u16(r + 12, c->intensity[i]);
+    if (c->return_number)
+        r[14] = (unsigned char)((c->return_number[i] & 0x0F) | (c->num_returns ? (c->num_returns[i] & 0x0F) << 4 : 0));
+    if (c->classification) r[16] = c->classification[i];
+    if (c->gps_time) las_put_f64(r + 22, c->gps_time[i]);
+    if (c->rgb && p->format >= 7)
+        for (int k = 0; k < 3; k++) las_put_u16(r + 30 + 2 * k, c->rgb[3 * i + k]);
+    if (c->nir && p->format == 8) las_put_u16(r + 36, c->nir[i]);
+    unsigned char *e = r + las_layouts[p->format].size;
+    for (size_t a = 0; a < c->n_attrs; a++) {
+        double v = c->attrs[a].values[i];
+        if (p->eb_types[a] == LAS_EB_INT32) {
+            las_put_u32(e, (uint32_t)(isnan(v) ? INT32_MIN : (int32_t)v));
+            e += 4;
+        } else {
+            las_put_f64(e, v);
+            e += 8;
+        }
+    }
+}
+
+static sy_code write_file(const char *path, const sy_cloud *c, const las_plan *p, sy_error *err)
+{
+    unsigned char *chunk = sy_calloc(CHUNK_POINTS, p->record_length, err, "LAS write buffer");
+    if (!chunk) return SY_EINTERNAL;
+    sy_atomic_file f;
+    sy_code rc = sy_atomic_open(&f, path, err);
+    if (rc) {
+        free(chunk);
+        return rc;
+    }
+    int ok = fwrite(p->header, 1, p->header_len, f.fp) == p->header_len;
+    for (size_t start = 0; ok && start < c->n; start += CHUNK_POINTS) {
+        size_t m = c->n - start < CHUNK_POINTS ? c->n - start : CHUNK_POINTS;
+        for (size_t i = 0; i < m; i++) encode_point(chunk + i * p->record_length, c, p, start + i);
+        ok = fwrite(chunk, p->record_length, m, f.fp) == m;
+    }
+    free(chunk);
+    if (!ok) {
+        sy_atomic_abort(&f);
+        return sy_fail(err, SY_EINPUT, "%s: write failed", path);
+    }
+    return sy_atomic_commit(&f, err);
+}
+
+sy_code sy_write_las(const char *path, const sy_cloud *c, sy_error *err)
+{
+    las_plan p;
+    memset(&p, 0, sizeof p);
+    p.format = c->nir ? 8 : c->rgb ? 7 : 6;
+    sy_code rc = choose_scale(path, c, &p, err);
+    if (rc) return rc;
+    scan_points(c, &p);
+    p.eb_types = sy_calloc(c->n_attrs, 1, err, "attribute types");
+    if (!p.eb_types) return SY_EINTERNAL;
+    size_t record = las_layouts[p.format].size;
+    for (size_t a = 0; a < c->n_attrs; a++) {
+        p.eb_types[a] = attr_type(&c->attrs[a], c->n);
+        record += p.eb_types[a] == LAS_EB_INT32 ? 4 : 8;
+    }
+    if (record > 65535) {
+        free(p.eb_types);
+        return sy_fail(err, SY_EINPUT, "%s: %zu attributes make a %zu-byte record, over LAS's 65535", path,
+                       c->n_attrs, record);
+    }
+    p.record_length = (unsigned)record;
+    rc = build_header(path, c, &p, err);
+    if (rc == SY_OK) rc = write_file(path, c, &p, err);
+    free(p.header);
+    free(p.eb_types);
+    return rc;
+}

@@ -1,0 +1,776 @@
+/* LAS reader and writer: the real files in shared/data with their exact
+ * counts and header bounds, every point format and extra-bytes type on files
+ * built here byte by byte, malformed inputs, LAZ refusal and round trips. */
+#include "testutil.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stages/core/cloud.h"
+#include "stages/core/fileio.h"
+#include "stages/ingest/ingest.h"
+
+/* ---- little-endian helpers for building files by hand ---- */
+
+static void put16(unsigned char *p, unsigned v)
+{
+    p[0] = (unsigned char)v;
+    p[1] = (unsigned char)(v >> 8);
+}
+static void put32(unsigned char *p, uint32_t v)
+{
+    for (int i = 0; i < 4; i++) p[i] = (unsigned char)(v >> (8 * i));
+}
+static void put64(unsigned char *p, uint64_t v)
+{
+    for (int i = 0; i < 8; i++) p[i] = (unsigned char)(v >> (8 * i));
+}
+static void putf64(unsigned char *p, double d)
+{
+    uint64_t u;
+    memcpy(&u, &d, 8);
+    put64(p, u);
+}
+static void putf32(unsigned char *p, float f)
+{
+    uint32_t u;
+    memcpy(&u, &f, 4);
+    put32(p, u);
+}
+static double getf64(const unsigned char *p)
+{
+    uint64_t u = 0;
+    for (int i = 0; i < 8; i++) u |= (uint64_t)p[i] << (8 * i);
+    double d;
+    memcpy(&d, &u, 8);
+    return d;
+}
+
+/* ---- a LAS builder independent of the writer under test ---- */
+
+typedef struct {
+    unsigned char type, options;
+    const char *name;
+    double scale, offset;
+} eb_desc;
+
+typedef struct {
+    int format, minor;
+    size_t n;
+    const eb_desc *eb;
+    size_t n_eb;
+    const char *wkt;
+    int wkt_as_evlr;
+    unsigned n_empty_vlrs; /* extra zero-length VLRs, user "test" */
+} las_spec;
+
+static const unsigned base_size[11] = {20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67};
+static const int gps_at[11] = {-1, 20, -1, 20, 20, 20, 22, 22, 22, 22, 22};
+static const int rgb_at[11] = {-1, -1, 20, 28, -1, 28, -1, 30, 30, -1, 30};
+static const int nir_at[11] = {-1, -1, -1, -1, -1, -1, -1, -1, 36, -1, 36};
+
+static size_t eb_width(const eb_desc *d)
+{
+    static const unsigned sizes[11] = {0, 1, 1, 2, 2, 4, 4, 8, 8, 4, 8};
+    if (d->type == 0) return d->options;
+    if (d->type <= 10) return sizes[d->type];
+    return sizes[(d->type - 1) % 10 + 1] * (d->type <= 20 ? 2u : 3u);
+}
+
+/* The raw value field k holds for point i (before its scale and offset). */
+static double eb_raw(unsigned type, size_t i, size_t k)
+{
+    double v = (double)((i + 1) * (k + 1));
+    if (type == 2 || type == 4 || type == 6 || type == 8) return -v;
+    if (type == 9 || type == 10) return v + 0.25;
+    return v;
+}
+
+static void eb_encode(unsigned char *p, unsigned type, double v)
+{
+    switch (type) {
+    case 1: case 2: p[0] = (unsigned char)(int)v; break;
+    case 3: case 4: put16(p, (unsigned)(int)v); break;
+    case 5: case 6: put32(p, (uint32_t)(int32_t)v); break;
+    case 7: case 8: put64(p, (uint64_t)(int64_t)v); break;
+    case 9: putf32(p, (float)v); break;
+    case 10: putf64(p, v); break;
+    default: memset(p, 0xAB, 1); break; /* skipped fields: arbitrary bytes */
+    }
+}
+
+/* Expected decoded fields for point i. */
+static int32_t pt_x(size_t i) { return 1000 + 7 * (int32_t)i; }
+static int32_t pt_y(size_t i) { return -2000 + 3 * (int32_t)i; }
+static int32_t pt_z(size_t i) { return 50 * (int32_t)i; }
+static const double SCALE = 0.01, OFF[3] = {481000.0, 3812000.0, 10.0};
+
+static void put_vlr(unsigned char *q, const char *user, unsigned id, size_t len, int extended)
+{
+    memcpy(q + 2, user, strlen(user));
+    put16(q + 18, id);
+    if (extended) put64(q + 20, len);
+    else put16(q + 20, (unsigned)len);
+}
+
+/* Builds the file into buf (64 KB is plenty for the sizes used); returns its size. */
+static size_t build_las(const las_spec *s, unsigned char *buf, size_t cap)
+{
+    memset(buf, 0, cap);
+    size_t hs = s->minor >= 4 ? 375 : 227, extra = 0;
+    for (size_t k = 0; k < s->n_eb; k++) extra += eb_width(&s->eb[k]);
+    size_t rl = base_size[s->format] + extra;
+    memcpy(buf, "LASF", 4);
+    buf[24] = 1;
+    buf[25] = (unsigned char)s->minor;
+    put16(buf + 94, (unsigned)hs);
+    size_t pos = hs;
+    unsigned n_vlrs = 0;
+    if (s->n_eb) {
+        put_vlr(buf + pos, "LASF_Spec", 4, 192 * s->n_eb, 0);
+        unsigned char *d = buf + pos + 54;
+        for (size_t k = 0; k < s->n_eb; k++, d += 192) {
+            d[2] = s->eb[k].type;
+            d[3] = s->eb[k].options;
+            memcpy(d + 4, s->eb[k].name, strlen(s->eb[k].name));
+            putf64(d + 112, s->eb[k].scale);
+            putf64(d + 136, s->eb[k].offset);
+        }
+        pos += 54 + 192 * s->n_eb;
+        n_vlrs++;
+    }
+    if (s->wkt && !s->wkt_as_evlr) {
+        put_vlr(buf + pos, "LASF_Projection", 2112, strlen(s->wkt) + 1, 0);
+        memcpy(buf + pos + 54, s->wkt, strlen(s->wkt));
+        pos += 54 + strlen(s->wkt) + 1;
+        n_vlrs++;
+    }
+    for (unsigned k = 0; k < s->n_empty_vlrs; k++, pos += 54, n_vlrs++) put_vlr(buf + pos, "test", k, 0, 0);
+    put32(buf + 96, (uint32_t)pos);
+    put32(buf + 100, n_vlrs);
+    buf[104] = (unsigned char)s->format;
+    put16(buf + 105, (unsigned)rl);
+    if (s->format <= 5) put32(buf + 107, (uint32_t)s->n);
+    for (int k = 0; k < 3; k++) {
+        putf64(buf + 131 + 8 * k, SCALE);
+        putf64(buf + 155 + 8 * k, OFF[k]);
+    }
+    if (hs == 375) put64(buf + 247, s->n);
+    const int legacy = s->format <= 5;
+    for (size_t i = 0; i < s->n; i++) {
+        unsigned char *p = buf + pos + i * rl;
+        put32(p, (uint32_t)pt_x(i));
+        put32(p + 4, (uint32_t)pt_y(i));
+        put32(p + 8, (uint32_t)pt_z(i));
+        put16(p + 12, 100 + (unsigned)i);
+        unsigned rn = 1 + i % 3, nr = 3 + (legacy ? 0 : 8), cls = 2 + i % 4;
+        /* Neighbouring flag bits set on purpose: the reader must mask them. */
+        p[14] = (unsigned char)(legacy ? (rn | nr << 3 | 0xC0) : (rn | nr << 4));
+        if (legacy) p[15] = (unsigned char)(cls | 0xE0);
+        else {
+            p[15] = 0xFF;
+            p[16] = (unsigned char)(cls + 40);
+        }
+        if (gps_at[s->format] >= 0) putf64(p + gps_at[s->format], 1000.5 + (double)i);
+        if (rgb_at[s->format] >= 0) {
+            put16(p + rgb_at[s->format], (unsigned)(i * 256));
+            put16(p + rgb_at[s->format] + 2, (unsigned)(i * 512 + 1));
+            put16(p + rgb_at[s->format] + 4, 65535 - (unsigned)i);
+        }
+        if (nir_at[s->format] >= 0) put16(p + nir_at[s->format], 7 * (unsigned)i + 1);
+        unsigned char *e = p + base_size[s->format];
+        for (size_t k = 0; k < s->n_eb; k++) {
+            eb_encode(e, s->eb[k].type, eb_raw(s->eb[k].type, i, k));
+            e += eb_width(&s->eb[k]);
+        }
+    }
+    pos += s->n * rl;
+    if (s->wkt && s->wkt_as_evlr) {
+        put64(buf + 235, pos);
+        put32(buf + 243, 1);
+        put_vlr(buf + pos, "LASF_Projection", 2112, strlen(s->wkt) + 1, 1);
+        memcpy(buf + pos + 60, s->wkt, strlen(s->wkt));
+        pos += 60 + strlen(s->wkt) + 1;
+    }
+    assert_true(pos <= cap);
+    return pos;
+}
+
+static unsigned char buf[1 << 16];
+
+static sy_code read_built(const las_spec *s, sy_cloud *c, sy_error *err)
+{
+    size_t size = build_las(s, buf, sizeof buf);
+    return sy_read_las_mem("built.las", buf, size, c, err);
+}
+
+/* ---- real files ---- */
+
+typedef struct {
+    const char *rel;
+    size_t count;
+    const char *version;
+    int format;
+} real_file;
+
+static const real_file real_files[] = {
+    {"real/lidr/MixedConifer.las", 37657, "1.2", 1}, {"real/lidr/Megaplot.las", 81590, "1.2", 1},
+    {"real/lidr/dbh.las", 1369, "1.4", 1},           {"real/treels/pine.las", 73851, "1.2", 0},
+    {"real/treels/pine_plot.las", 114024, "1.2", 0}, {"real/pytlidar/tree_1.las", 90239, "1.4", 6},
+};
+
+static void real_files_have_exact_counts_and_header_bounds(void **state)
+{
+    (void)state;
+    for (size_t f = 0; f < sizeof real_files / sizeof real_files[0]; f++) {
+        const char *path = data_path(real_files[f].rel);
+        sy_cloud c;
+        sy_error err = {0};
+        if (sy_read_cloud(path, &c, &err) != SY_OK) fail_msg("%s", err.msg);
+        assert_int_equal(c.n, real_files[f].count);
+        assert_int_equal(c.meta.header_count, real_files[f].count);
+        assert_string_equal(c.meta.format, "LAS");
+        assert_string_equal(c.meta.version, real_files[f].version);
+        assert_int_equal(c.meta.point_format, real_files[f].format);
+        /* Header bounds, where the writer filled them, match the points
+         * within one scale step. */
+        sy_buffer b;
+        assert_int_equal(sy_read_file(path, &b, &err), SY_OK);
+        double lo[3], hi[3], hdr[6];
+        sy_cloud_bounds(&c, lo, hi);
+        int zero = 1;
+        for (int k = 0; k < 6; k++) {
+            hdr[k] = getf64(b.data + 179 + 8 * k);
+            zero &= hdr[k] == 0.0;
+        }
+        for (int k = 0; k < 3 && !zero; k++) {
+            double step = getf64(b.data + 131 + 8 * k);
+            assert_float_equal(hi[k], hdr[2 * k], step + 1e-9);
+            assert_float_equal(lo[k], hdr[2 * k + 1], step + 1e-9);
+        }
+        /* Float positions stay small next to the origin. */
+        for (int k = 0; k < 3; k++) assert_true(fabs(lo[k] - c.origin[k]) < 1000.0);
+        sy_buffer_free(&b);
+        sy_cloud_free(&c);
+    }
+}
+
+static void mixed_conifer_has_integer_tree_ids(void **state)
+{
+    (void)state;
+    sy_cloud c;
+    sy_error err = {0};
+    assert_int_equal(sy_read_cloud(data_path("real/lidr/MixedConifer.las"), &c, &err), SY_OK);
+    const double *id = sy_cloud_attr(&c, "treeID");
+    assert_non_null(id);
+    /* Count distinct ids with a presence table over the plausible range. */
+    static unsigned char seen[100000];
+    memset(seen, 0, sizeof seen);
+    size_t distinct = 0, unassigned = 0;
+    for (size_t i = 0; i < c.n; i++) {
+        /* Points in no tree carry the no_data value, read as NaN. */
+        if (isnan(id[i])) {
+            unassigned++;
+            continue;
+        }
+        assert_true(id[i] == floor(id[i]));
+        assert_true(id[i] >= 0 && id[i] < 100000);
+        if (!seen[(size_t)id[i]]++) distinct++;
+    }
+    assert_true(distinct > 10);
+    assert_true(distinct < 1000);
+    assert_true(unassigned < c.n / 2);
+    assert_string_equal(c.meta.crs, "EPSG:26912");
+    assert_non_null(strstr(c.meta.vlr_summary, "LASF_Spec/4: "));
+    assert_non_null(strstr(c.meta.vlr_summary, "\nLASF_Projection/34735: "));
+    assert_non_null(c.gps_time);
+    assert_non_null(c.classification);
+    sy_cloud_free(&c);
+}
+
+static void dbh_las14_extra_bytes(void **state)
+{
+    (void)state;
+    sy_cloud c;
+    sy_error err = {0};
+    assert_int_equal(sy_read_cloud(data_path("real/lidr/dbh.las"), &c, &err), SY_OK);
+    const double *hag = sy_cloud_attr(&c, "hag"), *cluster = sy_cloud_attr(&c, "cluster");
+    assert_non_null(hag);
+    assert_non_null(cluster);
+    assert_non_null(sy_cloud_attr(&c, "Range"));
+    assert_non_null(sy_cloud_attr(&c, "Ring"));
+    for (size_t i = 0; i < c.n; i++) {
+        assert_true(cluster[i] == floor(cluster[i])); /* int32 field */
+        assert_true(hag[i] > -1.0 && hag[i] < 50.0);   /* height above ground of a stem slice */
+    }
+    sy_cloud_free(&c);
+}
+
+static void tree_1_las14_zero_legacy_count_and_bounds(void **state)
+{
+    (void)state;
+    sy_cloud c;
+    sy_error err = {0};
+    assert_int_equal(sy_read_cloud(data_path("real/pytlidar/tree_1.las"), &c, &err), SY_OK);
+    assert_int_equal(c.n, 90239);
+    double lo[3], hi[3];
+    sy_cloud_bounds(&c, lo, hi);
+    /* Extremes computed independently (Python struct over the raw records). */
+    assert_float_equal(lo[0], 1176135.939, 0.0015);
+    assert_float_equal(hi[0], 1176148.652, 0.0015);
+    assert_float_equal(lo[1], 2857157.829, 0.0015);
+    assert_float_equal(hi[1], 2857176.041, 0.0015);
+    assert_float_equal(lo[2], 0.647, 0.0015);
+    assert_float_equal(hi[2], 13.531, 0.0015);
+    sy_cloud_free(&c);
+}
+
+static void laz_files_are_refused(void **state)
+{
+    (void)state;
+    const char *laz[] = {"real/lidr/MixedConifer.laz", "real/lidr/Megaplot.laz", "real/lidr/dbh.laz",
+                         "real/treels/pine.laz", "real/treels/pine_plot.laz"};
+    for (size_t f = 0; f < sizeof laz / sizeof laz[0]; f++) {
+        const char *path = data_path(laz[f]);
+        sy_cloud c;
+        sy_error err = {0};
+        assert_int_equal(sy_read_cloud(path, &c, &err), SY_EINPUT);
+        assert_non_null(strstr(err.msg, path));
+        assert_non_null(strstr(err.msg, "LAZ is not supported yet"));
+        assert_null(strchr(err.msg, '\n'));
+    }
+    /* The LASzip VLR alone (format bits clear) is enough. */
+    unsigned char *copy;
+    sy_buffer b;
+    sy_error err = {0};
+    assert_int_equal(sy_read_file(data_path("real/lidr/dbh.laz"), &b, &err), SY_OK);
+    copy = b.data;
+    copy[104] &= 0x3F;
+    sy_cloud c;
+    assert_int_equal(sy_read_las_mem("x.laz", copy, b.size, &c, &err), SY_EINPUT);
+    assert_non_null(strstr(err.msg, "LAZ"));
+    sy_buffer_free(&b);
+}
+
+/* ---- every point format and extra-bytes type, built by hand ---- */
+
+static void every_point_format_decodes(void **state)
+{
+    (void)state;
+    for (int f = 0; f <= 10; f++) {
+        for (int minor = 0; minor <= 4; minor += 2) {
+            las_spec s = {.format = f, .minor = minor, .n = 9};
+            if (f >= 6) s.minor = 4; /* formats 6-10 arrived with 1.4 */
+            sy_cloud c;
+            sy_error err = {0};
+            if (read_built(&s, &c, &err) != SY_OK) fail_msg("format %d: %s", f, err.msg);
+            assert_int_equal(c.n, 9);
+            assert_int_equal(c.meta.point_format, f);
+            for (size_t i = 0; i < c.n; i++) {
+                double x = c.origin[0] + c.xyz[3 * i], z = c.origin[2] + c.xyz[3 * i + 2];
+                assert_float_equal(x, pt_x(i) * SCALE + OFF[0], 1e-3);
+                assert_float_equal(z, pt_z(i) * SCALE + OFF[2], 1e-3);
+                assert_int_equal(c.intensity[i], 100 + i);
+                assert_int_equal(c.return_number[i], 1 + i % 3);
+                assert_int_equal(c.num_returns[i], f <= 5 ? 3 : 11);
+                assert_int_equal(c.classification[i], 2 + i % 4 + (f <= 5 ? 0 : 40));
+            }
+            assert_int_equal(c.gps_time != NULL, gps_at[f] >= 0);
+            if (c.gps_time) assert_float_equal(c.gps_time[8], 1008.5, 0);
+            assert_int_equal(c.rgb != NULL, rgb_at[f] >= 0);
+            if (c.rgb) {
+                assert_int_equal(c.rgb[3 * 8], 8 * 256);
+                assert_int_equal(c.rgb[3 * 8 + 1], 8 * 512 + 1);
+                assert_int_equal(c.rgb[3 * 8 + 2], 65535 - 8);
+            }
+            assert_int_equal(c.nir != NULL, nir_at[f] >= 0);
+            if (c.nir) assert_int_equal(c.nir[8], 57);
+            char v[8];
+            snprintf(v, sizeof v, "1.%d", s.minor);
+            assert_string_equal(c.meta.version, v);
+            sy_cloud_free(&c);
+        }
+    }
+}
+
+static void every_extra_bytes_type_decodes(void **state)
+{
+    (void)state;
+    const eb_desc eb[] = {
+        {0, 3, "raw3", 0, 0},          /* undocumented: 3 raw bytes, skipped */
+        {1, 0, "u8", 0, 0},           {2, 0, "i8", 0, 0},
+        {13, 0, "pair_u16", 0, 0},     /* deprecated 2-element array, skipped */
+        {3, 0, "u16", 0, 0},          {4, 0, "i16", 0, 0},
+        {5, 0, "u32", 0, 0},          {6, 0, "treeID", 0, 0},
+        {7, 0, "u64", 0, 0},          {8, 0, "i64", 0, 0},
+        {9, 0, "f32", 0, 0},          {10, 0, "f64", 0, 0},
+        {6, 0x18, "scaled", 0.5, 100}, /* scale and offset bits */
+        {3, 0x08, "scale_only", 0.1, 7}, /* offset bit clear: 7 ignored */
+    };
+    const size_t n_eb = sizeof eb / sizeof eb[0];
+    for (int f = 0; f <= 10; f += 5) {
+        las_spec s = {.format = f, .minor = 4, .n = 20, .eb = eb, .n_eb = n_eb};
+        sy_cloud c;
+        sy_error err = {0};
+        if (read_built(&s, &c, &err) != SY_OK) fail_msg("%s", err.msg);
+        assert_int_equal(c.n_attrs, n_eb - 2);
+        assert_null(sy_cloud_attr(&c, "raw3"));
+        assert_null(sy_cloud_attr(&c, "pair_u16"));
+        for (size_t k = 0; k < n_eb; k++) {
+            if (eb[k].type == 0 || eb[k].type > 10) continue;
+            const double *v = sy_cloud_attr(&c, eb[k].name);
+            assert_non_null(v);
+            for (size_t i = 0; i < c.n; i++) {
+                double want = eb_raw(eb[k].type, i, k);
+                if (eb[k].options & 0x08) want *= eb[k].scale;
+                if (eb[k].options & 0x10) want += eb[k].offset;
+                assert_float_equal(v[i], want, 1e-12);
+            }
+        }
+        /* Positions still right with the extra bytes after them. */
+        assert_float_equal(c.origin[1] + c.xyz[3 * 19 + 1], pt_y(19) * SCALE + OFF[1], 1e-3);
+        sy_cloud_free(&c);
+    }
+}
+
+static void unknown_extra_type_stops_the_layout(void **state)
+{
+    (void)state;
+    /* Type 200 has no known size, so nothing after it can be located. */
+    const eb_desc eb[] = {{6, 0, "first", 0, 0}, {200, 0, "mystery", 0, 0}, {6, 0, "after", 0, 0}};
+    las_spec s = {.format = 6, .minor = 4, .n = 5, .eb = eb, .n_eb = 3};
+    sy_cloud c;
+    sy_error err = {0};
+    size_t size = build_las(&s, buf, sizeof buf);
+    assert_int_equal(sy_read_las_mem("u.las", buf, size, &c, &err), SY_OK);
+    assert_non_null(sy_cloud_attr(&c, "first"));
+    assert_null(sy_cloud_attr(&c, "mystery"));
+    assert_int_equal(c.n_attrs, 1);
+    assert_float_equal(sy_cloud_attr(&c, "first")[4], -5.0, 0);
+    assert_null(sy_cloud_attr(&c, "after"));
+    sy_cloud_free(&c);
+}
+
+static void wkt_crs_from_vlr_and_evlr(void **state)
+{
+    (void)state;
+    const char *wkt = "PROJCS[\"NAD83 / UTM zone 12N\",\n  GEOGCS[\"NAD83\"],UNIT[\"metre\",1]]";
+    for (int evlr = 0; evlr <= 1; evlr++) {
+        las_spec s = {.format = 6, .minor = 4, .n = 4, .wkt = wkt, .wkt_as_evlr = evlr};
+        sy_cloud c;
+        sy_error err = {0};
+        if (read_built(&s, &c, &err) != SY_OK) fail_msg("%s", err.msg);
+        assert_int_equal(c.n, 4);
+        assert_string_equal(c.meta.crs, "PROJCS[\"NAD83 / UTM zone 12N\", GEOGCS[\"NAD83\"],UNIT[\"metre\",1]]");
+        assert_non_null(strstr(c.meta.vlr_summary, "LASF_Projection/2112: "));
+        sy_cloud_free(&c);
+    }
+}
+
+static void long_wkt_is_cut_and_many_vlrs_are_counted(void **state)
+{
+    (void)state;
+    static char wkt[2000];
+    snprintf(wkt, sizeof wkt, "PROJCS[\"Long\",");
+    while (strlen(wkt) < sizeof wkt - 20) strcat(wkt, "PARAMETER[\"x\",1],");
+    strcat(wkt, "]");
+    las_spec s = {.format = 1, .minor = 2, .n = 3, .wkt = wkt, .n_empty_vlrs = 100};
+    sy_cloud c;
+    sy_error err = {0};
+    if (read_built(&s, &c, &err) != SY_OK) fail_msg("%s", err.msg);
+    assert_int_equal(strlen(c.meta.crs), 512 + 3);
+    assert_memory_equal(c.meta.crs, wkt, 512);
+    assert_string_equal(c.meta.crs + 512, "...");
+    /* 101 VLRs: 64 lines, then a count of the rest. */
+    size_t lines = 1;
+    for (const char *p = c.meta.vlr_summary; *p; p++) lines += *p == '\n';
+    assert_int_equal(lines, 65);
+    assert_non_null(strstr(c.meta.vlr_summary, "\n... and 37 more VLRs"));
+    assert_non_null(strstr(c.meta.vlr_summary, "test/62: "));
+    sy_cloud_free(&c);
+}
+
+/* ---- malformed input ---- */
+
+typedef enum {
+    TRUNCATE_HEADER, TRUNCATE_POINTS, BAD_SIGNATURE, INFLATE_COUNT, HUGE_COUNT, ZERO_SCALE, NAN_SCALE,
+    VLR_PAST_EOF, SHORT_RECORD, OFFSET_PAST_EOF, INF_COORD, EVLR_PAST_EOF, HEADER_SIZE_SMALL, N_DAMAGE
+} damage;
+
+static size_t damage_file(unsigned char *b, size_t size, damage d)
+{
+    switch (d) {
+    case TRUNCATE_HEADER: return 200;
+    case TRUNCATE_POINTS: return size - 7;
+    case BAD_SIGNATURE: b[3] = 'X'; break;
+    case INFLATE_COUNT: put64(b + 247, 11); break;
+    case HUGE_COUNT: put64(b + 247, UINT64_C(1) << 62); break;
+    case ZERO_SCALE: putf64(b + 139, 0.0); break;
+    case NAN_SCALE: putf64(b + 147, NAN); break;
+    case VLR_PAST_EOF: put16(b + 375 + 20, 65535); break;
+    case SHORT_RECORD: put16(b + 105, 29); break;
+    case OFFSET_PAST_EOF: put32(b + 96, (uint32_t)size + 10); break;
+    case INF_COORD: putf64(b + 131, 1e307); break;
+    case EVLR_PAST_EOF: put64(b + 235, size + 100); put32(b + 243, 1); break;
+    case HEADER_SIZE_SMALL: put16(b + 94, 100); break;
+    case N_DAMAGE: break;
+    }
+    return size;
+}
+
+static void malformed_files_fail_with_the_path(void **state)
+{
+    (void)state;
+    const eb_desc eb[] = {{6, 0, "treeID", 0, 0}};
+    las_spec s = {.format = 6, .minor = 4, .n = 10, .eb = eb, .n_eb = 1};
+    size_t size = build_las(&s, buf, sizeof buf);
+    static unsigned char copy[sizeof buf];
+    for (int d = 0; d < N_DAMAGE; d++) {
+        memcpy(copy, buf, size);
+        size_t len = damage_file(copy, size, (damage)d);
+        char name[64];
+        snprintf(name, sizeof name, "damaged_%d.las", d);
+        const char *path = tmp_path(name);
+        assert_int_equal(write_bytes(path, copy, len), 0);
+        sy_cloud c;
+        sy_error err = {0};
+        sy_code rc = sy_read_cloud(path, &c, &err);
+        if (rc != SY_EINPUT) fail_msg("damage %d: rc %d, %s", d, rc, err.msg);
+        assert_non_null(strstr(err.msg, path));
+        assert_null(strchr(err.msg, '\n'));
+        if (d == INFLATE_COUNT) assert_non_null(strstr(err.msg, "header promises 11 points, file holds 10"));
+        if (d == HUGE_COUNT) assert_non_null(strstr(err.msg, "file holds 10"));
+        if (d == INF_COORD) assert_non_null(strstr(err.msg, "non-finite"));
+    }
+    /* The undamaged original reads, so each failure above is the damage. */
+    sy_cloud c;
+    sy_error err = {0};
+    assert_int_equal(sy_read_las_mem("ok.las", buf, size, &c, &err), SY_OK);
+    assert_int_equal(c.n, 10);
+    sy_cloud_free(&c);
+    /* Every proper prefix fails cleanly: the points fill the file exactly. */
+    for (size_t len = 0; len < size; len++) {
+        sy_error e = {0};
+        assert_int_equal(sy_read_las_mem("cut.las", buf, len, &c, &e), SY_EINPUT);
+        assert_non_null(strstr(e.msg, "cut.las"));
+    }
+}
+
+/* ---- writer round trips ---- */
+
+static void fill_cloud(sy_cloud *c, size_t n, int with_rgb, int with_nir)
+{
+    sy_error err = {0};
+    assert_int_equal(sy_cloud_init(c, n, &err), SY_OK);
+    c->origin[0] = 684766.0;
+    c->origin[1] = 5017773.0;
+    c->origin[2] = 120.0;
+    assert_int_equal(sy_cloud_add_intensity(c, &err), SY_OK);
+    assert_int_equal(sy_cloud_add_returns(c, &err), SY_OK);
+    assert_int_equal(sy_cloud_add_classification(c, &err), SY_OK);
+    assert_int_equal(sy_cloud_add_gps_time(c, &err), SY_OK);
+    if (with_rgb) assert_int_equal(sy_cloud_add_rgb(c, &err), SY_OK);
+    if (with_nir) c->nir = calloc(n, sizeof(uint16_t));
+    double *tree = sy_cloud_add_attr(c, "treeID", &err);
+    double *height = sy_cloud_add_attr(c, "height_above_ground", &err);
+    double *big = sy_cloud_add_attr(c, "big_count", &err);
+    assert_non_null(tree);
+    assert_non_null(height);
+    assert_non_null(big);
+    for (size_t i = 0; i < n; i++) {
+        c->xyz[3 * i] = (float)(i % 97) * 0.731f;
+        c->xyz[3 * i + 1] = (float)(i % 89) * 1.113f;
+        c->xyz[3 * i + 2] = 0.0173f * (float)i;
+        c->intensity[i] = (uint16_t)(i * 37);
+        c->return_number[i] = (uint8_t)(1 + i % 5);
+        c->num_returns[i] = 5;
+        c->classification[i] = (uint8_t)(i % 7 == 0 ? 2 : 5);
+        c->gps_time[i] = 3.0e8 + 0.001 * (double)i;
+        if (with_rgb)
+            for (int k = 0; k < 3; k++) c->rgb[3 * i + k] = (uint16_t)(i * (k + 3) * 11);
+        if (with_nir) c->nir[i] = (uint16_t)(i + 5);
+        tree[i] = i % 13 == 0 ? NAN : (double)(i / 10) - 3.0; /* NaN: in no tree */
+        height[i] = 0.1 * (double)i + 1.0 / 3.0;
+        big[i] = 3.0e9 + (double)i; /* integral but past int32: needs double */
+    }
+}
+
+static void assert_round_trip(const sy_cloud *a, const sy_cloud *b, int format)
+{
+    assert_int_equal(b->n, a->n);
+    assert_int_equal(b->meta.point_format, format);
+    assert_string_equal(b->meta.version, "1.4");
+    for (size_t i = 0; i < a->n; i++) {
+        for (int k = 0; k < 3; k++) {
+            double wa = a->origin[k] + a->xyz[3 * i + k], wb = b->origin[k] + b->xyz[3 * i + k];
+            assert_float_equal(wa, wb, 0.00005 + 1e-5);
+        }
+        assert_int_equal(b->intensity[i], a->intensity[i]);
+        assert_int_equal(b->return_number[i], a->return_number[i]);
+        assert_int_equal(b->num_returns[i], a->num_returns[i]);
+        assert_int_equal(b->classification[i], a->classification[i]);
+        assert_true(b->gps_time[i] == a->gps_time[i]);
+        if (a->rgb)
+            for (int k = 0; k < 3; k++) assert_int_equal(b->rgb[3 * i + k], a->rgb[3 * i + k]);
+        if (a->nir) assert_int_equal(b->nir[i], a->nir[i]);
+    }
+    assert_int_equal(b->n_attrs, a->n_attrs);
+    for (size_t t = 0; t < a->n_attrs; t++) {
+        const double *v = sy_cloud_attr(b, a->attrs[t].name);
+        assert_non_null(v);
+        for (size_t i = 0; i < a->n; i++) {
+            double want = a->attrs[t].values[i];
+            assert_true(v[i] == want || (isnan(v[i]) && isnan(want)));
+        }
+    }
+    assert_int_equal(b->rgb != NULL, a->rgb != NULL);
+    assert_int_equal(b->nir != NULL, a->nir != NULL);
+}
+
+static void round_trip(int with_rgb, int with_nir, int format)
+{
+    sy_cloud a, b;
+    sy_error err = {0};
+    fill_cloud(&a, 5000, with_rgb, with_nir);
+    char name[32];
+    snprintf(name, sizeof name, "rt%d.las", format);
+    const char *path = tmp_path(name);
+    assert_int_equal(sy_write_las(path, &a, &err), SY_OK);
+    if (sy_read_cloud(path, &b, &err) != SY_OK) fail_msg("%s", err.msg);
+    assert_round_trip(&a, &b, format);
+    /* Header: legacy count 0 (formats 6-10), 64-bit count, bounds = points. */
+    sy_buffer f;
+    assert_int_equal(sy_read_file(path, &f, &err), SY_OK);
+    assert_int_equal(f.data[107] | f.data[108] | f.data[109] | f.data[110], 0);
+    uint64_t count64 = 0;
+    for (int i = 0; i < 8; i++) count64 |= (uint64_t)f.data[247 + i] << (8 * i);
+    assert_int_equal(count64, a.n);
+    double lo[3], hi[3];
+    sy_cloud_bounds(&b, lo, hi);
+    for (int k = 0; k < 3; k++) {
+        assert_float_equal(getf64(f.data + 179 + 16 * k), hi[k], 1e-6);
+        assert_float_equal(getf64(f.data + 187 + 16 * k), lo[k], 1e-6);
+    }
+    /* by-return counts: returns 1..5 in turn. */
+    for (int r = 0; r < 5; r++) {
+        uint64_t by = 0;
+        for (int i = 0; i < 8; i++) by |= (uint64_t)f.data[255 + 8 * r + i] << (8 * i);
+        assert_int_equal(by, 1000);
+    }
+    /* treeID is integral and small: stored as int32 (type 6) with its NaNs as
+     * no_data (option bit 0); height and big_count as double (type 10).
+     * Descriptors follow the 54-byte VLR header. */
+    const unsigned char *desc = f.data + 375 + 54;
+    assert_string_equal((const char *)desc + 4, "treeID");
+    assert_int_equal(desc[2], 6);
+    assert_int_equal(desc[3] & 1, 1);
+    assert_int_equal(desc[192 + 2], 10);
+    assert_int_equal(desc[384 + 2], 10);
+    sy_buffer_free(&f);
+    sy_cloud_free(&a);
+    sy_cloud_free(&b);
+}
+
+static void round_trip_format_6(void **state)
+{
+    (void)state;
+    round_trip(0, 0, 6);
+}
+static void round_trip_format_7_rgb(void **state)
+{
+    (void)state;
+    round_trip(1, 0, 7);
+}
+static void round_trip_format_8_nir(void **state)
+{
+    (void)state;
+    round_trip(1, 1, 8);
+}
+
+static void round_trip_real_file_and_crs(void **state)
+{
+    (void)state;
+    sy_cloud a, b;
+    sy_error err = {0};
+    assert_int_equal(sy_read_cloud(data_path("real/lidr/MixedConifer.las"), &a, &err), SY_OK);
+    const char *path = tmp_path("mixed.las");
+    assert_int_equal(sy_write_las(path, &a, &err), SY_OK);
+    assert_int_equal(sy_read_cloud(path, &b, &err), SY_OK);
+    assert_int_equal(b.n, 37657);
+    assert_string_equal(b.meta.crs, "EPSG:26912");
+    const double *ta = sy_cloud_attr(&a, "treeID"), *tb = sy_cloud_attr(&b, "treeID");
+    assert_non_null(tb);
+    for (size_t i = 0; i < a.n; i++) {
+        assert_true(ta[i] == tb[i] || (isnan(ta[i]) && isnan(tb[i])));
+        for (int k = 0; k < 3; k++)
+            assert_float_equal(a.origin[k] + a.xyz[3 * i + k], b.origin[k] + b.xyz[3 * i + k], 0.00005 + 1e-5);
+    }
+    sy_cloud_free(&b);
+    /* A WKT CRS goes out as a WKT VLR. */
+    free(a.meta.crs);
+    a.meta.crs = strdup("PROJCS[\"WGS 84 / UTM zone 12N\",GEOGCS[\"WGS 84\"]]");
+    assert_int_equal(sy_write_las(path, &a, &err), SY_OK);
+    assert_int_equal(sy_read_cloud(path, &b, &err), SY_OK);
+    assert_string_equal(b.meta.crs, a.meta.crs);
+    sy_cloud_free(&b);
+    sy_cloud_free(&a);
+}
+
+static void wide_cloud_gets_a_coarser_scale(void **state)
+{
+    (void)state;
+    sy_cloud a, b;
+    sy_error err = {0};
+    assert_int_equal(sy_cloud_init(&a, 3, &err), SY_OK);
+    a.xyz[0] = 500000.0f; /* 500 km from the origin: past int32 at 0.1 mm */
+    a.xyz[4] = -250000.5f;
+    a.xyz[8] = 12.25f;
+    const char *path = tmp_path("wide.las");
+    assert_int_equal(sy_write_las(path, &a, &err), SY_OK);
+    assert_int_equal(sy_read_cloud(path, &b, &err), SY_OK);
+    for (size_t i = 0; i < 9; i++)
+        assert_float_equal(a.origin[i % 3] + a.xyz[i], b.origin[i % 3] + b.xyz[i], 0.0005 + 0.02);
+    sy_cloud_free(&a);
+    sy_cloud_free(&b);
+}
+
+static void failed_write_leaves_no_file(void **state)
+{
+    (void)state;
+    sy_cloud a;
+    sy_error err = {0};
+    assert_int_equal(sy_cloud_init(&a, 2, &err), SY_OK);
+    a.xyz[4] = NAN;
+    const char *path = tmp_path("nan.las");
+    assert_int_equal(sy_write_las(path, &a, &err), SY_EINPUT);
+    assert_non_null(strstr(err.msg, path));
+    assert_false(file_exists(path));
+    assert_int_equal(sy_write_las("/nonexistent-dir/x.las", &a, &err) != SY_OK, 1);
+    sy_cloud_free(&a);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(real_files_have_exact_counts_and_header_bounds),
+        cmocka_unit_test(mixed_conifer_has_integer_tree_ids),
+        cmocka_unit_test(dbh_las14_extra_bytes),
+        cmocka_unit_test(tree_1_las14_zero_legacy_count_and_bounds),
+        cmocka_unit_test(laz_files_are_refused),
+        cmocka_unit_test(every_point_format_decodes),
+        cmocka_unit_test(every_extra_bytes_type_decodes),
+        cmocka_unit_test(unknown_extra_type_stops_the_layout),
+        cmocka_unit_test(wkt_crs_from_vlr_and_evlr),
+        cmocka_unit_test(long_wkt_is_cut_and_many_vlrs_are_counted),
+        cmocka_unit_test(malformed_files_fail_with_the_path),
+        cmocka_unit_test(round_trip_format_6),
+        cmocka_unit_test(round_trip_format_7_rgb),
+        cmocka_unit_test(round_trip_format_8_nir),
+        cmocka_unit_test(round_trip_real_file_and_crs),
+        cmocka_unit_test(wide_cloud_gets_a_coarser_scale),
+        cmocka_unit_test(failed_write_leaves_no_file),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

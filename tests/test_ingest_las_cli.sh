@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# CLI checks for the LAS reader/writer: info, LAZ refusal, convert round trip,
+# and no output left behind by a failing convert.
+set -u
+fail() { echo "FAIL: $*" >&2; exit 1; }
+: "${SYLVA:?SYLVA must point at the sylva binary}"
+: "${SYLVA_DATA_DIR:?}"
+MC="$SYLVA_DATA_DIR/real/lidr/MixedConifer.las"
+LAZ="$SYLVA_DATA_DIR/real/lidr/MixedConifer.laz"
+TMP=$(mktemp -d "${TMPDIR:-/tmp}/sylva-las-XXXXXX")
+trap 'rm -rf "$TMP"' EXIT
+
+json=$("$SYLVA" info --json "$MC") || fail "info on MixedConifer.las exited $?"
+echo "$json" | grep -q '"point_count":37657' || fail "point_count 37657 missing: $json"
+echo "$json" | grep -q '"attributes":\[[^]]*"treeID"' || fail "treeID missing from attributes: $json"
+echo "$json" | grep -q '"crs":"EPSG:26912"' || fail "crs EPSG:26912 missing: $json"
+
+"$SYLVA" info "$LAZ" >"$TMP/out" 2>"$TMP/err"
+rc=$?
+[ "$rc" -eq 2 ] || fail "info on .laz exited $rc, want 2"
+[ "$(wc -l <"$TMP/err")" -eq 1 ] || fail "info on .laz: want one stderr line, got: $(cat "$TMP/err")"
+grep -q 'LAZ is not supported' "$TMP/err" || fail "LAZ message missing: $(cat "$TMP/err")"
+grep -q "MixedConifer.laz" "$TMP/err" || fail "LAZ message does not name the file"
+
+"$SYLVA" convert "$MC" -o "$TMP/X.las" 2>"$TMP/err" || fail "convert exited $?: $(cat "$TMP/err")"
+json=$("$SYLVA" info --json "$TMP/X.las") || fail "info on converted file exited $?"
+echo "$json" | grep -q '"point_count":37657' || fail "converted point_count: $json"
+echo "$json" | grep -q '"attributes":\[[^]]*"treeID"' || fail "converted treeID: $json"
+echo "$json" | grep -q '"version":"1.4"' || fail "converted version: $json"
+
+# A failing convert (LAZ input; then a truncated LAS) leaves nothing behind.
+mkdir "$TMP/out_dir"
+"$SYLVA" convert "$LAZ" -o "$TMP/out_dir/Y.las" 2>/dev/null && fail "convert of .laz succeeded"
+head -c 4000 "$MC" >"$TMP/cut.las"
+"$SYLVA" convert "$TMP/cut.las" -o "$TMP/out_dir/Z.las" 2>"$TMP/err"
+rc=$?
+[ "$rc" -eq 2 ] || fail "convert of truncated LAS exited $rc, want 2"
+grep -q "cut.las" "$TMP/err" || fail "truncated message does not name the file: $(cat "$TMP/err")"
+[ -z "$(ls -A "$TMP/out_dir")" ] || fail "failing convert left files: $(ls -A "$TMP/out_dir")"
+echo "ok"
