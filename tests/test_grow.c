@@ -169,6 +169,10 @@ static void parser_errors_name_file_and_line(void **state)
     parse_fails_at("[General]\nShape 4\n", 2, "expected key = value");
     parse_fails_at("[Sylva]\ntranslucency=1.5\n", 2, "outside");
     parse_fails_at("[ParamLevel7]\n", 1, "unknown section");
+    sy_species ok = parse_ok("[ParamLevel0]\n0Scale=1.5\n");
+    assert_float_equal(ok.scale0, 1.5f, 0);
+    sy_species_free(&ok);
+    parse_fails_at("[ParamLevel1]\n0Scale=1.5\n", 2, "misplaced key 0Scale");
     /* Whole-file consistency has no line. */
     sy_species sp;
     sy_error err = {0};

@@ -331,7 +331,9 @@ static sy_code handle_key(parser *p, sy_species *sp, char *key, char *value)
         if (rc) return rc;
         return set_value(p, k, sp, value, k->offset != offsetof(sy_species, name));
     }
-    if (p->section == S_GENERAL && (k = lookup(general_keys, N_GENERAL, key, &idx))) {
+    /* 0Scale/0ScaleV are trunk keys too: accept them in [ParamLevel0]. */
+    int general_ok = p->section == S_GENERAL || (p->section == S_LEVEL && p->level == 0 && key[0] == '0');
+    if (general_ok && (k = lookup(general_keys, N_GENERAL, key, &idx))) {
         sy_code rc = mark_seen(p, 0, idx, key);
         if (rc) return rc;
         return set_value(p, k, sp, value, k->type == K_STRING);
