@@ -1,0 +1,330 @@
+/* Species materials: bark and leaf-card images decoded with stb_image,
+ * filtered through the OpenCV shim (image_cv.h), stored as PNG in the asset.
+ * Without images, a deterministic procedural bark and a plain leaf
+ * silhouette stand in. */
+#include "species/materials.h"
+
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <stb_image.h>
+#include <stb_image_write.h>
+
+#include "species/image_cv.h"
+
+#define BARK_NORMAL_STRENGTH 6.0f /* bark photos have shallow luminance relief */
+#define LEAF_NORMAL_STRENGTH 2.0f
+#define ALPHA_THRESHOLD 40.0f     /* RGB distance from the background, 0..255 */
+#define MAX_DECODE_SIDE 16384
+
+typedef struct {
+    int w, h;
+    unsigned char *rgba;
+} image;
+
+static void image_free(image *im)
+{
+    free(im->rgba);
+    im->rgba = NULL;
+}
+
+/* ------------------------------------------------------------ PNG bytes */
+
+typedef struct {
+    unsigned char *data;
+    size_t size, cap;
+    int failed;
+} png_sink;
+
+static void sink_write(void *ctx, void *data, int size)
+{
+    png_sink *s = ctx;
+    if (s->failed || size <= 0) return;
+    if (s->size + (size_t)size > s->cap) {
+        size_t cap = (s->cap ? s->cap * 2 : 4096) + (size_t)size;
+        unsigned char *p = realloc(s->data, cap);
+        if (!p) {
+            s->failed = 1;
+            return;
+        }
+        s->data = p;
+        s->cap = cap;
+    }
+    memcpy(s->data + s->size, data, (size_t)size);
+    s->size += (size_t)size;
+}
+
+/* Encodes pixels (comp channels) as PNG and appends it to the asset. */
+static int add_png(sy_asset *asset, const char *name, const unsigned char *pixels, int w, int h, int comp,
+                   sy_error *err)
+{
+    png_sink s = {0};
+    if (!stbi_write_png_to_func(sink_write, &s, w, h, comp, pixels, w * comp) || s.failed) {
+        free(s.data);
+        sy_fail(err, SY_EINTERNAL, "%s: PNG encoding failed", name);
+        return -1;
+    }
+    sy_image img;
+    memset(&img, 0, sizeof img);
+    img.png = s.data;
+    img.size = s.size;
+    snprintf(img.name, sizeof img.name, "%s", name);
+    int idx = sy_asset_add_image(asset, &img, err);
+    if (idx < 0) free(s.data);
+    return idx;
+}
+
+/* --------------------------------------------------------- decode/resize */
+
+static int is_pow2_floor(int v)
+{
+    int p = 1;
+    while (p * 2 <= v) p *= 2;
+    return p;
+}
+
+/* Power-of-two size no larger than max_size, keeping the aspect as close as
+ * powers of two allow (nearest in log2 for the short side). */
+static void target_size(int w, int h, int max_size, int *tw, int *th)
+{
+    int longest = w > h ? w : h;
+    int lp = is_pow2_floor(longest < max_size ? longest : max_size);
+    double short_side = (double)(w < h ? w : h) * lp / longest;
+    int sp = 1;
+    while (sp * 2 <= lp && fabs(log2(sp * 2.0) - log2(short_side)) < fabs(log2((double)sp) - log2(short_side)))
+        sp *= 2;
+    *tw = w >= h ? lp : sp;
+    *th = w >= h ? sp : lp;
+}
+
+/* Loads path as RGBA; *had_alpha tells whether the file carried alpha. */
+static sy_code load_rgba(const char *path, image *im, int *had_alpha, sy_error *err)
+{
+    int w, h, comp;
+    if (!stbi_info(path, &w, &h, &comp))
+        return sy_fail(err, SY_EINPUT, "%s: cannot read image (%s)", path, stbi_failure_reason());
+    if (w <= 0 || h <= 0 || w > MAX_DECODE_SIDE || h > MAX_DECODE_SIDE)
+        return sy_fail(err, SY_EINPUT, "%s: image size %dx%d is outside 1..%d", path, w, h, MAX_DECODE_SIDE);
+    im->rgba = stbi_load(path, &im->w, &im->h, &comp, 4);
+    if (!im->rgba) return sy_fail(err, SY_EINPUT, "%s: cannot decode image (%s)", path, stbi_failure_reason());
+    *had_alpha = comp == 2 || comp == 4;
+    return SY_OK;
+}
+
+static sy_code resize_to(image *im, int max_size, const char *what, sy_error *err)
+{
+    int tw, th;
+    target_size(im->w, im->h, max_size, &tw, &th);
+    if (tw == im->w && th == im->h) return SY_OK;
+    unsigned char *dst = malloc((size_t)tw * (size_t)th * 4);
+    if (!dst) return sy_fail(err, SY_EINTERNAL, "%s: out of memory", what);
+    if (sy_cv_resize_rgba(im->rgba, im->w, im->h, dst, tw, th)) {
+        free(dst);
+        return sy_fail(err, SY_EINTERNAL, "%s: resize failed", what);
+    }
+    free(im->rgba);
+    im->rgba = dst;
+    im->w = tw;
+    im->h = th;
+    return SY_OK;
+}
+
+/* ------------------------------------------------------- procedural art */
+
+static uint32_t hash2(int x, int y, uint32_t seed)
+{
+    uint32_t h = (uint32_t)x * 0x8DA6B343u ^ (uint32_t)y * 0xD8163841u ^ seed * 0xCB1AB31Fu;
+    h ^= h >> 13;
+    h *= 0x5BD1E995u;
+    return h ^ (h >> 15);
+}
+
+/* Periodic value noise: the lattice wraps at (px, py) cells so it tiles. */
+static float value_noise(float x, float y, int px, int py, uint32_t seed)
+{
+    int x0 = (int)floorf(x), y0 = (int)floorf(y);
+    float fx = x - (float)x0, fy = y - (float)y0;
+    fx = fx * fx * (3 - 2 * fx);
+    fy = fy * fy * (3 - 2 * fy);
+    float v[4];
+    for (int k = 0; k < 4; k++) {
+        int cx = ((x0 + (k & 1)) % px + px) % px, cy = ((y0 + (k >> 1)) % py + py) % py;
+        v[k] = (float)(hash2(cx, cy, seed) & 0xFFFF) / 65535.0f;
+    }
+    return (v[0] * (1 - fx) + v[1] * fx) * (1 - fy) + (v[2] * (1 - fx) + v[3] * fx) * fy;
+}
+
+/* Bark: vertical furrows (noise stretched along v) over fine grain. */
+static sy_code procedural_bark(int size, image *im, sy_error *err)
+{
+    im->w = im->h = size;
+    im->rgba = malloc((size_t)size * (size_t)size * 4);
+    if (!im->rgba) return sy_fail(err, SY_EINTERNAL, "bark: out of memory");
+    for (int y = 0; y < size; y++)
+        for (int x = 0; x < size; x++) {
+            float u = (float)x / (float)size, v = (float)y / (float)size;
+            float ridges = 0, amp = 0.6f;
+            for (int o = 0; o < 4; o++) {
+                int cx = 8 << o, cy = 2 << o;
+                ridges += amp * value_noise(u * (float)cx, v * (float)cy, cx, cy, 7u + (uint32_t)o);
+                amp *= 0.5f;
+            }
+            float grain = value_noise(u * 64, v * 64, 64, 64, 99u);
+            float h = 0.8f * ridges + 0.2f * grain;
+            unsigned char *p = im->rgba + 4 * ((size_t)y * (size_t)size + (size_t)x);
+            p[0] = (unsigned char)(40 + 90 * h);
+            p[1] = (unsigned char)(30 + 70 * h);
+            p[2] = (unsigned char)(22 + 48 * h);
+            p[3] = 255;
+        }
+    return SY_OK;
+}
+
+/* Leaf: a pointed blade (width sin(pi t)^0.8 along the axis) with a lighter
+ * midrib, tip at the top of the image, petiole at the bottom. */
+static sy_code procedural_leaf(int size, image *im, sy_error *err)
+{
+    im->h = size;
+    im->w = size / 2 > 0 ? size / 2 : 1;
+    im->rgba = calloc((size_t)im->w * (size_t)im->h, 4);
+    if (!im->rgba) return sy_fail(err, SY_EINTERNAL, "leaf: out of memory");
+    for (int y = 0; y < im->h; y++)
+        for (int x = 0; x < im->w; x++) {
+            float t = 1.0f - ((float)y + 0.5f) / (float)im->h; /* 0 at the petiole, 1 at the tip */
+            float s = 2.0f * ((float)x + 0.5f) / (float)im->w - 1.0f;
+            float half = 0.9f * powf(sinf(3.14159265f * (0.05f + 0.95f * t)), 0.8f);
+            unsigned char *p = im->rgba + 4 * ((size_t)y * (size_t)im->w + (size_t)x);
+            int petiole = t < 0.08f && fabsf(s) < 0.06f;
+            if (fabsf(s) > half && !petiole) continue;
+            float rib = fabsf(s) < 0.04f ? 1.0f : 0.0f;
+            float shade = 0.85f + 0.15f * (1 - fabsf(s));
+            p[0] = (unsigned char)((60 + 50 * rib) * shade);
+            p[1] = (unsigned char)((120 + 40 * rib) * shade);
+            p[2] = (unsigned char)((40 + 20 * rib) * shade);
+            p[3] = 255;
+        }
+    return SY_OK;
+}
+
+/* ------------------------------------------------------------ materials */
+
+static float srgb_to_linear(float c)
+{
+    return c <= 0.04045f ? c / 12.92f : powf((c + 0.055f) / 1.055f, 2.4f);
+}
+
+/* Mean linear albedo of the opaque texels, scaled so its largest channel is
+ * 1: the hue of light passing through the leaf. */
+static void leaf_transmission_color(const image *im, float out[3])
+{
+    double sum[3] = {0, 0, 0};
+    size_t n = 0;
+    for (size_t i = 0; i < (size_t)im->w * (size_t)im->h; i++) {
+        const unsigned char *p = im->rgba + 4 * i;
+        if (p[3] < 128) continue;
+        for (int c = 0; c < 3; c++) sum[c] += srgb_to_linear((float)p[c] / 255.0f);
+        n++;
+    }
+    float m = 0;
+    for (int c = 0; c < 3; c++) {
+        out[c] = n ? (float)(sum[c] / (double)n) : 0.0f;
+        if (out[c] > m) m = out[c];
+    }
+    for (int c = 0; c < 3; c++) out[c] = m > 0 ? out[c] / m : 1.0f;
+}
+
+/* Adds the colour and normal images of im; returns 0 or -1 (err set). */
+static int add_maps(sy_asset *asset, const char *prefix, const image *im, int rgba, float strength, int wrap,
+                    int *color_idx, int *normal_idx, sy_error *err)
+{
+    size_t n = (size_t)im->w * (size_t)im->h;
+    unsigned char *buf = malloc(n * 3);
+    if (!buf) {
+        sy_fail(err, SY_EINTERNAL, "%s: out of memory", prefix);
+        return -1;
+    }
+    char name[48];
+    int rc = 0;
+    if (rgba) {
+        snprintf(name, sizeof name, "%s_color", prefix);
+        *color_idx = add_png(asset, name, im->rgba, im->w, im->h, 4, err);
+    } else {
+        for (size_t i = 0; i < n; i++) memcpy(buf + 3 * i, im->rgba + 4 * i, 3);
+        snprintf(name, sizeof name, "%s_color", prefix);
+        *color_idx = add_png(asset, name, buf, im->w, im->h, 3, err);
+    }
+    if (*color_idx < 0) rc = -1;
+    if (rc == 0 && sy_cv_normal_map(im->rgba, im->w, im->h, strength, wrap, buf)) {
+        sy_fail(err, SY_EINTERNAL, "%s: normal map failed", prefix);
+        rc = -1;
+    }
+    if (rc == 0) {
+        snprintf(name, sizeof name, "%s_normal", prefix);
+        *normal_idx = add_png(asset, name, buf, im->w, im->h, 3, err);
+        if (*normal_idx < 0) rc = -1;
+    }
+    free(buf);
+    return rc;
+}
+
+static sy_code make_bark(const sy_material_spec *spec, int max_size, sy_asset *asset, int *out, sy_error *err)
+{
+    image im = {0};
+    int had_alpha = 0;
+    sy_code rc = spec->bark_image ? load_rgba(spec->bark_image, &im, &had_alpha, err)
+                                  : procedural_bark(is_pow2_floor(max_size), &im, err);
+    if (rc == SY_OK && spec->bark_image) rc = resize_to(&im, max_size, spec->bark_image, err);
+    int color = -1, normal = -1;
+    if (rc == SY_OK && add_maps(asset, "bark", &im, 0, BARK_NORMAL_STRENGTH, 1, &color, &normal, err)) rc = err->code;
+    image_free(&im);
+    if (rc) return rc;
+    sy_material m = sy_material_default("bark");
+    m.base_color_image = color;
+    m.normal_image = normal;
+    m.roughness = 0.9f;
+    *out = sy_asset_add_material(asset, &m, err);
+    return *out < 0 ? SY_EINTERNAL : SY_OK;
+}
+
+static sy_code make_leaf(const sy_material_spec *spec, int max_size, float translucency, sy_asset *asset,
+                             int *out, sy_error *err)
+{
+    image im = {0};
+    int had_alpha = 1;
+    sy_code rc = spec->leaf_image ? load_rgba(spec->leaf_image, &im, &had_alpha, err)
+                                  : procedural_leaf(is_pow2_floor(max_size), &im, err);
+    if (rc == SY_OK && !had_alpha && sy_cv_alpha_from_background(im.rgba, im.w, im.h, ALPHA_THRESHOLD))
+        rc = sy_fail(err, SY_EINTERNAL, "%s: alpha extraction failed", spec->leaf_image);
+    if (rc == SY_OK && spec->leaf_image) rc = resize_to(&im, max_size, spec->leaf_image, err);
+    int color = -1, normal = -1;
+    if (rc == SY_OK && add_maps(asset, "leaf", &im, 1, LEAF_NORMAL_STRENGTH, 0, &color, &normal, err)) rc = err->code;
+    sy_material m = sy_material_default("leaf");
+    if (rc == SY_OK) leaf_transmission_color(&im, m.diffuse_transmission_color);
+    image_free(&im);
+    if (rc) return rc;
+    m.base_color_image = color;
+    m.normal_image = normal;
+    m.roughness = 0.7f;
+    m.alpha_mode = SY_ALPHA_MASK;
+    m.alpha_cutoff = 0.5f;
+    m.double_sided = 1;
+    m.diffuse_transmission = translucency;
+    *out = sy_asset_add_material(asset, &m, err);
+    return *out < 0 ? SY_EINTERNAL : SY_OK;
+}
+
+sy_code sy_species_materials(const sy_material_spec *spec, sy_asset *asset, int *bark_material, int *leaf_material,
+                             sy_error *err)
+{
+    int max_size = spec->max_size > 0 ? spec->max_size : 512;
+    if (max_size > 8192) max_size = 8192;
+    float translucency = spec->leaf_translucency < 0 ? 0.4f : spec->leaf_translucency; /* negative: default */
+    if (!(translucency <= 1))
+        return sy_fail(err, SY_EINPUT, "leaf translucency %g is outside [0, 1]", translucency);
+    sy_code rc = make_bark(spec, max_size, asset, bark_material, err);
+    if (rc) return rc;
+    return make_leaf(spec, max_size, translucency, asset, leaf_material, err);
+}

@@ -1,0 +1,296 @@
+/* Species materials: normal maps from luminance, PNG round trips, the
+ * leaf material's alpha mask, double-sidedness and transmission. */
+#include "testutil.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <stb_image.h>
+#include <stb_image_write.h>
+
+#include "species/image_cv.h"
+#include "species/materials.h"
+
+static unsigned char *gray_rgba(int w, int h, int (*value)(int x, int y))
+{
+    unsigned char *p = malloc((size_t)w * (size_t)h * 4);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            unsigned char *q = p + 4 * ((size_t)y * (size_t)w + (size_t)x);
+            q[0] = q[1] = q[2] = (unsigned char)value(x, y);
+            q[3] = 255;
+        }
+    return p;
+}
+
+static int flat(int x, int y)
+{
+    (void)x;
+    (void)y;
+    return 140;
+}
+static int ramp_right(int x, int y)
+{
+    (void)y;
+    return 40 + 5 * x;
+}
+static int ramp_down(int x, int y)
+{
+    (void)x;
+    return 40 + 5 * y;
+}
+
+static void flat_image_gives_straight_up_normals(void **state)
+{
+    (void)state;
+    const int w = 24, h = 16;
+    unsigned char *img = gray_rgba(w, h, flat), rgb[24 * 16 * 3];
+    for (int wrap = 0; wrap <= 1; wrap++) {
+        assert_int_equal(sy_cv_normal_map(img, w, h, 5.0f, wrap, rgb), 0);
+        for (int i = 0; i < w * h; i++) {
+            /* (0.5, 0.5, 1) within 1/255 */
+            assert_true(abs(2 * rgb[3 * i] - 255) <= 2);
+            assert_true(abs(2 * rgb[3 * i + 1] - 255) <= 2);
+            assert_true(rgb[3 * i + 2] >= 254);
+        }
+    }
+    free(img);
+}
+
+static void ramps_tilt_the_normal_downhill(void **state)
+{
+    (void)state;
+    const int w = 32, h = 32;
+    unsigned char rgb[32 * 32 * 3];
+    /* Slope 5/255 per texel at strength 4: n = (-0.0784, 0, 1) normalized. */
+    const double s = 4.0 * 5.0 / 255.0;
+    const int tilted = (int)((0.5 - 0.5 * s / sqrt(1 + s * s)) * 255.0 + 0.5);
+    assert_true(tilted < 120);
+    /* Brighter (higher) to the right: the normal leans left, -X, red < 0.5. */
+    unsigned char *img = gray_rgba(w, h, ramp_right);
+    assert_int_equal(sy_cv_normal_map(img, w, h, 4.0f, 0, rgb), 0);
+    for (int y = 1; y < h - 1; y++)
+        for (int x = 1; x < w - 1; x++) {
+            const unsigned char *n = rgb + 3 * (y * w + x);
+            assert_true(abs(n[0] - tilted) <= 2);
+            assert_true(abs(2 * n[1] - 255) <= 2);
+            assert_true(n[2] > 128);
+        }
+    free(img);
+    /* Brighter toward the bottom row, i.e. lower toward the image top:
+     * the normal leans up the image, +Y in glTF's convention, green > 0.5. */
+    img = gray_rgba(w, h, ramp_down);
+    assert_int_equal(sy_cv_normal_map(img, w, h, 4.0f, 0, rgb), 0);
+    for (int y = 1; y < h - 1; y++)
+        for (int x = 1; x < w - 1; x++) {
+            const unsigned char *n = rgb + 3 * (y * w + x);
+            assert_true(abs(n[1] - (255 - tilted)) <= 2);
+            assert_true(abs(2 * n[0] - 255) <= 2);
+        }
+    /* A stronger relief tilts further. */
+    unsigned char strong[32 * 32 * 3];
+    assert_int_equal(sy_cv_normal_map(img, w, h, 8.0f, 0, strong), 0);
+    assert_true(strong[3 * (16 * w + 16) + 1] > rgb[3 * (16 * w + 16) + 1]);
+    free(img);
+}
+
+static unsigned char *decode(const sy_image *im, int *w, int *h, int *comp)
+{
+    unsigned char *p = stbi_load_from_memory(im->png, (int)im->size, w, h, comp, 0);
+    assert_non_null(p);
+    return p;
+}
+
+static const sy_image *image_named(const sy_asset *a, const char *name)
+{
+    for (size_t i = 0; i < a->n_images; i++)
+        if (strcmp(a->images[i].name, name) == 0) return &a->images[i];
+    fail_msg("no image %s", name);
+    return NULL;
+}
+
+static void library_textures_become_materials(void **state)
+{
+    (void)state;
+    sy_material_spec spec = {SYLVA_SPECIES_DIR "/textures/bark.png", SYLVA_SPECIES_DIR "/textures/ash_color.png",
+                             0.45f, 128};
+    sy_asset asset;
+    memset(&asset, 0, sizeof asset);
+    sy_error err = {0};
+    int bark = -1, leaf = -1;
+    assert_int_equal(sy_species_materials(&spec, &asset, &bark, &leaf, &err), SY_OK);
+    assert_int_equal(asset.n_materials, 2);
+    assert_int_equal(asset.n_images, 4);
+    int w, h, comp;
+    unsigned char *px = decode(image_named(&asset, "bark_color"), &w, &h, &comp);
+    assert_int_equal(w, 128);
+    assert_int_equal(h, 128);
+    assert_int_equal(comp, 3);
+    free(px);
+    px = decode(image_named(&asset, "bark_normal"), &w, &h, &comp);
+    assert_int_equal(w, 128);
+    assert_int_equal(comp, 3);
+    /* Bark relief: the normals vary and on average point out of the surface. */
+    long blue = 0, red_lo = 255, red_hi = 0;
+    for (int i = 0; i < w * h; i++) {
+        blue += px[3 * i + 2];
+        if (px[3 * i] < red_lo) red_lo = px[3 * i];
+        if (px[3 * i] > red_hi) red_hi = px[3 * i];
+    }
+    assert_true(blue / (w * h) > 200);
+    assert_true(red_hi - red_lo > 40);
+    free(px);
+    px = decode(image_named(&asset, "leaf_color"), &w, &h, &comp);
+    assert_int_equal(w, 128);
+    assert_int_equal(h, 128);
+    assert_int_equal(comp, 4);
+    int opaque = 0, clear = 0;
+    for (int i = 0; i < w * h; i++) {
+        if (px[4 * i + 3] >= 128) opaque++;
+        if (px[4 * i + 3] == 0) clear++;
+    }
+    assert_true(opaque > w * h / 20 && clear > w * h / 5); /* a twig card: both present */
+    free(px);
+
+    const sy_material *bm = &asset.materials[bark], *lm = &asset.materials[leaf];
+    assert_int_equal(bm->alpha_mode, SY_ALPHA_OPAQUE);
+    assert_true(bm->base_color_image >= 0 && bm->normal_image >= 0);
+    assert_int_equal(lm->alpha_mode, SY_ALPHA_MASK);
+    assert_float_equal(lm->alpha_cutoff, 0.5f, 0);
+    assert_true(lm->double_sided);
+    assert_float_equal(lm->diffuse_transmission, 0.45f, 1e-6f);
+    const float *tc = lm->diffuse_transmission_color;
+    assert_float_equal(tc[1], 1.0f, 1e-6f); /* green leaves: green is the largest channel */
+    assert_true(tc[0] < 1.0f && tc[2] < 1.0f && tc[2] >= 0.0f);
+    assert_true(lm->base_color_image >= 0 && lm->normal_image >= 0);
+    assert_string_equal(asset.images[lm->base_color_image].name, "leaf_color");
+    sy_asset_free(&asset);
+}
+
+static void cards_keep_a_power_of_two_aspect(void **state)
+{
+    (void)state;
+    /* oak_leaf.png is 171 x 256: the long side becomes 128, the short side
+     * the nearest power of two to 85.5, 64. */
+    sy_material_spec spec = {NULL, SYLVA_SPECIES_DIR "/textures/oak_leaf.png", 0.3f, 128};
+    sy_asset asset;
+    memset(&asset, 0, sizeof asset);
+    sy_error err = {0};
+    int bark, leaf;
+    assert_int_equal(sy_species_materials(&spec, &asset, &bark, &leaf, &err), SY_OK);
+    int w, h, comp;
+    unsigned char *px = decode(image_named(&asset, "leaf_normal"), &w, &h, &comp);
+    assert_int_equal(w, 64);
+    assert_int_equal(h, 128);
+    free(px);
+    sy_asset_free(&asset);
+}
+
+static void procedural_fallbacks_are_deterministic(void **state)
+{
+    (void)state;
+    sy_material_spec spec = {NULL, NULL, 0.4f, 64};
+    sy_asset a, b;
+    memset(&a, 0, sizeof a);
+    memset(&b, 0, sizeof b);
+    sy_error err = {0};
+    int bark, leaf;
+    assert_int_equal(sy_species_materials(&spec, &a, &bark, &leaf, &err), SY_OK);
+    assert_int_equal(sy_species_materials(&spec, &b, &bark, &leaf, &err), SY_OK);
+    assert_int_equal(a.n_images, 4);
+    for (size_t i = 0; i < a.n_images; i++) {
+        assert_int_equal(a.images[i].size, b.images[i].size);
+        assert_memory_equal(a.images[i].png, b.images[i].png, a.images[i].size);
+    }
+    int w, h, comp;
+    unsigned char *px = decode(image_named(&a, "bark_color"), &w, &h, &comp);
+    assert_int_equal(w, 64);
+    assert_int_equal(h, 64);
+    int lo = 255, hi = 0;
+    for (int i = 0; i < w * h; i++) {
+        lo = px[3 * i] < lo ? px[3 * i] : lo;
+        hi = px[3 * i] > hi ? px[3 * i] : hi;
+    }
+    assert_true(hi - lo > 20); /* real texture, not a flat fill */
+    free(px);
+    px = decode(image_named(&a, "leaf_color"), &w, &h, &comp);
+    assert_int_equal(comp, 4);
+    assert_int_equal(w, 32);
+    assert_int_equal(h, 64);
+    assert_int_equal(px[3], 0);                         /* corner: outside the blade */
+    assert_int_equal(px[4 * (32 * w + 16) + 3], 255);   /* centre: inside */
+    free(px);
+    assert_int_equal(a.materials[leaf].alpha_mode, SY_ALPHA_MASK);
+    assert_float_equal(a.materials[leaf].diffuse_transmission, 0.4f, 1e-6f);
+    sy_asset_free(&a);
+    sy_asset_free(&b);
+}
+
+static void leaf_without_alpha_is_cut_from_its_background(void **state)
+{
+    (void)state;
+    const int n = 64;
+    unsigned char rgb[64 * 64 * 3];
+    for (int y = 0; y < n; y++)
+        for (int x = 0; x < n; x++) {
+            int in = (x - 32) * (x - 32) + (y - 32) * (y - 32) < 20 * 20;
+            unsigned char *p = rgb + 3 * (y * n + x);
+            p[0] = in ? 50 : 250;
+            p[1] = in ? 140 : 250;
+            p[2] = in ? 40 : 245;
+        }
+    const char *path = tmp_path("leaf_rgb.png");
+    assert_int_equal(stbi_write_png(path, n, n, 3, rgb, n * 3) != 0, 1);
+    sy_material_spec spec = {NULL, path, 0.5f, 64};
+    sy_asset asset;
+    memset(&asset, 0, sizeof asset);
+    sy_error err = {0};
+    int bark, leaf;
+    assert_int_equal(sy_species_materials(&spec, &asset, &bark, &leaf, &err), SY_OK);
+    int w, h, comp;
+    unsigned char *px = decode(image_named(&asset, "leaf_color"), &w, &h, &comp);
+    assert_int_equal(comp, 4);
+    assert_int_equal(px[4 * (32 * w + 32) + 3], 255);
+    assert_int_equal(px[4 * (2 * w + 2) + 3], 0);
+    assert_int_equal(px[4 * (32 * w + 60) + 3], 0);
+    free(px);
+    sy_asset_free(&asset);
+}
+
+static void unreadable_images_are_input_errors(void **state)
+{
+    (void)state;
+    sy_material_spec spec = {"/nonexistent/bark.png", NULL, 0.4f, 64};
+    sy_asset asset;
+    memset(&asset, 0, sizeof asset);
+    sy_error err = {0};
+    int bark, leaf;
+    assert_int_equal(sy_species_materials(&spec, &asset, &bark, &leaf, &err), SY_EINPUT);
+    assert_non_null(strstr(err.msg, "/nonexistent/bark.png"));
+    const char *junk = tmp_path("junk.png");
+    assert_int_equal(write_bytes(junk, "\x89PNG\r\n\x1a\nnot really", 18), 0);
+    spec.bark_image = NULL;
+    spec.leaf_image = junk;
+    assert_int_equal(sy_species_materials(&spec, &asset, &bark, &leaf, &err), SY_EINPUT);
+    assert_non_null(strstr(err.msg, "junk.png"));
+    spec.leaf_image = NULL;
+    spec.leaf_translucency = 2;
+    assert_int_equal(sy_species_materials(&spec, &asset, &bark, &leaf, &err), SY_EINPUT);
+    sy_asset_free(&asset);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(flat_image_gives_straight_up_normals),
+        cmocka_unit_test(ramps_tilt_the_normal_downhill),
+        cmocka_unit_test(library_textures_become_materials),
+        cmocka_unit_test(cards_keep_a_power_of_two_aspect),
+        cmocka_unit_test(procedural_fallbacks_are_deterministic),
+        cmocka_unit_test(leaf_without_alpha_is_cut_from_its_background),
+        cmocka_unit_test(unreadable_images_are_input_errors),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
