@@ -798,7 +798,11 @@ static void large_meshes_use_32_bit_indices(void **state)
     assert_false(sy_gltf_has(f, "/meshes/0/primitives/0/attributes/_WIND_W"));
     assert_false(sy_gltf_has(f, "/meshes/0/primitives/0/attributes/TANGENT")); /* no normal map */
     assert_false(sy_gltf_has(f, "/extensionsUsed"));
-    assert_false(sy_gltf_has(f, "/nodes/0/extras"));
+    /* One level, no wind: the root carries neither MSFT_lod nor extras. */
+    int root = (int)sy_gltf_number(f, "/scenes/0/nodes/0", -1);
+    assert_true(has(f, "/nodes/%d/children/0", root));
+    assert_false(has(f, "/nodes/%d/extras", root));
+    assert_false(has(f, "/nodes/%d/extensions", root));
     sy_gltf_close(f);
     sy_asset_free(&a);
 }

@@ -550,17 +550,17 @@ static int emit_level(builder *b, size_t l)
 {
     const sy_lod *lod = &b->asset->lods[l];
     int children[SY_GLTF_MAX_CHILDREN], n = 0;
-    char name[64];
+    char name[96];
     for (int k = 0; k < lod->n_meshes; k++) {
         int mesh = asset_mesh(b, lod->meshes[k]);
-        snprintf(name, sizeof name, "LOD%zu_%.40s", l, b->asset->meshes[lod->meshes[k]].name);
+        snprintf(name, sizeof name, "LOD%d_%.40s", (int)l, b->asset->meshes[lod->meshes[k]].name);
         if (mesh < 0 || (children[n++] = add_node(b, name, mesh)) < 0) return -1;
     }
     for (int k = 0; k < lod->n_instances; k++) {
-        snprintf(name, sizeof name, "LOD%zu_%.40s_instances", l, b->asset->meshes[lod->instances[k].mesh].name);
+        snprintf(name, sizeof name, "LOD%d_%.40s_instances", (int)l, b->asset->meshes[lod->instances[k].mesh].name);
         if ((children[n++] = emit_instances(b, &lod->instances[k], name)) < 0) return -1;
     }
-    snprintf(name, sizeof name, "%.50s_LOD%zu", b->asset->name[0] ? b->asset->name : "tree", l);
+    snprintf(name, sizeof name, "%.60s_LOD%d", b->asset->name[0] ? b->asset->name : "tree", (int)l);
     int group = add_node(b, name, -1);
     if (group < 0) return -1;
     sy_gltf_node *g = &b->doc.nodes[group];

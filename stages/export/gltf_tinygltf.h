@@ -66,7 +66,7 @@ typedef struct {
 
 #define SY_GLTF_MAX_CHILDREN (2 * SY_LOD_MAX_PARTS)
 typedef struct {
-    char name[64];
+    char name[96];
     int mesh; /* -1 for a group node */
     int n_children;
     int children[SY_GLTF_MAX_CHILDREN];
