@@ -15,5 +15,6 @@ sy_export_options sy_export_options_default(void);
 sy_code sy_export_glb(const char *path, const sy_asset *asset, const sy_export_options *opt, sy_error *err);
 
 /* Size in bytes of the last successful export to path (for reports), or 0. */
+size_t sy_export_last_size(const char *path);
 
 #endif
