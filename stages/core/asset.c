@@ -21,6 +21,8 @@ void sy_instances_free(sy_instances *in)
     free(in->translation);
     free(in->rotation);
     free(in->scale);
+    free(in->wind_branch);
+    free(in->wind_w);
     memset(in, 0, sizeof *in);
 }
 

@@ -57,6 +57,10 @@ typedef struct {
     float *translation; /* 3n */
     float *rotation;    /* 4n */
     float *scale;       /* 3n */
+    /* Wind of each copy (docs/wind.md), as sy_mesh.wind_branch / wind_w at
+     * the point where the copy hangs on its branch; NULL when it does not sway. */
+    uint16_t *wind_branch; /* n or NULL */
+    float *wind_w;         /* 4n or NULL */
 } sy_instances;
 
 #define SY_LOD_MAX_PARTS 8

@@ -1,0 +1,84 @@
+/* Meshes a generated ~2,000-branch, ~20,000-leaf tree and prints the time of
+ * each step and the triangles of every LOD level. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stages/core/progress.h"
+#include "stages/mesh/mesh.h"
+#include "stages/mesh/mesh_internal.h"
+#include "tests/tree_gen.h"
+
+static double ms_since(double t0) { return (sy_now() - t0) * 1000.0; }
+
+int main(void)
+{
+    sy_skeleton s;
+    sy_leaves lv;
+    sy_error err = {0};
+    double t0 = sy_now();
+    if (tg_tree(2024, 3, 24, 3, 15.0f, &s, &lv) != 0) {
+        fprintf(stderr, "generator failed\n");
+        return 1;
+    }
+    printf("tree: %d branches, %zu nodes, %zu leaves (generated in %.1f ms)\n", sy_skeleton_branch_count(&s), s.n,
+           lv.n, ms_since(t0));
+    sy_mesh_options o = sy_mesh_options_default();
+
+    /* Steps measured separately through the stage's internals. */
+    sy_stems st;
+    t0 = sy_now();
+    if (sy_stems_build(&s, &o, &st, &err) != SY_OK) return 1;
+    printf("stems (chains, curves, frames, junction trim): %8.1f ms\n", ms_since(t0));
+    sy_asset scratch;
+    memset(&scratch, 0, sizeof scratch);
+    t0 = sy_now();
+    if (sy_wind_build(&st, &scratch, &err) != SY_OK) return 1;
+    printf("wind table:                                    %8.1f ms\n", ms_since(t0));
+    uint8_t *keep = malloc(st.n);
+    memset(keep, 1, st.n);
+    sy_lod_params lp = {0, 1, keep, 1};
+    sy_mesh m;
+    t0 = sy_now();
+    if (sy_bark_mesh(&st, &lp, 0, &m, &err) != SY_OK) return 1;
+    printf("LOD0 bark mesh:                                %8.1f ms\n", ms_since(t0));
+    sy_mesh_free(&m);
+    free(keep);
+    sy_asset_free(&scratch);
+    sy_stems_free(&st);
+
+    /* The whole stage, without and with the impostor. */
+    for (int imp = 0; imp <= 1; imp++) {
+        sy_asset a;
+        memset(&a, 0, sizeof a);
+        o.impostor = imp;
+        t0 = sy_now();
+        if (sy_mesh_tree(&s, &lv, &o, &a, &err) != SY_OK) {
+            fprintf(stderr, "%s\n", err.msg);
+            return 1;
+        }
+        printf("sy_mesh_tree %s impostor:                  %8.1f ms\n", imp ? "with   " : "without", ms_since(t0));
+        if (imp) {
+            for (size_t k = 0; k < a.n_lods; k++) {
+                const sy_lod *l = &a.lods[k];
+                size_t bark = 0, leaves = 0, cards = 0, verts = 0;
+                for (int i = 0; i < l->n_meshes; i++) {
+                    bark += a.meshes[l->meshes[i]].n_indices / 3;
+                    verts += a.meshes[l->meshes[i]].n_vertices;
+                }
+                for (int i = 0; i < l->n_instances; i++) {
+                    cards += l->instances[i].n;
+                    leaves += l->instances[i].n * (a.meshes[l->instances[i].mesh].n_indices / 3);
+                }
+                printf("LOD %zu (coverage %.4f): %7zu bark triangles (%7zu vertices), %6zu leaf cards = %7zu leaf "
+                       "triangles, total %7zu\n",
+                       k, l->screen_coverage, bark, verts, cards, leaves, bark + leaves);
+            }
+            printf("impostor PNG: %zu bytes\n", a.n_images ? a.images[a.n_images - 1].size : 0);
+        }
+        sy_asset_free(&a);
+    }
+    sy_leaves_free(&lv);
+    sy_skeleton_free(&s);
+    return 0;
+}

@@ -1,0 +1,363 @@
+/* Impostor: two crossed vertical cards through the trunk axis, textured with
+ * orthographic renders of LOD0 made by a small z-buffered CPU rasteriser
+ * (Lambert-shaded bark and leaf cards, the leaf texture's alpha when there is
+ * one). The atlas is S x S: the view along +Z on the left half, the view along
+ * +X on the right half; alpha is coverage. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <stb_image.h>
+#include <stb_image_write.h>
+
+#include "mesh_internal.h"
+
+/* Share of the tree's extent added around it so the silhouette never touches
+ * the card border (mip-mapping would smear it). */
+#define MARGIN 0.03f
+#define DILATE_PASSES 4
+
+typedef struct {
+    unsigned char *rgba; /* atlas */
+    float *depth;
+    int W, H;      /* atlas size */
+    int x0, w;     /* this view's tile: columns [x0, x0 + w) */
+    float right[3], toward[3]; /* image +x direction and direction to the viewer */
+    float u_lo, u_hi, y_lo, y_hi; /* world extent of the tile along right and +Y */
+} view;
+
+typedef struct {
+    unsigned char *px; /* RGBA texels or NULL */
+    int w, h;
+    float color[4];
+    float cutoff;
+    int masked;
+} shade_src;
+
+static const float light[3] = {0.32f, 0.83f, 0.45f};
+
+static void to_pixel(const view *v, const float p[3], float out[3])
+{
+    out[0] = (float)v->x0 + (sy_dot3(p, v->right) - v->u_lo) / (v->u_hi - v->u_lo) * (float)v->w;
+    out[1] = (v->y_hi - p[1]) / (v->y_hi - v->y_lo) * (float)v->H;
+    out[2] = sy_dot3(p, v->toward);
+}
+
+/* Rasterises one triangle with flat Lambert shading; uv (6 floats) is used
+ * to look up the source texture's alpha and colour when there is one. */
+static void raster(view *v, const float a[3], const float b[3], const float c[3], const float *uv,
+                   const shade_src *src)
+{
+    float pa[3], pb[3], pc[3];
+    to_pixel(v, a, pa), to_pixel(v, b, pb), to_pixel(v, c, pc);
+    float area = (pb[0] - pa[0]) * (pc[1] - pa[1]) - (pb[1] - pa[1]) * (pc[0] - pa[0]);
+    if (fabsf(area) < 1e-12f) return;
+    float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]}, n[3];
+    sy_cross3(e1, e2, n);
+    sy_normalize3(n);
+    float lit = 0.35f + 0.65f * fabsf(sy_dot3(n, light)); /* both sides: leaves are two-sided */
+    int xmin = (int)fmaxf((float)v->x0, floorf(fminf(pa[0], fminf(pb[0], pc[0]))) - 1);
+    int xmax = (int)fminf((float)(v->x0 + v->w - 1), ceilf(fmaxf(pa[0], fmaxf(pb[0], pc[0]))) + 1);
+    int ymin = (int)fmaxf(0, floorf(fminf(pa[1], fminf(pb[1], pc[1]))) - 1);
+    int ymax = (int)fminf((float)(v->H - 1), ceilf(fmaxf(pa[1], fmaxf(pb[1], pc[1]))) + 1);
+    /* Conservative coverage: a pixel counts when the triangle touches its
+     * square (each edge pushed out by half a pixel in the L1 sense), so
+     * twigs thinner than a pixel still show in the silhouette. */
+    float aa = fabsf(area);
+    float t0 = 0.5f * (fabsf(pb[1] - pc[1]) + fabsf(pc[0] - pb[0])) / aa;
+    float t1 = 0.5f * (fabsf(pc[1] - pa[1]) + fabsf(pa[0] - pc[0])) / aa;
+    float t2 = 0.5f * (fabsf(pa[1] - pb[1]) + fabsf(pb[0] - pa[0])) / aa;
+    for (int y = ymin; y <= ymax; y++) {
+        float py = (float)y + 0.5f;
+        for (int x = xmin; x <= xmax; x++) {
+            float px = (float)x + 0.5f;
+            float w0 = ((pb[0] - px) * (pc[1] - py) - (pb[1] - py) * (pc[0] - px)) / area;
+            float w1 = ((pc[0] - px) * (pa[1] - py) - (pc[1] - py) * (pa[0] - px)) / area;
+            float w2 = 1 - w0 - w1;
+            if (w0 < -t0 || w1 < -t1 || w2 < -t2) continue;
+            /* Outside the triangle proper: interpolate at its nearest part. */
+            w0 = fmaxf(w0, 0), w1 = fmaxf(w1, 0), w2 = fmaxf(w2, 0);
+            float ws = w0 + w1 + w2;
+            w0 /= ws, w1 /= ws, w2 /= ws;
+            float z = w0 * pa[2] + w1 * pb[2] + w2 * pc[2];
+            size_t i = (size_t)y * (size_t)v->W + (size_t)x;
+            if (z <= v->depth[i]) continue;
+            float col[4] = {src->color[0], src->color[1], src->color[2], 1};
+            if (src->px) {
+                float tu = w0 * uv[0] + w1 * uv[2] + w2 * uv[4], tv = w0 * uv[1] + w1 * uv[3] + w2 * uv[5];
+                int tx = (int)(tu * (float)src->w), ty = (int)(tv * (float)src->h);
+                tx = tx < 0 ? 0 : tx >= src->w ? src->w - 1 : tx;
+                ty = ty < 0 ? 0 : ty >= src->h ? src->h - 1 : ty;
+                const unsigned char *t = src->px + 4 * ((size_t)ty * (size_t)src->w + (size_t)tx);
+                for (int k = 0; k < 3; k++) col[k] *= (float)t[k] / 255.0f;
+                col[3] = (float)t[3] / 255.0f * src->color[3];
+            }
+            if (src->masked && col[3] < src->cutoff) continue;
+            v->depth[i] = z;
+            for (int k = 0; k < 3; k++) {
+                float c = col[k] * lit;
+                v->rgba[4 * i + k] = (unsigned char)lroundf(255.0f * (c < 0 ? 0 : c > 1 ? 1 : c));
+            }
+            v->rgba[4 * i + 3] = 255;
+        }
+    }
+}
+
+/* Colour source for a material: its base colour times its texture (leaf:
+ * looked up per pixel; bark: averaged, since bark texels are far below an
+ * impostor pixel). */
+static void material_source(const sy_asset *a, int mi, int per_pixel, shade_src *s)
+{
+    memset(s, 0, sizeof *s);
+    for (int k = 0; k < 4; k++) s->color[k] = 1;
+    if (mi < 0 || (size_t)mi >= a->n_materials) return;
+    const sy_material *m = &a->materials[mi];
+    memcpy(s->color, m->base_color, sizeof s->color);
+    s->masked = m->alpha_mode == SY_ALPHA_MASK;
+    s->cutoff = m->alpha_cutoff;
+    int img = m->base_color_image;
+    if (img < 0 || (size_t)img >= a->n_images || a->images[img].size > INT32_MAX) return;
+    int w, h, comp;
+    unsigned char *px = stbi_load_from_memory(a->images[img].png, (int)a->images[img].size, &w, &h, &comp, 4);
+    if (!px) return; /* an undecodable texture falls back to the plain colour */
+    if (per_pixel) {
+        s->px = px, s->w = w, s->h = h;
+        return;
+    }
+    double sum[3] = {0, 0, 0}, cnt = 0;
+    for (size_t i = 0; i < (size_t)w * (size_t)h; i++) {
+        if (px[4 * i + 3] < 128) continue;
+        for (int k = 0; k < 3; k++) sum[k] += px[4 * i + k] / 255.0;
+        cnt++;
+    }
+    if (cnt > 0)
+        for (int k = 0; k < 3; k++) s->color[k] *= (float)(sum[k] / cnt);
+    stbi_image_free(px);
+}
+
+static void rotate(const float q[4], const float v[3], float out[3])
+{
+    /* v + 2 w (u x v) + 2 u x (u x v), u = q.xyz */
+    float u[3] = {q[0], q[1], q[2]}, t[3], t2[3];
+    sy_cross3(u, v, t);
+    for (int k = 0; k < 3; k++) t[k] *= 2;
+    sy_cross3(u, t, t2);
+    for (int k = 0; k < 3; k++) out[k] = v[k] + q[3] * t[k] + t2[k];
+}
+
+static void instance_point(const sy_instances *in, size_t i, const float v[3], float out[3])
+{
+    const float *s = in->scale + 3 * i, *t = in->translation + 3 * i;
+    float sv[3] = {v[0] * s[0], v[1] * s[1], v[2] * s[2]};
+    rotate(in->rotation + 4 * i, sv, out);
+    for (int k = 0; k < 3; k++) out[k] += t[k];
+}
+
+static void grow_box(float lo[3], float hi[3], const float p[3])
+{
+    for (int k = 0; k < 3; k++) lo[k] = fminf(lo[k], p[k]), hi[k] = fmaxf(hi[k], p[k]);
+}
+
+/* Draws everything of lod into view v. */
+static void render_view(const sy_asset *a, const sy_lod *lod, view *v, const shade_src *src_mesh)
+{
+    for (int k = 0; k < lod->n_meshes; k++) {
+        const sy_mesh *m = &a->meshes[lod->meshes[k]];
+        for (size_t t = 0; t + 2 < m->n_indices; t += 3) {
+            const uint32_t *ix = m->indices + t;
+            float uv[6] = {0, 0, 0, 0, 0, 0};
+            raster(v, m->position + 3 * ix[0], m->position + 3 * ix[1], m->position + 3 * ix[2], uv, &src_mesh[k]);
+        }
+    }
+    for (int k = 0; k < lod->n_instances; k++) {
+        const sy_instances *in = &lod->instances[k];
+        const sy_mesh *m = &a->meshes[in->mesh];
+        const shade_src *src = &src_mesh[SY_LOD_MAX_PARTS + k];
+        for (size_t i = 0; i < in->n; i++) {
+            for (size_t t = 0; t + 2 < m->n_indices; t += 3) {
+                float p[3][3], uv[6] = {0, 0, 0, 0, 0, 0};
+                for (int c = 0; c < 3; c++) {
+                    uint32_t vi = m->indices[t + (size_t)c];
+                    instance_point(in, i, m->position + 3 * vi, p[c]);
+                    if (m->uv) uv[2 * c] = m->uv[2 * vi], uv[2 * c + 1] = m->uv[2 * vi + 1];
+                }
+                raster(v, p[0], p[1], p[2], uv, src);
+            }
+        }
+    }
+}
+
+/* Spreads colour into uncovered texels (alpha stays 0) so filtering at the
+ * silhouette does not blend towards black. */
+static void dilate(unsigned char *rgba, int W, int H)
+{
+    unsigned char *done = malloc((size_t)W * (size_t)H);
+    if (!done) return;
+    for (int pass = 0; pass < DILATE_PASSES; pass++) {
+        for (size_t i = 0; i < (size_t)W * (size_t)H; i++) done[i] = rgba[4 * i + 3] > 0 || rgba[4 * i] | rgba[4 * i + 1] | rgba[4 * i + 2];
+        for (int y = 0; y < H; y++)
+            for (int x = 0; x < W; x++) {
+                size_t i = (size_t)y * (size_t)W + (size_t)x;
+                if (done[i]) continue;
+                int sum[3] = {0, 0, 0}, n = 0;
+                for (int dy = -1; dy <= 1; dy++)
+                    for (int dx = -1; dx <= 1; dx++) {
+                        int xx = x + dx, yy = y + dy;
+                        if (xx < 0 || yy < 0 || xx >= W || yy >= H) continue;
+                        size_t j = (size_t)yy * (size_t)W + (size_t)xx;
+                        if (!done[j]) continue;
+                        for (int k = 0; k < 3; k++) sum[k] += rgba[4 * j + k];
+                        n++;
+                    }
+                if (n)
+                    for (int k = 0; k < 3; k++) rgba[4 * i + k] = (unsigned char)(sum[k] / n);
+            }
+    }
+    free(done);
+}
+
+typedef struct {
+    unsigned char *data;
+    size_t size, cap;
+    int failed;
+} png_buffer;
+
+static void png_append(void *ctx, void *data, int size)
+{
+    png_buffer *b = ctx;
+    if (b->failed || size <= 0) return;
+    if (b->size + (size_t)size > b->cap) {
+        size_t cap = (b->cap ? 2 * b->cap : 65536) + (size_t)size;
+        unsigned char *p = realloc(b->data, cap);
+        if (!p) {
+            b->failed = 1;
+            return;
+        }
+        b->data = p, b->cap = cap;
+    }
+    memcpy(b->data + b->size, data, (size_t)size);
+    b->size += (size_t)size;
+}
+
+/* Two quads: plane z = zc facing +Z (atlas u in [0, 0.5]) and plane x = xc
+ * facing +X (u in [0.5, 1], image right = -Z). */
+static sy_code card_mesh(const float lo[3], const float hi[3], float xc, float zc, int material, sy_mesh *m,
+                         sy_error *err)
+{
+    memset(m, 0, sizeof *m);
+    snprintf(m->name, sizeof m->name, "impostor");
+    m->material = material;
+    m->n_vertices = 8;
+    m->n_indices = 12;
+    m->position = sy_calloc(8, 3 * sizeof(float), err, "impostor");
+    m->normal = sy_calloc(8, 3 * sizeof(float), err, "impostor");
+    m->tangent = sy_calloc(8, 4 * sizeof(float), err, "impostor");
+    m->uv = sy_calloc(8, 2 * sizeof(float), err, "impostor");
+    m->indices = sy_calloc(12, sizeof(uint32_t), err, "impostor");
+    if (!m->position || !m->normal || !m->tangent || !m->uv || !m->indices) {
+        sy_mesh_free(m);
+        return SY_EINTERNAL;
+    }
+    const float pos[8][3] = {{lo[0], lo[1], zc}, {hi[0], lo[1], zc}, {hi[0], hi[1], zc}, {lo[0], hi[1], zc},
+                             {xc, lo[1], hi[2]}, {xc, lo[1], lo[2]}, {xc, hi[1], lo[2]}, {xc, hi[1], hi[2]}};
+    const float uv[8][2] = {{0, 1}, {0.5f, 1}, {0.5f, 0}, {0, 0}, {0.5f, 1}, {1, 1}, {1, 0}, {0.5f, 0}};
+    for (int i = 0; i < 8; i++) {
+        memcpy(m->position + 3 * i, pos[i], sizeof pos[i]);
+        memcpy(m->uv + 2 * i, uv[i], sizeof uv[i]);
+        int side = i >= 4;
+        m->normal[3 * i + (side ? 0 : 2)] = 1;
+        /* +u is +X on the first card and -Z on the second; +v points down, so
+         * cross(normal, tangent) = +Y needs w = -1. */
+        if (side) m->tangent[4 * i + 2] = -1;
+        else m->tangent[4 * i] = 1;
+        m->tangent[4 * i + 3] = -1;
+    }
+    const uint32_t ix[12] = {0, 1, 2, 0, 2, 3, 4, 5, 6, 4, 6, 7};
+    memcpy(m->indices, ix, sizeof ix);
+    return SY_OK;
+}
+
+int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
+{
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int k = 0; k < lod0->n_meshes; k++) {
+        const sy_mesh *m = &a->meshes[lod0->meshes[k]];
+        for (size_t i = 0; i < m->n_vertices; i++) grow_box(lo, hi, m->position + 3 * i);
+    }
+    for (int k = 0; k < lod0->n_instances; k++) {
+        const sy_instances *in = &lod0->instances[k];
+        const sy_mesh *m = &a->meshes[in->mesh];
+        for (size_t i = 0; i < in->n; i++)
+            for (size_t j = 0; j < m->n_vertices; j++) {
+                float p[3];
+                instance_point(in, i, m->position + 3 * j, p);
+                grow_box(lo, hi, p);
+            }
+    }
+    if (!(lo[0] <= hi[0])) {
+        sy_fail(err, SY_EINPUT, "mesh: impostor of an empty tree");
+        return -1;
+    }
+    for (int k = 0; k < 3; k++) {
+        float pad = MARGIN * fmaxf(hi[k] - lo[k], 1e-3f);
+        lo[k] -= pad, hi[k] += pad;
+    }
+    /* The cards cross on the trunk axis: the root stem's anchor. */
+    float xc = 0.5f * (lo[0] + hi[0]), zc = 0.5f * (lo[2] + hi[2]);
+    for (size_t i = 0; i < a->n_wind; i++)
+        if (a->wind[i].parent < 0) xc = a->wind[i].anchor[0], zc = a->wind[i].anchor[2];
+
+    int W = size, H = size;
+    unsigned char *rgba = calloc((size_t)W * (size_t)H, 4);
+    float *depth = malloc((size_t)W * (size_t)H * sizeof(float));
+    shade_src src[2 * SY_LOD_MAX_PARTS];
+    memset(src, 0, sizeof src);
+    if (!rgba || !depth) {
+        free(rgba), free(depth);
+        sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
+        return -1;
+    }
+    for (size_t i = 0; i < (size_t)W * (size_t)H; i++) depth[i] = -INFINITY;
+    for (int k = 0; k < lod0->n_meshes; k++) material_source(a, a->meshes[lod0->meshes[k]].material, 0, &src[k]);
+    for (int k = 0; k < lod0->n_instances; k++)
+        material_source(a, a->meshes[lod0->instances[k].mesh].material, 1, &src[SY_LOD_MAX_PARTS + k]);
+    view front = {rgba, depth, W, H, 0, W / 2, {1, 0, 0}, {0, 0, 1}, lo[0], hi[0], lo[1], hi[1]};
+    view side = {rgba, depth, W, H, W / 2, W - W / 2, {0, 0, -1}, {1, 0, 0}, -hi[2], -lo[2], lo[1], hi[1]};
+    render_view(a, lod0, &front, src);
+    render_view(a, lod0, &side, src);
+    for (int k = 0; k < 2 * SY_LOD_MAX_PARTS; k++) stbi_image_free(src[k].px);
+    free(depth);
+    dilate(rgba, W, H);
+    png_buffer png = {0};
+    int ok = stbi_write_png_to_func(png_append, &png, W, H, 4, rgba, 4 * W);
+    free(rgba);
+    if (!ok || png.failed) {
+        free(png.data);
+        sy_fail(err, SY_EINTERNAL, "mesh: impostor PNG encoding failed");
+        return -1;
+    }
+    sy_image img;
+    memset(&img, 0, sizeof img);
+    img.png = png.data;
+    img.size = png.size;
+    snprintf(img.name, sizeof img.name, "impostor");
+    int ii = sy_asset_add_image(a, &img, err);
+    if (ii < 0) {
+        free(png.data);
+        return -1;
+    }
+    sy_material mat = sy_material_default("impostor");
+    mat.base_color_image = ii;
+    mat.alpha_mode = SY_ALPHA_MASK;
+    mat.alpha_cutoff = 0.5f;
+    mat.double_sided = 1;
+    mat.roughness = 0.9f;
+    int mi = sy_asset_add_material(a, &mat, err);
+    if (mi < 0) return -1;
+    sy_mesh m;
+    if (card_mesh(lo, hi, xc, zc, mi, &m, err) != SY_OK) return -1;
+    int idx = sy_asset_add_mesh(a, &m, err);
+    if (idx < 0) sy_mesh_free(&m);
+    return idx;
+}

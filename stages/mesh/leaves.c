@@ -1,0 +1,160 @@
+/* Leaf cards: one card mesh in the leaf's local frame (stem at the origin,
+ * +Y towards the tip, +Z the normal) instanced once per leaf. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mesh_internal.h"
+
+#define SY_PI 3.14159265358979323846f
+#define OUTLINE_STEPS 5
+
+/* Half-width of the outline at y in [0,1] as a fraction of aspect/2, for the
+ * shaped cards; 0 at the stem and at the tip. */
+static float outline_width(int shape, float y)
+{
+    switch (shape) {
+    case 1: /* elliptic */
+        return sqrtf(fmaxf(0, 1 - (2 * y - 1) * (2 * y - 1)));
+    case 2: /* ovate: widest at about a third, pointed tip */
+        return sinf(SY_PI * powf(y, 0.7f));
+    case 3: /* lanceolate: narrow, long taper */
+        return powf(sinf(SY_PI * y), 1.5f);
+    default:
+        return 1;
+    }
+}
+
+static void put(sy_mesh *m, size_t i, float x, float y, float aspect)
+{
+    m->position[3 * i] = x;
+    m->position[3 * i + 1] = y;
+    m->position[3 * i + 2] = 0;
+    m->normal[3 * i + 2] = 1;
+    m->tangent[4 * i] = 1;
+    m->tangent[4 * i + 3] = 1; /* cross(+Z, +X) = +Y = direction of +v */
+    m->uv[2 * i] = x / aspect + 0.5f;
+    m->uv[2 * i + 1] = y;
+}
+
+sy_code sy_leaf_card(int shape, float aspect, int material, sy_mesh *out, sy_error *err)
+{
+    memset(out, 0, sizeof *out);
+    snprintf(out->name, sizeof out->name, "leaf_card");
+    out->material = material;
+    int shaped = shape >= 1 && shape <= 3;
+    size_t nv = shaped ? 1 + 2 * OUTLINE_STEPS : 4, nt = shaped ? 2 * OUTLINE_STEPS : 2;
+    out->n_vertices = nv;
+    out->n_indices = 3 * nt;
+    out->position = sy_calloc(nv, 3 * sizeof(float), err, "leaf card");
+    out->normal = sy_calloc(nv, 3 * sizeof(float), err, "leaf card");
+    out->tangent = sy_calloc(nv, 4 * sizeof(float), err, "leaf card");
+    out->uv = sy_calloc(nv, 2 * sizeof(float), err, "leaf card");
+    out->indices = sy_calloc(3 * nt, sizeof(uint32_t), err, "leaf card");
+    if (!out->position || !out->normal || !out->tangent || !out->uv || !out->indices) {
+        sy_mesh_free(out);
+        return SY_EINTERNAL;
+    }
+    float h = 0.5f * aspect;
+    if (!shaped) {
+        put(out, 0, -h, 0, aspect);
+        put(out, 1, h, 0, aspect);
+        put(out, 2, h, 1, aspect);
+        put(out, 3, -h, 1, aspect);
+        uint32_t ix[6] = {0, 1, 2, 0, 2, 3};
+        memcpy(out->indices, ix, sizeof ix);
+        return SY_OK;
+    }
+    /* Fan from an interior centre over the outline, counter-clockwise seen
+     * from +Z: stem (y=0), up the right side, tip (y=1), down the left. */
+    put(out, 0, 0, 0.45f, aspect);
+    size_t k = 1;
+    for (int i = 0; i <= OUTLINE_STEPS; i++) {
+        float y = (float)i / OUTLINE_STEPS;
+        put(out, k++, h * outline_width(shape, y) * (i == 0 || i == OUTLINE_STEPS ? 0 : 1), y, aspect);
+    }
+    for (int i = OUTLINE_STEPS - 1; i >= 1; i--) {
+        float y = (float)i / OUTLINE_STEPS;
+        put(out, k++, -h * outline_width(shape, y), y, aspect);
+    }
+    for (size_t t = 0; t < nt; t++) {
+        out->indices[3 * t] = 0;
+        out->indices[3 * t + 1] = (uint32_t)(1 + t);
+        out->indices[3 * t + 2] = (uint32_t)(1 + (t + 1) % (nv - 1));
+    }
+    return SY_OK;
+}
+
+/* splitmix64: tiny, seedable, and identical on every platform. */
+static uint64_t next_random(uint64_t *state)
+{
+    uint64_t z = (*state += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+}
+
+void sy_permutation(uint32_t *perm, size_t n, uint64_t seed)
+{
+    uint64_t state = seed;
+    for (size_t i = 0; i < n; i++) perm[i] = (uint32_t)i;
+    for (size_t i = n; i > 1; i--) {
+        size_t j = (size_t)(next_random(&state) % i);
+        uint32_t t = perm[i - 1];
+        perm[i - 1] = perm[j];
+        perm[j] = t;
+    }
+}
+
+/* (x, y, z, w) quaternion product a * b. */
+static void quat_mul(const float a[4], const float b[4], float out[4])
+{
+    out[0] = a[3] * b[0] + a[0] * b[3] + a[1] * b[2] - a[2] * b[1];
+    out[1] = a[3] * b[1] - a[0] * b[2] + a[1] * b[3] + a[2] * b[0];
+    out[2] = a[3] * b[2] + a[0] * b[1] - a[1] * b[0] + a[2] * b[3];
+    out[3] = a[3] * b[3] - a[0] * b[0] - a[1] * b[1] - a[2] * b[2];
+}
+
+sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint32_t *list, size_t n, float grow,
+                          int mesh, sy_instances *out, sy_error *err)
+{
+    memset(out, 0, sizeof *out);
+    out->mesh = mesh;
+    if (n == 0) return SY_OK;
+    out->translation = sy_calloc(n, 3 * sizeof(float), err, "leaves");
+    out->rotation = sy_calloc(n, 4 * sizeof(float), err, "leaves");
+    out->scale = sy_calloc(n, 3 * sizeof(float), err, "leaves");
+    out->wind_branch = sy_calloc(n, sizeof(uint16_t), err, "leaves");
+    out->wind_w = sy_calloc(n, 4 * sizeof(float), err, "leaves");
+    if (!out->translation || !out->rotation || !out->scale || !out->wind_branch || !out->wind_w) {
+        sy_instances_free(out);
+        return SY_EINTERNAL;
+    }
+    out->n = n;
+    /* The Z-up -> Y-up change of frame, -90 degrees about X. */
+    const float h = 0.70710678118654752f, to_yup[4] = {-h, 0, 0, h};
+    for (size_t i = 0; i < n; i++) {
+        uint32_t l = list[i];
+        sy_to_yup(lv->pos + 3 * l, out->translation + 3 * i);
+        float q[4];
+        memcpy(q, lv->rot + 4 * l, sizeof q);
+        float len = sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+        if (!(len > 1e-12f) || !isfinite(len)) q[0] = q[1] = q[2] = 0, q[3] = len = 1;
+        for (int k = 0; k < 4; k++) q[k] /= len;
+        float *r = out->rotation + 4 * i;
+        quat_mul(to_yup, q, r);
+        len = sqrtf(r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3]);
+        for (int k = 0; k < 4; k++) r[k] /= len;
+        float s = lv->scale[l] * grow;
+        out->scale[3 * i] = out->scale[3 * i + 1] = out->scale[3 * i + 2] = s;
+        const sy_stem *stem = &st->s[st->node_stem[lv->node[l]]];
+        out->wind_branch[i] = (uint16_t)stem->wind_index;
+        memcpy(out->wind_w + 4 * i, stem->wind_w, 4 * sizeof(float));
+        if (stem->wind_slot >= 0) {
+            float x = stem->length > 0 ? st->node_s[lv->node[l]] / stem->length : 0;
+            out->wind_w[4 * i + stem->wind_slot] = x < 0 ? 0 : x > 1 ? 1 : x;
+        }
+    }
+    return SY_OK;
+}

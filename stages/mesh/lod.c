@@ -1,0 +1,80 @@
+/* Which stems each level of detail keeps. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mesh_internal.h"
+
+/* Level 1 drops stems thinner than this share of the trunk radius or shorter
+ * than this share of the tree height; both double per further level. */
+#define DROP_RADIUS 0.03f
+#define DROP_LENGTH 0.03f
+
+size_t sy_lod_bark_triangles(const sy_stems *st, const sy_lod_params *lp)
+{
+    size_t total = 0;
+    for (size_t i = 0; i < st->n; i++) {
+        size_t nv, ni;
+        sy_tube_counts(st, i, lp, &nv, &ni);
+        total += ni / 3;
+    }
+    return total;
+}
+
+typedef struct {
+    float importance;
+    int depth;
+    int32_t index;
+} ranked;
+
+/* Most important first; ties put parents (smaller depth) first so a prefix
+ * of the ranking is always closed under "parent of". */
+static int cmp_ranked(const void *a, const void *b)
+{
+    const ranked *x = a, *y = b;
+    if (x->importance != y->importance) return x->importance > y->importance ? -1 : 1;
+    if (x->depth != y->depth) return x->depth < y->depth ? -1 : 1;
+    return (x->index > y->index) - (x->index < y->index);
+}
+
+int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris, sy_lod_params *lp, size_t *tris)
+{
+    float grow = ldexpf(1.0f, lp->level - 1);
+    float r_min = DROP_RADIUS * grow * st->trunk_radius, l_min = DROP_LENGTH * grow * st->height;
+    for (size_t o = 0; o < st->n; o++) {
+        int32_t i = st->by_depth[o];
+        const sy_stem *s = &st->s[i];
+        int big = s->parent < 0 || (s->r_base >= r_min && s->length >= l_min);
+        lp->keep[i] = prev_keep[i] && big && (s->parent < 0 || lp->keep[s->parent]);
+    }
+    size_t count = sy_lod_bark_triangles(st, lp), budget = prev_tris / 2;
+    if (count > budget) {
+        /* Importance: a volume proxy r^2 L, never above the parent's, so
+         * dropping in reverse rank order removes children before parents. */
+        ranked *rk = malloc((st->n ? st->n : 1) * sizeof *rk);
+        float *imp = malloc((st->n ? st->n : 1) * sizeof *imp);
+        if (!rk || !imp) {
+            free(rk), free(imp);
+            return 0;
+        }
+        for (size_t o = 0; o < st->n; o++) {
+            int32_t i = st->by_depth[o];
+            const sy_stem *s = &st->s[i];
+            float v = s->r_base * s->r_base * s->length;
+            imp[i] = s->parent >= 0 && imp[s->parent] < v ? imp[s->parent] : v;
+            rk[o] = (ranked){imp[i], s->depth, i};
+        }
+        qsort(rk, st->n, sizeof *rk, cmp_ranked);
+        for (size_t o = st->n; o-- > 0 && count > budget;) {
+            int32_t i = rk[o].index;
+            if (!lp->keep[i] || st->s[i].parent < 0) continue;
+            size_t nv, ni;
+            sy_tube_counts(st, (size_t)i, lp, &nv, &ni);
+            lp->keep[i] = 0;
+            count -= ni / 3;
+        }
+        free(rk), free(imp);
+    }
+    *tris = count;
+    return count <= budget;
+}

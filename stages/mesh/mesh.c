@@ -1,0 +1,219 @@
+/* sy_mesh_tree: skeleton + leaves -> Asset with a LOD chain (docs/mesh.md). */
+#include "mesh.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mesh_internal.h"
+
+sy_mesh_options sy_mesh_options_default(void)
+{
+    sy_mesh_options o;
+    memset(&o, 0, sizeof o);
+    o.radial_segments = 16;
+    o.segment_length = 0;
+    o.n_lods = 4;
+    o.impostor = 1;
+    o.impostor_size = 512;
+    o.leaf_aspect = 0.6f;
+    o.leaf_shape = 0;
+    o.seed = 1;
+    o.bark_material = -1;
+    o.leaf_material = -1;
+    return o;
+}
+
+static sy_code check_options(const sy_mesh_options *o, const sy_asset *a, sy_error *err)
+{
+    if (o->radial_segments < 3 || o->radial_segments > 256)
+        return sy_fail(err, SY_EUSAGE, "mesh: radial segments %d outside [3, 256]", o->radial_segments);
+    if (!(o->segment_length >= 0) || !isfinite(o->segment_length))
+        return sy_fail(err, SY_EUSAGE, "mesh: segment length %g is not >= 0", o->segment_length);
+    if (o->n_lods < 1 || o->n_lods > 7)
+        return sy_fail(err, SY_EUSAGE, "mesh: %d LOD levels outside [1, 7]", o->n_lods);
+    if (o->impostor && (o->impostor_size < 16 || o->impostor_size > 4096))
+        return sy_fail(err, SY_EUSAGE, "mesh: impostor size %d outside [16, 4096]", o->impostor_size);
+    if (!(o->leaf_aspect > 0) || !isfinite(o->leaf_aspect))
+        return sy_fail(err, SY_EUSAGE, "mesh: leaf aspect %g is not positive", o->leaf_aspect);
+    if (o->bark_material >= (int)a->n_materials || o->leaf_material >= (int)a->n_materials)
+        return sy_fail(err, SY_EUSAGE, "mesh: material index beyond the asset's %zu materials", a->n_materials);
+    return SY_OK;
+}
+
+static sy_code check_leaves(const sy_leaves *lv, const sy_skeleton *sk, sy_error *err)
+{
+    for (size_t i = 0; i < lv->n; i++) {
+        if (lv->node[i] < 0 || (size_t)lv->node[i] >= sk->n)
+            return sy_fail(err, SY_EINPUT, "mesh: leaf %zu hangs on node %d of %zu", i, lv->node[i], sk->n);
+        for (int k = 0; k < 3; k++)
+            if (!isfinite(lv->pos[3 * i + k])) return sy_fail(err, SY_EINPUT, "mesh: leaf %zu position is not finite", i);
+        for (int k = 0; k < 4; k++)
+            if (!isfinite(lv->rot[4 * i + k])) return sy_fail(err, SY_EINPUT, "mesh: leaf %zu rotation is not finite", i);
+        if (!(lv->scale[i] > 0) || !isfinite(lv->scale[i]))
+            return sy_fail(err, SY_EINPUT, "mesh: leaf %zu size %g is not positive", i, lv->scale[i]);
+    }
+    return SY_OK;
+}
+
+/* The caller's materials, or plain defaults: brown bark; green, two-sided,
+ * alpha-masked, light-transmitting leaves. */
+static sy_code add_materials(sy_asset *a, const sy_mesh_options *o, int want_leaf, int *bark, int *leaf,
+                             sy_error *err)
+{
+    *bark = o->bark_material;
+    *leaf = o->leaf_material;
+    if (*bark < 0) {
+        sy_material m = sy_material_default("bark");
+        m.base_color[0] = 0.36f, m.base_color[1] = 0.25f, m.base_color[2] = 0.16f;
+        m.roughness = 0.9f;
+        if ((*bark = sy_asset_add_material(a, &m, err)) < 0) return SY_EINTERNAL;
+    }
+    if (*leaf < 0 && want_leaf) {
+        sy_material m = sy_material_default("leaf");
+        m.base_color[0] = 0.22f, m.base_color[1] = 0.45f, m.base_color[2] = 0.12f;
+        m.roughness = 0.6f;
+        m.alpha_mode = SY_ALPHA_MASK;
+        m.alpha_cutoff = 0.5f;
+        m.double_sided = 1;
+        m.diffuse_transmission = 0.4f;
+        m.diffuse_transmission_color[0] = 0.55f, m.diffuse_transmission_color[1] = 0.75f;
+        m.diffuse_transmission_color[2] = 0.2f;
+        if ((*leaf = sy_asset_add_material(a, &m, err)) < 0) return SY_EINTERNAL;
+    }
+    return SY_OK;
+}
+
+typedef struct {
+    uint32_t *list; /* leaves this level keeps, a subsequence of the previous level's */
+    size_t n;
+} leaf_level;
+
+/* Level k keeps the first half of level k-1's list, less the leaves on stems
+ * dropped at k; its cards grow (at most 4x) so their total area matches all
+ * level-0 leaves, keeping the crown's coverage roughly constant. */
+static float next_leaf_level(const sy_leaves *lv, const sy_stems *st, const leaf_level *prev, const leaf_level *all,
+                             const uint8_t *keep, leaf_level *next)
+{
+    next->n = 0;
+    for (size_t i = 0; i < prev->n / 2; i++) {
+        uint32_t l = prev->list[i];
+        if (keep[st->node_stem[lv->node[l]]]) next->list[next->n++] = l;
+    }
+    double ref = 0, kept = 0;
+    for (size_t i = 0; i < all->n; i++) ref += (double)lv->scale[all->list[i]] * lv->scale[all->list[i]];
+    for (size_t i = 0; i < next->n; i++) kept += (double)lv->scale[next->list[i]] * lv->scale[next->list[i]];
+    double g = kept > 0 ? sqrt(ref / kept) : 1;
+    return (float)(g < 1 ? 1 : g > 4 ? 4 : g);
+}
+
+static sy_code add_level(sy_asset *a, const sy_stems *st, const sy_leaves *lv, sy_lod_params *lp, int bark,
+                         int card, const leaf_level *leaves, float grow, float coverage, sy_error *err)
+{
+    sy_lod lod;
+    memset(&lod, 0, sizeof lod);
+    lod.screen_coverage = coverage;
+    sy_mesh m;
+    sy_code rc = sy_bark_mesh(st, lp, bark, &m, err);
+    if (rc != SY_OK) return rc;
+    snprintf(m.name, sizeof m.name, "bark_lod%d", lp->level);
+    if (m.n_vertices > 0) {
+        int mi = sy_asset_add_mesh(a, &m, err);
+        if (mi < 0) {
+            sy_mesh_free(&m);
+            return SY_EINTERNAL;
+        }
+        lod.meshes[lod.n_meshes++] = mi;
+    } else {
+        sy_mesh_free(&m);
+    }
+    if (card >= 0 && leaves->n > 0) {
+        rc = sy_leaf_instances(lv, st, leaves->list, leaves->n, grow, card, &lod.instances[0], err);
+        if (rc != SY_OK) return rc;
+        lod.n_instances = 1;
+    }
+    if (sy_asset_add_lod(a, &lod, err) < 0) {
+        for (int k = 0; k < lod.n_instances; k++) sy_instances_free(&lod.instances[k]);
+        return SY_EINTERNAL;
+    }
+    return SY_OK;
+}
+
+sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_mesh_options *opt, sy_asset *out,
+                     sy_error *err)
+{
+    static const sy_leaves none;
+    const sy_leaves *lv = leaves ? leaves : &none;
+    sy_code rc = check_options(opt, out, err);
+    if (rc != SY_OK) return rc;
+    if (skel->n == 0) return sy_fail(err, SY_EINPUT, "mesh: the skeleton has no nodes");
+    if ((rc = sy_skeleton_validate(skel, err)) != SY_OK) return rc;
+    if ((rc = check_leaves(lv, skel, err)) != SY_OK) return rc;
+    if (lv->n > UINT32_MAX) return sy_fail(err, SY_EINPUT, "mesh: %zu leaves are too many", lv->n);
+
+    sy_stems st;
+    if ((rc = sy_stems_build(skel, opt, &st, err)) != SY_OK) return rc;
+    uint8_t *keep_prev = malloc(st.n + 1), *keep = malloc(st.n + 1);
+    leaf_level all = {malloc((lv->n + 1) * sizeof(uint32_t)), lv->n}, cur = {malloc((lv->n + 1) * sizeof(uint32_t)), 0},
+               nxt = {malloc((lv->n + 1) * sizeof(uint32_t)), 0};
+    if (!keep_prev || !keep || !all.list || !cur.list || !nxt.list) {
+        rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
+        goto done;
+    }
+    if ((rc = sy_wind_build(&st, out, err)) != SY_OK) goto done;
+    int bark, leaf, card = -1;
+    if ((rc = add_materials(out, opt, lv->n > 0, &bark, &leaf, err)) != SY_OK) goto done;
+    if (lv->n > 0) {
+        sy_mesh cm;
+        if ((rc = sy_leaf_card(opt->leaf_shape, opt->leaf_aspect, leaf, &cm, err)) != SY_OK) goto done;
+        if ((card = sy_asset_add_mesh(out, &cm, err)) < 0) {
+            sy_mesh_free(&cm);
+            rc = SY_EINTERNAL;
+            goto done;
+        }
+    }
+    /* Level 0: everything; the leaf order is the seeded permutation, so
+     * every coarser level's leaves are a filtered prefix of it. */
+    sy_permutation(all.list, lv->n, opt->seed);
+    memcpy(cur.list, all.list, lv->n * sizeof(uint32_t));
+    cur.n = lv->n;
+    sy_lod_params lp = {0, 1, keep, 1};
+    memset(keep, 1, st.n);
+    size_t tris = sy_lod_bark_triangles(&st, &lp);
+    size_t first_lod = out->n_lods;
+    float coverage = 0.5f;
+    if ((rc = add_level(out, &st, lv, &lp, bark, card, &cur, 1.0f, coverage, err)) != SY_OK) goto done;
+    for (int level = 1; level < opt->n_lods; level++) {
+        memcpy(keep_prev, keep, st.n);
+        sy_lod_params next = {level, 1 << level, keep, 0};
+        size_t next_tris;
+        if (!sy_lod_select(&st, keep_prev, tris, &next, &next_tris)) {
+            memcpy(keep, keep_prev, st.n);
+            break; /* no coarser level can halve the triangles: the chain ends */
+        }
+        float grow = next_leaf_level(lv, &st, &cur, &all, keep, &nxt);
+        coverage *= 0.5f;
+        if ((rc = add_level(out, &st, lv, &next, bark, card, &nxt, grow, coverage, err)) != SY_OK) goto done;
+        leaf_level t = cur;
+        cur = nxt, nxt = t;
+        tris = next_tris;
+    }
+    if (opt->impostor) {
+        int mi = sy_impostor_build(out, &out->lods[first_lod], opt->impostor_size, err);
+        if (mi < 0) {
+            rc = err ? err->code : SY_EINTERNAL;
+            goto done;
+        }
+        sy_lod lod;
+        memset(&lod, 0, sizeof lod);
+        lod.screen_coverage = coverage * 0.5f;
+        lod.n_meshes = 1;
+        lod.meshes[0] = mi;
+        if (sy_asset_add_lod(out, &lod, err) < 0) rc = SY_EINTERNAL;
+    }
+done:
+    free(keep_prev), free(keep), free(all.list), free(cur.list), free(nxt.list);
+    sy_stems_free(&st);
+    return rc;
+}

@@ -1,0 +1,149 @@
+/* Internals of the mesh stage shared by its source files and its tests.
+ * Everything here works in Sylva's Z-up frame; conversion to glTF's Y-up
+ * happens only when vertices are written (sy_to_yup). */
+#ifndef SYLVA_MESH_INTERNAL_H
+#define SYLVA_MESH_INTERNAL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "mesh.h"
+
+/* ---- small vector helpers ---- */
+static inline float sy_dot3(const float a[3], const float b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+static inline void sy_cross3(const float a[3], const float b[3], float out[3])
+{
+    float x = a[1] * b[2] - a[2] * b[1], y = a[2] * b[0] - a[0] * b[2], z = a[0] * b[1] - a[1] * b[0];
+    out[0] = x;
+    out[1] = y;
+    out[2] = z;
+}
+/* Normalises v in place; returns its previous length (0 leaves v as is). */
+float sy_normalize3(float v[3]);
+/* Z-up (x, y, z) -> Y-up (x, z, -y): a rotation of -90 degrees about X. */
+static inline void sy_to_yup(const float v[3], float out[3])
+{
+    float x = v[0], y = v[1], z = v[2];
+    out[0] = x;
+    out[1] = z;
+    out[2] = -y;
+}
+
+/* ---- curves and frames (frames.c) ---- */
+/* Cubic Hermite in the natural order (p0, m0, p1, m1): position and first
+ * derivative at t in [0,1]. */
+void sy_hermite(const float p0[3], const float m0[3], const float p1[3], const float m1[3], float t, float pos[3],
+                float der[3]);
+/* Rotation-minimising frames by double reflection (Wang et al. 2008): given
+ * n points x (3n) with unit tangents t (3n) and a unit r0 orthogonal to t[0],
+ * writes the reference vectors r (3n), each unit and orthogonal to its tangent. */
+void sy_rmf(size_t n, const float *x, const float *t, const float r0[3], float *r);
+
+/* ---- stems: one generalised cylinder per skeleton branch (stems.c) ---- */
+typedef struct {
+    int32_t branch_id;
+    int32_t parent;      /* stem index, -1 for the root stem */
+    int depth;           /* number of ancestor stems */
+    int32_t attach_node; /* skeleton node the base attaches to, -1 for the root stem */
+    float attach_s;      /* arc length on the parent curve at attach_node */
+    int32_t *nodes;      /* chain of skeleton nodes, base to tip */
+    size_t n_nodes;
+    /* Polyline the curve interpolates: attachment node + chain, coincident
+     * points removed. */
+    size_t n_pts;
+    float *pts, *rad, *pt_s; /* 3n, n, n (arc length at each point) */
+    /* Rings at LOD0, base to tip, after the junction trim: centre, unit
+     * tangent, frame normal N (B = T x N), radius, arc length, dr/ds. */
+    size_t n_samp;
+    float *sp, *st, *sn, *sr, *ss, *sdr;
+    float length;        /* arc length of the whole curve (attachment to tip) */
+    float r_base, r_tip; /* radii at the first and last polyline point */
+    int radial;          /* ring vertices at LOD0 (without the seam duplicate) */
+    int has_geometry;    /* 0: fewer than two distinct points, or buried in its parent */
+    int junction;        /* base ring is projected onto the parent's surface */
+    int has_children;    /* some stem attaches to it: keeps at least 6 ring vertices */
+    /* Wind: the asset.wind entry the vertices follow (itself, or its level-3
+     * ancestor for deeper stems), the w template (ancestor attachment
+     * positions) and the slot that receives the vertex's own position (-1:
+     * the stem rides rigidly on its level-3 ancestor). */
+    int32_t wind_index;
+    float wind_w[4];
+    int wind_slot;
+} sy_stem;
+
+typedef struct {
+    size_t n;
+    sy_stem *s;
+    int32_t *by_depth;  /* stem indices, parents before children */
+    int32_t *node_stem; /* per skeleton node: the stem whose chain holds it */
+    float *node_s;      /* per skeleton node: arc length along that stem */
+    int32_t root;       /* the stem holding the root node */
+    float trunk_radius; /* base radius of the root stem */
+    float height;       /* extent of the skeleton along Z */
+} sy_stems;
+
+sy_code sy_stems_build(const sy_skeleton *skel, const sy_mesh_options *opt, sy_stems *out, sy_error *err);
+void sy_stems_free(sy_stems *st);
+
+/* Frame of stem s at arc length q, interpolated between the rings listed in
+ * idx[0..n_idx) (a LOD's ring selection): centre c, unit tangent T, unit
+ * normal N orthogonal to T, radius R. */
+void sy_stem_frame_at(const sy_stem *s, const int32_t *idx, size_t n_idx, float q, float c[3], float T[3],
+                      float N[3], float *R);
+
+/* ---- LOD selection and tube emission (lod.c, tube.c) ---- */
+typedef struct {
+    int level;
+    int stride;     /* take every stride-th LOD0 ring (first and last always) */
+    uint8_t *keep;  /* per stem: emitted at this level */
+    int cap_rings;  /* intermediate rings of the tip hemisphere */
+} sy_lod_params;
+
+int sy_stem_radial(const sy_stem *s, const sy_lod_params *lp);
+/* Ring selection of stem s at this level: writes up to s->n_samp indices and
+ * returns the count. */
+size_t sy_stem_rings(const sy_stem *s, const sy_lod_params *lp, int32_t *idx);
+/* Vertex and index counts of one stem at a level (0, 0 when not emitted). */
+void sy_tube_counts(const sy_stems *st, size_t stem, const sy_lod_params *lp, size_t *nv, size_t *ni);
+/* Writes one stem into m starting at vertex v0 / index i0 (space reserved
+ * from sy_tube_counts). idx is scratch of 2 * (max n_samp) entries. */
+void sy_tube_emit(const sy_stems *st, size_t stem, const sy_lod_params *lp, sy_mesh *m, size_t v0, size_t i0,
+                  int32_t *idx);
+/* Chooses the stems level lp->level keeps (lp->keep), a subset of prev_keep:
+ * thin and short stems go first (thresholds double per level), children with
+ * their parents, then the least important until the bark has at most half of
+ * prev_tris triangles. Returns 0 when even the trunk alone is too many. */
+int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris, sy_lod_params *lp,
+                  size_t *tris);
+/* Bark triangles of the kept stems at a level. */
+size_t sy_lod_bark_triangles(const sy_stems *st, const sy_lod_params *lp);
+/* Builds the bark mesh of all kept stems at a level. */
+sy_code sy_bark_mesh(const sy_stems *st, const sy_lod_params *lp, int material, sy_mesh *out, sy_error *err);
+
+/* ---- wind (wind.c) ---- */
+/* Tapered-beam deflection (seed 000 eq. 4.7, unit prefactor) at x in [0,1]
+ * for taper ratio alpha = r_tip / r_base. */
+double sy_beam_deflection(double alpha, double x);
+/* Least-squares fit u(x) ~ c2 x^2 + c4 x^4 on the 101 samples x = i/100. */
+void sy_beam_fit(double alpha, float *c2, float *c4);
+/* Fills asset->wind (one entry per stem) and each stem's wind fields. */
+sy_code sy_wind_build(sy_stems *st, sy_asset *asset, sy_error *err);
+
+/* ---- leaves (leaves.c) ---- */
+/* The leaf card mesh for a shape and aspect (local: stem at origin, +Y to
+ * the tip, +Z normal). */
+sy_code sy_leaf_card(int shape, float aspect, int material, sy_mesh *out, sy_error *err);
+/* Deterministic Fisher-Yates permutation of 0..n-1 from seed. */
+void sy_permutation(uint32_t *perm, size_t n, uint64_t seed);
+/* Instances of the leaves list[0..n) (indices into lv) in glTF's frame, their
+ * size multiplied by grow, with the wind data of the stem each hangs on. */
+sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint32_t *list, size_t n, float grow,
+                          int mesh, sy_instances *out, sy_error *err);
+
+/* ---- impostor (impostor.c) ---- */
+/* Renders the LOD0 meshes and instances of lod0 from two orthogonal
+ * horizontal directions, adds the atlas image, its material and the crossed
+ * card mesh; returns the mesh index or -1. */
+int sy_impostor_build(sy_asset *asset, const sy_lod *lod0, int size, sy_error *err);
+
+#endif

@@ -1,0 +1,497 @@
+/* Skeleton -> stems: one chain of nodes per branch id, the smooth curve
+ * through it (Catmull-Rom style Hermite segments with Bessel tangents and a
+ * monotone cubic radius), adaptive ring sampling, rotation-minimising frames,
+ * and the trim that starts a child's tube where it leaves its parent. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mesh_internal.h"
+
+#define SY_PI 3.14159265358979323846f
+/* Points closer than this are one point: a zero-length segment has no
+ * direction and would give NaN tangents. */
+#define DEDUPE_EPS 1e-5f
+/* Adaptive sampling bounds per ring step. */
+#define MAX_TURN (10.0f * SY_PI / 180.0f)
+#define MAX_RADIUS_STEP 0.15f
+#define RINGS_PER_STEM 6
+#define MAX_SUBDIV 64
+
+void sy_stems_free(sy_stems *st)
+{
+    for (size_t i = 0; i < st->n; i++) {
+        sy_stem *s = &st->s[i];
+        free(s->nodes);
+        free(s->pts);
+        free(s->rad);
+        free(s->pt_s);
+        free(s->sp);
+        free(s->st);
+        free(s->sn);
+        free(s->sr);
+        free(s->ss);
+        free(s->sdr);
+    }
+    free(st->s);
+    free(st->by_depth);
+    free(st->node_stem);
+    free(st->node_s);
+    memset(st, 0, sizeof *st);
+}
+
+/* ---- chains ---- */
+
+typedef struct {
+    int32_t branch, start;
+} stem_key;
+
+static int cmp_key(const void *a, const void *b)
+{
+    const stem_key *x = a, *y = b;
+    if (x->branch != y->branch) return x->branch < y->branch ? -1 : 1;
+    return (x->start > y->start) - (x->start < y->start);
+}
+
+/* Splits the nodes into chains. A chain starts at the root, at a node whose
+ * parent carries another branch id, or at a second same-branch child of a
+ * node (a malformed fork: it becomes a stem of its own). It continues through
+ * the lowest-index same-branch child. Every node lies in exactly one chain. */
+static sy_code build_chains(const sy_skeleton *sk, sy_stems *st, sy_error *err)
+{
+    size_t n = sk->n;
+    int32_t *cont = malloc(n * sizeof *cont);
+    stem_key *keys = malloc(n * sizeof *keys);
+    st->node_stem = malloc(n * sizeof *st->node_stem);
+    st->node_s = calloc(n, sizeof *st->node_s);
+    if (!cont || !keys || !st->node_stem || !st->node_s) {
+        free(cont);
+        free(keys);
+        return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
+    }
+    for (size_t i = 0; i < n; i++) cont[i] = -1;
+    for (size_t i = 0; i < n; i++) {
+        int32_t p = sk->parent[i];
+        if (p >= 0 && sk->branch[p] == sk->branch[i] && cont[p] < 0) cont[p] = (int32_t)i;
+    }
+    size_t ns = 0;
+    for (size_t i = 0; i < n; i++) {
+        int32_t p = sk->parent[i];
+        if (p < 0 || cont[p] != (int32_t)i) keys[ns++] = (stem_key){sk->branch[i], (int32_t)i};
+    }
+    qsort(keys, ns, sizeof *keys, cmp_key);
+    st->s = calloc(ns, sizeof *st->s);
+    if (!st->s) {
+        free(cont);
+        free(keys);
+        return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
+    }
+    st->n = ns;
+    for (size_t k = 0; k < ns; k++) {
+        sy_stem *s = &st->s[k];
+        s->branch_id = keys[k].branch;
+        size_t len = 0;
+        for (int32_t v = keys[k].start; v >= 0; v = cont[v]) len++;
+        s->nodes = malloc(len * sizeof *s->nodes);
+        if (!s->nodes) {
+            free(cont);
+            free(keys);
+            return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
+        }
+        len = 0;
+        for (int32_t v = keys[k].start; v >= 0; v = cont[v]) {
+            s->nodes[len++] = v;
+            st->node_stem[v] = (int32_t)k;
+        }
+        s->n_nodes = len;
+    }
+    free(cont);
+    free(keys);
+    for (size_t k = 0; k < ns; k++) {
+        sy_stem *s = &st->s[k];
+        s->attach_node = sk->parent[s->nodes[0]];
+        s->parent = s->attach_node >= 0 ? st->node_stem[s->attach_node] : -1;
+        if (s->parent < 0) st->root = (int32_t)k;
+        else st->s[s->parent].has_children = 1;
+    }
+    return SY_OK;
+}
+
+/* Depth of every stem and the parents-first order. */
+static sy_code order_by_depth(sy_stems *st, sy_error *err)
+{
+    st->by_depth = malloc((st->n ? st->n : 1) * sizeof *st->by_depth);
+    size_t *count = calloc(st->n + 1, sizeof *count);
+    if (!st->by_depth || !count) {
+        free(count);
+        return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
+    }
+    int max_depth = 0;
+    for (size_t k = 0; k < st->n; k++) {
+        int d = 0;
+        for (int32_t p = st->s[k].parent; p >= 0; p = st->s[p].parent) d++;
+        st->s[k].depth = d;
+        if (d > max_depth) max_depth = d;
+        count[d + 1]++;
+    }
+    for (int d = 1; d <= max_depth; d++) count[d] += count[d - 1];
+    for (size_t k = 0; k < st->n; k++) st->by_depth[count[st->s[k].depth]++] = (int32_t)k;
+    free(count);
+    return SY_OK;
+}
+
+/* ---- curve ---- */
+
+/* Polyline through the attachment node and the chain; records for each
+ * chain node the polyline point it collapsed into (node_pt). */
+static int build_polyline(const sy_skeleton *sk, sy_stem *s, int32_t *node_pt)
+{
+    size_t cap = s->n_nodes + 1;
+    s->pts = malloc(cap * 3 * sizeof(float));
+    s->rad = malloc(cap * sizeof(float));
+    s->pt_s = malloc(cap * sizeof(float));
+    if (!s->pts || !s->rad || !s->pt_s) return 0;
+    size_t m = 0;
+    if (s->attach_node >= 0) {
+        memcpy(s->pts, sk->pos + 3 * s->attach_node, 3 * sizeof(float));
+        /* The tube starts with the child's own radius, not the parent's. */
+        s->rad[0] = sk->radius[s->nodes[0]];
+        m = 1;
+    }
+    for (size_t i = 0; i < s->n_nodes; i++) {
+        const float *p = sk->pos + 3 * s->nodes[i];
+        if (m > 0) {
+            const float *q = s->pts + 3 * (m - 1);
+            float d[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]};
+            if (sy_dot3(d, d) < DEDUPE_EPS * DEDUPE_EPS) {
+                node_pt[i] = (int32_t)(m - 1);
+                continue;
+            }
+        }
+        memcpy(s->pts + 3 * m, p, 3 * sizeof(float));
+        s->rad[m] = sk->radius[s->nodes[i]];
+        node_pt[i] = (int32_t)m;
+        m++;
+    }
+    s->n_pts = m;
+    return 1;
+}
+
+/* Unit Bessel tangent at polyline point i (chord-weighted average of the
+ * adjacent chord directions; the chord itself at the ends). */
+static void bessel_tangent(const sy_stem *s, size_t i, float out[3])
+{
+    size_t n = s->n_pts;
+    const float *p = s->pts;
+    if (i == 0 || i == n - 1) {
+        size_t a = i == 0 ? 0 : n - 2;
+        for (int k = 0; k < 3; k++) out[k] = p[3 * (a + 1) + k] - p[3 * a + k];
+        sy_normalize3(out);
+        return;
+    }
+    float a[3], b[3];
+    for (int k = 0; k < 3; k++) {
+        a[k] = p[3 * i + k] - p[3 * (i - 1) + k];
+        b[k] = p[3 * (i + 1) + k] - p[3 * i + k];
+    }
+    float da = sy_normalize3(a), db = sy_normalize3(b);
+    for (int k = 0; k < 3; k++) out[k] = (db * a[k] + da * b[k]) / (da + db);
+    if (sy_normalize3(out) < 1e-6f) {
+        /* A hairpin: the chords cancel; follow the incoming one. */
+        for (int k = 0; k < 3; k++) out[k] = a[k];
+    }
+}
+
+/* Fritsch-Carlson slopes dr/ds at the polyline points: a monotone cubic, so
+ * the radius never overshoots between nodes (no bulges, never negative). */
+static void radius_slopes(const sy_stem *s, const float *chord, float *slope)
+{
+    size_t n = s->n_pts;
+    for (size_t i = 0; i < n; i++) {
+        float dl = i > 0 ? (s->rad[i] - s->rad[i - 1]) / chord[i - 1] : 0;
+        float dr = i + 1 < n ? (s->rad[i + 1] - s->rad[i]) / chord[i] : 0;
+        if (i == 0) slope[i] = dr;
+        else if (i + 1 == n) slope[i] = dl;
+        else slope[i] = dl * dr > 0 ? 0.5f * (dl + dr) : 0;
+    }
+    for (size_t i = 0; i + 1 < n; i++) {
+        float d = (s->rad[i + 1] - s->rad[i]) / chord[i];
+        if (d == 0) {
+            slope[i] = slope[i + 1] = 0;
+            continue;
+        }
+        float a = slope[i] / d, b = slope[i + 1] / d;
+        if (a * a + b * b > 9) {
+            float t = 3 / sqrtf(a * a + b * b);
+            slope[i] = t * a * d;
+            slope[i + 1] = t * b * d;
+        }
+    }
+}
+
+static int alloc_samples(sy_stem *s, size_t n)
+{
+    s->sp = malloc(n * 3 * sizeof(float));
+    s->st = malloc(n * 3 * sizeof(float));
+    s->sn = malloc(n * 3 * sizeof(float));
+    s->sr = malloc(n * sizeof(float));
+    s->ss = malloc(n * sizeof(float));
+    s->sdr = malloc(n * sizeof(float));
+    return s->sp && s->st && s->sn && s->sr && s->ss && s->sdr;
+}
+
+/* Samples the curve: every segment is split so that no ring step turns more
+ * than MAX_TURN, changes the radius by more than MAX_RADIUS_STEP of itself, or
+ * exceeds the target spacing (segment_length, or a sixth of the stem so that
+ * wind bending has joints to bend at). */
+static int sample_curve(sy_stem *s, const sy_mesh_options *opt)
+{
+    size_t n = s->n_pts;
+    float *chord = malloc(n * sizeof(float)), *tan = malloc(n * 3 * sizeof(float));
+    float *slope = malloc(n * sizeof(float));
+    int *sub = malloc(n * sizeof(int));
+    if (!chord || !tan || !slope || !sub) {
+        free(chord), free(tan), free(slope), free(sub);
+        return 0;
+    }
+    float total = 0;
+    for (size_t i = 0; i + 1 < n; i++) {
+        float d[3] = {s->pts[3 * i + 3] - s->pts[3 * i], s->pts[3 * i + 4] - s->pts[3 * i + 1],
+                      s->pts[3 * i + 5] - s->pts[3 * i + 2]};
+        chord[i] = sqrtf(sy_dot3(d, d));
+        total += chord[i];
+    }
+    for (size_t i = 0; i < n; i++) bessel_tangent(s, i, tan + 3 * i);
+    radius_slopes(s, chord, slope);
+    float spacing = opt->segment_length > 0 ? opt->segment_length : total / RINGS_PER_STEM;
+    size_t count = 1;
+    for (size_t i = 0; i + 1 < n; i++) {
+        float c = sy_dot3(tan + 3 * i, tan + 3 * i + 3);
+        float turn = acosf(c > 1 ? 1 : c < -1 ? -1 : c);
+        float r0 = s->rad[i], r1 = s->rad[i + 1];
+        float k = fmaxf(ceilf(chord[i] / spacing), ceilf(turn / MAX_TURN));
+        k = fmaxf(k, ceilf(fabsf(r1 - r0) / (MAX_RADIUS_STEP * fmaxf(r0, r1))));
+        sub[i] = k < 1 ? 1 : k > MAX_SUBDIV ? MAX_SUBDIV : (int)k;
+        count += (size_t)sub[i];
+    }
+    if (!alloc_samples(s, count)) {
+        free(chord), free(tan), free(slope), free(sub);
+        return 0;
+    }
+    size_t j = 0;
+    for (size_t i = 0; i + 1 < n; i++) {
+        const float *p0 = s->pts + 3 * i, *p1 = p0 + 3;
+        float m0[3], m1[3];
+        for (int k = 0; k < 3; k++) {
+            m0[k] = chord[i] * tan[3 * i + k];
+            m1[k] = chord[i] * tan[3 * i + 3 + k];
+        }
+        int last = i + 2 == n;
+        for (int k = 0; k < sub[i] + last; k++) {
+            float t = (float)k / (float)sub[i], der[3];
+            sy_hermite(p0, m0, p1, m1, t, s->sp + 3 * j, der);
+            float speed = sy_normalize3(der);
+            if (speed < 1e-9f) {
+                for (int q = 0; q < 3; q++) der[q] = p1[q] - p0[q];
+                sy_normalize3(der);
+                speed = chord[i];
+            }
+            memcpy(s->st + 3 * j, der, sizeof der);
+            /* Radius: cubic Hermite in t with slopes scaled to the segment. */
+            float t2 = t * t, t3 = t2 * t;
+            float ra = s->rad[i], rb = s->rad[i + 1], ma = slope[i] * chord[i], mb = slope[i + 1] * chord[i];
+            float r = (2 * t3 - 3 * t2 + 1) * ra + (t3 - 2 * t2 + t) * ma + (-2 * t3 + 3 * t2) * rb + (t3 - t2) * mb;
+            float drdt = (6 * t2 - 6 * t) * ra + (3 * t2 - 4 * t + 1) * ma + (-6 * t2 + 6 * t) * rb + (3 * t2 - 2 * t) * mb;
+            s->sr[j] = fmaxf(r, 1e-5f);
+            s->sdr[j] = drdt / speed;
+            if (j == 0) {
+                s->ss[j] = 0;
+            } else {
+                const float *a = s->sp + 3 * (j - 1), *b = s->sp + 3 * j;
+                float d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+                s->ss[j] = s->ss[j - 1] + sqrtf(sy_dot3(d, d));
+            }
+            if (k == 0) s->pt_s[i] = s->ss[j];
+            j++;
+        }
+    }
+    s->n_samp = j;
+    s->pt_s[n - 1] = s->ss[j - 1];
+    s->length = s->ss[j - 1];
+    free(chord), free(tan), free(slope), free(sub);
+    return 1;
+}
+
+/* Seam placement: u = 0 faces down on branches (under the branch) and away
+ * from a glTF viewer's default camera on a vertical trunk. */
+static void initial_normal(const sy_stem *s, float r0[3])
+{
+    const float *t0 = s->st;
+    float down[3] = {0, 0, -1}, back[3] = {0, 1, 0};
+    const float *ref = (s->parent >= 0 && fabsf(sy_dot3(t0, down)) < 0.95f) ? down : back;
+    if (fabsf(sy_dot3(t0, ref)) > 0.95f) ref = fabsf(t0[0]) < 0.9f ? (const float[3]){1, 0, 0} : back;
+    float d = sy_dot3(ref, t0);
+    for (int k = 0; k < 3; k++) r0[k] = ref[k] - d * t0[k];
+    sy_normalize3(r0);
+}
+
+/* ---- frame queries ---- */
+
+void sy_stem_frame_at(const sy_stem *s, const int32_t *idx, size_t n_idx, float q, float c[3], float T[3],
+                      float N[3], float *R)
+{
+    if (!idx) n_idx = s->n_samp;
+#define IDX(k) (idx ? (size_t)idx[k] : (size_t)(k))
+    size_t lo = 0, hi = n_idx - 1;
+    float f = 0;
+    if (n_idx == 1 || q <= s->ss[IDX(0)]) {
+        hi = lo;
+    } else if (q >= s->ss[IDX(n_idx - 1)]) {
+        lo = hi;
+    } else {
+        while (hi - lo > 1) {
+            size_t mid = (lo + hi) / 2;
+            if (s->ss[IDX(mid)] <= q) lo = mid;
+            else hi = mid;
+        }
+        float a = s->ss[IDX(lo)], b = s->ss[IDX(hi)];
+        f = b > a ? (q - a) / (b - a) : 0;
+    }
+    size_t a = IDX(lo), b = IDX(hi);
+#undef IDX
+    for (int k = 0; k < 3; k++) {
+        c[k] = s->sp[3 * a + k] + f * (s->sp[3 * b + k] - s->sp[3 * a + k]);
+        T[k] = s->st[3 * a + k] + f * (s->st[3 * b + k] - s->st[3 * a + k]);
+        N[k] = s->sn[3 * a + k] + f * (s->sn[3 * b + k] - s->sn[3 * a + k]);
+    }
+    if (sy_normalize3(T) < 1e-6f) memcpy(T, s->st + 3 * a, 3 * sizeof(float));
+    float d = sy_dot3(N, T);
+    for (int k = 0; k < 3; k++) N[k] -= d * T[k];
+    if (sy_normalize3(N) < 1e-6f) memcpy(N, s->sn + 3 * a, 3 * sizeof(float));
+    *R = s->sr[a] + f * (s->sr[b] - s->sr[a]);
+}
+
+/* Where the ray from w (relative to a point on the axis) along d leaves the
+ * infinite cylinder of radius R around unit axis a; 0 when it misses. */
+static int cylinder_exit(const float w[3], const float d[3], const float a[3], float R, float *lam)
+{
+    float wa = sy_dot3(w, a), da = sy_dot3(d, a), wp[3], dp[3];
+    for (int k = 0; k < 3; k++) {
+        wp[k] = w[k] - wa * a[k];
+        dp[k] = d[k] - da * a[k];
+    }
+    float A = sy_dot3(dp, dp), B = sy_dot3(wp, dp), C = sy_dot3(wp, wp) - R * R;
+    if (A < 1e-8f) return 0;
+    float disc = B * B - A * C;
+    if (disc < 0) return 0;
+    *lam = (-B + sqrtf(disc)) / A;
+    return 1;
+}
+
+/* Starts a child's tube where its axis leaves the parent's cylinder and drops
+ * the rings its projected base ring would pass (those lie inside the parent).
+ * A child whose tip stays inside the parent is buried and draws nothing. */
+static void trim_junction(sy_stems *st, sy_stem *s)
+{
+    const sy_stem *p = &st->s[s->parent];
+    float c[3], a[3], pn[3], R;
+    sy_stem_frame_at(p, NULL, 0, s->attach_s, c, a, pn, &R);
+    float w[3] = {s->sp[0] - c[0], s->sp[1] - c[1], s->sp[2] - c[2]}, lam;
+    if (!cylinder_exit(w, s->st, a, R, &lam) || lam > 0.5f * s->length) return; /* runs along the parent */
+    float s0 = lam > 0 ? lam : 0;
+    float c0[3], t0[3], n0[3], r0, b0[3];
+    sy_stem_frame_at(s, NULL, 0, s0, c0, t0, n0, &r0);
+    sy_cross3(t0, n0, b0);
+    float adv = 0;
+    for (int j = 0; j < 32; j++) {
+        float th = 2 * SY_PI * (float)j / 32, q[3];
+        for (int k = 0; k < 3; k++) q[k] = c0[k] + r0 * (cosf(th) * n0[k] + sinf(th) * b0[k]) - c[k];
+        if (cylinder_exit(q, t0, a, R, &lam) && lam > adv) adv = lam;
+    }
+    float cut = s0 + 1.15f * adv + 1e-4f;
+    /* Buried: the tip centre is inside the parent's cylinder. */
+    const float *tip = s->sp + 3 * (s->n_samp - 1);
+    float wt[3] = {tip[0] - c[0], tip[1] - c[1], tip[2] - c[2]}, ta = sy_dot3(wt, a);
+    for (int k = 0; k < 3; k++) wt[k] -= ta * a[k];
+    if (sy_dot3(wt, wt) < R * R || s->ss[s->n_samp - 1] <= s0 + 1e-4f) {
+        s->has_geometry = 0;
+        return;
+    }
+    /* Interpolated values for ring 0 before the arrays are compacted. */
+    size_t lo = 0;
+    while (lo + 2 < s->n_samp && s->ss[lo + 1] <= s0) lo++;
+    float f = s->ss[lo + 1] > s->ss[lo] ? (s0 - s->ss[lo]) / (s->ss[lo + 1] - s->ss[lo]) : 0;
+    float dr0 = s->sdr[lo] + f * (s->sdr[lo + 1] - s->sdr[lo]);
+    size_t out = 1;
+    for (size_t j = 1; j < s->n_samp; j++) {
+        if (s->ss[j] <= cut && j + 1 < s->n_samp) continue;
+        memmove(s->sp + 3 * out, s->sp + 3 * j, 3 * sizeof(float));
+        memmove(s->st + 3 * out, s->st + 3 * j, 3 * sizeof(float));
+        memmove(s->sn + 3 * out, s->sn + 3 * j, 3 * sizeof(float));
+        s->sr[out] = s->sr[j];
+        s->ss[out] = s->ss[j];
+        s->sdr[out] = s->sdr[j];
+        out++;
+    }
+    memcpy(s->sp, c0, sizeof c0);
+    memcpy(s->st, t0, sizeof t0);
+    memcpy(s->sn, n0, sizeof n0);
+    s->sr[0] = r0;
+    s->ss[0] = s0;
+    s->sdr[0] = dr0;
+    s->n_samp = out;
+    s->junction = 1;
+}
+
+sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_stems *st, sy_error *err)
+{
+    memset(st, 0, sizeof *st);
+    st->root = -1;
+    sy_code rc = build_chains(sk, st, err);
+    if (rc == SY_OK) rc = order_by_depth(st, err);
+    if (rc != SY_OK) {
+        sy_stems_free(st);
+        return rc;
+    }
+    float zmin = INFINITY, zmax = -INFINITY;
+    for (size_t i = 0; i < sk->n; i++) {
+        zmin = fminf(zmin, sk->pos[3 * i + 2]);
+        zmax = fmaxf(zmax, sk->pos[3 * i + 2]);
+    }
+    st->height = zmax - zmin;
+    st->trunk_radius = sk->radius[st->s[st->root].nodes[0]];
+    for (size_t o = 0; o < st->n; o++) {
+        sy_stem *s = &st->s[st->by_depth[o]];
+        int32_t *node_pt = malloc(s->n_nodes * sizeof *node_pt);
+        if (!node_pt || !build_polyline(sk, s, node_pt)) {
+            free(node_pt);
+            sy_stems_free(st);
+            return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
+        }
+        s->r_base = s->rad[0];
+        s->r_tip = s->rad[s->n_pts - 1];
+        if (s->parent >= 0) s->attach_s = st->node_s[s->attach_node];
+        if (s->n_pts >= 2) {
+            if (!sample_curve(s, opt)) {
+                free(node_pt);
+                sy_stems_free(st);
+                return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
+            }
+            s->has_geometry = 1;
+        } else {
+            s->length = 0;
+        }
+        for (size_t i = 0; i < s->n_nodes; i++)
+            st->node_s[s->nodes[i]] = s->has_geometry ? s->pt_s[node_pt[i]] : 0;
+        free(node_pt);
+        if (!s->has_geometry) continue;
+        float r0[3];
+        initial_normal(s, r0);
+        sy_rmf(s->n_samp, s->sp, s->st, r0, s->sn);
+        int radial = (int)lroundf((float)opt->radial_segments * sqrtf(s->r_base / st->trunk_radius));
+        s->radial = radial < 3 ? 3 : radial > opt->radial_segments ? opt->radial_segments : radial;
+        if (s->radial < 3) s->radial = 3;
+        if (s->parent >= 0 && st->s[s->parent].has_geometry) trim_junction(st, s);
+    }
+    return SY_OK;
+}

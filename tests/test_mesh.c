@@ -1,0 +1,628 @@
+/* Mesh stage: curves and frames, junctions, tube topology, UVs, tangents,
+ * Y-up, wind data, LOD chain, leaf instances and the impostor. */
+#include "testutil.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <stb_image.h>
+
+#include "stages/mesh/mesh.h"
+#include "stages/mesh/mesh_internal.h"
+#include "tree_gen.h"
+
+#define PI 3.14159265358979323846
+
+/* ---------- helpers ---------- */
+
+static void mesh_tree(const sy_skeleton *s, const sy_leaves *lv, const sy_mesh_options *o, sy_asset *a)
+{
+    sy_error err = {0};
+    memset(a, 0, sizeof *a);
+    sy_code rc = sy_mesh_tree(s, lv, o, a, &err);
+    if (rc != SY_OK) fprintf(stderr, "%s\n", err.msg);
+    assert_int_equal(rc, SY_OK);
+}
+
+static const sy_mesh *bark0(const sy_asset *a) { return &a->meshes[a->lods[0].meshes[0]]; }
+
+static void assert_finite(const float *v, size_t n)
+{
+    for (size_t i = 0; i < n; i++) assert_true(isfinite(v[i]));
+}
+
+/* Every attribute finite, unit normals, tangents orthogonal to normals with
+ * w = +-1, indices in range, and each triangle facing the way its vertex
+ * normals point (counter-clockwise seen from outside). Coarse levels may hold
+ * a few sheared slivers where a child's base ring lands on a six-sided coarse
+ * parent: at most max_inward of all faces. */
+static void check_mesh_basics_share(const sy_mesh *m, double max_inward)
+{
+    assert_true(m->n_vertices > 0);
+    assert_finite(m->position, 3 * m->n_vertices);
+    assert_finite(m->normal, 3 * m->n_vertices);
+    assert_finite(m->uv, 2 * m->n_vertices);
+    assert_finite(m->tangent, 4 * m->n_vertices);
+    for (size_t i = 0; i < m->n_vertices; i++) {
+        const float *n = m->normal + 3 * i, *t = m->tangent + 4 * i;
+        assert_float_equal(sy_dot3(n, n), 1.0, 1e-4);
+        assert_float_equal(sy_dot3(t, t), 1.0, 1e-4);
+        assert_true(fabsf(sy_dot3(n, t)) < 1e-4f);
+        assert_true(t[3] == 1.0f || t[3] == -1.0f);
+    }
+    size_t wrong = 0, faces = 0;
+    for (size_t k = 0; k < m->n_indices; k += 3) {
+        const uint32_t *ix = m->indices + k;
+        for (int c = 0; c < 3; c++) assert_true(ix[c] < m->n_vertices);
+        const float *a = m->position + 3 * ix[0], *b = m->position + 3 * ix[1], *c = m->position + 3 * ix[2];
+        float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]}, f[3];
+        sy_cross3(e1, e2, f);
+        if (sy_dot3(f, f) < 1e-16f) continue;
+        float ns[3];
+        for (int q = 0; q < 3; q++)
+            ns[q] = m->normal[3 * ix[0] + q] + m->normal[3 * ix[1] + q] + m->normal[3 * ix[2] + q];
+        faces++;
+        if (sy_dot3(f, ns) <= 0) wrong++;
+    }
+    assert_true(faces > 0);
+    if ((double)wrong > max_inward * (double)faces) fprintf(stderr, "%zu of %zu faces point inwards\n", wrong, faces);
+    assert_true((double)wrong <= max_inward * (double)faces);
+}
+static void check_mesh_basics(const sy_mesh *m) { check_mesh_basics_share(m, 0); }
+
+/* Welds vertices with bit-identical positions: id[i] is the smallest index
+ * with the same position. */
+static const float *weld_pos;
+static int cmp_pos(const void *a, const void *b)
+{
+    uint32_t i = *(const uint32_t *)a, j = *(const uint32_t *)b;
+    int c = memcmp(weld_pos + 3 * i, weld_pos + 3 * j, 3 * sizeof(float));
+    return c ? c : (i > j) - (i < j);
+}
+static uint32_t *weld(const sy_mesh *m)
+{
+    uint32_t *order = malloc(m->n_vertices * sizeof *order), *id = malloc(m->n_vertices * sizeof *id);
+    for (size_t i = 0; i < m->n_vertices; i++) order[i] = (uint32_t)i;
+    weld_pos = m->position;
+    qsort(order, m->n_vertices, sizeof *order, cmp_pos);
+    for (size_t k = 0; k < m->n_vertices; k++) {
+        size_t first = k;
+        while (first > 0 && !memcmp(m->position + 3 * order[first - 1], m->position + 3 * order[k], 12)) first--;
+        id[order[k]] = order[first];
+    }
+    free(order);
+    return id;
+}
+
+typedef struct {
+    uint32_t a, b;
+} edge;
+static int cmp_edge(const void *x, const void *y)
+{
+    const edge *p = x, *q = y;
+    if (p->a != q->a) return p->a < q->a ? -1 : 1;
+    return (p->b > q->b) - (p->b < q->b);
+}
+
+/* Edges (welded) of the triangles whose vertices all belong to branch b,
+ * sorted; *n gets the count. */
+static edge *branch_edges(const sy_mesh *m, const uint32_t *id, uint16_t b, size_t *n)
+{
+    edge *e = malloc((m->n_indices + 1) * sizeof *e);
+    size_t k = 0;
+    for (size_t t = 0; t < m->n_indices; t += 3) {
+        const uint32_t *ix = m->indices + t;
+        if (m->wind_branch[ix[0]] != b) continue;
+        for (int c = 0; c < 3; c++) {
+            uint32_t u = id[ix[c]], v = id[ix[(c + 1) % 3]];
+            e[k++] = (edge){u < v ? u : v, u < v ? v : u};
+        }
+    }
+    qsort(e, k, sizeof *e, cmp_edge);
+    *n = k;
+    return e;
+}
+
+/* Distance from p to triangle abc (Ericson, Real-Time Collision Detection 5.1.5). */
+static float point_triangle(const float p[3], const float a[3], const float b[3], const float c[3])
+{
+    float ab[3], ac[3], ap[3], q[3];
+    for (int k = 0; k < 3; k++) ab[k] = b[k] - a[k], ac[k] = c[k] - a[k], ap[k] = p[k] - a[k];
+    float d1 = sy_dot3(ab, ap), d2 = sy_dot3(ac, ap);
+    float bp[3], cp[3];
+    for (int k = 0; k < 3; k++) bp[k] = p[k] - b[k], cp[k] = p[k] - c[k];
+    float d3 = sy_dot3(ab, bp), d4 = sy_dot3(ac, bp), d5 = sy_dot3(ab, cp), d6 = sy_dot3(ac, cp);
+    float va = d3 * d6 - d5 * d4, vb = d5 * d2 - d1 * d6, vc = d1 * d4 - d3 * d2;
+    if (d1 <= 0 && d2 <= 0) memcpy(q, a, 12);
+    else if (d3 >= 0 && d4 <= d3) memcpy(q, b, 12);
+    else if (d6 >= 0 && d5 <= d6) memcpy(q, c, 12);
+    else if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+        float v = d1 / (d1 - d3);
+        for (int k = 0; k < 3; k++) q[k] = a[k] + v * ab[k];
+    } else if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+        float w = d2 / (d2 - d6);
+        for (int k = 0; k < 3; k++) q[k] = a[k] + w * ac[k];
+    } else if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+        float w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        for (int k = 0; k < 3; k++) q[k] = b[k] + w * (c[k] - b[k]);
+    } else {
+        float den = 1 / (va + vb + vc), v = vb * den, w = vc * den;
+        for (int k = 0; k < 3; k++) q[k] = a[k] + ab[k] * v + ac[k] * w;
+    }
+    float d[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]};
+    return sqrtf(sy_dot3(d, d));
+}
+
+static float distance_to_branch(const sy_mesh *m, uint16_t b, const float p[3])
+{
+    float best = INFINITY;
+    for (size_t t = 0; t < m->n_indices; t += 3) {
+        const uint32_t *ix = m->indices + t;
+        if (m->wind_branch[ix[0]] != b) continue;
+        best = fminf(best, point_triangle(p, m->position + 3 * ix[0], m->position + 3 * ix[1], m->position + 3 * ix[2]));
+    }
+    return best;
+}
+
+/* Topology and junction of every branch of the LOD0 bark (branch ids are
+ * stem indices in these test trees): the tube is closed except for one open
+ * boundary, the base ring, whose vertices all lie on the parent's surface
+ * within 2 mm + 5% of the parent radius. The root stem is fully closed.
+ * Returns the number of junctions checked. */
+static size_t check_branches(const sy_skeleton *s, const sy_asset *a)
+{
+    const sy_mesh *m = bark0(a);
+    uint32_t *id = weld(m);
+    size_t junctions = 0;
+    for (size_t b = 0; b < a->n_wind; b++) {
+        size_t n;
+        edge *e = branch_edges(m, id, (uint16_t)b, &n);
+        if (n == 0) {
+            free(e);
+            continue;
+        }
+        size_t boundary = 0;
+        float worst = 0, tol = 0;
+        for (size_t i = 0; i < n;) {
+            size_t j = i;
+            while (j < n && !cmp_edge(&e[i], &e[j])) j++;
+            size_t uses = j - i;
+            assert_true(uses == 1 || uses == 2);
+            if (uses == 1) {
+                boundary++;
+                int32_t parent = a->wind[b].parent;
+                assert_true(parent >= 0); /* only junction rings may be open */
+                /* radius of the parent at the attachment node */
+                int32_t first = -1;
+                for (size_t v = 0; v < s->n && first < 0; v++)
+                    if (s->branch[v] == (int32_t)b && s->parent[v] >= 0 && s->branch[s->parent[v]] != (int32_t)b) first = (int32_t)v;
+                float rp = s->radius[s->parent[first]];
+                tol = 0.002f + 0.05f * rp;
+                for (int end = 0; end < 2; end++) {
+                    uint32_t v = end ? e[i].b : e[i].a;
+                    float d = distance_to_branch(m, (uint16_t)parent, m->position + 3 * v);
+                    worst = fmaxf(worst, d);
+                }
+            }
+            i = j;
+        }
+        if (a->wind[b].parent < 0) {
+            assert_int_equal(boundary, 0);
+        } else {
+            assert_true(boundary >= 3);
+            if (worst > tol) fprintf(stderr, "branch %zu: base ring %g m off its parent (tolerance %g)\n", b, worst, tol);
+            assert_true(worst <= tol);
+            junctions++;
+        }
+        free(e);
+    }
+    free(id);
+    return junctions;
+}
+
+static size_t lod_triangles(const sy_asset *a, const sy_lod *l)
+{
+    size_t t = 0;
+    for (int k = 0; k < l->n_meshes; k++) t += a->meshes[l->meshes[k]].n_indices / 3;
+    for (int k = 0; k < l->n_instances; k++) t += l->instances[k].n * (a->meshes[l->instances[k].mesh].n_indices / 3);
+    return t;
+}
+
+/* ---------- curves and frames ---------- */
+
+static void hermite_and_beam_match_references(void **state)
+{
+    (void)state;
+    float p0[3] = {0, 0, 0}, m0[3] = {1, 2, 0}, p1[3] = {3, 1, 2}, m1[3] = {0, -1, 4}, pos[3], der[3];
+    sy_hermite(p0, m0, p1, m1, 0, pos, der);
+    for (int k = 0; k < 3; k++) assert_float_equal(pos[k], p0[k], 1e-6), assert_float_equal(der[k], m0[k], 1e-6);
+    sy_hermite(p0, m0, p1, m1, 1, pos, der);
+    for (int k = 0; k < 3; k++) assert_float_equal(pos[k], p1[k], 1e-6), assert_float_equal(der[k], m1[k], 1e-6);
+    /* Digest Table 4.1 (101-sample least squares). */
+    float c2, c4;
+    sy_beam_fit(0.1, &c2, &c4);
+    assert_float_equal(c2, 0.3326, 1e-4);
+    assert_float_equal(c4, 0.398924, 1e-5);
+    sy_beam_fit(0.3, &c2, &c4);
+    assert_float_equal(c2, 0.364816, 1e-5);
+    assert_float_equal(c4, 0.024577, 1e-5);
+    /* Near alpha = 1 the uniform cantilever: tip deflection 1/(2 pi). */
+    assert_float_equal(sy_beam_deflection(0.999, 1.0), 1 / (2 * PI), 1e-6);
+    assert_float_equal(sy_beam_deflection(0.05, 1.0), 1.0229, 1e-4);
+}
+
+/* Angle of r1 about t1 relative to r0 carried along by the minimal rotation
+ * taking t0 to t1. */
+static double twist(const float t0[3], const float r0[3], const float t1[3], const float r1[3])
+{
+    float ax[3], moved[3];
+    sy_cross3(t0, t1, ax);
+    double s = sqrt(sy_dot3(ax, ax)), c = sy_dot3(t0, t1);
+    if (s > 1e-9) {
+        for (int k = 0; k < 3; k++) ax[k] /= (float)s;
+        float kxr[3];
+        sy_cross3(ax, r0, kxr);
+        double kd = sy_dot3(ax, r0);
+        for (int k = 0; k < 3; k++) moved[k] = (float)(r0[k] * c + kxr[k] * s + ax[k] * kd * (1 - c));
+    } else {
+        memcpy(moved, r0, 12);
+    }
+    double d = sy_dot3(moved, r1);
+    return acos(d > 1 ? 1 : d < -1 ? -1 : d);
+}
+
+static void rmf_has_no_twist_on_a_planar_s_curve(void **state)
+{
+    (void)state;
+    enum { N = 400 };
+    static float x[3 * N], t[3 * N], r[3 * N];
+    for (int i = 0; i < N; i++) {
+        double u = (double)i / (N - 1) * 4 * PI;
+        /* An S-curve in the XZ plane with inflections, plus a straight run
+         * and a repeated point. */
+        int j = i > 200 && i < 205 ? 200 : i;
+        double uj = (double)j / (N - 1) * 4 * PI;
+        x[3 * i] = (float)(0.5 * sin(uj));
+        x[3 * i + 1] = 0;
+        x[3 * i + 2] = (float)(uj * 0.3);
+        double dx = 0.5 * cos(u), dz = 0.3, l = sqrt(dx * dx + dz * dz);
+        t[3 * i] = (float)(dx / l), t[3 * i + 1] = 0, t[3 * i + 2] = (float)(dz / l);
+    }
+    float r0[3] = {0, 1, 0};
+    sy_rmf(N, x, t, r0, r);
+    for (int i = 0; i < N; i++) {
+        assert_finite(r + 3 * i, 3);
+        assert_float_equal(sy_dot3(r + 3 * i, r + 3 * i), 1.0, 1e-5);
+        assert_true(fabsf(sy_dot3(r + 3 * i, t + 3 * i)) < 1e-4f);
+        /* The plane normal is parallel along a planar curve. */
+        assert_true(fabsf(r[3 * i + 1]) > 0.9999f);
+        if (i > 0) assert_true(twist(t + 3 * i - 3, r + 3 * i - 3, t + 3 * i, r + 3 * i) < PI / 180);
+    }
+    /* Starting in-plane, the frame stays in-plane (no flips at inflections). */
+    float r1[3] = {1, 0, 0};
+    sy_rmf(N, x, t, r1, r);
+    for (int i = 1; i < N; i++) {
+        assert_true(fabsf(r[3 * i + 1]) < 1e-3f);
+        if (twist(t + 3 * i - 3, r + 3 * i - 3, t + 3 * i, r + 3 * i) >= PI / 180)
+            fprintf(stderr, "i=%d twist %g\n", i, twist(t + 3 * i - 3, r + 3 * i - 3, t + 3 * i, r + 3 * i));
+        assert_true(twist(t + 3 * i - 3, r + 3 * i - 3, t + 3 * i, r + 3 * i) < PI / 180);
+    }
+}
+
+/* ---------- whole trees ---------- */
+
+static void straight_trunk_is_closed_and_stands_along_y(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_error err;
+    memset(&s, 0, sizeof s);
+    int32_t prev = -1;
+    for (int i = 0; i <= 10; i++) {
+        float p[3] = {1.0f, 2.0f, (float)i};
+        prev = sy_skeleton_add(&s, p, 0.3f - 0.02f * (float)i, prev, 0, 0, &err);
+        if (i == 5) prev = sy_skeleton_add(&s, p, 0.2f, prev, 0, 0, &err); /* coincident node */
+    }
+    sy_mesh_options o = sy_mesh_options_default();
+    o.impostor_size = 64;
+    sy_asset a;
+    mesh_tree(&s, NULL, &o, &a);
+    const sy_mesh *m = bark0(&a);
+    check_mesh_basics(m);
+    check_branches(&s, &a);
+    /* Y-up: (x, y, z) -> (x, z, -y); the trunk spans y in [0, 10 + cap]. */
+    float ymin = INFINITY, ymax = -INFINITY;
+    for (size_t i = 0; i < m->n_vertices; i++) {
+        const float *p = m->position + 3 * i;
+        ymin = fminf(ymin, p[1]), ymax = fmaxf(ymax, p[1]);
+        float dx = p[0] - 1.0f, dz = p[2] + 2.0f;
+        assert_true(sqrtf(dx * dx + dz * dz) <= 0.3f + 1e-4f);
+    }
+    assert_float_equal(ymin, 0, 1e-5);
+    assert_true(ymax > 10.0f && ymax <= 10.11f);
+    /* v grows along the trunk: check each column of consecutive rings. */
+    sy_stems st;
+    assert_int_equal(sy_stems_build(&s, &o, &st, &err), SY_OK);
+    size_t P = (size_t)st.s[0].radial, rings = st.s[0].n_samp + 1; /* + the LOD0 cap ring */
+    for (size_t r = 0; r + 1 < rings; r++)
+        for (size_t j = 0; j <= P; j++) assert_true(m->uv[2 * ((r + 1) * (P + 1) + j) + 1] > m->uv[2 * (r * (P + 1) + j) + 1]);
+    /* u spans [0, 1] with the seam duplicated at the same position. */
+    assert_float_equal(m->uv[0], 0, 0);
+    assert_float_equal(m->uv[2 * P], 1, 0);
+    assert_memory_equal(m->position, m->position + 3 * P, 12);
+    /* bark texels square at the base: v per metre = 1 / (2 pi r_base) */
+    float v1 = m->uv[2 * ((P + 1)) + 1], dz = st.s[0].ss[1];
+    assert_float_equal(v1, dz / (2 * PI * 0.3), 1e-4);
+    sy_stems_free(&st);
+    sy_asset_free(&a);
+    sy_skeleton_free(&s);
+}
+
+static void bent_trunk_branches_sit_on_the_parent(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_error err;
+    memset(&s, 0, sizeof s);
+    int32_t prev = -1, n3 = -1, n6 = -1;
+    for (int i = 0; i <= 8; i++) {
+        float z = (float)i * 0.5f, p[3] = {0.3f * sinf(z * 0.6f), 0, z};
+        prev = sy_skeleton_add(&s, p, 0.15f - 0.015f * (float)i, prev, 0, 0, &err);
+        if (i == 3) n3 = prev;
+        if (i == 6) n6 = prev;
+    }
+    /* branch 1 towards +Y (input), branch 2 towards -X, upward */
+    prev = n3;
+    for (int i = 1; i <= 4; i++) {
+        float p[3] = {s.pos[3 * n3] + 0.05f * (float)i, 0.4f * (float)i, s.pos[3 * n3 + 2] + 0.2f * (float)i};
+        prev = sy_skeleton_add(&s, p, 0.06f - 0.01f * (float)i, prev, 1, 1, &err);
+    }
+    prev = n6;
+    for (int i = 1; i <= 3; i++) {
+        float p[3] = {s.pos[3 * n6] - 0.3f * (float)i, 0.02f * (float)i, s.pos[3 * n6 + 2] + 0.25f * (float)i};
+        prev = sy_skeleton_add(&s, p, 0.05f - 0.01f * (float)i, prev, 1, 2, &err);
+    }
+    sy_mesh_options o = sy_mesh_options_default();
+    o.impostor_size = 64;
+    sy_asset a;
+    mesh_tree(&s, NULL, &o, &a);
+    check_mesh_basics(bark0(&a));
+    assert_int_equal(check_branches(&s, &a), 2);
+    /* Branch 1 grows towards input +Y, which is glTF -Z. */
+    const sy_mesh *m = bark0(&a);
+    float zmin = 0;
+    for (size_t i = 0; i < m->n_vertices; i++)
+        if (m->wind_branch[i] == 1) zmin = fminf(zmin, m->position[3 * i + 2]);
+    assert_true(zmin < -1.4f);
+    assert_int_equal(a.n_wind, 3);
+    assert_int_equal(a.wind[1].parent, 0);
+    assert_int_equal(a.wind[1].level, 1);
+    assert_true(a.wind[1].axis[2] < -0.5f);
+    sy_asset_free(&a);
+    sy_skeleton_free(&s);
+}
+
+static void random_tree_meets_every_property(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_leaves lv;
+    assert_int_equal(tg_tree(7, 3, 11, 1, 8.0f, &s, &lv), 0);
+    sy_error err;
+    assert_int_equal(sy_skeleton_validate(&s, &err), SY_OK);
+    int32_t nb = sy_skeleton_branch_count(&s);
+    assert_true(nb > 150 && nb < 300);
+    assert_true(lv.n > 300);
+    sy_mesh_options o = sy_mesh_options_default();
+    o.impostor_size = 256;
+    o.leaf_shape = 2;
+    o.seed = 42;
+
+    /* Frames of every stem: orthonormal, finite. */
+    sy_stems st;
+    assert_int_equal(sy_stems_build(&s, &o, &st, &err), SY_OK);
+    assert_int_equal(st.n, (size_t)nb);
+    for (size_t i = 0; i < st.n; i++) {
+        const sy_stem *t = &st.s[i];
+        for (size_t k = 0; k < t->n_samp; k++) {
+            const float *T = t->st + 3 * k, *N = t->sn + 3 * k;
+            assert_finite(T, 3), assert_finite(N, 3), assert_finite(t->sp + 3 * k, 3);
+            assert_float_equal(sy_dot3(T, T), 1, 1e-4);
+            assert_float_equal(sy_dot3(N, N), 1, 1e-4);
+            assert_true(fabsf(sy_dot3(T, N)) < 1e-4f);
+            if (k > 0) assert_true(t->ss[k] > t->ss[k - 1]);
+        }
+    }
+    sy_stems_free(&st);
+
+    sy_asset a;
+    mesh_tree(&s, &lv, &o, &a);
+    check_mesh_basics(bark0(&a));
+    assert_int_equal(check_branches(&s, &a), (size_t)nb - 1);
+    assert_int_equal(a.n_wind, (size_t)nb);
+
+    /* Wind: valid indices, w in [0, 1], ancestors' slots filled. */
+    const sy_mesh *m = bark0(&a);
+    for (size_t i = 0; i < m->n_vertices; i++) {
+        uint16_t b = m->wind_branch[i];
+        assert_true(b < a.n_wind);
+        int level = a.wind[b].level;
+        for (int k = 0; k < 4; k++) {
+            float w = m->wind_w[4 * i + k];
+            assert_true(w >= 0 && w <= 1);
+            if (k < level) assert_true(w > 0);
+            if (k > level) assert_true(w == 0);
+        }
+    }
+    for (size_t b = 0; b < a.n_wind; b++) {
+        const sy_wind_branch *w = &a.wind[b];
+        assert_true(w->frequency > 0 && w->stiffness >= 0 && w->stiffness <= 1 && w->length > 0);
+        assert_float_equal(w->frequency, 2.55 * pow(w->length, -0.59), 1e-3 * w->frequency);
+        assert_float_equal(sy_dot3(w->axis, w->axis), 1, 1e-4);
+        if (w->parent >= 0) assert_int_equal(w->level, a.wind[w->parent].level + 1);
+    }
+
+    /* LOD chain: mesh levels then the impostor; each mesh level at most half
+     * the triangles of the one before; coverage hints decreasing. */
+    assert_int_equal(a.n_lods, 5);
+    for (size_t k = 1; k + 1 < a.n_lods; k++) {
+        size_t t0 = lod_triangles(&a, &a.lods[k - 1]), t1 = lod_triangles(&a, &a.lods[k]);
+        assert_true(t1 > 0);
+        assert_true(2 * t1 <= t0);
+        check_mesh_basics_share(&a.meshes[a.lods[k].meshes[0]], 0.005);
+    }
+    for (size_t k = 1; k < a.n_lods; k++) assert_true(a.lods[k].screen_coverage < a.lods[k - 1].screen_coverage);
+
+    /* Leaves: LOD0 has all, unit quaternions; each level is a subsequence of
+     * a prefix (at most half) of the level before. */
+    const sy_instances *l0 = &a.lods[0].instances[0];
+    assert_int_equal(a.lods[0].n_instances, 1);
+    assert_int_equal(l0->n, lv.n);
+    for (size_t i = 0; i < l0->n; i++) {
+        const float *q = l0->rotation + 4 * i;
+        assert_float_equal(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3], 1, 1e-5);
+        assert_true(l0->wind_branch[i] < a.n_wind);
+    }
+    const sy_instances *prev = l0;
+    for (size_t k = 1; k + 1 < a.n_lods && a.lods[k].n_instances; k++) {
+        const sy_instances *in = &a.lods[k].instances[0];
+        /* Leaves of dropped twigs go with them, so a coarse level may have
+         * none left; level 1 must keep some. */
+        assert_true(2 * in->n <= prev->n);
+        if (k == 1) assert_true(in->n > 0);
+        size_t j = 0;
+        for (size_t i = 0; i < in->n; i++) {
+            while (j < prev->n / 2 && memcmp(prev->translation + 3 * j, in->translation + 3 * i, 12)) j++;
+            assert_true(j < prev->n / 2);
+            assert_memory_equal(prev->rotation + 4 * j, in->rotation + 4 * i, 16);
+            assert_true(in->scale[3 * i] >= prev->scale[3 * j]);
+            j++;
+        }
+        prev = in;
+    }
+    /* A leaf of the tree turned into Y-up: rotating local +Z (the normal)
+     * by the output quaternion equals the input normal mapped (x,z,-y). */
+    {
+        const float *qi = lv.rot + 4 * 0;
+        float ql = sqrtf(qi[0] * qi[0] + qi[1] * qi[1] + qi[2] * qi[2] + qi[3] * qi[3]);
+        float q[4] = {qi[0] / ql, qi[1] / ql, qi[2] / ql, qi[3] / ql};
+        /* normal = third column of the rotation matrix */
+        float nz[3] = {2 * (q[0] * q[2] + q[3] * q[1]), 2 * (q[1] * q[2] - q[3] * q[0]),
+                       1 - 2 * (q[0] * q[0] + q[1] * q[1])};
+        size_t i = 0;
+        while (memcmp(l0->translation + 3 * i, (float[3]){lv.pos[0], lv.pos[2], -lv.pos[1]}, 12)) i++;
+        const float *r = l0->rotation + 4 * i;
+        float out[3] = {2 * (r[0] * r[2] + r[3] * r[1]), 2 * (r[1] * r[2] - r[3] * r[0]),
+                        1 - 2 * (r[0] * r[0] + r[1] * r[1])};
+        assert_float_equal(out[0], nz[0], 1e-5);
+        assert_float_equal(out[1], nz[2], 1e-5);
+        assert_float_equal(out[2], -nz[1], 1e-5);
+    }
+
+    /* Impostor: the last level, a double-sided masked card pair whose
+     * texture's alpha silhouette matches the tree's projected bounds. */
+    const sy_lod *imp = &a.lods[a.n_lods - 1];
+    assert_int_equal(imp->n_meshes, 1);
+    assert_int_equal(imp->n_instances, 0);
+    const sy_mesh *cards = &a.meshes[imp->meshes[0]];
+    check_mesh_basics(cards);
+    const sy_material *mat = &a.materials[cards->material];
+    assert_int_equal(mat->alpha_mode, SY_ALPHA_MASK);
+    assert_true(mat->double_sided);
+    const sy_image *img = &a.images[mat->base_color_image];
+    int W, H, comp;
+    unsigned char *px = stbi_load_from_memory(img->png, (int)img->size, &W, &H, &comp, 4);
+    assert_non_null(px);
+    assert_int_equal(W, 256);
+    /* tree bounds in Y-up from LOD0 bark and leaf card corners */
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t i = 0; i < m->n_vertices; i++)
+        for (int k = 0; k < 3; k++) lo[k] = fminf(lo[k], m->position[3 * i + k]), hi[k] = fmaxf(hi[k], m->position[3 * i + k]);
+    const sy_mesh *card = &a.meshes[l0->mesh];
+    for (size_t i = 0; i < l0->n; i++)
+        for (size_t v = 0; v < card->n_vertices; v++) {
+            const float *q = l0->rotation + 4 * i, *c = card->position + 3 * v;
+            float s0 = l0->scale[3 * i], p[3] = {c[0] * s0, c[1] * s0, c[2] * s0}, t[3], t2[3], u[3] = {q[0], q[1], q[2]};
+            sy_cross3(u, p, t);
+            for (int k = 0; k < 3; k++) t[k] *= 2;
+            sy_cross3(u, t, t2);
+            for (int k = 0; k < 3; k++) {
+                float w = p[k] + q[3] * t[k] + t2[k] + l0->translation[3 * i + k];
+                lo[k] = fminf(lo[k], w), hi[k] = fmaxf(hi[k], w);
+            }
+        }
+    /* card 0 maps x -> u in [0, 0.5], card 1 maps -z -> [0.5, 1]; y -> v */
+    const float *cp = cards->position;
+    float cx0 = cp[0], cx1 = cp[3], cy0 = cp[1], cy1 = cp[7], cz0 = cp[3 * 4 + 2], cz1 = cp[3 * 5 + 2];
+    for (int tile = 0; tile < 2; tile++) {
+        int bx0 = W, bx1 = -1, by0 = H, by1 = -1;
+        size_t covered = 0;
+        for (int y = 0; y < H; y++)
+            for (int x = tile * W / 2; x < (tile + 1) * W / 2; x++)
+                if (px[4 * ((size_t)y * W + x) + 3] > 0) {
+                    covered++;
+                    bx0 = x < bx0 ? x : bx0, bx1 = x > bx1 ? x : bx1, by0 = y < by0 ? y : by0, by1 = y > by1 ? y : by1;
+                }
+        assert_true(covered > 100);
+        float ex0, ex1;
+        if (tile == 0) {
+            ex0 = (lo[0] - cx0) / (cx1 - cx0) * (W / 2), ex1 = (hi[0] - cx0) / (cx1 - cx0) * (W / 2);
+        } else {
+            ex0 = W / 2 + (cz0 - hi[2]) / (cz0 - cz1) * (W / 2), ex1 = W / 2 + (cz0 - lo[2]) / (cz0 - cz1) * (W / 2);
+        }
+        float ey0 = (cy1 - hi[1]) / (cy1 - cy0) * H, ey1 = (cy1 - lo[1]) / (cy1 - cy0) * H;
+        fprintf(stderr, "tile %d: alpha box x %d..%d y %d..%d, expected %.1f..%.1f, %.1f..%.1f\n", tile, bx0, bx1, by0,
+                by1, ex0, ex1, ey0, ey1);
+        assert_true(fabsf((float)bx0 - ex0) <= 3 && fabsf((float)bx1 + 1 - ex1) <= 3);
+        assert_true(fabsf((float)by0 - ey0) <= 3 && fabsf((float)by1 + 1 - ey1) <= 3);
+    }
+    stbi_image_free(px);
+    sy_asset_free(&a);
+    sy_leaves_free(&lv);
+    sy_skeleton_free(&s);
+}
+
+static void bad_input_is_refused_with_a_message(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_leaves lv;
+    sy_error err = {0};
+    memset(&s, 0, sizeof s);
+    memset(&lv, 0, sizeof lv);
+    sy_asset a;
+    memset(&a, 0, sizeof a);
+    sy_mesh_options o = sy_mesh_options_default();
+    assert_int_equal(sy_mesh_tree(&s, NULL, &o, &a, &err), SY_EINPUT);
+    float p[3] = {0, 0, 0}, q[4] = {0, 0, 0, 1};
+    sy_skeleton_add(&s, p, 0.1f, -1, 0, 0, &err);
+    p[2] = 1;
+    sy_skeleton_add(&s, p, 0.1f, 0, 0, 0, &err);
+    sy_leaves_add(&lv, p, q, 0.1f, 7, &err);
+    assert_int_equal(sy_mesh_tree(&s, &lv, &o, &a, &err), SY_EINPUT);
+    assert_non_null(strstr(err.msg, "leaf 0"));
+    o.radial_segments = 2;
+    assert_int_equal(sy_mesh_tree(&s, NULL, &o, &a, &err), SY_EUSAGE);
+    o = sy_mesh_options_default();
+    o.bark_material = 3;
+    assert_int_equal(sy_mesh_tree(&s, NULL, &o, &a, &err), SY_EUSAGE);
+    assert_int_equal(a.n_meshes, 0);
+    sy_asset_free(&a);
+    sy_leaves_free(&lv);
+    sy_skeleton_free(&s);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(hermite_and_beam_match_references),
+        cmocka_unit_test(rmf_has_no_twist_on_a_planar_s_curve),
+        cmocka_unit_test(straight_trunk_is_closed_and_stands_along_y),
+        cmocka_unit_test(bent_trunk_branches_sit_on_the_parent),
+        cmocka_unit_test(random_tree_meets_every_property),
+        cmocka_unit_test(bad_input_is_refused_with_a_message),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
