@@ -188,7 +188,7 @@ static int add_impostor(sy_asset *a, int material)
 static sy_instances leaves(int mesh, size_t n, float size)
 {
     sy_instances in = {mesh, n, calloc(3 * n, sizeof(float)), calloc(4 * n, sizeof(float)),
-                       calloc(3 * n, sizeof(float))};
+                       calloc(3 * n, sizeof(float)), NULL, NULL};
     for (size_t i = 0; i < n; i++) {
         double t = (double)i / n, ang = 2.4 * i;
         in.translation[3 * i + 0] = (float)(0.6 * cos(ang));

@@ -112,6 +112,18 @@ int32_t sy_skeleton_branch_count(const sy_skeleton *s)
     return m + 1;
 }
 
+double sy_skeleton_height(const sy_skeleton *s)
+{
+    if (s->n == 0) return 0;
+    size_t root = 0;
+    float top = s->pos[2];
+    for (size_t i = 0; i < s->n; i++) {
+        if (s->parent[i] < 0) root = i;
+        if (s->pos[3 * i + 2] > top) top = s->pos[3 * i + 2];
+    }
+    return (double)top - s->pos[3 * root + 2];
+}
+
 double sy_skeleton_length(const sy_skeleton *s)
 {
     double total = 0;

@@ -37,6 +37,8 @@ int32_t sy_skeleton_add(sy_skeleton *s, const float pos[3], float radius, int32_
 sy_code sy_skeleton_validate(const sy_skeleton *s, sy_error *err);
 /* Number of branches (max branch id + 1). */
 int32_t sy_skeleton_branch_count(const sy_skeleton *s);
+/* Height: highest node z minus the root's z, metres. */
+double sy_skeleton_height(const sy_skeleton *s);
 /* Total length of all edges in metres. */
 double sy_skeleton_length(const sy_skeleton *s);
 

@@ -135,7 +135,12 @@ static sy_code check_instances(const char *path, const sy_asset *a, size_t level
         if (fabs(len - 1.0) > 1e-3)
             return sy_fail(err, SY_EINPUT, "%s: LOD %zu instance %zu rotation is not a unit quaternion (|q| = %g)",
                            path, level, k, len);
+        if (in->wind_branch && in->wind_branch[k] >= a->n_wind)
+            return sy_fail(err, SY_EINPUT, "%s: LOD %zu instance %zu wind branch %u is past the %zu wind entries",
+                           path, level, k, in->wind_branch[k], a->n_wind);
     }
+    if (in->wind_w && !all_finite(in->wind_w, 4 * in->n))
+        return sy_fail(err, SY_EINPUT, "%s: LOD %zu instance wind data is not finite", path, level);
     return SY_OK;
 }
 
@@ -438,6 +443,7 @@ static int add_node(builder *b, const char *name, int mesh)
     snprintf(nd->name, sizeof nd->name, "%s", name);
     nd->mesh = mesh;
     nd->inst_translation = nd->inst_rotation = nd->inst_scale = -1;
+    nd->inst_wind_w = nd->inst_wind_branch = -1;
     return (int)d->n_nodes++;
 }
 
@@ -479,8 +485,10 @@ static sy_code bake_instances(builder *b, const sy_mesh *src, const sy_instances
     int ok = out->position && out->normal && out->indices;
     if (ok && src->tangent) ok = (out->tangent = sy_calloc(4 * tv, sizeof(float), b->err, "baked tangents")) != NULL;
     if (ok && src->uv) ok = (out->uv = sy_calloc(2 * tv, sizeof(float), b->err, "baked uv")) != NULL;
-    if (ok && src->wind_w) ok = (out->wind_w = sy_calloc(4 * tv, sizeof(float), b->err, "baked wind")) != NULL;
-    if (ok && src->wind_branch)
+    int inst_wind = in->wind_w && in->wind_branch;
+    if (ok && (src->wind_w || inst_wind))
+        ok = (out->wind_w = sy_calloc(4 * tv, sizeof(float), b->err, "baked wind")) != NULL;
+    if (ok && (src->wind_branch || inst_wind))
         ok = (out->wind_branch = sy_calloc(tv, sizeof(uint16_t), b->err, "baked wind")) != NULL;
     if (!ok) {
         sy_mesh_free(out);
@@ -507,8 +515,13 @@ static sy_code bake_instances(builder *b, const sy_mesh *src, const sy_instances
                 out->tangent[4 * (base + i) + 3] = mirror ? -src->tangent[4 * i + 3] : src->tangent[4 * i + 3];
             }
             if (src->uv) memcpy(out->uv + 2 * (base + i), src->uv + 2 * i, 2 * sizeof(float));
-            if (src->wind_w) memcpy(out->wind_w + 4 * (base + i), src->wind_w + 4 * i, 4 * sizeof(float));
-            if (src->wind_branch) out->wind_branch[base + i] = src->wind_branch[i];
+            if (inst_wind) {
+                memcpy(out->wind_w + 4 * (base + i), in->wind_w + 4 * k, 4 * sizeof(float));
+                out->wind_branch[base + i] = in->wind_branch[k];
+            } else {
+                if (src->wind_w) memcpy(out->wind_w + 4 * (base + i), src->wind_w + 4 * i, 4 * sizeof(float));
+                if (src->wind_branch) out->wind_branch[base + i] = src->wind_branch[i];
+            }
         }
         for (size_t t = 0; t < ni; t += 3) {
             uint32_t *dst = out->indices + k * ni + t;
@@ -536,6 +549,20 @@ static int emit_instances(builder *b, const sy_instances *in, const char *name)
         b->doc.nodes[node].inst_translation = t;
         b->doc.nodes[node].inst_rotation = r;
         b->doc.nodes[node].inst_scale = s;
+        /* Leaves sway with the branch they hang on: the instance carries that
+         * branch's wind data (docs/wind.md). Branch indices are exact in float
+         * below 2^24, far above the 65,535 branches the mesher allows. */
+        if (in->wind_w && in->wind_branch) {
+            float *branch = sy_calloc(in->n, sizeof(float), b->err, "instance wind");
+            if (!branch) return -1;
+            for (size_t i = 0; i < in->n; i++) branch[i] = in->wind_branch[i];
+            int w = add_float_stream(b, in->wind_w, in->n, 4, 0, 0);
+            int wb = add_float_stream(b, branch, in->n, 1, 0, 0);
+            free(branch);
+            if (w < 0 || wb < 0) return -1;
+            b->doc.nodes[node].inst_wind_w = w;
+            b->doc.nodes[node].inst_wind_branch = wb;
+        }
         return node;
     }
     sy_mesh baked;

@@ -170,6 +170,8 @@ void add_node(tinygltf::Model &model, const sy_gltf_doc &doc, const sy_gltf_node
         attrs["TRANSLATION"] = tinygltf::Value(gn.inst_translation);
         attrs["ROTATION"] = tinygltf::Value(gn.inst_rotation);
         attrs["SCALE"] = tinygltf::Value(gn.inst_scale);
+        if (gn.inst_wind_w >= 0) attrs["_WIND_W"] = tinygltf::Value(gn.inst_wind_w);
+        if (gn.inst_wind_branch >= 0) attrs["_WIND_BRANCH"] = tinygltf::Value(gn.inst_wind_branch);
         tinygltf::Value::Object ext;
         ext["attributes"] = tinygltf::Value(std::move(attrs));
         node.extensions["EXT_mesh_gpu_instancing"] = tinygltf::Value(std::move(ext));

@@ -72,6 +72,8 @@ typedef struct {
     int children[SY_GLTF_MAX_CHILDREN];
     /* EXT_mesh_gpu_instancing accessors, -1 when the node is not instanced. */
     int inst_translation, inst_rotation, inst_scale;
+    /* Per-instance wind (_WIND_W VEC4 float, _WIND_BRANCH SCALAR float), -1 none. */
+    int inst_wind_w, inst_wind_branch;
     /* MSFT_lod on the LOD0 node: ids of lower levels, coverage per level. */
     int n_lod_ids;
     int lod_ids[64];

@@ -37,6 +37,36 @@ static int cmp_ranked(const void *a, const void *b)
     return (x->index > y->index) - (x->index < y->index);
 }
 
+size_t sy_lod_fit_budget(const sy_stems *st, sy_lod_params *lp, size_t count, size_t budget)
+{
+    /* Importance: a volume proxy r^2 L, never above the parent's, so
+     * dropping in reverse rank order removes children before parents. */
+    ranked *rk = malloc((st->n ? st->n : 1) * sizeof *rk);
+    float *imp = malloc((st->n ? st->n : 1) * sizeof *imp);
+    if (!rk || !imp) {
+        free(rk), free(imp);
+        return (size_t)-1;
+    }
+    for (size_t o = 0; o < st->n; o++) {
+        int32_t i = st->by_depth[o];
+        const sy_stem *s = &st->s[i];
+        float v = s->r_base * s->r_base * s->length;
+        imp[i] = s->parent >= 0 && imp[s->parent] < v ? imp[s->parent] : v;
+        rk[o] = (ranked){imp[i], s->depth, i};
+    }
+    qsort(rk, st->n, sizeof *rk, cmp_ranked);
+    for (size_t o = st->n; o-- > 0 && count > budget;) {
+        int32_t i = rk[o].index;
+        if (!lp->keep[i] || st->s[i].parent < 0) continue;
+        size_t nv, ni;
+        sy_tube_counts(st, (size_t)i, lp, &nv, &ni);
+        lp->keep[i] = 0;
+        count -= ni / 3;
+    }
+    free(rk), free(imp);
+    return count;
+}
+
 int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris, sy_lod_params *lp, size_t *tris)
 {
     float grow = ldexpf(1.0f, lp->level - 1);
@@ -48,33 +78,7 @@ int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris
         lp->keep[i] = prev_keep[i] && big && (s->parent < 0 || lp->keep[s->parent]);
     }
     size_t count = sy_lod_bark_triangles(st, lp), budget = prev_tris / 2;
-    if (count > budget) {
-        /* Importance: a volume proxy r^2 L, never above the parent's, so
-         * dropping in reverse rank order removes children before parents. */
-        ranked *rk = malloc((st->n ? st->n : 1) * sizeof *rk);
-        float *imp = malloc((st->n ? st->n : 1) * sizeof *imp);
-        if (!rk || !imp) {
-            free(rk), free(imp);
-            return 0;
-        }
-        for (size_t o = 0; o < st->n; o++) {
-            int32_t i = st->by_depth[o];
-            const sy_stem *s = &st->s[i];
-            float v = s->r_base * s->r_base * s->length;
-            imp[i] = s->parent >= 0 && imp[s->parent] < v ? imp[s->parent] : v;
-            rk[o] = (ranked){imp[i], s->depth, i};
-        }
-        qsort(rk, st->n, sizeof *rk, cmp_ranked);
-        for (size_t o = st->n; o-- > 0 && count > budget;) {
-            int32_t i = rk[o].index;
-            if (!lp->keep[i] || st->s[i].parent < 0) continue;
-            size_t nv, ni;
-            sy_tube_counts(st, (size_t)i, lp, &nv, &ni);
-            lp->keep[i] = 0;
-            count -= ni / 3;
-        }
-        free(rk), free(imp);
-    }
+    if (count > budget && (count = sy_lod_fit_budget(st, lp, count, budget)) == (size_t)-1) return 0;
     *tris = count;
     return count <= budget;
 }

@@ -15,6 +15,7 @@ sy_mesh_options sy_mesh_options_default(void)
     o.radial_segments = 16;
     o.segment_length = 0;
     o.n_lods = 4;
+    o.lod0_max_triangles = 50000;
     o.impostor = 1;
     o.impostor_size = 512;
     o.leaf_aspect = 0.6f;
@@ -93,14 +94,15 @@ typedef struct {
 /* Level k keeps the first half of level k-1's list, less the leaves on stems
  * dropped at k; its cards grow (at most 4x) so their total area matches all
  * level-0 leaves, keeping the crown's coverage roughly constant. */
-static float next_leaf_level(const sy_leaves *lv, const sy_stems *st, const leaf_level *prev, const leaf_level *all,
-                             const uint8_t *keep, leaf_level *next)
+/* The next level keeps the first half of the previous level's leaves (a
+ * prefix of the stored seeded order). Leaves of twigs the level drops stay:
+ * at a distance they stand in for the twig's foliage, and they keep swaying
+ * with it because every wind entry survives. Dropping them instead left the
+ * coarse levels bare (LOD3 of a 20k-leaf tree kept none). */
+static float next_leaf_level(const sy_leaves *lv, const leaf_level *prev, const leaf_level *all, leaf_level *next)
 {
     next->n = 0;
-    for (size_t i = 0; i < prev->n / 2; i++) {
-        uint32_t l = prev->list[i];
-        if (keep[st->node_stem[lv->node[l]]]) next->list[next->n++] = l;
-    }
+    for (size_t i = 0; i < prev->n / 2; i++) next->list[next->n++] = prev->list[i];
     double ref = 0, kept = 0;
     for (size_t i = 0; i < all->n; i++) ref += (double)lv->scale[all->list[i]] * lv->scale[all->list[i]];
     for (size_t i = 0; i < next->n; i++) kept += (double)lv->scale[next->list[i]] * lv->scale[next->list[i]];
@@ -181,6 +183,11 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
     sy_lod_params lp = {0, 1, keep, 1};
     memset(keep, 1, st.n);
     size_t tris = sy_lod_bark_triangles(&st, &lp);
+    if (opt->lod0_max_triangles > 0 && tris > (size_t)opt->lod0_max_triangles &&
+        (tris = sy_lod_fit_budget(&st, &lp, tris, (size_t)opt->lod0_max_triangles)) == (size_t)-1) {
+        rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
+        goto done;
+    }
     size_t first_lod = out->n_lods;
     float coverage = 0.5f;
     if ((rc = add_level(out, &st, lv, &lp, bark, card, &cur, 1.0f, coverage, err)) != SY_OK) goto done;
@@ -192,7 +199,7 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
             memcpy(keep, keep_prev, st.n);
             break; /* no coarser level can halve the triangles: the chain ends */
         }
-        float grow = next_leaf_level(lv, &st, &cur, &all, keep, &nxt);
+        float grow = next_leaf_level(lv, &cur, &all, &nxt);
         coverage *= 0.5f;
         if ((rc = add_level(out, &st, lv, &next, bark, card, &nxt, grow, coverage, err)) != SY_OK) goto done;
         leaf_level t = cur;

@@ -113,6 +113,10 @@ void sy_tube_emit(const sy_stems *st, size_t stem, const sy_lod_params *lp, sy_m
  * thin and short stems go first (thresholds double per level), children with
  * their parents, then the least important until the bark has at most half of
  * prev_tris triangles. Returns 0 when even the trunk alone is too many. */
+/* Drops the least important stems (children before parents) until the bark
+ * of lp's level has at most budget triangles, starting from count; returns
+ * the new count, or (size_t)-1 when out of memory. */
+size_t sy_lod_fit_budget(const sy_stems *st, sy_lod_params *lp, size_t count, size_t budget);
 int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris, sy_lod_params *lp,
                   size_t *tris);
 /* Bark triangles of the kept stems at a level. */

@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# sylva grow end to end: every library species becomes a .glb that the Khronos
+# validator accepts with 0 errors and 0 warnings, within the LOD budget
+# (LOD0 bark <= 60k triangles, each level <= 50% of the previous), and the
+# same seed gives a byte-identical file.
+set -u
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fail=0
+check() { if ! eval "$2"; then echo "FAIL: $1"; fail=1; else echo "ok: $1"; fi; }
+validator="$SYLVA_SOURCE_DIR/tests/gltf_validate.mjs"
+[[ -f $SYLVA_SOURCE_DIR/node_modules/gltf-validator/package.json ]] || { echo "FAIL: gltf-validator missing (run scripts/install-deps.sh)"; exit 1; }
+
+for sp in "$SYLVA_SOURCE_DIR"/species/*.ini; do
+  name=$(basename "$sp" .ini)
+  "$SYLVA" grow "$sp" --seed 2 -o "$tmp/$name.glb" --json >"$tmp/$name.json" 2>"$tmp/$name.err" \
+    || { echo "FAIL: grow $name: $(cat "$tmp/$name.err")"; fail=1; continue; }
+  check "$name validates with 0 errors, 0 warnings" \
+    "node '$validator' '$tmp/$name.glb' | head -1 | grep -q 'errors=0 warnings=0'"
+  # lod_triangles includes 2 triangles per leaf card; leaves are on top of the bark budget.
+  check "$name LOD budget" "node -e '
+    const r = JSON.parse(require(\"fs\").readFileSync(\"$tmp/$name.json\"));
+    const t = r.lod_triangles, leafTris = 2 * r.leaves;
+    if (t[0] - leafTris > 60000) process.exit(1);
+    for (let i = 1; i < t.length; i++) if (t[i] > 0.5 * t[i - 1]) process.exit(1);
+  '"
+done
+
+"$SYLVA" grow --species quaking_aspen --seed 9 -o "$tmp/a1.glb" --quiet
+"$SYLVA" grow --species quaking_aspen --seed 9 -o "$tmp/a2.glb" --quiet
+"$SYLVA" grow --species quaking_aspen --seed 10 -o "$tmp/a3.glb" --quiet
+check "same seed, same bytes" "cmp -s '$tmp/a1.glb' '$tmp/a2.glb'"
+check "another seed, another tree" "! cmp -s '$tmp/a1.glb' '$tmp/a3.glb'"
+
+"$SYLVA" grow --species quaking_aspen --meshopt --seed 9 -o "$tmp/m.glb" --quiet
+check "meshopt output validates" "node '$validator' '$tmp/m.glb' | head -1 | grep -q 'errors=0 warnings=0'"
+check "meshopt output is smaller" "[[ \$(stat -c %s '$tmp/m.glb') -lt \$(stat -c %s '$tmp/a1.glb') ]]"
+"$SYLVA" grow --species palm --no-instancing --seed 9 -o "$tmp/b.glb" --quiet
+check "baked leaves validate and need no extension" \
+  "node '$validator' '$tmp/b.glb' | head -1 | grep -q 'errors=0 warnings=0' && ! grep -q EXT_mesh_gpu_instancing '$tmp/b.glb'"
+
+"$SYLVA" grow --species no_such_tree -o "$tmp/x.glb" 2>"$tmp/err"; rc=$?
+check "unknown species exits 2" "[[ $rc == 2 ]]"
+check "one-line error naming it" "[[ \$(wc -l <'$tmp/err') == 1 ]] && grep -q no_such_tree '$tmp/err'"
+check "no output left" "[[ ! -e '$tmp/x.glb' ]] && [[ -z \$(ls -A '$tmp' | grep tmp) ]]"
+printf '[General]\nShape = 99\n' >"$tmp/bad.ini"
+"$SYLVA" grow "$tmp/bad.ini" -o "$tmp/y.glb" 2>"$tmp/err2"; rc=$?
+check "bad species file exits 2 naming file" "[[ $rc == 2 ]] && grep -q bad.ini '$tmp/err2' && [[ ! -e '$tmp/y.glb' ]]"
+"$SYLVA" grow --species palm 2>/dev/null; rc=$?
+check "missing -o is a usage error" "[[ $rc == 1 ]]"
+exit $fail
