@@ -110,17 +110,26 @@ static double slab_spread(const float *p, size_t n, const double *h, int a, doub
     return var > 0 ? sqrt(var) : 0;
 }
 
-/* Normalised heights of the sample along axis a (0 = lowest, 1 = highest);
- * returns 0 when the sample is flat along a. */
-static int heights(const float *p, size_t n, int a, double *h)
+static double normalise(double v, double lo, double hi)
 {
-    float lo = p[a], hi = p[a];
-    for (size_t i = 1; i < n; i++) {
-        if (p[3 * i + a] < lo) lo = p[3 * i + a];
-        if (p[3 * i + a] > hi) hi = p[3 * i + a];
+    v = (v - lo) / (hi - lo);
+    return v < 0 ? 0 : v > 1 ? 1 : v;
+}
+
+/* Heights of the sample along axis a, normalised so that the 1st and 99th
+ * percentiles map to 0 and 1 (far outliers must not set the scale) and
+ * clamped to [0, 1]; sorted receives them in ascending order. Returns 0 when
+ * the sample is flat along a. */
+static int heights(const float *p, size_t n, int a, double *h, double *sorted)
+{
+    for (size_t i = 0; i < n; i++) sorted[i] = p[3 * i + a];
+    qsort(sorted, n, sizeof *sorted, cmp_double);
+    double lo = sorted[n / 100], hi = sorted[n - 1 - n / 100];
+    if (!(hi - lo > 1e-6)) return 0;
+    for (size_t i = 0; i < n; i++) {
+        h[i] = normalise(p[3 * i + a], lo, hi);
+        sorted[i] = normalise(sorted[i], lo, hi); /* monotonic: stays sorted */
     }
-    if (!(hi - lo > 1e-6f)) return 0;
-    for (size_t i = 0; i < n; i++) h[i] = (p[3 * i + a] - lo) / (double)(hi - lo);
     return 1;
 }
 
@@ -129,7 +138,7 @@ static void axis_evidence(const float *p, size_t n, const float *dir, const floa
                           double *h, double *sorted, double *axis_score, double *sign_score)
 {
     *axis_score = *sign_score = 0;
-    if (!heights(p, n, a, h)) return;
+    if (!heights(p, n, a, h, sorted)) return;
     double mean = 0;
     for (size_t i = 0; i < n; i++) mean += h[i];
     mean /= n;
@@ -154,8 +163,6 @@ static void axis_evidence(const float *p, size_t n, const float *dir, const floa
         }
         if (linear && fabsf(dir[3 * i + a]) > ALONG) lines++;
     }
-    memcpy(sorted, h, n * sizeof *sorted);
-    qsort(sorted, n, sizeof *sorted, cmp_double);
     size_t q = (size_t)(END_QUANTILE * n);
     double bottom = slab_spread(p, n, h, a, 0.0, sorted[q]);
     double top = slab_spread(p, n, h, a, sorted[n - 1 - q], 1.0);
@@ -536,6 +543,26 @@ sy_code sy_classify_ground(sy_cloud *c, const sy_preprocess_opts *o, size_t *n_g
 
 /* ----------------------------------------------------------------- normals */
 
+static int cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+/* Median x and median y of the cloud. */
+static sy_code median_xy(const sy_cloud *c, float centre[2], sy_error *err)
+{
+    float *v = sy_calloc(c->n, sizeof(float), err, "normal orientation");
+    if (!v) return SY_EINTERNAL;
+    for (int k = 0; k < 2; k++) {
+        for (size_t i = 0; i < c->n; i++) v[i] = c->xyz[3 * i + k];
+        qsort(v, c->n, sizeof(float), cmp_float);
+        centre[k] = v[c->n / 2];
+    }
+    free(v);
+    return SY_OK;
+}
+
 static void normals_progress(void *ctx, size_t done) { sy_progress_update(ctx, done); }
 
 sy_code sy_estimate_normals(sy_cloud *c, int k, sy_error *err)
@@ -548,13 +575,12 @@ sy_code sy_estimate_normals(sy_cloud *c, int k, sy_error *err)
     if (sy_pcl_normals(c->xyz, c->n, k, sy_threads(), c->normal, normals_progress, &p, msg, sizeof msg))
         return sy_fail(err, SY_EINTERNAL, "%s", msg);
     sy_progress_end(&p);
-    double min[3], max[3];
-    sy_cloud_bounds(c, min, max);
-    /* A point under the cloud, deeper than the cloud is wide, so that even
-     * steep ground faces it while stems face away from the centre line. */
-    double depth = 2 * fmax(max[0] - min[0], max[1] - min[1]) + 1;
-    double vp[3] = {0.5 * (min[0] + max[0]) - c->origin[0], 0.5 * (min[1] + max[1]) - c->origin[1],
-                    min[2] - c->origin[2] - depth};
+    float centre[2];
+    if (median_xy(c, centre, err)) return SY_EINTERNAL;
+    /* Reference direction: up plus the unit vector away from the vertical
+     * line through the median point. Ground (slopes under 45 degrees) then
+     * faces up and stems around that line face outwards; a far viewpoint
+     * would leave near-horizontal stem normals to noise. */
     for (size_t i = 0; i < c->n; i++) {
         float *nv = c->normal + 3 * i;
         double len = sqrt((double)nv[0] * nv[0] + (double)nv[1] * nv[1] + (double)nv[2] * nv[2]);
@@ -562,10 +588,10 @@ sy_code sy_estimate_normals(sy_cloud *c, int k, sy_error *err)
             nv[0] = 0, nv[1] = 0, nv[2] = 1;
             continue;
         }
-        double dot = 0;
-        for (int a = 0; a < 3; a++) dot += nv[a] * (c->xyz[3 * i + a] - vp[a]);
+        double rx = c->xyz[3 * i] - centre[0], ry = c->xyz[3 * i + 1] - centre[1], r = sqrt(rx * rx + ry * ry);
+        double dot = nv[2] + (r > 0 ? (nv[0] * rx + nv[1] * ry) / r : 0);
         double s = (dot < 0 ? -1 : 1) / len;
-        for (int a = 0; a < 3; a++) nv[a] = (float)(nv[a] * s);
+        for (int k = 0; k < 3; k++) nv[k] = (float)(nv[k] * s);
     }
     return SY_OK;
 }

@@ -92,8 +92,9 @@ sy_code sy_remove_outliers(sy_cloud *c, int k, double std_mul, sy_error *err);
 sy_code sy_classify_ground(sy_cloud *c, const sy_preprocess_opts *o, size_t *n_ground, sy_error *err);
 
 /* Estimates unit normals from k neighbours on sy_threads() threads, oriented
- * away from a point far below the cloud's centre: ground normals point up,
- * stem normals point outwards. */
+ * along up plus the horizontal direction away from the vertical line through
+ * the cloud's median point: ground normals point up, the normals of a stem
+ * on that line point outwards. */
 sy_code sy_estimate_normals(sy_cloud *c, int k, sy_error *err);
 
 #endif
