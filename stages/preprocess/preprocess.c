@@ -167,7 +167,7 @@ static void axis_evidence(const float *p, size_t n, const float *dir, const floa
     double bottom = slab_spread(p, n, h, a, 0.0, sorted[q]);
     double top = slab_spread(p, n, h, a, sorted[n - 1 - q], 1.0);
     double narrow_base = top + bottom > 0 ? (top - bottom) / (top + bottom) : 0;
-    *axis_score = (fabs(floor_low - floor_high) + stems + lines) / n;
+    *axis_score = (floor_low + floor_high + stems + lines) / n;
     *sign_score = (floor_low - floor_high + stem_below) / n + 0.01 * narrow_base;
 }
 

@@ -65,7 +65,7 @@ sy_code sy_preprocess(sy_cloud *c, const sy_preprocess_opts *o, sy_preprocess_re
 
 /* Evidence behind an up-axis decision, per unsigned axis x, y, z. */
 typedef struct {
-    double axis_score[3]; /* floor asymmetry + vertical-surface + vertical-stem fractions */
+    double axis_score[3]; /* fractions: floors at either end + vertical surfaces + vertical stems */
     double sign_score[3]; /* > 0: the + direction is up */
     size_t sample;        /* points analysed */
 } sy_up_evidence;
