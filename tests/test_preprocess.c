@@ -527,6 +527,7 @@ static void test_pipeline(void **state)
     /* --remove-ground drops exactly the ground class. */
     size_t ground = r.ground_points;
     assert_true(ground > 0);
+    sy_cloud_free(&s.c);
     make_scene(&s, 17, 1);
     o.remove_ground = 1;
     o.up = SY_UP_Z;

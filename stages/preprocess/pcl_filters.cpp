@@ -1,4 +1,19 @@
 // The only translation unit of the preprocessing stage that includes PCL.
+
+// Debian's libpcl is built as C++14, where PCL_MAKE_ALIGNED_OPERATOR_NEW
+// gives point clouds Eigen's class operator new/delete; in C++17 Eigen leaves
+// them out, so a cloud allocated inside libpcl would be deleted here with the
+// global operator (ASan: alloc-dealloc mismatch). Match the library.
+#ifndef EIGEN_HAS_CXX17_OVERALIGN
+#define EIGEN_HAS_CXX17_OVERALIGN 0
+#endif
+// Likewise, under AddressSanitizer Eigen stops trusting glibc's 16-byte-aligned malloc
+// and switches to its offset allocator, while libpcl was built trusting it:
+// point vectors allocated here and freed inside libpcl (or the reverse) would
+// then hit a bad free. Keep this file on the library's allocator.
+#if defined(__SANITIZE_ADDRESS__) && defined(__linux__) && defined(__LP64__) && !defined(EIGEN_MALLOC_ALREADY_ALIGNED)
+#define EIGEN_MALLOC_ALREADY_ALIGNED 1
+#endif
 #include "pcl_filters.h"
 
 #include <algorithm>
