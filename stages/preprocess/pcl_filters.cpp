@@ -1,0 +1,191 @@
+// The only translation unit of the preprocessing stage that includes PCL.
+
+// Debian's libpcl is built as C++14, where PCL_MAKE_ALIGNED_OPERATOR_NEW
+// gives point clouds Eigen's class operator new/delete; in C++17 Eigen leaves
+// them out, so a cloud allocated inside libpcl would be deleted here with the
+// global operator (ASan: alloc-dealloc mismatch). Match the library.
+#ifndef EIGEN_HAS_CXX17_OVERALIGN
+#define EIGEN_HAS_CXX17_OVERALIGN 0
+#endif
+// Likewise, under AddressSanitizer Eigen stops trusting glibc's 16-byte-aligned malloc
+// and switches to its offset allocator, while libpcl was built trusting it:
+// point vectors allocated here and freed inside libpcl (or the reverse) would
+// then hit a bad free. Keep this file on the library's allocator.
+#if defined(__SANITIZE_ADDRESS__) && defined(__linux__) && defined(__LP64__) && !defined(EIGEN_MALLOC_ALREADY_ALIGNED)
+#define EIGEN_MALLOC_ALREADY_ALIGNED 1
+#endif
+#include "pcl_filters.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <exception>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
+#include <pcl/common/centroid.h>
+#include <pcl/features/normal_3d_omp.h>
+#include <pcl/filters/statistical_outlier_removal.h>
+#include <pcl/kdtree/kdtree_flann.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+#include <pcl/search/kdtree.h>
+#include <pcl/segmentation/progressive_morphological_filter.h>
+
+namespace {
+
+using Cloud = pcl::PointCloud<pcl::PointXYZ>;
+
+Cloud::Ptr to_pcl(const float *xyz, size_t n)
+{
+    Cloud::Ptr c(new Cloud);
+    c->resize(n);
+    for (size_t i = 0; i < n; i++) {
+        (*c)[i].x = xyz[3 * i];
+        (*c)[i].y = xyz[3 * i + 1];
+        (*c)[i].z = xyz[3 * i + 2];
+    }
+    c->width = static_cast<uint32_t>(n);
+    c->height = 1;
+    c->is_dense = true;
+    return c;
+}
+
+int fail(char *msg, size_t size, const char *what, const char *why)
+{
+    if (msg && size) std::snprintf(msg, size, "%s: %s", what, why);
+    return -1;
+}
+
+} // namespace
+
+extern "C" int sy_pcl_outliers(const float *xyz, size_t n, int k, double std_mul, uint8_t *keep, char *msg,
+                               size_t msg_size)
+{
+    try {
+        std::fill(keep, keep + n, uint8_t{0});
+        if (n == 0) return 0;
+        if (n <= static_cast<size_t>(k)) { // too few points to judge any of them
+            std::fill(keep, keep + n, uint8_t{1});
+            return 0;
+        }
+        Cloud::Ptr c = to_pcl(xyz, n);
+        pcl::StatisticalOutlierRemoval<pcl::PointXYZ> sor;
+        sor.setInputCloud(c);
+        sor.setMeanK(k);
+        sor.setStddevMulThresh(std_mul);
+        pcl::Indices kept;
+        sor.filter(kept);
+        for (auto i : kept) keep[i] = 1;
+        return 0;
+    } catch (const std::exception &e) {
+        return fail(msg, msg_size, "outlier removal", e.what());
+    } catch (...) {
+        return fail(msg, msg_size, "outlier removal", "PCL failed");
+    }
+}
+
+extern "C" int sy_pcl_normals(const float *xyz, size_t n, int k, int threads, float *normals,
+                              sy_pcl_progress_fn progress, void *ctx, char *msg, size_t msg_size)
+{
+    try {
+        std::fill(normals, normals + 3 * n, 0.0f);
+        if (n < 3) return 0;
+        Cloud::Ptr c = to_pcl(xyz, n);
+        pcl::search::KdTree<pcl::PointXYZ>::Ptr tree(new pcl::search::KdTree<pcl::PointXYZ>);
+        tree->setInputCloud(c);
+        pcl::NormalEstimationOMP<pcl::PointXYZ, pcl::Normal> ne(threads > 0 ? threads : 1);
+        ne.setInputCloud(c);
+        ne.setSearchMethod(tree);
+        ne.setKSearch(std::min<int>(k, static_cast<int>(n)));
+        // Chunks only give progress lines; each normal is computed the same way
+        // whatever the chunking.
+        const size_t chunk = 100000;
+        for (size_t begin = 0; begin < n; begin += chunk) {
+            size_t end = std::min(n, begin + chunk);
+            pcl::IndicesPtr idx(new pcl::Indices(end - begin));
+            for (size_t i = begin; i < end; i++) (*idx)[i - begin] = static_cast<pcl::index_t>(i);
+            ne.setIndices(idx);
+            pcl::PointCloud<pcl::Normal> out;
+            ne.compute(out);
+            for (size_t i = begin; i < end; i++) {
+                const pcl::Normal &p = out[i - begin];
+                if (std::isfinite(p.normal_x) && std::isfinite(p.normal_y) && std::isfinite(p.normal_z)) {
+                    normals[3 * i] = p.normal_x;
+                    normals[3 * i + 1] = p.normal_y;
+                    normals[3 * i + 2] = p.normal_z;
+                }
+            }
+            if (progress) progress(ctx, end);
+        }
+        return 0;
+    } catch (const std::exception &e) {
+        return fail(msg, msg_size, "normal estimation", e.what());
+    } catch (...) {
+        return fail(msg, msg_size, "normal estimation", "PCL failed");
+    }
+}
+
+extern "C" int sy_pcl_local_pca(const float *xyz, size_t n, int k, float *direction, float *normal, float *eigen,
+                                char *msg, size_t msg_size)
+{
+    try {
+        std::fill(direction, direction + 3 * n, 0.0f);
+        std::fill(normal, normal + 3 * n, 0.0f);
+        std::fill(eigen, eigen + 3 * n, 0.0f);
+        if (n < 3) return 0;
+        Cloud::Ptr c = to_pcl(xyz, n);
+        pcl::KdTreeFLANN<pcl::PointXYZ> tree;
+        tree.setInputCloud(c);
+        int kk = std::min<int>(k, static_cast<int>(n));
+        pcl::Indices nb;
+        std::vector<float> d2;
+        for (size_t i = 0; i < n; i++) {
+            if (tree.nearestKSearch((*c)[i], kk, nb, d2) < 3) continue;
+            EIGEN_ALIGN16 Eigen::Matrix3f cov;
+            Eigen::Vector4f centroid;
+            if (pcl::computeMeanAndCovarianceMatrix(*c, nb, cov, centroid) < 3) continue;
+            Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> es(cov);
+            if (es.info() != Eigen::Success) continue;
+            // Eigen sorts eigenvalues ascending.
+            const Eigen::Vector3f &w = es.eigenvalues();
+            for (int a = 0; a < 3; a++) {
+                direction[3 * i + a] = es.eigenvectors()(a, 2);
+                normal[3 * i + a] = es.eigenvectors()(a, 0);
+                eigen[3 * i + a] = std::max(0.0f, w(2 - a));
+            }
+        }
+        return 0;
+    } catch (const std::exception &e) {
+        return fail(msg, msg_size, "local PCA", e.what());
+    } catch (...) {
+        return fail(msg, msg_size, "local PCA", "PCL failed");
+    }
+}
+
+extern "C" int sy_pcl_ground_pmf(const float *xyz, size_t n, double cell, double slope, double max_window,
+                                 double initial_distance, double max_distance, uint8_t *ground, char *msg,
+                                 size_t msg_size)
+{
+    try {
+        std::fill(ground, ground + n, uint8_t{0});
+        if (n == 0) return 0;
+        Cloud::Ptr c = to_pcl(xyz, n);
+        pcl::ProgressiveMorphologicalFilter<pcl::PointXYZ> pmf;
+        pmf.setInputCloud(c);
+        pmf.setCellSize(static_cast<float>(cell));
+        // PCL computes the threshold as slope * (window growth in metres) * cell
+        // size; dividing by the cell size restores Zhang's slope * growth.
+        pmf.setSlope(static_cast<float>(slope / cell));
+        pmf.setMaxWindowSize(static_cast<float>(max_window));
+        pmf.setInitialDistance(static_cast<float>(initial_distance));
+        pmf.setMaxDistance(static_cast<float>(max_distance));
+        pcl::Indices g;
+        pmf.extract(g);
+        for (auto i : g) ground[i] = 1;
+        return 0;
+    } catch (const std::exception &e) {
+        return fail(msg, msg_size, "ground filter", e.what());
+    } catch (...) {
+        return fail(msg, msg_size, "ground filter", "PCL failed");
+    }
+}
