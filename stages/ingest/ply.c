@@ -195,7 +195,8 @@ static sy_code parse_header(ply_file *f, const unsigned char *data, size_t size,
         } else if (strcmp(tok[0], "property") == 0) {
             rc = header_property(f, tok, n, err);
         } else {
-            rc = sy_fail(err, SY_EINPUT, "%s: unexpected PLY header line '%s'", f->path, tok[0]);
+            rc = sy_fail(err, SY_EINPUT, "%s: unexpected PLY header line '%s' (missing end_header?)",
+                         f->path, tok[0]);
         }
         if (rc) return rc;
     }
@@ -280,13 +281,16 @@ static sy_code skip_list(ply_file *f, const ply_prop *pr, sy_error *err)
     sy_code rc = read_value(f, pr->count_type, &len, err);
     if (rc) return rc;
     size_t remaining = (size_t)(f->end - f->p);
-    if (!(len >= 0) || len != floor(len) || len > (double)remaining)
+    if (!(len >= 0) || len != floor(len))
         return sy_fail(err, SY_EINPUT, "%s: list property '%s' has a bad length %g", f->path, pr->name, len);
+    /* Every item takes at least one byte (binary) or two (ascii). */
+    size_t per = f->enc == ENC_ASCII ? 1 : type_size[pr->type];
+    if (len > (double)(remaining / per))
+        return sy_fail(err, SY_EINPUT, "%s: list property '%s' length %.0f runs past the end of the data "
+                       "(truncated)", f->path, pr->name, len);
     size_t n = (size_t)len;
     if (f->enc != ENC_ASCII) {
-        if (n > remaining / type_size[pr->type])
-            return sy_fail(err, SY_EINPUT, "%s: binary data truncated in list '%s'", f->path, pr->name);
-        f->p += n * type_size[pr->type];
+        f->p += n * per;
         return SY_OK;
     }
     double v;

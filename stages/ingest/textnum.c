@@ -43,18 +43,13 @@ static const char *parse_special(const char *p, const char *end, int neg, double
     return NULL;
 }
 
-/* mant * 10^e for the cases outside the fast path. */
-static double scale_pow10(double v, int e)
+/* mant * 10^e outside the fast path (more than 2^53 or a large exponent):
+ * long double keeps the 64-bit significand and the scale exact enough that
+ * the final rounding to double dominates. Rare in scan data. */
+static double scale_pow10(uint64_t mant, int e)
 {
-    while (e > 22 && v < HUGE_VAL) {
-        v *= 1e22;
-        e -= 22;
-    }
-    while (e < -22 && v > 0) {
-        v /= 1e22;
-        e += 22;
-    }
-    return e >= 0 ? v * exact_pow10[e] : v / exact_pow10[-e];
+    long double m = (long double)mant;
+    return (double)(e >= 0 ? m * powl(10.0L, (long double)e) : m / powl(10.0L, (long double)-e));
 }
 
 const char *sy_parse_number(const char *p, const char *end, double *out)
@@ -104,7 +99,7 @@ const char *sy_parse_number(const char *p, const char *end, double *out)
     if (mant == 0) v = 0.0;
     else if (mant <= (1ull << 53) && exp10 >= -22 && exp10 <= 22)
         v = exp10 >= 0 ? (double)mant * exact_pow10[exp10] : (double)mant / exact_pow10[-exp10];
-    else v = scale_pow10((double)mant, exp10);
+    else v = scale_pow10(mant, exp10);
     *out = neg ? -v : v;
     return p;
 }
