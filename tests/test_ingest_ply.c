@@ -40,7 +40,8 @@ static size_t size_of(const char *type)
 {
     if (!strcmp(type, "char") || !strcmp(type, "uchar") || !strcmp(type, "int8") || !strcmp(type, "uint8"))
         return 1;
-    if (!strcmp(type, "short") || !strcmp(type, "ushort") || !strcmp(type, "int16") || !strcmp(type, "uint16"))
+    if (!strcmp(type, "short") || !strcmp(type, "ushort") || !strcmp(type, "int16") ||
+        !strcmp(type, "uint16"))
         return 2;
     if (!strcmp(type, "double") || !strcmp(type, "float64")) return 8;
     return 4;
@@ -338,7 +339,8 @@ static void malformed_headers_are_input_errors(void **state)
     (void)state;
     const char *no_magic = "plx\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n";
     expect_input_error("no_magic.ply", no_magic, strlen(no_magic), "magic");
-    const char *no_end = HDR("element vertex 1\nproperty float x\nproperty float y\nproperty float z\n1 2 3\n");
+    const char *no_end =
+        HDR("element vertex 1\nproperty float x\nproperty float y\nproperty float z\n1 2 3\n");
     expect_input_error("no_end.ply", no_end, strlen(no_end), "end_header");
     const char *bad_type = HDR("element vertex 1\nproperty float128 x\nend_header\n1\n");
     expect_input_error("bad_type.ply", bad_type, strlen(bad_type), "float128");

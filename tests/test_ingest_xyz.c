@@ -112,7 +112,8 @@ static void parser_agrees_with_strtod(void **state)
     for (size_t i = 0; i < sizeof junk / sizeof junk[0]; i++)
         assert_null(sy_parse_number(junk[i], junk[i] + strlen(junk[i]), &v));
     const char *part = "1.5e";
-    assert_ptr_equal(sy_parse_number(part, part + 4, &v), part + 3); /* "e" without digits is not an exponent */
+    /* An "e" without digits is not an exponent. */
+    assert_ptr_equal(sy_parse_number(part, part + 4, &v), part + 3);
     assert_float_equal(v, 1.5, 0);
 }
 

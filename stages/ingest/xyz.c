@@ -468,18 +468,32 @@ static sy_code read_rows(line_reader *r, table *t, size_t row0_line, sy_error *e
                            r->line_no);
         double *dst = t->v + t->rows * (size_t)t->cols;
         int n = parse_row(s, e, dst, t->cols, &bad);
+        if (n > t->cols) n = parse_row(s, e, extra, XYZ_MAX_COLS + 1, &bad); /* the real count */
         char tok[32];
         if (n < 0)
             return sy_fail(err, SY_EINPUT, "%s: line %zu: malformed number '%s'", r->path, r->line_no,
                            token_text(bad, e, tok));
-        if (n != t->cols) {
-            if (n > t->cols) n = parse_row(s, e, extra, XYZ_MAX_COLS + 1, &bad);
+        if (n != t->cols)
             return sy_fail(err, SY_EINPUT, "%s: line %zu: %d columns, expected %d as on line %zu",
                            r->path, r->line_no, n, t->cols, row0_line);
-        }
         t->rows++;
     }
     return SY_OK;
+}
+
+/* Roles from the header names when they cover x, y and z within the data's
+ * columns, else from the column-count rules. */
+static void choose_roles(const table *t, const header_info *h, col_map *roles)
+{
+    if (h->n_names) {
+        memcpy(roles, h->names, sizeof h->names);
+        finish_named_roles(roles, h->n_names < t->cols ? h->n_names : t->cols, t->cols);
+        int xyz = 0;
+        for (int k = 0; k < t->cols; k++)
+            if (roles[k].role >= COL_X && roles[k].role <= COL_Z) xyz |= 1 << (roles[k].role - COL_X);
+        if (xyz == 7) return;
+    }
+    guess_roles(t, roles);
 }
 
 sy_code sy_read_xyz_mem(const char *path, const unsigned char *data, size_t size, sy_cloud *out,
@@ -505,17 +519,7 @@ sy_code sy_read_xyz_mem(const char *path, const unsigned char *data, size_t size
 
     col_map roles[XYZ_MAX_COLS];
     if (rc == SY_OK) {
-        if (h.n_names) {
-            int named = h.n_names < cols ? h.n_names : cols;
-            memcpy(roles, h.names, sizeof roles);
-            finish_named_roles(roles, named, cols);
-            int xyz = 0;
-            for (int k = 0; k < cols; k++)
-                xyz |= roles[k].role == COL_X ? 1 : roles[k].role == COL_Y ? 2 : roles[k].role == COL_Z ? 4 : 0;
-            if (xyz != 7) guess_roles(&t, roles); /* the names ran past the data's columns */
-        } else {
-            guess_roles(&t, roles);
-        }
+        choose_roles(&t, &h, roles);
         rc = build_cloud(path, &t, roles, out, err);
     }
     free(t.v);
