@@ -208,17 +208,33 @@ static sy_code parse_header(ply_file *f, const unsigned char *data, size_t size,
 
 /* ---- data access ---- */
 
-static uint64_t load_uint(const unsigned char *b, size_t n, int big)
+static int host_is_big_endian(void)
 {
-    uint64_t v = 0;
-    for (size_t i = 0; i < n; i++) v |= (uint64_t)b[big ? i : n - 1 - i] << (8 * (n - 1 - i));
-    return v;
+    const uint16_t one = 1;
+    unsigned char first;
+    memcpy(&first, &one, 1);
+    return first == 0;
+}
+
+/* The n bytes at b as an unsigned integer, reversed when swap is set. The
+ * fixed-size memcpy forms compile to single loads. */
+static uint64_t load_uint(const unsigned char *b, size_t n, int swap)
+{
+    uint16_t h;
+    uint32_t w;
+    uint64_t q;
+    switch (n) {
+    case 1: return b[0];
+    case 2: memcpy(&h, b, 2); return swap ? (uint16_t)((h >> 8) | (h << 8)) : h;
+    case 4: memcpy(&w, b, 4); return swap ? __builtin_bswap32(w) : w;
+    default: memcpy(&q, b, 8); return swap ? __builtin_bswap64(q) : q;
+    }
 }
 
 /* One binary value of type t at b (enough bytes checked by the caller). */
-static double decode(const unsigned char *b, ply_type t, int big)
+static double decode(const unsigned char *b, ply_type t, int swap)
 {
-    uint64_t u = load_uint(b, type_size[t], big);
+    uint64_t u = load_uint(b, type_size[t], swap);
     switch (t) {
     case T_I8: return (double)(int8_t)(uint8_t)u;
     case T_U8: return (double)(uint8_t)u;
@@ -241,6 +257,12 @@ static double decode(const unsigned char *b, ply_type t, int big)
     return 0;
 }
 
+/* Whether binary values need their bytes reversed on this host. */
+static int needs_swap(const ply_file *f)
+{
+    return (f->enc == ENC_BE) != host_is_big_endian();
+}
+
 static int is_space(unsigned char c)
 {
     return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\f' || c == '\v';
@@ -252,7 +274,7 @@ static sy_code read_value(ply_file *f, ply_type t, double *v, sy_error *err)
     if (f->enc != ENC_ASCII) {
         size_t n = type_size[t];
         if ((size_t)(f->end - f->p) < n) return sy_fail(err, SY_EINPUT, "%s: binary data truncated", f->path);
-        *v = decode(f->p, t, f->enc == ENC_BE);
+        *v = decode(f->p, t, needs_swap(f));
         f->p += n;
         return SY_OK;
     }
@@ -470,20 +492,29 @@ static sy_code read_vertices(ply_file *f, const ply_element *el, sy_cloud *c, sy
     if (rc) return rc;
     rc = prepare_vertex(f, el, c, err);
     if (rc) return rc;
+    int fixed = f->enc != ENC_ASCII;
+    for (int j = 0; j < el->n_props; j++) fixed &= !f->props[el->first_prop + j].is_list;
+    /* Fixed-size binary records: check_count proved they all fit, so decode
+     * in place without per-value bounds checks. */
+    size_t stride = fixed ? min_item_bytes(f, el) : 0;
+    int swap = needs_swap(f);
     for (size_t i = 0; i < c->n; i++) {
         double pos[3] = {0, 0, 0}, v;
+        const unsigned char *rec = f->p;
         for (int j = 0; j < el->n_props; j++) {
             const ply_prop *pr = &f->props[el->first_prop + j];
-            if (pr->is_list) {
-                rc = skip_list(f, pr, err);
-            } else {
-                rc = read_value(f, pr->type, &v, err);
-                if (rc == SY_OK) store(c, pr, i, v, pos);
+            if (fixed) {
+                store(c, pr, i, decode(rec, pr->type, swap), pos);
+                rec += type_size[pr->type];
+                continue;
             }
+            rc = pr->is_list ? skip_list(f, pr, err) : read_value(f, pr->type, &v, err);
             if (rc) return rc;
+            if (!pr->is_list) store(c, pr, i, v, pos);
         }
-        rc = sy_check_finite(f->path, pos[0], pos[1], pos[2], i, err);
-        if (rc) return rc;
+        f->p += stride;
+        if (!isfinite(pos[0]) || !isfinite(pos[1]) || !isfinite(pos[2]))
+            return sy_check_finite(f->path, pos[0], pos[1], pos[2], i, err);
         if (i == 0)
             for (int k = 0; k < 3; k++) c->origin[k] = floor(pos[k]);
         for (int k = 0; k < 3; k++) c->xyz[3 * i + k] = (float)(pos[k] - c->origin[k]);

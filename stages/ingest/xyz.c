@@ -562,6 +562,14 @@ static void write_header(FILE *fp, const sy_cloud *c)
     fputc('\n', fp);
 }
 
+/* Exact text for a double: integers (ids, labels) print short and fast,
+ * anything else with the 17 digits that round-trip. */
+static void put_exact(FILE *fp, double v)
+{
+    if (v == floor(v) && fabs(v) < 1e15) fprintf(fp, " %lld", (long long)v);
+    else fprintf(fp, " %.17g", v);
+}
+
 static void write_point(FILE *fp, const sy_cloud *c, size_t i)
 {
     /* 6 decimals: micrometres, well below the 0.1 mm survey tolerance, and
@@ -575,11 +583,11 @@ static void write_point(FILE *fp, const sy_cloud *c, size_t i)
         fprintf(fp, " %.9g %.9g %.9g", c->normal[3 * i], c->normal[3 * i + 1], c->normal[3 * i + 2]);
     if (c->intensity) fprintf(fp, " %u", c->intensity[i]);
     if (c->classification) fprintf(fp, " %u", c->classification[i]);
-    if (c->gps_time) fprintf(fp, " %.17g", c->gps_time[i]);
+    if (c->gps_time) put_exact(fp, c->gps_time[i]);
     if (c->nir) fprintf(fp, " %u", c->nir[i]);
     if (c->return_number) fprintf(fp, " %u", c->return_number[i]);
     if (c->num_returns) fprintf(fp, " %u", c->num_returns[i]);
-    for (size_t a = 0; a < c->n_attrs; a++) fprintf(fp, " %.17g", c->attrs[a].values[i]);
+    for (size_t a = 0; a < c->n_attrs; a++) put_exact(fp, c->attrs[a].values[i]);
     fputc('\n', fp);
 }
 
