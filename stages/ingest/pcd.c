@@ -5,6 +5,7 @@
  * data. NaN positions mean "no return" in PCL clouds; those points are skipped
  * and counted in meta.vlr_summary. */
 #include "ingest.h"
+#include "text_scan.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -48,68 +49,18 @@ typedef struct {
     size_t columns, columns_nopad;
 } pcd_header;
 
-typedef struct {
-    const char *s;
-    size_t n;
-} pcd_tok;
-
-static int is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
-
-/* Next whitespace-separated token of [*p, e); 0 at the end of the line. */
-static int next_token(const char **p, const char *e, pcd_tok *t)
-{
-    const char *s = *p;
-    while (s < e && is_space(*s)) s++;
-    if (s == e) return 0;
-    t->s = s;
-    while (s < e && !is_space(*s)) s++;
-    t->n = (size_t)(s - t->s);
-    *p = s;
-    return 1;
-}
-
-static int tok_is(const pcd_tok *t, const char *word)
-{
-    return t->n == strlen(word) && memcmp(t->s, word, t->n) == 0;
-}
-
-static int tok_u64(const pcd_tok *t, uint64_t *v)
-{
-    if (t->n == 0 || t->n > 20) return 0;
-    uint64_t x = 0;
-    for (size_t i = 0; i < t->n; i++) {
-        if (t->s[i] < '0' || t->s[i] > '9') return 0;
-        unsigned d = (unsigned)(t->s[i] - '0');
-        if (x > (UINT64_MAX - d) / 10) return 0;
-        x = x * 10 + d;
-    }
-    *v = x;
-    return 1;
-}
-
-static int tok_double(const pcd_tok *t, double *v)
-{
-    char buf[64];
-    if (t->n == 0 || t->n >= sizeof buf) return 0;
-    memcpy(buf, t->s, t->n);
-    buf[t->n] = '\0';
-    char *end;
-    *v = strtod(buf, &end);
-    return end == buf + t->n;
-}
-
 /* A packed colour in ascii: new PCL writes the uint32, older PCL writes the
  * float whose bits hold it (e.g. 4.2108e+06 or 2.35e-38). */
-static int tok_rgb_bits(const pcd_tok *t, uint32_t *bits)
+static int tok_rgb_bits(const sy_tok *t, uint32_t *bits)
 {
     uint64_t u;
-    if (tok_u64(t, &u)) {
+    if (sy_tok_u64(t, &u)) {
         if (u > UINT32_MAX) return 0;
         *bits = (uint32_t)u;
         return 1;
     }
     double d;
-    if (!tok_double(t, &d)) return 0;
+    if (!sy_tok_double(t, &d)) return 0;
     float f = (float)d;
     memcpy(bits, &f, sizeof f);
     return 1;
@@ -150,15 +101,14 @@ static double decode_value(const unsigned char *p, char type, unsigned size)
 
 static sy_code parse_fields(pcd_header *h, const char *p, const char *e, size_t line, sy_error *err)
 {
-    pcd_tok t;
-    size_t n = 0;
-    for (const char *q = p; next_token(&q, e, &t);) n++;
+    sy_tok t;
+    size_t n = sy_tok_count(p, e);
     if (n == 0) return sy_fail(err, SY_EINPUT, "%s: line %zu: FIELDS lists no fields", h->path, line);
     free(h->f);
     h->f = sy_calloc(n, sizeof *h->f, err, "PCD fields");
     if (!h->f) return SY_EINTERNAL;
     h->nf = n;
-    for (size_t i = 0; i < n && next_token(&p, e, &t); i++) {
+    for (size_t i = 0; i < n && sy_tok_next(&p, e, &t); i++) {
         pcd_field *f = &h->f[i];
         snprintf(f->name, sizeof f->name, "%.*s", (int)(t.n < 31 ? t.n : 31), t.s);
         /* PCL's defaults for headers that predate SIZE/TYPE/COUNT. */
@@ -170,26 +120,26 @@ static sy_code parse_fields(pcd_header *h, const char *p, const char *e, size_t 
 }
 
 /* SIZE, TYPE or COUNT: one token per field. */
-static sy_code parse_per_field(pcd_header *h, const pcd_tok *key, const char *p, const char *e,
+static sy_code parse_per_field(pcd_header *h, const sy_tok *key, const char *p, const char *e,
                                size_t line, sy_error *err)
 {
     if (!h->nf)
         return sy_fail(err, SY_EINPUT, "%s: line %zu: %.*s before FIELDS", h->path, line, (int)key->n, key->s);
-    pcd_tok t;
+    sy_tok t;
     size_t i = 0;
-    for (; next_token(&p, e, &t); i++) {
+    for (; sy_tok_next(&p, e, &t); i++) {
         if (i >= h->nf) break;
         pcd_field *f = &h->f[i];
         uint64_t v = 0;
-        if (tok_is(key, "TYPE")) {
+        if (sy_tok_is(key, "TYPE")) {
             if (t.n != 1 || (t.s[0] != 'I' && t.s[0] != 'U' && t.s[0] != 'F'))
                 return sy_fail(err, SY_EINPUT, "%s: line %zu: field %s has unknown TYPE '%.*s' (want I, U or F)",
                                h->path, line, f->name, (int)(t.n < 16 ? t.n : 16), t.s);
             f->type = t.s[0];
-        } else if (!tok_u64(&t, &v)) {
+        } else if (!sy_tok_u64(&t, &v)) {
             return sy_fail(err, SY_EINPUT, "%s: line %zu: bad %.*s value for field %s", h->path, line,
                            (int)key->n, key->s, f->name);
-        } else if (tok_is(key, "SIZE")) {
+        } else if (sy_tok_is(key, "SIZE")) {
             if (v != 1 && v != 2 && v != 4 && v != 8)
                 return sy_fail(err, SY_EINPUT, "%s: line %zu: field %s has SIZE %llu (want 1, 2, 4 or 8)", h->path,
                                line, f->name, (unsigned long long)v);
@@ -207,11 +157,11 @@ static sy_code parse_per_field(pcd_header *h, const pcd_tok *key, const char *p,
     return SY_OK;
 }
 
-static sy_code parse_count(pcd_header *h, const pcd_tok *key, const char *p, const char *e, size_t line,
+static sy_code parse_count(pcd_header *h, const sy_tok *key, const char *p, const char *e, size_t line,
                            uint64_t *v, int *have, sy_error *err)
 {
-    pcd_tok t;
-    if (!next_token(&p, e, &t) || !tok_u64(&t, v))
+    sy_tok t;
+    if (!sy_tok_next(&p, e, &t) || !sy_tok_u64(&t, v))
         return sy_fail(err, SY_EINPUT, "%s: line %zu: %.*s needs a non-negative integer", h->path, line, (int)key->n,
                        key->s);
     *have = 1;
@@ -220,14 +170,14 @@ static sy_code parse_count(pcd_header *h, const pcd_tok *key, const char *p, con
 
 static sy_code parse_data_kind(pcd_header *h, const char *p, const char *e, size_t line, sy_error *err)
 {
-    pcd_tok t;
-    if (!next_token(&p, e, &t)) return sy_fail(err, SY_EINPUT, "%s: line %zu: DATA without a kind", h->path, line);
-    if (tok_is(&t, "ascii")) h->kind = PCD_ASCII;
-    else if (tok_is(&t, "binary")) h->kind = PCD_BINARY;
-    else if (tok_is(&t, "binary_compressed")) h->kind = PCD_COMPRESSED;
+    sy_tok t;
+    if (!sy_tok_next(&p, e, &t)) return sy_fail(err, SY_EINPUT, "%s: line %zu: DATA without a kind", h->path, line);
+    if (sy_tok_is(&t, "ascii")) h->kind = PCD_ASCII;
+    else if (sy_tok_is(&t, "binary")) h->kind = PCD_BINARY;
+    else if (sy_tok_is(&t, "binary_compressed")) h->kind = PCD_COMPRESSED;
     else
         return sy_fail(err, SY_EINPUT, "%s: line %zu: unknown DATA kind '%.*s' (want ascii, binary or binary_compressed)",
-                       h->path, line, (int)(t.n < 32 ? t.n : 32), t.s);
+                       h->path, line, sy_tok_shown(&t), t.s);
     return SY_OK;
 }
 
@@ -296,42 +246,38 @@ static sy_code layout_fields(pcd_header *h, sy_error *err)
 
 static sy_code parse_header(pcd_header *h, const unsigned char *d, size_t size, sy_error *err)
 {
-    size_t pos = 0, line = 0;
-    while (pos < size) {
-        size_t end = pos;
-        while (end < size && d[end] != '\n') end++;
-        line++;
-        const char *p = (const char *)d + pos, *e = (const char *)d + end;
-        size_t next = end < size ? end + 1 : end;
-        pcd_tok key;
+    sy_lines lines = {(const char *)d, size, 0, 0};
+    const char *p, *e;
+    while (sy_line_next(&lines, &p, &e)) {
+        size_t line = lines.line;
+        sy_tok key;
         sy_code rc = SY_OK;
-        pos = next;
-        if (!next_token(&p, e, &key) || key.s[0] == '#') continue;
-        if (tok_is(&key, "VERSION")) {
-            pcd_tok v;
-            if (next_token(&p, e, &v)) snprintf(h->version, sizeof h->version, "%.*s", (int)(v.n < 15 ? v.n : 15), v.s);
-        } else if (tok_is(&key, "FIELDS") || tok_is(&key, "COLUMNS")) {
+        if (!sy_tok_next(&p, e, &key) || key.s[0] == '#') continue;
+        if (sy_tok_is(&key, "VERSION")) {
+            sy_tok v;
+            if (sy_tok_next(&p, e, &v)) snprintf(h->version, sizeof h->version, "%.*s", (int)(v.n < 15 ? v.n : 15), v.s);
+        } else if (sy_tok_is(&key, "FIELDS") || sy_tok_is(&key, "COLUMNS")) {
             rc = parse_fields(h, p, e, line, err);
-        } else if (tok_is(&key, "SIZE") || tok_is(&key, "TYPE") || tok_is(&key, "COUNT")) {
+        } else if (sy_tok_is(&key, "SIZE") || sy_tok_is(&key, "TYPE") || sy_tok_is(&key, "COUNT")) {
             rc = parse_per_field(h, &key, p, e, line, err);
-        } else if (tok_is(&key, "WIDTH")) {
+        } else if (sy_tok_is(&key, "WIDTH")) {
             rc = parse_count(h, &key, p, e, line, &h->width, &h->have_width, err);
-        } else if (tok_is(&key, "HEIGHT")) {
+        } else if (sy_tok_is(&key, "HEIGHT")) {
             rc = parse_count(h, &key, p, e, line, &h->height, &h->have_height, err);
-        } else if (tok_is(&key, "POINTS")) {
+        } else if (sy_tok_is(&key, "POINTS")) {
             rc = parse_count(h, &key, p, e, line, &h->points, &h->have_points, err);
-        } else if (tok_is(&key, "VIEWPOINT")) {
+        } else if (sy_tok_is(&key, "VIEWPOINT")) {
             /* The sensor pose does not move the points; nothing to keep. */
-        } else if (tok_is(&key, "DATA")) {
+        } else if (sy_tok_is(&key, "DATA")) {
             rc = parse_data_kind(h, p, e, line, err);
             if (rc) return rc;
-            h->data = next;
+            h->data = lines.pos;
             h->data_line = line;
             rc = layout_fields(h, err);
             return rc ? rc : resolve_counts(h, err);
         } else {
             return sy_fail(err, SY_EINPUT, "%s: line %zu: unexpected header line starting '%.*s'", h->path, line,
-                           (int)(key.n < 32 ? key.n : 32), key.s);
+                           sy_tok_shown(&key), key.s);
         }
         if (rc) return rc;
     }
@@ -380,10 +326,8 @@ static const char *lzf_decompress(const unsigned char *in, size_t in_len, unsign
 
 typedef struct {
     pcd_header *h;
-    const unsigned char *d;
-    size_t size;
-    size_t pos, line; /* ascii cursor */
-    pcd_tok *toks;    /* ascii: columns + 1 slots */
+    sy_lines lines;   /* ascii cursor */
+    sy_tok *toks;    /* ascii: columns + 1 slots */
     double *vals;     /* per field: value of the current point */
     uint32_t *bits;   /* per field: raw bits of a packed colour */
 } pcd_body;
@@ -425,28 +369,24 @@ static sy_code ascii_point(pcd_body *b, size_t i, sy_error *err)
     const pcd_header *h = b->h;
     size_t ntok = 0;
     while (ntok == 0) {
-        if (b->pos >= b->size)
+        const char *p, *e;
+        if (!sy_line_next(&b->lines, &p, &e))
             return sy_fail(err, SY_EINPUT, "%s: truncated: data ends after %zu of %llu points", h->path, i,
                            (unsigned long long)h->points);
-        size_t end = b->pos;
-        while (end < b->size && b->d[end] != '\n') end++;
-        b->line++;
-        const char *p = (const char *)b->d + b->pos, *e = (const char *)b->d + end;
-        b->pos = end < b->size ? end + 1 : end;
-        while (ntok <= h->columns && next_token(&p, e, &b->toks[ntok])) ntok++;
+        while (ntok <= h->columns && sy_tok_next(&p, e, &b->toks[ntok])) ntok++;
     }
     int nopad = ntok != h->columns;
     if (nopad && (ntok != h->columns_nopad || h->columns_nopad == h->columns))
-        return sy_fail(err, SY_EINPUT, "%s: line %zu: %s values, expected %zu", h->path, b->line,
+        return sy_fail(err, SY_EINPUT, "%s: line %zu: %s values, expected %zu", h->path, b->lines.line,
                        ntok > h->columns ? "too many" : "too few", h->columns);
     for (size_t k = 0; k < h->nf; k++) {
         const pcd_field *f = &h->f[k];
         if (f->role == ROLE_SKIP) continue;
-        const pcd_tok *t = &b->toks[nopad ? f->column_nopad : f->column];
-        int ok = f->role == ROLE_RGB ? tok_rgb_bits(t, &b->bits[k]) : tok_double(t, &b->vals[k]);
+        const sy_tok *t = &b->toks[nopad ? f->column_nopad : f->column];
+        int ok = f->role == ROLE_RGB ? tok_rgb_bits(t, &b->bits[k]) : sy_tok_double(t, &b->vals[k]);
         if (!ok)
-            return sy_fail(err, SY_EINPUT, "%s: line %zu: bad value '%.*s' for field %s", h->path, b->line,
-                           (int)(t->n < 32 ? t->n : 32), t->s, f->name);
+            return sy_fail(err, SY_EINPUT, "%s: line %zu: bad value '%.*s' for field %s", h->path, b->lines.line,
+                           sy_tok_shown(t), t->s, f->name);
     }
     return SY_OK;
 }
@@ -635,10 +575,7 @@ sy_code sy_read_pcd_mem(const char *path, const unsigned char *data, size_t size
     if (!rc) rc = assign_roles(&h, out, &intensity, err);
     if (!rc) {
         b.h = &h;
-        b.d = data;
-        b.size = size;
-        b.pos = h.data;
-        b.line = h.data_line;
+        b.lines = (sy_lines){(const char *)data, size, h.data, h.data_line};
         b.vals = sy_calloc(h.nf, sizeof *b.vals, err, "PCD values");
         b.bits = sy_calloc(h.nf, sizeof *b.bits, err, "PCD values");
         if (h.kind == PCD_ASCII) b.toks = sy_calloc(h.columns + 1, sizeof *b.toks, err, "PCD tokens");
