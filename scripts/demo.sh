@@ -14,6 +14,8 @@ $sylva info samples/tree1.xyz
 echo "== sylva preprocess samples/tree1.xyz -o out/tree1_clean.ply"
 $sylva preprocess samples/tree1.xyz -o out/tree1_clean.ply
 $sylva info out/tree1_clean.ply
+echo "== sylva grow --species quaking_aspen -o out/quaking_aspen.glb"
+$sylva grow --species quaking_aspen --seed 1 -o out/quaking_aspen.glb
 echo
 echo "demo outputs are in $PWD/out/"
 ls -l out/

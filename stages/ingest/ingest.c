@@ -18,6 +18,12 @@ static int starts_with(const sy_buffer *b, const char *magic)
     return b->size >= n && memcmp(b->data, magic, n) == 0;
 }
 
+static int ends_with(const char *s, const char *suffix)
+{
+    size_t n = strlen(s), m = strlen(suffix);
+    return n >= m && strcmp(s + n - m, suffix) == 0;
+}
+
 /* PCD files open with comment lines or a VERSION line. */
 static int looks_like_pcd(const sy_buffer *b, const char *ext)
 {
@@ -44,10 +50,9 @@ sy_code sy_read_cloud(const char *path, sy_cloud *out, sy_error *err)
     else if (starts_with(&b, "ply\n") || starts_with(&b, "ply\r\n")) rc = sy_read_ply_mem(path, b.data, b.size, out, err);
     else if (strcmp(ext, "ply") == 0) rc = sy_fail(err, SY_EINPUT, "%s: not a PLY file (no 'ply' magic line)", path);
     else if (looks_like_pcd(&b, ext)) rc = sy_read_pcd_mem(path, b.data, b.size, out, err);
-    else if (strcmp(path + strlen(path) - (strlen(path) >= 11 ? 11 : 0), "points3D.bin") == 0 ||
-             strcmp(ext, "bin") == 0)
+    else if (ends_with(path, "points3D.bin") || strcmp(ext, "bin") == 0)
         rc = sy_read_colmap_points_mem(path, b.data, b.size, 'b', out, err);
-    else if (strstr(path, "points3D.txt")) rc = sy_read_colmap_points_mem(path, b.data, b.size, 't', out, err);
+    else if (ends_with(path, "points3D.txt")) rc = sy_read_colmap_points_mem(path, b.data, b.size, 't', out, err);
     else rc = sy_read_xyz_mem(path, b.data, b.size, out, err);
     sy_buffer_free(&b);
     if (rc == SY_OK && out->n == 0) {
