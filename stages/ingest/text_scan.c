@@ -1,4 +1,5 @@
 #include "text_scan.h"
+#include "textnum.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -59,13 +60,9 @@ int sy_tok_i64(const sy_tok *t, int64_t *v)
 
 int sy_tok_double(const sy_tok *t, double *v)
 {
-    char buf[64];
-    if (t->n == 0 || t->n >= sizeof buf) return 0;
-    memcpy(buf, t->s, t->n);
-    buf[t->n] = '\0';
-    char *end;
-    *v = strtod(buf, &end);
-    return end == buf + t->n;
+    /* The same locale-independent parser as the XYZ and PLY readers. */
+    const char *end = t->n ? sy_parse_number(t->s, t->s + t->n, v) : NULL;
+    return end == t->s + t->n;
 }
 
 int sy_tok_shown(const sy_tok *t) { return (int)(t->n < 32 ? t->n : 32); }
