@@ -68,6 +68,9 @@ static int tok_rgb_bits(const sy_tok *t, uint32_t *bits)
 
 static uint64_t load_le(const unsigned char *p, unsigned size)
 {
+    /* Fixed widths first: the compiler turns these into single loads. */
+    if (size == 4) return (uint64_t)p[0] | (uint64_t)p[1] << 8 | (uint64_t)p[2] << 16 | (uint64_t)p[3] << 24;
+    if (size == 8) return load_le(p, 4) | load_le(p + 4, 4) << 32;
     uint64_t v = 0;
     for (unsigned i = 0; i < size; i++) v |= (uint64_t)p[i] << (8 * i);
     return v;
