@@ -13,6 +13,7 @@
 #include "stages/core/fileio.h"
 #include "stages/core/json.h"
 #include "stages/core/progress.h"
+#include "stages/grow/grow.h"
 #include "stages/ingest/ingest.h"
 #include "stages/scan/scan.h"
 
@@ -281,6 +282,17 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
         return SY_EUSAGE;
     }
     sy_error err = {0};
+    /* Every species must load before any progress is printed: a bad name
+     * makes exactly one line of output. */
+    for (int i = 0; i < so.n_species; i++) {
+        sy_species sp;
+        if (sy_species_find(so.species[i], &sp, &err)) {
+            free(list);
+            free(path);
+            return sy_cli_report(&err);
+        }
+        sy_species_free(&sp);
+    }
     sy_scene scene;
     if (!cli->quiet && !cli->json) fprintf(stderr, "growing %d tree(s)\n", plot_size > 0 ? so.trees : 1);
     double reach = (sc.radius > 0 ? sc.radius : 0) + 5;

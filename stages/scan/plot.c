@@ -119,16 +119,18 @@ typedef struct {
     double top, lo[2], hi[2];
 } extent;
 
-static void extent_add(extent *e, const double x[3], double r)
+static void extent_add(extent *e, const double x[3])
 {
-    if (x[2] + r > e->top) e->top = x[2] + r;
+    if (x[2] > e->top) e->top = x[2];
     for (int k = 0; k < 2; k++) {
-        if (x[k] - r < e->lo[k]) e->lo[k] = x[k] - r;
-        if (x[k] + r > e->hi[k]) e->hi[k] = x[k] + r;
+        if (x[k] < e->lo[k]) e->lo[k] = x[k];
+        if (x[k] > e->hi[k]) e->hi[k] = x[k];
     }
 }
 
-static sy_code add_wood(sy_scene *s, const sy_skeleton *world, int tree_id, int species_id, sy_error *err)
+
+static sy_code add_wood(sy_scene *s, const sy_skeleton *world, int tree_id, int species_id, extent *ext,
+                        sy_error *err)
 {
     for (size_t i = 0; i < world->n; i++) {
         int32_t p = world->parent[i];
@@ -142,6 +144,12 @@ static sy_code add_wood(sy_scene *s, const sy_skeleton *world, int tree_id, int 
         c.tree_id = tree_id;
         c.species_id = species_id;
         c.branch_id = world->branch[i];
+        /* The cone's box is its exact extent (end discs), give or take 10 um. */
+        float lo[3], hi[3];
+        sy_prim_bounds(&c, lo, hi);
+        double dlo[3] = {lo[0], lo[1], lo[2]}, dhi[3] = {hi[0], hi[1], hi[2]};
+        extent_add(ext, dlo);
+        extent_add(ext, dhi);
         if (push_labelled(s, &c, err)) return err->code;
     }
     return SY_OK;
@@ -170,7 +178,7 @@ static sy_code add_leaves(sy_scene *s, const sy_leaves *lv, const sy_skeleton *w
             for (int ty = 0; ty <= 1; ty++) {
                 double corner[3];
                 for (int k = 0; k < 3; k++) corner[k] = fb[k] + sx * (double)c.v[3 + k] + ty * (double)c.v[6 + k];
-                extent_add(ext, corner, 0);
+                extent_add(ext, corner);
             }
         if (push_labelled(s, &c, err)) return err->code;
     }
@@ -211,9 +219,8 @@ sy_code sy_scene_add_tree(sy_scene *s, const sy_skeleton *local, const sy_leaves
         t->skel.parent[i] = local->parent[i];
         t->skel.order[i] = local->order[i];
         t->skel.branch[i] = local->branch[i];
-        extent_add(&ext, w, local->radius[i]);
     }
-    if (add_wood(s, &t->skel, t->tree_id, species_id, err)) return err->code;
+    if (add_wood(s, &t->skel, t->tree_id, species_id, &ext, err)) return err->code;
     if (leaves) {
         sy_leaves moved = *leaves;
         float *lp = sy_calloc(leaves->n ? 3 * leaves->n : 1, sizeof(float), err, "leaf positions");
