@@ -421,7 +421,13 @@ static void trace_pulse(const scan_job *j, size_t i, chunk_out *out)
     int n_hits = 0;
     for (int k = 0; k < k_rays; k++) {
         sy_hit h;
-        if (sy_bvh_intersect(bvh, o, dirs[k], sc->max_range, &h)) {
+        /* Sub-rays of one beam mostly hit what the previous one did: testing
+         * that surface first gives the traversal a tight bound. nextafter keeps
+         * it findable again, so the result equals an unbounded search. */
+        double bound = sc->max_range, t;
+        if (n_hits && sy_prim_intersect(&bvh->prims[hits[0].prim], o, dirs[k], 1e-6, bound, &t))
+            bound = nextafter(t, INFINITY);
+        if (sy_bvh_intersect(bvh, o, dirs[k], bound, &h)) {
             /* Insertion by range keeps the list sorted. */
             int at = n_hits++;
             while (at > 0 && hits[at - 1].t > h.t) {
