@@ -177,14 +177,14 @@ static void station_window(const sy_scene *s, const double p[3], double *az0, do
     *el1 = fmin(*el1, 90 * DEG);
 }
 
-static sy_code plan_terrestrial(scan_job *j, sy_error *err)
+static sy_code plan_terrestrial(scan_job *j, int *stations, sy_error *err)
 {
     const sy_scanner *sc = j->sc;
     if (sc->positions < 1 || sc->positions > 1000)
         return sy_fail(err, SY_EUSAGE, "scan: --positions %d is out of range 1..1000", sc->positions);
     if (!(sc->step_deg > 0)) return sy_fail(err, SY_EUSAGE, "scan: --step must be positive");
     double hstep = sc->step_deg * DEG, vstep = (sc->vstep_deg > 0 ? sc->vstep_deg : sc->step_deg) * DEG;
-    j->n_st = sc->positions;
+    j->n_st = *stations = sc->positions;
     j->st = sy_calloc((size_t)j->n_st, 7 * sizeof(double), err, "stations");
     j->st_cols = sy_calloc((size_t)j->n_st, sizeof(size_t), err, "stations");
     j->st_rows = sy_calloc((size_t)j->n_st, sizeof(size_t), err, "stations");
@@ -561,7 +561,7 @@ sy_code sy_scan(const sy_scene *s, const sy_scanner *sc, sy_cloud *out, sy_scan_
     if (!(sc->max_range > 0)) rc = sy_fail(err, SY_EUSAGE, "scan: --max-range must be positive");
     else if (!(sc->noise >= 0) || !(sc->divergence_mrad >= 0) || !(sc->separation >= 0))
         rc = sy_fail(err, SY_EUSAGE, "scan: --noise, --divergence and --separation must not be negative");
-    else if (sc->kind == SY_SCANNER_TERRESTRIAL) rc = plan_terrestrial(&j, err), st.stations = sc->positions;
+    else if (sc->kind == SY_SCANNER_TERRESTRIAL) rc = plan_terrestrial(&j, &st.stations, err);
     else if (sc->kind == SY_SCANNER_MOBILE) rc = plan_mobile(&j, &st.stations, err);
     else rc = plan_airborne(&j, &st.stations, err);
     size_t n_chunks = (j.n_pulses + CHUNK - 1) / CHUNK;
