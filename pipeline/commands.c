@@ -7,5 +7,6 @@ const sy_command sy_commands[] = {
     {"convert", "convert a point cloud between formats (PLY, LAS, XYZ)", cmd_convert},
     {"preprocess", "clean a scan: up-axis, crop, voxel, outliers, ground, normals", cmd_preprocess},
     {"grow", "grow a procedural species tree (Weber & Penn) and write it as glTF", cmd_grow},
+    {"scan", "virtual LiDAR: scan a generated tree or plot, with exact per-point truth", cmd_scan},
     {NULL, NULL, NULL},
 };

@@ -8,5 +8,6 @@ int cmd_info(int argc, char **argv, sy_cli *cli);
 int cmd_convert(int argc, char **argv, sy_cli *cli);
 int cmd_preprocess(int argc, char **argv, sy_cli *cli);
 int cmd_grow(int argc, char **argv, sy_cli *cli);
+int cmd_scan(int argc, char **argv, sy_cli *cli);
 
 #endif

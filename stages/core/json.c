@@ -1,6 +1,7 @@
 #include "json.h"
 
 #include <math.h>
+#include <stdlib.h>
 
 void sy_json_begin(sy_json *j, FILE *fp, int pretty)
 {
@@ -73,10 +74,22 @@ void sy_json_string(sy_json *j, const char *key, const char *value)
     else fputs("null", j->fp);
 }
 
+/* The shortest of %.15g..%.17g that reads back to the same double: 0.24 stays
+ * "0.24" instead of "0.23999999999999999", and nothing is lost. */
+static void put_number(FILE *fp, double value)
+{
+    char buf[40];
+    for (int digits = 15; digits <= 17; digits++) {
+        snprintf(buf, sizeof buf, "%.*g", digits, value);
+        if (strtod(buf, NULL) == value) break;
+    }
+    fputs(buf, fp);
+}
+
 void sy_json_number(sy_json *j, const char *key, double value)
 {
     prefix(j, key);
-    if (isfinite(value)) fprintf(j->fp, "%.17g", value);
+    if (isfinite(value)) put_number(j->fp, value);
     else fputs("null", j->fp);
 }
 
@@ -98,7 +111,7 @@ void sy_json_numbers(sy_json *j, const char *key, const double *v, int n)
     fputc('[', j->fp);
     for (int i = 0; i < n; i++) {
         if (i) fputc(',', j->fp);
-        if (isfinite(v[i])) fprintf(j->fp, "%.17g", v[i]);
+        if (isfinite(v[i])) put_number(j->fp, v[i]);
         else fputs("null", j->fp);
     }
     fputc(']', j->fp);

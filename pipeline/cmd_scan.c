@@ -1,0 +1,314 @@
+/* sylva scan SPECIES -o scan.las --truth truth.json: the virtual LiDAR
+ * scanner. Grows a tree (or a plot of trees), scans it with a terrestrial,
+ * mobile or airborne scanner, and writes the labelled points and the exact
+ * truth. Both outputs are atomic, and a failure leaves neither. */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "pipeline/commands.h"
+#include "stages/core/fileio.h"
+#include "stages/core/json.h"
+#include "stages/core/progress.h"
+#include "stages/grow/grow.h"
+#include "stages/ingest/ingest.h"
+#include "stages/scan/scan.h"
+
+static const char *out_path, *truth_path, *kind_name, *species_list, *path_text;
+static int positions, max_points, returns, trees, subrays, no_leaves, no_terrain, rect_leaves, lawn;
+static double step, vstep, density, noise, divergence, plot_size, radius, height, altitude, swath, overlap, speed,
+    rotation, line_spacing, separation, max_range, understory, slope, aspect, roughness;
+
+static const sy_opt opts[] = {
+    {"-o", OPT_STRING, &out_path, "OUT", "point cloud to write (.las: LAS 1.4 with extra bytes; .ply, .xyz)"},
+    {"--truth", OPT_STRING, &truth_path, "FILE", "truth JSON (docs/truth-format.md)"},
+    {"--scanner", OPT_STRING, &kind_name, "KIND", "terrestrial (default), mobile or airborne"},
+    {"--positions", OPT_INT, &positions, "N", "terrestrial stations on a circle (default 4)"},
+    {"--radius", OPT_DOUBLE, &radius, "M", "station circle / mobile circle radius (default: scene + 5 m, >= 10)"},
+    {"--height", OPT_DOUBLE, &height, "M", "instrument height over ground (1.5 terrestrial, 1.8 mobile)"},
+    {"--step", OPT_DOUBLE, &step, "DEG", "angular step (0.04 terrestrial, 0.25 mobile profiler)"},
+    {"--vstep", OPT_DOUBLE, &vstep, "DEG", "terrestrial vertical step (default: --step)"},
+    {"--speed", OPT_DOUBLE, &speed, "M/S", "platform speed (1.2 mobile, 50 airborne)"},
+    {"--rotation", OPT_DOUBLE, &rotation, "HZ", "mobile profiler rotation rate (default 20)"},
+    {"--path", OPT_STRING, &path_text, "X,Y,...", "mobile path polyline (default: a circle, or lawnmower in plots)"},
+    {"--line-spacing", OPT_DOUBLE, &line_spacing, "M", "mobile lawnmower line spacing (default 10)"},
+    {"--lawnmower", OPT_FLAG, &lawn, NULL, "mobile: lawnmower lines over the area (default in plots)"},
+    {"--density", OPT_DOUBLE, &density, "PTS_PER_M2", "airborne pulses per m^2 over the area (default 20)"},
+    {"--altitude", OPT_DOUBLE, &altitude, "M", "airborne flying height above ground (default 80)"},
+    {"--swath", OPT_DOUBLE, &swath, "DEG", "airborne full scan angle (default 40)"},
+    {"--overlap", OPT_DOUBLE, &overlap, "F", "airborne strip side overlap 0..0.9 (default 0.2)"},
+    {"--noise", OPT_DOUBLE, &noise, "M", "range noise sigma (0.005 terrestrial, 0.015 mobile, 0.025 airborne)"},
+    {"--divergence", OPT_DOUBLE, &divergence, "MRAD", "full beam divergence (0.3; 0.5 airborne; 0: one ray)"},
+    {"--subrays", OPT_INT, &subrays, "N", "rays per pulse inside the beam, 1..16 (default 5)"},
+    {"--returns", OPT_INT, &returns, "N", "most returns per pulse, 1..15 (default 4)"},
+    {"--separation", OPT_DOUBLE, &separation, "M", "least range gap between returns (0.1; 0.5 airborne)"},
+    {"--max-range", OPT_DOUBLE, &max_range, "M", "maximum range (150; 1500 airborne)"},
+    {"--max-points", OPT_INT, &max_points, "N", "keep at most N points (in pulse order)"},
+    {"--plot", OPT_DOUBLE, &plot_size, "SIZE", "scan a SIZE x SIZE m plot of trees instead of one tree"},
+    {"--trees", OPT_INT, &trees, "N", "trees in the plot (default 5)"},
+    {"--species", OPT_STRING, &species_list, "LIST", "plot species, comma-separated (default quaking_aspen,black_oak,european_pine)"},
+    {"--understory", OPT_DOUBLE, &understory, "PER_M2", "shrubs per m^2 (default 0.05 in plots, 0 otherwise)"},
+    {"--slope", OPT_DOUBLE, &slope, "DEG", "terrain slope (default 0)"},
+    {"--aspect", OPT_DOUBLE, &aspect, "DEG", "direction the terrain rises towards (default 0: +X)"},
+    {"--roughness", OPT_DOUBLE, &roughness, "M", "terrain noise amplitude (default 0.05)"},
+    {"--no-leaves", OPT_FLAG, &no_leaves, NULL, "wood only"},
+    {"--no-terrain", OPT_FLAG, &no_terrain, NULL, "no ground (and no understory)"},
+    {"--rect-leaves", OPT_FLAG, &rect_leaves, NULL, "full rectangular leaf cards (default: the inscribed ellipse)"},
+    {NULL, 0, NULL, NULL, NULL},
+};
+
+static const sy_cmd_spec spec = {
+    "scan", "[SPECIES_FILE_OR_NAME]",
+    "Virtual LiDAR: grow a species tree (or a plot) and scan it, writing labelled points and the exact truth.",
+    "Each point carries treeID, speciesID, isWood and branchID extra bytes, classification\n"
+    "(2 ground, 4 understory, 5 trees), return numbers, intensity and gps_time. The same\n"
+    "seed gives the same bytes for any --threads. See docs/scan.md.",
+    opts, 0, 1};
+
+static void reset_options(void)
+{
+    out_path = truth_path = kind_name = species_list = path_text = NULL;
+    positions = max_points = returns = trees = subrays = -1;
+    no_leaves = no_terrain = rect_leaves = lawn = 0;
+    step = vstep = density = noise = divergence = radius = height = altitude = swath = overlap = speed = rotation =
+        line_spacing = separation = max_range = understory = NAN;
+    plot_size = slope = aspect = 0;
+    roughness = NAN;
+}
+
+#define SET_D(field, v) \
+    if (!isnan(v)) sc->field = v
+#define SET_I(field, v) \
+    if ((v) >= 0) sc->field = v
+
+static int parse_kind(const char *name, sy_scanner_kind *kind)
+{
+    if (!name || strcmp(name, "terrestrial") == 0 || strcmp(name, "tls") == 0) *kind = SY_SCANNER_TERRESTRIAL;
+    else if (strcmp(name, "mobile") == 0 || strcmp(name, "mls") == 0) *kind = SY_SCANNER_MOBILE;
+    else if (strcmp(name, "airborne") == 0 || strcmp(name, "als") == 0) *kind = SY_SCANNER_AIRBORNE;
+    else return 0;
+    return 1;
+}
+
+/* "x,y,x,y,..." into pairs. */
+static int parse_path(const char *text, double **out, size_t *n)
+{
+    size_t cap = 1;
+    for (const char *p = text; *p; p++) cap += *p == ',';
+    double *v = malloc(cap * sizeof *v);
+    if (!v) return 0;
+    size_t k = 0;
+    const char *p = text;
+    for (;;) {
+        char *end;
+        errno = 0;
+        v[k] = strtod(p, &end);
+        if (errno || end == p || !isfinite(v[k])) break;
+        k++;
+        if (*end == '\0') {
+            if (k % 2 || k < 4) break;
+            *out = v;
+            *n = k / 2;
+            return 1;
+        }
+        if (*end != ',') break;
+        p = end + 1;
+    }
+    free(v);
+    return 0;
+}
+
+static void configure(sy_scanner *sc, const sy_cli *cli)
+{
+    sc->seed = cli->seed;
+    SET_I(positions, positions);
+    SET_D(radius, radius);
+    SET_D(height, height);
+    SET_D(step_deg, step);
+    SET_D(vstep_deg, vstep);
+    SET_D(speed, speed);
+    SET_D(rotation_hz, rotation);
+    SET_D(line_spacing, line_spacing);
+    SET_D(density, density);
+    SET_D(altitude, altitude);
+    SET_D(swath_deg, swath);
+    SET_D(overlap, overlap);
+    SET_D(noise, noise);
+    SET_D(divergence_mrad, divergence);
+    SET_I(subrays, subrays);
+    SET_I(max_returns, returns);
+    SET_D(separation, separation);
+    SET_D(max_range, max_range);
+    if (max_points >= 0) sc->max_points = (size_t)max_points;
+    sc->lawnmower = lawn || plot_size > 0;
+}
+
+/* Splits the comma list in place into o->species. */
+static int split_species(char *list, sy_scene_opts *o)
+{
+    for (char *s = list, *e; s && *s; s = e) {
+        e = strchr(s, ',');
+        if (e) *e++ = '\0';
+        if (!*s) continue;
+        if (o->n_species == 32) return 0;
+        o->species[o->n_species++] = s;
+    }
+    return o->n_species > 0;
+}
+
+static void print_report(const sy_cli *cli, const sy_scene *scene, const sy_scanner *sc, const sy_scan_stats *st,
+                         double seconds)
+{
+    size_t tree_pts = st->wood + st->leaf;
+    double wood_fraction = tree_pts ? (double)st->wood / tree_pts : 0;
+    if (cli->json) {
+        sy_json j;
+        sy_json_begin(&j, stdout, 0);
+        sy_json_object(&j, NULL);
+        sy_json_string(&j, "output", out_path);
+        sy_json_string(&j, "truth", truth_path);
+        sy_json_string(&j, "scanner", sy_scanner_kind_name(sc->kind));
+        sy_json_int(&j, "seed", (long long)sc->seed);
+        sy_json_int(&j, "point_count", (long long)st->points);
+        sy_json_int(&j, "pulses", (long long)st->pulses);
+        sy_json_int(&j, "stations", st->stations);
+        sy_json_int(&j, "trees", (long long)scene->n_trees);
+        sy_json_int(&j, "primitives", (long long)scene->prims.n);
+        sy_json_int(&j, "wood_points", (long long)st->wood);
+        sy_json_int(&j, "leaf_points", (long long)st->leaf);
+        sy_json_int(&j, "ground_points", (long long)st->ground);
+        sy_json_int(&j, "understory_points", (long long)st->understory);
+        sy_json_number(&j, "wood_fraction", wood_fraction);
+        sy_json_number(&j, "scan_seconds", st->seconds);
+        sy_json_number(&j, "seconds", seconds);
+        sy_json_end(&j);
+        sy_json_finish(&j);
+    } else if (!cli->quiet) {
+        fprintf(stderr, "wrote %zu points (%zu pulses, %zu trees, wood fraction %.3f) to %s in %.2f s\n", st->points,
+                st->pulses, scene->n_trees, wood_fraction, out_path, seconds);
+    }
+}
+
+/* Truth into memory first, so a failure after the scan leaves nothing. */
+static sy_code render_truth(const sy_scene *scene, const sy_scanner *sc, int stations, char **buf, size_t *len,
+                            sy_error *err)
+{
+    FILE *fp = open_memstream(buf, len);
+    if (!fp) return sy_fail(err, SY_EINTERNAL, "%s: cannot buffer the truth file", truth_path);
+    sy_write_truth(fp, scene, sc, stations);
+    if (fclose(fp)) return sy_fail(err, SY_EINTERNAL, "%s: cannot buffer the truth file", truth_path);
+    return SY_OK;
+}
+
+static sy_code write_outputs(const sy_cloud *cloud, const sy_scene *scene, const sy_scanner *sc, int stations,
+                             sy_error *err)
+{
+    char *truth = NULL;
+    size_t truth_len = 0;
+    sy_atomic_file tf;
+    if (truth_path) {
+        if (render_truth(scene, sc, stations, &truth, &truth_len, err)) return err->code;
+        sy_code rc = sy_atomic_open(&tf, truth_path, err);
+        if (!rc && fwrite(truth, 1, truth_len, tf.fp) != truth_len) {
+            sy_atomic_abort(&tf);
+            rc = sy_fail(err, SY_EINPUT, "%s: write failed", truth_path);
+        }
+        free(truth);
+        if (rc) return rc;
+    }
+    if (sy_write_cloud(out_path, cloud, err)) {
+        if (truth_path) sy_atomic_abort(&tf);
+        return err->code;
+    }
+    if (truth_path && sy_atomic_commit(&tf, err)) {
+        unlink(out_path);
+        return err->code;
+    }
+    return SY_OK;
+}
+
+int cmd_scan(int argc, char **argv, sy_cli *cli)
+{
+    const char *pos[1];
+    int n_pos;
+    reset_options();
+    int rc = sy_cli_parse(&spec, argc, argv, cli, pos, 1, &n_pos);
+    if (rc) return rc < 0 ? 0 : rc;
+    sy_scanner_kind kind;
+    if (!out_path) {
+        fprintf(stderr, "sylva scan: -o OUT is required\n");
+        return SY_EUSAGE;
+    }
+    if (!parse_kind(kind_name, &kind)) {
+        fprintf(stderr, "sylva scan: --scanner must be terrestrial, mobile or airborne, got '%s'\n", kind_name);
+        return SY_EUSAGE;
+    }
+    if (plot_size < 0 || (plot_size == 0 && n_pos == 0)) {
+        fprintf(stderr, "sylva scan: give a species, or --plot SIZE (see --help)\n");
+        return SY_EUSAGE;
+    }
+    double t0 = sy_now();
+    sy_scanner sc;
+    sy_scanner_defaults(&sc, kind);
+    configure(&sc, cli);
+    double *path = NULL;
+    if (path_text) {
+        if (!parse_path(path_text, &path, &sc.path_points)) {
+            fprintf(stderr, "sylva scan: --path expects at least two x,y pairs, got '%s'\n", path_text);
+            return SY_EUSAGE;
+        }
+        sc.path = path;
+    }
+    sy_scene_opts so;
+    sy_scene_opts_defaults(&so);
+    so.seed = cli->seed;
+    so.plot_size = plot_size;
+    if (trees >= 0) so.trees = trees;
+    if (!isnan(understory)) so.understory = understory;
+    so.slope_deg = slope;
+    so.aspect_deg = aspect;
+    if (!isnan(roughness)) so.roughness = roughness;
+    so.terrain = !no_terrain;
+    so.leaves = !no_leaves;
+    so.elliptic = !rect_leaves;
+    char *list = strdup(species_list ? species_list : n_pos ? pos[0] : "quaking_aspen,black_oak,european_pine");
+    if (!list || !split_species(list, &so)) {
+        fprintf(stderr, "sylva scan: --species needs 1..32 comma-separated names\n");
+        free(list);
+        free(path);
+        return SY_EUSAGE;
+    }
+    sy_error err = {0};
+    /* Every species must load before any progress is printed: a bad name
+     * makes exactly one line of output. */
+    for (int i = 0; i < so.n_species; i++) {
+        sy_species sp;
+        if (sy_species_find(so.species[i], &sp, &err)) {
+            free(list);
+            free(path);
+            return sy_cli_report(&err);
+        }
+        sy_species_free(&sp);
+    }
+    sy_scene scene;
+    if (!cli->quiet && !cli->json) fprintf(stderr, "growing %d tree(s)\n", plot_size > 0 ? so.trees : 1);
+    double reach = (sc.radius > 0 ? sc.radius : 0) + 5;
+    rc = sy_scene_build(&scene, &so, reach, &err);
+    free(list);
+    sy_cloud cloud;
+    sy_scan_stats st = {0};
+    memset(&cloud, 0, sizeof cloud);
+    if (!rc && !cli->quiet && !cli->json)
+        fprintf(stderr, "scene: %zu primitives, %zu tree(s); scanning (%s)\n", scene.prims.n, scene.n_trees,
+                sy_scanner_kind_name(kind));
+    if (!rc) rc = sy_scan(&scene, &sc, &cloud, &st, &err);
+    if (!rc) rc = write_outputs(&cloud, &scene, &sc, st.stations, &err);
+    if (!rc) print_report(cli, &scene, &sc, &st, sy_now() - t0);
+    sy_cloud_free(&cloud);
+    sy_scene_free(&scene);
+    free(path);
+    return rc ? sy_cli_report(&err) : 0;
+}

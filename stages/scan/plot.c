@@ -1,0 +1,527 @@
+/* Scenes: generated trees turned into labelled primitives (a truncated cone per
+ * skeleton edge, a card per leaf), terrain, understory shrubs, Poisson-disk
+ * plots, and the truth file describing what was placed. */
+#include <dirent.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "scan.h"
+#include "stages/core/json.h"
+#include "stages/grow/grow.h"
+
+#define PI 3.14159265358979323846
+
+static uint64_t mix64(uint64_t z)
+{
+    z += 0x9E3779B97F4A7C15ull;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+
+/* A small sequential generator for scene layout (placement is serial). */
+typedef struct {
+    uint64_t s;
+} rng;
+static double rng_u01(rng *r)
+{
+    r->s += 0x9E3779B97F4A7C15ull;
+    return (double)(mix64(r->s) >> 11) * (1.0 / 9007199254740992.0);
+}
+static double rng_range(rng *r, double lo, double hi) { return lo + (hi - lo) * rng_u01(r); }
+
+void sy_scene_init(sy_scene *s)
+{
+    memset(s, 0, sizeof *s);
+    for (int k = 0; k < 3; k++) {
+        s->veg_lo[k] = INFINITY;
+        s->veg_hi[k] = -INFINITY;
+    }
+}
+
+void sy_scene_free(sy_scene *s)
+{
+    sy_prims_free(&s->prims);
+    for (size_t i = 0; i < s->n_trees; i++) sy_skeleton_free(&s->trees[i].skel);
+    free(s->trees);
+    sy_bvh_free(&s->bvh);
+    sy_scene_init(s);
+}
+
+static void grow_veg(sy_scene *s, const float lo[3], const float hi[3])
+{
+    for (int k = 0; k < 3; k++) {
+        if (lo[k] < s->veg_lo[k]) s->veg_lo[k] = lo[k];
+        if (hi[k] > s->veg_hi[k]) s->veg_hi[k] = hi[k];
+    }
+}
+
+static sy_code push_labelled(sy_scene *s, sy_prim *p, sy_error *err)
+{
+    float lo[3], hi[3];
+    sy_prim_bounds(p, lo, hi);
+    grow_veg(s, lo, hi);
+    return sy_prims_push(&s->prims, p, err);
+}
+
+/* Rotation by the unit quaternion q (x, y, z, w). */
+static void quat_rotate(const float q[4], const double v[3], double out[3])
+{
+    double u[3] = {q[0], q[1], q[2]}, w = q[3];
+    double t[3] = {2 * (u[1] * v[2] - u[2] * v[1]), 2 * (u[2] * v[0] - u[0] * v[2]), 2 * (u[0] * v[1] - u[1] * v[0])};
+    out[0] = v[0] + w * t[0] + (u[1] * t[2] - u[2] * t[1]);
+    out[1] = v[1] + w * t[1] + (u[2] * t[0] - u[0] * t[2]);
+    out[2] = v[2] + w * t[2] + (u[0] * t[1] - u[1] * t[0]);
+}
+
+typedef struct {
+    double c, s, pos[3];
+} placement;
+
+static void place_point(const placement *pl, const double v[3], double out[3])
+{
+    out[0] = pl->pos[0] + pl->c * v[0] - pl->s * v[1];
+    out[1] = pl->pos[1] + pl->s * v[0] + pl->c * v[1];
+    out[2] = pl->pos[2] + v[2];
+}
+
+static void place_dir(const placement *pl, const double v[3], float out[3])
+{
+    out[0] = (float)(pl->c * v[0] - pl->s * v[1]);
+    out[1] = (float)(pl->s * v[0] + pl->c * v[1]);
+    out[2] = (float)v[2];
+}
+
+double sy_trunk_radius_at(const sy_skeleton *s, double above)
+{
+    int32_t root = -1;
+    for (size_t i = 0; i < s->n; i++)
+        if (s->parent[i] < 0) root = (int32_t)i;
+    if (root < 0) return NAN;
+    int32_t trunk = s->branch[root];
+    double z0 = s->pos[3 * root + 2], best_low = INFINITY, r = NAN;
+    for (size_t i = 0; i < s->n; i++) {
+        int32_t p = s->parent[i];
+        if (p < 0 || s->branch[i] != trunk || s->branch[p] != trunk) continue;
+        double za = s->pos[3 * p + 2] - z0, zb = s->pos[3 * i + 2] - z0;
+        double lo = za < zb ? za : zb, hi = za < zb ? zb : za;
+        if (above < lo || above > hi || lo >= best_low) continue;
+        double f = hi > lo ? (above - za) / (zb - za) : 0;
+        r = s->radius[p] + f * ((double)s->radius[i] - s->radius[p]);
+        best_low = lo;
+    }
+    return r;
+}
+
+/* Height, crown width over the placed wood and leaves. */
+typedef struct {
+    double top, lo[2], hi[2];
+} extent;
+
+static void extent_add(extent *e, const double x[3])
+{
+    if (x[2] > e->top) e->top = x[2];
+    for (int k = 0; k < 2; k++) {
+        if (x[k] < e->lo[k]) e->lo[k] = x[k];
+        if (x[k] > e->hi[k]) e->hi[k] = x[k];
+    }
+}
+
+
+static sy_code add_wood(sy_scene *s, const sy_skeleton *world, int tree_id, int species_id, extent *ext,
+                        sy_error *err)
+{
+    for (size_t i = 0; i < world->n; i++) {
+        int32_t p = world->parent[i];
+        if (p < 0) continue;
+        const float *a = world->pos + 3 * p, *b = world->pos + 3 * i;
+        if (a[0] == b[0] && a[1] == b[1] && a[2] == b[2]) continue;
+        /* A branch's first edge runs along its parent stem's axis: give it the
+         * branch's own radius so it stays inside the parent's wood. */
+        float ra = world->branch[p] == world->branch[i] ? world->radius[p] : world->radius[i];
+        sy_prim c = sy_prim_cone(a, ra, b, world->radius[i]);
+        c.tree_id = tree_id;
+        c.species_id = species_id;
+        c.branch_id = world->branch[i];
+        /* The cone's box is its exact extent (end discs), give or take 10 um. */
+        float lo[3], hi[3];
+        sy_prim_bounds(&c, lo, hi);
+        double dlo[3] = {lo[0], lo[1], lo[2]}, dhi[3] = {hi[0], hi[1], hi[2]};
+        extent_add(ext, dlo);
+        extent_add(ext, dhi);
+        if (push_labelled(s, &c, err)) return err->code;
+    }
+    return SY_OK;
+}
+
+static sy_code add_leaves(sy_scene *s, const sy_leaves *lv, const sy_skeleton *world, const placement *pl,
+                          float leaf_width, int elliptic, int tree_id, int species_id, extent *ext, sy_error *err)
+{
+    for (size_t i = 0; i < lv->n; i++) {
+        const float *q = lv->rot + 4 * i;
+        double ex[3] = {1, 0, 0}, ey[3] = {0, 1, 0}, lx[3], ly[3], base[3];
+        quat_rotate(q, ex, lx);
+        quat_rotate(q, ey, ly);
+        double lp[3] = {lv->pos[3 * i], lv->pos[3 * i + 1], lv->pos[3 * i + 2]};
+        place_point(pl, lp, base);
+        float fx[3], fy[3], fb[3] = {(float)base[0], (float)base[1], (float)base[2]};
+        place_dir(pl, lx, fx);
+        place_dir(pl, ly, fy);
+        float len = lv->scale[i], width = len * leaf_width;
+        sy_prim c = sy_prim_quad(fb, fx, fy, len, width, elliptic);
+        c.tree_id = tree_id;
+        c.species_id = species_id;
+        int32_t node = lv->node[i];
+        c.branch_id = node >= 0 && (size_t)node < world->n ? world->branch[node] : -1;
+        for (int sx = -1; sx <= 1; sx += 2)
+            for (int ty = 0; ty <= 1; ty++) {
+                double corner[3];
+                for (int k = 0; k < 3; k++) corner[k] = fb[k] + sx * (double)c.v[3 + k] + ty * (double)c.v[6 + k];
+                extent_add(ext, corner);
+            }
+        if (push_labelled(s, &c, err)) return err->code;
+    }
+    return SY_OK;
+}
+
+sy_code sy_scene_add_tree(sy_scene *s, const sy_skeleton *local, const sy_leaves *leaves, float leaf_width,
+                          int elliptic, const char *species, int species_id, uint64_t seed, const double pos[3],
+                          double yaw_deg, sy_error *err)
+{
+    sy_scan_tree *grown = realloc(s->trees, (s->n_trees + 1) * sizeof *grown);
+    if (!grown) return sy_fail(err, SY_EINTERNAL, "out of memory for scene trees");
+    s->trees = grown;
+    sy_scan_tree *t = &s->trees[s->n_trees];
+    memset(t, 0, sizeof *t);
+    if (sy_skeleton_init(&t->skel, local->n, err)) return err->code;
+    s->n_trees++;
+    t->tree_id = (int)s->n_trees;
+    snprintf(t->species, sizeof t->species, "%s", species ? species : "");
+    t->species_id = species_id;
+    t->seed = seed;
+    memcpy(t->pos, pos, sizeof t->pos);
+    t->yaw_deg = yaw_deg;
+    placement pl = {cos(yaw_deg * PI / 180), sin(yaw_deg * PI / 180), {pos[0], pos[1], pos[2]}};
+    int32_t root = 0;
+    for (size_t i = 0; i < local->n; i++)
+        if (local->parent[i] < 0) root = (int32_t)i;
+    /* The trunk base lands on pos whatever the grown frame's origin. */
+    double shift[3] = {(double)local->pos[3 * root] + local->origin[0], (double)local->pos[3 * root + 1] + local->origin[1],
+                       (double)local->pos[3 * root + 2] + local->origin[2]};
+    extent ext = {-INFINITY, {INFINITY, INFINITY}, {-INFINITY, -INFINITY}};
+    for (size_t i = 0; i < local->n; i++) {
+        double lp[3], w[3];
+        for (int k = 0; k < 3; k++) lp[k] = (double)local->pos[3 * i + k] + local->origin[k] - shift[k];
+        place_point(&pl, lp, w);
+        for (int k = 0; k < 3; k++) t->skel.pos[3 * i + k] = (float)w[k];
+        t->skel.radius[i] = local->radius[i];
+        t->skel.parent[i] = local->parent[i];
+        t->skel.order[i] = local->order[i];
+        t->skel.branch[i] = local->branch[i];
+    }
+    if (add_wood(s, &t->skel, t->tree_id, species_id, &ext, err)) return err->code;
+    if (leaves) {
+        sy_leaves moved = *leaves;
+        float *lp = sy_calloc(leaves->n ? 3 * leaves->n : 1, sizeof(float), err, "leaf positions");
+        if (!lp) return err->code;
+        for (size_t i = 0; i < leaves->n; i++)
+            for (int k = 0; k < 3; k++) lp[3 * i + k] = (float)((double)leaves->pos[3 * i + k] + local->origin[k] - shift[k]);
+        moved.pos = lp;
+        sy_code rc = add_leaves(s, &moved, &t->skel, &pl, leaf_width, elliptic, t->tree_id, species_id, &ext, err);
+        free(lp);
+        if (rc) return rc;
+        t->leaf_count = leaves->n;
+    }
+    t->height = ext.top - pos[2];
+    t->crown_width = 0.5 * ((ext.hi[0] - ext.lo[0]) + (ext.hi[1] - ext.lo[1]));
+    t->dbh = 2 * sy_trunk_radius_at(&t->skel, 1.3);
+    return SY_OK;
+}
+
+sy_code sy_scene_add_terrain(sy_scene *s, const sy_terrain *t, sy_error *err)
+{
+    s->terrain = *t;
+    s->has_terrain = 1;
+    return sy_terrain_triangulate(t, &s->prims, err);
+}
+
+static double ground_z(const sy_scene *s, double x, double y)
+{
+    return s->has_terrain ? sy_terrain_height(&s->terrain, x, y) : 0.0;
+}
+
+static sy_code add_shrub(sy_scene *s, rng *r, double x, double y, sy_error *err)
+{
+    double z = ground_z(s, x, y) - 0.02; /* stems start just below the surface */
+    double h = rng_range(r, 0.3, 1.2);
+    int stems = 3 + (int)(rng_u01(r) * 3);
+    for (int st = 0; st < stems; st++) {
+        double az = rng_range(r, 0, 2 * PI), tilt = rng_range(r, 0.15, 0.7);
+        double p[3] = {x, y, z};
+        for (int seg = 0; seg < 3; seg++) {
+            double len = h / 3 * rng_range(r, 0.8, 1.2);
+            double a = az + rng_range(r, -0.4, 0.4), tl = tilt + 0.15 * seg;
+            double q[3] = {p[0] + len * sin(tl) * cos(a), p[1] + len * sin(tl) * sin(a), p[2] + len * cos(tl)};
+            float fa[3] = {(float)p[0], (float)p[1], (float)p[2]}, fb[3] = {(float)q[0], (float)q[1], (float)q[2]};
+            sy_prim c = sy_prim_cone(fa, (float)(0.012 - 0.003 * seg), fb, (float)(0.009 - 0.003 * seg));
+            c.understory = 1;
+            if (push_labelled(s, &c, err)) return err->code;
+            memcpy(p, q, sizeof p);
+        }
+    }
+    /* The leafy blob: small cards scattered in an ellipsoid around the crown. */
+    int n_leaves = 20 + (int)(rng_u01(r) * 40);
+    for (int i = 0; i < n_leaves; i++) {
+        double u = rng_range(r, -1, 1), v = rng_range(r, -1, 1), w = rng_range(r, -1, 1);
+        float base[3] = {(float)(x + 0.35 * h * u), (float)(y + 0.35 * h * v), (float)(z + h * (0.65 + 0.3 * w))};
+        double a = rng_range(r, 0, 2 * PI), b = rng_range(r, -1, 1);
+        double sb = sqrt(1 - b * b);
+        float fy[3] = {(float)(sb * cos(a)), (float)(sb * sin(a)), (float)b};
+        /* Any unit vector orthogonal to fy. */
+        double ref[3] = {fabs(fy[2]) < 0.9 ? 0 : 1, 0, fabs(fy[2]) < 0.9 ? 1 : 0};
+        double fx[3] = {fy[1] * ref[2] - fy[2] * ref[1], fy[2] * ref[0] - fy[0] * ref[2], fy[0] * ref[1] - fy[1] * ref[0]};
+        double fl = sqrt(fx[0] * fx[0] + fx[1] * fx[1] + fx[2] * fx[2]);
+        float ffx[3] = {(float)(fx[0] / fl), (float)(fx[1] / fl), (float)(fx[2] / fl)};
+        float len = (float)rng_range(r, 0.04, 0.09);
+        sy_prim c = sy_prim_quad(base, ffx, fy, len, len * 0.6f, 1);
+        c.understory = 1;
+        if (push_labelled(s, &c, err)) return err->code;
+    }
+    return SY_OK;
+}
+
+sy_code sy_scene_add_understory(sy_scene *s, double density, uint64_t seed, sy_error *err)
+{
+    double w = s->area_hi[0] - s->area_lo[0], d = s->area_hi[1] - s->area_lo[1];
+    if (!(density > 0) || !(w > 0) || !(d > 0)) return SY_OK;
+    double expected = density * w * d;
+    if (expected > 1e6) return sy_fail(err, SY_EINPUT, "understory: %.0f shrubs is too many", expected);
+    size_t n = (size_t)llround(expected);
+    rng r = {mix64(seed ^ 0x5348525542ull)};
+    for (size_t i = 0; i < n; i++) {
+        double x = rng_range(&r, s->area_lo[0], s->area_hi[0]), y = rng_range(&r, s->area_lo[1], s->area_hi[1]);
+        int clear = 1;
+        for (size_t t = 0; t < s->n_trees && clear; t++)
+            clear = hypot(x - s->trees[t].pos[0], y - s->trees[t].pos[1]) > 1.0;
+        if (clear && add_shrub(s, &r, x, y, err)) return err->code;
+    }
+    return SY_OK;
+}
+
+sy_code sy_scene_finish(sy_scene *s, sy_error *err)
+{
+    sy_bvh_free(&s->bvh);
+    return sy_bvh_build(&s->bvh, s->prims.p, s->prims.n, err);
+}
+
+static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
+
+int sy_species_index(const char *name)
+{
+    DIR *d = opendir(SYLVA_SPECIES_DIR);
+    if (!d) return -1;
+    char *names[256];
+    int n = 0;
+    struct dirent *e;
+    while ((e = readdir(d)) && n < 256) {
+        size_t len = strlen(e->d_name);
+        if (len > 4 && strcmp(e->d_name + len - 4, ".ini") == 0 && e->d_name[0] != '.') {
+            names[n] = strndup(e->d_name, len - 4);
+            if (names[n]) n++;
+        }
+    }
+    closedir(d);
+    qsort(names, (size_t)n, sizeof *names, cmp_str);
+    int found = -1;
+    for (int i = 0; i < n; i++) {
+        if (found < 0 && strcmp(names[i], name) == 0) found = i;
+        free(names[i]);
+    }
+    return found;
+}
+
+void sy_scene_opts_defaults(sy_scene_opts *o)
+{
+    memset(o, 0, sizeof *o);
+    o->trees = 5;
+    o->understory = -1; /* resolved by sy_scene_build */
+    o->roughness = 0.05;
+    o->terrain = 1;
+    o->leaves = 1;
+    o->elliptic = 1;
+    o->seed = 1;
+}
+
+typedef struct {
+    sy_skeleton skel;
+    sy_leaves leaves;
+    float leaf_width;
+    char name[64];
+    int species_id;
+    uint64_t seed;
+    double x, y, yaw, half_crown;
+} grown_tree;
+
+static void free_grown(grown_tree *g, size_t n)
+{
+    for (size_t i = 0; i < n; i++) {
+        sy_skeleton_free(&g[i].skel);
+        sy_leaves_free(&g[i].leaves);
+    }
+    free(g);
+}
+
+static sy_code grow_one(grown_tree *g, const char *species, uint64_t seed, int leaves, sy_error *err)
+{
+    sy_species sp;
+    if (sy_species_find(species, &sp, err)) return err->code;
+    sy_code rc = sy_grow_tree(&sp, seed, &g->skel, leaves ? &g->leaves : NULL, err);
+    g->leaf_width = sp.leaf_scale_x;
+    snprintf(g->name, sizeof g->name, "%s", sp.name ? sp.name : species);
+    g->species_id = sy_species_index(g->name);
+    g->seed = seed;
+    sy_species_free(&sp);
+    if (rc) return rc;
+    for (size_t i = 0; i < g->skel.n; i++) {
+        double r = hypot(g->skel.pos[3 * i] - g->skel.pos[0], g->skel.pos[3 * i + 1] - g->skel.pos[1]);
+        if (r > g->half_crown) g->half_crown = r;
+    }
+    return SY_OK;
+}
+
+/* Dart throwing with a shrinking radius: every tree gets a spot, as evenly
+ * spread as the plot allows. */
+static void poisson_disk(grown_tree *g, int n, double size, rng *r)
+{
+    double half = size / 2 - (size > 4 ? 1.0 : 0.0);
+    double radius = 0.8 * size / sqrt((double)n);
+    int placed = 0, misses = 0;
+    while (placed < n) {
+        double x = rng_range(r, -half, half), y = rng_range(r, -half, half);
+        int ok = 1;
+        for (int i = 0; i < placed && ok; i++) ok = hypot(x - g[i].x, y - g[i].y) >= radius;
+        if (ok) {
+            g[placed].x = x;
+            g[placed].y = y;
+            placed++;
+            misses = 0;
+        } else if (++misses > 200) {
+            radius *= 0.9;
+            misses = 0;
+        }
+    }
+}
+
+sy_code sy_scene_build(sy_scene *s, const sy_scene_opts *o, double reach, sy_error *err)
+{
+    sy_scene_init(s);
+    int plot = o->plot_size > 0;
+    int n = plot ? o->trees : 1;
+    if (o->n_species < 1) return sy_fail(err, SY_EUSAGE, "scan: no species given");
+    if (n < 0 || n > 10000) return sy_fail(err, SY_EUSAGE, "scan: --trees %d is out of range 0..10000", n);
+    grown_tree *g = sy_calloc(n ? (size_t)n : 1, sizeof *g, err, "trees");
+    if (!g) return err->code;
+    rng r = {mix64(o->seed ^ 0x504C4F54ull)};
+    for (int i = 0; i < n; i++) {
+        const char *species = o->species[plot ? (int)(rng_u01(&r) * o->n_species) % o->n_species : 0];
+        uint64_t seed = plot ? mix64(o->seed * 1000003ull + (uint64_t)i) & 0xFFFFFFFFull : o->seed;
+        if (grow_one(&g[i], species, seed, o->leaves, err)) {
+            free_grown(g, (size_t)n);
+            return err->code;
+        }
+        g[i].yaw = plot ? rng_range(&r, 0, 360) : 0;
+    }
+    double crown = 0;
+    for (int i = 0; i < n; i++) crown = fmax(crown, g[i].half_crown);
+    if (plot) {
+        poisson_disk(g, n, o->plot_size, &r);
+        s->area_lo[0] = s->area_lo[1] = -o->plot_size / 2;
+        s->area_hi[0] = s->area_hi[1] = o->plot_size / 2;
+    } else {
+        s->area_lo[0] = s->area_lo[1] = -(crown + 5);
+        s->area_hi[0] = s->area_hi[1] = crown + 5;
+    }
+    if (o->terrain) {
+        sy_terrain t = {o->slope_deg, o->aspect_deg, o->roughness, 6.0, 0.0, mix64(o->seed ^ 0x47524F554E44ull),
+                        {0, 0}, {0, 0}, 0.5};
+        double ext = fmax(reach, 0) + 2;
+        for (int k = 0; k < 2; k++) {
+            t.lo[k] = fmin(s->area_lo[k], -ext) - 2;
+            t.hi[k] = fmax(s->area_hi[k], ext) + 2;
+        }
+        /* Keep the ground to about a million triangles. */
+        double cells = (t.hi[0] - t.lo[0]) * (t.hi[1] - t.lo[1]) / (t.step * t.step);
+        if (cells > 5e5) t.step *= sqrt(cells / 5e5);
+        if (sy_scene_add_terrain(s, &t, err)) {
+            free_grown(g, (size_t)n);
+            return err->code;
+        }
+    }
+    sy_code rc = SY_OK;
+    for (int i = 0; i < n && !rc; i++) {
+        double pos[3] = {g[i].x, g[i].y, ground_z(s, g[i].x, g[i].y)};
+        rc = sy_scene_add_tree(s, &g[i].skel, o->leaves ? &g[i].leaves : NULL, g[i].leaf_width, o->elliptic, g[i].name,
+                               g[i].species_id, g[i].seed, pos, g[i].yaw, err);
+    }
+    free_grown(g, (size_t)n);
+    double shrubs = o->understory >= 0 ? o->understory : plot ? 0.05 : 0.0;
+    if (!rc && o->terrain) rc = sy_scene_add_understory(s, shrubs, o->seed, err);
+    if (!rc) rc = sy_scene_finish(s, err);
+    return rc;
+}
+
+/* Seven significant digits (10 um at 100 m): the truth file stays a third
+ * the size of a full float round trip. */
+static double short_float(float f)
+{
+    char buf[32];
+    snprintf(buf, sizeof buf, "%.7g", (double)f);
+    return strtod(buf, NULL);
+}
+
+void sy_write_truth(FILE *fp, const sy_scene *s, const sy_scanner *sc, int stations)
+{
+    sy_json j;
+    sy_json_begin(&j, fp, 0);
+    sy_json_object(&j, NULL);
+    sy_json_string(&j, "format", "sylva-truth");
+    sy_json_int(&j, "version", 1);
+    sy_json_object(&j, "scanner");
+    sy_json_string(&j, "kind", sy_scanner_kind_name(sc->kind));
+    sy_json_int(&j, "positions", stations);
+    sy_json_int(&j, "seed", (long long)sc->seed);
+    sy_json_end(&j);
+    sy_json_array(&j, "trees");
+    for (size_t i = 0; i < s->n_trees; i++) {
+        const sy_scan_tree *t = &s->trees[i];
+        sy_json_object(&j, NULL);
+        sy_json_int(&j, "tree_id", t->tree_id);
+        sy_json_string(&j, "species", t->species);
+        sy_json_int(&j, "species_id", t->species_id);
+        sy_json_int(&j, "seed", (long long)t->seed);
+        sy_json_numbers(&j, "position", t->pos, 3);
+        sy_json_number(&j, "height", t->height);
+        sy_json_number(&j, "dbh", t->dbh);
+        sy_json_number(&j, "crown_width", t->crown_width);
+        sy_json_int(&j, "leaf_count", (long long)t->leaf_count);
+        sy_json_array(&j, "nodes");
+        for (size_t k = 0; k < t->skel.n; k++) {
+            sy_json_object(&j, NULL);
+            sy_json_int(&j, "id", (long long)k);
+            sy_json_int(&j, "parent", t->skel.parent[k]);
+            sy_json_number(&j, "x", short_float(t->skel.pos[3 * k]));
+            sy_json_number(&j, "y", short_float(t->skel.pos[3 * k + 1]));
+            sy_json_number(&j, "z", short_float(t->skel.pos[3 * k + 2]));
+            sy_json_number(&j, "radius", short_float(t->skel.radius[k]));
+            sy_json_int(&j, "order", t->skel.order[k]);
+            sy_json_int(&j, "branch", t->skel.branch[k]);
+            sy_json_end(&j);
+        }
+        sy_json_end(&j);
+        sy_json_end(&j);
+    }
+    sy_json_end(&j);
+    sy_json_end(&j);
+    sy_json_finish(&j);
+}

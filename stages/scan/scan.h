@@ -1,0 +1,233 @@
+/* Virtual LiDAR: scenes of generated trees (exact primitives built from the
+ * skeleton and leaf cards, never from a mesh) on a heightfield terrain, a BVH
+ * over them, and terrestrial / mobile / airborne scanners with a beam model
+ * (divergence sub-rays, range noise, multiple returns, intensity). Every point
+ * carries the truth of what it hit: treeID, speciesID, isWood, branchID.
+ * See docs/scan.md for the models and their defaults. */
+#ifndef SYLVA_SCAN_H
+#define SYLVA_SCAN_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#include "stages/core/cloud.h"
+#include "stages/core/skeleton.h"
+#include "stages/core/status.h"
+
+/* ------------------------------------------------------------ primitives */
+
+enum { SY_PRIM_CONE, SY_PRIM_QUAD, SY_PRIM_TRI };
+enum { SY_MAT_WOOD, SY_MAT_LEAF, SY_MAT_GROUND };
+
+/* One ray-traceable surface with its labels.
+ * cone: v[0..2] axis start a, v[3..5] axis end b, v[6] radius at a, v[7] at b
+ *       (lateral surface of a truncated cone, no caps);
+ * quad: v[0..2] leaf base, v[3..5] half-width vector (local +X), v[6..8] length
+ *       vector (local +Y), v[9..11] unit normal (+Z); the card spans
+ *       base + s*u + t*v for s in [-1,1], t in [0,1] (elliptic: the inscribed ellipse);
+ * tri:  v[0..2], v[3..5], v[6..8] the corners. */
+typedef struct {
+    float v[12];
+    int32_t tree_id;    /* 0: ground and understory */
+    int32_t species_id; /* -1: ground and understory */
+    int32_t branch_id;  /* -1 unless tree wood or leaf */
+    uint8_t kind, material, elliptic, understory;
+} sy_prim;
+
+typedef struct {
+    sy_prim *p;
+    size_t n, cap;
+} sy_prims;
+
+sy_code sy_prims_push(sy_prims *list, const sy_prim *p, sy_error *err);
+void sy_prims_free(sy_prims *list);
+
+sy_prim sy_prim_cone(const float a[3], float ra, const float b[3], float rb);
+/* x_axis, y_axis: unit local +X (across) and +Y (base to tip). */
+sy_prim sy_prim_quad(const float base[3], const float x_axis[3], const float y_axis[3], float length, float width,
+                     int elliptic);
+sy_prim sy_prim_tri(const float a[3], const float b[3], const float c[3]);
+
+/* Exact intersection of the ray o + t d (|d| = 1) with tmin < t < tmax:
+ * returns 1 and sets *t, else 0. */
+int sy_prim_intersect(const sy_prim *p, const double o[3], const double d[3], double tmin, double tmax, double *t);
+/* Unit surface normal at the surface point x (sign arbitrary). */
+void sy_prim_normal(const sy_prim *p, const double x[3], double n[3]);
+/* Axis-aligned bounds (conservative, exact for triangles and quads). */
+void sy_prim_bounds(const sy_prim *p, float lo[3], float hi[3]);
+
+/* ------------------------------------------------------------------- BVH */
+
+typedef struct {
+    float lo[3], hi[3];
+    uint32_t start; /* leaf: first primitive; inner: index of the right child (left is next) */
+    uint32_t count; /* primitives in a leaf, 0 for inner nodes */
+} sy_bvh_node;
+
+typedef struct {
+    sy_bvh_node *nodes;
+    size_t n_nodes;
+    sy_prim *prims; /* owned, in leaf order */
+    size_t n_prims;
+} sy_bvh;
+
+typedef struct {
+    double t;
+    uint32_t prim; /* index into bvh->prims */
+} sy_hit;
+
+/* Binned SAH build (16 bins, leaves of at most 4). Copies the primitives. */
+sy_code sy_bvh_build(sy_bvh *b, const sy_prim *prims, size_t n, sy_error *err);
+void sy_bvh_free(sy_bvh *b);
+/* Nearest hit with 0 < t < tmax (iterative, near child first). */
+int sy_bvh_intersect(const sy_bvh *b, const double o[3], const double d[3], double tmax, sy_hit *hit);
+/* The same over every primitive, for tests. */
+int sy_bvh_intersect_brute(const sy_bvh *b, const double o[3], const double d[3], double tmax, sy_hit *hit);
+
+/* --------------------------------------------------------------- terrain */
+
+typedef struct {
+    double slope_deg;   /* steepest slope of the base plane */
+    double aspect_deg;  /* direction (from +X, counter-clockwise) the plane rises towards */
+    double roughness;   /* amplitude (metres) of the seeded value noise */
+    double feature;     /* noise wavelength in metres (default 6) */
+    double base;        /* height at the origin before noise */
+    uint64_t seed;
+    double lo[2], hi[2]; /* extent */
+    double step;         /* triangulation grid, metres */
+} sy_terrain;
+
+/* The continuous surface the grid samples. */
+double sy_terrain_field(const sy_terrain *t, double x, double y);
+/* Height of the triangulated surface (what rays hit) at (x, y); the field
+ * value outside the extent. */
+double sy_terrain_height(const sy_terrain *t, double x, double y);
+/* Appends the grid's triangles (two per cell, split along the same diagonal
+ * sy_terrain_height uses) as ground primitives. */
+sy_code sy_terrain_triangulate(const sy_terrain *t, sy_prims *out, sy_error *err);
+
+/* ------------------------------------------------------------------ scene */
+
+/* One tree of the scene with what the truth file reports. */
+typedef struct {
+    int tree_id;
+    char species[64];
+    int species_id;
+    uint64_t seed;
+    double pos[3]; /* world position of the trunk base */
+    double yaw_deg;
+    sy_skeleton skel; /* world coordinates (origin 0) */
+    size_t leaf_count;
+    double height, dbh, crown_width;
+} sy_scan_tree;
+
+typedef struct {
+    sy_prims prims;
+    sy_scan_tree *trees;
+    size_t n_trees;
+    int has_terrain;
+    sy_terrain terrain;
+    double area_lo[2], area_hi[2]; /* the surveyed area (airborne strips, mobile paths) */
+    double veg_lo[3], veg_hi[3];   /* bounds of trees and understory (empty: lo > hi) */
+    sy_bvh bvh;
+} sy_scene;
+
+void sy_scene_init(sy_scene *s);
+void sy_scene_free(sy_scene *s);
+/* Adds a tree grown in its local frame (trunk base at the origin), rotated by
+ * yaw about Z and moved to pos. leaves may be NULL; leaf_width is the card
+ * width over its length (the species' leaf_scale_x). The skeleton is copied. */
+sy_code sy_scene_add_tree(sy_scene *s, const sy_skeleton *local, const sy_leaves *leaves, float leaf_width,
+                          int elliptic, const char *species, int species_id, uint64_t seed, const double pos[3],
+                          double yaw_deg, sy_error *err);
+/* Triangulates the terrain into the scene. */
+sy_code sy_scene_add_terrain(sy_scene *s, const sy_terrain *t, sy_error *err);
+/* Small random shrubs (stems and leaf blobs) over the area, `density` per m^2,
+ * keeping clear of tree trunks. Labelled treeID 0, speciesID -1, isWood 0. */
+sy_code sy_scene_add_understory(sy_scene *s, double density, uint64_t seed, sy_error *err);
+/* Builds the BVH; call once after adding everything. */
+sy_code sy_scene_finish(sy_scene *s, sy_error *err);
+
+/* Index of `name` in the sorted list of the species library (*.ini) names, -1 if absent. */
+int sy_species_index(const char *name);
+/* Trunk radius at `above` metres over the root along the trunk stem
+ * (linear between nodes, as the cones are); NaN if the trunk is shorter. */
+double sy_trunk_radius_at(const sy_skeleton *s, double above);
+
+/* Plots and single trees as the CLI builds them. */
+typedef struct {
+    const char *species[32]; /* names or .ini paths */
+    int n_species;
+    double plot_size;  /* 0: a single tree at the origin */
+    int trees;         /* plot only */
+    double understory; /* shrubs per m^2 (default: 0.05 in plots, 0 for a single tree) */
+    double slope_deg, aspect_deg, roughness;
+    int terrain;       /* 0: no ground at all */
+    int leaves;        /* 0: wood only */
+    int elliptic;      /* leaf cards masked to their inscribed ellipse */
+    uint64_t seed;
+} sy_scene_opts;
+
+void sy_scene_opts_defaults(sy_scene_opts *o);
+/* Grows the trees, lays the terrain (sized to cover `reach` metres around the
+ * plot, so scanners standing out there are on ground) and the understory, and
+ * finishes the scene. */
+sy_code sy_scene_build(sy_scene *s, const sy_scene_opts *o, double reach, sy_error *err);
+
+/* ---------------------------------------------------------------- scanner */
+
+typedef enum { SY_SCANNER_TERRESTRIAL, SY_SCANNER_MOBILE, SY_SCANNER_AIRBORNE } sy_scanner_kind;
+
+typedef struct {
+    sy_scanner_kind kind;
+    uint64_t seed;
+    /* terrestrial */
+    int positions;        /* stations on a circle around the scene centre */
+    double radius;        /* circle radius, metres (0: automatic) */
+    double height;        /* instrument height above ground (terrestrial and mobile) */
+    double step_deg;      /* horizontal angular step */
+    double vstep_deg;     /* vertical angular step (0: same as step_deg) */
+    /* mobile */
+    double speed;         /* m/s along the path */
+    double rotation_hz;   /* profiler turns per second */
+    const double *path;   /* x,y pairs of a polyline, or NULL for the default path */
+    size_t path_points;
+    int lawnmower;        /* default path: 1 lawnmower lines over the area, 0 a circle */
+    double line_spacing;  /* lawnmower line spacing, metres */
+    /* airborne */
+    double altitude;      /* above the ground at the area centre */
+    double swath_deg;     /* full scan angle */
+    double density;       /* pulses per m^2 over the area */
+    double overlap;       /* strip side overlap, 0..0.9 */
+    /* beam */
+    double divergence_mrad; /* full angle; 0: one ray per pulse */
+    int subrays;            /* rays per pulse when divergence > 0 */
+    double noise;           /* range noise sigma, metres */
+    int max_returns;        /* 1..15 */
+    double separation;      /* minimum range gap between two returns, metres */
+    double max_range;
+    double pulse_rate;      /* pulses per second (terrestrial and airborne timing) */
+    size_t max_points;      /* 0: no cap */
+} sy_scanner;
+
+/* Sensible defaults per kind (documented in docs/scan.md). */
+void sy_scanner_defaults(sy_scanner *sc, sy_scanner_kind kind);
+const char *sy_scanner_kind_name(sy_scanner_kind kind);
+
+typedef struct {
+    size_t pulses, points, wood, leaf, ground, understory;
+    int stations; /* TLS positions, flight strips or path passes */
+    double seconds;
+} sy_scan_stats;
+
+/* Scans the finished scene into out (xyz, intensity, returns, classification,
+ * gps_time and the treeID/speciesID/isWood/branchID attributes). The result
+ * depends only on the scene, the scanner and its seed, never on the thread
+ * count. */
+sy_code sy_scan(const sy_scene *s, const sy_scanner *sc, sy_cloud *out, sy_scan_stats *stats, sy_error *err);
+
+/* The truth file (docs/truth-format.md) of a scene. */
+void sy_write_truth(FILE *fp, const sy_scene *s, const sy_scanner *sc, int stations);
+
+#endif

@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# CLI checks for `sylva scan`: a labelled LAS and its truth file, the count
+# agreeing with `sylva info`, and a bad species leaving nothing behind.
+set -u
+fail() { echo "FAIL: $*" >&2; exit 1; }
+: "${SYLVA:?SYLVA must point at the sylva binary}"
+TMP=$(mktemp -d "${TMPDIR:-/tmp}/sylva-scan-XXXXXX")
+trap 'rm -rf "$TMP"' EXIT
+
+report=$("$SYLVA" scan quaking_aspen --seed 3 --step 0.3 -o "$TMP/a.las" --truth "$TMP/a.json" --json) \
+    || fail "scan exited $?"
+count=$(echo "$report" | sed -n 's/.*"point_count":\([0-9]*\).*/\1/p')
+[ -n "$count" ] && [ "$count" -gt 1000 ] || fail "no point_count in report: $report"
+info=$("$SYLVA" info --json "$TMP/a.las") || fail "info exited $?"
+echo "$info" | grep -q "\"point_count\":$count," || fail "info count differs from scan's $count: $info"
+for a in treeID speciesID isWood branchID; do
+    echo "$info" | grep -q "\"attributes\":\[[^]]*\"$a\"" || fail "attribute $a missing: $info"
+done
+grep -q '"format":"sylva-truth"' "$TMP/a.json" || fail "truth file lacks its format tag"
+grep -q '"species":"quaking_aspen"' "$TMP/a.json" || fail "truth file lacks the species"
+
+# Same seed: same bytes (the LAS date comes from SOURCE_DATE_EPOCH).
+export SOURCE_DATE_EPOCH=1700000000
+"$SYLVA" scan quaking_aspen --seed 3 --step 0.5 -o "$TMP/b.las" --quiet --threads 1 || fail "scan b"
+"$SYLVA" scan quaking_aspen --seed 3 --step 0.5 -o "$TMP/c.las" --quiet --threads 2 || fail "scan c"
+cmp -s "$TMP/b.las" "$TMP/c.las" || fail "--threads 1 and 2 gave different files"
+
+mkdir "$TMP/out"
+"$SYLVA" scan no_such_species -o "$TMP/out/x.las" --truth "$TMP/out/x.json" >"$TMP/stdout" 2>"$TMP/err"
+rc=$?
+[ "$rc" -eq 2 ] || fail "bad species exited $rc, want 2"
+[ "$(wc -l <"$TMP/err")" -eq 1 ] || fail "bad species: want one stderr line, got: $(cat "$TMP/err")"
+grep -q "no_such_species" "$TMP/err" || fail "message does not name the species: $(cat "$TMP/err")"
+[ -z "$(ls -A "$TMP/out")" ] || fail "failing scan left files: $(ls -A "$TMP/out")"
+echo "ok"
