@@ -6,5 +6,6 @@ const sy_command sy_commands[] = {
     {"info", "describe point-cloud files: format, count, bounds, attributes, CRS", cmd_info},
     {"convert", "convert a point cloud between formats (PLY, LAS, XYZ)", cmd_convert},
     {"preprocess", "clean a scan: up-axis, crop, voxel, outliers, ground, normals", cmd_preprocess},
+    {"eval", "score a reconstruction: skeleton vs truth, model vs points, segmentation, species", cmd_eval},
     {NULL, NULL, NULL},
 };

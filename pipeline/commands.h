@@ -7,5 +7,6 @@
 int cmd_info(int argc, char **argv, sy_cli *cli);
 int cmd_convert(int argc, char **argv, sy_cli *cli);
 int cmd_preprocess(int argc, char **argv, sy_cli *cli);
+int cmd_eval(int argc, char **argv, sy_cli *cli);
 
 #endif
