@@ -222,7 +222,7 @@ static int run_segmentation(const char *t_path, const char *p_path, sy_cli *cli)
     report r;
     report_begin(&r, cli->json, "segmentation (instances matched at IoU > 0.5)");
     put_count(&r, "point_count", "points compared", m.n_points);
-    put_count(&r, "unmatched_points", "truth points without a prediction point", m.n_unmatched_points);
+    put_count(&r, "unmatched_points", "truth points unmatched", m.n_unmatched_points);
     put_count(&r, "truth_instances", "truth instances", m.n_truth);
     put_count(&r, "pred_instances", "predicted instances", m.n_pred);
     put_count(&r, "matched_instances", "matched instances", m.n_matched);

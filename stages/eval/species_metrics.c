@@ -305,18 +305,18 @@ sy_code sy_confusion_build(const sy_label_table *truth, const sy_label_table *pr
 void sy_confusion_print(const sy_confusion *c, FILE *fp)
 {
     size_t n = c->n_classes;
-    int w = 5;
+    int w = 12;
     for (size_t k = 0; k < n; k++)
         if ((int)strlen(c->labels[k]) > w) w = (int)strlen(c->labels[k]);
     if (w > 24) w = 24;
-    fprintf(fp, "%-*s", w + 2, "truth \\ pred");
+    fprintf(fp, "  %-*s", w + 3, "truth \\ pred");
     for (size_t k = 0; k < n; k++) fprintf(fp, " %5zu", k);
-    fprintf(fp, "   F1\n");
+    fprintf(fp, "     F1\n");
     for (size_t r = 0; r < n; r++) {
-        fprintf(fp, "%2zu %-*.*s", r, w - 1, w - 1, c->labels[r]);
+        fprintf(fp, "  %2zu %-*.*s", r, w, w, c->labels[r]);
         for (size_t k = 0; k < n; k++) fprintf(fp, " %5zu", c->matrix[r * n + k]);
         if (isnan(c->f1[r])) fprintf(fp, "\n");
-        else fprintf(fp, "   %.3f\n", c->f1[r]);
+        else fprintf(fp, "  %.3f\n", c->f1[r]);
     }
 }
 
