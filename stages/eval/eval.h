@@ -83,8 +83,9 @@ typedef struct {
 sy_code sy_model_distances(const sy_eval_model *m, const double *pts, size_t n, double *dist, sy_error *err);
 /* Share of distances <= eps. */
 double sy_coverage(const double *dist, size_t n, double eps);
-/* All surface metrics; the model surface is sampled about every spacing
- * metres for the model -> points direction. */
+/* All surface metrics. For the model -> points direction the model surface
+ * is sampled about every max(spacing, half the mean point spacing over the
+ * model's area) metres. */
 sy_code sy_surface_metrics_compute(const sy_eval_model *m, const double *pts, size_t n, double coverage_eps,
                                    double spacing, sy_surface_metrics *out, sy_error *err);
 /* Samples of the model surface about every spacing metres (triangle

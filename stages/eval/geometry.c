@@ -270,61 +270,95 @@ void sy_bvh_free(sy_bvh *b)
     memset(b, 0, sizeof *b);
 }
 
-static double box_distance(const sy_box *x, const double q[3])
+/* Squared distance from q to the box (0 inside). */
+static double box_distance2(const sy_box *x, const double q[3])
 {
     double d2 = 0;
     for (int k = 0; k < 3; k++) {
         double e = q[k] < x->lo[k] ? x->lo[k] - q[k] : q[k] > x->hi[k] ? q[k] - x->hi[k] : 0;
         d2 += e * e;
     }
-    return sqrt(d2);
+    return d2;
 }
 
 /* Median splits keep the depth near log2(n / LEAF_SIZE), far below this. */
 #define STACK_MAX 128
 
+typedef struct {
+    uint32_t node;
+    double d2;
+} stack_entry;
+
 uint32_t sy_bvh_nearest(const sy_bvh *b, const double q[3], double max_dist, sy_prim_distance fn, const void *ctx,
-                        double *dist)
+                        uint32_t hint, double *dist)
 {
     uint32_t best = UINT32_MAX;
     double best_d = max_dist;
     *dist = INFINITY;
     if (!b->n_prims) return best;
-    struct {
-        uint32_t node;
-        double d;
-    } stack[STACK_MAX];
+    if (hint < b->n_prims) {
+        double d = fn(ctx, hint, q);
+        if (d <= best_d) best_d = d, best = hint;
+    }
+    double best_d2 = best_d * best_d;
+    stack_entry stack[STACK_MAX];
     int top = 0;
     stack[top].node = 0;
-    stack[top++].d = box_distance(&b->nodes[0].box, q);
+    stack[top++].d2 = box_distance2(&b->nodes[0].box, q);
     while (top > 0) {
         top--;
-        if (stack[top].d > best_d) continue;
+        if (stack[top].d2 > best_d2) continue;
         const sy_bvh_node *nd = &b->nodes[stack[top].node];
         if (nd->count) {
             for (uint32_t i = nd->first; i < nd->first + nd->count; i++) {
-                double d = fn(ctx, b->prims[i], q);
-                if (d <= best_d && (best == UINT32_MAX || d < best_d || b->prims[i] < best)) {
+                uint32_t p = b->prims[i];
+                if (p == hint) continue;
+                double d = fn(ctx, p, q);
+                /* Ties go to the lower index, so answers do not depend on the hint. */
+                if (d < best_d || (d == best_d && (best == UINT32_MAX || p < best))) {
                     best_d = d;
-                    best = b->prims[i];
+                    best_d2 = d * d;
+                    best = p;
                 }
             }
             continue;
         }
         uint32_t l = nd->first, r = nd->first + 1;
-        double dl = box_distance(&b->nodes[l].box, q), dr = box_distance(&b->nodes[r].box, q);
+        double dl = box_distance2(&b->nodes[l].box, q), dr = box_distance2(&b->nodes[r].box, q);
         if (top + 2 > STACK_MAX) continue; /* unreachable for median-split trees */
         /* Push the farther child first so the nearer one is searched first. */
         if (dl < dr) {
-            stack[top].node = r, stack[top++].d = dr;
-            stack[top].node = l, stack[top++].d = dl;
+            if (dr <= best_d2) stack[top].node = r, stack[top++].d2 = dr;
+            if (dl <= best_d2) stack[top].node = l, stack[top++].d2 = dl;
         } else {
-            stack[top].node = l, stack[top++].d = dl;
-            stack[top].node = r, stack[top++].d = dr;
+            if (dl <= best_d2) stack[top].node = l, stack[top++].d2 = dl;
+            if (dr <= best_d2) stack[top].node = r, stack[top++].d2 = dr;
         }
     }
     if (best != UINT32_MAX) *dist = best_d;
     return best;
+}
+
+int sy_bvh_any_within(const sy_bvh *b, const double q[3], double r, sy_prim_distance fn, const void *ctx)
+{
+    if (!b->n_prims) return 0;
+    double r2 = r * r;
+    uint32_t stack[STACK_MAX];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const sy_bvh_node *nd = &b->nodes[stack[--top]];
+        if (box_distance2(&nd->box, q) > r2) continue;
+        if (nd->count) {
+            for (uint32_t i = nd->first; i < nd->first + nd->count; i++)
+                if (fn(ctx, b->prims[i], q) <= r) return 1;
+            continue;
+        }
+        if (top + 2 > STACK_MAX) continue;
+        stack[top++] = nd->first + 1;
+        stack[top++] = nd->first;
+    }
+    return 0;
 }
 
 static int ray_hits_box(const sy_box *x, const double o[3], const double d[3])

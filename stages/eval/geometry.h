@@ -49,9 +49,13 @@ void sy_bvh_free(sy_bvh *b);
 /* Distance from q to primitive prim (>= the distance to its box). */
 typedef double (*sy_prim_distance)(const void *ctx, uint32_t prim, const double q[3]);
 /* Nearest primitive within max_dist (use INFINITY for none): returns its
- * index and sets *dist, or returns UINT32_MAX (*dist = INFINITY). */
+ * index and sets *dist, or returns UINT32_MAX (*dist = INFINITY). hint, a
+ * primitive likely to be near (the previous query's answer), or UINT32_MAX,
+ * only speeds the search up; the answer is exact either way. */
 uint32_t sy_bvh_nearest(const sy_bvh *b, const double q[3], double max_dist, sy_prim_distance fn, const void *ctx,
-                        double *dist);
+                        uint32_t hint, double *dist);
+/* 1 when some primitive lies within r of q (stops at the first found). */
+int sy_bvh_any_within(const sy_bvh *b, const double q[3], double r, sy_prim_distance fn, const void *ctx);
 
 /* 1 when the ray o + s d (s > 0) crosses primitive prim. */
 typedef int (*sy_prim_ray)(const void *ctx, uint32_t prim, const double o[3], const double d[3]);

@@ -137,9 +137,11 @@ static sy_code transfer_labels(const sy_cloud *truth, const sy_cloud *pred, cons
     }
     if (!rc) {
         *unmatched = 0;
+        uint32_t prev = UINT32_MAX;
         for (size_t i = 0; i < truth->n; i++) {
             double d;
-            uint32_t j = sy_bvh_nearest(&bvh, tp + 3 * i, match_dist, point_distance, pp, &d);
+            uint32_t j = sy_bvh_nearest(&bvh, tp + 3 * i, match_dist, point_distance, pp, prev, &d);
+            if (j != UINT32_MAX) prev = j;
             out[i] = j == UINT32_MAX ? 0 : plab[j];
             *unmatched += j == UINT32_MAX;
         }

@@ -153,6 +153,7 @@ static void match_chunk(void *arg, size_t begin, size_t end, size_t chunk)
     (void)chunk;
     match_job *J = arg;
     const segments *F = J->from, *T = J->to;
+    uint32_t prev = UINT32_MAX; /* consecutive samples have nearby answers */
     for (size_t e = begin; e < end; e++) {
         size_t k = samples_on(F, e, J->o->sample_step);
         double w = edge_length(F, e) / (double)k;
@@ -165,7 +166,8 @@ static void match_chunk(void *arg, size_t begin, size_t end, size_t chunk)
             J->rel_radius[idx] = NAN;
             if (!J->tolerance_from_target) {
                 double tol = fmax(J->o->radius_factor * r_from, J->o->min_tolerance);
-                uint32_t hit = sy_bvh_nearest(&T->bvh, q, tol, segment_prim_distance, T, &d);
+                uint32_t hit = sy_bvh_nearest(&T->bvh, q, tol, segment_prim_distance, T, prev, &d);
+                if (hit != UINT32_MAX) prev = hit;
                 J->hit[idx] = hit != UINT32_MAX;
                 J->cls_order[idx] = F->order[e];
                 J->cls_thick[idx] = F->thick[e];
@@ -175,11 +177,12 @@ static void match_chunk(void *arg, size_t begin, size_t end, size_t chunk)
                     J->rel_radius[idx] = (float)(fabs(r_to - r_from) / r_from);
                 }
             } else {
-                uint32_t hit = sy_bvh_nearest(&T->bvh, q, INFINITY, segment_prim_distance, T, &d);
+                uint32_t hit = sy_bvh_nearest(&T->bvh, q, INFINITY, segment_prim_distance, T, prev, &d);
                 J->hit[idx] = 0;
                 J->cls_order[idx] = 0;
                 J->cls_thick[idx] = 0;
                 if (hit == UINT32_MAX) continue;
+                prev = hit;
                 sy_point_segment_distance(q, T->a + 3 * hit, T->b + 3 * hit, &t);
                 double r_to = T->ra[hit] + t * (T->rb[hit] - T->ra[hit]);
                 J->hit[idx] = d <= fmax(J->o->radius_factor * r_to, J->o->min_tolerance);
@@ -339,7 +342,7 @@ static sy_code bifurcation_errors(const sy_forest *truth, const sy_forest *model
         double sum = 0;
         for (size_t i = 0; i < T.n; i++) {
             double dist;
-            if (sy_bvh_nearest(&bvh, T.p + 3 * i, radius, point_prim_distance, &M, &dist) == UINT32_MAX) continue;
+            if (sy_bvh_nearest(&bvh, T.p + 3 * i, radius, point_prim_distance, &M, UINT32_MAX, &dist) == UINT32_MAX) continue;
             d[matched++] = dist;
             sum += dist;
         }

@@ -166,10 +166,11 @@ static void dist_chunk(void *arg, size_t begin, size_t end, size_t chunk)
 {
     (void)chunk;
     dist_job *J = arg;
+    uint32_t prev = UINT32_MAX; /* scans are spatially coherent in file order */
     for (size_t i = begin; i < end; i++) {
         const double *q = J->pts + 3 * i;
         double d;
-        sy_bvh_nearest(&J->P->bvh, q, INFINITY, prim_distance, J->P, &d);
+        prev = sy_bvh_nearest(&J->P->bvh, q, INFINITY, prim_distance, J->P, prev, &d);
         if (d > 0 && J->P->n_closed && inside_closed(J->P, q)) d = 0;
         J->dist[i] = d;
     }
@@ -327,9 +328,13 @@ static void back_chunk(void *arg, size_t begin, size_t end, size_t chunk)
 {
     back_job *J = arg;
     double mx = 0;
+    uint32_t prev = UINT32_MAX;
     for (size_t i = begin; i < end; i++) {
+        const double *q = J->samples + 3 * i;
+        /* Only samples farther than the running maximum can raise it. */
+        if (prev != UINT32_MAX && sy_bvh_any_within(J->bvh, q, mx, point_distance, J->pts)) continue;
         double d;
-        sy_bvh_nearest(J->bvh, J->samples + 3 * i, INFINITY, point_distance, J->pts, &d);
+        prev = sy_bvh_nearest(J->bvh, q, INFINITY, point_distance, J->pts, prev, &d);
         if (d > mx) mx = d;
     }
     J->chunk_max[chunk] = mx;
@@ -390,7 +395,9 @@ sy_code sy_surface_metrics_compute(const sy_eval_model *m, const double *pts, si
         prims_free(&P);
         return sy_fail(err, SY_EINPUT, "model: no triangles or skeleton edges to measure against");
     }
-    /* The model -> points samples stay under ~20 million by widening the spacing. */
+    /* Model -> points: samples need not be much denser than the points
+     * themselves; four per point of mean point spacing, and never more than
+     * ~20 million. */
     double area = 0;
     for (size_t t = 0; t < P.n_tri; t++) area += tri_area(P.tri + 9 * t);
     for (size_t i = 0; i < P.n_cone; i++) {
@@ -398,6 +405,7 @@ sy_code sy_surface_metrics_compute(const sy_eval_model *m, const double *pts, si
         double len = sqrt((c[3] - c[0]) * (c[3] - c[0]) + (c[4] - c[1]) * (c[4] - c[1]) + (c[5] - c[2]) * (c[5] - c[2]));
         area += PI * (c[6] + c[7]) * len;
     }
+    spacing = fmax(spacing, 0.5 * sqrt(area / (double)n));
     if (area / (spacing * spacing) > 2e7) spacing = sqrt(area / 2e7);
     double *dist = sy_calloc(n, sizeof *dist, err, "distances");
     if (!dist) {
