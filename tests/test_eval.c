@@ -201,6 +201,7 @@ static void truth_json_round_trip_and_errors(void **state)
         {"{\"format\":\"other\",\"trees\":[]}", "'format' is 'other'"},
         {"{\"version\":2,\"trees\":[]}", "version 2 is not supported"},
         {"{\"foo\":1}", "neither 'trees'"},
+        {"{\"trees\":[]}", "'trees' is empty"},
         {"{\"nodes\":[]}", "'nodes' is empty"},
         {"{\"nodes\":[{\"parent\":-1,\"x\":0,\"y\":0,\"radius\":1}]}", "'z' is missing"},
         {"{\"nodes\":[{\"parent\":-1,\"x\":0,\"y\":0,\"z\":0,\"radius\":-1}]}", "'radius' must be a number >= 0"},

@@ -346,6 +346,7 @@ static sy_code parse_doc(const ctx *c, const sy_jv *root, sy_forest *out)
         return rc;
     }
     if (trees->type != SY_JV_ARRAY) return bad(c, trees, "'trees' must be an array%s%s", NULL, NULL);
+    if (trees->len == 0) return bad(c, trees, "'trees' is empty%s%s", NULL, NULL);
     for (size_t i = 0; i < trees->len; i++) {
         char where[48];
         snprintf(where, sizeof where, "tree %zu", i);
