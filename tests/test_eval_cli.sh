@@ -47,7 +47,7 @@ echo "$json" | grep -q '"recall":0,' || fail "far skeleton recall is not 0: $jso
 grep -q 'recall' "$TMP/summary" || fail "summary lacks recall"
 [ "$(wc -l <"$TMP/summary")" -le 25 ] || fail "summary longer than a screen"
 
-# Points vs a skeleton model: a small XYZ-free check through LAS written by convert.
+# Points vs a skeleton model (the cones of the truth skeleton): every surface key present.
 json=$("$SYLVA" eval --json --points "$MC" "$TMP/truth.json") || fail "points vs skeleton exited $?"
 for key in mean_distance rms_distance p95_distance coverage hausdorff hausdorff_model_to_points; do
   echo "$json" | grep -q "\"$key\":" || fail "key $key missing: $json"
