@@ -8,5 +8,6 @@ const sy_command sy_commands[] = {
     {"preprocess", "clean a scan: up-axis, crop, voxel, outliers, ground, normals", cmd_preprocess},
     {"grow", "grow a procedural species tree (Weber & Penn) and write it as glTF", cmd_grow},
     {"scan", "virtual LiDAR: scan a generated tree or plot, with exact per-point truth", cmd_scan},
+    {"eval", "score a reconstruction: skeleton vs truth, model vs points, segmentation, species", cmd_eval},
     {NULL, NULL, NULL},
 };

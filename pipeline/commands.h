@@ -9,5 +9,6 @@ int cmd_convert(int argc, char **argv, sy_cli *cli);
 int cmd_preprocess(int argc, char **argv, sy_cli *cli);
 int cmd_grow(int argc, char **argv, sy_cli *cli);
 int cmd_scan(int argc, char **argv, sy_cli *cli);
+int cmd_eval(int argc, char **argv, sy_cli *cli);
 
 #endif

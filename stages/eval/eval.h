@@ -1,0 +1,187 @@
+/* Evaluation: one scoring for synthetic and real data (docs/eval.md).
+ *  - skeleton vs truth skeleton: length-weighted recall/precision, by order
+ *    and for thick branches, bifurcation, radius, DBH and height errors;
+ *  - model vs input points without truth: point->model distances, coverage,
+ *    Hausdorff both ways (triangle meshes, closed hulls, skeleton cones);
+ *  - segmentation: instance precision/recall/F1 at IoU > 0.5;
+ *  - species: accuracy, macro-F1, confusion matrix (text, JSON, PNG).
+ * Metrics that do not apply are NaN. All coordinates: world, metres, Z up. */
+#ifndef SYLVA_EVAL_H
+#define SYLVA_EVAL_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#include "stages/core/cloud.h"
+#include "stages/core/json.h"
+#include "stages/core/skeleton.h"
+
+/* ---- Trees: a truth file, a skeleton file, or a decoded reconstruction ---- */
+
+typedef struct {
+    long long tree_id;   /* -1 when the file has none */
+    char species[64];    /* "" when unknown */
+    int species_id;      /* -1 when unknown */
+    double position[3];  /* trunk base (world) */
+    double height, dbh, crown_width; /* metres; NaN when the file has none */
+    sy_skeleton skel;    /* world = skel.origin + pos */
+} sy_eval_tree;
+
+typedef struct {
+    size_t n_trees;
+    sy_eval_tree *trees;
+} sy_forest;
+
+/* Reads a truth JSON (docs/truth-format.md: {"format":"sylva-truth","trees":[...]})
+ * or a skeleton JSON ({"nodes":[...]} in the same node layout, optional
+ * "origin", "tree_id", "species", "dbh", "height"). Missing order/branch
+ * fields are derived from the topology (first child continues its parent's
+ * stem). Missing dbh/height are measured on the skeleton. */
+sy_code sy_forest_read(const char *path, sy_forest *out, sy_error *err);
+sy_code sy_forest_parse(const char *name, const char *text, size_t len, sy_forest *out, sy_error *err);
+void sy_forest_free(sy_forest *f);
+/* Appends a tree; the forest takes ownership of t->skel. */
+sy_code sy_forest_add(sy_forest *f, const sy_eval_tree *t, sy_error *err);
+/* DBH (2 x trunk radius 1.3 m above the root) and height (highest node above
+ * the root) of a skeleton; NaN when the trunk is shorter than 1.3 m. */
+double sy_skeleton_dbh(const sy_skeleton *s);
+double sy_skeleton_height(const sy_skeleton *s);
+
+/* ---- Models compared with points ---- */
+
+typedef struct {
+    size_t n;    /* triangles */
+    double *tri; /* 9n: world coordinates, Z up */
+    int closed;  /* a closed hull: points inside are at distance 0 */
+} sy_tri_mesh;
+
+typedef struct {
+    size_t n_meshes;
+    sy_tri_mesh *meshes;
+    sy_forest skeletons; /* each edge a truncated cone */
+} sy_eval_model;
+
+/* Loads MODEL by kind: a .glb/.gltf (triangles of the default scene, node
+ * and EXT_mesh_gpu_instancing transforms applied, Y-up turned to Z-up), or
+ * a truth/skeleton JSON. closed marks the loaded meshes as closed hulls. */
+sy_code sy_eval_load_model(const char *path, int closed, sy_eval_model *out, sy_error *err);
+/* Adds a copy of n triangles (9n doubles) as one mesh. */
+sy_code sy_eval_model_add_mesh(sy_eval_model *m, const double *tri, size_t n, int closed, sy_error *err);
+void sy_eval_model_free(sy_eval_model *m);
+
+typedef struct {
+    size_t n_points;
+    double mean_distance, rms_distance, p95_distance;
+    double coverage, coverage_eps;  /* share of points within coverage_eps */
+    double hausdorff;               /* max point -> model */
+    double hausdorff_model_to_points; /* max model surface sample -> nearest point */
+    size_t n_model_samples;
+} sy_surface_metrics;
+
+/* Distance from each of n points (3n world coordinates) to the model. */
+sy_code sy_model_distances(const sy_eval_model *m, const double *pts, size_t n, double *dist, sy_error *err);
+/* Share of distances <= eps. */
+double sy_coverage(const double *dist, size_t n, double eps);
+/* All surface metrics. For the model -> points direction the model surface
+ * is sampled about every max(spacing, half the mean point spacing over the
+ * model's area) metres. */
+sy_code sy_surface_metrics_compute(const sy_eval_model *m, const double *pts, size_t n, double coverage_eps,
+                                   double spacing, sy_surface_metrics *out, sy_error *err);
+/* Samples of the model surface about every spacing metres (triangle
+ * vertices plus area-proportional samples; rings along each cone), 3 *n
+ * doubles (caller frees), deterministic. */
+double *sy_model_surface_samples(const sy_eval_model *m, double spacing, size_t *n, sy_error *err);
+/* World coordinates of a cloud as 3n doubles (caller frees). */
+double *sy_cloud_world_points(const sy_cloud *c, sy_error *err);
+
+/* ---- Skeleton vs truth skeleton ---- */
+
+#define SY_EVAL_ORDERS 4 /* orders 0, 1, 2, 3+ */
+
+typedef struct {
+    double sample_step;        /* metres between samples along edges (0.01) */
+    double min_tolerance;      /* metres (0.05) */
+    double radius_factor;      /* tolerance = max(radius_factor * r, min_tolerance) (2) */
+    double thick_radius;       /* "thick" branches: base radius >= this (0.02) */
+    double bifurcation_radius; /* branch points further apart do not match (0.25) */
+} sy_skeleton_metrics_opts;
+
+sy_skeleton_metrics_opts sy_skeleton_metrics_defaults(void);
+
+typedef struct {
+    double truth_length, model_length;
+    double recall, precision;
+    double recall_r2cm, precision_r2cm;
+    double recall_order[SY_EVAL_ORDERS], precision_order[SY_EVAL_ORDERS];
+    double radius_error_median, radius_error_order[SY_EVAL_ORDERS];
+    size_t bifurcations_truth, bifurcations_matched;
+    double bifurcation_error_mean, bifurcation_error_median;
+    size_t trees_truth, trees_matched;
+    double dbh_error, height_error; /* mean |model - truth| over matched trees */
+} sy_skeleton_metrics;
+
+sy_code sy_skeleton_metrics_compute(const sy_forest *truth, const sy_forest *model, const sy_skeleton_metrics_opts *opts,
+                                    sy_skeleton_metrics *out, sy_error *err);
+
+/* ---- Segmentation ---- */
+
+typedef struct {
+    size_t n_points;            /* points compared */
+    size_t n_unmatched_points;  /* truth points with no prediction point within the match distance */
+    size_t n_truth, n_pred;     /* instances (labels other than 0/NaN) */
+    size_t n_matched;           /* pairs with IoU > 0.5 */
+    double precision, recall, f1, mean_iou; /* mean_iou over matched pairs */
+} sy_segmentation_metrics;
+
+/* Per-point labels (0 or NaN: not a tree). */
+sy_code sy_segmentation_metrics_labels(const double *truth, const double *pred, size_t n, sy_segmentation_metrics *out,
+                                       sy_error *err);
+/* Two clouds: by index when they hold the same points in the same order,
+ * else each truth point takes the label of the nearest prediction point
+ * within match_dist (none: unassigned). */
+sy_code sy_segmentation_metrics_clouds(const sy_cloud *truth, const char *truth_path, const char *truth_attr,
+                                       const sy_cloud *pred, const char *pred_path, const char *pred_attr,
+                                       double match_dist, sy_segmentation_metrics *out, sy_error *err);
+
+/* ---- Species ---- */
+
+typedef struct {
+    size_t n;
+    char **id;
+    char **label;
+} sy_label_table;
+
+/* CSV "id,species" (an optional header line naming the columns, blank lines
+ * and lines starting with '#' skipped; fields may be double-quoted). */
+sy_code sy_label_table_read_csv(const char *path, sy_label_table *out, sy_error *err);
+sy_code sy_label_table_parse_csv(const char *name, const char *text, size_t len, sy_label_table *out, sy_error *err);
+/* tree_id -> species of a forest. */
+sy_code sy_label_table_from_forest(const sy_forest *f, const char *path, sy_label_table *out, sy_error *err);
+sy_code sy_label_table_add(sy_label_table *t, const char *id, const char *label, sy_error *err);
+void sy_label_table_free(sy_label_table *t);
+
+#define SY_MISSING_LABEL "(missing)"
+
+typedef struct {
+    size_t n_classes;
+    char **labels;      /* sorted; SY_MISSING_LABEL last when some prediction is missing */
+    size_t *matrix;     /* n_classes^2, row = truth, column = prediction */
+    size_t n_samples;   /* truth entries */
+    size_t n_missing;   /* truth ids without a prediction */
+    double accuracy, macro_f1;
+    double *f1;         /* per class (NaN for the missing column) */
+} sy_confusion;
+
+/* Every truth id is scored; ids only in the prediction are ignored. Macro-F1
+ * averages the per-class F1 over the classes seen in truth or prediction. */
+sy_code sy_confusion_build(const sy_label_table *truth, const sy_label_table *pred, sy_confusion *out, sy_error *err);
+void sy_confusion_free(sy_confusion *c);
+void sy_confusion_print(const sy_confusion *c, FILE *fp);
+/* "labels": [...] and "confusion": [[row of truth label 0]...] into an open object. */
+void sy_confusion_json(const sy_confusion *c, sy_json *j);
+/* Heatmap PNG with row/column labels and counts; written atomically. */
+sy_code sy_confusion_png(const sy_confusion *c, const char *path, sy_error *err);
+void sy_confusion_png_size(const sy_confusion *c, int *width, int *height);
+
+#endif
