@@ -376,37 +376,93 @@ static int compact_mesh(float **verts, size_t *nv, uint32_t *tris, size_t nt)
     return 0;
 }
 
-static int mesh_ok(const float *verts, size_t nv, const uint32_t *tris, size_t nt, const float *xyz,
-                   const uint32_t *pts, size_t np, double tol)
+static int closed_outward(const float *verts, size_t nv, const uint32_t *tris, size_t nt)
 {
-    if (nt < 4 || sy_mesh_bad_edges(tris, nt, nv) != 0) return 0;
-    if (!(sy_mesh_signed_volume(verts, tris, nt) > 0)) return 0;
+    return nt >= 4 && sy_mesh_bad_edges(tris, nt, nv) == 0 && sy_mesh_signed_volume(verts, tris, nt) > 0;
+}
+
+static int holds_points(const float *verts, const uint32_t *tris, size_t nt, const float *xyz, const uint32_t *pts,
+                        size_t np, double tol)
+{
     size_t stride = np > CHECK_MAX_POINTS ? (np + CHECK_MAX_POINTS - 1) / CHECK_MAX_POINTS : 1;
     return containment_strided(verts, tris, nt, xyz, pts, np, tol, stride) >= 0.95;
 }
 
-/* Accepts the mesh as c's hull (taking ownership) when it passes the checks,
- * after simplifying it toward target_tris if that keeps it valid. */
+/* A coarse hull keeps a subset of the alpha shape's vertices, so it sits
+ * inside the shape and cuts off the outermost points. Push every vertex out
+ * along its normal, doubling the offset from 0 until the hull holds 95% of
+ * the points; gives up beyond a tenth of the hull's size. On success verts
+ * holds the moved positions. */
+static int inflate_to_hold(float *verts, size_t nv, const uint32_t *tris, size_t nt, const float *xyz,
+                           const uint32_t *pts, size_t np, double tol)
+{
+    float *base = malloc(nv * 3 * sizeof *base), *nrm = calloc(nv * 3, sizeof *nrm);
+    int ok = 0;
+    if (!base || !nrm) goto done;
+    memcpy(base, verts, nv * 3 * sizeof *base);
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t v = 0; v < nv; v++)
+        for (int k = 0; k < 3; k++) {
+            lo[k] = fmin(lo[k], verts[3 * v + k]);
+            hi[k] = fmax(hi[k], verts[3 * v + k]);
+        }
+    double size = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                       (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    for (size_t t = 0; t < nt; t++) {
+        const float *a = verts + 3 * (size_t)tris[3 * t], *b = verts + 3 * (size_t)tris[3 * t + 1],
+                    *c = verts + 3 * (size_t)tris[3 * t + 2];
+        float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        float n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+        for (int k = 0; k < 3; k++)
+            for (int m = 0; m < 3; m++) nrm[3 * (size_t)tris[3 * t + k] + m] += n[m]; /* area weighted */
+    }
+    for (size_t v = 0; v < nv; v++) {
+        double l = sqrt(nrm[3 * v] * nrm[3 * v] + nrm[3 * v + 1] * nrm[3 * v + 1] + nrm[3 * v + 2] * nrm[3 * v + 2]);
+        for (int k = 0; k < 3; k++) nrm[3 * v + k] = l > 0 ? (float)(nrm[3 * v + k] / l) : 0;
+    }
+    for (double d = 0; d <= 0.1 * size; d = d > 0 ? 2 * d : tol) {
+        for (size_t v = 0; v < 3 * nv; v++) verts[v] = base[v] + (float)d * nrm[v];
+        if (closed_outward(verts, nv, tris, nt) && holds_points(verts, tris, nt, xyz, pts, np, tol)) {
+            ok = 1;
+            break;
+        }
+    }
+    if (!ok) memcpy(verts, base, nv * 3 * sizeof *base);
+done:
+    free(base);
+    free(nrm);
+    return ok;
+}
+
+/* Accepts a closed, outward mesh as c's hull (taking ownership): simplified
+ * toward target_tris (then 2x and 4x that) and inflated to hold the points;
+ * failing that, unsimplified if it is at most 8x the budget (bigger ones
+ * would blow the file budget; the convex hull is tried next instead). */
 static int try_hull(sy_cluster *c, const float *xyz, sy_alpha_mesh *m, int target_tris, double tol, int kind)
 {
-    if (!mesh_ok(m->verts, m->n_verts, m->tris, m->n_tris, xyz, c->points, c->n_points, tol)) return 0;
-    if ((int)m->n_tris > target_tris) {
-        uint32_t *dst = malloc(3 * m->n_tris * sizeof *dst);
-        /* Try the budget first, then gentler reductions. */
-        for (int f = 1; dst && f <= 4; f *= 2) {
-            size_t target = 3 * (size_t)target_tris * (size_t)f;
-            if (target >= 3 * m->n_tris) break;
-            size_t ni = meshopt_simplify(dst, m->tris, 3 * m->n_tris, m->verts, m->n_verts, 3 * sizeof(float),
-                                         target, 1.0f, 0, NULL);
-            if (mesh_ok(m->verts, m->n_verts, dst, ni / 3, xyz, c->points, c->n_points, tol)) {
-                memcpy(m->tris, dst, ni * sizeof *dst);
-                m->n_tris = ni / 3;
-                break;
-            }
+    if (!closed_outward(m->verts, m->n_verts, m->tris, m->n_tris)) return 0;
+    uint32_t *dst = malloc(3 * m->n_tris * sizeof *dst);
+    float *vcopy = malloc(3 * m->n_verts * sizeof *vcopy);
+    int ok = 0;
+    for (int f = 1; dst && vcopy && f <= 4 && !ok; f *= 2) {
+        size_t target = 3 * (size_t)target_tris * (size_t)f;
+        if (target >= 3 * m->n_tris) break;
+        size_t ni = meshopt_simplify(dst, m->tris, 3 * m->n_tris, m->verts, m->n_verts, 3 * sizeof(float), target,
+                                     1.0f, 0, NULL);
+        memcpy(vcopy, m->verts, 3 * m->n_verts * sizeof *vcopy);
+        if (closed_outward(vcopy, m->n_verts, dst, ni / 3) &&
+            inflate_to_hold(vcopy, m->n_verts, dst, ni / 3, xyz, c->points, c->n_points, tol)) {
+            memcpy(m->tris, dst, ni * sizeof *dst);
+            m->n_tris = ni / 3;
+            memcpy(m->verts, vcopy, 3 * m->n_verts * sizeof *vcopy);
+            ok = 1;
         }
-        free(dst);
     }
-    if (compact_mesh(&m->verts, &m->n_verts, m->tris, m->n_tris)) return 0;
+    free(dst);
+    free(vcopy);
+    if (!ok && m->n_tris <= 8 * (size_t)target_tris)
+        ok = inflate_to_hold(m->verts, m->n_verts, m->tris, m->n_tris, xyz, c->points, c->n_points, tol);
+    if (!ok || compact_mesh(&m->verts, &m->n_verts, m->tris, m->n_tris)) return 0;
     c->verts = m->verts;
     c->n_verts = m->n_verts;
     c->tris = m->tris;

@@ -467,13 +467,15 @@ static int cmp_u32(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-/* Triangles per hull so the whole file stays well under 40 kB: about 24 kB
- * for hulls at ~5 bytes per triangle (half a vertex of 6 bytes plus ~3 index
- * bytes), never fewer than 16 or more than 160 triangles. */
-static int hull_budget(size_t n_clusters)
+/* Triangles per hull so that the .sylva file stays under its 40 kB target:
+ * 36 kB minus the skeleton (about 10 bytes a node) shared by the clusters at
+ * about 6.5 bytes a triangle (half a 6-byte vertex plus ~3.5 index bytes),
+ * never fewer than 16 or more than 160 triangles. */
+static int hull_budget(size_t n_clusters, size_t n_nodes)
 {
     if (n_clusters == 0) return 160;
-    double t = 24000.0 / (5.0 * (double)n_clusters);
+    double bytes = 36000.0 - 64 - 10.0 * (double)n_nodes;
+    double t = bytes / (6.5 * (double)n_clusters);
     return t < 16 ? 16 : t > 160 ? 160 : (int)t;
 }
 
@@ -609,7 +611,7 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     t = sy_now();
 
     if (clusters) {
-        int budget = o->hull_triangles > 0 ? o->hull_triangles : hull_budget(clusters->n);
+        int budget = o->hull_triangles > 0 ? o->hull_triangles : hull_budget(clusters->n, out->n);
         for (size_t c = 0; c < clusters->n && !rc; c++) {
             sy_cluster *C = &clusters->items[c];
             qsort(C->points, C->n_points, sizeof *C->points, cmp_u32);
