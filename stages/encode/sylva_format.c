@@ -376,9 +376,10 @@ sy_code sy_decode_mem(const char *path, const unsigned char *data, size_t size, 
     r.at = 6;
     meta->species_id = (uint16_t)get_le(&r, 2);
     meta->seed = get_le(&r, 8);
+    double origin[3];
     for (int k = 0; k < 3; k++) {
         uint64_t u = get_le(&r, 8);
-        memcpy(&s->origin[k], &u, 8);
+        memcpy(&origin[k], &u, 8);
     }
     sy_sylva_quant *q = &meta->quant;
     q->step_log2 = (int32_t)(uint32_t)get_le(&r, 4);
@@ -388,7 +389,7 @@ sy_code sy_decode_mem(const char *path, const unsigned char *data, size_t size, 
     u = (uint32_t)get_le(&r, 4);
     memcpy(&q->log2_rmax, &u, 4);
     for (int k = 0; k < 3; k++)
-        if (!isfinite(s->origin[k])) return sy_fail(err, SY_EINPUT, "%s: origin is not finite", path);
+        if (!isfinite(origin[k])) return sy_fail(err, SY_EINPUT, "%s: origin is not finite", path);
     if (q->step_log2 < -30 || q->step_log2 > 30 || !isfinite(q->log2_rmin) || !isfinite(q->log2_rmax) ||
         q->log2_rmin + 1 > q->log2_rmax || q->log2_rmin < -60 || q->log2_rmax > 20)
         return sy_fail(err, SY_EINPUT, "%s: invalid quantisation header", path);
@@ -400,6 +401,7 @@ sy_code sy_decode_mem(const char *path, const unsigned char *data, size_t size, 
         return sy_fail(err, SY_EINPUT, "%s: bad node count", path);
     sy_code rc = sy_skeleton_init(s, (size_t)n, err);
     if (rc) return rc;
+    memcpy(s->origin, origin, sizeof origin);
     int32_t next_branch = 0;
     for (size_t i = 0; i < n; i++) {
         if (i == 0) {
