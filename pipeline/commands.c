@@ -6,5 +6,7 @@ const sy_command sy_commands[] = {
     {"info", "describe point-cloud files: format, count, bounds, attributes, CRS", cmd_info},
     {"convert", "convert a point cloud between formats (PLY, LAS, XYZ)", cmd_convert},
     {"preprocess", "clean a scan: up-axis, crop, voxel, outliers, ground, normals", cmd_preprocess},
+    {"skeleton", "reconstruct one tree: skeleton, clusters, hulls -> .sylva", cmd_skeleton},
+    {"decode", "summarise a .sylva tree file", cmd_decode},
     {NULL, NULL, NULL},
 };

@@ -7,5 +7,7 @@
 int cmd_info(int argc, char **argv, sy_cli *cli);
 int cmd_convert(int argc, char **argv, sy_cli *cli);
 int cmd_preprocess(int argc, char **argv, sy_cli *cli);
+int cmd_skeleton(int argc, char **argv, sy_cli *cli);
+int cmd_decode(int argc, char **argv, sy_cli *cli);
 
 #endif

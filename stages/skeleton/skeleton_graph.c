@@ -19,6 +19,7 @@ typedef struct {
     double h, lo[3];
     size_t n_cells;
     uint32_t *order;     /* point indices sorted by cell */
+    float *pts;          /* their coordinates in that order (3 each), for locality */
     size_t *cell_start;  /* n_cells + 1 into order */
     uint64_t *cell_key;  /* n_cells */
     int32_t *cell_coord; /* 3 * n_cells */
@@ -66,16 +67,34 @@ typedef struct {
     uint32_t idx;
 } keyed;
 
-static int cmp_keyed(const void *a, const void *b)
+/* Stable LSD radix sort by key, 8 bits a pass, skipping bytes that never
+ * vary; items enter in index order, so equal keys stay in index order. */
+static int radix_sort(keyed *a, size_t n)
 {
-    const keyed *x = a, *y = b;
-    if (x->key != y->key) return x->key < y->key ? -1 : 1;
-    return x->idx < y->idx ? -1 : x->idx > y->idx;
+    keyed *tmp = malloc(n * sizeof *tmp);
+    if (!tmp) return -1;
+    keyed *src = a, *dst = tmp;
+    for (int shift = 0; shift < 64; shift += 8) {
+        size_t count[257] = {0};
+        for (size_t i = 0; i < n; i++) count[((src[i].key >> shift) & 0xff) + 1]++;
+        int single = 0;
+        for (int b = 1; b <= 256; b++) single |= count[b] == n;
+        if (single) continue;
+        for (int b = 0; b < 256; b++) count[b + 1] += count[b];
+        for (size_t i = 0; i < n; i++) dst[count[(src[i].key >> shift) & 0xff]++] = src[i];
+        keyed *t = src;
+        src = dst;
+        dst = t;
+    }
+    if (src != a) memcpy(a, src, n * sizeof *a);
+    free(tmp);
+    return 0;
 }
 
 static void grid_free(grid *g)
 {
     free(g->order);
+    free(g->pts);
     free(g->cell_start);
     free(g->cell_key);
     free(g->cell_coord);
@@ -106,18 +125,22 @@ static sy_code grid_build(grid *g, const float *xyz, size_t n, double h, sy_erro
         k[i].key = pack(c[0], c[1], c[2]);
         k[i].idx = (uint32_t)i;
     }
-    qsort(k, n, sizeof *k, cmp_keyed);
+    if (radix_sort(k, n)) {
+        free(k);
+        return sy_fail(err, SY_EINTERNAL, "grid: out of memory");
+    }
     size_t cells = 0;
     for (size_t i = 0; i < n; i++)
         if (i == 0 || k[i].key != k[i - 1].key) cells++;
     size_t tsize = 16;
     while (tsize < 2 * cells) tsize *= 2;
     g->order = sy_calloc(n, sizeof *g->order, err, "grid");
+    g->pts = sy_calloc(n, 3 * sizeof *g->pts, err, "grid");
     g->cell_start = sy_calloc(cells + 1, sizeof *g->cell_start, err, "grid");
     g->cell_key = sy_calloc(cells, sizeof *g->cell_key, err, "grid");
     g->cell_coord = sy_calloc(cells, 3 * sizeof *g->cell_coord, err, "grid");
     g->table = sy_calloc(tsize, sizeof *g->table, err, "grid");
-    if (!g->order || !g->cell_start || !g->cell_key || !g->cell_coord || !g->table) {
+    if (!g->order || !g->pts || !g->cell_start || !g->cell_key || !g->cell_coord || !g->table) {
         free(k);
         grid_free(g);
         return SY_EINTERNAL;
@@ -126,6 +149,7 @@ static sy_code grid_build(grid *g, const float *xyz, size_t n, double h, sy_erro
     size_t c = 0;
     for (size_t i = 0; i < n; i++) {
         g->order[i] = k[i].idx;
+        memcpy(g->pts + 3 * i, xyz + 3 * (size_t)k[i].idx, 3 * sizeof(float));
         if (i == 0 || k[i].key != k[i - 1].key) {
             g->cell_start[c] = i;
             g->cell_key[c] = k[i].key;
@@ -246,26 +270,126 @@ double sy_estimate_spacing(const float *xyz, size_t n)
 /* ---- Graph construction ---- */
 
 typedef struct {
-    const grid *g;
+    const grid *g, *tier;
+    int last_tier;
     const float *xyz;
     int k, cap;
     double r2;
     uint32_t *nbr; /* cap per point */
     uint8_t *cnt;
+    uint8_t *pending; /* not settled by the fine grid: the coarse pass takes it */
 } knn_job;
 
+/* Queries run cell by cell: the 27 cells around a cell are looked up once
+ * and their points serve every point of the cell, which settles most queries
+ * (all points within one cell edge are then known); the rest (sparse parts,
+ * e.g. foliage) search the 27 cells of a grid four times coarser. */
 static void knn_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
 {
     (void)chunk;
     knn_job *J = ctx;
+    const grid *g = J->g;
     cand list[64];
-    for (size_t i = begin; i < end; i++) {
-        int len = knn_query(J->g, J->xyz, (uint32_t)i, J->k, J->cap, 3, list);
-        int m = 0;
-        for (int t = 0; t < len; t++)
-            if (t < J->k || list[t].d2 <= J->r2) J->nbr[i * J->cap + m++] = list[t].j;
-        J->cnt[i] = (uint8_t)m;
+    size_t cap_near = 1024;
+    uint32_t *near = malloc(cap_near * sizeof *near);
+    for (size_t cell = begin; cell < end; cell++) {
+        const int32_t *c = g->cell_coord + 3 * cell;
+        size_t nn = 0;
+        int ok = near != NULL;
+        FOR_RING(g, c, 1, nb, {
+            size_t cnt = g->cell_start[nb + 1] - g->cell_start[nb];
+            if (ok && nn + cnt > cap_near) {
+                while (nn + cnt > cap_near) cap_near *= 2;
+                uint32_t *q = realloc(near, cap_near * sizeof *q);
+                if (q) near = q;
+                else ok = 0;
+            }
+            if (ok)
+                for (size_t t = g->cell_start[nb]; t < g->cell_start[nb + 1]; t++) near[nn++] = (uint32_t)t;
+        })
+        size_t own_start = g->cell_start[cell], own_end = g->cell_start[cell + 1];
+        for (size_t t = own_start; t < own_end; t++) {
+            uint32_t q = g->order[t];
+            const float *pq = g->pts + 3 * t;
+            int len = 0;
+            if (ok) {
+                /* Only points within one cell edge can settle the query here,
+                 * so farther candidates are never sorted in. */
+                float h2 = (float)(g->h * g->h);
+                for (size_t u = own_start; u < own_end; u++) {
+                    float d2 = (float)dist2(pq, g->pts + 3 * u);
+                    if (u != t && d2 <= h2) cand_insert(list, &len, J->cap, d2, g->order[u]);
+                }
+                for (size_t u = 0; u < nn; u++) {
+                    float d2 = (float)dist2(pq, g->pts + 3 * (size_t)near[u]);
+                    if (d2 <= h2) cand_insert(list, &len, J->cap, d2, g->order[near[u]]);
+                }
+            }
+            if (!ok || len < J->k || list[J->k - 1].d2 > g->h * g->h) {
+                J->pending[q] = 1;
+                continue;
+            }
+            int m = 0;
+            for (int i = 0; i < len; i++)
+                if (i < J->k || list[i].d2 <= J->r2) J->nbr[(size_t)q * J->cap + m++] = list[i].j;
+            J->cnt[q] = (uint8_t)m;
+        }
     }
+    free(near);
+}
+
+/* The same over a coarser grid (J->tier), for the points earlier passes
+ * left pending; the last tier takes whatever its 27 cells hold. */
+static void knn_coarse_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
+{
+    (void)chunk;
+    knn_job *J = ctx;
+    const grid *g = J->tier;
+    cand list[64];
+    size_t cap_near = 4096, nn;
+    uint32_t *near = malloc(cap_near * sizeof *near);
+
+    for (size_t cell = begin; cell < end; cell++) {
+        size_t own_start = g->cell_start[cell], own_end = g->cell_start[cell + 1], waiting = 0;
+        for (size_t t = own_start; t < own_end; t++) waiting += J->pending[g->order[t]];
+        if (!waiting) continue;
+        const int32_t *c = g->cell_coord + 3 * cell;
+        int ok = near != NULL;
+        nn = 0;
+        for (int r = 0; r <= 1; r++) {
+            FOR_RING(g, c, r, nb, {
+                size_t cnt = g->cell_start[nb + 1] - g->cell_start[nb];
+                if (ok && nn + cnt > cap_near) {
+                    while (nn + cnt > cap_near) cap_near *= 2;
+                    uint32_t *q = realloc(near, cap_near * sizeof *q);
+                    if (q) near = q;
+                    else ok = 0;
+                }
+                if (ok)
+                    for (size_t t = g->cell_start[nb]; t < g->cell_start[nb + 1]; t++) near[nn++] = (uint32_t)t;
+            })
+        }
+        for (size_t t = own_start; t < own_end; t++) {
+            uint32_t q = g->order[t];
+            if (!J->pending[q]) continue;
+            int len = 0;
+            if (ok) {
+                for (size_t u = 0; u < nn; u++)
+                    if (near[u] != t)
+                        cand_insert(list, &len, J->cap, (float)dist2(g->pts + 3 * t, g->pts + 3 * (size_t)near[u]),
+                                    g->order[near[u]]);
+            } else {
+                len = knn_query(g, J->xyz, q, J->k, J->cap, 1, list);
+            }
+            if (!J->last_tier && (len < J->k || list[J->k - 1].d2 > g->h * g->h)) continue;
+            J->pending[q] = 0;
+            int m = 0;
+            for (int i = 0; i < len; i++)
+                if (i < J->k || list[i].d2 <= J->r2) J->nbr[(size_t)q * J->cap + m++] = list[i].j;
+            J->cnt[q] = (uint8_t)m;
+        }
+    }
+    free(near);
 }
 
 static uint32_t uf_find(uint32_t *up, uint32_t a)
@@ -426,12 +550,6 @@ done:
     return rc;
 }
 
-static int cmp_u32(const void *a, const void *b)
-{
-    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
-    return x < y ? -1 : x > y;
-}
-
 sy_code sy_graph_build(const float *xyz, size_t n, int k, double radius, uint32_t anchor, sy_graph *G,
                        sy_error *err)
 {
@@ -440,20 +558,32 @@ sy_code sy_graph_build(const float *xyz, size_t n, int k, double radius, uint32_
     if (k < 1) k = 1;
     if (k > 32) k = 32;
     int cap = 2 * k;
-    grid g;
+    /* Two grids: cells of one join radius, and 4x coarser ones for the
+     * sparse parts (foliage, the far side of a crown) the fine one leaves. */
+    grid g, coarse;
     sy_code rc = grid_build(&g, xyz, n, radius, err);
     if (rc) return rc;
-    knn_job J = {&g, xyz, k, cap, radius * radius, NULL, NULL};
+    rc = grid_build(&coarse, xyz, n, 4 * radius, err);
+    if (rc) {
+        grid_free(&g);
+        return rc;
+    }
+    knn_job J = {&g, NULL, 0, xyz, k, cap, radius * radius, NULL, NULL, NULL};
     J.nbr = sy_calloc(n, cap * sizeof *J.nbr, err, "graph");
     J.cnt = sy_calloc(n, 1, err, "graph");
+    J.pending = sy_calloc(n, 1, err, "graph");
     uint32_t *up = sy_calloc(n, sizeof *up, err, "graph");
     edge *bridges = NULL;
     size_t n_bridges = 0;
-    if (!J.nbr || !J.cnt || !up) {
+    if (!J.nbr || !J.cnt || !J.pending || !up) {
         rc = SY_EINTERNAL;
         goto fail;
     }
-    sy_parallel_for(n, 4096, knn_chunk, &J);
+    sy_parallel_for(g.n_cells, 512, knn_chunk, &J);
+    J.tier = &coarse;
+    J.last_tier = 1;
+    sy_parallel_for(coarse.n_cells, 64, knn_coarse_chunk, &J);
+
     for (size_t i = 0; i < n; i++) up[i] = (uint32_t)i;
     for (size_t i = 0; i < n; i++)
         for (int t = 0; t < J.cnt[i]; t++) uf_union(up, (uint32_t)i, J.nbr[i * cap + t]);
@@ -503,7 +633,15 @@ sy_code sy_graph_build(const float *xyz, size_t n, int k, double radius, uint32_
     size_t w = 0;
     for (size_t i = 0; i < n; i++) {
         size_t b = G->start[i], e = G->start[i + 1];
-        qsort(G->adj + b, e - b, sizeof *G->adj, cmp_u32);
+        for (size_t x = b + 1; x < e; x++) { /* rows are short: insertion sort */
+            uint32_t v = G->adj[x];
+            size_t y = x;
+            while (y > b && G->adj[y - 1] > v) {
+                G->adj[y] = G->adj[y - 1];
+                y--;
+            }
+            G->adj[y] = v;
+        }
         G->start[i] = w;
         for (size_t t = b; t < e; t++)
             if (t == b || G->adj[t] != G->adj[t - 1]) G->adj[w++] = G->adj[t];
@@ -520,16 +658,20 @@ sy_code sy_graph_build(const float *xyz, size_t n, int k, double radius, uint32_
             G->len[t] = (float)sqrt(dist2(xyz + 3 * i, xyz + 3 * (size_t)G->adj[t]));
     free(J.nbr);
     free(J.cnt);
+    free(J.pending);
     free(up);
     free(bridges);
     grid_free(&g);
+    grid_free(&coarse);
     return SY_OK;
 fail:
     free(J.nbr);
     free(J.cnt);
+    free(J.pending);
     free(up);
     free(bridges);
     grid_free(&g);
+    grid_free(&coarse);
     sy_graph_free(G);
     return rc;
 }
