@@ -13,6 +13,16 @@
 #define HEADER_SIZE 64
 #define MAX_NODES 1000000u
 #define MAX_CLUSTERS 100000u
+/* Grid coordinates stay below 2^23 in magnitude, so every decoded position
+ * (box_min + q) * step is exact in a float and re-quantises to q. */
+#define MAX_BOX (1 << 23)
+
+static int box_ok(const int32_t b[3])
+{
+    for (int k = 0; k < 3; k++)
+        if (b[k] < -MAX_BOX || b[k] > MAX_BOX - 65536) return 0;
+    return 1;
+}
 
 /* ---- Byte buffer ---- */
 
@@ -136,7 +146,10 @@ static void choose_quant(const sy_skeleton *s, const sy_clusters *cl, sy_sylva_q
     for (; e < 30; e++) {
         double st = ldexp(1.0, e);
         int fits = 1;
-        for (int k = 0; k < 3; k++) fits &= floor(hi[k] / st + 0.5) - floor(lo[k] / st + 0.5) <= 65535;
+        for (int k = 0; k < 3; k++) {
+            double a = floor(lo[k] / st + 0.5), b = floor(hi[k] / st + 0.5);
+            fits &= b - a <= 65535 && a >= -MAX_BOX && a <= MAX_BOX - 65536;
+        }
         if (fits) break;
     }
     q->step_log2 = e;
@@ -214,7 +227,7 @@ sy_code sy_encode_mem(const sy_skeleton *s, const sy_clusters *cl, uint16_t spec
     sy_sylva_quant q;
     if (quant) q = *quant;
     else choose_quant(s, cl, &q);
-    if (q.step_log2 < -30 || q.step_log2 > 30 || !(q.log2_rmin + 1 <= q.log2_rmax))
+    if (q.step_log2 < -30 || q.step_log2 > 30 || !(q.log2_rmin + 1 <= q.log2_rmax) || !box_ok(q.box_min))
         return sy_fail(err, SY_EINPUT, "encode: invalid quantisation");
     for (size_t i = 0; i < s->n; i++) {
         double lr = log2(s->radius[i]);
@@ -391,7 +404,7 @@ sy_code sy_decode_mem(const char *path, const unsigned char *data, size_t size, 
     for (int k = 0; k < 3; k++)
         if (!isfinite(origin[k])) return sy_fail(err, SY_EINPUT, "%s: origin is not finite", path);
     if (q->step_log2 < -30 || q->step_log2 > 30 || !isfinite(q->log2_rmin) || !isfinite(q->log2_rmax) ||
-        q->log2_rmin + 1 > q->log2_rmax || q->log2_rmin < -60 || q->log2_rmax > 20)
+        q->log2_rmin + 1 > q->log2_rmax || q->log2_rmin < -60 || q->log2_rmax > 20 || !box_ok(q->box_min))
         return sy_fail(err, SY_EINPUT, "%s: invalid quantisation header", path);
     double st = step_of(q);
 
