@@ -164,6 +164,19 @@ static void synthetic_tree_round_trips(void **state)
     sy_clusters cl;
     assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, NULL, &err), SY_OK);
     round_trip("synthetic.sylva", &s, &cl);
+    /* Same input, same bytes, whatever ran before in the process (CGAL's
+     * facet order follows heap addresses; the hull builder must not). */
+    unsigned char *a, *b;
+    size_t na, nb;
+    assert_int_equal(sy_encode_mem(&s, &cl, 0, 1, NULL, &a, &na, &err), SY_OK);
+    sy_clusters_free(&cl);
+    sy_skeleton_free(&s);
+    assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, NULL, &err), SY_OK);
+    assert_int_equal(sy_encode_mem(&s, &cl, 0, 1, NULL, &b, &nb, &err), SY_OK);
+    assert_int_equal(na, nb);
+    assert_memory_equal(a, b, na);
+    free(a);
+    free(b);
     sy_clusters_free(&cl);
     sy_skeleton_free(&s);
     sy_cloud_free(&c);

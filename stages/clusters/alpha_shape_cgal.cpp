@@ -7,6 +7,8 @@
 #include <CGAL/Delaunay_triangulation_3.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 
+#include <algorithm>
+#include <array>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
@@ -23,6 +25,39 @@ typedef CGAL::Triangulation_data_structure_3<Vb, Fb> Tds;
 typedef CGAL::Delaunay_triangulation_3<K, Tds, CGAL::Fast_location> Delaunay;
 typedef CGAL::Alpha_shape_3<Delaunay> Alpha_shape;
 typedef K::Point_3 Point;
+
+// CGAL's facet order follows handle addresses, which depend on the heap's
+// history: number the vertices by position and sort the triangles (each
+// rotated to start at its smallest index, which keeps its orientation) so the
+// mesh depends on the points alone.
+void canonicalise(std::vector<float> &verts, std::vector<uint32_t> &tris)
+{
+    size_t nv = verts.size() / 3;
+    std::vector<uint32_t> order(nv), rank(nv);
+    for (size_t i = 0; i < nv; i++) order[i] = (uint32_t)i;
+    std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
+        for (int k = 0; k < 3; k++)
+            if (verts[3 * a + k] != verts[3 * b + k]) return verts[3 * a + k] < verts[3 * b + k];
+        return a < b;
+    });
+    std::vector<float> sorted(verts.size());
+    for (size_t i = 0; i < nv; i++) {
+        rank[order[i]] = (uint32_t)i;
+        for (int k = 0; k < 3; k++) sorted[3 * i + k] = verts[3 * order[i] + k];
+    }
+    verts.swap(sorted);
+    size_t nt = tris.size() / 3;
+    std::vector<std::array<uint32_t, 3>> t(nt);
+    for (size_t i = 0; i < nt; i++) {
+        uint32_t a = rank[tris[3 * i]], b = rank[tris[3 * i + 1]], c = rank[tris[3 * i + 2]];
+        if (b < a && b < c) t[i] = {b, c, a};
+        else if (c < a && c < b) t[i] = {c, a, b};
+        else t[i] = {a, b, c};
+    }
+    std::sort(t.begin(), t.end());
+    for (size_t i = 0; i < nt; i++)
+        for (int k = 0; k < 3; k++) tris[3 * i + k] = t[i][k];
+}
 
 int extract(const Alpha_shape &as, sy_alpha_mesh *out)
 {
@@ -50,6 +85,7 @@ int extract(const Alpha_shape &as, sy_alpha_mesh *out)
             tris.push_back(it->second);
         }
     }
+    canonicalise(verts, tris);
     out->n_verts = verts.size() / 3;
     out->n_tris = tris.size() / 3;
     out->verts = (float *)malloc(verts.size() * sizeof(float) + 1);

@@ -554,7 +554,7 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     int32_t nroot = node_of[root];
     rep->pruned_nodes = prune(&N, nroot, o->prune_factor, w, order, stack, reach);
     rep->merged_nodes = merge_siblings(&N, nroot, o->merge_cos, w, order);
-    /* Merging can leave new short stubs beside the merged stems. */
+    /* Merging can leave new short spurs beside the merged stems. */
     rep->pruned_nodes += prune(&N, nroot, o->prune_factor, w, order, stack, reach);
     rc = compact(&N, nroot, node_of, n, cloud->origin, &full, point_node, err);
     if (rc) goto done;
