@@ -9,5 +9,7 @@ const sy_command sy_commands[] = {
     {"grow", "grow a procedural species tree (Weber & Penn) and write it as glTF", cmd_grow},
     {"scan", "virtual LiDAR: scan a generated tree or plot, with exact per-point truth", cmd_scan},
     {"eval", "score a reconstruction: skeleton vs truth, model vs points, segmentation, species", cmd_eval},
+    {"skeleton", "reconstruct one tree: skeleton, clusters, hulls -> .sylva", cmd_skeleton},
+    {"decode", "summarise a .sylva tree file", cmd_decode},
     {NULL, NULL, NULL},
 };

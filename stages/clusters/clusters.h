@@ -1,0 +1,75 @@
+/* Clusters: the parts of a scanned tree that the skeleton cannot resolve into
+ * branches (foliage, dense twigs). Each cluster hangs off one seed node of the
+ * main skeleton, owns its input points and is enclosed by a closed, outward
+ * hull (an alpha shape simplified to a coarse mesh; see docs/skeleton.md).
+ * Hull vertices are in the skeleton's frame (relative to the cloud origin). */
+#ifndef SYLVA_CLUSTERS_H
+#define SYLVA_CLUSTERS_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "stages/core/skeleton.h"
+#include "stages/core/status.h"
+
+typedef enum {
+    SY_HULL_ALPHA = 0,  /* alpha shape (alpha_scale * alpha_min), possibly simplified */
+    SY_HULL_CONVEX = 1, /* convex hull: the alpha shape was not a closed manifold or lost points */
+    SY_HULL_BOX = 2     /* oriented box: too few or coplanar points for a 3-D hull */
+} sy_hull_kind;
+
+typedef struct {
+    int32_t seed;        /* node of the main skeleton the cluster hangs off */
+    size_t n_points;
+    uint32_t *points;    /* indices into the input cloud, ascending */
+    size_t n_verts;
+    float *verts;        /* 3 * n_verts */
+    size_t n_tris;
+    uint32_t *tris;      /* 3 * n_tris, counter-clockwise seen from outside */
+    float alpha;         /* CGAL alpha (a SQUARED radius) of the shape; 0 unless SY_HULL_ALPHA */
+    int hull;            /* sy_hull_kind */
+} sy_cluster;
+
+typedef struct {
+    size_t n;
+    sy_cluster *items;
+} sy_clusters;
+
+void sy_clusters_free(sy_clusters *c);
+
+/* The low-confidence edge rule (Pirk 2013 eq. 3.2 and §3.3.2, interpretation B
+ * of the digest): an edge parent->child is low-confidence when the mean
+ * distance of the child's supporting points from the edge segment exceeds
+ * fs * the child's diameter, i.e. the points spread wider than a branch of that
+ * diameter could. Returns 1 for low confidence. */
+int sy_edge_low_confidence(const float parent[3], const float child[3], const float *xyz,
+                           const uint32_t *points, size_t n_points, double diameter, double fs);
+
+/* Walks the full skeleton from the root and stops at low-confidence edges.
+ * cluster_of[i] = -1 for nodes of the main skeleton, else the cluster index;
+ * seed_of[c] = the seed node of cluster c. Groups of low-confidence subtrees
+ * with fewer than min_points supporting points in total stay on the skeleton.
+ * full must carry support. seed_of has room for full->n entries. */
+sy_code sy_clusters_cut(const sy_skeleton *full, const float *xyz, double fs, int min_points,
+                        int32_t *cluster_of, int32_t *seed_of, size_t *n_clusters, sy_error *err);
+
+/* Builds the hull of c from its points: the alpha shape of (a thinned copy
+ * of) the points with alpha = alpha_scale * alpha_min, simplified towards
+ * target_tris; it falls back to the convex hull and finally an oriented box
+ * so that the result is always closed, outward and holds >= 95% of the points
+ * within tol metres. */
+sy_code sy_cluster_build_hull(sy_cluster *c, const float *xyz, double alpha_scale, int target_tris, double tol,
+                              sy_error *err);
+
+/* ---- Mesh checks (used by the hull builder and the tests). ---- */
+
+/* Edges not shared by exactly two triangles traversing them in opposite
+ * directions; 0 for a closed, consistently oriented 2-manifold. */
+size_t sy_mesh_bad_edges(const uint32_t *tris, size_t n_tris, size_t n_verts);
+/* Signed volume (> 0 when the triangles face outward). */
+double sy_mesh_signed_volume(const float *verts, const uint32_t *tris, size_t n_tris);
+/* Fraction of the points inside the closed mesh or within tol of it. */
+double sy_mesh_containment(const float *verts, const uint32_t *tris, size_t n_tris, const float *xyz,
+                           const uint32_t *points, size_t n_points, double tol);
+
+#endif

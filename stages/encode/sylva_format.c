@@ -1,0 +1,526 @@
+/* .sylva encoder and decoder (layout in docs/sylva-format.md). The decoder
+ * treats every byte as hostile: the checksum is verified first, every count
+ * is checked against the bytes left before anything is allocated, every
+ * index against what it indexes. */
+#include "sylva_format.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stages/core/fileio.h"
+
+#define HEADER_SIZE 64
+#define MAX_NODES 1000000u
+#define MAX_CLUSTERS 100000u
+/* Grid coordinates stay below 2^23 in magnitude, so every decoded position
+ * (box_min + q) * step is exact in a float and re-quantises to q. */
+#define MAX_BOX (1 << 23)
+
+static int box_ok(const int32_t b[3])
+{
+    for (int k = 0; k < 3; k++)
+        if (b[k] < -MAX_BOX || b[k] > MAX_BOX - 65536) return 0;
+    return 1;
+}
+
+/* ---- Byte buffer ---- */
+
+typedef struct {
+    unsigned char *p;
+    size_t n, cap;
+    int oom;
+} wbuf;
+
+static void put(wbuf *b, const void *src, size_t n)
+{
+    if (b->oom) return;
+    if (b->n + n > b->cap) {
+        size_t cap = b->cap ? b->cap : 4096;
+        while (cap < b->n + n) cap *= 2;
+        unsigned char *q = realloc(b->p, cap);
+        if (!q) {
+            b->oom = 1;
+            return;
+        }
+        b->p = q;
+        b->cap = cap;
+    }
+    memcpy(b->p + b->n, src, n);
+    b->n += n;
+}
+
+static void put_u8(wbuf *b, unsigned v)
+{
+    unsigned char c = (unsigned char)v;
+    put(b, &c, 1);
+}
+
+static void put_le(wbuf *b, uint64_t v, int bytes)
+{
+    for (int i = 0; i < bytes; i++) put_u8(b, (unsigned)(v >> (8 * i)) & 0xff);
+}
+
+static void put_f32(wbuf *b, float f)
+{
+    uint32_t u;
+    memcpy(&u, &f, 4);
+    put_le(b, u, 4);
+}
+
+static void put_f64(wbuf *b, double f)
+{
+    uint64_t u;
+    memcpy(&u, &f, 8);
+    put_le(b, u, 8);
+}
+
+static void put_varint(wbuf *b, uint64_t v)
+{
+    while (v >= 0x80) {
+        put_u8(b, (unsigned)(v & 0x7f) | 0x80);
+        v >>= 7;
+    }
+    put_u8(b, (unsigned)v);
+}
+
+static uint32_t crc32(const unsigned char *p, size_t n)
+{
+    uint32_t c = 0xffffffffu;
+    for (size_t i = 0; i < n; i++) {
+        c ^= p[i];
+        for (int k = 0; k < 8; k++) c = (c >> 1) ^ (0xedb88320u & (0u - (c & 1)));
+    }
+    return ~c;
+}
+
+/* ---- Quantisation ---- */
+
+static double step_of(const sy_sylva_quant *q) { return ldexp(1.0, q->step_log2); }
+
+static int quant_pos(const sy_sylva_quant *q, const float *v, uint16_t out[3])
+{
+    double st = step_of(q);
+    for (int k = 0; k < 3; k++) {
+        double t = floor((double)v[k] / st + 0.5) - (double)q->box_min[k];
+        if (!(t >= 0 && t <= 65535)) return -1;
+        out[k] = (uint16_t)t;
+    }
+    return 0;
+}
+
+static uint16_t quant_radius(const sy_sylva_quant *q, float r)
+{
+    double span = (double)q->log2_rmax - q->log2_rmin;
+    if (!(span > 0)) return 0;
+    double t = floor((log2((double)r) - q->log2_rmin) / span * 65535.0 + 0.5);
+    return (uint16_t)(t < 0 ? 0 : t > 65535 ? 65535 : t);
+}
+
+static float dequant_radius(const sy_sylva_quant *q, uint16_t v)
+{
+    double span = (double)q->log2_rmax - q->log2_rmin;
+    return (float)exp2(q->log2_rmin + (span > 0 ? span * v / 65535.0 : 0));
+}
+
+/* The grid: the smallest power-of-two step that spans the data in 65535. */
+static void choose_quant(const sy_skeleton *s, const sy_clusters *cl, sy_sylva_quant *q)
+{
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    double rlo = INFINITY, rhi = -INFINITY;
+    for (size_t i = 0; i < s->n; i++) {
+        for (int k = 0; k < 3; k++) {
+            lo[k] = fmin(lo[k], s->pos[3 * i + k]);
+            hi[k] = fmax(hi[k], s->pos[3 * i + k]);
+        }
+        rlo = fmin(rlo, s->radius[i]);
+        rhi = fmax(rhi, s->radius[i]);
+    }
+    for (size_t c = 0; cl && c < cl->n; c++)
+        for (size_t v = 0; v < cl->items[c].n_verts; v++)
+            for (int k = 0; k < 3; k++) {
+                lo[k] = fmin(lo[k], cl->items[c].verts[3 * v + k]);
+                hi[k] = fmax(hi[k], cl->items[c].verts[3 * v + k]);
+            }
+    int e = -30;
+    for (; e < 30; e++) {
+        double st = ldexp(1.0, e);
+        int fits = 1;
+        for (int k = 0; k < 3; k++) {
+            double a = floor(lo[k] / st + 0.5), b = floor(hi[k] / st + 0.5);
+            fits &= b - a <= 65535 && a >= -MAX_BOX && a <= MAX_BOX - 65536;
+        }
+        if (fits) break;
+    }
+    q->step_log2 = e;
+    for (int k = 0; k < 3; k++) q->box_min[k] = (int32_t)floor(lo[k] / ldexp(1.0, e) + 0.5);
+    q->log2_rmin = (float)floor(log2(rlo) * 1024) / 1024; /* round outward so the ends stay in range */
+    q->log2_rmax = (float)ceil(log2(rhi) * 1024) / 1024;
+    /* At least one octave, so float rounding of a decoded radius stays far
+     * below half a quantisation step and re-encoding is exact. */
+    if (q->log2_rmax < q->log2_rmin + 1) q->log2_rmax = q->log2_rmin + 1;
+}
+
+/* ---- Encoder ---- */
+
+static int cmp_tri(const void *a, const void *b)
+{
+    const uint32_t *x = a, *y = b;
+    for (int k = 0; k < 3; k++)
+        if (x[k] != y[k]) return x[k] < y[k] ? -1 : 1;
+    return 0;
+}
+
+/* Breadth-first order from the root, children by index: order[new] = old. */
+static sy_code bfs(const sy_skeleton *s, int32_t *order, int32_t *newid, sy_error *err)
+{
+    size_t n = s->n, *start = sy_calloc(n + 1, sizeof *start, err, "encode");
+    int32_t *kids = sy_calloc(n ? n : 1, sizeof *kids, err, "encode");
+    if (!start || !kids) {
+        free(start);
+        free(kids);
+        return SY_EINTERNAL;
+    }
+    int32_t root = -1;
+    for (size_t i = 0; i < n; i++) {
+        if (s->parent[i] < 0) root = (int32_t)i;
+        else start[s->parent[i] + 1]++;
+    }
+    for (size_t i = 0; i < n; i++) start[i + 1] += start[i];
+    size_t *fill = start; /* fill in index order, then shift back */
+    for (size_t i = 0; i < n; i++)
+        if (s->parent[i] >= 0) kids[fill[s->parent[i]]++] = (int32_t)i;
+    for (size_t i = n; i > 0; i--) start[i] = start[i - 1];
+    start[0] = 0;
+    size_t head = 0, tail = 0;
+    order[tail++] = root;
+    while (head < tail) {
+        int32_t u = order[head++];
+        for (size_t t = start[u]; t < start[u + 1]; t++) order[tail++] = kids[t];
+    }
+    for (size_t i = 0; i < n; i++) newid[order[i]] = (int32_t)i;
+    free(start);
+    free(kids);
+    return SY_OK;
+}
+
+sy_code sy_encode_mem(const sy_skeleton *s, const sy_clusters *cl, uint16_t species_id, uint64_t seed,
+                      const sy_sylva_quant *quant, unsigned char **out, size_t *size, sy_error *err)
+{
+    *out = NULL;
+    *size = 0;
+    if (s->n == 0) return sy_fail(err, SY_EINPUT, "encode: the skeleton is empty");
+    if (s->n > MAX_NODES) return sy_fail(err, SY_EINPUT, "encode: %zu skeleton nodes exceed %u", s->n, MAX_NODES);
+    if (cl && cl->n > MAX_CLUSTERS) return sy_fail(err, SY_EINPUT, "encode: too many clusters");
+    sy_code rc = sy_skeleton_validate(s, err);
+    if (rc) return rc;
+    for (size_t c = 0; cl && c < cl->n; c++) {
+        const sy_cluster *C = &cl->items[c];
+        if (C->seed < 0 || (size_t)C->seed >= s->n)
+            return sy_fail(err, SY_EINPUT, "encode: cluster %zu has no seed node", c);
+        if (C->n_verts < 4 || C->n_tris < 4)
+            return sy_fail(err, SY_EINPUT, "encode: cluster %zu has no closed hull", c);
+        if (C->n_verts > 65535) return sy_fail(err, SY_EINPUT, "encode: cluster %zu hull has too many vertices", c);
+        for (size_t t = 0; t < 3 * C->n_tris; t++)
+            if (C->tris[t] >= C->n_verts) return sy_fail(err, SY_EINPUT, "encode: cluster %zu hull index out of range", c);
+    }
+    sy_sylva_quant q;
+    if (quant) q = *quant;
+    else choose_quant(s, cl, &q);
+    if (q.step_log2 < -30 || q.step_log2 > 30 || !(q.log2_rmin + 1 <= q.log2_rmax) || !box_ok(q.box_min))
+        return sy_fail(err, SY_EINPUT, "encode: invalid quantisation");
+    for (size_t i = 0; i < s->n; i++) {
+        double lr = log2(s->radius[i]);
+        if (lr < q.log2_rmin - 1e-6 || lr > q.log2_rmax + 1e-6)
+            return sy_fail(err, SY_EINPUT, "encode: radius of node %zu outside the quantisation range", i);
+    }
+
+    int32_t *order = sy_calloc(s->n, sizeof *order, err, "encode");
+    int32_t *newid = sy_calloc(s->n, sizeof *newid, err, "encode");
+    uint32_t *tri = NULL;
+    wbuf b = {0};
+    if (!order || !newid) {
+        rc = SY_EINTERNAL;
+        goto done;
+    }
+    rc = bfs(s, order, newid, err);
+    if (rc) goto done;
+
+    put(&b, "SYLV", 4);
+    put_u8(&b, SY_SYLVA_VERSION);
+    put_u8(&b, 0);
+    put_le(&b, species_id, 2);
+    put_le(&b, seed, 8);
+    for (int k = 0; k < 3; k++) put_f64(&b, s->origin[k]);
+    put_le(&b, (uint32_t)q.step_log2, 4);
+    for (int k = 0; k < 3; k++) put_le(&b, (uint32_t)q.box_min[k], 4);
+    put_f32(&b, q.log2_rmin);
+    put_f32(&b, q.log2_rmax);
+
+    put_varint(&b, s->n);
+    for (size_t i = 0; i < s->n; i++) {
+        int32_t o = order[i];
+        if (i > 0) {
+            int32_t p = s->parent[o];
+            uint64_t starts = s->branch[o] != s->branch[p];
+            put_varint(&b, ((uint64_t)(i - (size_t)newid[p]) << 1) | starts);
+        }
+        uint16_t qp[3];
+        if (quant_pos(&q, s->pos + 3 * (size_t)o, qp)) {
+            rc = sy_fail(err, SY_EINPUT, "encode: node %d lies outside the quantisation grid", o);
+            goto done;
+        }
+        for (int k = 0; k < 3; k++) put_le(&b, qp[k], 2);
+        put_le(&b, quant_radius(&q, s->radius[o]), 2);
+    }
+
+    put_varint(&b, cl ? cl->n : 0);
+    for (size_t c = 0; cl && c < cl->n; c++) {
+        const sy_cluster *C = &cl->items[c];
+        put_varint(&b, ((uint64_t)newid[C->seed] << 2) | (uint64_t)(C->hull & 3));
+        put_varint(&b, C->n_verts);
+        for (size_t v = 0; v < C->n_verts; v++) {
+            uint16_t qp[3];
+            if (quant_pos(&q, C->verts + 3 * v, qp)) {
+                rc = sy_fail(err, SY_EINPUT, "encode: cluster %zu vertex outside the quantisation grid", c);
+                goto done;
+            }
+            for (int k = 0; k < 3; k++) put_le(&b, qp[k], 2);
+        }
+        /* Canonical triangles: smallest index first (orientation kept), sorted. */
+        free(tri);
+        tri = sy_calloc(C->n_tris ? C->n_tris : 1, 3 * sizeof *tri, err, "encode");
+        if (!tri) {
+            rc = SY_EINTERNAL;
+            goto done;
+        }
+        for (size_t t = 0; t < C->n_tris; t++) {
+            const uint32_t *x = C->tris + 3 * t;
+            int m = x[0] <= x[1] && x[0] <= x[2] ? 0 : x[1] <= x[2] ? 1 : 2;
+            for (int k = 0; k < 3; k++) tri[3 * t + k] = x[(m + k) % 3];
+        }
+        qsort(tri, C->n_tris, 3 * sizeof *tri, cmp_tri);
+        put_varint(&b, C->n_tris);
+        uint32_t prev = 0;
+        for (size_t t = 0; t < C->n_tris; t++) {
+            put_varint(&b, tri[3 * t] - prev);
+            put_varint(&b, tri[3 * t + 1] - tri[3 * t]);
+            put_varint(&b, tri[3 * t + 2] - tri[3 * t]);
+            prev = tri[3 * t];
+        }
+    }
+    if (!b.oom) put_le(&b, crc32(b.p, b.n), 4);
+    if (b.oom) {
+        rc = sy_fail(err, SY_EINTERNAL, "encode: out of memory");
+        goto done;
+    }
+    *out = b.p;
+    *size = b.n;
+    b.p = NULL;
+done:
+    free(b.p);
+    free(order);
+    free(newid);
+    free(tri);
+    return rc;
+}
+
+sy_code sy_encode_write(const char *path, const sy_skeleton *skel, const sy_clusters *clusters, uint16_t species_id,
+                        uint64_t seed, sy_error *err)
+{
+    unsigned char *data;
+    size_t size;
+    sy_code rc = sy_encode_mem(skel, clusters, species_id, seed, NULL, &data, &size, err);
+    if (rc) return rc;
+    rc = sy_write_file_atomic(path, data, size, err);
+    free(data);
+    return rc;
+}
+
+/* ---- Decoder ---- */
+
+typedef struct {
+    const unsigned char *p;
+    size_t n, at;
+    int bad;
+} rbuf;
+
+static uint64_t get_le(rbuf *r, int bytes)
+{
+    if (r->bad || r->n - r->at < (size_t)bytes) {
+        r->bad = 1;
+        return 0;
+    }
+    uint64_t v = 0;
+    for (int i = 0; i < bytes; i++) v |= (uint64_t)r->p[r->at + i] << (8 * i);
+    r->at += (size_t)bytes;
+    return v;
+}
+
+static uint64_t get_varint(rbuf *r)
+{
+    uint64_t v = 0;
+    for (int shift = 0; shift < 35; shift += 7) {
+        if (r->bad || r->at >= r->n) break;
+        unsigned char c = r->p[r->at++];
+        v |= (uint64_t)(c & 0x7f) << shift;
+        if (!(c & 0x80)) return v;
+    }
+    r->bad = 1; /* truncated, or longer than any count this format holds */
+    return 0;
+}
+
+static size_t left(const rbuf *r) { return r->n - r->at; }
+
+sy_code sy_decode_mem(const char *path, const unsigned char *data, size_t size, sy_skeleton *s, sy_clusters *cl,
+                      sy_sylva_meta *meta, sy_error *err)
+{
+    memset(s, 0, sizeof *s);
+    memset(cl, 0, sizeof *cl);
+    memset(meta, 0, sizeof *meta);
+    if (size < 4 || memcmp(data, "SYLV", 4) != 0) return sy_fail(err, SY_EINPUT, "%s: not a .sylva file", path);
+    if (size < HEADER_SIZE + 4) return sy_fail(err, SY_EINPUT, "%s: truncated header (%zu bytes)", path, size);
+    if (data[4] != SY_SYLVA_VERSION)
+        return sy_fail(err, SY_EINPUT, "%s: unsupported .sylva version %u", path, (unsigned)data[4]);
+    rbuf r = {data, size - 4, 0, 0};
+    rbuf tail = {data, size, size - 4, 0};
+    if ((uint32_t)get_le(&tail, 4) != crc32(data, size - 4))
+        return sy_fail(err, SY_EINPUT, "%s: checksum mismatch (corrupted or truncated)", path);
+    r.at = 6;
+    meta->species_id = (uint16_t)get_le(&r, 2);
+    meta->seed = get_le(&r, 8);
+    double origin[3];
+    for (int k = 0; k < 3; k++) {
+        uint64_t u = get_le(&r, 8);
+        memcpy(&origin[k], &u, 8);
+    }
+    sy_sylva_quant *q = &meta->quant;
+    q->step_log2 = (int32_t)(uint32_t)get_le(&r, 4);
+    for (int k = 0; k < 3; k++) q->box_min[k] = (int32_t)(uint32_t)get_le(&r, 4);
+    uint32_t u = (uint32_t)get_le(&r, 4);
+    memcpy(&q->log2_rmin, &u, 4);
+    u = (uint32_t)get_le(&r, 4);
+    memcpy(&q->log2_rmax, &u, 4);
+    for (int k = 0; k < 3; k++)
+        if (!isfinite(origin[k])) return sy_fail(err, SY_EINPUT, "%s: origin is not finite", path);
+    if (q->step_log2 < -30 || q->step_log2 > 30 || !isfinite(q->log2_rmin) || !isfinite(q->log2_rmax) ||
+        q->log2_rmin + 1 > q->log2_rmax || q->log2_rmin < -60 || q->log2_rmax > 20 || !box_ok(q->box_min))
+        return sy_fail(err, SY_EINPUT, "%s: invalid quantisation header", path);
+    double st = step_of(q);
+
+    uint64_t n = get_varint(&r);
+    /* A node takes at least 8 bytes; refuse counts the file cannot hold. */
+    if (r.bad || n == 0 || n > MAX_NODES || n > left(&r) / 8)
+        return sy_fail(err, SY_EINPUT, "%s: bad node count", path);
+    sy_code rc = sy_skeleton_init(s, (size_t)n, err);
+    if (rc) return rc;
+    memcpy(s->origin, origin, sizeof origin);
+    int32_t next_branch = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (i == 0) {
+            s->parent[0] = -1;
+            s->branch[0] = next_branch++;
+            s->order[0] = 0;
+        } else {
+            uint64_t v = get_varint(&r), delta = v >> 1;
+            if (r.bad || delta == 0 || delta > i) {
+                rc = sy_fail(err, SY_EINPUT, "%s: node %zu has an invalid parent", path, i);
+                goto fail;
+            }
+            int32_t p = (int32_t)(i - delta);
+            s->parent[i] = p;
+            if (v & 1) {
+                s->branch[i] = next_branch++;
+                s->order[i] = (uint8_t)(s->order[p] < 255 ? s->order[p] + 1 : 255);
+            } else {
+                s->branch[i] = s->branch[p];
+                s->order[i] = s->order[p];
+            }
+        }
+        for (int k = 0; k < 3; k++) s->pos[3 * i + k] = (float)(((double)q->box_min[k] + (double)get_le(&r, 2)) * st);
+        s->radius[i] = dequant_radius(q, (uint16_t)get_le(&r, 2));
+        if (r.bad) {
+            rc = sy_fail(err, SY_EINPUT, "%s: truncated in node %zu", path, i);
+            goto fail;
+        }
+    }
+
+    uint64_t nc = get_varint(&r);
+    /* A cluster takes at least 3 varints + 4 vertices + 4 triangles. */
+    if (r.bad || nc > MAX_CLUSTERS || nc > left(&r) / 39) {
+        rc = sy_fail(err, SY_EINPUT, "%s: bad cluster count", path);
+        goto fail;
+    }
+    if (nc) {
+        cl->items = sy_calloc((size_t)nc, sizeof *cl->items, err, "decode");
+        if (!cl->items) {
+            rc = SY_EINTERNAL;
+            goto fail;
+        }
+        cl->n = (size_t)nc;
+    }
+    for (size_t c = 0; c < nc; c++) {
+        sy_cluster *C = &cl->items[c];
+        uint64_t seed_kind = get_varint(&r), nv = get_varint(&r), seed = seed_kind >> 2;
+        if (r.bad || seed >= n || (seed_kind & 3) > SY_HULL_BOX || nv < 4 || nv > 65535 || nv > left(&r) / 6) {
+            rc = sy_fail(err, SY_EINPUT, "%s: cluster %zu has a bad seed or vertex count", path, c);
+            goto fail;
+        }
+        C->seed = (int32_t)seed;
+        C->hull = (int)(seed_kind & 3);
+        C->verts = sy_calloc((size_t)nv, 3 * sizeof *C->verts, err, "decode");
+        if (!C->verts) {
+            rc = SY_EINTERNAL;
+            goto fail;
+        }
+        C->n_verts = (size_t)nv;
+        for (size_t v = 0; v < nv; v++)
+            for (int k = 0; k < 3; k++) C->verts[3 * v + k] = (float)(((double)q->box_min[k] + (double)get_le(&r, 2)) * st);
+        uint64_t nt = get_varint(&r);
+        if (r.bad || nt < 4 || nt > left(&r) / 3) {
+            rc = sy_fail(err, SY_EINPUT, "%s: cluster %zu has a bad triangle count", path, c);
+            goto fail;
+        }
+        C->tris = sy_calloc((size_t)nt, 3 * sizeof *C->tris, err, "decode");
+        if (!C->tris) {
+            rc = SY_EINTERNAL;
+            goto fail;
+        }
+        C->n_tris = (size_t)nt;
+        uint64_t a = 0;
+        for (size_t t = 0; t < nt; t++) {
+            a += get_varint(&r);
+            uint64_t b = a + get_varint(&r), d = a + get_varint(&r);
+            if (r.bad || a >= nv || b >= nv || d >= nv) {
+                rc = sy_fail(err, SY_EINPUT, "%s: cluster %zu triangle %zu is invalid", path, c, t);
+                goto fail;
+            }
+            C->tris[3 * t] = (uint32_t)a;
+            C->tris[3 * t + 1] = (uint32_t)b;
+            C->tris[3 * t + 2] = (uint32_t)d;
+        }
+    }
+    if (left(&r) != 0) {
+        rc = sy_fail(err, SY_EINPUT, "%s: %zu unexpected bytes after the clusters", path, left(&r));
+        goto fail;
+    }
+    return SY_OK;
+fail:
+    sy_skeleton_free(s);
+    sy_clusters_free(cl);
+    return rc;
+}
+
+sy_code sy_decode_read(const char *path, sy_skeleton *skel, sy_clusters *clusters, sy_sylva_meta *meta,
+                       sy_error *err)
+{
+    sy_buffer b;
+    memset(skel, 0, sizeof *skel);
+    memset(clusters, 0, sizeof *clusters);
+    memset(meta, 0, sizeof *meta);
+    sy_code rc = sy_read_file(path, &b, err);
+    if (rc) return rc;
+    rc = sy_decode_mem(path, b.data, b.size, skel, clusters, meta, err);
+    sy_buffer_free(&b);
+    return rc;
+}

@@ -1,0 +1,58 @@
+/* The .sylva file: one reconstructed tree in a few kilobytes (Pirk 2013
+ * Table 3.2: < 40 kB per scanned tree). It holds the main skeleton as spline
+ * control points with radii, the cluster hulls with their seed nodes, the
+ * species id and the synthesis seed. Layout: docs/sylva-format.md.
+ *
+ * Quantisation: positions are 16-bit multiples of a power-of-two step, the
+ * smallest at or above extent / 65535 (0.49 mm for a 30 m tree, 0.12 mm for
+ * 8 m), so a decoded position is within half a step of the original. Radii
+ * are 16-bit on a log2 scale between the smallest and largest radius
+ * (relative error below (log2(rmax / rmin) / 65535) * ln 2 / 2, 5e-5 for a
+ * 1000:1 range). Decoding then re-encoding with the file's own quantisation
+ * reproduces the file byte for byte. */
+#ifndef SYLVA_SYLVA_FORMAT_H
+#define SYLVA_SYLVA_FORMAT_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "stages/clusters/clusters.h"
+#include "stages/core/skeleton.h"
+#include "stages/core/status.h"
+
+#define SY_SYLVA_VERSION 1
+
+/* The quantisation grid of one file. */
+typedef struct {
+    int32_t step_log2;  /* position step = 2^step_log2 metres */
+    int32_t box_min[3]; /* lower corner of the grid, in steps (relative to origin) */
+    float log2_rmin, log2_rmax;
+} sy_sylva_quant;
+
+/* What a file holds besides the skeleton and clusters. */
+typedef struct {
+    uint16_t species_id;
+    uint64_t seed;
+    sy_sylva_quant quant;
+} sy_sylva_meta;
+
+/* Encodes to memory (*out malloc'd). The skeleton is written in
+ * breadth-first order from its root (children by index), branch ids
+ * renumbered in that order; cluster points are not stored. quant NULL picks
+ * the grid from the data; a given quant must cover the data (SY_EINPUT). */
+sy_code sy_encode_mem(const sy_skeleton *skel, const sy_clusters *clusters, uint16_t species_id, uint64_t seed,
+                      const sy_sylva_quant *quant, unsigned char **out, size_t *size, sy_error *err);
+
+/* Writes the file atomically. */
+sy_code sy_encode_write(const char *path, const sy_skeleton *skel, const sy_clusters *clusters, uint16_t species_id,
+                        uint64_t seed, sy_error *err);
+
+/* Decodes a file image; path names it in messages. Every malformed,
+ * truncated or corrupted input fails with one SY_EINPUT line naming path. */
+sy_code sy_decode_mem(const char *path, const unsigned char *data, size_t size, sy_skeleton *skel,
+                      sy_clusters *clusters, sy_sylva_meta *meta, sy_error *err);
+
+sy_code sy_decode_read(const char *path, sy_skeleton *skel, sy_clusters *clusters, sy_sylva_meta *meta,
+                       sy_error *err);
+
+#endif

@@ -1,0 +1,261 @@
+/* Radii: the trunk diameter at breast height from a robust circle fit, every
+ * other radius from the pipe-model allometry of Pirk 2013 eq. 3.1. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "skeleton_internal.h"
+
+/* ---- Circle fit ---- */
+
+static uint64_t rng_next(uint64_t *s)
+{
+    /* splitmix64: tiny, seedable, good enough to pick RANSAC triples. */
+    uint64_t z = (*s += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+}
+
+/* Circle through three points; 0 when they are (nearly) collinear. */
+static int circle3(const double *a, const double *b, const double *c, double ctr[2], double *r)
+{
+    double bx = b[0] - a[0], by = b[1] - a[1], cx = c[0] - a[0], cy = c[1] - a[1];
+    double d = 2 * (bx * cy - by * cx);
+    if (fabs(d) < 1e-12) return 0;
+    double b2 = bx * bx + by * by, c2 = cx * cx + cy * cy;
+    double ux = (cy * b2 - by * c2) / d, uy = (bx * c2 - cx * b2) / d;
+    ctr[0] = a[0] + ux;
+    ctr[1] = a[1] + uy;
+    *r = sqrt(ux * ux + uy * uy);
+    return 1;
+}
+
+/* Geometric least squares (Gauss-Newton on |p - c| - r) over the points
+ * within tol of the current circle. Returns the number of inliers used. */
+static size_t refine(const double *xy, size_t n, double tol, double c[2], double *r, double *rms)
+{
+    size_t used = 0;
+    for (int it = 0; it < 20; it++) {
+        double A[3][3] = {{0}}, g[3] = {0}, ss = 0;
+        used = 0;
+        for (size_t i = 0; i < n; i++) {
+            double dx = xy[2 * i] - c[0], dy = xy[2 * i + 1] - c[1], d = sqrt(dx * dx + dy * dy);
+            double res = d - *r;
+            if (fabs(res) > tol || d < 1e-12) continue;
+            double J[3] = {-dx / d, -dy / d, -1};
+            for (int a = 0; a < 3; a++) {
+                g[a] += J[a] * res;
+                for (int b = 0; b < 3; b++) A[a][b] += J[a] * J[b];
+            }
+            ss += res * res;
+            used++;
+        }
+        if (used < 3) return used;
+        *rms = sqrt(ss / (double)used);
+        /* Solve A * delta = -g by Cramer's rule (3x3). */
+        double det = A[0][0] * (A[1][1] * A[2][2] - A[1][2] * A[2][1]) -
+                     A[0][1] * (A[1][0] * A[2][2] - A[1][2] * A[2][0]) +
+                     A[0][2] * (A[1][0] * A[2][1] - A[1][1] * A[2][0]);
+        if (fabs(det) < 1e-18) return used;
+        double delta[3];
+        for (int col = 0; col < 3; col++) {
+            double M[3][3];
+            memcpy(M, A, sizeof M);
+            for (int row = 0; row < 3; row++) M[row][col] = -g[row];
+            delta[col] = (M[0][0] * (M[1][1] * M[2][2] - M[1][2] * M[2][1]) -
+                          M[0][1] * (M[1][0] * M[2][2] - M[1][2] * M[2][0]) +
+                          M[0][2] * (M[1][0] * M[2][1] - M[1][1] * M[2][0])) /
+                         det;
+        }
+        c[0] += delta[0];
+        c[1] += delta[1];
+        *r += delta[2];
+        if (fabs(delta[0]) + fabs(delta[1]) + fabs(delta[2]) < 1e-9) break;
+    }
+    return used;
+}
+
+int sy_fit_circle(const double *xy, size_t n, double tol, unsigned long long seed, double centre[2], double *radius,
+                  double *rms)
+{
+    if (n < 5 || !(tol > 0)) return -1;
+    uint64_t st = seed ^ 0x5eed;
+    size_t best_in = 0;
+    double bc[2] = {0, 0}, br = 0;
+    for (int it = 0; it < 300; it++) {
+        size_t i = rng_next(&st) % n, j = rng_next(&st) % n, k = rng_next(&st) % n;
+        if (i == j || j == k || i == k) continue;
+        double c[2], r;
+        if (!circle3(xy + 2 * i, xy + 2 * j, xy + 2 * k, c, &r)) continue;
+        size_t in = 0;
+        for (size_t t = 0; t < n; t++) {
+            double dx = xy[2 * t] - c[0], dy = xy[2 * t + 1] - c[1];
+            if (fabs(sqrt(dx * dx + dy * dy) - r) <= tol) in++;
+        }
+        if (in > best_in) {
+            best_in = in;
+            bc[0] = c[0];
+            bc[1] = c[1];
+            br = r;
+        }
+    }
+    if (best_in < 5) return -1;
+    double r = br, e = 0;
+    size_t used = refine(xy, n, tol, bc, &r, &e);
+    if (used < 5 || !(r > 0) || !isfinite(r)) return -1;
+    centre[0] = bc[0];
+    centre[1] = bc[1];
+    *radius = r;
+    *rms = e;
+    return 0;
+}
+
+/* ---- Subtree lengths, branches ---- */
+
+static double edge_len(const sy_skeleton *s, size_t i)
+{
+    int32_t p = s->parent[i];
+    if (p < 0) return 0;
+    double d2 = 0;
+    for (int a = 0; a < 3; a++) {
+        double d = s->pos[3 * i + a] - s->pos[3 * (size_t)p + a];
+        d2 += d * d;
+    }
+    return sqrt(d2);
+}
+
+void sy_subtree_lengths(const sy_skeleton *s, double *l)
+{
+    for (size_t i = 0; i < s->n; i++) l[i] = edge_len(s, i);
+    for (size_t i = s->n; i-- > 1;)
+        if (s->parent[i] >= 0) l[s->parent[i]] += l[i];
+}
+
+void sy_assign_branches(sy_skeleton *s, const double *l)
+{
+    size_t n = s->n;
+    int32_t *cont = malloc((n ? n : 1) * sizeof *cont);
+    if (!cont) return; /* leaves the previous ids: only cosmetic information is lost */
+    for (size_t i = 0; i < n; i++) cont[i] = -1;
+    for (size_t i = 1; i < n; i++) {
+        int32_t p = s->parent[i];
+        if (p >= 0 && (cont[p] < 0 || l[i] > l[cont[p]])) cont[p] = (int32_t)i;
+    }
+    int32_t next = 0;
+    for (size_t i = 0; i < n; i++) {
+        int32_t p = s->parent[i];
+        if (p < 0) {
+            s->branch[i] = next++;
+            s->order[i] = 0;
+        } else if (cont[p] == (int32_t)i) {
+            s->branch[i] = s->branch[p];
+            s->order[i] = s->order[p];
+        } else {
+            s->branch[i] = next++;
+            s->order[i] = (uint8_t)(s->order[p] < 255 ? s->order[p] + 1 : 255);
+        }
+    }
+    free(cont);
+}
+
+/* ---- Radii ---- */
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of, size_t n, double gamma,
+                        double spacing, double dbh_height, double slab, sy_radii_info *info, sy_error *err)
+{
+    memset(info, 0, sizeof *info);
+    size_t m = s->n;
+    double *l = sy_calloc(m ? m : 1, sizeof *l, err, "radii");
+    double *xy = sy_calloc(n ? n : 1, 2 * sizeof *xy, err, "radii");
+    if (!l || !xy) {
+        free(l);
+        free(xy);
+        return SY_EINTERNAL;
+    }
+    sy_subtree_lengths(s, l);
+    double z0 = s->pos[2], zmax = z0;
+    for (size_t i = 0; i < n; i++) zmax = fmax(zmax, xyz[3 * i + 2]);
+    info->height = zmax - z0;
+    /* Short trees (saplings, test scenes) are measured a quarter up instead. */
+    double zb = z0 + fmin(dbh_height, 0.25 * info->height);
+    info->dbh_z = zb - z0;
+    /* The trunk node nearest breast height carries the DBH exactly. */
+    size_t ub = 0;
+    double bd = INFINITY;
+    for (size_t i = 0; i < m; i++)
+        if (s->branch[i] == 0 && fabs(s->pos[3 * i + 2] - zb) < bd) {
+            bd = fabs(s->pos[3 * i + 2] - zb);
+            ub = i;
+        }
+    size_t k = 0;
+    double sx = 0, sy = 0, c[2], r = 0, rms = 0;
+    double tol = fmax(0.01, spacing);
+    /* Sparse scans leave few points in a 10 cm slab: widen it (trunks are
+     * near vertical, so a taller slab still cuts one circle). */
+    for (int pass = 0; pass < 8 && !info->fitted; pass++) {
+        int widen = 1 << (pass % 4), near_axis = pass >= 4;
+        k = 0;
+        sx = sy = 0;
+        for (size_t i = 0; i < n; i++) {
+            if (fabs(xyz[3 * i + 2] - zb) > widen * slab / 2) continue;
+            /* Trunk points: on a trunk node, or (for sparse scans whose level
+             * sets mix heights) within half a metre of the trunk's axis. */
+            int32_t v = node_of[i];
+            if (!(v >= 0 && s->branch[v] == 0) &&
+                (!near_axis || hypot(xyz[3 * i] - s->pos[3 * ub], xyz[3 * i + 1] - s->pos[3 * ub + 1]) > 0.5))
+                continue;
+            xy[2 * k] = xyz[3 * i];
+            xy[2 * k + 1] = xyz[3 * i + 1];
+            sx += xy[2 * k];
+            sy += xy[2 * k + 1];
+            k++;
+        }
+        if (k >= 10 && sy_fit_circle(xy, k, tol, 1, c, &r, &rms) == 0 && r < 0.5 * info->height) {
+            /* A fitted centre far outside the slab's points means the arc was
+             * too short to define the circle; the fallback is safer then. */
+            double mx = sx / (double)k, my = sy / (double)k;
+            if (hypot(c[0] - mx, c[1] - my) <= 1.5 * r) info->fitted = 1;
+        }
+    }
+    if (!info->fitted && k >= 3) {
+        /* Fallback (AdTree's): half the wider of the x and y extents of the
+         * slab, between the 5th and 95th percentiles to shed strays. A
+         * distance-from-centroid estimate would shrink on one-sided scans. */
+        double half = 0;
+        for (int a = 0; a < 2; a++) {
+            double *v = malloc(k * sizeof *v);
+            if (!v) break;
+            for (size_t i = 0; i < k; i++) v[i] = xy[2 * i + a];
+            qsort(v, k, sizeof *v, cmp_double);
+            half = fmax(half, 0.5 * (v[k - 1 - k / 20] - v[k / 20]));
+            free(v);
+        }
+        r = half;
+        rms = 0;
+    }
+    if (!(r > 0)) r = fmax(spacing, 0.01);
+    info->dbh = 2 * r;
+    info->rms = rms;
+    double inv = 1.0 / gamma;
+    double frac = l[ub] > 0 && l[0] > 0 ? l[ub] / l[0] : 1;
+    info->d_root = info->dbh / pow(frac, inv);
+    double rmin = fmax(0.25 * spacing, 0.001);
+    for (size_t i = 0; i < m; i++) {
+        double f = l[0] > 0 ? l[i] / l[0] : 1;
+        double ri = 0.5 * info->d_root * pow(f, inv);
+        s->radius[i] = (float)fmax(ri, rmin);
+    }
+    /* Float rounding must not let a child exceed its parent. */
+    for (size_t i = 1; i < m; i++)
+        if (s->parent[i] >= 0 && s->radius[i] > s->radius[s->parent[i]]) s->radius[i] = s->radius[s->parent[i]];
+    free(l);
+    free(xy);
+    return SY_OK;
+}

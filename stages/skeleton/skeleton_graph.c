@@ -1,0 +1,820 @@
+/* Neighbour graph over the points (kNN joined with a radius graph, bridged to
+ * one component) and the Dijkstra shortest-path tree over it.
+ *
+ * Spatial queries use a uniform grid hashed by cell: with the cell edge equal
+ * to the join radius (about two point spacings) a query almost always ends
+ * after the 27 cells around the point, which is faster than a kd-tree for the
+ * near-uniform spacing of voxel-thinned scans and keeps the code in C. */
+#include "skeleton_stage.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stages/core/parallel.h"
+
+/* ---- Uniform hashed grid ---- */
+
+typedef struct {
+    double h, lo[3];
+    size_t n_cells;
+    uint32_t *order;     /* point indices sorted by cell */
+    float *pts;          /* their coordinates in that order (3 each), for locality */
+    size_t *cell_start;  /* n_cells + 1 into order */
+    uint64_t *cell_key;  /* n_cells */
+    int32_t *cell_coord; /* 3 * n_cells */
+    uint32_t *table;     /* open addressing: cell index + 1, 0 = empty */
+    size_t mask;
+} grid;
+
+#define KEY_BITS 21
+#define KEY_MAX ((1 << KEY_BITS) - 1)
+
+static uint64_t pack(int32_t x, int32_t y, int32_t z)
+{
+    return ((uint64_t)x << (2 * KEY_BITS)) | ((uint64_t)y << KEY_BITS) | (uint64_t)z;
+}
+
+static uint64_t mix(uint64_t k)
+{
+    k ^= k >> 33;
+    k *= 0xff51afd7ed558ccdULL;
+    k ^= k >> 33;
+    return k;
+}
+
+static void cell_of(const grid *g, const float *p, int32_t c[3])
+{
+    for (int a = 0; a < 3; a++) {
+        double v = floor((p[a] - g->lo[a]) / g->h);
+        c[a] = v < 0 ? 0 : v > KEY_MAX ? KEY_MAX : (int32_t)v;
+    }
+}
+
+static long grid_find(const grid *g, int32_t x, int32_t y, int32_t z)
+{
+    if (x < 0 || y < 0 || z < 0 || x > KEY_MAX || y > KEY_MAX || z > KEY_MAX) return -1;
+    uint64_t key = pack(x, y, z);
+    for (size_t s = mix(key) & g->mask;; s = (s + 1) & g->mask) {
+        uint32_t v = g->table[s];
+        if (!v) return -1;
+        if (g->cell_key[v - 1] == key) return (long)v - 1;
+    }
+}
+
+typedef struct {
+    uint64_t key;
+    uint32_t idx;
+} keyed;
+
+/* Stable LSD radix sort by key, 8 bits a pass, skipping bytes that never
+ * vary; items enter in index order, so equal keys stay in index order. */
+static int radix_sort(keyed *a, size_t n)
+{
+    keyed *tmp = malloc(n * sizeof *tmp);
+    if (!tmp) return -1;
+    keyed *src = a, *dst = tmp;
+    for (int shift = 0; shift < 64; shift += 8) {
+        size_t count[257] = {0};
+        for (size_t i = 0; i < n; i++) count[((src[i].key >> shift) & 0xff) + 1]++;
+        int single = 0;
+        for (int b = 1; b <= 256; b++) single |= count[b] == n;
+        if (single) continue;
+        for (int b = 0; b < 256; b++) count[b + 1] += count[b];
+        for (size_t i = 0; i < n; i++) dst[count[(src[i].key >> shift) & 0xff]++] = src[i];
+        keyed *t = src;
+        src = dst;
+        dst = t;
+    }
+    if (src != a) memcpy(a, src, n * sizeof *a);
+    free(tmp);
+    return 0;
+}
+
+static void grid_free(grid *g)
+{
+    free(g->order);
+    free(g->pts);
+    free(g->cell_start);
+    free(g->cell_key);
+    free(g->cell_coord);
+    free(g->table);
+    memset(g, 0, sizeof *g);
+}
+
+static sy_code grid_build(grid *g, const float *xyz, size_t n, double h, sy_error *err)
+{
+    memset(g, 0, sizeof *g);
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            lo[a] = fmin(lo[a], xyz[3 * i + a]);
+            hi[a] = fmax(hi[a], xyz[3 * i + a]);
+        }
+    /* Keep every cell coordinate within the packed key's 21 bits. */
+    for (int a = 0; a < 3; a++)
+        if ((hi[a] - lo[a]) / h > KEY_MAX - 2) h = (hi[a] - lo[a]) / (KEY_MAX - 2);
+    if (!(h > 0)) h = 1;
+    g->h = h;
+    memcpy(g->lo, lo, sizeof lo);
+    keyed *k = sy_calloc(n, sizeof *k, err, "grid");
+    if (!k) return SY_EINTERNAL;
+    for (size_t i = 0; i < n; i++) {
+        int32_t c[3];
+        cell_of(g, xyz + 3 * i, c);
+        k[i].key = pack(c[0], c[1], c[2]);
+        k[i].idx = (uint32_t)i;
+    }
+    if (radix_sort(k, n)) {
+        free(k);
+        return sy_fail(err, SY_EINTERNAL, "grid: out of memory");
+    }
+    size_t cells = 0;
+    for (size_t i = 0; i < n; i++)
+        if (i == 0 || k[i].key != k[i - 1].key) cells++;
+    size_t tsize = 16;
+    while (tsize < 2 * cells) tsize *= 2;
+    g->order = sy_calloc(n, sizeof *g->order, err, "grid");
+    g->pts = sy_calloc(n, 3 * sizeof *g->pts, err, "grid");
+    g->cell_start = sy_calloc(cells + 1, sizeof *g->cell_start, err, "grid");
+    g->cell_key = sy_calloc(cells, sizeof *g->cell_key, err, "grid");
+    g->cell_coord = sy_calloc(cells, 3 * sizeof *g->cell_coord, err, "grid");
+    g->table = sy_calloc(tsize, sizeof *g->table, err, "grid");
+    if (!g->order || !g->pts || !g->cell_start || !g->cell_key || !g->cell_coord || !g->table) {
+        free(k);
+        grid_free(g);
+        return SY_EINTERNAL;
+    }
+    g->mask = tsize - 1;
+    size_t c = 0;
+    for (size_t i = 0; i < n; i++) {
+        g->order[i] = k[i].idx;
+        memcpy(g->pts + 3 * i, xyz + 3 * (size_t)k[i].idx, 3 * sizeof(float));
+        if (i == 0 || k[i].key != k[i - 1].key) {
+            g->cell_start[c] = i;
+            g->cell_key[c] = k[i].key;
+            g->cell_coord[3 * c] = (int32_t)(k[i].key >> (2 * KEY_BITS));
+            g->cell_coord[3 * c + 1] = (int32_t)((k[i].key >> KEY_BITS) & KEY_MAX);
+            g->cell_coord[3 * c + 2] = (int32_t)(k[i].key & KEY_MAX);
+            size_t s = mix(k[i].key) & g->mask;
+            while (g->table[s]) s = (s + 1) & g->mask;
+            g->table[s] = (uint32_t)(c + 1);
+            c++;
+        }
+    }
+    g->cell_start[cells] = n;
+    g->n_cells = cells;
+    free(k);
+    return SY_OK;
+}
+
+static double dist2(const float *a, const float *b)
+{
+    double dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
+    return dx * dx + dy * dy + dz * dz;
+}
+
+/* Visits the cells whose Chebyshev ring distance from c is exactly r. */
+#define FOR_RING(g, c, r, cell, BODY)                                                                  \
+    for (int32_t dz_ = -(r); dz_ <= (r); dz_++)                                                        \
+        for (int32_t dy_ = -(r); dy_ <= (r); dy_++)                                                    \
+            for (int32_t dx_ = -(r); dx_ <= (r); dx_++) {                                              \
+                if (abs(dx_) != (r) && abs(dy_) != (r) && abs(dz_) != (r)) continue;                   \
+                long cell = grid_find(g, (c)[0] + dx_, (c)[1] + dy_, (c)[2] + dz_);                    \
+                if (cell < 0) continue;                                                                \
+                BODY                                                                                   \
+            }
+
+/* ---- k nearest within a few rings ---- */
+
+typedef struct {
+    float d2;
+    uint32_t j;
+} cand;
+
+/* Inserts (d2, j) into the sorted list of at most cap entries. */
+static void cand_insert(cand *list, int *len, int cap, float d2, uint32_t j)
+{
+    if (*len == cap && d2 >= list[cap - 1].d2) return;
+    int i = *len < cap ? (*len)++ : cap - 1;
+    while (i > 0 && (list[i - 1].d2 > d2 || (list[i - 1].d2 == d2 && list[i - 1].j > j))) {
+        list[i] = list[i - 1];
+        i--;
+    }
+    list[i].d2 = d2;
+    list[i].j = j;
+}
+
+/* Up to cap nearest other points of q, searching rings until the need-th
+ * nearest is certain and every point within one cell edge has been seen, or
+ * max_ring is reached. */
+static int knn_query(const grid *g, const float *xyz, uint32_t q, int need, int cap, int max_ring, cand *list)
+{
+    int len = 0;
+    int32_t c[3];
+    cell_of(g, xyz + 3 * (size_t)q, c);
+    for (int r = 0; r <= max_ring; r++) {
+        FOR_RING(g, c, r, cell, {
+            for (size_t t = g->cell_start[cell]; t < g->cell_start[cell + 1]; t++) {
+                uint32_t j = g->order[t];
+                if (j != q) cand_insert(list, &len, cap, (float)dist2(xyz + 3 * (size_t)q, xyz + 3 * (size_t)j), j);
+            }
+        })
+        double reach = r * g->h;
+        if (r >= 1 && len >= need && list[need - 1].d2 <= reach * reach) break;
+    }
+    return len;
+}
+
+double sy_estimate_spacing(const float *xyz, size_t n)
+{
+    if (n < 2) return 0;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            lo[a] = fmin(lo[a], xyz[3 * i + a]);
+            hi[a] = fmax(hi[a], xyz[3 * i + a]);
+        }
+    double vol = 1;
+    for (int a = 0; a < 3; a++) vol *= fmax(hi[a] - lo[a], 1e-3);
+    grid g;
+    sy_error err;
+    if (grid_build(&g, xyz, n, cbrt(vol / (double)n), &err)) return 0;
+    size_t samples = n < 2000 ? n : 2000;
+    double *d = malloc(samples * sizeof *d);
+    size_t m = 0;
+    for (size_t s = 0; d && s < samples; s++) {
+        uint32_t q = (uint32_t)(s * (n / samples));
+        cand best = {0, 0};
+        if (knn_query(&g, xyz, q, 1, 1, 8, &best) == 1 && best.d2 > 0) d[m++] = sqrt(best.d2);
+    }
+    double med = 0;
+    if (m) {
+        /* Insertion-free median: partial selection is overkill for 2000 values. */
+        for (size_t i = 1; i < m; i++) {
+            double v = d[i];
+            size_t j = i;
+            while (j > 0 && d[j - 1] > v) {
+                d[j] = d[j - 1];
+                j--;
+            }
+            d[j] = v;
+        }
+        med = d[m / 2];
+    }
+    free(d);
+    grid_free(&g);
+    return med;
+}
+
+/* ---- Graph construction ---- */
+
+typedef struct {
+    const grid *g, *tier;
+    int last_tier;
+    const float *xyz;
+    int k, cap;
+    double r2;
+    uint32_t *nbr; /* cap per point */
+    uint8_t *cnt;
+    uint8_t *pending; /* not settled by the fine grid: the coarse pass takes it */
+} knn_job;
+
+/* Queries run cell by cell: the 27 cells around a cell are looked up once
+ * and their points serve every point of the cell, which settles most queries
+ * (all points within one cell edge are then known); the rest (sparse parts,
+ * e.g. foliage) search the 27 cells of a grid four times coarser. */
+static void knn_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
+{
+    (void)chunk;
+    knn_job *J = ctx;
+    const grid *g = J->g;
+    cand list[64];
+    size_t cap_near = 1024;
+    uint32_t *near = malloc(cap_near * sizeof *near);
+    for (size_t cell = begin; cell < end; cell++) {
+        const int32_t *c = g->cell_coord + 3 * cell;
+        size_t nn = 0;
+        int ok = near != NULL;
+        FOR_RING(g, c, 1, nb, {
+            size_t cnt = g->cell_start[nb + 1] - g->cell_start[nb];
+            if (ok && nn + cnt > cap_near) {
+                while (nn + cnt > cap_near) cap_near *= 2;
+                uint32_t *q = realloc(near, cap_near * sizeof *q);
+                if (q) near = q;
+                else ok = 0;
+            }
+            if (ok)
+                for (size_t t = g->cell_start[nb]; t < g->cell_start[nb + 1]; t++) near[nn++] = (uint32_t)t;
+        })
+        size_t own_start = g->cell_start[cell], own_end = g->cell_start[cell + 1];
+        for (size_t t = own_start; t < own_end; t++) {
+            uint32_t q = g->order[t];
+            const float *pq = g->pts + 3 * t;
+            int len = 0;
+            if (ok) {
+                /* Only points within one cell edge can settle the query here,
+                 * so farther candidates are never sorted in. */
+                float h2 = (float)(g->h * g->h);
+                for (size_t u = own_start; u < own_end; u++) {
+                    float d2 = (float)dist2(pq, g->pts + 3 * u);
+                    if (u != t && d2 <= h2) cand_insert(list, &len, J->cap, d2, g->order[u]);
+                }
+                for (size_t u = 0; u < nn; u++) {
+                    float d2 = (float)dist2(pq, g->pts + 3 * (size_t)near[u]);
+                    if (d2 <= h2) cand_insert(list, &len, J->cap, d2, g->order[near[u]]);
+                }
+            }
+            if (!ok || len < J->k || list[J->k - 1].d2 > g->h * g->h) {
+                J->pending[q] = 1;
+                continue;
+            }
+            int m = 0;
+            for (int i = 0; i < len; i++)
+                if (i < J->k || list[i].d2 <= J->r2) J->nbr[(size_t)q * J->cap + m++] = list[i].j;
+            J->cnt[q] = (uint8_t)m;
+        }
+    }
+    free(near);
+}
+
+/* The same over a coarser grid (J->tier), for the points earlier passes
+ * left pending; the last tier takes whatever its 27 cells hold. */
+static void knn_coarse_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
+{
+    (void)chunk;
+    knn_job *J = ctx;
+    const grid *g = J->tier;
+    cand list[64];
+    size_t cap_near = 4096, nn;
+    uint32_t *near = malloc(cap_near * sizeof *near);
+
+    for (size_t cell = begin; cell < end; cell++) {
+        size_t own_start = g->cell_start[cell], own_end = g->cell_start[cell + 1], waiting = 0;
+        for (size_t t = own_start; t < own_end; t++) waiting += J->pending[g->order[t]];
+        if (!waiting) continue;
+        const int32_t *c = g->cell_coord + 3 * cell;
+        int ok = near != NULL;
+        nn = 0;
+        for (int r = 0; r <= 1; r++) {
+            FOR_RING(g, c, r, nb, {
+                size_t cnt = g->cell_start[nb + 1] - g->cell_start[nb];
+                if (ok && nn + cnt > cap_near) {
+                    while (nn + cnt > cap_near) cap_near *= 2;
+                    uint32_t *q = realloc(near, cap_near * sizeof *q);
+                    if (q) near = q;
+                    else ok = 0;
+                }
+                if (ok)
+                    for (size_t t = g->cell_start[nb]; t < g->cell_start[nb + 1]; t++) near[nn++] = (uint32_t)t;
+            })
+        }
+        for (size_t t = own_start; t < own_end; t++) {
+            uint32_t q = g->order[t];
+            if (!J->pending[q]) continue;
+            int len = 0;
+            if (ok) {
+                for (size_t u = 0; u < nn; u++)
+                    if (near[u] != t)
+                        cand_insert(list, &len, J->cap, (float)dist2(g->pts + 3 * t, g->pts + 3 * (size_t)near[u]),
+                                    g->order[near[u]]);
+            } else {
+                len = knn_query(g, J->xyz, q, J->k, J->cap, 1, list);
+            }
+            if (!J->last_tier && (len < J->k || list[J->k - 1].d2 > g->h * g->h)) continue;
+            J->pending[q] = 0;
+            int m = 0;
+            for (int i = 0; i < len; i++)
+                if (i < J->k || list[i].d2 <= J->r2) J->nbr[(size_t)q * J->cap + m++] = list[i].j;
+            J->cnt[q] = (uint8_t)m;
+        }
+    }
+    free(near);
+}
+
+static uint32_t uf_find(uint32_t *up, uint32_t a)
+{
+    while (up[a] != a) {
+        up[a] = up[up[a]];
+        a = up[a];
+    }
+    return a;
+}
+
+static void uf_union(uint32_t *up, uint32_t a, uint32_t b)
+{
+    a = uf_find(up, a);
+    b = uf_find(up, b);
+    if (a != b) {
+        if (a < b) up[b] = a;
+        else up[a] = b;
+    }
+}
+
+/* Nearest point of another component than `comp` to q, searching no further
+ * than sqrt(*best_d2); updates *best_d2 / *best_j when it finds a closer one. */
+static void nearest_foreign(const grid *g, const float *xyz, uint32_t *up, uint32_t comp, uint32_t q,
+                            double *best_d2, uint32_t *best_j)
+{
+    int32_t c[3];
+    cell_of(g, xyz + 3 * (size_t)q, c);
+    double reach_cells = isfinite(*best_d2) ? sqrt(*best_d2) / g->h + 1 : (double)KEY_MAX;
+    /* Beyond this many rings, a scan over the occupied cells is cheaper. */
+    double ring_cells_limit = cbrt((double)g->n_cells) / 4 + 1;
+    int r;
+    for (r = 0; r <= (int)fmin(reach_cells, ring_cells_limit); r++) {
+        FOR_RING(g, c, r, cell, {
+            for (size_t t = g->cell_start[cell]; t < g->cell_start[cell + 1]; t++) {
+                uint32_t j = g->order[t];
+                if (uf_find(up, j) == comp) continue;
+                double d2 = dist2(xyz + 3 * (size_t)q, xyz + 3 * (size_t)j);
+                if (d2 < *best_d2 || (d2 == *best_d2 && j < *best_j)) {
+                    *best_d2 = d2;
+                    *best_j = j;
+                }
+            }
+        })
+        double reach = r * g->h;
+        if (*best_d2 <= reach * reach) return;
+    }
+    if (reach_cells <= ring_cells_limit) return;
+    /* Far gap: scan every occupied cell whose box could hold a closer point. */
+    for (size_t cell = 0; cell < g->n_cells; cell++) {
+        double gap2 = 0;
+        for (int a = 0; a < 3; a++) {
+            double lo = g->lo[a] + g->cell_coord[3 * cell + a] * g->h, hi = lo + g->h, v = xyz[3 * (size_t)q + a];
+            double d = v < lo ? lo - v : v > hi ? v - hi : 0;
+            gap2 += d * d;
+        }
+        if (gap2 > *best_d2) continue;
+        for (size_t t = g->cell_start[cell]; t < g->cell_start[cell + 1]; t++) {
+            uint32_t j = g->order[t];
+            if (uf_find(up, j) == comp) continue;
+            double d2 = dist2(xyz + 3 * (size_t)q, xyz + 3 * (size_t)j);
+            if (d2 < *best_d2 || (d2 == *best_d2 && j < *best_j)) {
+                *best_d2 = d2;
+                *best_j = j;
+            }
+        }
+    }
+}
+
+typedef struct {
+    uint32_t a, b;
+} edge;
+
+/* Joins every component to the anchor's by shortest gap edges, Boruvka style:
+ * each round every component but the anchor's finds its (approximately)
+ * shortest edge to any other component, from a sample of 8 of its points refined
+ * by two alternating nearest-point steps. */
+static sy_code bridge_components(const grid *g, const float *xyz, size_t n, uint32_t *up, uint32_t anchor,
+                                 edge **bridges, size_t *n_bridges, sy_error *err)
+{
+    *bridges = NULL;
+    *n_bridges = 0;
+    size_t cap = 0;
+    uint32_t *members = sy_calloc(n, sizeof *members, err, "graph");
+    size_t *first = sy_calloc(n + 1, sizeof *first, err, "graph");
+    if (!members || !first) {
+        free(members);
+        free(first);
+        return SY_EINTERNAL;
+    }
+    sy_code rc = SY_OK;
+    for (;;) {
+        /* Group points by component root (counting sort keeps index order). */
+        memset(first, 0, (n + 1) * sizeof *first);
+        for (size_t i = 0; i < n; i++) first[uf_find(up, (uint32_t)i) + 1]++;
+        size_t comps = 0;
+        for (size_t i = 0; i < n; i++) {
+            if (first[i + 1]) comps++;
+            first[i + 1] += first[i];
+        }
+        if (comps <= 1) break;
+        size_t *fill = malloc(n * sizeof *fill);
+        if (!fill) {
+            rc = sy_fail(err, SY_EINTERNAL, "graph: out of memory");
+            break;
+        }
+        memcpy(fill, first, n * sizeof *fill);
+        for (size_t i = 0; i < n; i++) members[fill[uf_find(up, (uint32_t)i)]++] = (uint32_t)i;
+        free(fill);
+        uint32_t main_comp = uf_find(up, anchor);
+        size_t round_start = *n_bridges;
+        for (size_t root = 0; root < n; root++) {
+            size_t cnt = first[root + 1] - first[root];
+            if (!cnt || root == main_comp) continue;
+            const uint32_t *mem = members + first[root];
+            double best = INFINITY;
+            uint32_t bj = 0, bi = mem[0];
+            size_t samples = cnt < 8 ? cnt : 8;
+            for (size_t s = 0; s < samples; s++) {
+                uint32_t q = mem[s * cnt / samples];
+                double before = best;
+                nearest_foreign(g, xyz, up, (uint32_t)root, q, &best, &bj);
+                if (best < before) bi = q;
+            }
+            for (int step = 0; step < 2 && isfinite(best); step++) {
+                /* Closest member to the found target, then its nearest foreign point. */
+                double md = INFINITY;
+                uint32_t mi = bi;
+                for (size_t t = 0; t < cnt; t++) {
+                    double d2 = dist2(xyz + 3 * (size_t)mem[t], xyz + 3 * (size_t)bj);
+                    if (d2 < md) {
+                        md = d2;
+                        mi = mem[t];
+                    }
+                }
+                double before = best;
+                nearest_foreign(g, xyz, up, (uint32_t)root, mi, &best, &bj);
+                if (best < before) bi = mi;
+            }
+            if (!isfinite(best)) continue;
+            if (*n_bridges == cap) {
+                cap = cap ? 2 * cap : 64;
+                edge *e = realloc(*bridges, cap * sizeof *e);
+                if (!e) {
+                    rc = sy_fail(err, SY_EINTERNAL, "graph: out of memory");
+                    goto done;
+                }
+                *bridges = e;
+            }
+            (*bridges)[(*n_bridges)++] = (edge){bi, bj};
+        }
+        if (*n_bridges == round_start) break; /* nothing left to join (cannot happen with >1 component) */
+        for (size_t e = round_start; e < *n_bridges; e++) uf_union(up, (*bridges)[e].a, (*bridges)[e].b);
+    }
+done:
+    free(members);
+    free(first);
+    return rc;
+}
+
+sy_code sy_graph_build(const float *xyz, size_t n, int k, double radius, uint32_t anchor, sy_graph *G,
+                       sy_error *err)
+{
+    memset(G, 0, sizeof *G);
+    if (n == 0 || anchor >= n) return sy_fail(err, SY_EINPUT, "graph: no points");
+    if (k < 1) k = 1;
+    if (k > 32) k = 32;
+    int cap = 2 * k;
+    /* Two grids: cells of one join radius, and 4x coarser ones for the
+     * sparse parts (foliage, the far side of a crown) the fine one leaves. */
+    grid g, coarse;
+    sy_code rc = grid_build(&g, xyz, n, radius, err);
+    if (rc) return rc;
+    rc = grid_build(&coarse, xyz, n, 4 * radius, err);
+    if (rc) {
+        grid_free(&g);
+        return rc;
+    }
+    knn_job J = {&g, NULL, 0, xyz, k, cap, radius * radius, NULL, NULL, NULL};
+    J.nbr = sy_calloc(n, cap * sizeof *J.nbr, err, "graph");
+    J.cnt = sy_calloc(n, 1, err, "graph");
+    J.pending = sy_calloc(n, 1, err, "graph");
+    uint32_t *up = sy_calloc(n, sizeof *up, err, "graph");
+    edge *bridges = NULL;
+    size_t n_bridges = 0;
+    if (!J.nbr || !J.cnt || !J.pending || !up) {
+        rc = SY_EINTERNAL;
+        goto fail;
+    }
+    sy_parallel_for(g.n_cells, 512, knn_chunk, &J);
+    J.tier = &coarse;
+    J.last_tier = 1;
+    sy_parallel_for(coarse.n_cells, 64, knn_coarse_chunk, &J);
+
+    for (size_t i = 0; i < n; i++) up[i] = (uint32_t)i;
+    for (size_t i = 0; i < n; i++)
+        for (int t = 0; t < J.cnt[i]; t++) uf_union(up, (uint32_t)i, J.nbr[i * cap + t]);
+    for (size_t i = 0; i < n; i++)
+        if (uf_find(up, (uint32_t)i) == i) G->components++;
+    rc = bridge_components(&g, xyz, n, up, anchor, &bridges, &n_bridges, err);
+    if (rc) goto fail;
+    G->bridges = n_bridges;
+
+    /* Symmetric CSR: every directed pick and bridge becomes two half-edges. */
+    G->n = n;
+    G->start = sy_calloc(n + 1, sizeof *G->start, err, "graph");
+    if (!G->start) {
+        rc = SY_EINTERNAL;
+        goto fail;
+    }
+    for (size_t i = 0; i < n; i++)
+        for (int t = 0; t < J.cnt[i]; t++) {
+            G->start[i + 1]++;
+            G->start[J.nbr[i * cap + t] + 1]++;
+        }
+    for (size_t e = 0; e < n_bridges; e++) {
+        G->start[bridges[e].a + 1]++;
+        G->start[bridges[e].b + 1]++;
+    }
+    for (size_t i = 0; i < n; i++) G->start[i + 1] += G->start[i];
+    size_t total = G->start[n];
+    G->adj = sy_calloc(total ? total : 1, sizeof *G->adj, err, "graph");
+    size_t *fill = sy_calloc(n, sizeof *fill, err, "graph");
+    if (!G->adj || !fill) {
+        free(fill);
+        rc = SY_EINTERNAL;
+        goto fail;
+    }
+    memcpy(fill, G->start, n * sizeof *fill);
+    for (size_t i = 0; i < n; i++)
+        for (int t = 0; t < J.cnt[i]; t++) {
+            uint32_t j = J.nbr[i * cap + t];
+            G->adj[fill[i]++] = j;
+            G->adj[fill[j]++] = (uint32_t)i;
+        }
+    for (size_t e = 0; e < n_bridges; e++) {
+        G->adj[fill[bridges[e].a]++] = bridges[e].b;
+        G->adj[fill[bridges[e].b]++] = bridges[e].a;
+    }
+    /* Sort and de-duplicate each row in place, compacting the CSR. */
+    size_t w = 0;
+    for (size_t i = 0; i < n; i++) {
+        size_t b = G->start[i], e = G->start[i + 1];
+        for (size_t x = b + 1; x < e; x++) { /* rows are short: insertion sort */
+            uint32_t v = G->adj[x];
+            size_t y = x;
+            while (y > b && G->adj[y - 1] > v) {
+                G->adj[y] = G->adj[y - 1];
+                y--;
+            }
+            G->adj[y] = v;
+        }
+        G->start[i] = w;
+        for (size_t t = b; t < e; t++)
+            if (t == b || G->adj[t] != G->adj[t - 1]) G->adj[w++] = G->adj[t];
+    }
+    G->start[n] = w;
+    free(fill);
+    G->len = sy_calloc(w ? w : 1, sizeof *G->len, err, "graph");
+    if (!G->len) {
+        rc = SY_EINTERNAL;
+        goto fail;
+    }
+    for (size_t i = 0; i < n; i++)
+        for (size_t t = G->start[i]; t < G->start[i + 1]; t++)
+            G->len[t] = (float)sqrt(dist2(xyz + 3 * i, xyz + 3 * (size_t)G->adj[t]));
+    free(J.nbr);
+    free(J.cnt);
+    free(J.pending);
+    free(up);
+    free(bridges);
+    grid_free(&g);
+    grid_free(&coarse);
+    return SY_OK;
+fail:
+    free(J.nbr);
+    free(J.cnt);
+    free(J.pending);
+    free(up);
+    free(bridges);
+    grid_free(&g);
+    grid_free(&coarse);
+    sy_graph_free(G);
+    return rc;
+}
+
+void sy_graph_free(sy_graph *g)
+{
+    free(g->start);
+    free(g->adj);
+    free(g->len);
+    memset(g, 0, sizeof *g);
+}
+
+/* ---- Dijkstra with a binary heap and lazy deletion ---- */
+
+typedef struct {
+    double d;
+    uint32_t v;
+} heap_item;
+
+static void heap_push(heap_item *h, size_t *len, heap_item it)
+{
+    size_t i = (*len)++;
+    while (i > 0) {
+        size_t p = (i - 1) / 2;
+        if (h[p].d < it.d || (h[p].d == it.d && h[p].v <= it.v)) break;
+        h[i] = h[p];
+        i = p;
+    }
+    h[i] = it;
+}
+
+static heap_item heap_pop(heap_item *h, size_t *len)
+{
+    heap_item top = h[0], last = h[--(*len)];
+    size_t i = 0;
+    for (;;) {
+        size_t c = 2 * i + 1;
+        if (c >= *len) break;
+        if (c + 1 < *len && (h[c + 1].d < h[c].d || (h[c + 1].d == h[c].d && h[c + 1].v < h[c].v))) c++;
+        if (last.d < h[c].d || (last.d == h[c].d && last.v <= h[c].v)) break;
+        h[i] = h[c];
+        i = c;
+    }
+    h[i] = last;
+    return top;
+}
+
+sy_code sy_graph_dijkstra(const sy_graph *g, const uint32_t *sources, size_t n_sources, double beta, double *dist,
+                          int32_t *parent, double *path, sy_error *err)
+{
+    size_t n = g->n;
+    for (size_t s = 0; s < n_sources; s++)
+        if (sources[s] >= n) return sy_fail(err, SY_EINPUT, "dijkstra: source out of range");
+    /* Each edge relaxation pushes at most once, so E + sources bounds the heap. */
+    heap_item *h = sy_calloc(g->start[n] + n_sources + 1, sizeof *h, err, "dijkstra");
+    uint8_t *done = sy_calloc(n, 1, err, "dijkstra");
+    if (!h || !done) {
+        free(h);
+        free(done);
+        return SY_EINTERNAL;
+    }
+    for (size_t i = 0; i < n; i++) {
+        dist[i] = INFINITY;
+        parent[i] = -1;
+        path[i] = INFINITY;
+    }
+    size_t len = 0;
+    for (size_t s = 0; s < n_sources; s++) {
+        dist[sources[s]] = 0;
+        path[sources[s]] = 0;
+        heap_push(h, &len, (heap_item){0, sources[s]});
+    }
+    int unit = beta == 1.0;
+    while (len) {
+        heap_item it = heap_pop(h, &len);
+        uint32_t u = it.v;
+        if (done[u]) continue;
+        done[u] = 1;
+        for (size_t t = g->start[u]; t < g->start[u + 1]; t++) {
+            uint32_t v = g->adj[t];
+            if (done[v]) continue;
+            double w = unit ? g->len[t] : pow(g->len[t], beta);
+            double nd = dist[u] + w;
+            if (nd < dist[v]) {
+                dist[v] = nd;
+                parent[v] = (int32_t)u;
+                path[v] = path[u] + g->len[t];
+                heap_push(h, &len, (heap_item){nd, v});
+            }
+        }
+    }
+    free(h);
+    free(done);
+    return SY_OK;
+}
+
+/* ---- Root ---- */
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+uint32_t sy_find_root(const float *xyz, size_t n, double slab, double *z0_out)
+{
+    if (z0_out) *z0_out = 0;
+    if (n == 0) return 0;
+    double *z = malloc(n * sizeof *z);
+    if (!z) return 0;
+    for (size_t i = 0; i < n; i++) z[i] = xyz[3 * i + 2];
+    qsort(z, n, sizeof *z, cmp_double);
+    /* The 0.5th percentile ignores a few stray points below the base. */
+    double z0 = z[n / 200];
+    if (z0_out) *z0_out = z0;
+    size_t m = 0;
+    for (size_t i = 0; i < n; i++)
+        if (xyz[3 * i + 2] >= z0 && xyz[3 * i + 2] <= z0 + slab) m++;
+    double *xs = malloc((m ? m : 1) * sizeof *xs), *ys = malloc((m ? m : 1) * sizeof *ys);
+    uint32_t best = 0;
+    if (xs && ys && m) {
+        size_t t = 0;
+        for (size_t i = 0; i < n; i++)
+            if (xyz[3 * i + 2] >= z0 && xyz[3 * i + 2] <= z0 + slab) {
+                xs[t] = xyz[3 * i];
+                ys[t++] = xyz[3 * i + 1];
+            }
+        qsort(xs, m, sizeof *xs, cmp_double);
+        qsort(ys, m, sizeof *ys, cmp_double);
+        /* The median centre resists leftover ground around the trunk. */
+        double cx = xs[m / 2], cy = ys[m / 2], bd = INFINITY;
+        for (size_t i = 0; i < n; i++) {
+            if (xyz[3 * i + 2] < z0 || xyz[3 * i + 2] > z0 + slab) continue;
+            double dx = xyz[3 * i] - cx, dy = xyz[3 * i + 1] - cy, dz = xyz[3 * i + 2] - z0;
+            double d = dx * dx + dy * dy + dz * dz;
+            if (d < bd) {
+                bd = d;
+                best = (uint32_t)i;
+            }
+        }
+    }
+    free(xs);
+    free(ys);
+    free(z);
+    return best;
+}

@@ -1,0 +1,28 @@
+/* Shared between the skeleton sources; not part of the public API. */
+#ifndef SYLVA_SKELETON_INTERNAL_H
+#define SYLVA_SKELETON_INTERNAL_H
+
+#include "skeleton_stage.h"
+
+/* l[i] = length of all edges below node i plus its incoming edge (so leaves
+ * get their own edge length, never 0). Needs parent[i] < i (breadth-first
+ * order). */
+void sy_subtree_lengths(const sy_skeleton *s, double *l);
+
+/* Branch ids and orders: each node's continuation is its child with the
+ * largest l; the other children start new branches of order + 1. Ids are
+ * numbered in node order. Needs breadth-first order. */
+void sy_assign_branches(sy_skeleton *s, const double *l);
+
+typedef struct {
+    double dbh, rms, d_root, height, dbh_z;
+    int fitted;
+} sy_radii_info;
+
+/* Radii by the allometry d(u) = d_root * (l(u) / l(root))^(1/gamma), with
+ * d_root chosen so the trunk node at breast height gets the fitted DBH.
+ * node_of[i] is the node supporting point i. */
+sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of, size_t n, double gamma,
+                        double spacing, double dbh_height, double slab, sy_radii_info *info, sy_error *err);
+
+#endif

@@ -1,0 +1,104 @@
+/* Skeleton reconstruction: one segmented, Z-up tree scan becomes a rooted
+ * skeleton (the main branching structure) plus clusters (the parts the scan
+ * cannot resolve into branches, each hanging off a seed node and enclosed by an
+ * alpha-shape hull). Follows Pirk 2013 ch. 3 / Livny et al. 2011; the choices
+ * the thesis leaves open are documented in docs/skeleton.md.
+ *
+ * Pipeline: neighbour graph (kNN joined with a radius graph, disconnected parts
+ * bridged by their shortest gap edge) -> Dijkstra shortest-path tree from the
+ * base with weights |u-v|^beta -> geodesic level sets split into connected
+ * sub-clusters, one node each -> pruning, sibling merging, smoothing -> DBH
+ * circle fit and allometric radii (gamma) -> low-confidence edges (f_s) cut the
+ * skeleton into the main structure and clusters -> one hull per cluster.
+ *
+ * Every input point ends up in exactly one place: the support of one skeleton
+ * node (skel->support) or the point list of one cluster. */
+#ifndef SYLVA_SKELETON_STAGE_H
+#define SYLVA_SKELETON_STAGE_H
+
+#include <stddef.h>
+
+#include "stages/clusters/clusters.h"
+#include "stages/core/cloud.h"
+#include "stages/core/skeleton.h"
+#include "stages/core/status.h"
+
+typedef struct {
+    double beta;          /* Dijkstra edge weight |u-v|^beta (1) */
+    double gamma;         /* allometry: d^gamma is additive over children (2 = da Vinci areas) */
+    double fs;            /* scan-density factor f_s of eq. 3.2, in (0, 1] (1 = leafless) */
+    double spacing;       /* point spacing s in metres; 0 = median nearest-neighbour distance */
+    int k;                /* neighbours per point in the kNN graph (12) */
+    double radius_factor; /* also join all points within radius_factor * s (2.0) */
+    double bin_factor;    /* geodesic level-set width = bin_factor * s (4.0) */
+    double min_bin;       /* ... but at least this many metres (0.02) */
+    double prune_factor;  /* drop side subtrees shorter than prune_factor * local radius (2.5) */
+    double merge_cos;     /* merge sibling nodes whose directions have cos above this (0.9) */
+    int smooth_iters;     /* Laplacian passes along chains (3) */
+    double dbh_height;    /* breast height above the base in metres (1.3) */
+    double dbh_slab;      /* slab thickness for the DBH circle fit in metres (0.10) */
+    double alpha_scale;   /* alpha = alpha_scale * alpha_min, both CGAL squared radii (5) */
+    int min_cluster_points; /* smaller low-confidence groups stay on the skeleton (24) */
+    int hull_triangles;   /* hull triangle budget per cluster; 0 = from the 40 kB file budget */
+    int clusters;         /* 0: skeleton only, every point stays on the skeleton */
+} sy_skeleton_options;
+
+void sy_skeleton_options_default(sy_skeleton_options *o);
+
+typedef struct {
+    size_t points, graph_edges, components, bridges;
+    double spacing, bin_width;
+    size_t raw_nodes, pruned_nodes, merged_nodes;
+    size_t nodes, branches;
+    size_t clusters, cluster_points, skeleton_points;
+    size_t hulls_alpha, hulls_convex, hulls_box; /* which hull each cluster got */
+    double dbh, dbh_rms, height;
+    int dbh_fitted;       /* 1: circle fit at breast height, 0: fallback estimate */
+    double d_root;        /* root diameter from which the allometry runs */
+    double t_graph, t_dijkstra, t_levels, t_radii, t_clusters, t_hulls, t_total; /* seconds */
+} sy_skeleton_report;
+
+/* Reconstructs cloud into out (positions relative to cloud->origin, nodes in
+ * breadth-first order from the root, support filled) and clusters (may be
+ * NULL when o->clusters is 0). report may be NULL. Fails with SY_EINPUT for
+ * clouds too small to hold a tree (< 16 points) or with non-finite options. */
+sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options *o, sy_skeleton *out,
+                                sy_clusters *clusters, sy_skeleton_report *report, sy_error *err);
+
+/* ---- The pieces, exposed for tests and benchmarks. ---- */
+
+/* Symmetric neighbour graph in CSR form. */
+typedef struct {
+    size_t n;
+    size_t *start; /* n+1 */
+    uint32_t *adj;
+    float *len;    /* Euclidean edge lengths, parallel to adj */
+    size_t components; /* before bridging */
+    size_t bridges;    /* edges added to connect them */
+} sy_graph;
+
+/* Median nearest-neighbour distance over a deterministic sample of points. */
+double sy_estimate_spacing(const float *xyz, size_t n);
+/* kNN (k) joined with all neighbours within radius; components bridged to the
+ * one holding `anchor` by their shortest gap edges. */
+sy_code sy_graph_build(const float *xyz, size_t n, int k, double radius, uint32_t anchor, sy_graph *g,
+                       sy_error *err);
+void sy_graph_free(sy_graph *g);
+/* Dijkstra from the sources (all at distance 0) with weights len^beta:
+ * dist (weighted), parent (-1 at sources and unreachable points), path
+ * (Euclidean length along the shortest-path tree). */
+sy_code sy_graph_dijkstra(const sy_graph *g, const uint32_t *sources, size_t n_sources, double beta, double *dist,
+                          int32_t *parent, double *path, sy_error *err);
+
+/* Circle fit (Kasa algebraic start, RANSAC over triples, geometric
+ * Gauss-Newton refinement on the inliers) to n 2-D points. Returns 0 on
+ * success with centre, radius and the inlier RMS residual. */
+int sy_fit_circle(const double *xy, size_t n, double inlier_tol, unsigned long long seed, double centre[2],
+                  double *radius, double *rms);
+
+/* Root of the tree: the point of the lowest slab nearest its robust centre.
+ * The slab starts at the 0.5th percentile of z (stray points below ignored);
+ * *z0 (may be NULL) receives that height. */
+uint32_t sy_find_root(const float *xyz, size_t n, double slab, double *z0);
+
+#endif

@@ -1,0 +1,652 @@
+/* Level-set skeletonisation (Xu et al. 2007, Livny et al. 2010): points are
+ * binned by their path length along the shortest-path tree, every bin splits
+ * into its connected sub-clusters, one node each, linked to the node of the
+ * lower bin their shortest paths come from. Then: pruning of short side
+ * subtrees, merging of near-parallel siblings, Laplacian smoothing along
+ * chains, radii, and the cut into main skeleton and clusters. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "skeleton_internal.h"
+#include "stages/core/progress.h"
+
+void sy_skeleton_options_default(sy_skeleton_options *o)
+{
+    o->beta = 1.0;
+    o->gamma = 2.0;
+    o->fs = 1.0;
+    o->spacing = 0;
+    o->k = 12;
+    o->radius_factor = 2.0;
+    o->bin_factor = 4.0;
+    o->min_bin = 0.02;
+    o->prune_factor = 2.5;
+    o->merge_cos = 0.9;
+    o->smooth_iters = 3;
+    o->dbh_height = 1.3;
+    o->dbh_slab = 0.10;
+    o->alpha_scale = 5.0;
+    o->min_cluster_points = 24;
+    o->hull_triangles = 0;
+    o->clusters = 1;
+}
+
+/* The node graph while it is being edited: nodes are merged by aliasing. */
+typedef struct {
+    size_t n;
+    int32_t *parent, *alias, *first_child, *next_sibling;
+    double *sum;    /* 3 per node: coordinate sums of the node's own points */
+    double *pos;    /* 3 per node */
+    double *spread; /* mean distance of the node's points from its centroid */
+    size_t *count;
+} nodes;
+
+static void nodes_free(nodes *N)
+{
+    free(N->parent);
+    free(N->alias);
+    free(N->first_child);
+    free(N->next_sibling);
+    free(N->sum);
+    free(N->pos);
+    free(N->spread);
+    free(N->count);
+    memset(N, 0, sizeof *N);
+}
+
+static int32_t resolve(const nodes *N, int32_t v)
+{
+    while (N->alias[v] >= 0) v = N->alias[v];
+    return v;
+}
+
+static uint32_t uf_find(uint32_t *up, uint32_t a)
+{
+    while (up[a] != a) {
+        up[a] = up[up[a]];
+        a = up[a];
+    }
+    return a;
+}
+
+static int cmp_u64(const void *a, const void *b)
+{
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Level sets -> nodes. node_of[i] gets each point's node. */
+static sy_code level_sets(const float *xyz, size_t n, const sy_graph *g, const int32_t *spt, const double *path,
+                          double w, uint32_t root, int32_t *node_of, nodes *N, sy_error *err)
+{
+    memset(N, 0, sizeof *N);
+    int32_t *bin = sy_calloc(n, sizeof *bin, err, "skeleton");
+    uint32_t *up = sy_calloc(n, sizeof *up, err, "skeleton");
+    size_t *bstart = NULL;
+    uint32_t *byb = NULL;
+    uint64_t *votes = NULL;
+    sy_code rc = SY_EINTERNAL;
+    if (!bin || !up) goto done;
+    int32_t maxb = 0;
+    for (size_t i = 0; i < n; i++) {
+        double b = isfinite(path[i]) ? floor(path[i] / w) : 0;
+        bin[i] = b > 1e9 ? 1000000000 : (int32_t)b;
+        if (bin[i] > maxb) maxb = bin[i];
+        up[i] = (uint32_t)i;
+    }
+    for (size_t i = 0; i < n; i++)
+        for (size_t t = g->start[i]; t < g->start[i + 1]; t++) {
+            uint32_t j = g->adj[t];
+            if (bin[j] != bin[i]) continue;
+            uint32_t a = uf_find(up, (uint32_t)i), b = uf_find(up, j);
+            if (a != b) up[a < b ? b : a] = a < b ? a : b;
+        }
+    /* Number nodes by (bin, first point index): parents get smaller ids. */
+    bstart = sy_calloc((size_t)maxb + 2, sizeof *bstart, err, "skeleton");
+    byb = sy_calloc(n, sizeof *byb, err, "skeleton");
+    if (!bstart || !byb) goto done;
+    for (size_t i = 0; i < n; i++) bstart[bin[i] + 1]++;
+    for (int32_t b = 0; b <= maxb; b++) bstart[b + 1] += bstart[b];
+    for (size_t i = 0; i < n; i++) byb[bstart[bin[i]]++] = (uint32_t)i;
+    for (size_t i = 0; i < n; i++) node_of[i] = -1;
+    int32_t *id_of_root = bin; /* reuse after binning: root point -> node id */
+    for (size_t i = 0; i < n; i++) id_of_root[i] = -1;
+    size_t m = 0;
+    for (size_t t = 0; t < n; t++) {
+        uint32_t i = byb[t], r = uf_find(up, i);
+        if (id_of_root[r] < 0) id_of_root[r] = (int32_t)m++;
+        node_of[i] = id_of_root[r];
+    }
+    N->n = m;
+    N->parent = sy_calloc(m, sizeof *N->parent, err, "skeleton");
+    N->alias = sy_calloc(m, sizeof *N->alias, err, "skeleton");
+    N->first_child = sy_calloc(m, sizeof *N->first_child, err, "skeleton");
+    N->next_sibling = sy_calloc(m, sizeof *N->next_sibling, err, "skeleton");
+    N->sum = sy_calloc(m, 3 * sizeof *N->sum, err, "skeleton");
+    N->pos = sy_calloc(m, 3 * sizeof *N->pos, err, "skeleton");
+    N->spread = sy_calloc(m, sizeof *N->spread, err, "skeleton");
+    N->count = sy_calloc(m, sizeof *N->count, err, "skeleton");
+    votes = sy_calloc(n, sizeof *votes, err, "skeleton");
+    if (!N->parent || !N->alias || !N->first_child || !N->next_sibling || !N->sum || !N->pos || !N->spread ||
+        !N->count || !votes)
+        goto done;
+    /* Parent node = the one most entry points' shortest-path parents lie in. */
+    size_t nv = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (spt[i] < 0) continue;
+        int32_t a = node_of[i], b = node_of[spt[i]];
+        if (a != b) votes[nv++] = ((uint64_t)(uint32_t)a << 32) | (uint32_t)b;
+    }
+    qsort(votes, nv, sizeof *votes, cmp_u64);
+    for (size_t v = 0; v < m; v++) {
+        N->parent[v] = -1;
+        N->alias[v] = -1;
+        N->first_child[v] = -1;
+        N->next_sibling[v] = -1;
+    }
+    for (size_t s = 0; s < nv;) {
+        uint32_t child = (uint32_t)(votes[s] >> 32);
+        size_t best_cnt = 0;
+        int32_t best = -1;
+        while (s < nv && (uint32_t)(votes[s] >> 32) == child) {
+            size_t e = s;
+            while (e < nv && votes[e] == votes[s]) e++;
+            if (e - s > best_cnt) {
+                best_cnt = e - s;
+                best = (int32_t)(uint32_t)votes[s];
+            }
+            s = e;
+        }
+        N->parent[child] = best;
+    }
+    /* Base-slab pieces not touching the root's (leftover ground, a second
+     * stem) have no way down: they hang off the root node. */
+    for (size_t v = 0; v < m; v++)
+        if (N->parent[v] < 0 && (int32_t)v != node_of[root]) N->parent[v] = node_of[root];
+    /* Children lists, in id order. */
+    for (size_t v = m; v-- > 0;)
+        if (N->parent[v] >= 0) {
+            N->next_sibling[v] = N->first_child[N->parent[v]];
+            N->first_child[N->parent[v]] = (int32_t)v;
+        }
+    for (size_t i = 0; i < n; i++) {
+        int32_t v = node_of[i];
+        N->count[v]++;
+        for (int k = 0; k < 3; k++) N->sum[3 * v + k] += xyz[3 * i + k];
+    }
+    for (size_t v = 0; v < m; v++)
+        for (int k = 0; k < 3; k++) N->pos[3 * v + k] = N->sum[3 * v + k] / (double)N->count[v];
+    for (size_t i = 0; i < n; i++) {
+        int32_t v = node_of[i];
+        double d2 = 0;
+        for (int k = 0; k < 3; k++) d2 += (xyz[3 * i + k] - N->pos[3 * v + k]) * (xyz[3 * i + k] - N->pos[3 * v + k]);
+        N->spread[v] += sqrt(d2) / (double)N->count[v];
+    }
+    rc = SY_OK;
+done:
+    free(bin);
+    free(up);
+    free(bstart);
+    free(byb);
+    free(votes);
+    if (rc) nodes_free(N);
+    return rc;
+}
+
+static double ndist(const nodes *N, int32_t a, int32_t b)
+{
+    double d2 = 0;
+    for (int k = 0; k < 3; k++) d2 += (N->pos[3 * a + k] - N->pos[3 * b + k]) * (N->pos[3 * a + k] - N->pos[3 * b + k]);
+    return sqrt(d2);
+}
+
+/* Live nodes in breadth-first order from root; returns the count. */
+static size_t bfs_order(const nodes *N, int32_t root, int32_t *order)
+{
+    size_t head = 0, tail = 0;
+    order[tail++] = root;
+    while (head < tail) {
+        int32_t u = order[head++];
+        for (int32_t c = N->first_child[u]; c >= 0; c = N->next_sibling[c]) order[tail++] = c;
+    }
+    return tail;
+}
+
+static void unlink_child(nodes *N, int32_t p, int32_t c)
+{
+    int32_t *link = &N->first_child[p];
+    while (*link >= 0 && *link != c) link = &N->next_sibling[*link];
+    if (*link == c) *link = N->next_sibling[c];
+    N->next_sibling[c] = -1;
+}
+
+/* Every node of c's subtree (c included) becomes an alias of into. */
+static size_t absorb_subtree(nodes *N, int32_t c, int32_t into, int32_t *stack)
+{
+    size_t top = 0, count = 0;
+    stack[top++] = c;
+    while (top) {
+        int32_t u = stack[--top];
+        for (int32_t k = N->first_child[u]; k >= 0; k = N->next_sibling[k]) stack[top++] = k;
+        N->alias[u] = into;
+        N->first_child[u] = -1;
+        count++;
+    }
+    return count;
+}
+
+/* Side subtrees shorter than prune_factor * the junction's local radius are
+ * level-set noise (bark bumps, stray points): their points join the junction.
+ * The longest child of a junction is never pruned. */
+static size_t prune(nodes *N, int32_t root, double prune_factor, double w, int32_t *order, int32_t *stack,
+                    double *reach)
+{
+    size_t pruned = 0, m = bfs_order(N, root, order);
+    for (size_t t = m; t-- > 0;) {
+        int32_t u = order[t];
+        int32_t longest = -1;
+        double best = -1;
+        for (int32_t c = N->first_child[u]; c >= 0; c = N->next_sibling[c]) {
+            double L = ndist(N, u, c) + reach[c];
+            if (L > best) {
+                best = L;
+                longest = c;
+            }
+        }
+        double limit = prune_factor * fmax(N->spread[u], w);
+        for (int32_t c = N->first_child[u], next; c >= 0; c = next) {
+            next = N->next_sibling[c];
+            if (c == longest || ndist(N, u, c) + reach[c] >= limit) continue;
+            unlink_child(N, u, c);
+            pruned += absorb_subtree(N, c, u, stack);
+        }
+        reach[u] = longest >= 0 && N->alias[longest] < 0 ? best : 0;
+    }
+    return pruned;
+}
+
+/* Siblings heading the same way and touching are one branch the level set
+ * split (one-sided scans, sparse rings): merge b into a. */
+static size_t merge_siblings(nodes *N, int32_t root, double merge_cos, double w, int32_t *order)
+{
+    size_t merged = 0, m = bfs_order(N, root, order);
+    for (size_t t = 0; t < m; t++) {
+        int32_t u = order[t];
+        if (N->alias[u] >= 0) continue;
+        int again = 1;
+        while (again) {
+            again = 0;
+            for (int32_t a = N->first_child[u]; a >= 0 && !again; a = N->next_sibling[a])
+                for (int32_t b = N->next_sibling[a]; b >= 0 && !again; b = N->next_sibling[b]) {
+                    double da[3], db[3], la = 0, lb = 0, dot = 0;
+                    for (int k = 0; k < 3; k++) {
+                        da[k] = N->pos[3 * a + k] - N->pos[3 * u + k];
+                        db[k] = N->pos[3 * b + k] - N->pos[3 * u + k];
+                        la += da[k] * da[k];
+                        lb += db[k] * db[k];
+                        dot += da[k] * db[k];
+                    }
+                    if (la <= 0 || lb <= 0 || dot / sqrt(la * lb) < merge_cos) continue;
+                    if (ndist(N, a, b) > N->spread[a] + N->spread[b] + w) continue;
+                    int32_t keep = N->count[a] >= N->count[b] ? a : b, drop = keep == a ? b : a;
+                    unlink_child(N, u, drop);
+                    /* Move drop's children under keep. */
+                    while (N->first_child[drop] >= 0) {
+                        int32_t c = N->first_child[drop];
+                        N->first_child[drop] = N->next_sibling[c];
+                        N->next_sibling[c] = N->first_child[keep];
+                        N->first_child[keep] = c;
+                        N->parent[c] = keep;
+                    }
+                    double gap = ndist(N, a, b);
+                    size_t cnt = N->count[keep] + N->count[drop];
+                    N->spread[keep] = (N->spread[keep] * (double)N->count[keep] +
+                                       N->spread[drop] * (double)N->count[drop]) /
+                                          (double)cnt +
+                                      gap / 2;
+                    for (int k = 0; k < 3; k++) {
+                        N->sum[3 * keep + k] += N->sum[3 * drop + k];
+                        N->pos[3 * keep + k] = N->sum[3 * keep + k] / (double)cnt;
+                    }
+                    N->count[keep] = cnt;
+                    N->alias[drop] = keep;
+                    merged++;
+                    again = 1;
+                }
+        }
+    }
+    return merged;
+}
+
+/* Laplacian smoothing of chain nodes (one parent, one child); the root,
+ * junctions and tips stay where they are. Needs breadth-first order. */
+static void smooth(sy_skeleton *s, int iters)
+{
+    size_t n = s->n;
+    int32_t *only = malloc((n ? n : 1) * sizeof *only), *kids = calloc(n ? n : 1, sizeof *kids);
+    float *next = malloc((n ? n : 1) * 3 * sizeof *next);
+    if (!only || !kids || !next) goto done; /* unsmoothed positions are still valid */
+    for (size_t i = 0; i < n; i++) only[i] = -1;
+    for (size_t i = 1; i < n; i++) {
+        kids[s->parent[i]]++;
+        only[s->parent[i]] = (int32_t)i;
+    }
+    for (int it = 0; it < iters; it++) {
+        memcpy(next, s->pos, n * 3 * sizeof *next);
+        for (size_t i = 1; i < n; i++) {
+            if (kids[i] != 1) continue;
+            const float *p = s->pos + 3 * (size_t)s->parent[i], *c = s->pos + 3 * (size_t)only[i];
+            for (int k = 0; k < 3; k++) next[3 * i + k] = 0.5f * s->pos[3 * i + k] + 0.25f * (p[k] + c[k]);
+        }
+        memcpy(s->pos, next, n * 3 * sizeof *next);
+    }
+done:
+    free(only);
+    free(kids);
+    free(next);
+}
+
+/* Live nodes -> a skeleton in breadth-first order with point support. */
+static sy_code compact(const nodes *N, int32_t root, const int32_t *node_of, size_t n_points, const double *origin,
+                       sy_skeleton *s, int32_t *point_node, sy_error *err)
+{
+    int32_t *order = sy_calloc(N->n, sizeof *order, err, "skeleton");
+    int32_t *newid = sy_calloc(N->n, sizeof *newid, err, "skeleton");
+    if (!order || !newid) {
+        free(order);
+        free(newid);
+        return SY_EINTERNAL;
+    }
+    size_t m = bfs_order(N, root, order);
+    sy_code rc = sy_skeleton_init(s, m, err);
+    if (rc) goto done;
+    memcpy(s->origin, origin, sizeof s->origin);
+    for (size_t v = 0; v < N->n; v++) newid[v] = -1;
+    for (size_t t = 0; t < m; t++) newid[order[t]] = (int32_t)t;
+    for (size_t t = 0; t < m; t++) {
+        int32_t u = order[t];
+        for (int k = 0; k < 3; k++) s->pos[3 * t + k] = (float)N->pos[3 * u + k];
+        s->parent[t] = t ? newid[N->parent[u]] : -1;
+        s->radius[t] = 1;
+    }
+    s->support_start = sy_calloc(m + 1, sizeof *s->support_start, err, "skeleton");
+    s->support = sy_calloc(n_points ? n_points : 1, sizeof *s->support, err, "skeleton");
+    if (!s->support_start || !s->support) {
+        rc = SY_EINTERNAL;
+        goto done;
+    }
+    for (size_t i = 0; i < n_points; i++) {
+        point_node[i] = newid[resolve(N, node_of[i])];
+        s->support_start[point_node[i] + 1]++;
+    }
+    for (size_t t = 0; t < m; t++) s->support_start[t + 1] += s->support_start[t];
+    size_t *fill = malloc((m ? m : 1) * sizeof *fill);
+    if (!fill) {
+        rc = sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
+        goto done;
+    }
+    for (size_t t = 0; t < m; t++) fill[t] = s->support_start[t];
+    for (size_t i = 0; i < n_points; i++) s->support[fill[point_node[i]]++] = (uint32_t)i;
+    free(fill);
+done:
+    free(order);
+    free(newid);
+    if (rc) sy_skeleton_free(s);
+    return rc;
+}
+
+/* Splits the full skeleton into the main skeleton (out) and clusters. */
+static sy_code split_clusters(const sy_skeleton *full, const float *xyz, const int32_t *cluster_of,
+                              const int32_t *seed_of, size_t n_clusters, sy_skeleton *out, sy_clusters *cl,
+                              sy_error *err)
+{
+    size_t n = full->n;
+    int32_t *newid = sy_calloc(n, sizeof *newid, err, "skeleton");
+    size_t *cnt = sy_calloc(n_clusters + 1, sizeof *cnt, err, "clusters");
+    if (!newid || !cnt) {
+        free(newid);
+        free(cnt);
+        return SY_EINTERNAL;
+    }
+    sy_code rc = sy_skeleton_init(out, 0, err);
+    memcpy(out->origin, full->origin, sizeof out->origin);
+    size_t kept_points = 0;
+    for (size_t i = 0; i < n && !rc; i++) {
+        size_t sc = full->support_start[i + 1] - full->support_start[i];
+        if (cluster_of[i] >= 0) {
+            cnt[cluster_of[i]] += sc;
+            newid[i] = -1;
+            continue;
+        }
+        int32_t p = full->parent[i] >= 0 ? newid[full->parent[i]] : -1;
+        newid[i] = sy_skeleton_add(out, full->pos + 3 * i, full->radius[i], p, full->order[i], full->branch[i], err);
+        if (newid[i] < 0) rc = SY_EINTERNAL;
+        kept_points += sc;
+    }
+    if (!rc) {
+        out->support_start = sy_calloc(out->n + 1, sizeof *out->support_start, err, "skeleton");
+        out->support = sy_calloc(kept_points ? kept_points : 1, sizeof *out->support, err, "skeleton");
+        cl->items = sy_calloc(n_clusters ? n_clusters : 1, sizeof *cl->items, err, "clusters");
+        if (!out->support_start || !out->support || !cl->items) rc = SY_EINTERNAL;
+    }
+    if (!rc) {
+        cl->n = n_clusters;
+        for (size_t c = 0; c < n_clusters && !rc; c++) {
+            cl->items[c].seed = newid[seed_of[c]];
+            cl->items[c].points = sy_calloc(cnt[c] ? cnt[c] : 1, sizeof(uint32_t), err, "clusters");
+            if (!cl->items[c].points) rc = SY_EINTERNAL;
+        }
+    }
+    if (!rc) {
+        size_t w = 0;
+        for (size_t i = 0; i < n; i++) {
+            const uint32_t *sp = full->support + full->support_start[i];
+            size_t sc = full->support_start[i + 1] - full->support_start[i];
+            if (cluster_of[i] >= 0) {
+                sy_cluster *c = &cl->items[cluster_of[i]];
+                memcpy(c->points + c->n_points, sp, sc * sizeof *sp);
+                c->n_points += sc;
+            } else {
+                out->support_start[newid[i]] = w;
+                memcpy(out->support + w, sp, sc * sizeof *sp);
+                w += sc;
+            }
+        }
+        out->support_start[out->n] = w;
+    }
+    (void)xyz;
+    free(newid);
+    free(cnt);
+    return rc;
+}
+
+static int cmp_u32(const void *a, const void *b)
+{
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Triangles per hull so that the .sylva file stays under its 40 kB target:
+ * 36 kB minus the skeleton (about 10 bytes a node) shared by the clusters at
+ * about 6.5 bytes a triangle (half a 6-byte vertex plus ~3.5 index bytes),
+ * never fewer than 16 or more than 160 triangles. */
+static int hull_budget(size_t n_clusters, size_t n_nodes)
+{
+    if (n_clusters == 0) return 160;
+    double bytes = 36000.0 - 64 - 10.0 * (double)n_nodes;
+    double t = bytes / (6.5 * (double)n_clusters);
+    return t < 16 ? 16 : t > 160 ? 160 : (int)t;
+}
+
+sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options *o, sy_skeleton *out,
+                                sy_clusters *clusters, sy_skeleton_report *rep, sy_error *err)
+{
+    sy_skeleton_report local;
+    if (!rep) rep = &local;
+    memset(rep, 0, sizeof *rep);
+    memset(out, 0, sizeof *out);
+    if (clusters) memset(clusters, 0, sizeof *clusters);
+    size_t n = cloud->n;
+    const float *xyz = cloud->xyz;
+    if (n < 16) return sy_fail(err, SY_EINPUT, "skeleton: %zu points are too few for a tree", n);
+    if (!(o->beta > 0) || !(o->gamma > 0) || !(o->fs > 0 && o->fs <= 1) || !(o->bin_factor > 0) ||
+        !(o->radius_factor > 0) || !(o->spacing >= 0) || !isfinite(o->beta + o->gamma + o->spacing))
+        return sy_fail(err, SY_EINPUT, "skeleton: beta, gamma, bin and radius factors must be > 0 and f_s in (0, 1]");
+    double t0 = sy_now(), t = t0;
+    rep->points = n;
+
+    double s = o->spacing > 0 ? o->spacing : sy_estimate_spacing(xyz, n);
+    if (!(s > 0)) s = 0.01;
+    double w = fmax(o->bin_factor * s, o->min_bin);
+    rep->spacing = s;
+    rep->bin_width = w;
+    double zlo = INFINITY, zhi = -INFINITY;
+    for (size_t i = 0; i < n; i++) {
+        zlo = fmin(zlo, xyz[3 * i + 2]);
+        zhi = fmax(zhi, xyz[3 * i + 2]);
+    }
+    double slab = fmax(w, 0.01 * (zhi - zlo)), z0;
+    uint32_t root = sy_find_root(xyz, n, slab, &z0);
+
+    sy_graph g;
+    sy_code rc = sy_graph_build(xyz, n, o->k, o->radius_factor * s, root, &g, err);
+    if (rc) return rc;
+    rep->graph_edges = g.start[n] / 2;
+    rep->components = g.components;
+    rep->bridges = g.bridges;
+    rep->t_graph = sy_now() - t;
+    t = sy_now();
+
+    double *dist = sy_calloc(n, sizeof *dist, err, "skeleton");
+    double *path = sy_calloc(n, sizeof *path, err, "skeleton");
+    int32_t *spt = sy_calloc(n, sizeof *spt, err, "skeleton");
+    int32_t *node_of = sy_calloc(n, sizeof *node_of, err, "skeleton");
+    int32_t *point_node = sy_calloc(n, sizeof *point_node, err, "skeleton");
+    nodes N = {0};
+    sy_skeleton full = {0};
+    int32_t *order = NULL, *stack = NULL, *cluster_of = NULL, *seed_of = NULL;
+    double *reach = NULL;
+    if (!dist || !path || !spt || !node_of || !point_node) {
+        rc = SY_EINTERNAL;
+        goto done;
+    }
+    /* The whole base slab is the source: geodesic level sets then cut the
+     * trunk in horizontal rings instead of spheres around one bark point. */
+    size_t n_src = 0;
+    for (size_t i = 0; i < n; i++)
+        if (xyz[3 * i + 2] <= z0 + slab) node_of[n_src++] = (int32_t)i;
+    rc = sy_graph_dijkstra(&g, (const uint32_t *)node_of, n_src, o->beta, dist, spt, path, err);
+    if (rc) goto done;
+    rep->t_dijkstra = sy_now() - t;
+    t = sy_now();
+
+    rc = level_sets(xyz, n, &g, spt, path, w, root, node_of, &N, err);
+    if (rc) goto done;
+    rep->raw_nodes = N.n;
+    order = sy_calloc(N.n, sizeof *order, err, "skeleton");
+    stack = sy_calloc(N.n, sizeof *stack, err, "skeleton");
+    reach = sy_calloc(N.n, sizeof *reach, err, "skeleton");
+    if (!order || !stack || !reach) {
+        rc = SY_EINTERNAL;
+        goto done;
+    }
+    int32_t nroot = node_of[root];
+    rep->pruned_nodes = prune(&N, nroot, o->prune_factor, w, order, stack, reach);
+    rep->merged_nodes = merge_siblings(&N, nroot, o->merge_cos, w, order);
+    /* Merging can leave new short spurs beside the merged stems. */
+    rep->pruned_nodes += prune(&N, nroot, o->prune_factor, w, order, stack, reach);
+    rc = compact(&N, nroot, node_of, n, cloud->origin, &full, point_node, err);
+    if (rc) goto done;
+    smooth(&full, o->smooth_iters);
+    rep->t_levels = sy_now() - t;
+    t = sy_now();
+
+    double *l = sy_calloc(full.n, sizeof *l, err, "skeleton");
+    if (!l) {
+        rc = SY_EINTERNAL;
+        goto done;
+    }
+    sy_subtree_lengths(&full, l);
+    sy_assign_branches(&full, l);
+    sy_radii_info ri;
+    rc = sy_assign_radii(&full, xyz, point_node, n, o->gamma, s, o->dbh_height, o->dbh_slab, &ri, err);
+    free(l);
+    if (rc) goto done;
+    rep->dbh = ri.dbh;
+    rep->dbh_rms = ri.rms;
+    rep->dbh_fitted = ri.fitted;
+    rep->height = ri.height;
+    rep->d_root = ri.d_root;
+    rep->t_radii = sy_now() - t;
+    t = sy_now();
+
+    size_t n_clusters = 0;
+    cluster_of = sy_calloc(full.n, sizeof *cluster_of, err, "clusters");
+    seed_of = sy_calloc(full.n, sizeof *seed_of, err, "clusters");
+    if (!cluster_of || !seed_of) {
+        rc = SY_EINTERNAL;
+        goto done;
+    }
+    if (o->clusters && clusters) {
+        rc = sy_clusters_cut(&full, xyz, o->fs, o->min_cluster_points, cluster_of, seed_of, &n_clusters, err);
+        if (rc) goto done;
+    } else {
+        for (size_t i = 0; i < full.n; i++) cluster_of[i] = -1;
+    }
+    sy_clusters tmp = {0};
+    rc = split_clusters(&full, xyz, cluster_of, seed_of, n_clusters, out, clusters ? clusters : &tmp, err);
+    sy_clusters_free(&tmp);
+    if (rc) goto done;
+    /* Branch ids again on the main skeleton alone, so ids stay dense. */
+    l = sy_calloc(out->n, sizeof *l, err, "skeleton");
+    if (!l) {
+        rc = SY_EINTERNAL;
+        goto done;
+    }
+    sy_subtree_lengths(out, l);
+    sy_assign_branches(out, l);
+    free(l);
+    rep->t_clusters = sy_now() - t;
+    t = sy_now();
+
+    if (clusters) {
+        int budget = o->hull_triangles > 0 ? o->hull_triangles : hull_budget(clusters->n, out->n);
+        for (size_t c = 0; c < clusters->n && !rc; c++) {
+            sy_cluster *C = &clusters->items[c];
+            qsort(C->points, C->n_points, sizeof *C->points, cmp_u32);
+            rc = sy_cluster_build_hull(C, xyz, o->alpha_scale, budget, 0.01, err);
+            rep->cluster_points += C->n_points;
+            if (C->hull == SY_HULL_ALPHA) rep->hulls_alpha++;
+            else if (C->hull == SY_HULL_CONVEX) rep->hulls_convex++;
+            else rep->hulls_box++;
+        }
+        rep->clusters = clusters->n;
+    }
+    rep->t_hulls = sy_now() - t;
+    rep->nodes = out->n;
+    rep->branches = (size_t)sy_skeleton_branch_count(out);
+    rep->skeleton_points = out->support_start ? out->support_start[out->n] : 0;
+    rc = rc ? rc : sy_skeleton_validate(out, err);
+
+done:
+    if (rc) {
+        sy_skeleton_free(out);
+        sy_clusters_free(clusters);
+    }
+    sy_skeleton_free(&full);
+    nodes_free(&N);
+    sy_graph_free(&g);
+    free(dist);
+    free(path);
+    free(spt);
+    free(node_of);
+    free(point_node);
+    free(order);
+    free(stack);
+    free(reach);
+    free(cluster_of);
+    free(seed_of);
+    rep->t_total = sy_now() - t0;
+    return rc;
+}

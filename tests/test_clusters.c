@@ -1,0 +1,193 @@
+/* Clusters: the low-confidence rule, the cut, hulls (closed, outward, holding
+ * their points) and the fallbacks for tiny and flat clusters. */
+#include "testutil.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stages/clusters/alpha_shape_cgal.h"
+#include "stages/clusters/clusters.h"
+#include "stages/skeleton/skeleton_stage.h"
+#include "synthetic_tree.h"
+
+static void assert_good_hull(const sy_cluster *c, const float *xyz)
+{
+    assert_true(c->n_tris >= 4);
+    assert_int_equal(sy_mesh_bad_edges(c->tris, c->n_tris, c->n_verts), 0);
+    assert_true(sy_mesh_signed_volume(c->verts, c->tris, c->n_tris) > 0);
+    double in = sy_mesh_containment(c->verts, c->tris, c->n_tris, xyz, c->points, c->n_points, 0.01);
+    assert_true(in >= 0.95);
+}
+
+static const float cube_v[24] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0, 0, 0, 1, 1, 0, 1, 0, 1, 1, 1, 1, 1};
+static const uint32_t cube_t[36] = {0, 2, 3, 0, 3, 1, 4, 5, 7, 4, 7, 6, 0, 1, 5, 0, 5, 4,
+                                    2, 6, 7, 2, 7, 3, 0, 4, 6, 0, 6, 2, 1, 3, 7, 1, 7, 5};
+
+static void mesh_checks_detect_open_and_flipped(void **state)
+{
+    (void)state;
+    uint32_t t[36];
+    memcpy(t, cube_t, sizeof t);
+    assert_int_equal(sy_mesh_bad_edges(t, 12, 8), 0);
+    assert_float_equal(sy_mesh_signed_volume(cube_v, t, 12), 1.0, 1e-9);
+    /* Inside, outside, and just outside within tolerance. */
+    float pts[9] = {0.5f, 0.5f, 0.5f, 2, 2, 2, 1.005f, 0.5f, 0.5f};
+    uint32_t idx[3] = {0, 1, 2};
+    assert_float_equal(sy_mesh_containment(cube_v, t, 12, pts, idx, 1, 0.01), 1.0, 0);
+    assert_float_equal(sy_mesh_containment(cube_v, t, 12, pts, idx + 1, 1, 0.01), 0.0, 0);
+    assert_float_equal(sy_mesh_containment(cube_v, t, 12, pts, idx + 2, 1, 0.01), 1.0, 0);
+    assert_float_equal(sy_mesh_containment(cube_v, t, 12, pts, idx + 2, 1, 0.001), 0.0, 0);
+    /* One flipped triangle, then one missing: both break closure. */
+    uint32_t s = t[1];
+    t[1] = t[2];
+    t[2] = s;
+    assert_true(sy_mesh_bad_edges(t, 12, 8) > 0);
+    memcpy(t, cube_t, sizeof t);
+    assert_true(sy_mesh_bad_edges(t, 11, 8) > 0);
+    /* Reversed everywhere: closed but inside out. */
+    for (int i = 0; i < 12; i++) {
+        s = t[3 * i + 1];
+        t[3 * i + 1] = t[3 * i + 2];
+        t[3 * i + 2] = s;
+    }
+    assert_int_equal(sy_mesh_bad_edges(t, 12, 8), 0);
+    assert_true(sy_mesh_signed_volume(cube_v, t, 12) < 0);
+}
+
+static void low_confidence_rule(void **state)
+{
+    (void)state;
+    /* Points on a cylinder of radius 5 cm around a vertical edge. */
+    float pts[3 * 64];
+    uint32_t idx[64];
+    for (int i = 0; i < 64; i++) {
+        double a = i * 0.7;
+        pts[3 * i] = (float)(0.05 * cos(a));
+        pts[3 * i + 1] = (float)(0.05 * sin(a));
+        pts[3 * i + 2] = (float)(i / 64.0);
+        idx[i] = (uint32_t)i;
+    }
+    float p[3] = {0, 0, 0}, c[3] = {0, 0, 1};
+    /* Mean distance 0.05 against a 0.1 m diameter: a branch. */
+    assert_int_equal(sy_edge_low_confidence(p, c, pts, idx, 64, 0.1, 1.0), 0);
+    /* The same points against a 4 cm branch: spread too wide, low confidence. */
+    assert_int_equal(sy_edge_low_confidence(p, c, pts, idx, 64, 0.04, 1.0), 1);
+    /* f_s shrinks the diameter: 0.1 m * 0.4 < 0.05 m. */
+    assert_int_equal(sy_edge_low_confidence(p, c, pts, idx, 64, 0.1, 0.4), 1);
+    assert_int_equal(sy_edge_low_confidence(p, c, pts, idx, 0, 0.1, 1.0), 0);
+}
+
+static void alpha_shape_of_a_ball(void **state)
+{
+    (void)state;
+    size_t n = 2000;
+    sy_cluster c = {0};
+    float *xyz = malloc(3 * n * sizeof *xyz);
+    c.points = malloc(n * sizeof *c.points);
+    uint64_t st = 9;
+    for (size_t i = 0; i < n; i++) {
+        double p[3];
+        do {
+            for (int k = 0; k < 3; k++) p[k] = 2 * syn_uniform(&st) - 1;
+        } while (p[0] * p[0] + p[1] * p[1] + p[2] * p[2] > 1);
+        for (int k = 0; k < 3; k++) xyz[3 * i + k] = (float)(0.4 * p[k] + (k == 2 ? 5 : 1));
+        c.points[i] = (uint32_t)i;
+    }
+    c.n_points = n;
+    sy_error err = {0};
+    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, &err), SY_OK);
+    assert_int_equal(c.hull, SY_HULL_ALPHA);
+    assert_true(c.alpha > 0);
+    assert_true(c.n_tris <= 120); /* simplified toward the budget */
+    assert_good_hull(&c, xyz);
+    /* CGAL's alpha is a squared radius: alpha = 5 * alpha_min exactly. */
+    sy_alpha_mesh m;
+    char msg[128];
+    assert_int_equal(sy_alpha_shape_boundary(xyz, n, 5.0, &m, msg, sizeof msg), 0);
+    assert_float_equal(m.alpha, 5.0 * m.alpha_min, 1e-12 * m.alpha);
+    assert_int_equal(sy_mesh_bad_edges(m.tris, m.n_tris, m.n_verts), 0);
+    assert_true(sy_mesh_signed_volume(m.verts, m.tris, m.n_tris) > 0);
+    sy_alpha_mesh_free(&m);
+    /* Flat input: CGAL refuses, the builder falls back to a padded box. */
+    for (size_t i = 0; i < n; i++) xyz[3 * i + 2] = 5;
+    assert_int_equal(sy_alpha_shape_boundary(xyz, n, 5.0, &m, msg, sizeof msg), -1);
+    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, &err), SY_OK);
+    assert_int_equal(c.hull, SY_HULL_BOX);
+    assert_good_hull(&c, xyz);
+    /* Three points: a box too. */
+    c.n_points = 3;
+    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, &err), SY_OK);
+    assert_int_equal(c.hull, SY_HULL_BOX);
+    assert_good_hull(&c, xyz);
+    free(c.points);
+    free(c.verts);
+    free(c.tris);
+    free(xyz);
+}
+
+static void foliage_becomes_clusters(void **state)
+{
+    (void)state;
+    syn_tree t;
+    syn_tree_make(&t, 1, 1);
+    sy_cloud cloud;
+    sy_error err = {0};
+    assert_int_equal(syn_sample(&t, 40000, 0.4, 0.002, 21, &cloud, &err), SY_OK);
+    sy_skeleton_options o;
+    sy_skeleton_options_default(&o);
+    sy_skeleton s;
+    sy_clusters cl;
+    sy_skeleton_report r;
+    assert_int_equal(sy_reconstruct_skeleton(&cloud, &o, &s, &cl, &r, &err), SY_OK);
+    printf("foliage tree: %zu nodes, %zu clusters (%zu alpha, %zu convex, %zu box), %zu of %zu points in clusters\n",
+           r.nodes, r.clusters, r.hulls_alpha, r.hulls_convex, r.hulls_box, r.cluster_points, cloud.n);
+    /* Most blob points (40% of the cloud) end in clusters. */
+    assert_true(cl.n >= 4);
+    assert_true(r.cluster_points >= 0.3 * (double)cloud.n);
+    size_t assigned = r.skeleton_points;
+    for (size_t c = 0; c < cl.n; c++) {
+        assert_true(cl.items[c].seed >= 0 && (size_t)cl.items[c].seed < s.n);
+        assert_true(cl.items[c].n_points >= (size_t)o.min_cluster_points);
+        assert_good_hull(&cl.items[c], cloud.xyz);
+        assigned += cl.items[c].n_points;
+    }
+    assert_int_equal(assigned, cloud.n);
+    sy_clusters_free(&cl);
+    sy_skeleton_free(&s);
+
+    /* Monotone in f_s: a smaller f_s never keeps more on the main skeleton. */
+    o.clusters = 0;
+    assert_int_equal(sy_reconstruct_skeleton(&cloud, &o, &s, NULL, NULL, &err), SY_OK);
+    int32_t *prev = malloc(s.n * sizeof *prev), *cur = malloc(s.n * sizeof *cur), *seeds = malloc(s.n * sizeof *seeds);
+    double fs[4] = {0.3, 0.6, 0.9, 1.0};
+    size_t last_main = 0;
+    for (int f = 0; f < 4; f++) {
+        size_t nc, main_nodes = 0;
+        assert_int_equal(sy_clusters_cut(&s, cloud.xyz, fs[f], 0, cur, seeds, &nc, &err), SY_OK);
+        for (size_t i = 0; i < s.n; i++) {
+            main_nodes += cur[i] < 0;
+            if (f > 0 && prev[i] < 0) assert_true(cur[i] < 0);
+        }
+        assert_true(main_nodes >= last_main);
+        last_main = main_nodes;
+        memcpy(prev, cur, s.n * sizeof *cur);
+    }
+    free(prev);
+    free(cur);
+    free(seeds);
+    sy_skeleton_free(&s);
+    sy_cloud_free(&cloud);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(mesh_checks_detect_open_and_flipped),
+        cmocka_unit_test(low_confidence_rule),
+        cmocka_unit_test(alpha_shape_of_a_ball),
+        cmocka_unit_test(foliage_becomes_clusters),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

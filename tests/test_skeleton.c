@@ -1,0 +1,255 @@
+/* Skeleton reconstruction: graph, Dijkstra, circle fit, and the whole stage
+ * on a synthetic tree with known geometry and on real AdTree scans. */
+#include "testutil.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stages/core/fileio.h"
+#include "stages/skeleton/skeleton_stage.h"
+#include "synthetic_tree.h"
+#include "xyz_text.h"
+
+/* Fraction of the truth axis (sampled every cm) with a skeleton node within
+ * tol of it. */
+static double axis_coverage(const sy_skeleton *s, const syn_seg *g, double tol)
+{
+    double L = 0;
+    for (int k = 0; k < 3; k++) L += (g->b[k] - g->a[k]) * (g->b[k] - g->a[k]);
+    L = sqrt(L);
+    int samples = (int)(L / 0.01) + 1, hit = 0;
+    for (int i = 0; i < samples; i++) {
+        double u = (double)i / (samples - 1), p[3];
+        for (int k = 0; k < 3; k++) p[k] = g->a[k] + u * (g->b[k] - g->a[k]);
+        for (size_t v = 0; v < s->n; v++) {
+            double d2 = 0;
+            for (int k = 0; k < 3; k++) {
+                double d = s->origin[k] + s->pos[3 * v + k] - p[k];
+                d2 += d * d;
+            }
+            if (d2 <= tol * tol) {
+                hit++;
+                break;
+            }
+        }
+    }
+    return (double)hit / samples;
+}
+
+/* Each point exactly once: on one skeleton node or in one cluster. */
+static void assert_partition(const sy_skeleton *s, const sy_clusters *cl, size_t n)
+{
+    uint8_t *seen = calloc(n, 1);
+    assert_non_null(seen);
+    assert_non_null(s->support_start);
+    for (size_t i = 0; i < s->support_start[s->n]; i++) {
+        assert_true(s->support[i] < n);
+        assert_int_equal(seen[s->support[i]], 0);
+        seen[s->support[i]] = 1;
+    }
+    for (size_t c = 0; cl && c < cl->n; c++) {
+        assert_true(cl->items[c].seed >= 0 && (size_t)cl->items[c].seed < s->n);
+        for (size_t i = 0; i < cl->items[c].n_points; i++) {
+            uint32_t p = cl->items[c].points[i];
+            assert_true(p < n);
+            assert_int_equal(seen[p], 0);
+            seen[p] = 1;
+        }
+    }
+    for (size_t i = 0; i < n; i++) assert_int_equal(seen[i], 1);
+    free(seen);
+}
+
+static void assert_radii_taper(const sy_skeleton *s)
+{
+    for (size_t i = 0; i < s->n; i++)
+        if (s->parent[i] >= 0) assert_true(s->radius[i] <= s->radius[s->parent[i]]);
+}
+
+static void synthetic_tree_is_recovered(void **state)
+{
+    (void)state;
+    syn_tree t;
+    syn_tree_make(&t, 1, 0);
+    sy_cloud c;
+    sy_error err = {0};
+    assert_int_equal(syn_sample(&t, 40000, 0, 0.002, 11, &c, &err), SY_OK);
+    sy_skeleton_options o;
+    sy_skeleton_options_default(&o);
+    sy_skeleton s;
+    sy_clusters cl;
+    sy_skeleton_report r;
+    assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, &r, &err), SY_OK);
+    printf("synthetic: %zu nodes, %zu branches, %zu clusters (%zu points), DBH %.4f (truth %.4f), %.2f s\n", r.nodes,
+           r.branches, r.clusters, r.cluster_points, r.dbh, 2 * syn_trunk_radius(1.3), r.t_total);
+    assert_int_equal(sy_skeleton_validate(&s, &err), SY_OK);
+    /* Rooted at the base, on the trunk axis. */
+    assert_true(s.parent[0] == -1);
+    assert_true(fabs(s.origin[2] + s.pos[2]) < 0.1);
+    assert_true(hypot(s.origin[0] + s.pos[0], s.origin[1] + s.pos[1]) < 0.05);
+    assert_radii_taper(&s);
+    assert_true(r.dbh_fitted);
+    assert_true(fabs(r.dbh - 2 * syn_trunk_radius(1.3)) < 0.01);
+    for (int g = 0; g < t.n; g++) {
+        double L = 0;
+        for (int k = 0; k < 3; k++) L += (t.seg[g].b[k] - t.seg[g].a[k]) * (t.seg[g].b[k] - t.seg[g].a[k]);
+        if (sqrt(L) <= 0.5) continue;
+        double cov = axis_coverage(&s, &t.seg[g], fmax(2 * t.seg[g].ra, 0.05));
+        printf("  branch %d (length %.2f m): %.0f%% covered\n", g, sqrt(L), 100 * cov);
+        assert_true(cov >= 0.9);
+    }
+    assert_partition(&s, &cl, c.n);
+    sy_clusters_free(&cl);
+    sy_skeleton_free(&s);
+    sy_cloud_free(&c);
+}
+
+static void circle_fit_resists_noise_and_outliers(void **state)
+{
+    (void)state;
+    uint64_t st = 5;
+    size_t n = 400;
+    double *xy = malloc(2 * n * sizeof *xy);
+    assert_non_null(xy);
+    for (size_t i = 0; i < n; i++) {
+        double a = 2 * 3.14159265358979323846 * syn_uniform(&st);
+        if (i % 5 == 0) { /* 20% outliers: twigs, leaves, a fence */
+            xy[2 * i] = 3.0 + syn_uniform(&st) - 0.5;
+            xy[2 * i + 1] = -1.0 + 2 * syn_uniform(&st) - 0.5;
+        } else if (i < 300) { /* a 270-degree arc: the scanner saw three sides */
+            double r = 0.21 + 0.003 * syn_normal(&st);
+            a = 1.5 * 3.14159265358979323846 * syn_uniform(&st);
+            xy[2 * i] = 3.0 + r * cos(a);
+            xy[2 * i + 1] = -1.0 + r * sin(a);
+        } else {
+            double r = 0.21 + 0.003 * syn_normal(&st);
+            xy[2 * i] = 3.0 + r * cos(a);
+            xy[2 * i + 1] = -1.0 + r * sin(a);
+        }
+    }
+    double ctr[2], rad, rms;
+    assert_int_equal(sy_fit_circle(xy, n, 0.01, 1, ctr, &rad, &rms), 0);
+    assert_true(fabs(2 * rad - 0.42) < 0.005);
+    assert_true(hypot(ctr[0] - 3.0, ctr[1] + 1.0) < 0.005);
+    assert_true(rms < 0.005);
+    /* Three points cannot define a fit; collinear points have no circle. */
+    assert_int_not_equal(sy_fit_circle(xy, 3, 0.01, 1, ctr, &rad, &rms), 0);
+    for (size_t i = 0; i < n; i++) {
+        xy[2 * i] = (double)i;
+        xy[2 * i + 1] = 2.0 * (double)i;
+    }
+    assert_int_not_equal(sy_fit_circle(xy, n, 0.01, 1, ctr, &rad, &rms), 0);
+    free(xy);
+}
+
+static void graph_is_connected_and_dijkstra_optimal(void **state)
+{
+    (void)state;
+    /* Two separate blobs plus a far single point: bridging must join all. */
+    sy_cloud c;
+    sy_error err = {0};
+    assert_int_equal(sy_cloud_init(&c, 2001, &err), SY_OK);
+    uint64_t st = 3;
+    for (size_t i = 0; i < 2000; i++)
+        for (int k = 0; k < 3; k++) c.xyz[3 * i + k] = (float)(syn_uniform(&st) * 0.5 + (i >= 1000 && k == 0 ? 2.0 : 0));
+    c.xyz[3 * 2000] = 10;
+    c.xyz[3 * 2000 + 1] = 10;
+    c.xyz[3 * 2000 + 2] = 10;
+    double s = sy_estimate_spacing(c.xyz, c.n);
+    assert_true(s > 0.005 && s < 0.1);
+    sy_graph g;
+    assert_int_equal(sy_graph_build(c.xyz, c.n, 10, 2 * s, 0, &g, &err), SY_OK);
+    assert_true(g.components >= 3);
+    assert_int_equal(g.bridges, g.components - 1);
+    double *dist = malloc(c.n * sizeof *dist), *path = malloc(c.n * sizeof *path);
+    int32_t *par = malloc(c.n * sizeof *par);
+    uint32_t src = 0;
+    assert_int_equal(sy_graph_dijkstra(&g, &src, 1, 1.5, dist, par, path, &err), SY_OK);
+    for (size_t i = 0; i < c.n; i++) {
+        assert_true(isfinite(dist[i])); /* connected */
+        if (i) assert_true(par[i] >= 0 && dist[i] > dist[par[i]]);
+        for (size_t t = g.start[i]; t < g.start[i + 1]; t++) {
+            assert_true(g.adj[t] != i);
+            /* No edge can shorten a settled distance. */
+            assert_true(dist[g.adj[t]] <= dist[i] + pow(g.len[t], 1.5) + 1e-9);
+        }
+    }
+    /* Symmetric adjacency. */
+    for (size_t i = 0; i < c.n; i++)
+        for (size_t t = g.start[i]; t < g.start[i + 1]; t++) {
+            uint32_t j = g.adj[t];
+            int back = 0;
+            for (size_t u = g.start[j]; u < g.start[j + 1]; u++) back |= g.adj[u] == i;
+            assert_true(back);
+        }
+    free(dist);
+    free(path);
+    free(par);
+    sy_graph_free(&g);
+    sy_cloud_free(&c);
+}
+
+static void real_trees_reconstruct(void **state)
+{
+    (void)state;
+    const char *files[] = {"real/adtree/tree1.xyz", "real/adtree/tree7.xyz", "real/adtree/tree13.xyz",
+                           "real/rtwig/cloud.txt"};
+    for (int f = 0; f < 4; f++) {
+        sy_cloud c;
+        assert_int_equal(load_xyz(data_path(files[f]), &c), 0);
+        assert_true(c.n > 1000);
+        sy_skeleton_options o;
+        sy_skeleton_options_default(&o);
+        sy_skeleton s;
+        sy_clusters cl;
+        sy_skeleton_report r;
+        sy_error err = {0};
+        assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, &r, &err), SY_OK);
+        printf("%s: %zu points, %zu nodes, %zu branches, %zu clusters (%zu alpha, %zu convex, %zu box), "
+               "DBH %.3f m (%s), height %.2f m, %.2f s\n",
+               files[f], c.n, r.nodes, r.branches, r.clusters, r.hulls_alpha, r.hulls_convex, r.hulls_box, r.dbh,
+               r.dbh_fitted ? "fit" : "fallback", r.height, r.t_total);
+        assert_int_equal(sy_skeleton_validate(&s, &err), SY_OK);
+        assert_radii_taper(&s);
+        assert_partition(&s, &cl, c.n);
+        assert_true(r.dbh > 0.01 && r.dbh < 2.0);
+        sy_clusters_free(&cl);
+        sy_skeleton_free(&s);
+        sy_cloud_free(&c);
+    }
+}
+
+static void rejects_tiny_and_bad_options(void **state)
+{
+    (void)state;
+    sy_cloud c;
+    sy_error err = {0};
+    assert_int_equal(sy_cloud_init(&c, 5, &err), SY_OK);
+    sy_skeleton_options o;
+    sy_skeleton_options_default(&o);
+    sy_skeleton s;
+    sy_clusters cl;
+    assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, NULL, &err), SY_EINPUT);
+    assert_non_null(strstr(err.msg, "too few"));
+    sy_cloud_free(&c);
+    syn_tree t;
+    syn_tree_make(&t, 0, 0);
+    assert_int_equal(syn_sample(&t, 2000, 0, 0.002, 1, &c, &err), SY_OK);
+    o.fs = 1.5;
+    assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, NULL, &err), SY_EINPUT);
+    sy_cloud_free(&c);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(circle_fit_resists_noise_and_outliers),
+        cmocka_unit_test(graph_is_connected_and_dijkstra_optimal),
+        cmocka_unit_test(synthetic_tree_is_recovered),
+        cmocka_unit_test(real_trees_reconstruct),
+        cmocka_unit_test(rejects_tiny_and_bad_options),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

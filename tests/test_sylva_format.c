@@ -1,0 +1,312 @@
+/* The .sylva file: round trip within the quantisation, byte-identical
+ * re-encoding, < 40 kB per scanned tree, and one-line SY_EINPUT errors for
+ * every corrupted, truncated or malformed file. */
+#include "testutil.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stages/core/fileio.h"
+#include "stages/encode/sylva_format.h"
+#include "stages/skeleton/skeleton_stage.h"
+#include "synthetic_tree.h"
+#include "xyz_text.h"
+
+static uint32_t crc32_ref(const unsigned char *p, size_t n)
+{
+    uint32_t c = 0xffffffffu;
+    for (size_t i = 0; i < n; i++) {
+        c ^= p[i];
+        for (int k = 0; k < 8; k++) c = (c & 1) ? (c >> 1) ^ 0xedb88320u : c >> 1;
+    }
+    return ~c;
+}
+
+static void reseal(unsigned char *p, size_t n)
+{
+    uint32_t c = crc32_ref(p, n - 4);
+    for (int i = 0; i < 4; i++) p[n - 4 + i] = (unsigned char)(c >> (8 * i));
+}
+
+static void assert_one_line_input_error(sy_code rc, const sy_error *err, const char *path)
+{
+    assert_int_equal(rc, SY_EINPUT);
+    assert_non_null(strstr(err->msg, path));
+    assert_null(strchr(err->msg, '\n'));
+}
+
+/* Triangles as sorted canonical triples, for comparing hulls as sets. */
+static int cmp3(const void *a, const void *b) { return memcmp(a, b, 3 * sizeof(uint32_t)) > 0 ? 1 : memcmp(a, b, 3 * sizeof(uint32_t)) < 0 ? -1 : 0; }
+static uint32_t *canonical_tris(const sy_cluster *c)
+{
+    uint32_t *t = malloc(3 * c->n_tris * sizeof *t);
+    for (size_t i = 0; i < c->n_tris; i++) {
+        const uint32_t *x = c->tris + 3 * i;
+        int m = x[0] <= x[1] && x[0] <= x[2] ? 0 : x[1] <= x[2] ? 1 : 2;
+        for (int k = 0; k < 3; k++) {
+            /* big-endian words so memcmp orders numerically */
+            uint32_t v = x[(m + k) % 3];
+            unsigned char *b = (unsigned char *)&t[3 * i + k];
+            b[0] = (unsigned char)(v >> 24);
+            b[1] = (unsigned char)(v >> 16);
+            b[2] = (unsigned char)(v >> 8);
+            b[3] = (unsigned char)v;
+        }
+    }
+    qsort(t, c->n_tris, 3 * sizeof *t, cmp3);
+    return t;
+}
+
+/* Encodes, checks size, decodes, compares, re-encodes. */
+static void round_trip(const char *name, const sy_skeleton *s, const sy_clusters *cl)
+{
+    sy_error err = {0};
+    const char *path = tmp_path(name);
+    assert_int_equal(sy_encode_write(path, s, cl, 7, 0x1234567890abcdefULL, &err), SY_OK);
+    assert_int_equal(dir_entry_count(test_tmpdir()) >= 1, 1);
+    sy_buffer file;
+    assert_int_equal(sy_read_file(path, &file, &err), SY_OK);
+    printf("%s: %zu nodes, %zu clusters -> %zu bytes\n", name, s->n, cl->n, file.size);
+    assert_true(file.size < 40000);
+
+    sy_skeleton d;
+    sy_clusters dc;
+    sy_sylva_meta meta;
+    assert_int_equal(sy_decode_read(path, &d, &dc, &meta, &err), SY_OK);
+    assert_int_equal(meta.species_id, 7);
+    assert_true(meta.seed == 0x1234567890abcdefULL);
+    assert_int_equal(sy_skeleton_validate(&d, &err), SY_OK);
+    assert_int_equal(d.n, s->n);
+    double half = ldexp(1.0, meta.quant.step_log2) / 2 * (1 + 1e-6);
+    /* The extent bound stated in the header: the step is below extent/32767. */
+    assert_true(half * 2 <= 40.0 / 32767 || s->n == 0);
+    double rel = (meta.quant.log2_rmax - meta.quant.log2_rmin) / 65535.0 * log(2.0) / 2 * 1.001 + 1e-6;
+    for (int k = 0; k < 3; k++) assert_true(d.origin[k] == s->origin[k]);
+    for (size_t i = 0; i < s->n; i++) {
+        /* The reconstruction writes breadth-first order, so indices match. */
+        assert_int_equal(d.parent[i], s->parent[i]);
+        assert_int_equal(d.branch[i], s->branch[i]);
+        assert_int_equal(d.order[i], s->order[i]);
+        for (int k = 0; k < 3; k++) assert_true(fabs(d.pos[3 * i + k] - s->pos[3 * i + k]) <= half);
+        assert_true(fabs(d.radius[i] / s->radius[i] - 1) <= rel);
+    }
+    assert_int_equal(dc.n, cl->n);
+    for (size_t c = 0; c < cl->n; c++) {
+        const sy_cluster *a = &cl->items[c], *b = &dc.items[c];
+        assert_int_equal(a->seed, b->seed);
+        assert_int_equal(a->hull, b->hull);
+        assert_int_equal(a->n_verts, b->n_verts);
+        assert_int_equal(a->n_tris, b->n_tris);
+        for (size_t v = 0; v < 3 * a->n_verts; v++) assert_true(fabs(a->verts[v] - b->verts[v]) <= half);
+        uint32_t *ta = canonical_tris(a), *tb = canonical_tris(b);
+        assert_memory_equal(ta, tb, 3 * a->n_tris * sizeof *ta);
+        free(ta);
+        free(tb);
+        assert_int_equal(sy_mesh_bad_edges(b->tris, b->n_tris, b->n_verts), 0);
+    }
+    /* Re-encoding the decoded tree with the file's own grid gives the same bytes. */
+    unsigned char *again;
+    size_t again_size;
+    assert_int_equal(sy_encode_mem(&d, &dc, meta.species_id, meta.seed, &meta.quant, &again, &again_size, &err), SY_OK);
+    assert_int_equal(again_size, file.size);
+    assert_memory_equal(again, file.data, file.size);
+    /* Decoding twice gives identical trees. */
+    sy_skeleton d2;
+    sy_clusters dc2;
+    sy_sylva_meta meta2;
+    assert_int_equal(sy_decode_mem(path, file.data, file.size, &d2, &dc2, &meta2, &err), SY_OK);
+    assert_memory_equal(d2.pos, d.pos, 3 * d.n * sizeof *d.pos);
+    assert_memory_equal(d2.radius, d.radius, d.n * sizeof *d.radius);
+    free(again);
+    sy_skeleton_free(&d2);
+    sy_clusters_free(&dc2);
+    sy_skeleton_free(&d);
+    sy_clusters_free(&dc);
+    sy_buffer_free(&file);
+}
+
+static void real_trees_round_trip_under_40kB(void **state)
+{
+    (void)state;
+    const char *files[] = {"real/adtree/tree1.xyz", "real/adtree/tree7.xyz", "real/adtree/tree13.xyz"};
+    const char *names[] = {"tree1.sylva", "tree7.sylva", "tree13.sylva"};
+    for (int f = 0; f < 3; f++) {
+        sy_cloud c;
+        assert_int_equal(load_xyz(data_path(files[f]), &c), 0);
+        sy_skeleton_options o;
+        sy_skeleton_options_default(&o);
+        sy_skeleton s;
+        sy_clusters cl;
+        sy_error err = {0};
+        assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, NULL, &err), SY_OK);
+        round_trip(names[f], &s, &cl);
+        sy_clusters_free(&cl);
+        sy_skeleton_free(&s);
+        sy_cloud_free(&c);
+    }
+}
+
+static void synthetic_tree_round_trips(void **state)
+{
+    (void)state;
+    syn_tree t;
+    syn_tree_make(&t, 1, 1);
+    sy_cloud c;
+    sy_error err = {0};
+    assert_int_equal(syn_sample(&t, 20000, 0.4, 0.002, 4, &c, &err), SY_OK);
+    c.origin[0] = 1.17e6; /* survey coordinates survive in the double origin */
+    c.origin[1] = -4.2e5;
+    sy_skeleton_options o;
+    sy_skeleton_options_default(&o);
+    sy_skeleton s;
+    sy_clusters cl;
+    assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, NULL, &err), SY_OK);
+    round_trip("synthetic.sylva", &s, &cl);
+    /* Same input, same bytes, whatever ran before in the process (CGAL's
+     * facet order follows heap addresses; the hull builder must not). */
+    unsigned char *a, *b;
+    size_t na, nb;
+    assert_int_equal(sy_encode_mem(&s, &cl, 0, 1, NULL, &a, &na, &err), SY_OK);
+    sy_clusters_free(&cl);
+    sy_skeleton_free(&s);
+    assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, NULL, &err), SY_OK);
+    assert_int_equal(sy_encode_mem(&s, &cl, 0, 1, NULL, &b, &nb, &err), SY_OK);
+    assert_int_equal(na, nb);
+    assert_memory_equal(a, b, na);
+    free(a);
+    free(b);
+    sy_clusters_free(&cl);
+    sy_skeleton_free(&s);
+    sy_cloud_free(&c);
+}
+
+/* A small valid file to damage: a 3-node skeleton and one tetrahedron. */
+static unsigned char *tiny_file(size_t *size)
+{
+    sy_skeleton s;
+    sy_error err = {0};
+    assert_int_equal(sy_skeleton_init(&s, 0, &err), SY_OK);
+    float p0[3] = {0, 0, 0}, p1[3] = {0, 0, 1}, p2[3] = {0.3f, 0, 1.4f};
+    sy_skeleton_add(&s, p0, 0.1f, -1, 0, 0, &err);
+    sy_skeleton_add(&s, p1, 0.08f, 0, 0, 0, &err);
+    sy_skeleton_add(&s, p2, 0.02f, 1, 1, 1, &err);
+    sy_cluster cc = {0};
+    float v[12] = {0, 0, 1, 1, 0, 1, 0, 1, 1, 0, 0, 2};
+    uint32_t tr[12] = {0, 2, 1, 0, 1, 3, 1, 2, 3, 0, 3, 2};
+    cc.seed = 1;
+    cc.verts = v;
+    cc.n_verts = 4;
+    cc.tris = tr;
+    cc.n_tris = 4;
+    sy_clusters cl = {1, &cc};
+    assert_true(sy_mesh_signed_volume(v, tr, 4) > 0);
+    unsigned char *data;
+    assert_int_equal(sy_encode_mem(&s, &cl, 3, 99, NULL, &data, size, &err), SY_OK);
+    sy_skeleton_free(&s);
+    return data;
+}
+
+static void damaged_files_fail_cleanly(void **state)
+{
+    (void)state;
+    size_t size;
+    unsigned char *good = tiny_file(&size);
+    unsigned char *buf = malloc(size + 16);
+    sy_skeleton s;
+    sy_clusters cl;
+    sy_sylva_meta meta;
+    sy_error err = {0};
+    const char *name = "damaged.sylva";
+    assert_int_equal(sy_decode_mem(name, good, size, &s, &cl, &meta, &err), SY_OK);
+    assert_int_equal(s.n, 3);
+    assert_int_equal(cl.n, 1);
+    assert_int_equal(meta.species_id, 3);
+    sy_skeleton_free(&s);
+    sy_clusters_free(&cl);
+    /* Every truncation. */
+    for (size_t n = 0; n < size; n++)
+        assert_one_line_input_error(sy_decode_mem(name, good, n, &s, &cl, &meta, &err), &err, name);
+    /* Every single-bit flip is caught (by the checksum or the header checks). */
+    for (size_t i = 0; i < size; i++)
+        for (int bit = 0; bit < 8; bit++) {
+            memcpy(buf, good, size);
+            buf[i] ^= (unsigned char)(1 << bit);
+            assert_one_line_input_error(sy_decode_mem(name, buf, size, &s, &cl, &meta, &err), &err, name);
+        }
+    /* Damage behind a valid checksum: the structural checks must catch it. */
+    const size_t payload = 64;
+    memcpy(buf, good, size);
+    buf[payload] = 0xff; /* node count: an unterminated varint */
+    reseal(buf, size);
+    assert_one_line_input_error(sy_decode_mem(name, buf, size, &s, &cl, &meta, &err), &err, name);
+    memcpy(buf, good, size);
+    buf[payload] = 100; /* more nodes than the bytes can hold */
+    reseal(buf, size);
+    assert_one_line_input_error(sy_decode_mem(name, buf, size, &s, &cl, &meta, &err), &err, name);
+    memcpy(buf, good, size);
+    buf[payload + 1 + 8] = 0x7f; /* node 1's parent delta far beyond its index */
+    reseal(buf, size);
+    assert_one_line_input_error(sy_decode_mem(name, buf, size, &s, &cl, &meta, &err), &err, name);
+    memcpy(buf, good, size);
+    buf[4] = 9; /* version */
+    reseal(buf, size);
+    assert_one_line_input_error(sy_decode_mem(name, buf, size, &s, &cl, &meta, &err), &err, name);
+    assert_non_null(strstr(err.msg, "version"));
+    memcpy(buf, good, size);
+    buf[40] = 100; /* step 2^100 */
+    reseal(buf, size);
+    assert_one_line_input_error(sy_decode_mem(name, buf, size, &s, &cl, &meta, &err), &err, name);
+    /* Trailing garbage behind a valid checksum. */
+    memcpy(buf, good, size - 4);
+    memset(buf + size - 4, 0, 8);
+    reseal(buf, size + 4);
+    assert_one_line_input_error(sy_decode_mem(name, buf, size + 4, &s, &cl, &meta, &err), &err, name);
+    assert_non_null(strstr(err.msg, "unexpected bytes"));
+    /* Files on disk: missing, empty, not ours. */
+    assert_one_line_input_error(sy_decode_read(tmp_path("missing.sylva"), &s, &cl, &meta, &err), &err,
+                                "missing.sylva");
+    assert_int_equal(write_bytes(tmp_path("empty.sylva"), "", 0), 0);
+    assert_one_line_input_error(sy_decode_read(tmp_path("empty.sylva"), &s, &cl, &meta, &err), &err, "empty.sylva");
+    assert_int_equal(write_bytes(tmp_path("text.sylva"), "ply\nformat ascii 1.0\n", 21), 0);
+    assert_one_line_input_error(sy_decode_read(tmp_path("text.sylva"), &s, &cl, &meta, &err), &err, "text.sylva");
+    assert_non_null(strstr(err.msg, "not a .sylva file"));
+    free(buf);
+    free(good);
+}
+
+static void encoder_rejects_bad_input(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_error err = {0};
+    unsigned char *out;
+    size_t size;
+    assert_int_equal(sy_skeleton_init(&s, 0, &err), SY_OK);
+    assert_int_equal(sy_encode_mem(&s, NULL, 0, 0, NULL, &out, &size, &err), SY_EINPUT);
+    float p[3] = {0, 0, 0};
+    sy_skeleton_add(&s, p, 0.1f, -1, 0, 0, &err);
+    sy_cluster c = {0};
+    c.seed = 5; /* no such node */
+    sy_clusters cl = {1, &c};
+    assert_int_equal(sy_encode_mem(&s, &cl, 0, 0, NULL, &out, &size, &err), SY_EINPUT);
+    /* A single node without clusters is a valid (tiny) tree. */
+    assert_int_equal(sy_encode_mem(&s, NULL, 0, 0, NULL, &out, &size, &err), SY_OK);
+    assert_true(size < 100);
+    free(out);
+    /* Writing into a missing directory fails and leaves nothing behind. */
+    assert_int_not_equal(sy_encode_write("/nonexistent-dir/x.sylva", &s, NULL, 0, 0, &err), SY_OK);
+    sy_skeleton_free(&s);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(damaged_files_fail_cleanly),
+        cmocka_unit_test(encoder_rejects_bad_input),
+        cmocka_unit_test(synthetic_tree_round_trips),
+        cmocka_unit_test(real_trees_round_trip_under_40kB),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
