@@ -46,7 +46,6 @@ sy_code sy_forest_add(sy_forest *f, const sy_eval_tree *t, sy_error *err);
 /* DBH (2 x trunk radius 1.3 m above the root) and height (highest node above
  * the root) of a skeleton; NaN when the trunk is shorter than 1.3 m. */
 double sy_skeleton_dbh(const sy_skeleton *s);
-double sy_skeleton_height(const sy_skeleton *s);
 
 /* ---- Models compared with points ---- */
 

@@ -103,16 +103,6 @@ double sy_skeleton_dbh(const sy_skeleton *s)
     return dbh;
 }
 
-double sy_skeleton_height(const sy_skeleton *s)
-{
-    int32_t root = find_root(s);
-    if (root < 0) return NAN;
-    double top = s->pos[3 * root + 2];
-    for (size_t i = 0; i < s->n; i++)
-        if (s->pos[3 * i + 2] > top) top = s->pos[3 * i + 2];
-    return top - s->pos[3 * root + 2];
-}
-
 /* ---- parsing ---- */
 
 typedef struct {

@@ -22,7 +22,7 @@ typedef struct {
     box *bounds;
     float *centroid; /* 3 per primitive */
     uint32_t *idx;
-    sy_bvh_node *nodes;
+    sy_scan_bvh_node *nodes;
     size_t n_nodes;
 } builder;
 
@@ -132,7 +132,7 @@ static void build_node(builder *b, size_t node, uint32_t begin, uint32_t end, in
                  {b->centroid[3 * p], b->centroid[3 * p + 1], b->centroid[3 * p + 2]}};
         box_grow(&cb, &c);
     }
-    sy_bvh_node *nd = &b->nodes[node];
+    sy_scan_bvh_node *nd = &b->nodes[node];
     memcpy(nd->lo, bb.lo, sizeof bb.lo);
     memcpy(nd->hi, bb.hi, sizeof bb.hi);
     nd->start = begin;
@@ -160,7 +160,7 @@ static void build_node(builder *b, size_t node, uint32_t begin, uint32_t end, in
     build_node(b, right, mid, end, depth + 1);
 }
 
-sy_code sy_bvh_build(sy_bvh *bvh, const sy_prim *prims, size_t n, sy_error *err)
+sy_code sy_scan_bvh_build(sy_scan_bvh *bvh, const sy_prim *prims, size_t n, sy_error *err)
 {
     memset(bvh, 0, sizeof *bvh);
     if (n > UINT32_MAX / 2) return sy_fail(err, SY_EINPUT, "scene: %zu primitives exceed the BVH limit", n);
@@ -168,7 +168,7 @@ sy_code sy_bvh_build(sy_bvh *bvh, const sy_prim *prims, size_t n, sy_error *err)
     b.bounds = sy_calloc(n ? n : 1, sizeof(box), err, "BVH bounds");
     b.centroid = sy_calloc(n ? 3 * n : 1, sizeof(float), err, "BVH centroids");
     b.idx = sy_calloc(n ? n : 1, sizeof(uint32_t), err, "BVH index");
-    b.nodes = sy_calloc(n ? 2 * n : 1, sizeof(sy_bvh_node), err, "BVH nodes");
+    b.nodes = sy_calloc(n ? 2 * n : 1, sizeof(sy_scan_bvh_node), err, "BVH nodes");
     bvh->prims = sy_calloc(n ? n : 1, sizeof(sy_prim), err, "BVH primitives");
     if (!b.bounds || !b.centroid || !b.idx || !b.nodes || !bvh->prims) {
         free(b.bounds);
@@ -198,7 +198,7 @@ sy_code sy_bvh_build(sy_bvh *bvh, const sy_prim *prims, size_t n, sy_error *err)
     return SY_OK;
 }
 
-void sy_bvh_free(sy_bvh *b)
+void sy_scan_bvh_free(sy_scan_bvh *b)
 {
     free(b->nodes);
     free(b->prims);
@@ -220,7 +220,7 @@ static void make_fray(fray *r, const double o[3], const double d[3])
 }
 
 /* Entry distance into the node box, or INFINITY if missed before tmax. */
-static inline float slab(const sy_bvh_node *nd, const fray *r, float tmax)
+static inline float slab(const sy_scan_bvh_node *nd, const fray *r, float tmax)
 {
     float t0 = 0, t1 = tmax;
     for (int k = 0; k < 3; k++) {
@@ -238,7 +238,7 @@ static inline float slab(const sy_bvh_node *nd, const fray *r, float tmax)
     return t0 <= t1 * 1.00001f + 1e-5f ? t0 : INFINITY;
 }
 
-int sy_bvh_intersect(const sy_bvh *b, const double o[3], const double d[3], double tmax, sy_hit *hit)
+int sy_scan_bvh_intersect(const sy_scan_bvh *b, const double o[3], const double d[3], double tmax, sy_hit *hit)
 {
     if (!b->n_nodes) return 0;
     fray r;
@@ -250,7 +250,7 @@ int sy_bvh_intersect(const sy_bvh *b, const double o[3], const double d[3], doub
     if (slab(&b->nodes[0], &r, (float)best * 1.0001f + 1e-4f) == INFINITY) return 0;
     uint32_t node = 0;
     for (;;) {
-        const sy_bvh_node *nd = &b->nodes[node];
+        const sy_scan_bvh_node *nd = &b->nodes[node];
         if (nd->count) {
             for (uint32_t i = nd->start; i < nd->start + nd->count; i++) {
                 double t;
@@ -293,7 +293,7 @@ int sy_bvh_intersect(const sy_bvh *b, const double o[3], const double d[3], doub
     return found;
 }
 
-int sy_bvh_intersect_brute(const sy_bvh *b, const double o[3], const double d[3], double tmax, sy_hit *hit)
+int sy_scan_bvh_intersect_brute(const sy_scan_bvh *b, const double o[3], const double d[3], double tmax, sy_hit *hit)
 {
     double best = tmax;
     int found = 0;

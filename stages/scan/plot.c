@@ -45,7 +45,7 @@ void sy_scene_free(sy_scene *s)
     sy_prims_free(&s->prims);
     for (size_t i = 0; i < s->n_trees; i++) sy_skeleton_free(&s->trees[i].skel);
     free(s->trees);
-    sy_bvh_free(&s->bvh);
+    sy_scan_bvh_free(&s->bvh);
     sy_scene_init(s);
 }
 
@@ -311,8 +311,8 @@ sy_code sy_scene_add_understory(sy_scene *s, double density, uint64_t seed, sy_e
 
 sy_code sy_scene_finish(sy_scene *s, sy_error *err)
 {
-    sy_bvh_free(&s->bvh);
-    return sy_bvh_build(&s->bvh, s->prims.p, s->prims.n, err);
+    sy_scan_bvh_free(&s->bvh);
+    return sy_scan_bvh_build(&s->bvh, s->prims.p, s->prims.n, err);
 }
 
 static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }

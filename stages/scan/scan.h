@@ -63,14 +63,14 @@ typedef struct {
     float lo[3], hi[3];
     uint32_t start; /* leaf: first primitive; inner: index of the right child (left is next) */
     uint32_t count; /* primitives in a leaf, 0 for inner nodes */
-} sy_bvh_node;
+} sy_scan_bvh_node;
 
 typedef struct {
-    sy_bvh_node *nodes;
+    sy_scan_bvh_node *nodes;
     size_t n_nodes;
     sy_prim *prims; /* owned, in leaf order */
     size_t n_prims;
-} sy_bvh;
+} sy_scan_bvh;
 
 typedef struct {
     double t;
@@ -78,12 +78,12 @@ typedef struct {
 } sy_hit;
 
 /* Binned SAH build (16 bins, leaves of at most 4). Copies the primitives. */
-sy_code sy_bvh_build(sy_bvh *b, const sy_prim *prims, size_t n, sy_error *err);
-void sy_bvh_free(sy_bvh *b);
+sy_code sy_scan_bvh_build(sy_scan_bvh *b, const sy_prim *prims, size_t n, sy_error *err);
+void sy_scan_bvh_free(sy_scan_bvh *b);
 /* Nearest hit with 0 < t < tmax (iterative, near child first). */
-int sy_bvh_intersect(const sy_bvh *b, const double o[3], const double d[3], double tmax, sy_hit *hit);
+int sy_scan_bvh_intersect(const sy_scan_bvh *b, const double o[3], const double d[3], double tmax, sy_hit *hit);
 /* The same over every primitive, for tests. */
-int sy_bvh_intersect_brute(const sy_bvh *b, const double o[3], const double d[3], double tmax, sy_hit *hit);
+int sy_scan_bvh_intersect_brute(const sy_scan_bvh *b, const double o[3], const double d[3], double tmax, sy_hit *hit);
 
 /* --------------------------------------------------------------- terrain */
 
@@ -130,7 +130,7 @@ typedef struct {
     sy_terrain terrain;
     double area_lo[2], area_hi[2]; /* the surveyed area (airborne strips, mobile paths) */
     double veg_lo[3], veg_hi[3];   /* bounds of trees and understory (empty: lo > hi) */
-    sy_bvh bvh;
+    sy_scan_bvh bvh;
 } sy_scene;
 
 void sy_scene_init(sy_scene *s);

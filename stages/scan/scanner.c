@@ -389,7 +389,7 @@ static int push_return(chunk_out *out, const scan_return *r)
 static void trace_pulse(const scan_job *j, size_t i, chunk_out *out)
 {
     const sy_scanner *sc = j->sc;
-    const sy_bvh *bvh = &j->scene->bvh;
+    const sy_scan_bvh *bvh = &j->scene->bvh;
     double o[3], d[3], time;
     if (sc->kind == SY_SCANNER_TERRESTRIAL) pulse_terrestrial(j, i, o, d, &time);
     else if (sc->kind == SY_SCANNER_MOBILE) pulse_mobile(j, i, o, d, &time);
@@ -427,7 +427,7 @@ static void trace_pulse(const scan_job *j, size_t i, chunk_out *out)
         double bound = sc->max_range, t;
         if (n_hits && sy_prim_intersect(&bvh->prims[hits[0].prim], o, dirs[k], 1e-6, bound, &t))
             bound = nextafter(t, INFINITY);
-        if (sy_bvh_intersect(bvh, o, dirs[k], bound, &h)) {
+        if (sy_scan_bvh_intersect(bvh, o, dirs[k], bound, &h)) {
             /* Insertion by range keeps the list sorted. */
             int at = n_hits++;
             while (at > 0 && hits[at - 1].t > h.t) {
