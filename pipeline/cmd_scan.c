@@ -250,6 +250,10 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
         fprintf(stderr, "sylva scan: give a species, or --plot SIZE (see --help)\n");
         return SY_EUSAGE;
     }
+    /* A scan can take a while: a bad output path must fail before it. */
+    sy_error werr = {0};
+    if (sy_check_writable(out_path, &werr) || (truth_path && sy_check_writable(truth_path, &werr)))
+        return sy_cli_report(&werr);
     double t0 = sy_now();
     sy_scanner sc;
     sy_scanner_defaults(&sc, kind);

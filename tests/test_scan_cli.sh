@@ -32,4 +32,11 @@ rc=$?
 [ "$(wc -l <"$TMP/err")" -eq 1 ] || fail "bad species: want one stderr line, got: $(cat "$TMP/err")"
 grep -q "no_such_species" "$TMP/err" || fail "message does not name the species: $(cat "$TMP/err")"
 [ -z "$(ls -A "$TMP/out")" ] || fail "failing scan left files: $(ls -A "$TMP/out")"
+
+# An unwritable truth path is refused before scanning, and no scan file is left.
+"$SYLVA" scan quaking_aspen -o "$TMP/out/y.las" --truth "$TMP/missing/y.json" 2>"$TMP/err"
+rc=$?
+[ "$rc" -eq 2 ] || fail "unwritable truth path exited $rc, want 2"
+grep -q "missing/y.json" "$TMP/err" || fail "message does not name the truth path: $(cat "$TMP/err")"
+[ -z "$(ls -A "$TMP/out")" ] || fail "refused scan left files: $(ls -A "$TMP/out")"
 echo "ok"

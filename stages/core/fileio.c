@@ -118,6 +118,14 @@ void sy_atomic_abort(sy_atomic_file *f)
     }
 }
 
+sy_code sy_check_writable(const char *path, sy_error *err)
+{
+    sy_atomic_file f;
+    sy_code rc = sy_atomic_open(&f, path, err);
+    if (rc == SY_OK) sy_atomic_abort(&f);
+    return rc;
+}
+
 sy_code sy_write_file_atomic(const char *path, const void *data, size_t size, sy_error *err)
 {
     sy_atomic_file f;

@@ -38,6 +38,11 @@ sy_code sy_atomic_commit(sy_atomic_file *f, sy_error *err);
 /* Closes and removes the temp file. Safe to call twice. */
 void sy_atomic_abort(sy_atomic_file *f);
 
+/* Fails fast, before long work, when path could not be written later: its
+ * directory is missing or not writable, or path is a directory. Creates and
+ * removes the temp file the atomic writer would use; leaves nothing behind. */
+sy_code sy_check_writable(const char *path, sy_error *err);
+
 /* Writes size bytes to path atomically. */
 sy_code sy_write_file_atomic(const char *path, const void *data, size_t size, sy_error *err);
 
