@@ -80,7 +80,7 @@ sy_code sy_atomic_open(sy_atomic_file *f, const char *path, sy_error *err)
     memset(f, 0, sizeof *f);
     if (strlen(path) >= sizeof f->final_path)
         return sy_fail(err, SY_EUSAGE, "%s: path too long", path);
-    if (sy_is_directory(path)) return sy_fail(err, SY_EUSAGE, "%s: is a directory", path);
+    if (sy_is_directory(path)) return sy_fail(err, SY_EINPUT, "%s: is a directory, not a file", path);
     strcpy(f->final_path, path);
     const char *slash = strrchr(path, '/');
     int dirlen = slash ? (int)(slash - path + 1) : 0;
