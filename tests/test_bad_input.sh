@@ -351,6 +351,9 @@ bad_cloud "colmap dense fused.ply truncated" "$in/ws-fused" "$in/ws-fused/dense/
 # ---- paths ----------------------------------------------------------------------
 
 bad_cloud "missing path" "$in/nope/none.ply"
+# A newline in a file name must not split the message.
+printf '1 2\n' >"$in/new"$'\n'"line.xyz"
+expect "file name with a newline" 2 "line.xyz" -- convert "$in/new"$'\n'"line.xyz" -o "$out/x.ply"
 if [ "$(id -u)" != 0 ]; then
     cp "$pine" "$in/locked.las" && chmod 000 "$in/locked.las"
     bad_cloud "unreadable file" "$in/locked.las"
