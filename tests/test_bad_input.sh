@@ -351,6 +351,8 @@ bad_cloud "colmap dense fused.ply truncated" "$in/ws-fused" "$in/ws-fused/dense/
 # ---- paths ----------------------------------------------------------------------
 
 bad_cloud "missing path" "$in/nope/none.ply"
+# A device never ends: it must be refused, not read until memory runs out.
+bad_cloud "device file" /dev/zero
 # A newline in a file name must not split the message.
 printf '1 2\n' >"$in/new"$'\n'"line.xyz"
 expect "file name with a newline" 2 "line.xyz" -- convert "$in/new"$'\n'"line.xyz" -o "$out/x.ply"
