@@ -403,6 +403,9 @@ cp "$real/eztree/bark.png" "$in/png.ini"
 mkdir "$in/dir.ini"
 for c in empty comments cut-key cut-value nan inf overflow branches levels png dir; do grow_bad "species $c" "$in/$c.ini"; done
 grow_bad "species missing path" "$in/missing.ini"
+# Parses, but asks for more leaves than a tree may have.
+printf '[General]\nLevels = 2\nLeaves = 1000\nLeafQuality = 10\n[ParamLevel1]\n1Branches = 1000\n' >"$in/leafy.ini"
+grow_bad "species growing too many leaves" "$in/leafy.ini"
 expect "species --species unknown name" 2 "no_such_tree" -- grow --species no_such_tree -o "$out/t.glb"
 expect "species --species bad name is rejected" 2 "../x" -- grow --species "../x" -o "$out/t.glb"
 # Textures named by the species file.
