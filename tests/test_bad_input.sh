@@ -156,9 +156,11 @@ for f in "$dbh" "$pine"; do
     cp "$f" "$in/$b-nvlrs.las" && patch "$in/$b-nvlrs.las" 100 ff ff ff ff
     cp "$f" "$in/$b-reclen.las" && patch "$in/$b-reclen.las" 105 01 00
     cp "$f" "$in/$b-scale0.las" && patch "$in/$b-scale0.las" 131 00 00 00 00 00 00 00 00
+    # x scale 1e37: finite coordinates too far apart for the float positions.
+    cp "$f" "$in/$b-scale-huge.las" && patch "$in/$b-scale-huge.las" 131 1b 69 57 43 b8 17 9e 47
     # A valid header that says 0 points, and no point data.
     cut_at "$f" "$in/$b-zero.las" "$pts" && patch "$in/$b-zero.las" 107 00 00 00 00
-    for c in hdr-mid after-hdr mid-data one-short magic-only magic count32 offset nvlrs reclen scale0 zero; do
+    for c in hdr-mid after-hdr mid-data one-short magic-only magic count32 offset nvlrs reclen scale0 scale-huge zero; do
         bad_cloud "las $b $c" "$in/$b-$c.las"
     done
 done
@@ -276,6 +278,7 @@ cut_at "$xyz" "$in/xyz-cut-row.xyz" $((5000 + row))
 { head -5 "$xyz"; printf '1.0 nan 2.0\n'; } >"$in/xyz-nan.xyz"
 { head -5 "$xyz"; printf '1.0 2.0 -inf\n'; } >"$in/xyz-inf.xyz"
 { head -5 "$xyz"; printf '1.0 2.0 1e999\n'; } >"$in/xyz-overflow.xyz"
+{ head -5 "$xyz"; printf '1e300 2.0 3.0\n'; } >"$in/xyz-far.xyz"
 { head -5 "$xyz"; printf '1.0 2.0 3.0 4.0\n'; } >"$in/xyz-columns.xyz"
 { head -5 "$xyz"; printf '1.0 2.0 zz\n'; } >"$in/xyz-word.xyz"
 printf '# only a comment\n\n   \n' >"$in/xyz-no-rows.xyz"
@@ -283,7 +286,7 @@ head -c 3000 "$real/eztree/bark.png" >"$in/xyz-binary.xyz"
 printf '1 2 3\n4 5 6\x00 7\n' >"$in/xyz-nul.xyz"
 : >"$in/empty.xyz"
 mkdir "$in/dir.xyz"
-for c in cut-row nan inf overflow columns word no-rows binary nul; do bad_cloud "xyz $c" "$in/xyz-$c.xyz"; done
+for c in cut-row nan inf overflow far columns word no-rows binary nul; do bad_cloud "xyz $c" "$in/xyz-$c.xyz"; done
 bad_cloud "xyz empty file" "$in/empty.xyz"
 bad_cloud "xyz directory named x.xyz" "$in/dir.xyz"
 cp "$in/xyz-nan.xyz" "$in/txt-nan.txt"
