@@ -160,6 +160,10 @@ int sy_cli_parse(const sy_cmd_spec *spec, int argc, char **argv, sy_cli *cli, co
 
 int sy_cli_report(const sy_error *err)
 {
-    fprintf(stderr, "sylva: %s\n", err->msg[0] ? err->msg : "failed");
+    /* Always one line: a path named in the message may hold a newline. */
+    fputs("sylva: ", stderr);
+    for (const char *s = err->msg[0] ? err->msg : "failed"; *s; s++)
+        fputc((unsigned char)*s < 0x20 || *s == 0x7f ? '?' : *s, stderr);
+    fputc('\n', stderr);
     return err->code ? (int)err->code : SY_EINTERNAL;
 }

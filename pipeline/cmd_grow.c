@@ -53,6 +53,11 @@ int cmd_grow(int argc, char **argv, sy_cli *cli)
     double t0 = sy_now();
     rc = sy_grow_tree(&sp, cli->seed, &skel, &leaves, &err);
     double grow_s = sy_now() - t0;
+    if (rc && n) { /* grow names the species; name the file it came from too */
+        sy_error named;
+        sy_fail(&named, rc, "%s: %s", pos[0], err.msg);
+        err = named;
+    }
     sy_tree_asset_report rep;
     if (rc == SY_OK) {
         sy_tree_asset_options o = sy_tree_asset_options_default();

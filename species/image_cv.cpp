@@ -6,8 +6,24 @@
 #include <cmath>
 #include <vector>
 
+#include <cstdlib>
+
 #include <opencv2/core.hpp>
+#include <opencv2/core/utils/logger.hpp>
 #include <opencv2/imgproc.hpp>
+
+namespace {
+// OpenCV logs [ WARN ]/[ERROR] lines of its own on stderr; Sylva turns every
+// failure into one line itself. OpenCV reads OPENCV_LOG_LEVEL while loading,
+// before main could set it, so the level is set here at static-init time
+// (which runs after libopencv_core's), unless the user asked for one.
+struct QuietOpenCv {
+    QuietOpenCv()
+    {
+        if (!std::getenv("OPENCV_LOG_LEVEL")) cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
+    }
+} quiet_opencv;
+} // namespace
 
 int sy_cv_resize_rgba(const unsigned char *src, int w, int h, unsigned char *dst, int dw, int dh)
 {

@@ -21,6 +21,9 @@ sy_code sy_read_file(const char *path, sy_buffer *buf, sy_error *err)
     if (stat(path, &st) != 0)
         return sy_fail(err, SY_EINPUT, "%s: cannot open: %s", path, strerror(errno));
     if (S_ISDIR(st.st_mode)) return sy_fail(err, SY_EINPUT, "%s: is a directory, not a file", path);
+    /* Pipes are fine; a device such as /dev/zero would be read until memory runs out. */
+    if (!S_ISREG(st.st_mode) && !S_ISFIFO(st.st_mode))
+        return sy_fail(err, SY_EINPUT, "%s: not a regular file", path);
     FILE *fp = fopen(path, "rb");
     if (!fp) return sy_fail(err, SY_EINPUT, "%s: cannot open: %s", path, strerror(errno));
     /* Read by growing chunks: st_size is a hint (pipes and /proc report 0). */
@@ -80,7 +83,7 @@ sy_code sy_atomic_open(sy_atomic_file *f, const char *path, sy_error *err)
     memset(f, 0, sizeof *f);
     if (strlen(path) >= sizeof f->final_path)
         return sy_fail(err, SY_EUSAGE, "%s: path too long", path);
-    if (sy_is_directory(path)) return sy_fail(err, SY_EUSAGE, "%s: is a directory", path);
+    if (sy_is_directory(path)) return sy_fail(err, SY_EINPUT, "%s: is a directory, not a file", path);
     strcpy(f->final_path, path);
     const char *slash = strrchr(path, '/');
     int dirlen = slash ? (int)(slash - path + 1) : 0;

@@ -14,8 +14,8 @@ typedef struct {
     size_t size;
 } sy_buffer;
 
-/* Reads the whole regular file. Fails with SY_EINPUT naming path for missing,
- * unreadable or directory paths. Empty files read fine (size 0). */
+/* Reads the whole regular file (or pipe). Fails with SY_EINPUT naming path for
+ * missing, unreadable, directory or device paths. Empty files read fine (size 0). */
 sy_code sy_read_file(const char *path, sy_buffer *buf, sy_error *err);
 void sy_buffer_free(sy_buffer *buf);
 

@@ -149,6 +149,7 @@ typedef struct {
     int line;
     section_kind section;
     int level;
+    int keys; /* key = value lines read */
     /* seen[s][k]: s = 0 general, 1..4 levels, 5 sylva */
     unsigned char seen[6][N_GENERAL > N_LEVEL ? N_GENERAL : N_LEVEL];
     sy_error *err;
@@ -361,6 +362,8 @@ static sy_code handle_key(parser *p, sy_species *sp, char *key, char *value)
 static sy_code check_consistency(parser *p, sy_species *sp)
 {
     p->line = 0;
+    /* An empty file would silently grow the default tree. */
+    if (p->keys == 0) return sy_fail(p->err, SY_EINPUT, "%s: no parameters (empty species file)", p->path);
     if (sp->scale_v >= sp->scale)
         return sy_fail(p->err, SY_EINPUT, "%s: ScaleV %g must be smaller than Scale %g", p->path, sp->scale_v,
                        sp->scale);
@@ -418,6 +421,7 @@ sy_code sy_species_parse(const char *text, size_t size, const char *path, const 
             break;
         }
         rc = handle_key(p, sp, key, value);
+        p->keys++;
     }
     if (rc == SY_OK) rc = check_consistency(p, sp);
     free(p);

@@ -31,7 +31,7 @@ static int looks_like_pcd(const sy_buffer *b, const char *ext)
     return starts_with(b, "# .PCD") || starts_with(b, "VERSION .7") || starts_with(b, "VERSION 0.7");
 }
 
-sy_code sy_read_cloud(const char *path, sy_cloud *out, sy_error *err)
+static sy_code read_any(const char *path, sy_cloud *out, sy_error *err)
 {
     memset(out, 0, sizeof *out);
     if (sy_is_directory(path)) return sy_read_colmap_dir(path, out, err);
@@ -60,6 +60,25 @@ sy_code sy_read_cloud(const char *path, sy_cloud *out, sy_error *err)
         return sy_fail(err, SY_EINPUT, "%s: no points", path);
     }
     if (rc) sy_cloud_free(out);
+    return rc;
+}
+
+/* Positions are stored as floats relative to an origin near the first point:
+ * a finite coordinate far from it (1e300 beside 0) would become infinite and
+ * leave the cloud without usable bounds. */
+static sy_code check_float_range(const char *path, const sy_cloud *c, sy_error *err)
+{
+    for (size_t i = 0; i < 3 * c->n; i++)
+        if (!isfinite(c->xyz[i]))
+            return sy_fail(err, SY_EINPUT, "%s: point %zu lies too far from the first point (beyond single precision)",
+                           path, i / 3);
+    return SY_OK;
+}
+
+sy_code sy_read_cloud(const char *path, sy_cloud *out, sy_error *err)
+{
+    sy_code rc = read_any(path, out, err);
+    if (rc == SY_OK && (rc = check_float_range(path, out, err))) sy_cloud_free(out);
     return rc;
 }
 

@@ -542,6 +542,9 @@ sy_code sy_read_ply_mem(const char *path, const unsigned char *data, size_t size
     }
     if (rc == SY_OK && vertex < 0) rc = sy_fail(err, SY_EINPUT, "%s: PLY file has no vertex element", path);
     if (rc == SY_OK) rc = read_vertices(f, &f->elems[vertex], out, err);
+    /* Elements after the vertices (faces) go unused, but a file cut short
+     * inside them is still truncated. */
+    for (int e = vertex + 1; rc == SY_OK && e < f->n_elems; e++) rc = skip_element(f, &f->elems[e], err);
     if (rc == SY_OK) {
         snprintf(out->meta.format, sizeof out->meta.format, "PLY");
         snprintf(out->meta.version, sizeof out->meta.version, "%s %.8s", encoding_name(f->enc), f->version);

@@ -23,6 +23,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <pcl/common/centroid.h>
+#include <pcl/console/print.h>
 #include <pcl/features/normal_3d_omp.h>
 #include <pcl/filters/statistical_outlier_removal.h>
 #include <pcl/kdtree/kdtree_flann.h>
@@ -32,6 +33,12 @@
 #include <pcl/segmentation/progressive_morphological_filter.h>
 
 namespace {
+
+// PCL prints its own warnings and errors on stderr (PCL_WARN/PCL_ERROR);
+// Sylva reports every failure in one line itself, so PCL's console stays quiet.
+struct QuietPcl {
+    QuietPcl() { pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS); }
+} quiet_pcl;
 
 using Cloud = pcl::PointCloud<pcl::PointXYZ>;
 
