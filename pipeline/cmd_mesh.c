@@ -36,7 +36,7 @@ static const sy_cmd_spec spec = {
     "Mesh a skeleton or QSM (.sylva, .ply, .csv, .json, .obj, TreeQSM .txt) into a glTF tree asset.",
     "Meshing, LODs, impostor and export are those of `sylva grow`. The root is moved to the\n"
     "origin of the glb; its world position is kept in asset.extras.origin. --species adds leaf\n"
-    "cards along the finest branches (docs/qsm-formats.md). See docs/qsm-formats.md.",
+    "cards along the finest branches. See docs/qsm-formats.md.",
     opts, 1, 1};
 
 /* Moves the root to (0,0,0): the glb is centred at the trunk base whatever
