@@ -204,7 +204,7 @@ static void truth_json_round_trip_and_errors(void **state)
         {"{\"trees\":[]}", "'trees' is empty"},
         {"{\"nodes\":[]}", "'nodes' is empty"},
         {"{\"nodes\":[{\"parent\":-1,\"x\":0,\"y\":0,\"radius\":1}]}", "'z' is missing"},
-        {"{\"nodes\":[{\"parent\":-1,\"x\":0,\"y\":0,\"z\":0,\"radius\":-1}]}", "'radius' must be a number >= 0"},
+        {"{\"nodes\":[{\"parent\":-1,\"x\":0,\"y\":0,\"z\":0,\"radius\":-1}]}", "'radius' must be a number > 0"},
         {"{\"nodes\":[{\"parent\":5,\"x\":0,\"y\":0,\"z\":0,\"radius\":1}]}", "'parent' must be -1 or"},
         {"{\"nodes\":[{\"parent\":1,\"x\":0,\"y\":0,\"z\":0,\"radius\":1},{\"parent\":0,\"x\":0,\"y\":0,\"z\":0,\"radius\":1}]}",
          "0 root nodes"},
@@ -500,7 +500,7 @@ static void glb_instances_and_axes(void **state)
     assert_int_equal(sy_eval_load_model(junk, 0, &m, &err), SY_EINPUT);
     assert_non_null(strstr(err.msg, "junk.glb"));
     assert_null(strchr(err.msg, '\n'));
-    assert_int_equal(sy_eval_load_model(tmp_path("x.obj"), 0, &m, &err), SY_EINPUT);
+    assert_int_equal(sy_eval_load_model(tmp_path("x.stl"), 0, &m, &err), SY_EINPUT);
     assert_non_null(strstr(err.msg, "unknown model kind"));
 }
 

@@ -1,5 +1,6 @@
 /* Skeleton / QSM interchange: rTwig's reference QSM.csv, round trips through
- * every written format, TreeQSM text fixtures, malformed inputs. */
+ * every written format, TreeQSM text fixtures, JSON skeleton and truth
+ * files, .sylva, malformed inputs. */
 #include "testutil.h"
 
 #include <math.h>
@@ -222,8 +223,8 @@ static void csv_writer_reproduces_reference(void **state)
 
 static void round_trip_all(const sy_skeleton *s, const char *tag)
 {
-    static const char *exts[] = {"ply", "csv", "obj"};
-    for (size_t k = 0; k < 3; k++) {
+    static const char *exts[] = {"ply", "csv", "obj", "json"};
+    for (size_t k = 0; k < 4; k++) {
         char name[64];
         snprintf(name, sizeof name, "%s.%s", tag, exts[k]);
         const char *path = tmp_path(name);
@@ -233,6 +234,18 @@ static void round_trip_all(const sy_skeleton *s, const char *tag)
         read_ok(path, &back, &info);
         assert_int_equal(info.derived_structure, 0);
         double worst = assert_same_skeleton(s, &back);
+        if (strcmp(exts[k], "json") == 0) {
+            /* The file names its float origin: same origin, and the same
+             * floats wherever 17-digit world coordinates can carry them (all
+             * of them at origin 0; within 1e-9 m of the float at UTM size). */
+            assert_int_equal(info.origin_from_file, 1);
+            for (int a = 0; a < 3; a++) assert_true(back.origin[a] == s->origin[a]);
+            for (size_t i = 0; i < 3 * s->n; i++) {
+                double d = fabs((double)back.pos[i] - (double)s->pos[i]);
+                if (s->origin[0] == 0 && s->origin[1] == 0 && s->origin[2] == 0) assert_true(d == 0);
+                else assert_true(d <= fmax(1e-9, 1e-7 * fabs(s->pos[i])));
+            }
+        }
         printf("%s -> %s -> sylva: %zu nodes, max position error %.3g m\n", tag, exts[k], back.n, worst);
         sy_skeleton_free(&back);
     }
@@ -439,6 +452,107 @@ static void malformed_inputs_name_file_and_line(void **state)
     fails_with("empty.csv", "", ":", "empty file");
 }
 
+
+/* ------------------------------------------------------------ JSON in */
+
+static void reads_truth_layout_and_picks_trees(void **state)
+{
+    (void)state;
+    const char *node0 = "{\"id\":0,\"parent\":-1,\"x\":500000.5,\"y\":4100000.25,\"z\":12,\"radius\":0.15,"
+                        "\"order\":0,\"branch\":0}";
+    char one[1024], two[2048];
+    snprintf(one, sizeof one,
+             "{\"format\":\"sylva-truth\",\"version\":1,\"trees\":[{\"tree_id\":1,\"nodes\":[%s,"
+             "{\"id\":1,\"parent\":0,\"x\":500000.5,\"y\":4100000.25,\"z\":15,\"radius\":0.05,\"order\":0,"
+             "\"branch\":0}]}]}",
+             node0);
+    snprintf(two, sizeof two,
+             "{\"format\":\"sylva-truth\",\"version\":1,\"trees\":[{\"nodes\":[%s]},{\"nodes\":["
+             "{\"parent\":-1,\"x\":10,\"y\":20,\"z\":1,\"radius\":0.2},{\"parent\":0,\"x\":10,\"y\":20,\"z\":4,"
+             "\"radius\":0.1},{\"parent\":1,\"x\":10,\"y\":20,\"z\":6,\"radius\":0.05},"
+             "{\"parent\":1,\"x\":11,\"y\":20,\"z\":5,\"radius\":0.02}]}]}",
+             node0);
+    const char *p1 = tmp_path("truth_one.json"), *p2 = tmp_path("truth_two.json");
+    assert_int_equal(write_bytes(p1, one, strlen(one)), 0);
+    assert_int_equal(write_bytes(p2, two, strlen(two)), 0);
+    sy_skeleton s;
+    sy_skeleton_read_info info;
+    sy_error err = {0};
+    read_ok(p1, &s, &info);
+    assert_int_equal(info.format, SY_SKEL_JSON);
+    assert_int_equal(s.n, 2);
+    /* No origin in a truth file: floor() of the root, positions exact. */
+    assert_true(s.origin[0] == 500000 && s.origin[1] == 4100000 && s.origin[2] == 12);
+    assert_true(s.pos[0] == 0.5f && s.pos[1] == 0.25f && s.pos[5] == 3.0f);
+    assert_true(s.radius[1] == 0.05f);
+    sy_skeleton_free(&s);
+    /* Several trees: refused without an index, the message naming the file and the count. */
+    assert_int_equal(sy_skeleton_read(p2, &s, &err), SY_EINPUT);
+    assert_non_null(strstr(err.msg, p2));
+    assert_non_null(strstr(err.msg, "holds 2 trees"));
+    assert_int_equal(s.n, 0);
+    assert_int_equal(sy_skeleton_read_tree(p2, 1, &s, &info, &err), SY_OK);
+    assert_int_equal(s.n, 4);
+    assert_int_equal(info.derived_structure, 1); /* no order/branch in tree 1 */
+    assert_int_equal(s.order[2], 0);             /* the longer child continues the stem */
+    assert_int_equal(s.order[3], 1);
+    assert_true(s.branch[3] != s.branch[2]);
+    sy_skeleton_free(&s);
+    assert_int_equal(sy_skeleton_read_tree(p2, 2, &s, &info, &err), SY_EINPUT);
+    assert_non_null(strstr(err.msg, "tree 2 asked for"));
+    /* Other formats hold one tree. */
+    assert_int_equal(sy_skeleton_read_tree(qsm_csv(), 1, &s, &info, &err), SY_EINPUT);
+    assert_int_equal(sy_skeleton_read_tree(qsm_csv(), 0, &s, &info, &err), SY_OK);
+    assert_int_equal(s.n, 1150);
+    sy_skeleton_free(&s);
+}
+
+static void malformed_json_names_file_and_place(void **state)
+{
+    (void)state;
+    fails_with("j_syntax.json", "{\"nodes\":[{\"parent\":-1,]}", ":1:", "");
+    fails_with("j_empty.json", "{\"nodes\":[]}", ":1:", "'nodes' is empty");
+    fails_with("j_z.json", "{\"nodes\":[{\"parent\":-1,\"x\":0,\"y\":0,\"radius\":1}]}", ":1:", "'z' is missing");
+    fails_with("j_r.json", "{\"nodes\":[{\"parent\":-1,\"x\":0,\"y\":0,\"z\":0,\"radius\":0}]}", ":1:",
+               "'radius' must be a number > 0");
+    fails_with("j_par.json", "{\"nodes\":[\n{\"parent\":-1,\"x\":0,\"y\":0,\"z\":0,\"radius\":1},\n"
+                             "{\"parent\":1.5,\"x\":0,\"y\":0,\"z\":1,\"radius\":1}]}",
+               ":3:", "node 1: 'parent' must be -1 or");
+    fails_with("j_roots.json", "{\"nodes\":[{\"parent\":-1,\"x\":0,\"y\":0,\"z\":0,\"radius\":1},"
+                               "{\"parent\":-1,\"x\":0,\"y\":0,\"z\":1,\"radius\":1}]}",
+               ":1:", "2 root nodes");
+    fails_with("j_cycle.json", "{\"nodes\":[{\"parent\":-1,\"x\":0,\"y\":0,\"z\":0,\"radius\":1},\n"
+                               "{\"parent\":2,\"x\":0,\"y\":0,\"z\":1,\"radius\":1},\n"
+                               "{\"parent\":1,\"x\":0,\"y\":0,\"z\":2,\"radius\":1}]}",
+               ":", "cycle");
+    fails_with("j_id.json", "{\"nodes\":[{\"id\":4,\"parent\":-1,\"x\":0,\"y\":0,\"z\":0,\"radius\":1}]}", ":1:",
+               "'id' must equal");
+    fails_with("j_fmt.json", "{\"format\":\"other\",\"nodes\":[]}", ":1:", "'format' must be");
+    fails_with("j_ver.json", "{\"version\":2,\"nodes\":[]}", ":1:", "only version 1");
+    fails_with("j_none.json", "{\"foo\":1}", ":1:", "neither 'trees'");
+    fails_with("j_origin.json", "{\"origin\":[1,2],\"nodes\":[]}", ":1:", "'origin' must be [x, y, z]");
+    fails_with("j_trees.json", "{\"trees\":[]}", ":1:", "'trees' is empty");
+}
+
+static void sylva_file_round_trip(void **state)
+{
+    (void)state;
+    sy_skeleton s, back;
+    sy_skeleton_read_info info;
+    read_ok(qsm_csv(), &s, NULL);
+    const char *path = tmp_path("rtwig.sylva");
+    write_ok(path, &s);
+    read_ok(path, &back, &info);
+    assert_int_equal(info.format, SY_SKEL_SYLVA);
+    assert_int_equal(back.n, s.n);
+    /* Quantised: 16-bit positions over a ~4 m tree (step 2^-14 m), log radii. */
+    double len_a = sy_skeleton_length(&s), len_b = sy_skeleton_length(&back);
+    assert_true(fabs(len_a - len_b) < 1e-3 * len_a);
+    assert_true(fabs(back.origin[2] + back.pos[2] - (s.origin[2] + s.pos[2])) < 1e-4);
+    sy_skeleton_free(&back);
+    sy_skeleton_free(&s);
+}
+
 static void writer_rejects_unknown_extension_and_keeps_no_partial_file(void **state)
 {
     (void)state;
@@ -469,6 +583,7 @@ static void sniffs_content_before_extension(void **state)
     assert_int_equal(sy_skeleton_sniff("a.csv", txt, sizeof txt - 1), SY_SKEL_TREEQSM_TXT);
     assert_int_equal(sy_skeleton_sniff("a.json", (const unsigned char *)"", 0), SY_SKEL_JSON);
     assert_int_equal(sy_skeleton_sniff("a.bin", (const unsigned char *)"\x01\x02", 2), SY_SKEL_UNKNOWN);
+    assert_int_equal(sy_skeleton_sniff("a.ply", (const unsigned char *)"SYLV\x01", 5), SY_SKEL_SYLVA);
 }
 
 int main(void)
@@ -482,6 +597,9 @@ int main(void)
         cmocka_unit_test(reads_treeqsm_text),
         cmocka_unit_test(reads_adtree_style_ascii_ply),
         cmocka_unit_test(malformed_inputs_name_file_and_line),
+        cmocka_unit_test(reads_truth_layout_and_picks_trees),
+        cmocka_unit_test(malformed_json_names_file_and_place),
+        cmocka_unit_test(sylva_file_round_trip),
         cmocka_unit_test(writer_rejects_unknown_extension_and_keeps_no_partial_file),
         cmocka_unit_test(sniffs_content_before_extension),
     };

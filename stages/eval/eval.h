@@ -33,11 +33,14 @@ typedef struct {
     sy_eval_tree *trees;
 } sy_forest;
 
-/* Reads a truth JSON (docs/truth-format.md: {"format":"sylva-truth","trees":[...]})
- * or a skeleton JSON ({"nodes":[...]} in the same node layout, optional
- * "origin", "tree_id", "species", "dbh", "height"). Missing order/branch
- * fields are derived from the topology (first child continues its parent's
- * stem). Missing dbh/height are measured on the skeleton. */
+/* Reads a truth JSON (docs/truth-format.md: {"format":"sylva-truth","trees":[...]}),
+ * a skeleton JSON ({"nodes":[...]} in the same node layout, world
+ * coordinates; optional "origin" (the float origin, as sylva-skeleton files
+ * name it), "tree_id", "species", "dbh", "height"), or any other skeleton
+ * file sy_skeleton_read takes (PLY, cylinder CSV, TreeQSM text, OBJ, .sylva)
+ * as one tree. Nodes go through stages/qsm's JSON node reader: missing
+ * order/branch are derived (the child heading the longest subtree continues
+ * the stem). Missing dbh/height are measured on the skeleton. */
 sy_code sy_forest_read(const char *path, sy_forest *out, sy_error *err);
 sy_code sy_forest_parse(const char *name, const char *text, size_t len, sy_forest *out, sy_error *err);
 void sy_forest_free(sy_forest *f);
@@ -63,7 +66,8 @@ typedef struct {
 
 /* Loads MODEL by kind: a .glb/.gltf (triangles of the default scene, node
  * and EXT_mesh_gpu_instancing transforms applied, Y-up turned to Z-up), or
- * a truth/skeleton JSON. closed marks the loaded meshes as closed hulls. */
+ * a truth JSON or a skeleton file (.json .ply .csv .txt .obj .sylva, see
+ * sy_forest_read). closed marks the loaded meshes as closed hulls. */
 sy_code sy_eval_load_model(const char *path, int closed, sy_eval_model *out, sy_error *err);
 /* Adds a copy of n triangles (9n doubles) as one mesh. */
 sy_code sy_eval_model_add_mesh(sy_eval_model *m, const double *tri, size_t n, int closed, sy_error *err);

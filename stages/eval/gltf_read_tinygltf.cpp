@@ -287,6 +287,12 @@ extern "C" int sy_gltf_read_triangles(const char *path, double **tri, size_t *n_
                 if (!child[i]) roots.push_back(int(i));
         }
         for (int n : roots) r.node(n, identity(), 0);
+        // `sylva mesh` centres the tree at its base and keeps the world position
+        // of that point in asset.extras.origin (Z up): put the tree back there.
+        const tinygltf::Value &origin = model.asset.extras.Get("origin");
+        if (origin.IsArray() && origin.ArrayLen() == 3 && origin.Get(0).IsNumber() && origin.Get(1).IsNumber() &&
+            origin.Get(2).IsNumber())
+            for (size_t i = 0; i < r.out.size(); i++) r.out[i] += origin.Get(int(i % 3)).GetNumberAsDouble();
         *n_tri = r.out.size() / 9;
         *tri = static_cast<double *>(std::malloc(r.out.size() ? r.out.size() * sizeof(double) : sizeof(double)));
         if (!*tri) {

@@ -11,7 +11,9 @@ extern "C" {
 /* Reads every triangle of the default scene (or of scene 0, or of all root
  * nodes when the file names no scene): node transforms and
  * EXT_mesh_gpu_instancing instance transforms applied, then glTF's Y-up
- * turned into Sylva's Z-up: (x, y, z) -> (x, -z, y). *tri gets 9 doubles per
+ * turned into Sylva's Z-up: (x, y, z) -> (x, -z, y), then moved by
+ * asset.extras.origin [x, y, z] (Z-up world, as `sylva mesh` writes it)
+ * when the file has one. *tri gets 9 doubles per
  * triangle (malloc'd). Returns 0 on success; otherwise 2 (bad input) or 3
  * (out of memory) with a one-line reason in msg. */
 int sy_gltf_read_triangles(const char *path, double **tri, size_t *n_tri, char *msg, size_t msg_size);

@@ -1,5 +1,5 @@
 /* Loading the MODEL argument of `sylva eval`: the one place that knows the
- * model kinds (glTF triangles, truth/skeleton JSON). */
+ * model kinds (glTF triangles, truth JSON, any skeleton file qsm_io reads). */
 #include <stdlib.h>
 #include <string.h>
 
@@ -55,7 +55,11 @@ sy_code sy_eval_load_model(const char *path, int closed, sy_eval_model *out, sy_
     char ext[16];
     sy_extension(path, ext, sizeof ext);
     if (strcmp(ext, "glb") == 0 || strcmp(ext, "gltf") == 0) return load_gltf(path, closed, out, err);
-    if (strcmp(ext, "json") == 0) return sy_forest_read(path, &out->skeletons, err);
-    return sy_fail(err, SY_EINPUT, "%s: unknown model kind '.%s' (expected .glb, .gltf or a truth/skeleton .json)", path,
-                   ext);
+    static const char *skeleton_exts[] = {"json", "ply", "csv", "txt", "obj", "sylva"};
+    for (size_t i = 0; i < sizeof skeleton_exts / sizeof skeleton_exts[0]; i++)
+        if (strcmp(ext, skeleton_exts[i]) == 0) return sy_forest_read(path, &out->skeletons, err);
+    return sy_fail(err, SY_EINPUT,
+                   "%s: unknown model kind '.%s' (expected .glb, .gltf, a truth JSON or a skeleton file: .json .ply "
+                   ".csv .txt .obj .sylva)",
+                   path, ext);
 }

@@ -7,6 +7,7 @@
 #include "eval.h"
 #include "stages/core/fileio.h"
 #include "stages/core/json_read.h"
+#include "stages/qsm/qsm_io.h"
 
 void sy_forest_free(sy_forest *f)
 {
@@ -132,127 +133,9 @@ static int opt_number(const ctx *c, const sy_jv *obj, const char *key, const cha
 
 static int whole(double v, double lo, double hi) { return v == floor(v) && v >= lo && v <= hi; }
 
-/* Order and branch from the topology: a node's first child continues its
- * stem, further children start new stems one order higher. Parents must be
- * valid and acyclic (checked before). */
-static sy_code derive_branches(sy_skeleton *s, const ctx *c)
-{
-    uint32_t *start;
-    int32_t *children;
-    int32_t root = find_root(s);
-    int32_t *stack = malloc((s->n ? s->n : 1) * sizeof *stack);
-    if (!stack || !child_lists(s, &start, &children)) {
-        free(stack);
-        return sy_fail(c->err, SY_EINTERNAL, "%s: out of memory", c->name);
-    }
-    int32_t next_branch = 0, top = 0;
-    s->order[root] = 0;
-    s->branch[root] = next_branch++;
-    stack[top++] = root;
-    while (top > 0) {
-        int32_t v = stack[--top];
-        for (uint32_t k = start[v]; k < start[v + 1]; k++) {
-            int32_t ch = children[k];
-            if (k == start[v]) {
-                s->order[ch] = s->order[v];
-                s->branch[ch] = s->branch[v];
-            } else {
-                s->order[ch] = (uint8_t)(s->order[v] < 255 ? s->order[v] + 1 : 255);
-                s->branch[ch] = next_branch++;
-            }
-            stack[top++] = ch;
-        }
-    }
-    free(stack);
-    free(start);
-    free(children);
-    return SY_OK;
-}
-
-/* One root, parents in range, no cycles. */
-static sy_code check_topology(const sy_skeleton *s, const ctx *c, const char *where)
-{
-    size_t roots = 0;
-    for (size_t i = 0; i < s->n; i++) roots += s->parent[i] < 0;
-    char count[32];
-    snprintf(count, sizeof count, "%zu", roots);
-    if (roots != 1) return bad(c, NULL, "%s: %s root nodes (parent -1), expected exactly one", where, count);
-    uint8_t *state = calloc(s->n, 1);
-    if (!state) return sy_fail(c->err, SY_EINTERNAL, "%s: out of memory", c->name);
-    for (size_t i = 0; i < s->n; i++) {
-        int32_t v = (int32_t)i;
-        while (v >= 0 && state[v] == 0) {
-            state[v] = 1;
-            v = s->parent[v];
-        }
-        if (v >= 0 && state[v] == 1) {
-            free(state);
-            snprintf(count, sizeof count, "%d", v);
-            return bad(c, NULL, "%s: parent links form a cycle through node %s", where, count);
-        }
-        for (v = (int32_t)i; v >= 0 && state[v] == 1; v = s->parent[v]) state[v] = 2;
-    }
-    free(state);
-    return SY_OK;
-}
-
-static sy_code parse_nodes(const ctx *c, const sy_jv *nodes, const double offset[3], const char *where,
-                           sy_skeleton *s)
-{
-    if (!nodes || nodes->type != SY_JV_ARRAY) return bad(c, nodes, "%s: 'nodes' must be an array%s", where, NULL);
-    size_t n = nodes->len;
-    if (n == 0) return bad(c, nodes, "%s: 'nodes' is empty%s", where, NULL);
-    if (n > INT32_MAX) return bad(c, nodes, "%s: too many nodes%s", where, NULL);
-    if (sy_skeleton_init(s, n, c->err)) return SY_EINTERNAL;
-    const sy_jv *first = sy_jv_at(nodes, 0);
-    double origin[3];
-    for (int k = 0; k < 3; k++) {
-        double v = 0;
-        sy_jv_number(sy_jv_get(first, k == 0 ? "x" : k == 1 ? "y" : "z"), &v);
-        /* Whole metres keep float offsets small and exact to ~1e-6 m. */
-        origin[k] = isfinite(v) ? floor(v + offset[k]) : 0;
-    }
-    memcpy(s->origin, origin, sizeof origin);
-    int has_topology = 1;
-    for (size_t i = 0; i < n; i++) {
-        const sy_jv *nd = &nodes->items[i];
-        char label[96];
-        snprintf(label, sizeof label, "%s node %zu", where, i);
-        if (nd->type != SY_JV_OBJECT) return bad(c, nd, "%s: expected an object%s", label, NULL);
-        double v[3], r, parent, id, order = 0, branch = 0;
-        static const char *axes[3] = {"x", "y", "z"};
-        for (int k = 0; k < 3; k++) {
-            int got = opt_number(c, nd, axes[k], label, &v[k]);
-            if (got < 0) return SY_EINPUT;
-            if (!got) return bad(c, nd, "%s: '%s' is missing", label, axes[k]);
-        }
-        int got = opt_number(c, nd, "radius", label, &r);
-        if (got < 0) return SY_EINPUT;
-        if (!got || !(r >= 0)) return bad(c, nd, "%s: 'radius' must be a number >= 0%s", label, NULL);
-        got = opt_number(c, nd, "parent", label, &parent);
-        if (got < 0) return SY_EINPUT;
-        if (!got || !whole(parent, -1, (double)n - 1) || parent == (double)i)
-            return bad(c, nd, "%s: 'parent' must be -1 or the index of another node%s", label, NULL);
-        got = opt_number(c, nd, "id", label, &id);
-        if (got < 0) return SY_EINPUT;
-        if (got && id != (double)i) return bad(c, nd, "%s: 'id' must equal the node's index in 'nodes'%s", label, NULL);
-        int has_order = opt_number(c, nd, "order", label, &order), has_branch = opt_number(c, nd, "branch", label, &branch);
-        if (has_order < 0 || has_branch < 0) return SY_EINPUT;
-        if (has_order && !whole(order, 0, 255)) return bad(c, nd, "%s: 'order' must be a whole number 0..255%s", label, NULL);
-        if (has_branch && !whole(branch, 0, INT32_MAX)) return bad(c, nd, "%s: 'branch' must be a whole number >= 0%s", label, NULL);
-        has_topology &= has_order && has_branch;
-        for (int k = 0; k < 3; k++) s->pos[3 * i + k] = (float)(v[k] + offset[k] - origin[k]);
-        s->radius[i] = (float)r;
-        s->parent[i] = (int32_t)parent;
-        s->order[i] = (uint8_t)order;
-        s->branch[i] = (int32_t)branch;
-    }
-    sy_code rc = check_topology(s, c, where);
-    if (rc) return rc;
-    return has_topology ? SY_OK : derive_branches(s, c);
-}
-
-static sy_code parse_tree(const ctx *c, const sy_jv *obj, const double offset[3], const char *where, sy_eval_tree *t)
+/* origin: the float origin a skeleton file names (x y z are world
+ * coordinates either way), NULL for floor() of the root. */
+static sy_code parse_tree(const ctx *c, const sy_jv *obj, const double *origin, const char *where, sy_eval_tree *t)
 {
     memset(t, 0, sizeof *t);
     t->tree_id = -1;
@@ -279,7 +162,8 @@ static sy_code parse_tree(const ctx *c, const sy_jv *obj, const double offset[3]
         if ((got = opt_number(c, obj, sizes[k], where, &v)) < 0) return SY_EINPUT;
         if (got) *dst[k] = v;
     }
-    sy_code rc = parse_nodes(c, sy_jv_get(obj, "nodes"), offset, where, &t->skel);
+    /* One node reader for every skeleton JSON: stages/qsm/skeleton_json_read.c. */
+    sy_code rc = sy_skeleton_from_json_nodes(c->name, where, sy_jv_get(obj, "nodes"), origin, &t->skel, NULL, c->err);
     if (rc) {
         sy_skeleton_free(&t->skel);
         return rc;
@@ -297,7 +181,6 @@ static sy_code parse_tree(const ctx *c, const sy_jv *obj, const double offset[3]
                 sy_skeleton_free(&t->skel);
                 return bad(c, &pos->items[k], "%s: 'position' must hold numbers%s", where, NULL);
             }
-        for (int k = 0; k < 3; k++) t->position[k] += offset[k];
     }
     if (isnan(t->dbh)) t->dbh = sy_skeleton_dbh(&t->skel);
     if (isnan(t->height)) t->height = sy_skeleton_height(&t->skel);
@@ -318,19 +201,20 @@ static sy_code parse_doc(const ctx *c, const sy_jv *root, sy_forest *out)
         snprintf(vb, sizeof vb, "%g", version);
         return bad(c, sy_jv_get(root, "version"), "version %s is not supported (this reader knows version 1)%s", vb, NULL);
     }
-    double offset[3] = {0, 0, 0};
+    double file_origin[3] = {0, 0, 0};
     const sy_jv *origin = sy_jv_get(root, "origin");
     if (origin) {
         if (origin->type != SY_JV_ARRAY || origin->len != 3) return bad(c, origin, "'origin' must be [x, y, z]%s%s", NULL, NULL);
         for (int k = 0; k < 3; k++)
-            if (!sy_jv_number(&origin->items[k], &offset[k])) return bad(c, origin, "'origin' must hold numbers%s%s", NULL, NULL);
+            if (!sy_jv_number(&origin->items[k], &file_origin[k])) return bad(c, origin, "'origin' must hold numbers%s%s", NULL, NULL);
     }
+    const double *float_origin = origin ? file_origin : NULL;
     const sy_jv *trees = sy_jv_get(root, "trees");
     memset(out, 0, sizeof *out);
     if (!trees) {
         if (!sy_jv_get(root, "nodes")) return bad(c, root, "neither 'trees' (truth file) nor 'nodes' (skeleton file) found%s%s", NULL, NULL);
         sy_eval_tree t;
-        sy_code rc = parse_tree(c, root, offset, "skeleton", &t);
+        sy_code rc = parse_tree(c, root, float_origin, "skeleton", &t);
         if (rc) return rc;
         if ((rc = sy_forest_add(out, &t, c->err))) sy_skeleton_free(&t.skel);
         return rc;
@@ -341,7 +225,7 @@ static sy_code parse_doc(const ctx *c, const sy_jv *root, sy_forest *out)
         char where[48];
         snprintf(where, sizeof where, "tree %zu", i);
         sy_eval_tree t;
-        sy_code rc = parse_tree(c, &trees->items[i], offset, where, &t);
+        sy_code rc = parse_tree(c, &trees->items[i], NULL, where, &t);
         if (!rc && (rc = sy_forest_add(out, &t, c->err))) sy_skeleton_free(&t.skel);
         if (rc) {
             sy_forest_free(out);
@@ -363,13 +247,35 @@ sy_code sy_forest_parse(const char *name, const char *text, size_t len, sy_fores
     return rc;
 }
 
+/* Any other skeleton file (PLY, cylinder CSV, TreeQSM text, OBJ, .sylva) as a
+ * one-tree forest, sized like a skeleton JSON without dbh/height. */
+static sy_code forest_from_skeleton_file(const char *path, sy_forest *out, sy_error *err)
+{
+    sy_eval_tree t;
+    memset(&t, 0, sizeof t);
+    t.tree_id = -1;
+    t.species_id = -1;
+    t.crown_width = NAN;
+    sy_code rc = sy_skeleton_read(path, &t.skel, err);
+    if (rc) return rc;
+    int32_t root = find_root(&t.skel);
+    for (int k = 0; k < 3; k++) t.position[k] = t.skel.origin[k] + t.skel.pos[3 * root + k];
+    t.dbh = sy_skeleton_dbh(&t.skel);
+    t.height = sy_skeleton_height(&t.skel);
+    if ((rc = sy_forest_add(out, &t, err))) sy_skeleton_free(&t.skel);
+    return rc;
+}
+
 sy_code sy_forest_read(const char *path, sy_forest *out, sy_error *err)
 {
     sy_buffer b;
     memset(out, 0, sizeof *out);
     sy_code rc = sy_read_file(path, &b, err);
     if (rc) return rc;
-    rc = sy_forest_parse(path, (const char *)b.data, b.size, out, err);
+    if (sy_skeleton_sniff(path, b.data, b.size) == SY_SKEL_JSON)
+        rc = sy_forest_parse(path, (const char *)b.data, b.size, out, err);
+    else
+        rc = forest_from_skeleton_file(path, out, err);
     sy_buffer_free(&b);
     return rc;
 }

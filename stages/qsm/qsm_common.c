@@ -146,7 +146,7 @@ void sy_fmt_coord(char *buf, size_t size, double w, double o)
     }
 }
 
-int sy_parse_number(const char *b, const char *e, double *out)
+int sy_qsm_parse_number(const char *b, const char *e, double *out)
 {
     char tmp[72];
     size_t len = (size_t)(e - b);

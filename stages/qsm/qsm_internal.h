@@ -36,7 +36,7 @@ void sy_fmt_float(char *buf, size_t size, float v);
  * origin o and rounding to float gets (float)(w - o) back. */
 void sy_fmt_coord(char *buf, size_t size, double w, double o);
 /* Parses [b, e) as one finite or non-finite double; 0 on malformed text. */
-int sy_parse_number(const char *b, const char *e, double *out);
+int sy_qsm_parse_number(const char *b, const char *e, double *out);
 /* floor() per axis: the origin readers pick when the file names none. */
 void sy_origin_floor(const double world[3], double origin[3]);
 

@@ -6,6 +6,7 @@
 
 #include "qsm_internal.h"
 #include "stages/core/fileio.h"
+#include "stages/encode/sylva_format.h"
 
 const char *sy_skel_format_name(sy_skel_format f)
 {
@@ -15,6 +16,7 @@ const char *sy_skel_format_name(sy_skel_format f)
     case SY_SKEL_TREEQSM_TXT: return "treeqsm-txt";
     case SY_SKEL_OBJ: return "obj";
     case SY_SKEL_JSON: return "json";
+    case SY_SKEL_SYLVA: return "sylva";
     default: return "unknown";
     }
 }
@@ -28,6 +30,7 @@ static sy_skel_format by_extension(const char *path)
     if (strcmp(ext, "txt") == 0) return SY_SKEL_TREEQSM_TXT;
     if (strcmp(ext, "obj") == 0) return SY_SKEL_OBJ;
     if (strcmp(ext, "json") == 0) return SY_SKEL_JSON;
+    if (strcmp(ext, "sylva") == 0) return SY_SKEL_SYLVA;
     return SY_SKEL_UNKNOWN;
 }
 
@@ -49,7 +52,7 @@ static int numeric_columns(const char *b, const char *e)
         const char *q = b;
         while (q < e && *q != ' ' && *q != '\t') q++;
         double v;
-        if (!sy_parse_number(b, q, &v)) return -1;
+        if (!sy_qsm_parse_number(b, q, &v)) return -1;
         n++;
         b = q;
     }
@@ -58,6 +61,7 @@ static int numeric_columns(const char *b, const char *e)
 
 sy_skel_format sy_skeleton_sniff(const char *path, const unsigned char *data, size_t size)
 {
+    if (size >= 4 && memcmp(data, "SYLV", 4) == 0) return SY_SKEL_SYLVA;
     if (size >= 4 && memcmp(data, "ply", 3) == 0 && (data[3] == '\n' || data[3] == '\r')) return SY_SKEL_PLY;
     sy_lines L;
     sy_lines_init(&L, data, size);
@@ -83,8 +87,23 @@ sy_skel_format sy_skeleton_sniff(const char *path, const unsigned char *data, si
 typedef sy_code (*reader_fn)(const char *, const unsigned char *, size_t, sy_skeleton *, sy_skeleton_read_info *,
                              sy_error *);
 
-/* One row per readable format; sylva-skeleton JSON is written here and read
- * by whichever module owns the JSON parser, so it has no row yet. */
+sy_code sy_skeleton_read_sylva_mem(const char *path, const unsigned char *data, size_t size, sy_skeleton *out,
+                                   sy_skeleton_read_info *info, sy_error *err)
+{
+    sy_clusters cl;
+    sy_sylva_meta meta;
+    sy_code rc = sy_decode_mem(path, data, size, out, &cl, &meta, err);
+    if (rc) return rc;
+    sy_clusters_free(&cl);
+    if (info) {
+        info->records = out->n;
+        info->input_roots = 1;
+        info->origin_from_file = 1;
+    }
+    return SY_OK;
+}
+
+/* One row per readable format. */
 static const struct {
     sy_skel_format format;
     reader_fn read;
@@ -93,9 +112,12 @@ static const struct {
     {SY_SKEL_CSV, sy_skeleton_read_csv_mem},
     {SY_SKEL_TREEQSM_TXT, sy_skeleton_read_treeqsm_mem},
     {SY_SKEL_OBJ, sy_skeleton_read_obj_mem},
+    {SY_SKEL_JSON, sy_skeleton_read_json_mem},
+    {SY_SKEL_SYLVA, sy_skeleton_read_sylva_mem},
 };
 
-sy_code sy_skeleton_read_ex(const char *path, sy_skeleton *out, sy_skeleton_read_info *info, sy_error *err)
+sy_code sy_skeleton_read_tree(const char *path, long tree, sy_skeleton *out, sy_skeleton_read_info *info,
+                              sy_error *err)
 {
     memset(out, 0, sizeof *out);
     sy_skeleton_read_info local;
@@ -105,7 +127,19 @@ sy_code sy_skeleton_read_ex(const char *path, sy_skeleton *out, sy_skeleton_read
     sy_code rc = sy_read_file(path, &buf, err);
     if (rc) return rc;
     sy_skel_format f = sy_skeleton_sniff(path, buf.data, buf.size);
-    rc = sy_fail(err, SY_EINPUT, "%s: not a skeleton file this build reads (PLY, cylinder CSV, TreeQSM text, OBJ)",
+    if (tree >= 0 && f == SY_SKEL_JSON) {
+        /* Only truth files hold several trees: the index goes to the JSON reader. */
+        rc = sy_skeleton_read_json_tree(path, buf.data, buf.size, tree, out, info, err);
+        sy_buffer_free(&buf);
+        return rc;
+    }
+    if (tree > 0) {
+        sy_buffer_free(&buf);
+        return sy_fail(err, SY_EINPUT, "%s: tree %ld asked for, a %s skeleton file holds one", path, tree,
+                       sy_skel_format_name(f));
+    }
+    rc = sy_fail(err, SY_EINPUT,
+                 "%s: not a skeleton file this build reads (PLY, cylinder CSV, TreeQSM text, OBJ, JSON, .sylva)",
                  path);
     for (size_t i = 0; i < sizeof READERS / sizeof READERS[0]; i++)
         if (READERS[i].format == f) {
@@ -114,7 +148,13 @@ sy_code sy_skeleton_read_ex(const char *path, sy_skeleton *out, sy_skeleton_read
             break;
         }
     sy_buffer_free(&buf);
+    if (rc == SY_OK) info->format = f;
     return rc;
+}
+
+sy_code sy_skeleton_read_ex(const char *path, sy_skeleton *out, sy_skeleton_read_info *info, sy_error *err)
+{
+    return sy_skeleton_read_tree(path, -1, out, info, err);
 }
 
 sy_code sy_skeleton_read(const char *path, sy_skeleton *out, sy_error *err)
@@ -129,7 +169,9 @@ sy_code sy_skeleton_write(const char *path, const sy_skeleton *s, sy_error *err)
     case SY_SKEL_CSV: return sy_skeleton_write_csv(path, s, err);
     case SY_SKEL_OBJ: return sy_skeleton_write_obj(path, s, err);
     case SY_SKEL_JSON: return sy_skeleton_write_json(path, s, err);
+    case SY_SKEL_SYLVA: return sy_encode_write(path, s, NULL, 0, 0, err); /* no hulls, unknown species */
     default:
-        return sy_fail(err, SY_EUSAGE, "%s: unknown skeleton extension (use .ply, .csv, .obj or .json)", path);
+        return sy_fail(err, SY_EUSAGE, "%s: unknown skeleton extension (use .sylva, .ply, .csv, .obj or .json)",
+                       path);
     }
 }

@@ -6,7 +6,10 @@
  *         (ID, parentID, startX .. endZ, radius, length, growthLength, ...)
  *   .txt  TreeQSM's cylinder text export (save_model_text.m), read only
  *   .obj  polyline skeleton (v / l) with per-vertex "# radius" comments
- *   .json Sylva's own skeleton JSON, written here
+ *   .json Sylva's own skeleton JSON, and the truth layout of `sylva scan`
+ *         (docs/truth-format.md: one tree of its "trees" array)
+ *   .sylva Sylva's compact tree file (stages/encode): reads the skeleton
+ *         and drops the cluster hulls, writes the skeleton alone
  * Writes are atomic. Reads choose the format by content (magic bytes, header
  * names), the extension breaking ties, and end with sy_skeleton_validate. */
 #ifndef SYLVA_QSM_IO_H
@@ -14,6 +17,7 @@
 
 #include <stddef.h>
 
+#include "stages/core/json_read.h"
 #include "stages/core/skeleton.h"
 #include "stages/core/status.h"
 
@@ -23,7 +27,8 @@ typedef enum {
     SY_SKEL_CSV,         /* SimpleForest / rTwig cylinder table */
     SY_SKEL_TREEQSM_TXT, /* TreeQSM cylinder_*.txt / cyl_data_*.txt */
     SY_SKEL_OBJ,
-    SY_SKEL_JSON
+    SY_SKEL_JSON,
+    SY_SKEL_SYLVA
 } sy_skel_format;
 
 /* What a read found, for reports and `sylva info`. */
@@ -44,13 +49,19 @@ const char *sy_skel_format_name(sy_skel_format f);
  * extension of path breaking ties; SY_SKEL_UNKNOWN when nothing fits. */
 sy_skel_format sy_skeleton_sniff(const char *path, const unsigned char *data, size_t size);
 
-/* Writes by extension (.ply, .csv, .obj, .json); s must validate. */
+/* Writes by extension (.ply, .csv, .obj, .json, and .sylva without cluster
+ * hulls); s must validate. */
 sy_code sy_skeleton_write(const char *path, const sy_skeleton *s, sy_error *err);
 /* Reads any supported format into out (initialised here, owned by the
  * caller; left empty on failure). info may be NULL. */
 sy_code sy_skeleton_read(const char *path, sy_skeleton *out, sy_error *err);
 sy_code sy_skeleton_read_ex(const char *path, sy_skeleton *out, sy_skeleton_read_info *info,
                             sy_error *err);
+/* As sy_skeleton_read_ex; tree picks one entry of a truth file's "trees"
+ * (0-based). tree -1 takes the file's only tree and fails, naming the count,
+ * when a truth file holds several; other formats hold one tree (0 or -1). */
+sy_code sy_skeleton_read_tree(const char *path, long tree, sy_skeleton *out, sy_skeleton_read_info *info,
+                              sy_error *err);
 
 /* The individual writers and in-memory readers (path names the file in
  * messages); the readers are what fuzz targets drive. */
@@ -67,6 +78,23 @@ sy_code sy_skeleton_read_treeqsm_mem(const char *path, const unsigned char *data
                                      sy_skeleton *out, sy_skeleton_read_info *info, sy_error *err);
 sy_code sy_skeleton_read_obj_mem(const char *path, const unsigned char *data, size_t size,
                                  sy_skeleton *out, sy_skeleton_read_info *info, sy_error *err);
+sy_code sy_skeleton_read_json_mem(const char *path, const unsigned char *data, size_t size,
+                                  sy_skeleton *out, sy_skeleton_read_info *info, sy_error *err);
+sy_code sy_skeleton_read_json_tree(const char *path, const unsigned char *data, size_t size, long tree,
+                                   sy_skeleton *out, sy_skeleton_read_info *info, sy_error *err);
+sy_code sy_skeleton_read_sylva_mem(const char *path, const unsigned char *data, size_t size,
+                                   sy_skeleton *out, sy_skeleton_read_info *info, sy_error *err);
+
+/* JSON skeletons from a parsed document (stages/core/json_read.h), for
+ * readers that hold the DOM already (eval's truth files). from_json takes a
+ * skeleton or truth document (tree as in sy_skeleton_read_tree);
+ * from_json_nodes one "nodes" array of world-coordinate nodes, where naming
+ * the part in messages ("tree 2"); origin NULL picks floor() of the root.
+ * Messages read "path:line:col: where: problem". */
+sy_code sy_skeleton_from_json(const char *path, const sy_jv *doc, long tree, sy_skeleton *out,
+                              sy_skeleton_read_info *info, sy_error *err);
+sy_code sy_skeleton_from_json_nodes(const char *path, const char *where, const sy_jv *nodes, const double *origin,
+                                    sy_skeleton *out, sy_skeleton_read_info *info, sy_error *err);
 
 /* Per-node cylinder attributes as the CSV writer defines them (index i
  * describes the edge parent[i] -> i; the root's entry describes the whole

@@ -52,7 +52,7 @@ typedef struct {
 
 static sy_code field_number(const row_ctx *r, const char *b, const char *e, int col, double *v)
 {
-    if (!sy_parse_number(b, e, v))
+    if (!sy_qsm_parse_number(b, e, v))
         return sy_fail(r->err, SY_EINPUT, "%s:%zu: malformed number '%.*s' in column %s", r->path, r->line,
                        (int)(e - b > 40 ? 40 : e - b), b, COL_NAMES[col]);
     if (!isfinite(*v))

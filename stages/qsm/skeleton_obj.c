@@ -132,7 +132,7 @@ static sy_code read_comment(obj_ctx *c, int nt, const char **tb, const char **te
     double v[3];
     if (nt >= 5 && tok_is(tb[1], te[1], "sylva") && tok_is(tb[2], te[2], "origin")) {
         for (int k = 0; k < 3; k++)
-            if (!sy_parse_number(tb[3 + k], te[3 + k], &c->origin[k]) || !isfinite(c->origin[k]))
+            if (!sy_qsm_parse_number(tb[3 + k], te[3 + k], &c->origin[k]) || !isfinite(c->origin[k]))
                 return sy_fail(c->err, SY_EINPUT, "%s:%zu: malformed sylva origin comment", c->path, c->line);
         c->has_origin = 1;
         return SY_OK;
@@ -141,7 +141,7 @@ static sy_code read_comment(obj_ctx *c, int nt, const char **tb, const char **te
     obj_data *d = c->d;
     if (d->n == 0) return sy_fail(c->err, SY_EINPUT, "%s:%zu: radius comment before any vertex", c->path, c->line);
     size_t i = d->n - 1;
-    if (!sy_parse_number(tb[2], te[2], &v[0]) || !isfinite(v[0]))
+    if (!sy_qsm_parse_number(tb[2], te[2], &v[0]) || !isfinite(v[0]))
         return sy_fail(c->err, SY_EINPUT, "%s:%zu: malformed radius '%.*s'", c->path, c->line,
                        (int)(te[2] - tb[2] > 40 ? 40 : te[2] - tb[2]), tb[2]);
     if (v[0] < 0) return sy_fail(c->err, SY_EINPUT, "%s:%zu: negative radius %g", c->path, c->line, v[0]);
@@ -150,7 +150,7 @@ static sy_code read_comment(obj_ctx *c, int nt, const char **tb, const char **te
     d->radius[i] = (float)v[0];
     d->has_radius[i] = 1;
     if (nt >= 7 && tok_is(tb[3], te[3], "order") && tok_is(tb[5], te[5], "branch")) {
-        if (!sy_parse_number(tb[4], te[4], &v[1]) || !sy_parse_number(tb[6], te[6], &v[2]) || v[1] < 0 ||
+        if (!sy_qsm_parse_number(tb[4], te[4], &v[1]) || !sy_qsm_parse_number(tb[6], te[6], &v[2]) || v[1] < 0 ||
             v[1] > 255 || v[1] != floor(v[1]) || v[2] < 0 || v[2] > INT32_MAX || v[2] != floor(v[2]))
             return sy_fail(c->err, SY_EINPUT, "%s:%zu: malformed order or branch", c->path, c->line);
         d->order[i] = (int32_t)v[1];
@@ -168,7 +168,7 @@ static sy_code read_vertex(obj_ctx *c, int nt, const char **tb, const char **te)
     size_t i = d->n;
     for (int k = 0; k < 3; k++) {
         double v;
-        if (!sy_parse_number(tb[1 + k], te[1 + k], &v))
+        if (!sy_qsm_parse_number(tb[1 + k], te[1 + k], &v))
             return sy_fail(c->err, SY_EINPUT, "%s:%zu: malformed number '%.*s'", c->path, c->line,
                            (int)(te[1 + k] - tb[1 + k] > 40 ? 40 : te[1 + k] - tb[1 + k]), tb[1 + k]);
         if (!isfinite(v)) return sy_fail(c->err, SY_EINPUT, "%s:%zu: coordinate is not finite", c->path, c->line);
@@ -195,7 +195,7 @@ static sy_code read_line(obj_ctx *c, const char *b, const char *e)
         while (q < e && *q != ' ' && *q != '\t') q++;
         const char *slash = memchr(p, '/', (size_t)(q - p)); /* l v/vt: keep v */
         double v;
-        if (!sy_parse_number(p, slash ? slash : q, &v) || v != floor(v) || v == 0 || fabs(v) > 4e9)
+        if (!sy_qsm_parse_number(p, slash ? slash : q, &v) || v != floor(v) || v == 0 || fabs(v) > 4e9)
             return sy_fail(c->err, SY_EINPUT, "%s:%zu: malformed vertex index '%.*s'", c->path, c->line,
                            (int)(q - p > 40 ? 40 : q - p), p);
         long idx = v > 0 ? (long)v - 1 : (long)c->d->n + (long)v;

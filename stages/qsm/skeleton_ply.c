@@ -141,7 +141,7 @@ static sy_code parse_header_line(ply_reader *r, char *text, size_t line)
         if (a && b && strcmp(a, "sylva") == 0 && strcmp(b, "origin") == 0) {
             for (int k = 0; k < 3; k++) {
                 char *v = strtok_r(NULL, " \t", &save);
-                if (!v || !sy_parse_number(v, v + strlen(v), &r->origin[k]) || !isfinite(r->origin[k]))
+                if (!v || !sy_qsm_parse_number(v, v + strlen(v), &r->origin[k]) || !isfinite(r->origin[k]))
                     return header_fail(r, line, "malformed sylva origin comment");
             }
             r->has_origin = 1;
@@ -151,7 +151,7 @@ static sy_code parse_header_line(ply_reader *r, char *text, size_t line)
     if (strcmp(kw, "element") == 0) {
         char *name = strtok_r(NULL, " \t", &save), *cnt = strtok_r(NULL, " \t", &save);
         double c;
-        if (!name || !cnt || !sy_parse_number(cnt, cnt + strlen(cnt), &c) || c < 0 || c != floor(c) || c > 4e9)
+        if (!name || !cnt || !sy_qsm_parse_number(cnt, cnt + strlen(cnt), &c) || c < 0 || c != floor(c) || c > 4e9)
             return header_fail(r, line, "malformed element line");
         if (r->nel == MAX_ELEMENTS) return header_fail(r, line, "too many elements");
         ply_element *e = &r->el[r->nel++];
@@ -232,7 +232,7 @@ static int next_value(ply_reader *r, ply_type t, double *out)
         }
         const unsigned char *b = r->p;
         while (r->p < r->end && !(*r->p == ' ' || *r->p == '\t' || *r->p == '\r' || *r->p == '\n')) r->p++;
-        return sy_parse_number((const char *)b, (const char *)r->p, out);
+        return sy_qsm_parse_number((const char *)b, (const char *)r->p, out);
     }
     int n = TYPE_SIZE[t];
     if (r->end - r->p < n) return 0;

@@ -47,7 +47,7 @@ static sy_code parse_cylinder(const char *path, size_t line, size_t row, const c
 {
     double v[13];
     for (int k = 0; k < 13; k++) {
-        if (!sy_parse_number(tb[k], te[k], &v[k]))
+        if (!sy_qsm_parse_number(tb[k], te[k], &v[k]))
             return sy_fail(err, SY_EINPUT, "%s:%zu: malformed number '%.*s' in column %d", path, line,
                            (int)(te[k] - tb[k] > 40 ? 40 : te[k] - tb[k]), tb[k], k + 1);
         if (!isfinite(v[k])) return sy_fail(err, SY_EINPUT, "%s:%zu: column %d is not finite", path, line, k + 1);

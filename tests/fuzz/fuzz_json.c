@@ -1,11 +1,13 @@
 /* libFuzzer target: the JSON DOM reader over arbitrary bytes, then the same
- * bytes as a truth/skeleton file. Both must return a code, never crash,
+ * bytes as a truth/skeleton file (eval's forest, and qsm_io's skeleton
+ * reader for the only tree and for tree 1). Both must return a code, never crash,
  * hang or leak; a parsed DOM is walked in full so every node is touched. */
 #include <stddef.h>
 #include <stdint.h>
 
 #include "stages/core/json_read.h"
 #include "stages/eval/eval.h"
+#include "stages/qsm/qsm_io.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
@@ -28,5 +30,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     }
     sy_forest f;
     if (sy_forest_parse("fuzz.json", (const char *)data, size, &f, &err) == SY_OK) sy_forest_free(&f);
+    for (long tree = -1; tree <= 1; tree += 2) {
+        sy_skeleton s;
+        if (sy_skeleton_read_json_tree("fuzz.json", data, size, tree, &s, NULL, &err) == SY_OK) sy_skeleton_free(&s);
+    }
     return 0;
 }

@@ -1,0 +1,221 @@
+/* sylva mesh MODEL -o tree.glb: a skeleton or QSM from any tool (.sylva, .ply,
+ * .csv, .json, .obj, TreeQSM text) to the same game-ready asset `sylva grow`
+ * makes, optionally dressed with a species' bark, leaf material and leaves. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "pipeline/commands.h"
+#include "pipeline/tree_asset.h"
+#include "stages/core/fileio.h"
+#include "stages/core/json.h"
+#include "stages/core/progress.h"
+#include "stages/export/export.h"
+#include "stages/qsm/leaf_placement.h"
+#include "stages/qsm/qsm_io.h"
+
+static const char *out_path, *species_name;
+static int lods, impostor_size, meshopt, no_instancing, no_impostor, no_leaves, tree_index;
+static double leaf_density;
+static const sy_opt opts[] = {
+    {"-o", OPT_STRING, &out_path, "OUT.glb", "output glTF binary"},
+    {"--species", OPT_STRING, &species_name, "NAME", "bark, leaf material and leaves of a library species (or an .ini)"},
+    {"--no-leaves", OPT_FLAG, &no_leaves, NULL, "with --species: its materials, but no leaf cards"},
+    {"--leaf-density", OPT_DOUBLE, &leaf_density, "N", "leaves per metre of twig (default: from the species)"},
+    {"--tree", OPT_INT, &tree_index, "I", "which tree of a truth file with several (0-based)"},
+    {"--lods", OPT_INT, &lods, "N", "mesh levels of detail before the impostor (default 4)"},
+    {"--impostor-size", OPT_INT, &impostor_size, "PX", "impostor texture size (default 512)"},
+    {"--no-impostor", OPT_FLAG, &no_impostor, NULL, "no billboard level"},
+    {"--meshopt", OPT_FLAG, &meshopt, NULL, "compress with EXT_meshopt_compression"},
+    {"--no-instancing", OPT_FLAG, &no_instancing, NULL, "bake leaf instances into meshes (engines without EXT_mesh_gpu_instancing)"},
+    {NULL, 0, NULL, NULL, NULL},
+};
+static const sy_cmd_spec spec = {
+    "mesh", "MODEL -o OUT.glb",
+    "Mesh a skeleton or QSM (.sylva, .ply, .csv, .json, .obj, TreeQSM .txt) into a glTF tree asset.",
+    "Meshing, LODs, impostor and export are those of `sylva grow`. The root is moved to the\n"
+    "origin of the glb; its world position is kept in asset.extras.origin. --species adds leaf\n"
+    "cards along the finest branches. See docs/qsm-formats.md.",
+    opts, 1, 1};
+
+/* Moves the root to (0,0,0): the glb is centred at the trunk base whatever
+ * survey frame the model came in; world = origin + pos keeps holding. */
+static void root_to_origin(sy_skeleton *s)
+{
+    double root[3];
+    for (int k = 0; k < 3; k++) root[k] = s->origin[k] + (double)s->pos[k];
+    for (size_t i = 0; i < s->n; i++)
+        for (int k = 0; k < 3; k++) s->pos[3 * i + k] = (float)((s->origin[k] + (double)s->pos[3 * i + k]) - root[k]);
+    memcpy(s->origin, root, sizeof root);
+}
+
+/* Appends "origin" (and where the model came from) to the asset's extras object. */
+static sy_code add_origin_extras(sy_asset *a, const sy_skeleton *s, const char *model, const char *format,
+                                 sy_error *err)
+{
+    char *add = NULL;
+    size_t len = 0;
+    FILE *fp = open_memstream(&add, &len);
+    if (!fp) return sy_fail(err, SY_EINTERNAL, "asset extras: out of memory");
+    sy_json j;
+    sy_json_begin(&j, fp, 0);
+    sy_json_object(&j, NULL);
+    sy_json_numbers(&j, "origin", s->origin, 3);
+    const char *slash = strrchr(model, '/');
+    sy_json_string(&j, "source", slash ? slash + 1 : model); /* the file name: no local paths in assets */
+    sy_json_string(&j, "source_format", format);
+    sy_json_end(&j);
+    sy_json_finish(&j);
+    fclose(fp);
+    const char *base = a->extras_json ? a->extras_json : "{}";
+    size_t blen = strlen(base);
+    while (blen && base[blen - 1] != '}') blen--;
+    int base_empty = 1;
+    for (size_t i = 1; i + 1 < blen; i++)
+        if (base[i] != ' ' && base[i] != '\n') base_empty = 0;
+    char *merged = add && blen ? malloc(blen + len + 2) : NULL;
+    if (!merged) {
+        free(add);
+        return sy_fail(err, SY_EINTERNAL, "asset extras: out of memory");
+    }
+    /* {base members} + {added members} -> {base members, added members} */
+    memcpy(merged, base, blen - 1);
+    size_t m = blen - 1;
+    if (!base_empty) merged[m++] = ',';
+    memcpy(merged + m, add + 1, len - 1);
+    merged[m + len - 1] = '\0';
+    free(add);
+    free(a->extras_json);
+    a->extras_json = merged;
+    return SY_OK;
+}
+
+typedef struct {
+    const char *model, *format;
+    double height, twig_length, seconds_read, seconds_leaves;
+    double origin[3];
+} mesh_facts;
+
+static void print_report(const sy_cli *cli, const sy_tree_asset_report *rep, const mesh_facts *f,
+                         const sy_species *sp)
+{
+    if (cli->json) {
+        sy_json j;
+        sy_json_begin(&j, stdout, 0);
+        sy_json_object(&j, NULL);
+        sy_json_string(&j, "input", f->model);
+        sy_json_string(&j, "format", f->format);
+        sy_json_string(&j, "output", out_path);
+        if (sp) sy_json_string(&j, "species", sp->name);
+        sy_json_int(&j, "seed", (long long)cli->seed);
+        sy_json_numbers(&j, "origin", f->origin, 3);
+        sy_json_int(&j, "nodes", (long long)rep->nodes);
+        sy_json_int(&j, "branches", (long long)rep->branches);
+        sy_json_int(&j, "leaves", (long long)rep->leaves);
+        sy_json_number(&j, "twig_length", f->twig_length);
+        sy_json_number(&j, "height", f->height);
+        sy_json_int(&j, "bytes", (long long)rep->bytes);
+        sy_json_array(&j, "lod_triangles");
+        for (size_t l = 0; l < rep->lods && l < 16; l++) sy_json_int(&j, NULL, (long long)rep->triangles[l]);
+        sy_json_end(&j);
+        sy_json_number(&j, "seconds_read", f->seconds_read);
+        sy_json_number(&j, "seconds_leaves", f->seconds_leaves);
+        sy_json_number(&j, "seconds_mesh", rep->seconds_mesh);
+        sy_json_number(&j, "seconds_export", rep->seconds_export);
+        sy_json_end(&j);
+        sy_json_finish(&j);
+    } else if (!cli->quiet) {
+        fprintf(stderr, "read %s (%s) in %.3f s; root %.3f %.3f %.3f moved to the origin\n", f->model, f->format,
+                f->seconds_read, f->origin[0], f->origin[1], f->origin[2]);
+        if (sp && rep->leaves)
+            fprintf(stderr, "placed %zu %s leaves on %.2f m of twig in %.3f s\n", rep->leaves, sp->name,
+                    f->twig_length, f->seconds_leaves);
+        sy_tree_asset_report_text(rep, out_path);
+    }
+}
+
+/* The shared tail (sy_tree_asset_build) and the export sy_tree_asset_write
+ * does, with the origin added to the extras in between. */
+static sy_code build_and_write(const sy_skeleton *s, const sy_leaves *lv, const sy_species *sp, sy_cli *cli,
+                               const mesh_facts *f, sy_tree_asset_report *rep, sy_error *err)
+{
+    sy_tree_asset_options o = sy_tree_asset_options_default();
+    o.lods = lods;
+    o.impostor = !no_impostor;
+    o.impostor_size = impostor_size;
+    o.meshopt = meshopt;
+    o.instancing = !no_instancing;
+    o.seed = cli->seed;
+    sy_asset asset;
+    sy_code rc = sy_tree_asset_build(s, lv, sp, &o, &asset, rep, err);
+    if (rc) return rc;
+    rc = add_origin_extras(&asset, s, f->model, f->format, err);
+    double t0 = sy_now();
+    sy_export_options eo = sy_export_options_default();
+    eo.meshopt = o.meshopt;
+    eo.instancing = o.instancing;
+    if (!rc) rc = sy_export_glb(out_path, &asset, &eo, err);
+    if (!rc) {
+        rep->seconds_export = sy_now() - t0;
+        rep->bytes = sy_export_last_size(out_path);
+    }
+    sy_asset_free(&asset);
+    return rc;
+}
+
+int cmd_mesh(int argc, char **argv, sy_cli *cli)
+{
+    const char *pos[1];
+    int n;
+    out_path = species_name = NULL;
+    lods = 4, impostor_size = 512, meshopt = no_instancing = no_impostor = no_leaves = 0;
+    tree_index = -1;
+    leaf_density = -1;
+    int rc = sy_cli_parse(&spec, argc, argv, cli, pos, 1, &n);
+    if (rc) return rc < 0 ? 0 : rc;
+    if (!out_path) {
+        fprintf(stderr, "sylva mesh: -o OUT.glb is required\n");
+        return SY_EUSAGE;
+    }
+    if (lods < 1 || lods > 8 || impostor_size < 16 || impostor_size > 4096 || tree_index < -1 ||
+        (leaf_density != -1 && !(leaf_density >= 0 && leaf_density <= 1e4))) {
+        fprintf(stderr, "sylva mesh: --lods must be 1..8, --impostor-size 16..4096, --tree >= 0, "
+                        "--leaf-density 0..10000\n");
+        return SY_EUSAGE;
+    }
+    sy_error err = {0};
+    mesh_facts f = {pos[0], "", 0, 0, 0, 0, {0, 0, 0}};
+    sy_skeleton skel;
+    sy_skeleton_read_info info;
+    double t0 = sy_now();
+    if (sy_skeleton_read_tree(pos[0], tree_index, &skel, &info, &err)) return sy_cli_report(&err);
+    f.seconds_read = sy_now() - t0;
+    f.format = sy_skel_format_name(info.format);
+    root_to_origin(&skel);
+    memcpy(f.origin, skel.origin, sizeof f.origin);
+    f.height = sy_skeleton_height(&skel);
+    sy_species sp;
+    int have_species = 0;
+    sy_leaves leaves = {0};
+    if (species_name) {
+        if ((rc = sy_species_find(species_name, &sp, &err))) goto done;
+        have_species = 1;
+        if (!no_leaves) {
+            sy_leaf_placement lp = sy_leaf_placement_from_species(&sp, cli->seed);
+            if (leaf_density >= 0) lp.per_metre = leaf_density;
+            t0 = sy_now();
+            rc = sy_place_leaves(&skel, &lp, &leaves, &f.twig_length, &err);
+            f.seconds_leaves = sy_now() - t0;
+            if (rc) goto done;
+        }
+    }
+    sy_tree_asset_report rep;
+    rc = build_and_write(&skel, &leaves, have_species ? &sp : NULL, cli, &f, &rep, &err);
+    if (!rc) print_report(cli, &rep, &f, have_species ? &sp : NULL);
+done:
+    sy_leaves_free(&leaves);
+    if (have_species) sy_species_free(&sp);
+    sy_skeleton_free(&skel);
+    return rc ? sy_cli_report(&err) : 0;
+}

@@ -1,0 +1,97 @@
+#!/usr/bin/env bash
+# sylva mesh and the skeleton interchange end to end on rTwig's reference QSM
+# and its point cloud: the QSM becomes a valid glb centred at its base (with
+# and without species leaves), eval scores the QSM against the cloud and
+# Sylva's own skeleton against the QSM, every `sylva skeleton -o` format
+# meshes into a valid glb, bad models exit 2 with one line and no output.
+set -u
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fail=0
+check() { if ! eval "$2"; then echo "FAIL: $1"; fail=1; else echo "ok: $1"; fi; }
+validator="$SYLVA_SOURCE_DIR/tests/gltf_validate.mjs"
+[[ -f $SYLVA_SOURCE_DIR/node_modules/gltf-validator/package.json ]] || { echo "FAIL: gltf-validator missing (run npm ci)"; exit 1; }
+rtwig="$SYLVA_DATA_DIR/real/rtwig"
+qsm="$rtwig/QSM.csv"
+cloud="$rtwig/cloud.txt"
+# Every glb is validated in one validator run at the end (node starts once).
+glbs=()
+valid() { glbs+=("$1"); }
+# Value of a top-level numeric key in a flat JSON report.
+key() { node -e 'const r = JSON.parse(require("fs").readFileSync(process.argv[1])); console.log(r[process.argv[2]])' "$1" "$2"; }
+
+# The QSM as a bare glb: valid, centred at its base, the survey origin kept.
+"$SYLVA" mesh "$qsm" -o "$tmp/q.glb" --json > "$tmp/q.json" 2> "$tmp/q.err" || { echo "FAIL: mesh QSM.csv: $(cat "$tmp/q.err")"; exit 1; }
+valid "$tmp/q.glb"
+check "bare QSM has no leaves" "[[ \$(key '$tmp/q.json' leaves) == 0 ]]"
+check "glb centred at the trunk base, origin in asset.extras" "node -e '
+  const b = require(\"fs\").readFileSync(\"$tmp/q.glb\");
+  const j = JSON.parse(b.slice(20, 20 + b.readUInt32LE(12)).toString());
+  const o = j.asset.extras.origin;
+  if (Math.abs(o[0] - 0.760564) > 1e-6 || Math.abs(o[1] + 16.356802) > 1e-6 || Math.abs(o[2] - 253.888632) > 1e-6) process.exit(1);
+  if (j.asset.extras.source !== \"QSM.csv\") process.exit(1);
+  const pos = j.accessors[j.meshes[0].primitives[0].attributes.POSITION];
+  /* Y-up: the base sits at y = 0, the tree is about 3.7 m tall and a few metres wide. */
+  if (Math.abs(pos.min[1]) > 0.1 || pos.max[1] < 3 || pos.max[1] > 4.5) process.exit(1);
+  for (const k of [0, 2]) if (Math.abs(pos.min[k]) > 3 || Math.abs(pos.max[k]) > 3) process.exit(1);
+'"
+
+# With a species: its materials and leaf cards along the twigs, seeded.
+"$SYLVA" mesh "$qsm" -o "$tmp/qa.glb" --species quaking_aspen --json > "$tmp/qa.json" || fail=1
+"$SYLVA" mesh "$qsm" -o "$tmp/qb.glb" --species quaking_aspen --quiet || fail=1
+valid "$tmp/qa.glb"
+check "species leaves placed (some, not absurdly many)" "(( \$(key '$tmp/qa.json' leaves) > 20 && \$(key '$tmp/qa.json' leaves) < 5000 ))"
+check "same seed, same bytes" "cmp -s '$tmp/qa.glb' '$tmp/qb.glb'"
+"$SYLVA" mesh "$qsm" -o "$tmp/qd.glb" --species quaking_aspen --leaf-density 40 --json > "$tmp/qd.json" || fail=1
+check "--leaf-density scales the count" "(( \$(key '$tmp/qd.json' leaves) > 5 * \$(key '$tmp/qa.json' leaves) ))"
+"$SYLVA" mesh "$qsm" -o "$tmp/qn.glb" --species quaking_aspen --no-leaves --json > "$tmp/qn.json" || fail=1
+check "--no-leaves" "[[ \$(key '$tmp/qn.json' leaves) == 0 ]]"
+valid "$tmp/qn.glb"
+
+# The QSM's cones against the cloud it was fitted to (measured 3.0 mm, 99.1 %),
+# and its glb, put back at its origin by eval, about as close.
+"$SYLVA" eval --points "$cloud" "$qsm" --json > "$tmp/e.json" || fail=1
+echo "QSM cones vs cloud: mean $(key "$tmp/e.json" mean_distance) m, coverage $(key "$tmp/e.json" coverage)"
+check "QSM within 1 cm of the cloud on average" "node -e 'process.exit(($(key "$tmp/e.json" mean_distance)) <= 0.01 ? 0 : 1)'"
+check "QSM covers 95 % of the cloud within 2 cm" "node -e 'process.exit(($(key "$tmp/e.json" coverage)) >= 0.95 ? 0 : 1)'"
+"$SYLVA" eval --points "$cloud" "$tmp/q.glb" --json > "$tmp/eg.json" || fail=1
+echo "QSM glb vs cloud: mean $(key "$tmp/eg.json" mean_distance) m, coverage $(key "$tmp/eg.json" coverage)"
+check "QSM glb within 1 cm of the cloud (origin restored)" "node -e 'process.exit(($(key "$tmp/eg.json" mean_distance)) <= 0.01 ? 0 : 1)'"
+
+# Sylva's own skeleton of the cloud in every interchange format.
+for ext in json ply csv obj sylva; do
+  "$SYLVA" skeleton "$cloud" -o "$tmp/s.$ext" --quiet > /dev/null || { echo "FAIL: skeleton -o s.$ext"; fail=1; continue; }
+  "$SYLVA" mesh "$tmp/s.$ext" -o "$tmp/s_$ext.glb" --quiet || { echo "FAIL: mesh s.$ext"; fail=1; continue; }
+  valid "$tmp/s_$ext.glb"
+done
+check "skeleton json is in the scan's world frame" "node -e '
+  const s = JSON.parse(require(\"fs\").readFileSync(\"$tmp/s.json\"));
+  const r = s.nodes[0];
+  if (Math.abs(r.x - 0.76) > 0.1 || Math.abs(r.y + 16.36) > 0.1 || Math.abs(r.z - 253.9) > 0.2) process.exit(1);
+'"
+"$SYLVA" eval --truth "$qsm" "$tmp/s.json" --json > "$tmp/t.json" || fail=1
+echo "Sylva skeleton vs QSM: recall $(key "$tmp/t.json" recall), precision $(key "$tmp/t.json" precision), radius error (median rel.) $(key "$tmp/t.json" radius_error_median)"
+check "skeleton recall against the QSM > 0.5" "node -e 'process.exit(($(key "$tmp/t.json" recall)) > 0.5 ? 0 : 1)'"
+check "skeleton precision against the QSM > 0.5" "node -e 'process.exit(($(key "$tmp/t.json" precision)) > 0.5 ? 0 : 1)'"
+
+# Bad models: exit 2, one line naming the file, nothing written.
+printf 'ID,parentID,startX\n0,-1,zz\n' > "$tmp/bad.csv"
+printf '{"nodes":[{"parent":-1,"x":0,"y":0,"z":0}]}' > "$tmp/bad.json"
+printf 'SYLV\001\000' > "$tmp/bad.sylva"
+printf '\001\002\003' > "$tmp/bad.bin"
+for m in bad.csv bad.json bad.sylva bad.bin missing.ply; do
+  "$SYLVA" mesh "$tmp/$m" -o "$tmp/out.glb" 2> "$tmp/err"; rc=$?
+  check "$m exits 2 with one line naming it, no output" \
+    "[[ $rc == 2 && \$(wc -l < '$tmp/err') == 1 ]] && grep -q '$m' '$tmp/err' && [[ ! -e '$tmp/out.glb' ]]"
+done
+"$SYLVA" mesh "$qsm" 2>/dev/null; check "no -o is a usage error" "[[ $? == 1 ]]"
+"$SYLVA" mesh "$qsm" -o "$tmp/u.glb" --species no_such_species 2>/dev/null; rc=$?
+check "unknown species fails, no output" "[[ $rc != 0 && ! -e '$tmp/u.glb' ]]"
+"$SYLVA" skeleton "$cloud" -o "$tmp/s.xyz" 2>/dev/null; rc=$?
+check "skeleton -o with an unknown extension is a usage error" "[[ $rc == 1 && ! -e '$tmp/s.xyz' ]]"
+node "$validator" "${glbs[@]}" > "$tmp/validate.txt"
+for g in "${glbs[@]}"; do
+  check "$(basename "$g") validates with 0 errors, 0 warnings" "grep -qF '$g: errors=0 warnings=0 ' '$tmp/validate.txt'"
+done
+(( ${#glbs[@]} == 8 )) || { echo "FAIL: expected 8 glb files, validated ${#glbs[@]}"; fail=1; }
+exit $fail
