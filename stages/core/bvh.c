@@ -37,72 +37,108 @@ static void box_grow(sy_box *b, const sy_box *o)
     }
 }
 
-static double box_area(const sy_box *b)
+/* ---------------------------------------------------------------- build */
+
+/* The build runs on float boxes relative to the origin, as the nodes store
+ * them: half the memory traffic of doubles. */
+typedef struct {
+    float lo[3], hi[3];
+} fbox;
+
+static void fbox_empty(fbox *b)
 {
-    double d[3];
+    for (int k = 0; k < 3; k++) {
+        b->lo[k] = FLT_MAX;
+        b->hi[k] = -FLT_MAX;
+    }
+}
+
+static void fbox_grow(fbox *b, const fbox *o)
+{
+    for (int k = 0; k < 3; k++) {
+        if (o->lo[k] < b->lo[k]) b->lo[k] = o->lo[k];
+        if (o->hi[k] > b->hi[k]) b->hi[k] = o->hi[k];
+    }
+}
+
+static float fbox_area(const fbox *b)
+{
+    float d[3];
     for (int k = 0; k < 3; k++) d[k] = b->hi[k] > b->lo[k] ? b->hi[k] - b->lo[k] : 0;
     return 2 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0]);
 }
 
-/* ---------------------------------------------------------------- build */
+/* The float box relative to origin that contains x: rounded outwards, then
+ * widened by pad so that float slab tests of rays starting within the scene
+ * never cut a primitive off. */
+static void to_fbox(const sy_box *x, const double origin[3], double pad, fbox *f)
+{
+    for (int k = 0; k < 3; k++) {
+        double lo = x->lo[k] - origin[k] - pad, hi = x->hi[k] - origin[k] + pad;
+        f->lo[k] = (float)lo;
+        f->hi[k] = (float)hi;
+        if ((double)f->lo[k] > lo) f->lo[k] = nextafterf(f->lo[k], -INFINITY);
+        if ((double)f->hi[k] < hi) f->hi[k] = nextafterf(f->hi[k], INFINITY);
+    }
+}
 
 typedef struct {
-    const sy_box *boxes;
-    double *centroid; /* 3 per primitive */
+    fbox *boxes;
+    float *centroid; /* 3 per primitive */
     uint32_t *idx;
     sy_bvh_node *nodes;
     size_t n_nodes;
-    double origin[3], pad;
 } builder;
 
-static int bin_of(const builder *b, uint32_t p, int axis, double lo, double scale)
+/* scale in double: BINS over a tiny float extent can overflow float. */
+static int bin_of(const builder *b, uint32_t p, int axis, float lo, double scale)
 {
-    int bin = (int)((b->centroid[3 * p + axis] - lo) * scale);
+    int bin = (int)((double)(b->centroid[3 * p + axis] - lo) * scale);
     return bin >= BINS ? BINS - 1 : bin < 0 ? 0 : bin;
 }
 
 /* Best SAH split of [begin, end) along axis; returns the split position in
  * *mid, or 0 when a leaf is cheaper or no bin boundary separates anything. */
-static int sah_split(builder *b, uint32_t begin, uint32_t end, const sy_box *cb, int axis, double parent_area,
+static int sah_split(builder *b, uint32_t begin, uint32_t end, const fbox *cb, int axis, float parent_area,
                      uint32_t *mid)
 {
-    sy_box bin_box[BINS];
+    fbox bin_box[BINS];
     uint32_t bin_n[BINS] = {0};
-    for (int i = 0; i < BINS; i++) sy_box_empty(&bin_box[i]);
-    double scale = BINS / (cb->hi[axis] - cb->lo[axis]);
+    for (int i = 0; i < BINS; i++) fbox_empty(&bin_box[i]);
+    double scale = BINS / ((double)cb->hi[axis] - cb->lo[axis]);
     for (uint32_t i = begin; i < end; i++) {
         uint32_t p = b->idx[i];
         int bin = bin_of(b, p, axis, cb->lo[axis], scale);
         bin_n[bin]++;
-        box_grow(&bin_box[bin], &b->boxes[p]);
+        fbox_grow(&bin_box[bin], &b->boxes[p]);
     }
-    double right_area[BINS];
+    float right_area[BINS];
     uint32_t right_n[BINS];
-    sy_box acc;
-    sy_box_empty(&acc);
+    fbox acc;
+    fbox_empty(&acc);
     uint32_t cnt = 0;
     for (int i = BINS - 1; i > 0; i--) {
-        box_grow(&acc, &bin_box[i]);
+        fbox_grow(&acc, &bin_box[i]);
         cnt += bin_n[i];
-        right_area[i] = box_area(&acc);
+        right_area[i] = fbox_area(&acc);
         right_n[i] = cnt;
     }
-    sy_box_empty(&acc);
+    fbox_empty(&acc);
     cnt = 0;
-    double best = INFINITY;
+    float best = FLT_MAX;
     int best_bin = -1;
     for (int i = 0; i < BINS - 1; i++) {
-        box_grow(&acc, &bin_box[i]);
+        fbox_grow(&acc, &bin_box[i]);
         cnt += bin_n[i];
         if (cnt == 0 || right_n[i + 1] == 0) continue;
-        double cost = box_area(&acc) * cnt + right_area[i + 1] * right_n[i + 1];
+        float cost = fbox_area(&acc) * cnt + right_area[i + 1] * right_n[i + 1];
         if (cost < best) {
             best = cost;
             best_bin = i;
         }
     }
     /* A traversal step costs about one primitive test. */
-    double leaf_cost = parent_area * (double)(end - begin);
+    float leaf_cost = parent_area * (float)(end - begin);
     if (best_bin < 0 || (end - begin <= LEAF_MAX && best + parent_area >= leaf_cost)) return 0;
     uint32_t i = begin, j = end;
     while (i < j) {
@@ -124,13 +160,13 @@ static int sah_split(builder *b, uint32_t begin, uint32_t end, const sy_box *cb,
  * pivot is never empty, and needs no global state, unlike qsort. */
 static void select_median(builder *b, uint32_t lo, uint32_t hi, uint32_t mid, int axis)
 {
-    const double *c = b->centroid;
+    const float *c = b->centroid;
     uint32_t *idx = b->idx;
     while (hi - lo > 1) {
-        double pivot = c[3 * idx[lo + (hi - lo) / 2] + axis];
+        float pivot = c[3 * idx[lo + (hi - lo) / 2] + axis];
         uint32_t lt = lo, i = lo, gt = hi; /* [lo,lt) < pivot, [lt,i) == pivot, [gt,hi) > pivot */
         while (i < gt) {
-            double v = c[3 * idx[i] + axis];
+            float v = c[3 * idx[i] + axis];
             uint32_t t = idx[i];
             if (v < pivot) {
                 idx[i++] = idx[lt];
@@ -148,33 +184,21 @@ static void select_median(builder *b, uint32_t lo, uint32_t hi, uint32_t mid, in
     }
 }
 
-/* The float box relative to the origin that contains the double box: rounded
- * outwards, then widened by pad so that float slab tests of rays starting
- * within the scene never cut a primitive off. */
-static void store_box(const builder *b, sy_bvh_node *nd, const sy_box *x)
-{
-    for (int k = 0; k < 3; k++) {
-        double lo = x->lo[k] - b->origin[k] - b->pad, hi = x->hi[k] - b->origin[k] + b->pad;
-        float flo = (float)lo, fhi = (float)hi;
-        if ((double)flo > lo) flo = nextafterf(flo, -INFINITY);
-        if ((double)fhi < hi) fhi = nextafterf(fhi, INFINITY);
-        nd->lo[k] = flo;
-        nd->hi[k] = fhi;
-    }
-}
-
 static void build_node(builder *b, size_t node, uint32_t begin, uint32_t end, int depth)
 {
-    sy_box bb, cb;
-    sy_box_empty(&bb);
-    sy_box_empty(&cb);
+    fbox bb, cb;
+    fbox_empty(&bb);
+    fbox_empty(&cb);
     for (uint32_t i = begin; i < end; i++) {
         uint32_t p = b->idx[i];
-        box_grow(&bb, &b->boxes[p]);
-        sy_box_add_point(&cb, b->centroid + 3 * p);
+        fbox_grow(&bb, &b->boxes[p]);
+        const float *c = b->centroid + 3 * p;
+        fbox cp = {{c[0], c[1], c[2]}, {c[0], c[1], c[2]}};
+        fbox_grow(&cb, &cp);
     }
     sy_bvh_node *nd = &b->nodes[node];
-    store_box(b, nd, &bb);
+    memcpy(nd->lo, bb.lo, sizeof bb.lo);
+    memcpy(nd->hi, bb.hi, sizeof bb.hi);
     nd->start = begin;
     nd->count = end - begin;
     if (end - begin <= LEAF_MIN_SPLIT) return;
@@ -187,7 +211,7 @@ static void build_node(builder *b, size_t node, uint32_t begin, uint32_t end, in
          * the leaves small. */
         if (end - begin <= LEAF_MAX) return;
         mid = begin + (end - begin) / 2;
-    } else if (depth >= SAH_DEPTH || !sah_split(b, begin, end, &cb, axis, box_area(&bb), &mid)) {
+    } else if (depth >= SAH_DEPTH || !sah_split(b, begin, end, &cb, axis, fbox_area(&bb), &mid)) {
         if (depth < SAH_DEPTH && end - begin <= LEAF_MAX) return;
         mid = begin + (end - begin) / 2;
         select_median(b, begin, end, mid, axis);
@@ -204,11 +228,13 @@ sy_code sy_bvh_build(sy_bvh *bvh, const sy_box *boxes, size_t n, sy_error *err)
 {
     memset(bvh, 0, sizeof *bvh);
     if (n > UINT32_MAX / 2) return sy_fail(err, SY_EINPUT, "spatial index: %zu primitives exceed its limit", n);
-    builder b = {boxes, NULL, NULL, NULL, 0, {0, 0, 0}, 0};
-    b.centroid = sy_calloc(n ? 3 * n : 1, sizeof(double), err, "BVH centroids");
+    builder b = {0};
+    b.boxes = sy_calloc(n ? n : 1, sizeof(fbox), err, "BVH bounds");
+    b.centroid = sy_calloc(n ? 3 * n : 1, sizeof(float), err, "BVH centroids");
     b.idx = sy_calloc(n ? n : 1, sizeof(uint32_t), err, "BVH index");
     b.nodes = sy_calloc(n ? 2 * n : 1, sizeof(sy_bvh_node), err, "BVH nodes");
-    if (!b.centroid || !b.idx || !b.nodes) {
+    if (!b.boxes || !b.centroid || !b.idx || !b.nodes) {
+        free(b.boxes);
         free(b.centroid);
         free(b.idx);
         free(b.nodes);
@@ -216,29 +242,30 @@ sy_code sy_bvh_build(sy_bvh *bvh, const sy_box *boxes, size_t n, sy_error *err)
     }
     sy_box all;
     sy_box_empty(&all);
+    for (size_t i = 0; i < n; i++) box_grow(&all, &boxes[i]);
+    double reach = 0;
+    for (int k = 0; k < 3 && n; k++) {
+        bvh->origin[k] = 0.5 * (all.lo[k] + all.hi[k]);
+        reach = fmax(reach, all.hi[k] - bvh->origin[k]);
+    }
+    /* A few float ulps at the scene's scale: covers rounding of box corners
+     * and of ray origins within it. */
+    double pad = 4 * FLT_EPSILON * (1 + reach);
     for (size_t i = 0; i < n; i++) {
-        box_grow(&all, &boxes[i]);
-        for (int k = 0; k < 3; k++) b.centroid[3 * i + k] = 0.5 * (boxes[i].lo[k] + boxes[i].hi[k]);
+        to_fbox(&boxes[i], bvh->origin, pad, &b.boxes[i]);
+        for (int k = 0; k < 3; k++) b.centroid[3 * i + k] = 0.5f * (b.boxes[i].lo[k] + b.boxes[i].hi[k]);
         b.idx[i] = (uint32_t)i;
     }
     if (n) {
-        double reach = 0;
-        for (int k = 0; k < 3; k++) {
-            b.origin[k] = 0.5 * (all.lo[k] + all.hi[k]);
-            reach = fmax(reach, all.hi[k] - b.origin[k]);
-        }
-        /* A few float ulps at the scene's scale: covers rounding of box
-         * corners and of ray origins within it. */
-        b.pad = 4 * FLT_EPSILON * (1 + reach);
         b.n_nodes = 1;
         build_node(&b, 0, 0, (uint32_t)n, 0);
     }
+    free(b.boxes);
     free(b.centroid);
     bvh->nodes = b.nodes;
     bvh->n_nodes = b.n_nodes;
     bvh->order = b.idx;
     bvh->n_prims = n;
-    memcpy(bvh->origin, b.origin, sizeof b.origin);
     return SY_OK;
 }
 
