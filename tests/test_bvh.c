@@ -55,27 +55,29 @@ static sphere *random_spheres(size_t n)
     return s;
 }
 
-static sy_box *sphere_boxes(const sphere *s, size_t n)
+/* n random spheres (seeded) and their index. */
+static sphere *indexed_spheres(size_t n, unsigned seed, sy_bvh *bvh)
 {
+    srand(seed);
+    sphere *s = random_spheres(n);
     sy_box *b = malloc(n * sizeof *b);
     for (size_t i = 0; i < n; i++)
         for (int k = 0; k < 3; k++) {
             b[i].lo[k] = s[i].c[k] - s[i].r;
             b[i].hi[k] = s[i].c[k] + s[i].r;
         }
-    return b;
+    sy_error err = {0};
+    assert_int_equal(sy_bvh_build(bvh, b, n, &err), SY_OK);
+    free(b);
+    return s;
 }
 
 static void nearest_and_within_match_brute_force(void **state)
 {
     (void)state;
-    srand(3);
     size_t n = 3000;
-    sphere *s = random_spheres(n);
-    sy_box *boxes = sphere_boxes(s, n);
     sy_bvh bvh;
-    sy_error err = {0};
-    assert_int_equal(sy_bvh_build(&bvh, boxes, n, &err), SY_OK);
+    sphere *s = indexed_spheres(n, 3, &bvh);
     uint32_t prev = UINT32_MAX;
     for (int q = 0; q < 2000; q++) {
         double p[3];
@@ -99,20 +101,15 @@ static void nearest_and_within_match_brute_force(void **state)
         assert_int_equal(sy_bvh_any_within(&bvh, p, limit, sphere_distance, s), want_d <= limit);
     }
     sy_bvh_free(&bvh);
-    free(boxes);
     free(s);
 }
 
 static void rays_match_brute_force(void **state)
 {
     (void)state;
-    srand(7);
     size_t n = 2000;
-    sphere *s = random_spheres(n);
-    sy_box *boxes = sphere_boxes(s, n);
     sy_bvh bvh;
-    sy_error err = {0};
-    assert_int_equal(sy_bvh_build(&bvh, boxes, n, &err), SY_OK);
+    sphere *s = indexed_spheres(n, 7, &bvh);
     int n_hit = 0;
     for (int r = 0; r < 1500; r++) {
         double o[3], d[3];
@@ -144,7 +141,6 @@ static void rays_match_brute_force(void **state)
     }
     assert_true(n_hit > 500);
     sy_bvh_free(&bvh);
-    free(boxes);
     free(s);
 }
 
@@ -192,13 +188,10 @@ static void empty_index(void **state)
 static void reorder_keeps_answers(void **state)
 {
     (void)state;
-    srand(9);
     size_t n = 500;
-    sphere *s = random_spheres(n);
-    sy_box *boxes = sphere_boxes(s, n);
     sy_bvh bvh;
+    sphere *s = indexed_spheres(n, 9, &bvh);
     sy_error err = {0};
-    assert_int_equal(sy_bvh_build(&bvh, boxes, n, &err), SY_OK);
     double q[3] = {OFFSET[0] + 3, OFFSET[1] - 2, OFFSET[2] + 1}, d0, d1;
     uint32_t before = sy_bvh_nearest(&bvh, q, INFINITY, sphere_distance, s, UINT32_MAX, &d0);
     sphere want = s[before];
@@ -211,7 +204,6 @@ static void reorder_keeps_answers(void **state)
     for (size_t i = 0; i < n; i++)
         for (int k = 0; k < 3; k++) assert_true(all.lo[k] <= s[i].c[k] - s[i].r && all.hi[k] >= s[i].c[k] + s[i].r);
     sy_bvh_free(&bvh);
-    free(boxes);
     free(s);
 }
 
