@@ -97,37 +97,37 @@ static void ray_terrain_analytic(void **state)
     sy_prims prims = {0};
     sy_error err = {0};
     assert_int_equal(sy_terrain_triangulate(&tr, &prims, &err), SY_OK);
-    sy_scan_bvh bvh;
-    assert_int_equal(sy_scan_bvh_build(&bvh, prims.p, prims.n, &err), SY_OK);
+    sy_bvh bvh;
+    assert_int_equal(sy_prims_index(&prims, &bvh, &err), SY_OK);
     double g = tan(10 * PI / 180);
     /* A plane is triangulated exactly: z = tan(10 deg) x. */
     double o[3] = {3.3, 1.7, 50};
     sy_hit h;
-    assert_true(sy_scan_bvh_intersect(&bvh, o, down, 1e3, &h));
+    assert_true(sy_bvh_closest(&bvh, o, down, 1e3, sy_prim_ray_hit, prims.p, &h));
     assert_float_equal(h.t, 50 - g * 3.3, 1e-5);
     /* From (-10, 0, 10) along (1, 0, -1): 10 - s = g (s - 10) gives s = 10,
      * the origin, whatever the slope. */
     double o2[3] = {-10, 0, 10}, d2[3] = {1, 0, -1};
     unit(d2);
-    assert_true(sy_scan_bvh_intersect(&bvh, o2, d2, 1e3, &h));
+    assert_true(sy_bvh_closest(&bvh, o2, d2, 1e3, sy_prim_ray_hit, prims.p, &h));
     assert_float_equal(h.t, 10 * sqrt(2.0), 1e-5);
     assert_float_equal(sy_terrain_height(&tr, 3.3, 1.7), g * 3.3, 1e-5);
-    sy_scan_bvh_free(&bvh);
+    sy_bvh_free(&bvh);
     prims.n = 0;
 
     /* A rough surface: every vertical ray lands on sy_terrain_height. */
     sy_terrain rough = {5, 30, 0.4, 4, 1, 7, {-10, -10}, {10, 10}, 0.5};
     assert_int_equal(sy_terrain_triangulate(&rough, &prims, &err), SY_OK);
-    assert_int_equal(sy_scan_bvh_build(&bvh, prims.p, prims.n, &err), SY_OK);
+    assert_int_equal(sy_prims_index(&prims, &bvh, &err), SY_OK);
     srand(5);
     for (int i = 0; i < 200; i++) {
         double p[3] = {-9.5 + 19.0 * rand() / RAND_MAX, -9.5 + 19.0 * rand() / RAND_MAX, 40};
-        assert_true(sy_scan_bvh_intersect(&bvh, p, down, 1e3, &h));
+        assert_true(sy_bvh_closest(&bvh, p, down, 1e3, sy_prim_ray_hit, prims.p, &h));
         assert_float_equal(40 - h.t, sy_terrain_height(&rough, p[0], p[1]), 1e-5);
     }
     /* Grid vertices sit on the continuous field. */
     assert_float_equal(sy_terrain_height(&rough, 2.0, -3.5), sy_terrain_field(&rough, 2.0, -3.5), 1e-5);
-    sy_scan_bvh_free(&bvh);
+    sy_bvh_free(&bvh);
     sy_prims_free(&prims);
 }
 
@@ -164,22 +164,23 @@ static void bvh_matches_brute_force(void **state)
         }
         assert_int_equal(sy_prims_push(&prims, &p, &err), SY_OK);
     }
-    sy_scan_bvh bvh;
-    assert_int_equal(sy_scan_bvh_build(&bvh, prims.p, prims.n, &err), SY_OK);
+    sy_bvh bvh;
+    assert_int_equal(sy_prims_index(&prims, &bvh, &err), SY_OK);
     int n_hit = 0;
     for (int r = 0; r < 1000; r++) {
         double o[3] = {frand(-15, 15), frand(-15, 15), frand(-15, 15)};
         double d[3];
         if (r % 2) {
             /* Aim at a random primitive so most rays hit something. */
-            const sy_prim *p = &bvh.prims[rand() % bvh.n_prims];
+            const sy_prim *p = &prims.p[rand() % prims.n];
             for (int k = 0; k < 3; k++) d[k] = p->v[k] + frand(-0.2, 0.2) - o[k];
         } else {
             for (int k = 0; k < 3; k++) d[k] = frand(-1, 1);
         }
         unit(d);
         sy_hit a = {0, 0}, b = {0, 0};
-        int ha = sy_scan_bvh_intersect(&bvh, o, d, 100, &a), hb = sy_scan_bvh_intersect_brute(&bvh, o, d, 100, &b);
+        int ha = sy_bvh_closest(&bvh, o, d, 100, sy_prim_ray_hit, prims.p, &a);
+        int hb = sy_bvh_closest_brute(&bvh, o, d, 100, sy_prim_ray_hit, prims.p, &b);
         assert_int_equal(ha, hb);
         if (ha) {
             n_hit++;
@@ -188,7 +189,7 @@ static void bvh_matches_brute_force(void **state)
         }
     }
     assert_true(n_hit > 300);
-    sy_scan_bvh_free(&bvh);
+    sy_bvh_free(&bvh);
     sy_prims_free(&prims);
 }
 

@@ -47,10 +47,11 @@ static double prim_distance(const void *ctx, uint32_t i, const double q[3])
     return sy_point_cone_distance(q, c, c[6], c + 3, c[7]);
 }
 
-static int tri_ray(const void *ctx, uint32_t i, const double o[3], const double d[3])
+/* Crossings at s > 0 with half-open edges: callers vote over several rays. */
+static int tri_ray(const void *ctx, uint32_t i, const double o[3], const double d[3], double tmax, double *t)
 {
-    const double *t = (const double *)ctx + 9 * (size_t)i;
-    return sy_ray_hits_triangle(o, d, t, t + 3, t + 6);
+    const double *v = (const double *)ctx + 9 * (size_t)i;
+    return sy_ray_triangle(o, d, v, v + 3, v + 6, 0, t) && *t > 0 && *t < tmax;
 }
 
 static void tri_box(const double *t, sy_box *b)
@@ -79,7 +80,7 @@ static sy_code build_closed(prims *P, const sy_eval_model *m, sy_error *err)
         sy_code rc = sy_bvh_build(&P->closed_bvh[k], boxes, me->n, err);
         free(boxes);
         if (rc) return rc;
-        P->closed_box[k] = P->closed_bvh[k].nodes[0].box;
+        sy_bvh_bounds(&P->closed_bvh[k], &P->closed_box[k]);
         P->closed_tri[k] = me->tri;
         k++;
     }

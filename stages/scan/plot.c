@@ -45,23 +45,23 @@ void sy_scene_free(sy_scene *s)
     sy_prims_free(&s->prims);
     for (size_t i = 0; i < s->n_trees; i++) sy_skeleton_free(&s->trees[i].skel);
     free(s->trees);
-    sy_scan_bvh_free(&s->bvh);
+    sy_bvh_free(&s->bvh);
     sy_scene_init(s);
 }
 
-static void grow_veg(sy_scene *s, const float lo[3], const float hi[3])
+static void grow_veg(sy_scene *s, const sy_box *b)
 {
     for (int k = 0; k < 3; k++) {
-        if (lo[k] < s->veg_lo[k]) s->veg_lo[k] = lo[k];
-        if (hi[k] > s->veg_hi[k]) s->veg_hi[k] = hi[k];
+        if (b->lo[k] < s->veg_lo[k]) s->veg_lo[k] = b->lo[k];
+        if (b->hi[k] > s->veg_hi[k]) s->veg_hi[k] = b->hi[k];
     }
 }
 
 static sy_code push_labelled(sy_scene *s, sy_prim *p, sy_error *err)
 {
-    float lo[3], hi[3];
-    sy_prim_bounds(p, lo, hi);
-    grow_veg(s, lo, hi);
+    sy_box b;
+    sy_prim_bounds(p, &b);
+    grow_veg(s, &b);
     return sy_prims_push(&s->prims, p, err);
 }
 
@@ -145,11 +145,10 @@ static sy_code add_wood(sy_scene *s, const sy_skeleton *world, int tree_id, int 
         c.species_id = species_id;
         c.branch_id = world->branch[i];
         /* The cone's box is its exact extent (end discs), give or take 10 um. */
-        float lo[3], hi[3];
-        sy_prim_bounds(&c, lo, hi);
-        double dlo[3] = {lo[0], lo[1], lo[2]}, dhi[3] = {hi[0], hi[1], hi[2]};
-        extent_add(ext, dlo);
-        extent_add(ext, dhi);
+        sy_box box;
+        sy_prim_bounds(&c, &box);
+        extent_add(ext, box.lo);
+        extent_add(ext, box.hi);
         if (push_labelled(s, &c, err)) return err->code;
     }
     return SY_OK;
@@ -311,8 +310,8 @@ sy_code sy_scene_add_understory(sy_scene *s, double density, uint64_t seed, sy_e
 
 sy_code sy_scene_finish(sy_scene *s, sy_error *err)
 {
-    sy_scan_bvh_free(&s->bvh);
-    return sy_scan_bvh_build(&s->bvh, s->prims.p, s->prims.n, err);
+    sy_bvh_free(&s->bvh);
+    return sy_prims_index(&s->prims, &s->bvh, err);
 }
 
 static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }

@@ -165,27 +165,13 @@ static int hit_quad(const sy_prim *p, const double o[3], const double d[3], doub
     return 1;
 }
 
-/* Moller-Trumbore. */
 static int hit_tri(const sy_prim *p, const double o[3], const double d[3], double tmin, double tmax, double *t)
 {
-    double a[3], b[3], c[3];
+    double a[3], b[3], c[3], s;
     load3(p->v, a);
     load3(p->v + 3, b);
     load3(p->v + 6, c);
-    double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-    double e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-    double pv[3] = {d[1] * e2[2] - d[2] * e2[1], d[2] * e2[0] - d[0] * e2[2], d[0] * e2[1] - d[1] * e2[0]};
-    double det = dot3(e1, pv);
-    if (fabs(det) < 1e-14) return 0;
-    double inv = 1.0 / det;
-    double tv[3] = {o[0] - a[0], o[1] - a[1], o[2] - a[2]};
-    double u = dot3(tv, pv) * inv;
-    if (u < 0 || u > 1) return 0;
-    double qv[3] = {tv[1] * e1[2] - tv[2] * e1[1], tv[2] * e1[0] - tv[0] * e1[2], tv[0] * e1[1] - tv[1] * e1[0]};
-    double v = dot3(d, qv) * inv;
-    if (v < 0 || u + v > 1) return 0;
-    double s = dot3(e2, qv) * inv;
-    if (!(s > tmin && s < tmax)) return 0;
+    if (!sy_ray_triangle(o, d, a, b, c, 1, &s) || !(s > tmin && s < tmax)) return 0;
     *t = s;
     return 1;
 }
@@ -198,6 +184,11 @@ int sy_prim_intersect(const sy_prim *p, const double o[3], const double d[3], do
     case SY_PRIM_TRI: return hit_tri(p, o, d, tmin, tmax, t);
     }
     return 0;
+}
+
+int sy_prim_ray_hit(const void *prims, uint32_t i, const double o[3], const double d[3], double tmax, double *t)
+{
+    return sy_prim_intersect((const sy_prim *)prims + i, o, d, SY_SCAN_TMIN, tmax, t);
 }
 
 static void normalize3(double v[3])
@@ -234,20 +225,9 @@ void sy_prim_normal(const sy_prim *p, const double x[3], double n[3])
     normalize3(n);
 }
 
-static void grow_box(float lo[3], float hi[3], const double x[3])
+void sy_prim_bounds(const sy_prim *p, sy_box *box)
 {
-    for (int k = 0; k < 3; k++) {
-        if ((float)x[k] < lo[k]) lo[k] = (float)x[k];
-        if ((float)x[k] > hi[k]) hi[k] = (float)x[k];
-    }
-}
-
-void sy_prim_bounds(const sy_prim *p, float lo[3], float hi[3])
-{
-    for (int k = 0; k < 3; k++) {
-        lo[k] = INFINITY;
-        hi[k] = -INFINITY;
-    }
+    sy_box_empty(box);
     double x[3];
     if (p->kind == SY_PRIM_CONE) {
         double a[3], b[3], w[3];
@@ -264,25 +244,37 @@ void sy_prim_bounds(const sy_prim *p, float lo[3], float hi[3])
                 double e = r * sqrt(fmax(0.0, 1.0 - wk * wk));
                 x[k] = c[k] - e;
             }
-            grow_box(lo, hi, x);
+            sy_box_add_point(box, x);
             for (int k = 0; k < 3; k++) x[k] = 2 * c[k] - x[k];
-            grow_box(lo, hi, x);
+            sy_box_add_point(box, x);
         }
     } else if (p->kind == SY_PRIM_QUAD) {
         for (int s = -1; s <= 1; s += 2)
             for (int t = 0; t <= 1; t++) {
                 for (int k = 0; k < 3; k++) x[k] = (double)p->v[k] + s * (double)p->v[3 + k] + t * (double)p->v[6 + k];
-                grow_box(lo, hi, x);
+                sy_box_add_point(box, x);
             }
     } else {
         for (int c = 0; c < 3; c++) {
             load3(p->v + 3 * c, x);
-            grow_box(lo, hi, x);
+            sy_box_add_point(box, x);
         }
     }
-    /* Float rounding of the corners must never cut a surface off its box. */
+    /* Rounding in the cone extents must never cut a surface off its box. */
     for (int k = 0; k < 3; k++) {
-        lo[k] -= 1e-5f * (1.0f + fabsf(lo[k]));
-        hi[k] += 1e-5f * (1.0f + fabsf(hi[k]));
+        box->lo[k] -= 1e-5 * (1.0 + fabs(box->lo[k]));
+        box->hi[k] += 1e-5 * (1.0 + fabs(box->hi[k]));
     }
+}
+
+sy_code sy_prims_index(sy_prims *list, sy_bvh *bvh, sy_error *err)
+{
+    sy_box *boxes = sy_calloc(list->n ? list->n : 1, sizeof *boxes, err, "scene bounds");
+    if (!boxes) return SY_EINTERNAL;
+    for (size_t i = 0; i < list->n; i++) sy_prim_bounds(&list->p[i], &boxes[i]);
+    sy_code rc = sy_bvh_build(bvh, boxes, list->n, err);
+    free(boxes);
+    if (!rc) rc = sy_bvh_reorder(bvh, list->p, sizeof *list->p, err);
+    if (rc) sy_bvh_free(bvh);
+    return rc;
 }

@@ -11,6 +11,7 @@
 #include <stdint.h>
 #include <stdio.h>
 
+#include "stages/core/bvh.h"
 #include "stages/core/cloud.h"
 #include "stages/core/skeleton.h"
 #include "stages/core/status.h"
@@ -55,35 +56,19 @@ int sy_prim_intersect(const sy_prim *p, const double o[3], const double d[3], do
 /* Unit surface normal at the surface point x (sign arbitrary). */
 void sy_prim_normal(const sy_prim *p, const double x[3], double n[3]);
 /* Axis-aligned bounds (conservative, exact for triangles and quads). */
-void sy_prim_bounds(const sy_prim *p, float lo[3], float hi[3]);
+void sy_prim_bounds(const sy_prim *p, sy_box *box);
 
 /* ------------------------------------------------------------------- BVH */
 
-typedef struct {
-    float lo[3], hi[3];
-    uint32_t start; /* leaf: first primitive; inner: index of the right child (left is next) */
-    uint32_t count; /* primitives in a leaf, 0 for inner nodes */
-} sy_scan_bvh_node;
+/* Hits nearer than this are the surface a ray starts from. */
+#define SY_SCAN_TMIN 1e-6
 
-typedef struct {
-    sy_scan_bvh_node *nodes;
-    size_t n_nodes;
-    sy_prim *prims; /* owned, in leaf order */
-    size_t n_prims;
-} sy_scan_bvh;
-
-typedef struct {
-    double t;
-    uint32_t prim; /* index into bvh->prims */
-} sy_hit;
-
-/* Binned SAH build (16 bins, leaves of at most 4). Copies the primitives. */
-sy_code sy_scan_bvh_build(sy_scan_bvh *b, const sy_prim *prims, size_t n, sy_error *err);
-void sy_scan_bvh_free(sy_scan_bvh *b);
-/* Nearest hit with 0 < t < tmax (iterative, near child first). */
-int sy_scan_bvh_intersect(const sy_scan_bvh *b, const double o[3], const double d[3], double tmax, sy_hit *hit);
-/* The same over every primitive, for tests. */
-int sy_scan_bvh_intersect_brute(const sy_scan_bvh *b, const double o[3], const double d[3], double tmax, sy_hit *hit);
+/* sy_bvh_ray_fn over an array of sy_prim (ctx): sy_prim_intersect with
+ * SY_SCAN_TMIN < t < tmax. */
+int sy_prim_ray_hit(const void *prims, uint32_t i, const double o[3], const double d[3], double tmax, double *t);
+/* Builds the BVH over the list's bounds and rearranges the list into the
+ * BVH's leaf order (hit indices are positions in the rearranged list). */
+sy_code sy_prims_index(sy_prims *list, sy_bvh *bvh, sy_error *err);
 
 /* --------------------------------------------------------------- terrain */
 
@@ -130,7 +115,7 @@ typedef struct {
     sy_terrain terrain;
     double area_lo[2], area_hi[2]; /* the surveyed area (airborne strips, mobile paths) */
     double veg_lo[3], veg_hi[3];   /* bounds of trees and understory (empty: lo > hi) */
-    sy_scan_bvh bvh;
+    sy_bvh bvh; /* over prims, which sy_scene_finish puts into its leaf order */
 } sy_scene;
 
 void sy_scene_init(sy_scene *s);

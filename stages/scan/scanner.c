@@ -389,7 +389,8 @@ static int push_return(chunk_out *out, const scan_return *r)
 static void trace_pulse(const scan_job *j, size_t i, chunk_out *out)
 {
     const sy_scanner *sc = j->sc;
-    const sy_scan_bvh *bvh = &j->scene->bvh;
+    const sy_bvh *bvh = &j->scene->bvh;
+    const sy_prim *prims = j->scene->prims.p;
     double o[3], d[3], time;
     if (sc->kind == SY_SCANNER_TERRESTRIAL) pulse_terrestrial(j, i, o, d, &time);
     else if (sc->kind == SY_SCANNER_MOBILE) pulse_mobile(j, i, o, d, &time);
@@ -425,9 +426,9 @@ static void trace_pulse(const scan_job *j, size_t i, chunk_out *out)
          * that surface first gives the traversal a tight bound. nextafter keeps
          * it findable again, so the result equals an unbounded search. */
         double bound = sc->max_range, t;
-        if (n_hits && sy_prim_intersect(&bvh->prims[hits[0].prim], o, dirs[k], 1e-6, bound, &t))
+        if (n_hits && sy_prim_intersect(&prims[hits[0].prim], o, dirs[k], SY_SCAN_TMIN, bound, &t))
             bound = nextafter(t, INFINITY);
-        if (sy_scan_bvh_intersect(bvh, o, dirs[k], bound, &h)) {
+        if (sy_bvh_closest(bvh, o, dirs[k], bound, sy_prim_ray_hit, prims, &h)) {
             /* Insertion by range keeps the list sorted. */
             int at = n_hits++;
             while (at > 0 && hits[at - 1].t > h.t) {
@@ -452,13 +453,13 @@ static void trace_pulse(const scan_job *j, size_t i, chunk_out *out)
         double energy = 0;
         for (int h = start[cl]; h < start[cl + 1]; h++) {
             if (hits[h].sub < hits[rep].sub) rep = h;
-            const sy_prim *p = &bvh->prims[hits[h].prim];
+            const sy_prim *p = &prims[hits[h].prim];
             const double *dd = dirs[hits[h].sub];
             double x[3] = {o[0] + hits[h].t * dd[0], o[1] + hits[h].t * dd[1], o[2] + hits[h].t * dd[2]}, n[3];
             sy_prim_normal(p, x, n);
             energy += reflectance(p) * fabs(n[0] * dd[0] + n[1] * dd[1] + n[2] * dd[2]) / k_rays;
         }
-        const sy_prim *p = &bvh->prims[hits[rep].prim];
+        const sy_prim *p = &prims[hits[rep].prim];
         const double *dd = dirs[hits[rep].sub];
         double range = hits[rep].t + (sc->noise > 0 ? sc->noise * pulse_gauss(j->key, i, 16 + 2 * (uint64_t)r) : 0);
         scan_return ret;
