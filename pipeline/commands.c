@@ -10,6 +10,7 @@ const sy_command sy_commands[] = {
     {"scan", "virtual LiDAR: scan a generated tree or plot, with exact per-point truth", cmd_scan},
     {"eval", "score a reconstruction: skeleton vs truth, model vs points, segmentation, species", cmd_eval},
     {"skeleton", "reconstruct one tree: skeleton, clusters, hulls -> .sylva", cmd_skeleton},
+    {"run", "reconstruct one scanned tree end to end: skeleton, clusters, mesh -> .glb", cmd_run},
     {"decode", "summarise a .sylva tree file", cmd_decode},
     {NULL, NULL, NULL},
 };

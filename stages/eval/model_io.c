@@ -1,11 +1,13 @@
 /* Loading the MODEL argument of `sylva eval`: the one place that knows the
- * model kinds (glTF triangles, truth/skeleton JSON). */
+ * model kinds (glTF triangles, truth/skeleton JSON, .sylva reconstructions). */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "eval.h"
 #include "gltf_read_tinygltf.h"
 #include "stages/core/fileio.h"
+#include "stages/encode/sylva_format.h"
 
 void sy_eval_model_free(sy_eval_model *m)
 {
@@ -49,6 +51,45 @@ static sy_code load_gltf(const char *path, int closed, sy_eval_model *out, sy_er
     return SY_OK;
 }
 
+/* One cluster hull as a closed mesh in world coordinates. */
+static sy_code add_hull(sy_eval_model *m, const sy_cluster *h, const double origin[3], sy_error *err)
+{
+    double *tri = sy_calloc(9 * h->n_tris, sizeof *tri, err, "hull triangles");
+    if (!tri) return SY_EINTERNAL;
+    for (size_t t = 0; t < h->n_tris; t++)
+        for (int k = 0; k < 3; k++)
+            for (int a = 0; a < 3; a++)
+                tri[9 * t + 3 * k + a] = origin[a] + h->verts[3 * (size_t)h->tris[3 * t + k] + a];
+    sy_code rc = sy_eval_model_add_mesh(m, tri, h->n_tris, 1, err);
+    free(tri);
+    return rc;
+}
+
+/* A .sylva file: its skeleton as a skeleton model (cones) and every cluster
+ * hull as a closed mesh, so points inside a hull are at distance 0. */
+static sy_code load_sylva(const char *path, sy_eval_model *out, sy_error *err)
+{
+    sy_eval_tree t;
+    memset(&t, 0, sizeof t);
+    sy_clusters cl;
+    sy_sylva_meta meta;
+    sy_code rc = sy_decode_read(path, &t.skel, &cl, &meta, err);
+    if (rc) return rc;
+    t.tree_id = -1;
+    t.species_id = meta.species_id ? (int)meta.species_id - 1 : -1;
+    for (int a = 0; a < 3; a++) t.position[a] = t.skel.origin[a] + (t.skel.n ? t.skel.pos[a] : 0);
+    t.dbh = sy_skeleton_dbh(&t.skel);
+    t.height = sy_skeleton_height(&t.skel);
+    t.crown_width = NAN;
+    double origin[3] = {t.skel.origin[0], t.skel.origin[1], t.skel.origin[2]};
+    if ((rc = sy_forest_add(&out->skeletons, &t, err))) sy_skeleton_free(&t.skel);
+    for (size_t c = 0; c < cl.n && !rc; c++)
+        if (cl.items[c].n_tris) rc = add_hull(out, &cl.items[c], origin, err);
+    sy_clusters_free(&cl);
+    if (rc) sy_eval_model_free(out);
+    return rc;
+}
+
 sy_code sy_eval_load_model(const char *path, int closed, sy_eval_model *out, sy_error *err)
 {
     memset(out, 0, sizeof *out);
@@ -56,6 +97,8 @@ sy_code sy_eval_load_model(const char *path, int closed, sy_eval_model *out, sy_
     sy_extension(path, ext, sizeof ext);
     if (strcmp(ext, "glb") == 0 || strcmp(ext, "gltf") == 0) return load_gltf(path, closed, out, err);
     if (strcmp(ext, "json") == 0) return sy_forest_read(path, &out->skeletons, err);
-    return sy_fail(err, SY_EINPUT, "%s: unknown model kind '.%s' (expected .glb, .gltf or a truth/skeleton .json)", path,
+    if (strcmp(ext, "sylva") == 0) return load_sylva(path, out, err);
+    return sy_fail(err, SY_EINPUT,
+                   "%s: unknown model kind '.%s' (expected .glb, .gltf, .sylva or a truth/skeleton .json)", path,
                    ext);
 }
