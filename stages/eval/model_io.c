@@ -79,7 +79,12 @@ static sy_code load_sylva(const char *path, sy_eval_model *out, sy_error *err)
     t.species_id = meta.species_id ? (int)meta.species_id - 1 : -1;
     for (int a = 0; a < 3; a++) t.position[a] = t.skel.origin[a] + (t.skel.n ? t.skel.pos[a] : 0);
     t.dbh = sy_skeleton_dbh(&t.skel);
+    /* The model's height is its highest part: crowns end in hulls. */
     t.height = sy_skeleton_height(&t.skel);
+    double root_z = t.skel.n ? t.skel.pos[2] : 0;
+    for (size_t c = 0; c < cl.n; c++)
+        for (size_t i = 0; i < cl.items[c].n_verts; i++)
+            t.height = fmax(t.height, cl.items[c].verts[3 * i + 2] - root_z);
     t.crown_width = NAN;
     double origin[3] = {t.skel.origin[0], t.skel.origin[1], t.skel.origin[2]};
     if ((rc = sy_forest_add(&out->skeletons, &t, err))) sy_skeleton_free(&t.skel);
