@@ -33,9 +33,11 @@ static const sy_cmd_spec spec = {
     "Score reconstructions the same way for synthetic and real data.",
     "  --truth T MODEL        skeleton recall/precision (by order, thick branches), radius,\n"
     "                         bifurcation, DBH and height errors; MODEL is a truth or skeleton\n"
-    "                         JSON. A .glb MODEL is scored by distances to the truth wood surface.\n"
+    "                         JSON or a .sylva file. A .glb MODEL is scored by distances to the\n"
+    "                         truth wood surface.\n"
     "  --points SCAN MODEL    point->model mean/RMS/95th percentile, coverage, Hausdorff both ways\n"
-    "                         (MODEL: .glb/.gltf triangles or a skeleton JSON as truncated cones).\n"
+    "                         (MODEL: .glb/.gltf triangles, a skeleton JSON as truncated cones,\n"
+    "                         or a .sylva file: cones plus its cluster hulls, inside = distance 0).\n"
     "  --segmentation T P     instance precision/recall/F1 at IoU > 0.5 (labels 0/NaN: no tree).\n"
     "  --species T P          accuracy, macro-F1 and the confusion matrix.\n"
     "--json prints flat keys (only those that apply); exit 2 on bad input.",
@@ -163,7 +165,8 @@ static int run_truth(const char *model_path, sy_cli *cli)
         return sy_cli_report(&err);
     }
     int status = 0;
-    if (model.n_meshes) {
+    /* A .sylva model holds a skeleton and hulls: its skeleton is scored. */
+    if (model.n_meshes && !model.skeletons.n_trees) {
         status = truth_vs_mesh(&truth, &model, cli);
     } else {
         sy_skeleton_metrics m;

@@ -11,6 +11,7 @@ const sy_command sy_commands[] = {
     {"eval", "score a reconstruction: skeleton vs truth, model vs points, segmentation, species", cmd_eval},
     {"skeleton", "reconstruct one tree: skeleton, clusters, hulls -> .sylva", cmd_skeleton},
     {"mesh", "mesh a skeleton or QSM (.sylva, .ply, .csv, .json, .obj, TreeQSM) into a glTF tree", cmd_mesh},
+    {"run", "reconstruct one scanned tree end to end: skeleton, clusters, mesh -> .glb", cmd_run},
     {"decode", "summarise a .sylva tree file", cmd_decode},
     {NULL, NULL, NULL},
 };

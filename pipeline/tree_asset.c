@@ -1,5 +1,6 @@
 #include "pipeline/tree_asset.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -54,6 +55,98 @@ static char *species_extras(const sy_species *sp)
     return buf;
 }
 
+/* One mesh of all hull triangles, turned to glTF's Y-up frame like the
+ * mesher does: (x, y, z) -> (x, z, -y), a proper rotation, so the hulls'
+ * outward winding stays counter-clockwise. Normals: area-weighted vertex
+ * normals (the hulls are coarse blobs; smooth shading reads as foliage). */
+static sy_code hull_mesh(const sy_clusters *cl, int material, sy_mesh *m, sy_error *err)
+{
+    memset(m, 0, sizeof *m);
+    size_t nv = 0, nt = 0;
+    for (size_t c = 0; c < cl->n; c++)
+        if (cl->items[c].n_tris) {
+            nv += cl->items[c].n_verts;
+            nt += cl->items[c].n_tris;
+        }
+    if (nv > UINT32_MAX) return sy_fail(err, SY_EINTERNAL, "foliage proxy: %zu hull vertices are too many", nv);
+    snprintf(m->name, sizeof m->name, "foliage_proxy");
+    m->material = material;
+    m->n_vertices = nv;
+    m->n_indices = 3 * nt;
+    m->position = sy_calloc(3 * nv, sizeof *m->position, err, "foliage proxy");
+    m->normal = sy_calloc(3 * nv, sizeof *m->normal, err, "foliage proxy");
+    m->indices = sy_calloc(3 * nt, sizeof *m->indices, err, "foliage proxy");
+    if (!m->position || !m->normal || !m->indices) {
+        sy_mesh_free(m);
+        return SY_EINTERNAL;
+    }
+    size_t v0 = 0, t0 = 0;
+    for (size_t c = 0; c < cl->n; c++) {
+        const sy_cluster *h = &cl->items[c];
+        if (!h->n_tris) continue;
+        for (size_t i = 0; i < h->n_verts; i++) {
+            const float *p = h->verts + 3 * i;
+            float *q = m->position + 3 * (v0 + i);
+            q[0] = p[0], q[1] = p[2], q[2] = -p[1];
+        }
+        for (size_t t = 0; t < 3 * h->n_tris; t++) m->indices[3 * t0 + t] = (uint32_t)(v0 + h->tris[t]);
+        v0 += h->n_verts;
+        t0 += h->n_tris;
+    }
+    for (size_t t = 0; t < nt; t++) {
+        const uint32_t *f = m->indices + 3 * t;
+        const float *a = m->position + 3 * f[0], *b = m->position + 3 * f[1], *c = m->position + 3 * f[2];
+        float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        float n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+        for (int k = 0; k < 3; k++)
+            for (int d = 0; d < 3; d++) m->normal[3 * f[k] + d] += n[d]; /* |n| = 2 x area */
+    }
+    for (size_t i = 0; i < nv; i++) {
+        float *n = m->normal + 3 * i;
+        float len = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        if (len > 1e-20f && isfinite(len)) n[0] /= len, n[1] /= len, n[2] /= len;
+        else n[0] = 0, n[1] = 1, n[2] = 0; /* a vertex of degenerate triangles only */
+    }
+    return SY_OK;
+}
+
+/* Adds the foliage proxy (material + mesh) to every mesh level of out. */
+static sy_code add_foliage_proxy(const sy_clusters *cl, sy_asset *out, size_t *n_tris, sy_error *err)
+{
+    sy_material mat = sy_material_default("foliage_proxy");
+    const float green[4] = {0.28f, 0.45f, 0.18f, 0.5f};
+    memcpy(mat.base_color, green, sizeof green);
+    mat.roughness = 0.9f;
+    mat.alpha_mode = SY_ALPHA_BLEND;
+    mat.double_sided = 1;
+    int mi = sy_asset_add_material(out, &mat, err);
+    if (mi < 0) return SY_EINTERNAL;
+    sy_mesh m;
+    sy_code rc = hull_mesh(cl, mi, &m, err);
+    if (rc) return rc;
+    *n_tris = m.n_indices / 3;
+    int idx = sy_asset_add_mesh(out, &m, err);
+    if (idx < 0) {
+        sy_mesh_free(&m);
+        return SY_EINTERNAL;
+    }
+    /* The same mesh serves every level: the hulls are already coarse. */
+    for (size_t l = 0; l < out->n_lods; l++) {
+        sy_lod *lod = &out->lods[l];
+        if (lod->n_meshes >= SY_LOD_MAX_PARTS)
+            return sy_fail(err, SY_EINTERNAL, "foliage proxy: LOD%zu has no room for another part", l);
+        lod->meshes[lod->n_meshes++] = idx;
+    }
+    return SY_OK;
+}
+
+static int has_hull_triangles(const sy_clusters *cl)
+{
+    for (size_t c = 0; cl && c < cl->n; c++)
+        if (cl->items[c].n_tris) return 1;
+    return 0;
+}
+
 sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, const sy_species *species,
                             const sy_tree_asset_options *opt, sy_asset *out, sy_tree_asset_report *rep,
                             sy_error *err)
@@ -67,7 +160,9 @@ sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, co
     if (rc) goto fail;
     sy_mesh_options mo = sy_mesh_options_default();
     mo.n_lods = opt->lods;
-    mo.impostor = opt->impostor;
+    int hulls = has_hull_triangles(opt->hulls);
+    /* With hulls the impostor is made after they join the mesh levels. */
+    mo.impostor = opt->impostor && !hulls;
     mo.impostor_size = opt->impostor_size;
     mo.seed = opt->seed;
     mo.bark_material = bark;
@@ -77,6 +172,11 @@ sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, co
         mo.leaf_shape = species->leaf_shape;
     }
     if ((rc = sy_mesh_tree(skel, leaves, &mo, out, err))) goto fail;
+    size_t hull_tris = 0;
+    if (hulls) {
+        if ((rc = add_foliage_proxy(opt->hulls, out, &hull_tris, err))) goto fail;
+        if (opt->impostor && (rc = sy_mesh_add_impostor(out, 0, opt->impostor_size, err))) goto fail;
+    }
     snprintf(out->name, sizeof out->name, "%s", species && species->name ? species->name : "tree");
     if (!(out->extras_json = species_extras(species))) {
         rc = sy_fail(err, SY_EINTERNAL, "asset extras: out of memory");
@@ -88,6 +188,7 @@ sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, co
         rep->branches = (size_t)sy_skeleton_branch_count(skel);
         rep->leaves = leaves ? leaves->n : 0;
         rep->lods = out->n_lods;
+        rep->hull_triangles = hull_tris;
         for (size_t l = 0; l < out->n_lods && l < 16; l++) {
             const sy_lod *lod = &out->lods[l];
             for (int k = 0; k < lod->n_meshes; k++) rep->triangles[l] += out->meshes[lod->meshes[k]].n_indices / 3;

@@ -6,6 +6,7 @@
 
 #include <stdint.h>
 
+#include "stages/clusters/clusters.h"
 #include "stages/core/asset.h"
 #include "stages/core/skeleton.h"
 #include "stages/grow/grow.h"
@@ -18,6 +19,10 @@ typedef struct {
     int instancing;    /* EXT_mesh_gpu_instancing (0 bakes leaves) */
     int texture_size;  /* longest side of material textures */
     uint64_t seed;
+    /* Reconstructed trees: the cluster hulls (same frame as the skeleton),
+     * drawn as one semi-transparent "foliage_proxy" mesh in every mesh level
+     * and the impostor. NULL (the default) or no triangles: none. */
+    const sy_clusters *hulls;
 } sy_tree_asset_options;
 
 sy_tree_asset_options sy_tree_asset_options_default(void);
@@ -27,6 +32,7 @@ typedef struct {
     size_t nodes, branches, leaves;
     size_t lods;
     size_t triangles[16];   /* per LOD: mesh triangles + 2 per leaf card instance */
+    size_t hull_triangles;  /* foliage proxy triangles (in every mesh level) */
     size_t leaf_cards[16];
     size_t bytes;
     double seconds_mesh, seconds_export;

@@ -65,9 +65,10 @@ typedef struct {
 } sy_eval_model;
 
 /* Loads MODEL by kind: a .glb/.gltf (triangles of the default scene, node
- * and EXT_mesh_gpu_instancing transforms applied, Y-up turned to Z-up), or
- * a truth JSON or a skeleton file (.json .ply .csv .txt .obj .sylva, see
- * sy_forest_read). closed marks the loaded meshes as closed hulls. */
+ * and EXT_mesh_gpu_instancing transforms applied, Y-up turned to Z-up), a
+ * .sylva file (its skeleton, plus each cluster hull as a closed mesh), or a
+ * truth JSON or skeleton file (.json .ply .csv .txt .obj, see sy_forest_read).
+ * closed marks the loaded glTF meshes as closed hulls. */
 sy_code sy_eval_load_model(const char *path, int closed, sy_eval_model *out, sy_error *err);
 /* Adds a copy of n triangles (9n doubles) as one mesh. */
 sy_code sy_eval_model_add_mesh(sy_eval_model *m, const double *tri, size_t n, int closed, sy_error *err);

@@ -142,6 +142,20 @@ static sy_code add_level(sy_asset *a, const sy_stems *st, const sy_leaves *lv, s
     return SY_OK;
 }
 
+sy_code sy_mesh_add_impostor(sy_asset *a, size_t lod0, int size, sy_error *err)
+{
+    if (lod0 >= a->n_lods) return sy_fail(err, SY_EINTERNAL, "mesh: impostor of a missing level %zu", lod0);
+    int mi = sy_impostor_build(a, &a->lods[lod0], size, err);
+    if (mi < 0) return err ? err->code : SY_EINTERNAL;
+    sy_lod lod;
+    memset(&lod, 0, sizeof lod);
+    /* Half the coverage of the coarsest mesh level before it. */
+    lod.screen_coverage = a->lods[a->n_lods - 1].screen_coverage * 0.5f;
+    lod.n_meshes = 1;
+    lod.meshes[0] = mi;
+    return sy_asset_add_lod(a, &lod, err) < 0 ? SY_EINTERNAL : SY_OK;
+}
+
 sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_mesh_options *opt, sy_asset *out,
                      sy_error *err)
 {
@@ -206,19 +220,7 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
         cur = nxt, nxt = t;
         tris = next_tris;
     }
-    if (opt->impostor) {
-        int mi = sy_impostor_build(out, &out->lods[first_lod], opt->impostor_size, err);
-        if (mi < 0) {
-            rc = err ? err->code : SY_EINTERNAL;
-            goto done;
-        }
-        sy_lod lod;
-        memset(&lod, 0, sizeof lod);
-        lod.screen_coverage = coverage * 0.5f;
-        lod.n_meshes = 1;
-        lod.meshes[0] = mi;
-        if (sy_asset_add_lod(out, &lod, err) < 0) rc = SY_EINTERNAL;
-    }
+    if (opt->impostor) rc = sy_mesh_add_impostor(out, first_lod, opt->impostor_size, err);
 done:
     free(keep_prev), free(keep), free(all.list), free(cur.list), free(nxt.list);
     sy_stems_free(&st);

@@ -38,4 +38,10 @@ sy_mesh_options sy_mesh_options_default(void);
 sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_mesh_options *opt, sy_asset *out,
                      sy_error *err);
 
+/* Appends the impostor level: crossed cards textured with renders of level
+ * lod0 (every mesh and instance it holds, whatever their materials). For
+ * callers that add parts to the mesh levels after sy_mesh_tree (run with
+ * impostor = 0) and want them in the billboard too. */
+sy_code sy_mesh_add_impostor(sy_asset *a, size_t lod0, int size, sy_error *err);
+
 #endif

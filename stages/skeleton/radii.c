@@ -197,6 +197,11 @@ sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of
     size_t k = 0;
     double sx = 0, sy = 0, c[2], r = 0, rms = 0;
     double tol = fmax(0.01, spacing);
+    /* The trunk's neighbourhood: no trunk is wider than a tenth of the tree's
+     * height (nor, for small trees, than a metre). Foliage hanging down to
+     * breast height around the trunk otherwise joins the slab and RANSAC can
+     * prefer a metres-wide circle through it (black oak: 9 m). */
+    double reach = fmax(0.5, 0.05 * info->height);
     /* Sparse scans leave few points in a 10 cm slab: widen it (trunks are
      * near vertical, so a taller slab still cuts one circle). */
     for (int pass = 0; pass < 8 && !info->fitted; pass++) {
@@ -208,16 +213,15 @@ sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of
             /* Trunk points: on a trunk node, or (for sparse scans whose level
              * sets mix heights) within half a metre of the trunk's axis. */
             int32_t v = node_of[i];
-            if (!(v >= 0 && s->branch[v] == 0) &&
-                (!near_axis || hypot(xyz[3 * i] - s->pos[3 * ub], xyz[3 * i + 1] - s->pos[3 * ub + 1]) > 0.5))
-                continue;
+            double axis_d = hypot(xyz[3 * i] - s->pos[3 * ub], xyz[3 * i + 1] - s->pos[3 * ub + 1]);
+            if (axis_d > reach || (!(v >= 0 && s->branch[v] == 0) && (!near_axis || axis_d > 0.5))) continue;
             xy[2 * k] = xyz[3 * i];
             xy[2 * k + 1] = xyz[3 * i + 1];
             sx += xy[2 * k];
             sy += xy[2 * k + 1];
             k++;
         }
-        if (k >= 10 && sy_fit_circle(xy, k, tol, 1, c, &r, &rms) == 0 && r < 0.5 * info->height) {
+        if (k >= 10 && sy_fit_circle(xy, k, tol, 1, c, &r, &rms) == 0 && r < reach) {
             /* A fitted centre far outside the slab's points means the arc was
              * too short to define the circle; the fallback is safer then. */
             double mx = sx / (double)k, my = sy / (double)k;

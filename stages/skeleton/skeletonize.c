@@ -467,6 +467,30 @@ static int cmp_u32(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
+/* The Dijkstra sources: the points of the base slab (z <= ztop) connected to
+ * the root within the slab. Low foliage of a wide crown (drooping branches,
+ * leaves near the ground) also lies in the slab; as sources it would start
+ * level sets far from the trunk, and its points would join the trunk's
+ * lowest nodes. Writes the sources to src, uses mark (n entries) as scratch. */
+static size_t base_sources(const float *xyz, size_t n, const sy_graph *g, uint32_t root, double ztop, int32_t *src,
+                           int32_t *mark)
+{
+    for (size_t i = 0; i < n; i++) mark[i] = 0;
+    size_t n_src = 0;
+    src[n_src++] = (int32_t)root;
+    mark[root] = 1;
+    for (size_t head = 0; head < n_src; head++) {
+        uint32_t u = (uint32_t)src[head];
+        for (size_t e = g->start[u]; e < g->start[u + 1]; e++) {
+            uint32_t v = g->adj[e];
+            if (mark[v] || xyz[3 * (size_t)v + 2] > ztop) continue;
+            mark[v] = 1;
+            src[n_src++] = (int32_t)v;
+        }
+    }
+    return n_src;
+}
+
 /* Triangles per hull so that the .sylva file stays under its 40 kB target:
  * 36 kB minus the skeleton (about 10 bytes a node) shared by the clusters at
  * about 6.5 bytes a triangle (half a 6-byte vertex plus ~3.5 index bytes),
@@ -533,9 +557,7 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     }
     /* The whole base slab is the source: geodesic level sets then cut the
      * trunk in horizontal rings instead of spheres around one bark point. */
-    size_t n_src = 0;
-    for (size_t i = 0; i < n; i++)
-        if (xyz[3 * i + 2] <= z0 + slab) node_of[n_src++] = (int32_t)i;
+    size_t n_src = base_sources(xyz, n, &g, root, z0 + slab, node_of, point_node);
     rc = sy_graph_dijkstra(&g, (const uint32_t *)node_of, n_src, o->beta, dist, spt, path, err);
     if (rc) goto done;
     rep->t_dijkstra = sy_now() - t;

@@ -1,0 +1,61 @@
+#!/usr/bin/env bash
+# CLI test for `sylva run`: the bundled simulated aspen scan end to end. The
+# glb validates with no errors or warnings and carries the foliage proxy; the
+# .sylva of the same run scores above thresholds against the scan's truth
+# and its own points; bad input exits 2 and leaves no output.
+set -u
+fail() { echo "FAIL: $*"; exit 1; }
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+src=$SYLVA_SOURCE_DIR
+scan=$src/samples/aspen_tls.las
+key() { grep -o "\"$1\":[^,}]*" <<< "$2" | head -1 | cut -d: -f2; }
+# at_least VALUE LIMIT: awk compares floats.
+at_least() { awk -v v="$1" -v t="$2" 'BEGIN { exit !(v != "" && v + 0 >= t) }'; }
+
+# Usage errors exit 1; a missing or malformed scan exits 2 and writes nothing.
+"$SYLVA" run "$scan" 2>/dev/null; [[ $? == 1 ]] || fail "no -o accepted"
+"$SYLVA" run "$scan" -o "$tmp/x.glb" --fs 0 2>/dev/null; [[ $? == 1 ]] || fail "--fs 0 accepted"
+"$SYLVA" run "$tmp/missing.las" -o "$tmp/m.glb" --sylva "$tmp/m.sylva" 2>"$tmp/err"; rc=$?
+[[ $rc == 2 ]] || fail "missing scan exit $rc"
+printf 'LASF' > "$tmp/bad.las"
+head -c 3000 /dev/urandom >> "$tmp/bad.las"
+"$SYLVA" run "$tmp/bad.las" -o "$tmp/b.glb" --sylva "$tmp/b.sylva" 2>"$tmp/err"; rc=$?
+[[ $rc == 2 ]] || fail "malformed scan exit $rc"
+[[ $(wc -l < "$tmp/err") == 1 ]] && grep -q 'bad.las' "$tmp/err" || fail "message: $(cat "$tmp/err")"
+printf '0 0 0\n1 1 1\n' > "$tmp/two.xyz"
+"$SYLVA" run "$tmp/two.xyz" -o "$tmp/t.glb" 2>/dev/null; rc=$?
+[[ $rc == 2 ]] || fail "two-point scan exit $rc"
+[[ -z $(ls -A "$tmp" | grep -v -e '^err$' -e '^bad.las$' -e '^two.xyz$') ]] || fail "output left behind: $(ls -A "$tmp")"
+
+# End to end.
+out=$("$SYLVA" run "$scan" -o "$tmp/aspen.glb" --sylva "$tmp/aspen.sylva" --species quaking_aspen --json) ||
+  fail "run exit $?"
+(( $(key nodes "$out") > 1 )) || fail "run json: $out"
+(( $(key points_preprocessed "$out") < $(key points_in "$out") )) || fail "no ground removed: $out"
+if command -v node >/dev/null && [[ -d $src/node_modules/gltf-validator ]]; then
+  v=$(node "$src/tests/gltf_validate.mjs" "$tmp/aspen.glb") || fail "validator: $v"
+  grep -q 'errors=0 warnings=0' <<< "$v" || fail "validator: $v"
+else
+  echo "gltf-validator not installed (npm ci): validation skipped"
+fi
+# The foliage proxy: its material, BLEND, in the glb's JSON chunk.
+grep -a -q '"name":"foliage_proxy"' "$tmp/aspen.glb" || fail "no foliage_proxy material"
+grep -a -q '"alphaMode":"BLEND"' "$tmp/aspen.glb" || fail "foliage proxy is not blended"
+
+# Skeleton vs truth: measured recall_r2cm 0.074 on this leafy, sparse sample
+# (the crown becomes one hull; docs/skeleton.md), threshold just below.
+ev=$("$SYLVA" eval --truth "$src/samples/aspen_tls.json" "$tmp/aspen.sylva" --json) || fail "eval --truth exit $?"
+at_least "$(key recall_r2cm "$ev")" 0.07 || fail "recall_r2cm: $ev"
+# Model (branch cones + closed hulls) vs the scan's tree points (same preprocessing).
+"$SYLVA" preprocess "$scan" -o "$tmp/clean.ply" --remove-ground --no-normals >/dev/null || fail "preprocess"
+ev=$("$SYLVA" eval --points "$tmp/clean.ply" "$tmp/aspen.sylva" --json) || fail "eval --points exit $?"
+at_least "$(key coverage "$ev")" 0.93 || fail "coverage: $ev" # measured 0.953
+awk -v v="$(key mean_distance "$ev")" 'BEGIN { exit !(v + 0 <= 0.03) }' || fail "mean distance: $ev"
+
+# Same input, same seed: the same bytes.
+"$SYLVA" run "$scan" -o "$tmp/again.glb" --sylva "$tmp/again.sylva" --species quaking_aspen --quiet ||
+  fail "second run"
+cmp -s "$tmp/aspen.sylva" "$tmp/again.sylva" || fail "two runs differ (.sylva)"
+cmp -s "$tmp/aspen.glb" "$tmp/again.glb" || fail "two runs differ (.glb)"
+echo "all run CLI checks passed"
