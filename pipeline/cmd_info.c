@@ -82,7 +82,7 @@ int cmd_info(int argc, char **argv, sy_cli *cli)
         sy_json_begin(&j, stdout, 0);
         if (n > 1) sy_json_array(&j, NULL);
     }
-    int status = 0;
+    int status = 0, printed = 0;
     for (int i = 0; i < n; i++) {
         sy_cloud c;
         sy_error err = {0};
@@ -92,11 +92,13 @@ int cmd_info(int argc, char **argv, sy_cli *cli)
         }
         if (cli->json) print_json(&j, files[i], &c);
         else print_text(files[i], &c);
+        printed = 1;
         sy_cloud_free(&c);
     }
     if (cli->json) {
         if (n > 1) sy_json_end(&j);
-        sy_json_finish(&j);
+        /* A single unreadable file prints nothing on stdout, not a bare newline. */
+        if (n > 1 || printed) sy_json_finish(&j);
     }
     return status;
 }

@@ -178,6 +178,14 @@ bad_cloud "las directory named x.las" "$in/dir.las"
 bad_cloud "las missing path" "$in/missing.las"
 expect "info on a truncated LAS" 2 "$in/pine-mid-data.las" -- info "$in/pine-mid-data.las"
 expect "info --json on a truncated LAS" 2 "$in/pine-mid-data.las" -- info --json "$in/pine-mid-data.las"
+# A single unreadable file leaves stdout empty: no stray newline for a JSON consumer to choke on.
+count=$((count + 1))
+if [ -s "$tmp/stdout" ]; then
+    failed=1
+    echo "FAIL: info --json on a truncated LAS printed $(wc -c <"$tmp/stdout") bytes on stdout"
+else
+    echo "ok: info --json on a truncated LAS leaves stdout empty"
+fi
 expect "preprocess on a truncated LAS" 2 "$in/pine-mid-data.las" -- \
     preprocess "$in/pine-mid-data.las" -o "$out/x.ply"
 
