@@ -1,28 +1,56 @@
-/* sylva decode FILE.sylva: reads a .sylva file back and summarises it. */
+/* sylva decode FILE.sylva [-o OUT]: reads a .sylva file back and summarises
+ * it; -o writes what it holds as JSON (the whole file, `sylva encode` takes
+ * it back) or the skeleton alone in an interchange format. */
 #include <math.h>
 #include <stdio.h>
+#include <string.h>
 
 #include "pipeline/commands.h"
 #include "stages/core/json.h"
-#include "stages/encode/sylva_format.h"
+#include "stages/core/fileio.h"
+#include "stages/encode/sylva_json.h"
+#include "stages/qsm/qsm_io.h"
 
-static const sy_opt opts[] = {{NULL, 0, NULL, NULL, NULL}};
-static const sy_cmd_spec spec = {"decode", "FILE.sylva", "Read a .sylva tree file and summarise what it holds.",
-                                 "Prints species, seed, skeleton and cluster counts, hull sizes and the\n"
-                                 "quantisation grid (see docs/sylva-format.md).",
-                                 opts, 1, 1};
+static const char *out_path;
+static const sy_opt opts[] = {
+    {"-o", OPT_STRING, &out_path, "OUT", "also write it out: .json (everything), or the skeleton as .ply .csv .obj"},
+    {NULL, 0, NULL, NULL, NULL},
+};
+static const sy_cmd_spec spec = {
+    "decode", "FILE.sylva [-o OUT]", "Read a .sylva tree file and summarise what it holds.",
+    "Prints species, seed, skeleton and cluster counts, hull sizes and the quantisation grid\n"
+    "(see docs/sylva-format.md). -o OUT.json writes the whole file as a \"sylva-tree\" JSON\n"
+    "(world coordinates; `sylva encode OUT.json -o X.sylva` gives the same file back byte for\n"
+    "byte); -o OUT.ply/.csv/.obj writes the skeleton alone (docs/qsm-formats.md).",
+    opts, 1, 1};
 
 int cmd_decode(int argc, char **argv, sy_cli *cli)
 {
     const char *in[1];
     int n;
+    out_path = NULL;
     int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
     if (rc) return rc < 0 ? 0 : rc;
+    char ext[16] = "";
+    if (out_path) sy_extension(out_path, ext, sizeof ext);
+    if (out_path && strcmp(ext, "json") && strcmp(ext, "ply") && strcmp(ext, "csv") && strcmp(ext, "obj")) {
+        fprintf(stderr, "sylva decode: %s: unknown output extension (use .json, .ply, .csv or .obj)\n", out_path);
+        return SY_EUSAGE;
+    }
     sy_skeleton s;
     sy_clusters cl;
     sy_sylva_meta meta;
     sy_error err = {0};
     if (sy_decode_read(in[0], &s, &cl, &meta, &err)) return sy_cli_report(&err);
+    if (out_path) {
+        rc = strcmp(ext, "json") == 0 ? sy_sylva_json_write(out_path, &s, &cl, &meta, &err)
+                                      : sy_skeleton_write(out_path, &s, &err);
+        if (rc) {
+            sy_skeleton_free(&s);
+            sy_clusters_free(&cl);
+            return sy_cli_report(&err);
+        }
+    }
     size_t verts = 0, tris = 0, kinds[3] = {0, 0, 0};
     for (size_t c = 0; c < cl.n; c++) {
         verts += cl.items[c].n_verts;

@@ -12,6 +12,7 @@ const sy_command sy_commands[] = {
     {"skeleton", "reconstruct one tree: skeleton, clusters, hulls -> .sylva", cmd_skeleton},
     {"mesh", "mesh a skeleton or QSM (.sylva, .ply, .csv, .json, .obj, TreeQSM) into a glTF tree", cmd_mesh},
     {"run", "reconstruct one scanned tree end to end: skeleton, clusters, mesh -> .glb", cmd_run},
+    {"encode", "write a .sylva tree file from its JSON form or a skeleton/QSM file", cmd_encode},
     {"decode", "summarise a .sylva tree file", cmd_decode},
     {NULL, NULL, NULL},
 };

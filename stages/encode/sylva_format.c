@@ -228,7 +228,7 @@ sy_code sy_encode_mem(const sy_skeleton *s, const sy_clusters *cl, uint16_t spec
     if (quant) q = *quant;
     else choose_quant(s, cl, &q);
     if (q.step_log2 < -30 || q.step_log2 > 30 || !(q.log2_rmin + 1 <= q.log2_rmax) || !box_ok(q.box_min))
-        return sy_fail(err, SY_EINPUT, "encode: invalid quantisation");
+        return sy_fail(err, SY_EINPUT, "encode: invalid quantisation grid (step 2^-30..2^30 m, radius range at least 1 octave)");
     for (size_t i = 0; i < s->n; i++) {
         double lr = log2(s->radius[i]);
         if (lr < q.log2_rmin - 1e-6 || lr > q.log2_rmax + 1e-6)

@@ -16,7 +16,9 @@
 #define SYLVA_QSM_IO_H
 
 #include <stddef.h>
+#include <stdio.h>
 
+#include "stages/core/json.h"
 #include "stages/core/json_read.h"
 #include "stages/core/skeleton.h"
 #include "stages/core/status.h"
@@ -69,6 +71,9 @@ sy_code sy_skeleton_write_ply(const char *path, const sy_skeleton *s, sy_error *
 sy_code sy_skeleton_write_csv(const char *path, const sy_skeleton *s, sy_error *err);
 sy_code sy_skeleton_write_obj(const char *path, const sy_skeleton *s, sy_error *err);
 sy_code sy_skeleton_write_json(const char *path, const sy_skeleton *s, sy_error *err);
+/* The "origin" and "nodes" members of the skeleton JSON into an open object
+ * of j (which writes to fp), for documents that carry more (.sylva as JSON). */
+void sy_skeleton_json_members(sy_json *j, FILE *fp, const sy_skeleton *s);
 
 sy_code sy_skeleton_read_ply_mem(const char *path, const unsigned char *data, size_t size,
                                  sy_skeleton *out, sy_skeleton_read_info *info, sy_error *err);

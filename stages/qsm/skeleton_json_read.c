@@ -185,9 +185,11 @@ static sy_code check_header(const jctx *c, const sy_jv *doc)
 {
     if (doc->type != SY_JV_OBJECT) return jfail(c, doc, "expected a JSON object at the top");
     const sy_jv *format = sy_jv_get(doc, "format");
+    /* "sylva-tree" is a whole .sylva file as JSON (sylva decode -o): its skeleton reads the same way. */
     if (format && (!sy_jv_string(format) ||
-                   (strcmp(format->str, "sylva-skeleton") != 0 && strcmp(format->str, "sylva-truth") != 0)))
-        return jfail(c, format, "'format' must be \"sylva-skeleton\" or \"sylva-truth\"");
+                   (strcmp(format->str, "sylva-skeleton") != 0 && strcmp(format->str, "sylva-truth") != 0 &&
+                    strcmp(format->str, "sylva-tree") != 0)))
+        return jfail(c, format, "'format' must be \"sylva-skeleton\", \"sylva-tree\" or \"sylva-truth\"");
     double version = 1;
     const sy_jv *v = sy_jv_get(doc, "version");
     if (v && (!sy_jv_number(v, &version) || version != 1))

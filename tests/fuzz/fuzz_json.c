@@ -1,11 +1,12 @@
 /* libFuzzer target: the JSON DOM reader over arbitrary bytes, then the same
  * bytes as a truth/skeleton file (eval's forest, and qsm_io's skeleton
- * reader for the only tree and for tree 1). Both must return a code, never crash,
+ * reader for the only tree and for tree 1, and the .sylva JSON form). All must return a code, never crash,
  * hang or leak; a parsed DOM is walked in full so every node is touched. */
 #include <stddef.h>
 #include <stdint.h>
 
 #include "stages/core/json_read.h"
+#include "stages/encode/sylva_json.h"
 #include "stages/eval/eval.h"
 #include "stages/qsm/qsm_io.h"
 
@@ -26,6 +27,14 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if (sy_jv_parse("fuzz.json", (const char *)data, size, &lim, &v, &err) == SY_OK) {
         volatile size_t n = walk(v);
         (void)n;
+        sy_skeleton s;
+        sy_clusters cl;
+        sy_sylva_meta meta;
+        int has_quant;
+        if (sy_sylva_json_from_doc("fuzz.json", v, &s, &cl, &meta, &has_quant, &err) == SY_OK) {
+            sy_skeleton_free(&s);
+            sy_clusters_free(&cl);
+        }
         sy_jv_free(v);
     }
     sy_forest f;

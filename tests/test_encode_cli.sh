@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# CLI test for `sylva encode` and `sylva decode -o`: .sylva -> JSON -> .sylva is
+# byte for byte the same file, decode is deterministic, a skeleton/QSM file
+# encodes with its topology, and damaged JSON is refused with one line naming
+# the file and no output left behind.
+set -u
+fail() { echo "FAIL: $*"; exit 1; }
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+corpus="$SYLVA_SOURCE_DIR/tests/fuzz/corpus/sylva"
+# The fuzz corpus holds real .sylva files (skeleton + hulls) behind a one-byte mode prefix.
+tail -c +2 "$corpus/tree7-asis" > "$tmp/a.sylva"
+
+"$SYLVA" decode --quiet "$tmp/a.sylva" -o "$tmp/a.json" >/dev/null || fail "decode -o exit $?"
+"$SYLVA" decode --quiet "$tmp/a.sylva" -o "$tmp/a2.json" >/dev/null || fail "second decode"
+cmp -s "$tmp/a.json" "$tmp/a2.json" || fail "two decodes differ"
+grep -q '"format":"sylva-tree"' "$tmp/a.json" || fail "not a sylva-tree document"
+grep -q '"hull":"alpha"' "$tmp/a.json" || fail "no alpha hulls in the JSON"
+"$SYLVA" encode --quiet "$tmp/a.json" -o "$tmp/b.sylva" || fail "encode exit $?"
+cmp "$tmp/a.sylva" "$tmp/b.sylva" || fail "sylva -> json -> sylva is not byte-identical"
+
+# An edited JSON (one node moved 1 m) encodes to a different, valid file.
+node -e 'const fs = require("fs"); const d = JSON.parse(fs.readFileSync(process.argv[1]));
+  d.nodes[1].x += 1; fs.writeFileSync(process.argv[2], JSON.stringify(d));' "$tmp/a.json" "$tmp/moved.json" ||
+  fail "node could not edit the JSON"
+"$SYLVA" encode --quiet "$tmp/moved.json" -o "$tmp/moved.sylva" || fail "edited JSON exit $?"
+cmp -s "$tmp/a.sylva" "$tmp/moved.sylva" && fail "edited JSON gave the same file"
+"$SYLVA" decode "$tmp/moved.sylva" >/dev/null || fail "decode of the edited file"
+
+# The skeleton-only forms: decode -o .csv, and a QSM to .sylva keeping its topology.
+"$SYLVA" decode --quiet "$tmp/a.sylva" -o "$tmp/a.csv" >/dev/null || fail "decode -o csv"
+qsm="$SYLVA_DATA_DIR/real/rtwig/QSM.csv"
+"$SYLVA" encode --json --species 7 "$qsm" -o "$tmp/q.sylva" > "$tmp/q.out" || fail "encode QSM.csv exit $?"
+grep -q '"clusters":0' "$tmp/q.out" && grep -q '"species_id":7' "$tmp/q.out" || fail "QSM report: $(cat "$tmp/q.out")"
+rows=$(($(wc -l < "$qsm") - 1))
+nodes=$("$SYLVA" decode --json "$tmp/q.sylva" | grep -o '"nodes":[0-9]*' | cut -d: -f2)
+# One node per cylinder end: every cylinder adds its end node, each root its start.
+(( nodes > rows && nodes <= rows + 8 )) || fail "QSM with $rows cylinders gave $nodes nodes"
+
+# Bad input: exit 2, one stderr line naming the file, no output.
+check_bad() {
+  local name=$1 file=$2
+  "$SYLVA" encode "$file" -o "$tmp/bad.sylva" 2> "$tmp/err"; local rc=$?
+  [[ $rc == 2 ]] || fail "$name: exit $rc"
+  [[ $(wc -l < "$tmp/err") == 1 ]] && grep -qF "$file" "$tmp/err" || fail "$name: message $(cat "$tmp/err")"
+  [[ ! -e "$tmp/bad.sylva" ]] || fail "$name: output left behind"
+}
+sed 's/"triangles":\[[0-9]*/"triangles":[99999/' "$tmp/a.json" > "$tmp/badtri.json"
+check_bad "triangle index out of range" "$tmp/badtri.json"
+sed 's/"seed":[0-9]*,"hull"/"seed":-3,"hull"/' "$tmp/a.json" > "$tmp/badseed.json"
+check_bad "cluster seed not a node" "$tmp/badseed.json"
+sed 's/"step_log2":-[0-9]*/"step_log2":-30/' "$tmp/a.json" > "$tmp/badgrid.json"
+check_bad "grid too fine for the data" "$tmp/badgrid.json"
+head -c 3000 "$tmp/a.json" > "$tmp/cut.json"
+check_bad "truncated JSON" "$tmp/cut.json"
+"$SYLVA" encode "$tmp/a.json" -o "$tmp/x.glb" 2>/dev/null; [[ $? == 1 ]] || fail "non-.sylva output is a usage error"
+"$SYLVA" decode "$tmp/a.sylva" -o "$tmp/x.glb" 2>/dev/null; [[ $? == 1 ]] || fail "decode -o .glb is a usage error"
+echo "ok: encode/decode round trip, QSM encode ($rows cylinders -> $nodes nodes), bad input"
