@@ -39,9 +39,11 @@ check "glb centred at the trunk base, origin in asset.extras" "node -e '
 # With a species: its materials and leaf cards along the twigs, seeded.
 "$SYLVA" mesh "$qsm" -o "$tmp/qa.glb" --species quaking_aspen --json > "$tmp/qa.json" || fail=1
 "$SYLVA" mesh "$qsm" -o "$tmp/qb.glb" --species quaking_aspen --quiet || fail=1
+"$SYLVA" export "$qsm" -o "$tmp/qe.glb" --species quaking_aspen --quiet || fail=1
 valid "$tmp/qa.glb"
 check "species leaves placed (some, not absurdly many)" "(( \$(key '$tmp/qa.json' leaves) > 20 && \$(key '$tmp/qa.json' leaves) < 5000 ))"
 check "same seed, same bytes" "cmp -s '$tmp/qa.glb' '$tmp/qb.glb'"
+check "sylva export is sylva mesh" "cmp -s '$tmp/qa.glb' '$tmp/qe.glb'"
 "$SYLVA" mesh "$qsm" -o "$tmp/qd.glb" --species quaking_aspen --leaf-density 40 --json > "$tmp/qd.json" || fail=1
 check "--leaf-density scales the count" "(( \$(key '$tmp/qd.json' leaves) > 5 * \$(key '$tmp/qa.json' leaves) ))"
 "$SYLVA" mesh "$qsm" -o "$tmp/qn.glb" --species quaking_aspen --no-leaves --json > "$tmp/qn.json" || fail=1
