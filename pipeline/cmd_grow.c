@@ -10,15 +10,10 @@
 #include "stages/core/progress.h"
 
 static const char *out_path, *species_name;
-static int lods, impostor_size, meshopt, no_instancing, no_impostor;
 static const sy_opt opts[] = {
     {"-o", OPT_STRING, &out_path, "OUT.glb", "output glTF binary"},
     {"--species", OPT_STRING, &species_name, "NAME", "a species of the library (species/NAME.ini) instead of a file"},
-    {"--lods", OPT_INT, &lods, "N", "mesh levels of detail before the impostor (default 4)"},
-    {"--impostor-size", OPT_INT, &impostor_size, "PX", "impostor texture size (default 512)"},
-    {"--no-impostor", OPT_FLAG, &no_impostor, NULL, "no billboard level"},
-    {"--meshopt", OPT_FLAG, &meshopt, NULL, "compress with EXT_meshopt_compression"},
-    {"--no-instancing", OPT_FLAG, &no_instancing, NULL, "bake leaf instances into meshes (engines without EXT_mesh_gpu_instancing)"},
+    SY_GLB_OPTIONS,
     {NULL, 0, NULL, NULL, NULL},
 };
 static const sy_cmd_spec spec = {
@@ -33,17 +28,15 @@ int cmd_grow(int argc, char **argv, sy_cli *cli)
     const char *pos[1];
     int n;
     out_path = species_name = NULL;
-    lods = 4, impostor_size = 512, meshopt = no_instancing = no_impostor = 0;
+    sy_glb_cli_reset();
     int rc = sy_cli_parse(&spec, argc, argv, cli, pos, 1, &n);
     if (rc) return rc < 0 ? 0 : rc;
     if (!out_path || (n == 0) == (species_name == NULL)) {
         fprintf(stderr, "sylva grow: give one species (a file or --species NAME) and -o OUT.glb\n");
         return SY_EUSAGE;
     }
-    if (lods < 1 || lods > 8 || impostor_size < 16 || impostor_size > 4096) {
-        fprintf(stderr, "sylva grow: --lods must be 1..8 and --impostor-size 16..4096\n");
-        return SY_EUSAGE;
-    }
+    sy_tree_asset_options o = sy_tree_asset_options_default();
+    if ((rc = sy_glb_cli_apply("grow", &o))) return rc;
     sy_error err = {0};
     sy_species sp;
     rc = n ? sy_species_load(pos[0], &sp, &err) : sy_species_find(species_name, &sp, &err);
@@ -60,12 +53,6 @@ int cmd_grow(int argc, char **argv, sy_cli *cli)
     }
     sy_tree_asset_report rep;
     if (rc == SY_OK) {
-        sy_tree_asset_options o = sy_tree_asset_options_default();
-        o.lods = lods;
-        o.impostor = !no_impostor;
-        o.impostor_size = impostor_size;
-        o.meshopt = meshopt;
-        o.instancing = !no_instancing;
         o.seed = cli->seed;
         rc = sy_tree_asset_write(out_path, &skel, &leaves, &sp, &o, &rep, &err);
     }
@@ -82,9 +69,7 @@ int cmd_grow(int argc, char **argv, sy_cli *cli)
             sy_json_int(&j, "leaves", (long long)rep.leaves);
             sy_json_number(&j, "height", sy_skeleton_height(&skel));
             sy_json_int(&j, "bytes", (long long)rep.bytes);
-            sy_json_array(&j, "lod_triangles");
-            for (size_t l = 0; l < rep.lods; l++) sy_json_int(&j, NULL, (long long)rep.triangles[l]);
-            sy_json_end(&j);
+            sy_tree_asset_report_lods_json(&j, &rep);
             sy_json_number(&j, "seconds_grow", grow_s);
             sy_json_number(&j, "seconds_mesh", rep.seconds_mesh);
             sy_json_number(&j, "seconds_export", rep.seconds_export);

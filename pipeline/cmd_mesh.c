@@ -16,7 +16,7 @@
 #include "stages/qsm/qsm_io.h"
 
 static const char *out_path, *species_name;
-static int lods, impostor_size, meshopt, no_instancing, no_impostor, no_leaves, tree_index;
+static int no_leaves, tree_index;
 static double leaf_density;
 static const sy_opt opts[] = {
     {"-o", OPT_STRING, &out_path, "OUT.glb", "output glTF binary"},
@@ -24,11 +24,7 @@ static const sy_opt opts[] = {
     {"--no-leaves", OPT_FLAG, &no_leaves, NULL, "with --species: its materials, but no leaf cards"},
     {"--leaf-density", OPT_DOUBLE, &leaf_density, "N", "leaves per metre of twig (default: from the species)"},
     {"--tree", OPT_INT, &tree_index, "I", "which tree of a truth file with several (0-based)"},
-    {"--lods", OPT_INT, &lods, "N", "mesh levels of detail before the impostor (default 4)"},
-    {"--impostor-size", OPT_INT, &impostor_size, "PX", "impostor texture size (default 512)"},
-    {"--no-impostor", OPT_FLAG, &no_impostor, NULL, "no billboard level"},
-    {"--meshopt", OPT_FLAG, &meshopt, NULL, "compress with EXT_meshopt_compression"},
-    {"--no-instancing", OPT_FLAG, &no_instancing, NULL, "bake leaf instances into meshes (engines without EXT_mesh_gpu_instancing)"},
+    SY_GLB_OPTIONS,
     {NULL, 0, NULL, NULL, NULL},
 };
 static const sy_cmd_spec spec = {
@@ -116,9 +112,7 @@ static void print_report(const sy_cli *cli, const sy_tree_asset_report *rep, con
         sy_json_number(&j, "twig_length", f->twig_length);
         sy_json_number(&j, "height", f->height);
         sy_json_int(&j, "bytes", (long long)rep->bytes);
-        sy_json_array(&j, "lod_triangles");
-        for (size_t l = 0; l < rep->lods && l < 16; l++) sy_json_int(&j, NULL, (long long)rep->triangles[l]);
-        sy_json_end(&j);
+        sy_tree_asset_report_lods_json(&j, rep);
         sy_json_number(&j, "seconds_read", f->seconds_read);
         sy_json_number(&j, "seconds_leaves", f->seconds_leaves);
         sy_json_number(&j, "seconds_mesh", rep->seconds_mesh);
@@ -137,24 +131,18 @@ static void print_report(const sy_cli *cli, const sy_tree_asset_report *rep, con
 
 /* The shared tail (sy_tree_asset_build) and the export sy_tree_asset_write
  * does, with the origin added to the extras in between. */
-static sy_code build_and_write(const sy_skeleton *s, const sy_leaves *lv, const sy_species *sp, sy_cli *cli,
-                               const mesh_facts *f, sy_tree_asset_report *rep, sy_error *err)
+static sy_code build_and_write(const sy_skeleton *s, const sy_leaves *lv, const sy_species *sp,
+                               const sy_tree_asset_options *o, const mesh_facts *f, sy_tree_asset_report *rep,
+                               sy_error *err)
 {
-    sy_tree_asset_options o = sy_tree_asset_options_default();
-    o.lods = lods;
-    o.impostor = !no_impostor;
-    o.impostor_size = impostor_size;
-    o.meshopt = meshopt;
-    o.instancing = !no_instancing;
-    o.seed = cli->seed;
     sy_asset asset;
-    sy_code rc = sy_tree_asset_build(s, lv, sp, &o, &asset, rep, err);
+    sy_code rc = sy_tree_asset_build(s, lv, sp, o, &asset, rep, err);
     if (rc) return rc;
     rc = add_origin_extras(&asset, s, f->model, f->format, err);
     double t0 = sy_now();
     sy_export_options eo = sy_export_options_default();
-    eo.meshopt = o.meshopt;
-    eo.instancing = o.instancing;
+    eo.meshopt = o->meshopt;
+    eo.instancing = o->instancing;
     if (!rc) rc = sy_export_glb(out_path, &asset, &eo, err);
     if (!rc) {
         rep->seconds_export = sy_now() - t0;
@@ -169,7 +157,8 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
     const char *pos[1];
     int n;
     out_path = species_name = NULL;
-    lods = 4, impostor_size = 512, meshopt = no_instancing = no_impostor = no_leaves = 0;
+    sy_glb_cli_reset();
+    no_leaves = 0;
     tree_index = -1;
     leaf_density = -1;
     int rc = sy_cli_parse(&spec, argc, argv, cli, pos, 1, &n);
@@ -178,12 +167,13 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
         fprintf(stderr, "sylva mesh: -o OUT.glb is required\n");
         return SY_EUSAGE;
     }
-    if (lods < 1 || lods > 8 || impostor_size < 16 || impostor_size > 4096 || tree_index < -1 ||
-        (leaf_density != -1 && !(leaf_density >= 0 && leaf_density <= 1e4))) {
-        fprintf(stderr, "sylva mesh: --lods must be 1..8, --impostor-size 16..4096, --tree >= 0, "
-                        "--leaf-density 0..10000\n");
+    if (tree_index < -1 || (leaf_density != -1 && !(leaf_density >= 0 && leaf_density <= 1e4))) {
+        fprintf(stderr, "sylva mesh: --tree must be >= 0 and --leaf-density 0..10000\n");
         return SY_EUSAGE;
     }
+    sy_tree_asset_options o = sy_tree_asset_options_default();
+    if ((rc = sy_glb_cli_apply("mesh", &o))) return rc;
+    o.seed = cli->seed;
     sy_error err = {0};
     mesh_facts f = {pos[0], "", 0, 0, 0, 0, {0, 0, 0}};
     sy_skeleton skel;
@@ -211,7 +201,7 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
         }
     }
     sy_tree_asset_report rep;
-    rc = build_and_write(&skel, &leaves, have_species ? &sp : NULL, cli, &f, &rep, &err);
+    rc = build_and_write(&skel, &leaves, have_species ? &sp : NULL, &o, &f, &rep, &err);
     if (!rc) print_report(cli, &rep, &f, have_species ? &sp : NULL);
 done:
     sy_leaves_free(&leaves);

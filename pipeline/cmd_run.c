@@ -21,7 +21,6 @@
 
 static const char *out_path, *sylva_path, *species_name;
 static double beta, gamma_, fs, voxel;
-static int no_impostor;
 static const sy_opt opts[] = {
     {"-o", OPT_STRING, &out_path, "OUT.glb", "output glTF binary"},
     {"--sylva", OPT_STRING, &sylva_path, "OUT.sylva", "also write the compact .sylva file of the reconstruction"},
@@ -30,7 +29,7 @@ static const sy_opt opts[] = {
     {"--gamma", OPT_DOUBLE, &gamma_, "G", "allometry exponent (default: species, else 2)"},
     {"--fs", OPT_DOUBLE, &fs, "F", "scan-density factor f_s in (0,1]; smaller gives larger clusters (default 1)"},
     {"--voxel", OPT_DOUBLE, &voxel, "SIZE", "thin the scan to one point per SIZE-metre voxel (default off)"},
-    {"--no-impostor", OPT_FLAG, &no_impostor, NULL, "no billboard level"},
+    SY_GLB_OPTIONS,
     {NULL, 0, NULL, NULL, NULL},
 };
 static const sy_cmd_spec spec = {
@@ -77,9 +76,7 @@ static void print_json(const char *in, const sy_skeleton_report *r, const sy_tre
     sy_json_bool(&j, "dbh_fitted", r->dbh_fitted);
     sy_json_number(&j, "height", r->height);
     sy_json_int(&j, "hull_triangles", (long long)a->hull_triangles);
-    sy_json_array(&j, "lod_triangles");
-    for (size_t l = 0; l < a->lods && l < 16; l++) sy_json_int(&j, NULL, (long long)a->triangles[l]);
-    sy_json_end(&j);
+    sy_tree_asset_report_lods_json(&j, a);
     sy_json_int(&j, "bytes", (long long)a->bytes);
     sy_json_object(&j, "seconds");
     sy_json_number(&j, "ingest", st->t_ingest);
@@ -108,7 +105,8 @@ static int check_options(void)
         fprintf(stderr, "sylva run: -o and --sylva name the same file\n");
         return SY_EUSAGE;
     }
-    return SY_OK;
+    sy_tree_asset_options o = sy_tree_asset_options_default();
+    return sy_glb_cli_apply("run", &o);
 }
 
 /* Ingest and preprocess: a clean, Z-up cloud of the tree alone. */
@@ -190,7 +188,7 @@ static sy_code reconstruct_and_write(const char *in, const sy_cli *cli, const sy
     if (sylva_path) rc = encode_sylva(&s, &cl, cli, &sylva, &sylva_size, err);
     if (!rc) {
         sy_tree_asset_options o = sy_tree_asset_options_default();
-        o.impostor = !no_impostor;
+        sy_glb_cli_apply("run", &o); /* checked in check_options */
         o.seed = cli->seed;
         o.hulls = &cl;
         rc = sy_tree_asset_write(out_path, &s, NULL, sp, &o, a, err);
@@ -227,7 +225,7 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
     beta = gamma_ = NAN;
     fs = 1;
     voxel = 0;
-    no_impostor = 0;
+    sy_glb_cli_reset();
     int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
     if (rc) return rc < 0 ? 0 : rc;
     if ((rc = check_options())) return rc;

@@ -24,6 +24,36 @@ sy_tree_asset_options sy_tree_asset_options_default(void)
     return o;
 }
 
+sy_glb_cli_options sy_glb_cli;
+
+void sy_glb_cli_reset(void)
+{
+    sy_tree_asset_options d = sy_tree_asset_options_default();
+    sy_glb_cli = (sy_glb_cli_options){d.lods, d.impostor_size, d.meshopt, !d.instancing, !d.impostor};
+}
+
+int sy_glb_cli_apply(const char *command, sy_tree_asset_options *o)
+{
+    const sy_glb_cli_options *c = &sy_glb_cli;
+    if (c->lods < 1 || c->lods > 8 || c->impostor_size < 16 || c->impostor_size > 4096) {
+        fprintf(stderr, "sylva %s: --lods must be 1..8 and --impostor-size 16..4096\n", command);
+        return SY_EUSAGE;
+    }
+    o->lods = c->lods;
+    o->impostor = !c->no_impostor;
+    o->impostor_size = c->impostor_size;
+    o->meshopt = c->meshopt;
+    o->instancing = !c->no_instancing;
+    return SY_OK;
+}
+
+void sy_tree_asset_report_lods_json(sy_json *j, const sy_tree_asset_report *rep)
+{
+    sy_json_array(j, "lod_triangles");
+    for (size_t l = 0; l < rep->lods && l < 16; l++) sy_json_int(j, NULL, (long long)rep->triangles[l]);
+    sy_json_end(j);
+}
+
 /* asset.extras: which species and parameters made the tree. */
 static char *species_extras(const sy_species *sp)
 {

@@ -6,8 +6,10 @@
 
 #include <stdint.h>
 
+#include "pipeline/cli.h"
 #include "stages/clusters/clusters.h"
 #include "stages/core/asset.h"
+#include "stages/core/json.h"
 #include "stages/core/skeleton.h"
 #include "stages/grow/grow.h"
 
@@ -26,6 +28,24 @@ typedef struct {
 } sy_tree_asset_options;
 
 sy_tree_asset_options sy_tree_asset_options_default(void);
+
+/* The .glb output options grow, mesh and run share: SY_GLB_OPTIONS goes into
+ * their option tables, sy_glb_cli_reset() runs before parsing and
+ * sy_glb_cli_apply() after it (checks the ranges, copies them into o; on a
+ * bad value prints "sylva COMMAND: ..." and returns SY_EUSAGE). */
+typedef struct {
+    int lods, impostor_size, meshopt, no_instancing, no_impostor;
+} sy_glb_cli_options;
+extern sy_glb_cli_options sy_glb_cli;
+#define SY_GLB_OPTIONS                                                                                         \
+    {"--lods", OPT_INT, &sy_glb_cli.lods, "N", "mesh levels of detail before the impostor (default 4)"},       \
+    {"--impostor-size", OPT_INT, &sy_glb_cli.impostor_size, "PX", "impostor texture size (default 512)"},      \
+    {"--no-impostor", OPT_FLAG, &sy_glb_cli.no_impostor, NULL, "no billboard level"},                           \
+    {"--meshopt", OPT_FLAG, &sy_glb_cli.meshopt, NULL, "compress with EXT_meshopt_compression"},               \
+    {"--no-instancing", OPT_FLAG, &sy_glb_cli.no_instancing, NULL,                                             \
+     "bake leaf instances into meshes (engines without EXT_mesh_gpu_instancing)"}
+void sy_glb_cli_reset(void);
+int sy_glb_cli_apply(const char *command, sy_tree_asset_options *o);
 
 /* What was written, for reports. */
 typedef struct {
@@ -49,7 +69,9 @@ sy_code sy_tree_asset_write(const char *path, const sy_skeleton *skel, const sy_
                             const sy_species *species, const sy_tree_asset_options *opt, sy_tree_asset_report *rep,
                             sy_error *err);
 
-/* Prints the report as text (stderr) or flat JSON keys into an open object. */
+/* Prints the report as text (stderr). */
 void sy_tree_asset_report_text(const sy_tree_asset_report *rep, const char *path);
+/* The "lod_triangles" array (one count per level) into an open JSON object. */
+void sy_tree_asset_report_lods_json(sy_json *j, const sy_tree_asset_report *rep);
 
 #endif
