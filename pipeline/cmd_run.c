@@ -20,7 +20,7 @@
 #include "stages/skeleton/skeleton_stage.h"
 
 static const char *out_path, *sylva_path, *species_name;
-static double beta, gamma_, fs, voxel;
+static double beta, gamma_, fs, voxel, wood_share;
 static const sy_opt opts[] = {
     {"-o", OPT_STRING, &out_path, "OUT.glb", "output glTF binary"},
     {"--sylva", OPT_STRING, &sylva_path, "OUT.sylva", "also write the compact .sylva file of the reconstruction"},
@@ -28,6 +28,8 @@ static const sy_opt opts[] = {
     {"--beta", OPT_DOUBLE, &beta, "B", "Dijkstra edge weight |u-v|^B (default: species, else 1)"},
     {"--gamma", OPT_DOUBLE, &gamma_, "G", "allometry exponent (default: species, else 2)"},
     {"--fs", OPT_DOUBLE, &fs, "F", "scan-density factor f_s in (0,1]; smaller gives larger clusters (default 1)"},
+    {"--wood-share", OPT_DOUBLE, &wood_share, "W",
+     "wood/leaf separation: wood = shortest-path subtrees of >= W of the points (e.g. 0.005; default 0 = off)"},
     {"--voxel", OPT_DOUBLE, &voxel, "SIZE", "thin the scan to one point per SIZE-metre voxel (default off)"},
     SY_GLB_OPTIONS,
     {NULL, 0, NULL, NULL, NULL},
@@ -97,8 +99,8 @@ static int check_options(void)
         return SY_EUSAGE;
     }
     if ((!isnan(beta) && !(beta > 0)) || (!isnan(gamma_) && !(gamma_ > 0)) || !(fs > 0 && fs <= 1) ||
-        !(voxel >= 0) || !isfinite(voxel)) {
-        fprintf(stderr, "sylva run: --beta and --gamma must be > 0, --fs in (0,1], --voxel >= 0\n");
+        !(wood_share >= 0 && wood_share < 1) || !(voxel >= 0) || !isfinite(voxel)) {
+        fprintf(stderr, "sylva run: --beta and --gamma must be > 0, --fs in (0,1], --wood-share in [0,1), --voxel >= 0\n");
         return SY_EUSAGE;
     }
     if (sylva_path && strcmp(sylva_path, out_path) == 0) {
@@ -164,6 +166,7 @@ static sy_code reconstruct_and_write(const char *in, const sy_cli *cli, const sy
     if (!isnan(beta)) so.beta = beta;
     if (!isnan(gamma_)) so.gamma = gamma_;
     so.fs = fs;
+    so.wood_share = wood_share;
     sy_skeleton s;
     sy_clusters cl;
     rc = sy_reconstruct_skeleton(&c, &so, &s, &cl, r, err);
@@ -224,6 +227,7 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
     out_path = sylva_path = species_name = NULL;
     beta = gamma_ = NAN;
     fs = 1;
+    wood_share = 0;
     voxel = 0;
     sy_glb_cli_reset();
     int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);

@@ -23,6 +23,8 @@ static const sy_opt opts[] = {
     {"--beta", OPT_DOUBLE, &o.beta, "B", "Dijkstra edge weight |u-v|^B (default 1)"},
     {"--gamma", OPT_DOUBLE, &o.gamma, "G", "allometry: d^G additive over children (default 2)"},
     {"--fs", OPT_DOUBLE, &o.fs, "F", "scan-density factor f_s in (0,1]; smaller gives larger clusters (default 1)"},
+    {"--wood-share", OPT_DOUBLE, &o.wood_share, "W",
+     "wood/leaf separation: wood = shortest-path subtrees of >= W of the points (e.g. 0.005; default 0 = off)"},
     {"--voxel", OPT_DOUBLE, &voxel, "SIZE", "thin the scan to one point per SIZE-metre voxel first (default off)"},
     {"--spacing", OPT_DOUBLE, &o.spacing, "S", "point spacing in metres (default: median nearest-neighbour distance)"},
     {"--k", OPT_INT, &o.k, "K", "neighbours per point in the graph (default 12)"},
@@ -159,7 +161,7 @@ int cmd_skeleton(int argc, char **argv, sy_cli *cli)
                 out_path);
         return SY_EUSAGE;
     }
-    if (!(o.beta > 0) || !(o.gamma > 0) || !(o.fs > 0 && o.fs <= 1) || voxel < 0 || o.spacing < 0 || o.k < 1 ||
+    if (!(o.beta > 0) || !(o.gamma > 0) || !(o.fs > 0 && o.fs <= 1) || !(o.wood_share >= 0 && o.wood_share < 1) || voxel < 0 || o.spacing < 0 || o.k < 1 ||
         !(o.bin_factor > 0) || !(o.alpha_scale > 0) || o.min_cluster_points < 0 || species < 0 || species > 65535) {
         fprintf(stderr, "sylva skeleton: --beta, --gamma, --bin, --alpha-scale must be > 0, --fs in (0,1], "
                         "--k >= 1, --species in 0..65535\n");

@@ -10,7 +10,8 @@
 #  (c) skeleton + clusters time and memory (bench_skeleton, one thread).
 # Usage: bench/reconstruct/run.sh [a] [b] [c]   (default: all three)
 # Env: SYLVA (default build/sylva), BENCH_SKELETON (default build/bench/bench_skeleton),
-#      SYLVA_DATA_DIR (default ../shared/data), SEED (default 1), KEEP=DIR keeps the files.
+#      SYLVA_DATA_DIR (default ../shared/data), SEED (default 1), KEEP=DIR keeps the files,
+#      SPECIES="a b" limits part (a) to those species, RUN_ARGS adds options to every `sylva run`.
 set -u
 cd "$(dirname "$0")/../.."
 sylva=${SYLVA:-build/sylva}
@@ -49,9 +50,10 @@ if [[ $parts == *a* ]]; then
     secs r2cm recall prec rad_err dbh_err h_err targets
   for ini in species/*.ini; do
     sp=$(basename "$ini" .ini)
+    [[ -z ${SPECIES:-} || " $SPECIES " == *" $sp "* ]] || continue
     read -r n step < <(scan_species "$sp") || { echo "$sp: scan failed"; misses=$((misses + 1)); continue; }
     t0=$(date +%s.%N)
-    run=$("$sylva" run "$tmp/$sp.las" --species "$sp" -o "$tmp/$sp.glb" --sylva "$tmp/$sp.sylva" --quiet --json) ||
+    run=$("$sylva" run "$tmp/$sp.las" --species "$sp" ${RUN_ARGS:-} -o "$tmp/$sp.glb" --sylva "$tmp/$sp.sylva" --quiet --json) ||
       { echo "$sp: run failed"; misses=$((misses + 1)); continue; }
     secs=$(awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }')
     ev=$("$sylva" eval --truth "$tmp/$sp.json" "$tmp/$sp.sylva" --json)
@@ -77,7 +79,7 @@ if [[ $parts == *b* ]]; then
     [[ -f $in ]] || { echo "$name: missing ($in)"; misses=$((misses + 1)); continue; }
     stem=$tmp/real_$(basename "$f" | tr . _)
     t0=$(date +%s.%N)
-    run=$("$sylva" run "$in" -o "$stem.glb" --sylva "$stem.sylva" --quiet --json) ||
+    run=$("$sylva" run "$in" ${RUN_ARGS:-} -o "$stem.glb" --sylva "$stem.sylva" --quiet --json) ||
       { echo "$name: run failed"; misses=$((misses + 1)); continue; }
     secs=$(awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }')
     # The points the model was built from: the same preprocessing as `sylva run`.

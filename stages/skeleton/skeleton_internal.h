@@ -25,4 +25,16 @@ typedef struct {
 sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of, size_t n, double gamma,
                         double spacing, double dbh_height, double slab, sy_radii_info *info, sy_error *err);
 
+/* The Dijkstra sources: the points of the base slab (z <= ztop) connected to
+ * the root within the slab, written to src; mark (n entries) is scratch. */
+size_t sy_base_sources(const float *xyz, size_t n, const sy_graph *g, uint32_t root, double ztop, int32_t *src,
+                       int32_t *mark);
+
+/* Wood/leaf separation by path frequency (wood_leaf.c): wood[i] = 1 when
+ * point i's shortest-path subtree holds at least min_share of all points (or
+ * it is a source), or it is a graph neighbour of such a point. order receives
+ * the points by ascending dist (parents before children). */
+sy_code sy_classify_wood(const sy_graph *g, const int32_t *spt, const double *dist, double min_share, uint8_t *wood,
+                         uint32_t *order, size_t *n_wood, sy_error *err);
+
 #endif

@@ -41,12 +41,16 @@ typedef struct {
     int min_cluster_points; /* smaller low-confidence groups stay on the skeleton (24) */
     int hull_triangles;   /* hull triangle budget per cluster; 0 = from the 40 kB file budget */
     int clusters;         /* 0: skeleton only, every point stays on the skeleton */
+    double wood_share;    /* wood/leaf separation: wood = shortest-path subtrees holding at least this
+                             share of the points, plus their neighbours; 0 = off, all wood (default:
+                             on leafy TLS scans it gained little and hurt leafless trees, docs/skeleton.md) */
 } sy_skeleton_options;
 
 void sy_skeleton_options_default(sy_skeleton_options *o);
 
 typedef struct {
     size_t points, graph_edges, components, bridges;
+    size_t wood_points;   /* points classified wood (all of them with wood_share 0) */
     double spacing, bin_width;
     size_t raw_nodes, pruned_nodes, merged_nodes;
     size_t nodes, branches;

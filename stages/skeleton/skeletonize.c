@@ -4,6 +4,7 @@
  * lower bin their shortest paths come from. Then: pruning of short side
  * subtrees, merging of near-parallel siblings, Laplacian smoothing along
  * chains, radii, and the cut into main skeleton and clusters. */
+#include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -30,6 +31,7 @@ void sy_skeleton_options_default(sy_skeleton_options *o)
     o->min_cluster_points = 24;
     o->hull_triangles = 0;
     o->clusters = 1;
+    o->wood_share = 0;
 }
 
 /* The node graph while it is being edited: nodes are merged by aliasing. */
@@ -76,12 +78,16 @@ static int cmp_u64(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-/* Level sets -> nodes. node_of[i] gets each point's node. */
+/* Level sets -> nodes. node_of[i] gets each point's node. With a wood mask
+ * (NULL: every point is wood) only wood points form level-set pieces and
+ * place the nodes; a leaf point takes the node of its nearest wood ancestor
+ * on the shortest-path tree (order: points by ascending distance). */
 static sy_code level_sets(const float *xyz, size_t n, const sy_graph *g, const int32_t *spt, const double *path,
-                          double w, uint32_t root, int32_t *node_of, nodes *N, sy_error *err)
+                          const uint8_t *wood, const uint32_t *order, double w, uint32_t root, int32_t *node_of,
+                          nodes *N, sy_error *err)
 {
     memset(N, 0, sizeof *N);
-    int32_t *bin = sy_calloc(n, sizeof *bin, err, "skeleton");
+    int32_t *bin = sy_calloc(n, sizeof *bin, err, "skeleton"), *node_bin = NULL;
     uint32_t *up = sy_calloc(n, sizeof *up, err, "skeleton");
     size_t *bstart = NULL;
     uint32_t *byb = NULL;
@@ -98,7 +104,7 @@ static sy_code level_sets(const float *xyz, size_t n, const sy_graph *g, const i
     for (size_t i = 0; i < n; i++)
         for (size_t t = g->start[i]; t < g->start[i + 1]; t++) {
             uint32_t j = g->adj[t];
-            if (bin[j] != bin[i]) continue;
+            if (bin[j] != bin[i] || (wood && (!wood[i] || !wood[j]))) continue;
             uint32_t a = uf_find(up, (uint32_t)i), b = uf_find(up, j);
             if (a != b) up[a < b ? b : a] = a < b ? a : b;
         }
@@ -110,14 +116,26 @@ static sy_code level_sets(const float *xyz, size_t n, const sy_graph *g, const i
     for (int32_t b = 0; b <= maxb; b++) bstart[b + 1] += bstart[b];
     for (size_t i = 0; i < n; i++) byb[bstart[bin[i]]++] = (uint32_t)i;
     for (size_t i = 0; i < n; i++) node_of[i] = -1;
-    int32_t *id_of_root = bin; /* reuse after binning: root point -> node id */
-    for (size_t i = 0; i < n; i++) id_of_root[i] = -1;
+    node_bin = sy_calloc(n, sizeof *node_bin, err, "skeleton");
+    if (!node_bin) goto done;
     size_t m = 0;
     for (size_t t = 0; t < n; t++) {
         uint32_t i = byb[t], r = uf_find(up, i);
-        if (id_of_root[r] < 0) id_of_root[r] = (int32_t)m++;
-        node_of[i] = id_of_root[r];
+        if (wood && !wood[i]) continue;
+        /* r is the smallest index of i's piece, all in one bin: seen first. */
+        if (node_of[r] < 0) {
+            node_bin[m] = bin[i];
+            node_of[r] = (int32_t)m++;
+        }
+        node_of[i] = node_of[r];
     }
+    if (wood)
+        for (size_t t = 0; t < n; t++) {
+            uint32_t i = order[t];
+            if (wood[i]) continue;
+            /* Sources are wood, so every leaf point has a parent assigned before it. */
+            node_of[i] = spt[i] >= 0 ? node_of[spt[i]] : node_of[root];
+        }
     N->n = m;
     N->parent = sy_calloc(m, sizeof *N->parent, err, "skeleton");
     N->alias = sy_calloc(m, sizeof *N->alias, err, "skeleton");
@@ -136,6 +154,7 @@ static sy_code level_sets(const float *xyz, size_t n, const sy_graph *g, const i
     for (size_t i = 0; i < n; i++) {
         if (spt[i] < 0) continue;
         int32_t a = node_of[i], b = node_of[spt[i]];
+        if (wood && (!wood[i] || node_bin[b] >= node_bin[a])) continue;
         if (a != b) votes[nv++] = ((uint64_t)(uint32_t)a << 32) | (uint32_t)b;
     }
     qsort(votes, nv, sizeof *votes, cmp_u64);
@@ -162,6 +181,17 @@ static sy_code level_sets(const float *xyz, size_t n, const sy_graph *g, const i
     }
     /* Base-slab pieces not touching the root's (leftover ground, a second
      * stem) have no way down: they hang off the root node. */
+    if (wood) /* a wood piece entered only from leaf points: its nearest lower wood node */
+        for (size_t t = 0; t < n; t++) {
+            uint32_t i = byb[t];
+            int32_t a = wood[i] ? node_of[i] : -1;
+            if (a < 0 || N->parent[a] >= 0 || node_bin[a] == 0) continue;
+            for (int32_t u = spt[i]; u >= 0; u = spt[u])
+                if (node_bin[node_of[u]] < node_bin[a]) {
+                    N->parent[a] = node_of[u];
+                    break;
+                }
+        }
     for (size_t v = 0; v < m; v++)
         if (N->parent[v] < 0 && (int32_t)v != node_of[root]) N->parent[v] = node_of[root];
     /* Children lists, in id order. */
@@ -172,6 +202,7 @@ static sy_code level_sets(const float *xyz, size_t n, const sy_graph *g, const i
         }
     for (size_t i = 0; i < n; i++) {
         int32_t v = node_of[i];
+        if (wood && !wood[i]) continue;
         N->count[v]++;
         for (int k = 0; k < 3; k++) N->sum[3 * v + k] += xyz[3 * i + k];
     }
@@ -179,12 +210,14 @@ static sy_code level_sets(const float *xyz, size_t n, const sy_graph *g, const i
         for (int k = 0; k < 3; k++) N->pos[3 * v + k] = N->sum[3 * v + k] / (double)N->count[v];
     for (size_t i = 0; i < n; i++) {
         int32_t v = node_of[i];
+        if (wood && !wood[i]) continue;
         double d2 = 0;
         for (int k = 0; k < 3; k++) d2 += (xyz[3 * i + k] - N->pos[3 * v + k]) * (xyz[3 * i + k] - N->pos[3 * v + k]);
         N->spread[v] += sqrt(d2) / (double)N->count[v];
     }
     rc = SY_OK;
 done:
+    free(node_bin);
     free(bin);
     free(up);
     free(bstart);
@@ -348,8 +381,8 @@ done:
 }
 
 /* Live nodes -> a skeleton in breadth-first order with point support. */
-static sy_code compact(const nodes *N, int32_t root, const int32_t *node_of, size_t n_points, const double *origin,
-                       sy_skeleton *s, int32_t *point_node, sy_error *err)
+static sy_code compact(const nodes *N, int32_t root, const int32_t *node_of, const uint8_t *wood, size_t n_points,
+                       const double *origin, sy_skeleton *s, int32_t *point_node, sy_error *err)
 {
     int32_t *order = sy_calloc(N->n, sizeof *order, err, "skeleton");
     int32_t *newid = sy_calloc(N->n, sizeof *newid, err, "skeleton");
@@ -378,7 +411,7 @@ static sy_code compact(const nodes *N, int32_t root, const int32_t *node_of, siz
     }
     for (size_t i = 0; i < n_points; i++) {
         point_node[i] = newid[resolve(N, node_of[i])];
-        s->support_start[point_node[i] + 1]++;
+        if (!wood || wood[i]) s->support_start[point_node[i] + 1]++;
     }
     for (size_t t = 0; t < m; t++) s->support_start[t + 1] += s->support_start[t];
     size_t *fill = malloc((m ? m : 1) * sizeof *fill);
@@ -387,7 +420,8 @@ static sy_code compact(const nodes *N, int32_t root, const int32_t *node_of, siz
         goto done;
     }
     for (size_t t = 0; t < m; t++) fill[t] = s->support_start[t];
-    for (size_t i = 0; i < n_points; i++) s->support[fill[point_node[i]]++] = (uint32_t)i;
+    for (size_t i = 0; i < n_points; i++)
+        if (!wood || wood[i]) s->support[fill[point_node[i]]++] = (uint32_t)i;
     free(fill);
 done:
     free(order);
@@ -467,12 +501,129 @@ static int cmp_u32(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
+static int cmp_cluster_seed(const void *a, const void *b)
+{
+    const sy_cluster *x = a, *y = b;
+    if (x->seed != y->seed) return x->seed < y->seed ? -1 : 1;
+    return x->points[0] < y->points[0] ? -1 : x->points[0] > y->points[0];
+}
+
+/* Leaf points (not in any node's support so far) after the cut: those of a
+ * cut node join its cluster; the others are grouped by the branch of their
+ * node on the main skeleton, one foliage cluster per branch seeded at the
+ * branch node holding most of them. Groups under min_points join their nodes'
+ * support. Clusters end up ordered by seed. */
+static sy_code attach_leaves(const sy_skeleton *full, const int32_t *cluster_of, const int32_t *point_node,
+                             const uint8_t *wood, size_t n_points, int min_points, sy_skeleton *out,
+                             sy_clusters *cl, sy_error *err)
+{
+    size_t n = full->n, m = out->n, nb = 0, base = cl->n;
+    for (size_t v = 0; v < m; v++)
+        if ((size_t)out->branch[v] + 1 > nb) nb = (size_t)out->branch[v] + 1;
+    int32_t *newid = sy_calloc(n ? n : 1, sizeof *newid, err, "clusters");
+    size_t *per_node = sy_calloc(m + 1, sizeof *per_node, err, "clusters");
+    size_t *per_branch = sy_calloc(nb + 1, sizeof *per_branch, err, "clusters");
+    int32_t *best = sy_calloc(nb + 1, sizeof *best, err, "clusters");
+    int32_t *group = sy_calloc(nb + 1, sizeof *group, err, "clusters");
+    size_t *extra = sy_calloc(base + nb + 1, sizeof *extra, err, "clusters");
+    uint32_t *support = NULL;
+    sy_code rc = SY_EINTERNAL;
+    if (!newid || !per_node || !per_branch || !best || !group || !extra) goto done;
+    for (size_t i = 0, k = 0; i < n; i++) newid[i] = cluster_of[i] >= 0 ? -1 : (int32_t)k++;
+    for (size_t i = 0; i < n_points; i++) {
+        if (wood[i] || cluster_of[point_node[i]] >= 0) continue;
+        int32_t v = newid[point_node[i]];
+        per_node[v]++;
+        per_branch[out->branch[v]]++;
+    }
+    for (size_t b = 0; b < nb; b++) best[b] = -1;
+    for (size_t v = 0; v < m; v++) {
+        int32_t b = out->branch[v];
+        if (per_node[v] && (best[b] < 0 || per_node[v] > per_node[best[b]])) best[b] = (int32_t)v;
+    }
+    size_t total = base;
+    for (size_t b = 0; b < nb; b++) group[b] = per_branch[b] >= (size_t)min_points ? (int32_t)total++ : -1;
+    /* Target of each leaf point: a cluster index, or -1 for its node. */
+    for (size_t i = 0; i < n_points; i++) {
+        if (wood[i]) continue;
+        int32_t c = cluster_of[point_node[i]];
+        if (c < 0) c = group[out->branch[newid[point_node[i]]]];
+        if (c >= 0) extra[c]++;
+    }
+    sy_cluster *items = realloc(cl->items, (total ? total : 1) * sizeof *items);
+    if (!items) {
+        rc = sy_fail(err, SY_EINTERNAL, "clusters: out of memory");
+        goto done;
+    }
+    cl->items = items;
+    for (size_t c = base; c < total; c++) memset(&items[c], 0, sizeof items[c]);
+    cl->n = total;
+    for (size_t b = 0; b < nb; b++)
+        if (group[b] >= 0) items[group[b]].seed = best[b];
+    for (size_t c = 0; c < total; c++) {
+        uint32_t *p = realloc(items[c].points, (items[c].n_points + extra[c] + 1) * sizeof *p);
+        if (!p) {
+            rc = sy_fail(err, SY_EINTERNAL, "clusters: out of memory");
+            goto done;
+        }
+        items[c].points = p;
+    }
+    /* Node supports grow by the leaf points of small groups. */
+    size_t kept = out->support_start[m];
+    for (size_t v = 0; v < m; v++) per_node[v] = 0;
+    for (size_t i = 0; i < n_points; i++) {
+        if (wood[i] || cluster_of[point_node[i]] >= 0) continue;
+        int32_t v = newid[point_node[i]];
+        if (group[out->branch[v]] < 0) per_node[v]++;
+    }
+    size_t add = 0;
+    for (size_t v = 0; v < m; v++) add += per_node[v];
+    support = sy_calloc(kept + add + 1, sizeof *support, err, "skeleton");
+    if (!support) goto done;
+    size_t w = 0;
+    uint32_t *start = sy_calloc(m + 1, sizeof *start, err, "skeleton");
+    if (!start) goto done;
+    for (size_t v = 0; v < m; v++) {
+        start[v] = (uint32_t)w;
+        size_t sc = out->support_start[v + 1] - out->support_start[v];
+        memcpy(support + w, out->support + out->support_start[v], sc * sizeof *support);
+        w += sc + per_node[v];
+        per_node[v] = start[v] + sc; /* write cursor for the leaf points */
+    }
+    start[m] = (uint32_t)w;
+    for (size_t i = 0; i < n_points; i++) {
+        if (wood[i]) continue;
+        int32_t c = cluster_of[point_node[i]];
+        int32_t v = c < 0 ? newid[point_node[i]] : -1;
+        if (c < 0) c = group[out->branch[v]];
+        if (c >= 0) items[c].points[items[c].n_points++] = (uint32_t)i;
+        else support[per_node[v]++] = (uint32_t)i;
+    }
+    free(out->support);
+    free(out->support_start);
+    out->support = support;
+    out->support_start = start;
+    support = NULL;
+    for (size_t c = 0; c < total; c++) qsort(items[c].points, items[c].n_points, sizeof(uint32_t), cmp_u32);
+    qsort(items, total, sizeof *items, cmp_cluster_seed);
+    rc = SY_OK;
+done:
+    free(support);
+    free(newid);
+    free(per_node);
+    free(per_branch);
+    free(best);
+    free(group);
+    free(extra);
+    return rc;
+}
+
 /* The Dijkstra sources: the points of the base slab (z <= ztop) connected to
  * the root within the slab. Low foliage of a wide crown (drooping branches,
  * leaves near the ground) also lies in the slab; as sources it would start
  * level sets far from the trunk, and its points would join the trunk's
  * lowest nodes. Writes the sources to src, uses mark (n entries) as scratch. */
-static size_t base_sources(const float *xyz, size_t n, const sy_graph *g, uint32_t root, double ztop, int32_t *src,
+size_t sy_base_sources(const float *xyz, size_t n, const sy_graph *g, uint32_t root, double ztop, int32_t *src,
                            int32_t *mark)
 {
     for (size_t i = 0; i < n; i++) mark[i] = 0;
@@ -515,8 +666,8 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     const float *xyz = cloud->xyz;
     if (n < 16) return sy_fail(err, SY_EINPUT, "skeleton: %zu points are too few for a tree", n);
     if (!(o->beta > 0) || !(o->gamma > 0) || !(o->fs > 0 && o->fs <= 1) || !(o->bin_factor > 0) ||
-        !(o->radius_factor > 0) || !(o->spacing >= 0) || !isfinite(o->beta + o->gamma + o->spacing))
-        return sy_fail(err, SY_EINPUT, "skeleton: beta, gamma, bin and radius factors must be > 0 and f_s in (0, 1]");
+        !(o->radius_factor > 0) || !(o->spacing >= 0) || !(o->wood_share >= 0 && o->wood_share < 1) || !isfinite(o->beta + o->gamma + o->spacing))
+        return sy_fail(err, SY_EINPUT, "skeleton: beta, gamma, bin and radius factors must be > 0 f_s in (0, 1], wood share in [0, 1)");
     double t0 = sy_now(), t = t0;
     rep->points = n;
 
@@ -550,6 +701,8 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     nodes N = {0};
     sy_skeleton full = {0};
     int32_t *order = NULL, *stack = NULL, *cluster_of = NULL, *seed_of = NULL;
+    uint8_t *wood = NULL; /* NULL: every point is wood */
+    uint32_t *by_dist = NULL;
     double *reach = NULL;
     if (!dist || !path || !spt || !node_of || !point_node) {
         rc = SY_EINTERNAL;
@@ -557,13 +710,25 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     }
     /* The whole base slab is the source: geodesic level sets then cut the
      * trunk in horizontal rings instead of spheres around one bark point. */
-    size_t n_src = base_sources(xyz, n, &g, root, z0 + slab, node_of, point_node);
+    size_t n_src = sy_base_sources(xyz, n, &g, root, z0 + slab, node_of, point_node);
     rc = sy_graph_dijkstra(&g, (const uint32_t *)node_of, n_src, o->beta, dist, spt, path, err);
     if (rc) goto done;
     rep->t_dijkstra = sy_now() - t;
     t = sy_now();
 
-    rc = level_sets(xyz, n, &g, spt, path, w, root, node_of, &N, err);
+    if (o->wood_share > 0) {
+        wood = sy_calloc(n, sizeof *wood, err, "skeleton");
+        by_dist = sy_calloc(n, sizeof *by_dist, err, "skeleton");
+        if (!wood || !by_dist) {
+            rc = SY_EINTERNAL;
+            goto done;
+        }
+        rc = sy_classify_wood(&g, spt, dist, o->wood_share, wood, by_dist, &rep->wood_points, err);
+        if (rc) goto done;
+    } else {
+        rep->wood_points = n;
+    }
+    rc = level_sets(xyz, n, &g, spt, path, wood, by_dist, w, root, node_of, &N, err);
     if (rc) goto done;
     rep->raw_nodes = N.n;
     order = sy_calloc(N.n, sizeof *order, err, "skeleton");
@@ -578,7 +743,7 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     rep->merged_nodes = merge_siblings(&N, nroot, o->merge_cos, w, order);
     /* Merging can leave new short spurs beside the merged stems. */
     rep->pruned_nodes += prune(&N, nroot, o->prune_factor, w, order, stack, reach);
-    rc = compact(&N, nroot, node_of, n, cloud->origin, &full, point_node, err);
+    rc = compact(&N, nroot, node_of, wood, n, cloud->origin, &full, point_node, err);
     if (rc) goto done;
     smooth(&full, o->smooth_iters);
     rep->t_levels = sy_now() - t;
@@ -618,17 +783,27 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     }
     sy_clusters tmp = {0};
     rc = split_clusters(&full, xyz, cluster_of, seed_of, n_clusters, out, clusters ? clusters : &tmp, err);
-    sy_clusters_free(&tmp);
-    if (rc) goto done;
+    if (rc) {
+        sy_clusters_free(&tmp);
+        goto done;
+    }
     /* Branch ids again on the main skeleton alone, so ids stay dense. */
     l = sy_calloc(out->n, sizeof *l, err, "skeleton");
     if (!l) {
+        sy_clusters_free(&tmp);
         rc = SY_EINTERNAL;
         goto done;
     }
     sy_subtree_lengths(out, l);
     sy_assign_branches(out, l);
     free(l);
+    if (wood) {
+        sy_clusters *cl = clusters ? clusters : &tmp;
+        int min_points = o->clusters && clusters ? o->min_cluster_points : INT_MAX;
+        rc = attach_leaves(&full, cluster_of, point_node, wood, n, min_points, out, cl, err);
+        if (rc) goto done;
+    }
+    sy_clusters_free(&tmp);
     rep->t_clusters = sy_now() - t;
     t = sy_now();
 
@@ -669,6 +844,8 @@ done:
     free(reach);
     free(cluster_of);
     free(seed_of);
+    free(wood);
+    free(by_dist);
     rep->t_total = sy_now() - t0;
     return rc;
 }
