@@ -106,6 +106,53 @@ static void synthetic_tree_is_recovered(void **state)
     sy_cloud_free(&c);
 }
 
+/* Ground removal strips the trunk's foot; breast height must still be 1.3 m
+ * above the ground, which "height_above_ground" (kept by preprocess) gives. */
+static void dbh_is_measured_from_the_ground(void **state)
+{
+    (void)state;
+    syn_tree t;
+    syn_tree_make(&t, 0, 0);
+    sy_cloud c;
+    sy_error err = {0};
+    assert_int_equal(syn_sample(&t, 30000, 0, 0.002, 5, &c, &err), SY_OK);
+    size_t m = 0; /* drop the lowest 30 cm, as a ground filter's threshold does */
+    for (size_t i = 0; i < c.n; i++)
+        if (c.origin[2] + c.xyz[3 * i + 2] >= 0.3) {
+            memmove(&c.xyz[3 * m], &c.xyz[3 * i], 3 * sizeof *c.xyz);
+            m++;
+        }
+    c.n = m;
+    sy_skeleton_options o;
+    sy_skeleton_options_default(&o);
+    sy_skeleton s;
+    sy_clusters cl;
+    sy_skeleton_report from_base, from_ground;
+    assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, &from_base, &err), SY_OK);
+    sy_skeleton_free(&s);
+    sy_clusters_free(&cl);
+    double *hag = sy_cloud_add_attr(&c, "height_above_ground", &err);
+    assert_non_null(hag);
+    for (size_t i = 0; i < c.n; i++) hag[i] = c.origin[2] + c.xyz[3 * i + 2]; /* flat ground at z = 0 */
+    assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, &from_ground, &err), SY_OK);
+    double truth = 2 * syn_trunk_radius(1.3);
+    printf("DBH without ground %.4f, with %.4f, truth %.4f; height %.2f / %.2f\n", from_base.dbh, from_ground.dbh,
+           truth, from_base.height, from_ground.height);
+    /* From the lowest point left the slab sits >= 30 cm up the taper (0.038 m/m). */
+    assert_true(truth - from_base.dbh > 0.008);
+    assert_true(fabs(from_ground.dbh - truth) < 0.004);
+    assert_true(fabs(from_ground.height - 7.0) < 0.1);
+    /* The cut-off foot is restored: the root stands on the ground, under the trunk. */
+    assert_true(fabs(s.origin[2] + s.pos[2]) < 0.01);
+    assert_true(hypot(s.origin[0] + s.pos[0], s.origin[1] + s.pos[1]) < 0.05);
+    assert_int_equal(sy_skeleton_validate(&s, &err), SY_OK);
+    assert_radii_taper(&s);
+    assert_partition(&s, &cl, c.n);
+    sy_skeleton_free(&s);
+    sy_clusters_free(&cl);
+    sy_cloud_free(&c);
+}
+
 static void circle_fit_resists_noise_and_outliers(void **state)
 {
     (void)state;
@@ -248,6 +295,7 @@ int main(void)
         cmocka_unit_test(circle_fit_resists_noise_and_outliers),
         cmocka_unit_test(graph_is_connected_and_dijkstra_optimal),
         cmocka_unit_test(synthetic_tree_is_recovered),
+        cmocka_unit_test(dbh_is_measured_from_the_ground),
         cmocka_unit_test(real_trees_reconstruct),
         cmocka_unit_test(rejects_tiny_and_bad_options),
     };

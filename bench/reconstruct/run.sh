@@ -10,12 +10,14 @@
 #  (c) skeleton + clusters time and memory (bench_skeleton, one thread).
 # Usage: bench/reconstruct/run.sh [a] [b] [c]   (default: all three)
 # Env: SYLVA (default build/sylva), BENCH_SKELETON (default build/bench/bench_skeleton),
+#      BENCH_VISIBILITY (default build/bench/bench_visibility),
 #      SYLVA_DATA_DIR (default ../shared/data), SEED (default 1), KEEP=DIR keeps the files,
 #      SPECIES="a b" limits part (a) to those species, RUN_ARGS adds options to every `sylva run`.
 set -u
 cd "$(dirname "$0")/../.."
 sylva=${SYLVA:-build/sylva}
 bench_skeleton=${BENCH_SKELETON:-build/bench/bench_skeleton}
+bench_visibility=${BENCH_VISIBILITY:-build/bench/bench_visibility}
 data=${SYLVA_DATA_DIR:-../shared/data}
 seed=${SEED:-1}
 parts=${*:-a b c}
@@ -46,8 +48,10 @@ scan_species() {
 
 if [[ $parts == *a* ]]; then
   echo "(a) simulated terrestrial scans, seed $seed: sylva run --species S, eval --truth"
-  printf '%-16s %8s %6s %6s %6s %5s %6s %6s %6s %7s %7s %6s %s\n' species points step nodes clust \
-    secs r2cm recall prec rad_err dbh_err h_err targets
+  echo "(vis: share of the thick-stem length with a wood return within eval's tolerance, bench_visibility;"
+  echo " the ceiling leaf occlusion puts on r2cm for a skeleton placed on evidence)"
+  printf '%-16s %8s %6s %6s %6s %5s %6s %6s %6s %6s %7s %7s %6s %s\n' species points step nodes clust \
+    secs vis r2cm recall prec rad_err dbh_err h_err targets
   for ini in species/*.ini; do
     sp=$(basename "$ini" .ini)
     [[ -z ${SPECIES:-} || " $SPECIES " == *" $sp "* ]] || continue
@@ -61,9 +65,10 @@ if [[ $parts == *a* ]]; then
     de=$(key dbh_error "$ev"); he=$(key height_error "$ev")
     t1=$(ok "$r2" ">=" 0.90); t2=$(ok "$pr" ">=" 0.90); t3=$(ok "$re" "<=" 0.20); t4=$(ok "$de" "<=" 0.01)
     for t in $t1 $t2 $t3 $t4; do note "$t"; done
-    printf '%-16s %8d %6s %6d %6d %5s %6.3f %6.3f %6.3f %7.3f %7.4f %6.2f %s/%s/%s/%s\n' "$sp" "$n" "$step" \
-      "$(key nodes "$run")" "$(key clusters "$run")" "$secs" "$r2" "$(key recall "$ev")" "$pr" "$re" "$de" "$he" \
-      "$t1" "$t2" "$t3" "$t4"
+    vis=$("$bench_visibility" "$tmp/$sp.las" "$tmp/$sp.json" | sed -n 's/.*of a wood return \([0-9.]*\),.*/\1/p')
+    printf '%-16s %8d %6s %6d %6d %5s %6.3f %6.3f %6.3f %6.3f %7.3f %7.4f %6.2f %s/%s/%s/%s\n' "$sp" "$n" "$step" \
+      "$(key nodes "$run")" "$(key clusters "$run")" "$secs" "${vis:-nan}" "$r2" "$(key recall "$ev")" "$pr" "$re" \
+      "$de" "$he" "$t1" "$t2" "$t3" "$t4"
   done
   echo "targets (r2cm/prec/rad_err/dbh_err): recall_r2cm >= 0.90, precision >= 0.90, median radius error <= 0.20, DBH error <= 0.01 m"
   echo

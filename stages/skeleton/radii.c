@@ -168,7 +168,8 @@ static int cmp_double(const void *a, const void *b)
 }
 
 sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of, size_t n, double gamma,
-                        double spacing, double dbh_height, double slab, sy_radii_info *info, sy_error *err)
+                        double spacing, double ground_z, double dbh_height, double slab, sy_radii_info *info,
+                        sy_error *err)
 {
     memset(info, 0, sizeof *info);
     size_t m = s->n;
@@ -180,7 +181,7 @@ sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of
         return SY_EINTERNAL;
     }
     sy_subtree_lengths(s, l);
-    double z0 = s->pos[2], zmax = z0;
+    double z0 = isfinite(ground_z) ? ground_z : s->pos[2], zmax = z0;
     for (size_t i = 0; i < n; i++) zmax = fmax(zmax, xyz[3 * i + 2]);
     info->height = zmax - z0;
     /* Short trees (saplings, test scenes) are measured a quarter up instead. */

@@ -21,9 +21,11 @@ typedef struct {
 
 /* Radii by the allometry d(u) = d_root * (l(u) / l(root))^(1/gamma), with
  * d_root chosen so the trunk node at breast height gets the fitted DBH.
- * node_of[i] is the node supporting point i. */
+ * node_of[i] is the node supporting point i. Breast height and the tree's
+ * height are measured from ground_z when it is finite, else from the root. */
 sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of, size_t n, double gamma,
-                        double spacing, double dbh_height, double slab, sy_radii_info *info, sy_error *err);
+                        double spacing, double ground_z, double dbh_height, double slab, sy_radii_info *info,
+                        sy_error *err);
 
 /* The Dijkstra sources: the points of the base slab (z <= ztop) connected to
  * the root within the slab, written to src; mark (n entries) is scratch. */
