@@ -433,10 +433,11 @@ done:
 /* Puts a new root under the old one at the ground (ground_z, in the
  * skeleton's frame): the foot that ground removal took off the scan. The
  * tree then stands on the ground in the asset, and breast height 1.3 m above
- * the root (how eval and the truth files read DBH) is 1.3 m above the ground.
- * The new node supports no points; node ids and point_node shift by one. */
-static sy_code extend_root_to_ground(sy_skeleton *s, int32_t *point_node, size_t n_points, double ground_z,
-                                     sy_error *err)
+ * the root (how eval and truth files read DBH) is 1.3 m above the ground.
+ * Done on the final skeleton: the foot is not a measured edge for the
+ * low-confidence rule to judge. The new node supports no points and carries
+ * the old root's radius; node ids and cluster seeds shift by one. */
+static sy_code extend_root_to_ground(sy_skeleton *s, sy_clusters *cl, double ground_z, sy_error *err)
 {
     sy_skeleton t;
     sy_code rc = sy_skeleton_init(&t, s->n + 1, err);
@@ -451,18 +452,21 @@ static sy_code extend_root_to_ground(sy_skeleton *s, int32_t *point_node, size_t
     t.pos[1] = s->pos[1];
     t.pos[2] = (float)ground_z;
     t.parent[0] = -1;
-    t.radius[0] = 1;
+    t.radius[0] = s->radius[0];
+    t.order[0] = s->order[0];
+    t.branch[0] = s->branch[0];
     memcpy(t.pos + 3, s->pos, 3 * s->n * sizeof *s->pos);
-    for (size_t i = 0; i < s->n; i++) {
-        t.parent[i + 1] = s->parent[i] + 1; /* the old root's -1 becomes the new root, 0 */
-        t.radius[i + 1] = s->radius[i];
-    }
-    for (size_t i = 0; i <= s->n; i++) t.support_start[i + 1] = s->support_start[i];
+    memcpy(t.radius + 1, s->radius, s->n * sizeof *s->radius);
+    memcpy(t.order + 1, s->order, s->n * sizeof *s->order);
+    memcpy(t.branch + 1, s->branch, s->n * sizeof *s->branch);
+    for (size_t i = 0; i < s->n; i++) t.parent[i + 1] = s->parent[i] + 1; /* the old root's -1 becomes 0 */
+    if (s->support_start)
+        for (size_t i = 0; i <= s->n; i++) t.support_start[i + 1] = s->support_start[i];
     t.support = s->support;
     s->support = NULL;
-    for (size_t i = 0; i < n_points; i++) point_node[i]++;
     sy_skeleton_free(s);
     *s = t;
+    for (size_t c = 0; cl && c < cl->n; c++) cl->items[c].seed++;
     return SY_OK;
 }
 
@@ -815,11 +819,6 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     rc = compact(&N, nroot, node_of, wood, n, cloud->origin, &full, point_node, err);
     if (rc) goto done;
     smooth(&full, o->smooth_iters);
-    /* Only a foot worth a node (the root sits half a level set up anyway). */
-    if (isfinite(ground) && full.n && full.pos[2] - ground > w) {
-        rc = extend_root_to_ground(&full, point_node, n, ground, err);
-        if (rc) goto done;
-    }
     rep->t_levels = sy_now() - t;
     t = sy_now();
 
@@ -878,6 +877,11 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
         if (rc) goto done;
     }
     sy_clusters_free(&tmp);
+    /* Only a foot worth a node (the root sits half a level set up anyway). */
+    if (isfinite(ground) && out->n && out->pos[2] - ground > w) {
+        rc = extend_root_to_ground(out, clusters, ground, err);
+        if (rc) goto done;
+    }
     rep->t_clusters = sy_now() - t;
     t = sy_now();
 
