@@ -40,15 +40,10 @@ static void write_cluster(sy_json *j, FILE *fp, const sy_cluster *c, const doubl
 sy_code sy_sylva_json_write(const char *path, const sy_skeleton *s, const sy_clusters *cl, const sy_sylva_meta *meta,
                             sy_error *err)
 {
-    sy_code rc = sy_skeleton_validate(s, err);
-    if (rc) return rc;
     sy_atomic_file f;
-    if ((rc = sy_atomic_open(&f, path, err))) return rc;
     sy_json j;
-    sy_json_begin(&j, f.fp, 0);
-    sy_json_object(&j, NULL);
-    sy_json_string(&j, "format", "sylva-tree");
-    sy_json_int(&j, "version", 1);
+    sy_code rc = sy_skeleton_json_open(path, s, "sylva-tree", &f, &j, err);
+    if (rc) return rc;
     sy_json_int(&j, "species_id", meta->species_id);
     char seed[32]; /* as a string: a 64-bit seed does not fit a JSON double */
     snprintf(seed, sizeof seed, "%llu", (unsigned long long)meta->seed);

@@ -18,6 +18,7 @@
 #include <stddef.h>
 #include <stdio.h>
 
+#include "stages/core/fileio.h"
 #include "stages/core/json.h"
 #include "stages/core/json_read.h"
 #include "stages/core/skeleton.h"
@@ -74,6 +75,10 @@ sy_code sy_skeleton_write_json(const char *path, const sy_skeleton *s, sy_error 
 /* The "origin" and "nodes" members of the skeleton JSON into an open object
  * of j (which writes to fp), for documents that carry more (.sylva as JSON). */
 void sy_skeleton_json_members(sy_json *j, FILE *fp, const sy_skeleton *s);
+/* Validates s, opens path atomically and starts the document's object with
+ * "format" and "version": 1 (the caller adds members, ends, commits). */
+sy_code sy_skeleton_json_open(const char *path, const sy_skeleton *s, const char *format, sy_atomic_file *f,
+                              sy_json *j, sy_error *err);
 
 sy_code sy_skeleton_read_ply_mem(const char *path, const unsigned char *data, size_t size,
                                  sy_skeleton *out, sy_skeleton_read_info *info, sy_error *err);

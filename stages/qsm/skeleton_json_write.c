@@ -28,17 +28,25 @@ void sy_skeleton_json_members(sy_json *j, FILE *fp, const sy_skeleton *s)
     sy_json_end(j);
 }
 
-sy_code sy_skeleton_write_json(const char *path, const sy_skeleton *s, sy_error *err)
+sy_code sy_skeleton_json_open(const char *path, const sy_skeleton *s, const char *format, sy_atomic_file *f,
+                              sy_json *j, sy_error *err)
 {
     sy_code rc = sy_skeleton_validate(s, err);
     if (rc) return rc;
+    if ((rc = sy_atomic_open(f, path, err))) return rc;
+    sy_json_begin(j, f->fp, 0);
+    sy_json_object(j, NULL);
+    sy_json_string(j, "format", format);
+    sy_json_int(j, "version", 1);
+    return SY_OK;
+}
+
+sy_code sy_skeleton_write_json(const char *path, const sy_skeleton *s, sy_error *err)
+{
     sy_atomic_file f;
-    if ((rc = sy_atomic_open(&f, path, err))) return rc;
     sy_json j;
-    sy_json_begin(&j, f.fp, 0);
-    sy_json_object(&j, NULL);
-    sy_json_string(&j, "format", "sylva-skeleton");
-    sy_json_int(&j, "version", 1);
+    sy_code rc = sy_skeleton_json_open(path, s, "sylva-skeleton", &f, &j, err);
+    if (rc) return rc;
     sy_skeleton_json_members(&j, f.fp, s);
     sy_json_end(&j);
     sy_json_finish(&j);
