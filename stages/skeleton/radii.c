@@ -167,6 +167,63 @@ static int cmp_double(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
+/* The trunk node (branch 0) nearest height z. */
+static size_t trunk_node_near(const sy_skeleton *s, double z)
+{
+    size_t best = 0;
+    double bd = INFINITY;
+    for (size_t i = 0; i < s->n; i++)
+        if (s->branch[i] == 0 && fabs(s->pos[3 * i + 2] - z) < bd) {
+            bd = fabs(s->pos[3 * i + 2] - z);
+            best = i;
+        }
+    return best;
+}
+
+typedef struct {
+    const sy_skeleton *s;
+    const float *xyz;
+    const int32_t *node_of;
+    size_t n;
+    double slab, tol, reach;
+    double centre[2]; /* the trunk axis' x y near the slab */
+} trunk_slab;
+
+/* Circle fit to the trunk points of a horizontal slab at height z; 1 when a
+ * circle was fitted. xy (2 n doubles) and *k keep the slab's points of the
+ * last pass for the caller's fallback. */
+static int fit_trunk_slab(const trunk_slab *q, double z, double *xy, size_t *k, double c[2], double *r, double *rms)
+{
+    const float *xyz = q->xyz;
+    /* Sparse scans leave few points in a 10 cm slab: widen it (trunks are
+     * near vertical, so a taller slab still cuts one circle). */
+    for (int pass = 0; pass < 8; pass++) {
+        int widen = 1 << (pass % 4), near_axis = pass >= 4;
+        double sx = 0, sy = 0;
+        *k = 0;
+        for (size_t i = 0; i < q->n; i++) {
+            if (fabs(xyz[3 * i + 2] - z) > widen * q->slab / 2) continue;
+            /* Trunk points: on a trunk node, or (for sparse scans whose level
+             * sets mix heights) within half a metre of the trunk's axis. */
+            int32_t v = q->node_of[i];
+            double axis_d = hypot(xyz[3 * i] - q->centre[0], xyz[3 * i + 1] - q->centre[1]);
+            if (axis_d > q->reach || (!(v >= 0 && q->s->branch[v] == 0) && (!near_axis || axis_d > 0.5))) continue;
+            xy[2 * *k] = xyz[3 * i];
+            xy[2 * *k + 1] = xyz[3 * i + 1];
+            sx += xy[2 * *k];
+            sy += xy[2 * *k + 1];
+            (*k)++;
+        }
+        if (*k >= 10 && sy_fit_circle(xy, *k, q->tol, 1, c, r, rms) == 0 && *r < q->reach) {
+            /* A fitted centre far outside the slab's points means the arc was
+             * too short to define the circle; the fallback is safer then. */
+            double mx = sx / (double)*k, my = sy / (double)*k;
+            if (hypot(c[0] - mx, c[1] - my) <= 1.5 * *r) return 1;
+        }
+    }
+    return 0;
+}
+
 sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of, size_t n, double gamma,
                         double spacing, double ground_z, double dbh_height, double slab, sy_radii_info *info,
                         sy_error *err)
@@ -188,45 +245,41 @@ sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of
     double zb = z0 + fmin(dbh_height, 0.25 * info->height);
     info->dbh_z = zb - z0;
     /* The trunk node nearest breast height carries the DBH exactly. */
-    size_t ub = 0;
-    double bd = INFINITY;
-    for (size_t i = 0; i < m; i++)
-        if (s->branch[i] == 0 && fabs(s->pos[3 * i + 2] - zb) < bd) {
-            bd = fabs(s->pos[3 * i + 2] - zb);
-            ub = i;
-        }
-    size_t k = 0;
-    double sx = 0, sy = 0, c[2], r = 0, rms = 0;
-    double tol = fmax(0.01, spacing);
+    size_t ub = trunk_node_near(s, zb);
     /* The trunk's neighbourhood: no trunk is wider than a tenth of the tree's
      * height (nor, for small trees, than a metre). Foliage hanging down to
      * breast height around the trunk otherwise joins the slab and RANSAC can
      * prefer a metres-wide circle through it (black oak: 9 m). */
-    double reach = fmax(0.5, 0.05 * info->height);
-    /* Sparse scans leave few points in a 10 cm slab: widen it (trunks are
-     * near vertical, so a taller slab still cuts one circle). */
-    for (int pass = 0; pass < 8 && !info->fitted; pass++) {
-        int widen = 1 << (pass % 4), near_axis = pass >= 4;
-        k = 0;
-        sx = sy = 0;
-        for (size_t i = 0; i < n; i++) {
-            if (fabs(xyz[3 * i + 2] - zb) > widen * slab / 2) continue;
-            /* Trunk points: on a trunk node, or (for sparse scans whose level
-             * sets mix heights) within half a metre of the trunk's axis. */
-            int32_t v = node_of[i];
-            double axis_d = hypot(xyz[3 * i] - s->pos[3 * ub], xyz[3 * i + 1] - s->pos[3 * ub + 1]);
-            if (axis_d > reach || (!(v >= 0 && s->branch[v] == 0) && (!near_axis || axis_d > 0.5))) continue;
-            xy[2 * k] = xyz[3 * i];
-            xy[2 * k + 1] = xyz[3 * i + 1];
-            sx += xy[2 * k];
-            sy += xy[2 * k + 1];
-            k++;
-        }
-        if (k >= 10 && sy_fit_circle(xy, k, tol, 1, c, &r, &rms) == 0 && r < reach) {
-            /* A fitted centre far outside the slab's points means the arc was
-             * too short to define the circle; the fallback is safer then. */
-            double mx = sx / (double)k, my = sy / (double)k;
-            if (hypot(c[0] - mx, c[1] - my) <= 1.5 * r) info->fitted = 1;
+    trunk_slab q = {s, xyz, node_of, n, slab, fmax(0.01, spacing), fmax(0.5, 0.05 * info->height),
+                    {s->pos[3 * ub], s->pos[3 * ub + 1]}};
+    double c[2], r = 0, rms = 0;
+    size_t k = 0;
+    info->fitted = fit_trunk_slab(&q, zb, xy, &k, c, &r, &rms);
+    if (info->fitted) {
+        /* Trunks taper: a breast-height circle much wider than the trunk
+         * halfway down went through limbs that leave the trunk there (black
+         * oak: 16 trunk returns against 30 limb returns in the slab). Refit
+         * close around the lower circle. */
+        double zl = z0 + 0.5 * (zb - z0), cl[2], rl, rmsl;
+        size_t kl;
+        trunk_slab low = q;
+        size_t ul = trunk_node_near(s, zl);
+        low.centre[0] = s->pos[3 * ul];
+        low.centre[1] = s->pos[3 * ul + 1];
+        if (fit_trunk_slab(&low, zl, xy, &kl, cl, &rl, &rmsl) && r > 1.2 * rl) {
+            trunk_slab near = q;
+            near.centre[0] = cl[0];
+            near.centre[1] = cl[1];
+            near.reach = 1.3 * rl;
+            double cn[2], rn, rmsn;
+            size_t kn;
+            if (fit_trunk_slab(&near, zb, xy, &kn, cn, &rn, &rmsn) && rn <= 1.2 * rl) {
+                r = rn;
+                rms = rmsn;
+            } else {
+                r = rl; /* the lower trunk's radius: tapering makes it an upper bound */
+                rms = rmsl;
+            }
         }
     }
     if (!info->fitted && k >= 3) {
