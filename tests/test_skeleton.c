@@ -68,6 +68,17 @@ static void assert_radii_taper(const sy_skeleton *s)
         if (s->parent[i] >= 0) assert_true(s->radius[i] <= s->radius[s->parent[i]]);
 }
 
+/* Samples t (n points, 2 mm noise) and reconstructs it with the defaults. */
+static void sample_and_reconstruct(const syn_tree *t, size_t n, uint64_t seed, sy_cloud *c, sy_skeleton *s,
+                                   sy_clusters *cl, sy_skeleton_report *r)
+{
+    sy_error err = {0};
+    assert_int_equal(syn_sample(t, n, 0, 0.002, seed, c, &err), SY_OK);
+    sy_skeleton_options o;
+    sy_skeleton_options_default(&o);
+    assert_int_equal(sy_reconstruct_skeleton(c, &o, s, cl, r, &err), SY_OK);
+}
+
 static void synthetic_tree_is_recovered(void **state)
 {
     (void)state;
@@ -75,13 +86,10 @@ static void synthetic_tree_is_recovered(void **state)
     syn_tree_make(&t, 1, 0);
     sy_cloud c;
     sy_error err = {0};
-    assert_int_equal(syn_sample(&t, 40000, 0, 0.002, 11, &c, &err), SY_OK);
-    sy_skeleton_options o;
-    sy_skeleton_options_default(&o);
     sy_skeleton s;
     sy_clusters cl;
     sy_skeleton_report r;
-    assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, &r, &err), SY_OK);
+    sample_and_reconstruct(&t, 40000, 11, &c, &s, &cl, &r);
     printf("synthetic: %zu nodes, %zu branches, %zu clusters (%zu points), DBH %.4f (truth %.4f), %.2f s\n", r.nodes,
            r.branches, r.clusters, r.cluster_points, r.dbh, 2 * syn_trunk_radius(1.3), r.t_total);
     assert_int_equal(sy_skeleton_validate(&s, &err), SY_OK);
@@ -169,14 +177,10 @@ static void dbh_ignores_low_limbs(void **state)
         t.seg[t.n++] = limb;
     }
     sy_cloud c;
-    sy_error err = {0};
-    assert_int_equal(syn_sample(&t, 40000, 0, 0.002, 9, &c, &err), SY_OK);
-    sy_skeleton_options o;
-    sy_skeleton_options_default(&o);
     sy_skeleton s;
     sy_clusters cl;
     sy_skeleton_report r;
-    assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, &r, &err), SY_OK);
+    sample_and_reconstruct(&t, 40000, 9, &c, &s, &cl, &r);
     printf("DBH with low limbs %.4f (truth %.4f), fitted %d\n", r.dbh, 2 * syn_trunk_radius(1.3), r.dbh_fitted);
     /* Without the check the circle runs through the limbs (0.40 m); with it
      * the fit stays on the trunk, a little wide from limb returns beside it. */
