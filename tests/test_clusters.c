@@ -59,7 +59,7 @@ static void mesh_checks_detect_open_and_flipped(void **state)
 static void low_confidence_rule(void **state)
 {
     (void)state;
-    /* Points on a cylinder of radius 5 cm around a vertical edge. */
+    /* Points on a cylinder of radius 5 cm around a vertical edge (0,0,0) -> (0,0,1). */
     float pts[3 * 64];
     uint32_t idx[64];
     for (int i = 0; i < 64; i++) {
@@ -70,13 +70,48 @@ static void low_confidence_rule(void **state)
         idx[i] = (uint32_t)i;
     }
     float p[3] = {0, 0, 0}, c[3] = {0, 0, 1};
-    /* Mean distance 0.05 against a 0.1 m diameter: a branch. */
-    assert_int_equal(sy_edge_low_confidence(p, c, pts, idx, 64, 0.1, 1.0), 0);
+    /* Distance 0.05 against a 0.1 m diameter: a branch. */
+    assert_int_equal(sy_edge_low_confidence(p, c, NULL, 0, pts, idx, 64, 0.1, 1.0), 0);
     /* The same points against a 4 cm branch: spread too wide, low confidence. */
-    assert_int_equal(sy_edge_low_confidence(p, c, pts, idx, 64, 0.04, 1.0), 1);
+    assert_int_equal(sy_edge_low_confidence(p, c, NULL, 0, pts, idx, 64, 0.04, 1.0), 1);
     /* f_s shrinks the diameter: 0.1 m * 0.4 < 0.05 m. */
-    assert_int_equal(sy_edge_low_confidence(p, c, pts, idx, 64, 0.1, 0.4), 1);
-    assert_int_equal(sy_edge_low_confidence(p, c, pts, idx, 0, 0.1, 1.0), 0);
+    assert_int_equal(sy_edge_low_confidence(p, c, NULL, 0, pts, idx, 64, 0.1, 0.4), 1);
+    /* No points, no evidence against the edge. */
+    assert_int_equal(sy_edge_low_confidence(p, c, NULL, 0, pts, idx, 0, 0.1, 1.0), 0);
+
+    /* A tip's level set straddles the node: a thin limb (r = 1 cm) whose
+     * piece reaches 4 cm past the tip node is still a branch (a segment ending
+     * at the tip would see the axial offset as spread). */
+    float thin[3 * 40];
+    for (int i = 0; i < 40; i++) {
+        double a = i * 0.9;
+        thin[3 * i] = (float)(0.01 * cos(a));
+        thin[3 * i + 1] = (float)(0.01 * sin(a));
+        thin[3 * i + 2] = (float)(0.96 + 0.08 * i / 39.0);
+    }
+    assert_int_equal(sy_edge_low_confidence(p, c, NULL, 0, thin, idx, 40, 0.025, 1.0), 0);
+
+    /* A fork: half the points on each of two limbs leaving the child. They lie
+     * far from the incoming edge but on the segments to the grandchildren. */
+    float fork[3 * 64], next[6] = {0.3f, 0, 1.3f, -0.3f, 0, 1.3f};
+    for (int i = 0; i < 64; i++) {
+        float t = (float)(i / 2) / 32.0f, side = i % 2 ? 1.0f : -1.0f;
+        fork[3 * i] = side * 0.3f * t + 0.01f;
+        fork[3 * i + 1] = 0.01f;
+        fork[3 * i + 2] = 1 + 0.3f * t;
+    }
+    assert_int_equal(sy_edge_low_confidence(p, c, next, 2, fork, idx, 64, 0.05, 1.0), 0);
+    /* Without the grandchildren the same points spread too wide. */
+    assert_int_equal(sy_edge_low_confidence(p, c, NULL, 0, fork, idx, 64, 0.05, 1.0), 1);
+    /* A leaf mass: points scattered 20-40 cm around the node, off every segment. */
+    float blob[3 * 64];
+    for (int i = 0; i < 64; i++) {
+        double a = i * 2.4, r = 0.2 + 0.2 * (i % 8) / 7.0;
+        blob[3 * i] = (float)(r * cos(a));
+        blob[3 * i + 1] = (float)(r * sin(a) + 0.3);
+        blob[3 * i + 2] = (float)(1 + 0.1 * sin(3 * a));
+    }
+    assert_int_equal(sy_edge_low_confidence(p, c, next, 2, blob, idx, 64, 0.05, 1.0), 1);
 }
 
 static void alpha_shape_of_a_ball(void **state)
@@ -165,7 +200,7 @@ static void foliage_becomes_clusters(void **state)
     size_t last_main = 0;
     for (int f = 0; f < 4; f++) {
         size_t nc, main_nodes = 0;
-        assert_int_equal(sy_clusters_cut(&s, cloud.xyz, fs[f], 0, cur, seeds, &nc, &err), SY_OK);
+        assert_int_equal(sy_clusters_cut(&s, cloud.xyz, NULL, fs[f], 0, cur, seeds, &nc, &err), SY_OK);
         for (size_t i = 0; i < s.n; i++) {
             main_nodes += cur[i] < 0;
             if (f > 0 && prev[i] < 0) assert_true(cur[i] < 0);

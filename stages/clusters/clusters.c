@@ -24,6 +24,29 @@ void sy_clusters_free(sy_clusters *c)
 
 /* ---- Low-confidence rule and the cut ---- */
 
+/* Distance of p from the ray that starts at a and runs through b: the branch
+ * axis of the edge a -> b. The points of b's level set straddle b (half a bin
+ * lies beyond it), so a segment ending at b would count their axial offset as
+ * spread: on a limb thinner than the bin that alone tripped the rule. */
+static double axis_dist(const float a[3], const float b[3], const float p[3])
+{
+    double ab[3], ap[3], t = 0, L = 0;
+    for (int k = 0; k < 3; k++) {
+        ab[k] = (double)b[k] - a[k];
+        ap[k] = (double)p[k] - a[k];
+        t += ab[k] * ap[k];
+        L += ab[k] * ab[k];
+    }
+    t = L > 0 ? fmax(0, t / L) : 0;
+    double d2 = 0;
+    for (int k = 0; k < 3; k++) {
+        double d = ap[k] - t * ab[k];
+        d2 += d * d;
+    }
+    return sqrt(d2);
+}
+
+/* Distance of p from the segment a-b. */
 static double seg_dist(const float a[3], const float b[3], const float p[3])
 {
     double ab[3], ap[3], t = 0, L = 0;
@@ -42,17 +65,22 @@ static double seg_dist(const float a[3], const float b[3], const float p[3])
     return sqrt(d2);
 }
 
-int sy_edge_low_confidence(const float parent[3], const float child[3], const float *xyz,
-                           const uint32_t *points, size_t n_points, double diameter, double fs)
+int sy_edge_low_confidence(const float parent[3], const float child[3], const float *next, size_t n_next,
+                           const float *xyz, const uint32_t *points, size_t n_points, double diameter, double fs)
 {
     if (n_points == 0) return 0;
     double sum = 0;
-    for (size_t i = 0; i < n_points; i++) sum += seg_dist(parent, child, xyz + 3 * (size_t)points[i]);
+    for (size_t i = 0; i < n_points; i++) {
+        const float *P = xyz + 3 * (size_t)points[i];
+        double d = n_next ? seg_dist(parent, child, P) : axis_dist(parent, child, P);
+        for (size_t c = 0; c < n_next; c++) d = fmin(d, seg_dist(child, next + 3 * c, P));
+        sum += d;
+    }
     return sum / (double)n_points > fs * diameter;
 }
 
-sy_code sy_clusters_cut(const sy_skeleton *s, const float *xyz, double fs, int min_points, int32_t *cluster_of,
-                        int32_t *seed_of, size_t *n_clusters, sy_error *err)
+sy_code sy_clusters_cut(const sy_skeleton *s, const float *xyz, const float *measured, double fs, int min_points,
+                        int32_t *cluster_of, int32_t *seed_of, size_t *n_clusters, sy_error *err)
 {
     size_t n = s->n;
     *n_clusters = 0;
@@ -63,21 +91,36 @@ sy_code sy_clusters_cut(const sy_skeleton *s, const float *xyz, double fs, int m
     /* group[i]: the seed node whose low-confidence group i belongs to, or -1. */
     int32_t *group = sy_calloc(n ? n : 1, sizeof *group, err, "clusters");
     size_t *pts = sy_calloc(n ? n : 1, sizeof *pts, err, "clusters");
-    if (!group || !pts) {
+    int32_t *first_child = sy_calloc(n ? n : 1, sizeof *first_child, err, "clusters");
+    int32_t *next_sibling = sy_calloc(n ? n : 1, sizeof *next_sibling, err, "clusters");
+    float *next = sy_calloc(n ? n : 1, 3 * sizeof *next, err, "clusters"); /* a node's children's positions */
+    if (!group || !pts || !first_child || !next_sibling || !next) {
         free(group);
         free(pts);
+        free(first_child);
+        free(next_sibling);
+        free(next);
         return SY_EINTERNAL;
     }
-    for (size_t i = 0; i < n; i++) group[i] = -1;
+    for (size_t i = 0; i < n; i++) group[i] = first_child[i] = next_sibling[i] = -1;
+    for (size_t i = n; i-- > 1;) {
+        next_sibling[i] = first_child[s->parent[i]];
+        first_child[s->parent[i]] = (int32_t)i;
+    }
     for (size_t i = 1; i < n; i++) {
         int32_t p = s->parent[i];
         if (group[p] >= 0) {
             group[i] = group[p];
             continue;
         }
+        /* A ring of returns around the axis is a branch the scan resolved. */
+        if (measured && measured[i] > 0) continue;
         const uint32_t *sp = s->support + s->support_start[i];
         size_t cnt = s->support_start[i + 1] - s->support_start[i];
-        if (sy_edge_low_confidence(s->pos + 3 * (size_t)p, s->pos + 3 * i, xyz, sp, cnt, 2.0 * s->radius[i], fs))
+        size_t nk = 0;
+        for (int32_t c = first_child[i]; c >= 0; c = next_sibling[c], nk++)
+            memcpy(next + 3 * nk, s->pos + 3 * (size_t)c, 3 * sizeof *next);
+        if (sy_edge_low_confidence(s->pos + 3 * (size_t)p, s->pos + 3 * i, next, nk, xyz, sp, cnt, 2.0 * s->radius[i], fs))
             group[i] = p;
     }
     for (size_t i = 0; i < n; i++)
@@ -112,6 +155,9 @@ sy_code sy_clusters_cut(const sy_skeleton *s, const float *xyz, double fs, int m
         if (group[i] >= 0) cluster_of[i] = index[group[i]];
     free(group);
     free(pts);
+    free(first_child);
+    free(next_sibling);
+    free(next);
     return SY_OK;
 }
 

@@ -27,6 +27,19 @@ sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of
                         double spacing, double ground_z, double dbh_height, double slab, sy_radii_info *info,
                         sy_error *err);
 
+/* Measured radii: for each node a circle fitted across its local branch axis
+ * to its own points and its neighbours' on the branch. fit[i] is the radius
+ * where the points lie on a circle (most within the band, round at least half
+ * of it, the circle no wider than the points), else 0. Returns how many nodes
+ * got one, or (size_t)-1 when memory ran out (err set). */
+size_t sy_measure_node_radii(const sy_skeleton *s, const float *xyz, double spacing, float *fit, sy_error *err);
+
+/* Scales the allometric radii of each branch (trunk excepted) by the median
+ * ratio of its measured radii (fit, 0 = none) to the allometric ones;
+ * branches with fewer than two measurements keep the allometry. Radii
+ * stay non-increasing toward the tips. Needs breadth-first order. */
+sy_code sy_calibrate_radii(sy_skeleton *s, const float *fit, sy_error *err);
+
 /* The Dijkstra sources: the points of the base slab (z <= ztop) connected to
  * the root within the slab, written to src; mark (n entries) is scratch. */
 size_t sy_base_sources(const float *xyz, size_t n, const sy_graph *g, uint32_t root, double ztop, int32_t *src,

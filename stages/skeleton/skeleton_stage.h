@@ -59,6 +59,7 @@ typedef struct {
     double dbh, dbh_rms, height;
     int dbh_fitted;       /* 1: circle fit at breast height, 0: fallback estimate */
     double d_root;        /* root diameter from which the allometry runs */
+    size_t radii_measured; /* nodes whose radius a circle fit measured (they rescale their branch) */
     double t_graph, t_dijkstra, t_levels, t_radii, t_clusters, t_hulls, t_total; /* seconds */
 } sy_skeleton_report;
 

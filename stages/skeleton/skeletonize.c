@@ -776,6 +776,7 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     int32_t *order = NULL, *stack = NULL, *cluster_of = NULL, *seed_of = NULL;
     uint8_t *wood = NULL; /* NULL: every point is wood */
     uint32_t *by_dist = NULL;
+    float *fit = NULL; /* measured radius per node of the full skeleton, 0 = none */
     double *reach = NULL;
     if (!dist || !path || !spt || !node_of || !point_node) {
         rc = SY_EINTERNAL;
@@ -833,6 +834,17 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     rc = sy_assign_radii(&full, xyz, point_node, n, o->gamma, s, ground, o->dbh_height, o->dbh_slab, &ri, err);
     free(l);
     if (rc) goto done;
+    /* Where the scan shows a limb as a ring of returns, its measured radius
+     * recalibrates the allometry along that branch: eq. 3.1 alone put order-1
+     * and order-2 radii off by 50-100% (docs/skeleton.md, Radii). */
+    fit = sy_calloc(full.n, sizeof *fit, err, "skeleton");
+    if (!fit) {
+        rc = SY_EINTERNAL;
+        goto done;
+    }
+    rep->radii_measured = sy_measure_node_radii(&full, xyz, s, fit, err);
+    rc = rep->radii_measured == (size_t)-1 ? SY_EINTERNAL : sy_calibrate_radii(&full, fit, err);
+    if (rc) goto done;
     rep->dbh = ri.dbh;
     rep->dbh_rms = ri.rms;
     rep->dbh_fitted = ri.fitted;
@@ -849,7 +861,7 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
         goto done;
     }
     if (o->clusters && clusters) {
-        rc = sy_clusters_cut(&full, xyz, o->fs, o->min_cluster_points, cluster_of, seed_of, &n_clusters, err);
+        rc = sy_clusters_cut(&full, xyz, fit, o->fs, o->min_cluster_points, cluster_of, seed_of, &n_clusters, err);
         if (rc) goto done;
     } else {
         for (size_t i = 0; i < full.n; i++) cluster_of[i] = -1;
@@ -922,6 +934,7 @@ done:
     free(reach);
     free(cluster_of);
     free(seed_of);
+    free(fit);
     free(wood);
     free(by_dist);
     rep->t_total = sy_now() - t0;
