@@ -1,7 +1,8 @@
 /* Library species grown and written as .glb by the pipeline
  * (sy_tree_asset_write), then read back: the per-vertex and per-instance
  * wind attributes against the skeleton they came from (docs/wind.md), with
- * instancing on and off, and the Khronos validator on both files. */
+ * instancing on and off, the Khronos validator on both files, and
+ * asset.extras, which must hold every species parameter and the seed. */
 #include "testutil.h"
 
 #include <math.h>
@@ -224,10 +225,9 @@ static void validate(const grown *g)
     assert_int_equal(system(cmd), 0);
 }
 
-static void check_wind(const char *species, int no_clones)
+static void check_wind(grown *gp, int no_clones)
 {
-    grown g;
-    grow_and_write(species, 3, &g);
+    grown g = *gp;
     int clones = 0;
     for (int32_t b = 0; b < g.nb; b++) clones += g.depth[b] != g.order[b];
     assert_true(no_clones ? clones == 0 : clones > 0);
@@ -250,21 +250,174 @@ static void check_wind(const char *species, int no_clones)
         sy_gltf_close(f);
     }
     validate(&g);
-    grown_free(&g);
+}
+
+/* asset.extras.parameters written back as a species file (each section's
+ * keys as "Key = value") into a memstream; returns the text. */
+static char *extras_as_ini(const sy_gltf_file *f, size_t *len, int *keys)
+{
+    char *ini = NULL;
+    FILE *fp = open_memstream(&ini, len);
+    assert_non_null(fp);
+    const char *params = "/asset/extras/parameters";
+    for (int si = 0; si < sy_gltf_size(f, params); si++) {
+        char sec[32], sp[96], key[64], vp[160], str[4096];
+        sy_gltf_key(f, params, si, sec, sizeof sec);
+        fprintf(fp, "[%s]\n", sec);
+        snprintf(sp, sizeof sp, "%s/%s", params, sec);
+        keys[si] = sy_gltf_size(f, sp);
+        for (int ki = 0; ki < keys[si]; ki++) {
+            sy_gltf_key(f, sp, ki, key, sizeof key);
+            snprintf(vp, sizeof vp, "%s/%s", sp, key);
+            if (sy_gltf_size(f, vp) == 3)
+                fprintf(fp, "%s = {%.9g, %.9g, %.9g}\n", key, glb_num(f, "%s/0", vp), glb_num(f, "%s/1", vp),
+                        glb_num(f, "%s/2", vp));
+            else if (sy_gltf_string(f, vp, str, sizeof str)[0])
+                fprintf(fp, "%s = %s\n", key, str);
+            else
+                fprintf(fp, "%s = %.17g\n", key, sy_gltf_number(f, vp, NAN));
+        }
+    }
+    fclose(fp);
+    return ini;
+}
+
+/* The parameters in the file parse back to the species the tree was grown
+ * from (every number bit-identical), and the species plus the seed in the
+ * file grow the identical skeleton. Floats are written in their shortest
+ * form. */
+static void extras_regrow_the_same_tree(void **state)
+{
+    grown *g = *state;
+    sy_gltf_file *f = NULL;
+    sy_error err = {0};
+    assert_int_equal(sy_gltf_open(g->path[INSTANCED], &f, &err), SY_OK);
+    char name[64];
+    assert_string_equal(sy_gltf_string(f, "/asset/extras/species", name, sizeof name), g->sp.name);
+    assert_true(glb_num(f, "/asset/extras/seed") == (double)g->seed);
+    /* Every key of every section: [General] 29 (32 less recLevels, an alias
+     * of Levels, and the unset thesis strings Material, MaterialNormal),
+     * [ParamLevel0] 17, deeper levels 16 (BaseSplits is a trunk key),
+     * [Sylva] 6 (sassafras names both textures). */
+    const int want[6] = {29, 17, 16, 16, 16, 6};
+    int keys[6] = {0};
+    assert_int_equal(sy_gltf_size(f, "/asset/extras/parameters"), 6);
+    size_t len;
+    char *ini = extras_as_ini(f, &len, keys);
+    for (int k = 0; k < 6; k++) assert_int_equal(keys[k], want[k]);
+    char tex[256];
+    assert_string_equal(sy_gltf_string(f, "/asset/extras/parameters/Sylva/bark", tex, sizeof tex), "textures/bark.png");
+    sy_gltf_close(f);
+
+    sy_species sp;
+    sy_code rc = sy_species_parse(ini, len, "extras.ini", SYLVA_SPECIES_DIR, &sp, &err);
+    if (rc) fprintf(stderr, "%s\n%s", err.msg, ini);
+    assert_int_equal(rc, SY_OK);
+    free(ini);
+    assert_string_equal(sp.name, g->sp.name);
+    assert_string_equal(sp.bark_texture, g->sp.bark_texture);
+    assert_string_equal(sp.leaf_texture, g->sp.leaf_texture);
+    /* Numbers: the structs match byte for byte once the strings are set
+     * aside (both start from sy_species_defaults' zeroed struct). */
+    sy_species a = g->sp, b = sp;
+    a.name = a.bark_texture = a.leaf_texture = a.material = a.material_normal = NULL;
+    b.name = b.bark_texture = b.leaf_texture = b.material = b.material_normal = NULL;
+    assert_memory_equal(&a, &b, sizeof a);
+
+    sy_skeleton sk;
+    assert_int_equal(sy_grow_tree(&sp, g->seed, &sk, NULL, &err), SY_OK);
+    assert_int_equal(sk.n, g->sk.n);
+    assert_memory_equal(sk.pos, g->sk.pos, 3 * sk.n * sizeof(float));
+    assert_memory_equal(sk.radius, g->sk.radius, sk.n * sizeof(float));
+    assert_memory_equal(sk.parent, g->sk.parent, sk.n * sizeof(int32_t));
+    sy_skeleton_free(&sk);
+    sy_species_free(&sp);
+}
+
+/* Significant digits of the number text [from, to): no sign, no leading or
+ * trailing zeros, no exponent. */
+static size_t sig_digits(const char *from, const char *to)
+{
+    const char *e = from;
+    while (e < to && *e != 'e' && *e != 'E') e++;
+    while (from < e && (*from == '-' || *from == '0' || *from == '.')) from++;
+    while (e > from && (e[-1] == '0' || e[-1] == '.')) e--;
+    size_t n = 0;
+    for (const char *d = from; d < e; d++) n += *d >= '0' && *d <= '9';
+    return n;
+}
+
+/* The parameters' numbers in the JSON text: each the shortest decimal of
+ * its float (0.05, never 0.05000000074505806). */
+static void extras_print_floats_shortest(void **state)
+{
+    grown *g = *state;
+    FILE *fp = fopen(g->path[INSTANCED], "rb");
+    assert_non_null(fp);
+    unsigned char head[20];
+    assert_int_equal(fread(head, 1, 20, fp), 20);
+    uint32_t n = (uint32_t)head[12] | (uint32_t)head[13] << 8 | (uint32_t)head[14] << 16 | (uint32_t)head[15] << 24;
+    char *text = calloc(n + 1, 1);
+    assert_non_null(text);
+    assert_int_equal(fread(text, 1, n, fp), n);
+    fclose(fp);
+    const char *p = strstr(text, "\"parameters\"");
+    assert_non_null(p);
+    assert_non_null(strstr(p, "\"LobeDepth\":0.05,"));
+    /* The parameters object ends at its matching brace (no strings in it
+     * hold braces). */
+    const char *open = strchr(p, '{'), *close = open;
+    for (int depth = 0; *close; close++) {
+        depth += *close == '{' ? 1 : *close == '}' ? -1 : 0;
+        if (depth == 0) break;
+    }
+    int numbers = 0;
+    for (const char *c = open; c < close; c++) {
+        if (!(c[0] == ':' || c[0] == ',' || c[0] == '[') || !(c[1] == '-' || (c[1] >= '0' && c[1] <= '9'))) continue;
+        char *end;
+        double v = strtod(c + 1, &end);
+        char shortest[32];
+        for (int digits = 1; digits <= 9; digits++) {
+            snprintf(shortest, sizeof shortest, "%.*g", digits, v);
+            if ((float)strtod(shortest, NULL) == (float)v) break;
+        }
+        if (sig_digits(c + 1, end) > sig_digits(shortest, shortest + strlen(shortest)))
+            fail_msg("parameter number %.*s is longer than its float's shortest form %s", (int)(end - c - 1), c + 1,
+                     shortest);
+        numbers++;
+    }
+    assert_true(numbers >= 29 + 17 + 3 * 16 + 3);
+    free(text);
+}
+
+static int grow_sassafras(void **state)
+{
+    static grown g;
+    grow_and_write("sassafras", 3, &g);
+    *state = &g;
+    return 0;
+}
+
+static int free_sassafras(void **state)
+{
+    grown_free(*state);
+    return 0;
 }
 
 /* Sassafras: four stem levels and no splits, so level = order everywhere. */
 static void wind_attributes_follow_the_skeleton(void **state)
 {
-    (void)state;
-    check_wind("sassafras", 1);
+    check_wind(*state, 1);
 }
 
 /* European pine splits its stems: clones sway as children of their stem. */
 static void split_clones_sway_as_children(void **state)
 {
     (void)state;
-    check_wind("european_pine", 0);
+    grown g;
+    grow_and_write("european_pine", 3, &g);
+    check_wind(&g, 0);
+    grown_free(&g);
 }
 
 int main(void)
@@ -272,6 +425,9 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(wind_attributes_follow_the_skeleton),
         cmocka_unit_test(split_clones_sway_as_children),
+        cmocka_unit_test(extras_regrow_the_same_tree),
+        cmocka_unit_test(extras_print_floats_shortest),
     };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    /* One sassafras (the group state) serves every test but the pine's. */
+    return cmocka_run_group_tests(tests, grow_sassafras, free_sassafras);
 }

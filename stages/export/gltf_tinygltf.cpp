@@ -456,6 +456,17 @@ extern "C" int sy_gltf_size(const sy_gltf_file *f, const char *pointer)
     return v && (v->is_array() || v->is_object()) ? (int)v->size() : -1;
 }
 
+extern "C" const char *sy_gltf_key(const sy_gltf_file *f, const char *pointer, int index, char *buf, size_t size)
+{
+    const json *v = lookup(f, pointer);
+    buf[0] = 0;
+    if (!v || !v->is_object() || index < 0 || (size_t)index >= v->size()) return buf;
+    auto it = v->begin();
+    std::advance(it, index);
+    snprintf(buf, size, "%s", it.key().c_str());
+    return buf;
+}
+
 extern "C" const unsigned char *sy_gltf_bin(const sy_gltf_file *f, size_t *size)
 {
     *size = f->bin.size();

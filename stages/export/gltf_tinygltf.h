@@ -129,6 +129,9 @@ double sy_gltf_number(const sy_gltf_file *f, const char *pointer, double fallbac
 const char *sy_gltf_string(const sy_gltf_file *f, const char *pointer, char *buf, size_t size);
 /* Length of the array or object at pointer, -1 when absent or a scalar. */
 int sy_gltf_size(const sy_gltf_file *f, const char *pointer);
+/* The index-th key of the object at pointer (in the JSON's key order), ""
+ * when absent; returns buf. */
+const char *sy_gltf_key(const sy_gltf_file *f, const char *pointer, int index, char *buf, size_t size);
 /* The BIN chunk (buffer 0). */
 const unsigned char *sy_gltf_bin(const sy_gltf_file *f, size_t *size);
 /* 1 if tinygltf itself loads the file without errors (files whose only
