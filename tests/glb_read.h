@@ -10,16 +10,22 @@
 #include "stages/export/gltf_tinygltf.h"
 #include "testutil.h"
 
+/* Formats the pointer of a variadic fmt into the char array p. */
+#define GLB_POINTER(p, fmt)                  \
+    do {                                     \
+        va_list ap_;                         \
+        va_start(ap_, fmt);                  \
+        vsnprintf(p, sizeof p, fmt, ap_);    \
+        va_end(ap_);                         \
+    } while (0)
+
 /* The number at a formatted pointer, -1 when absent (no count, index or
  * factor the tests read this way is negative). */
 static double glb_num(const sy_gltf_file *f, const char *fmt, ...) __attribute__((format(printf, 2, 3), unused));
 static double glb_num(const sy_gltf_file *f, const char *fmt, ...)
 {
     char p[256];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(p, sizeof p, fmt, ap);
-    va_end(ap);
+    GLB_POINTER(p, fmt);
     return sy_gltf_number(f, p, -1);
 }
 
@@ -27,10 +33,7 @@ static int glb_has(const sy_gltf_file *f, const char *fmt, ...) __attribute__((f
 static int glb_has(const sy_gltf_file *f, const char *fmt, ...)
 {
     char p[256];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(p, sizeof p, fmt, ap);
-    va_end(ap);
+    GLB_POINTER(p, fmt);
     return sy_gltf_has(f, p);
 }
 
