@@ -54,8 +54,9 @@ void sy_tree_asset_report_lods_json(sy_json *j, const sy_tree_asset_report *rep)
     sy_json_end(j);
 }
 
-/* asset.extras: which species and parameters made the tree. */
-static char *species_extras(const sy_species *sp)
+/* asset.extras: which species, every one of its parameters and the seed,
+ * enough to grow the same tree again (docs/gltf.md). */
+static char *species_extras(const sy_species *sp, uint64_t seed)
 {
     char *buf = NULL;
     size_t len = 0;
@@ -67,17 +68,9 @@ static char *species_extras(const sy_species *sp)
     sy_json_string(&j, "generator", "sylva");
     if (sp) {
         sy_json_string(&j, "species", sp->name ? sp->name : "");
+        sy_json_uint(&j, "seed", (unsigned long long)seed);
         sy_json_object(&j, "parameters");
-        sy_json_int(&j, "shape", sp->shape);
-        sy_json_number(&j, "scale", sp->scale);
-        sy_json_int(&j, "levels", sp->levels);
-        sy_json_number(&j, "base_size", sp->base_size);
-        sy_json_number(&j, "ratio", sp->ratio);
-        sy_json_number(&j, "leaves", sp->leaves);
-        sy_json_number(&j, "leaf_scale", sp->leaf_scale);
-        sy_json_number(&j, "leaf_scale_x", sp->leaf_scale_x);
-        sy_json_number(&j, "beta", sp->beta);
-        sy_json_number(&j, "gamma", sp->gamma);
+        sy_species_write_json(sp, &j);
         sy_json_end(&j);
     }
     sy_json_end(&j);
@@ -208,7 +201,7 @@ sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, co
         if (opt->impostor && (rc = sy_mesh_add_impostor(out, 0, opt->impostor_size, err))) goto fail;
     }
     snprintf(out->name, sizeof out->name, "%s", species && species->name ? species->name : "tree");
-    if (!(out->extras_json = species_extras(species))) {
+    if (!(out->extras_json = species_extras(species, opt->seed))) {
         rc = sy_fail(err, SY_EINTERNAL, "asset extras: out of memory");
         goto fail;
     }

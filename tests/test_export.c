@@ -16,6 +16,7 @@
 #include "stages/core/fileio.h"
 #include "stages/export/export.h"
 #include "stages/export/gltf_tinygltf.h"
+#include "glb_read.h"
 
 #define N_LEAVES 50
 #define PI 3.14159265358979323846
@@ -308,28 +309,6 @@ static sy_gltf_file *open_variant(int v)
     return f;
 }
 
-static double num(const sy_gltf_file *f, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static double num(const sy_gltf_file *f, const char *fmt, ...)
-{
-    char p[256];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(p, sizeof p, fmt, ap);
-    va_end(ap);
-    return sy_gltf_number(f, p, -1); /* -1: absent (no valid count, index or factor here is negative) */
-}
-
-static int has(const sy_gltf_file *f, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static int has(const sy_gltf_file *f, const char *fmt, ...)
-{
-    char p[256];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(p, sizeof p, fmt, ap);
-    va_end(ap);
-    return sy_gltf_has(f, p);
-}
-
 static int string_in_array(const sy_gltf_file *f, const char *array, const char *value)
 {
     char p[128], s[128];
@@ -353,31 +332,13 @@ static int mesh_named(const sy_gltf_file *f, const char *name)
 
 static int attribute(const sy_gltf_file *f, int mesh, const char *name)
 {
-    return (int)num(f, "/meshes/%d/primitives/0/attributes/%s", mesh, name);
-}
-
-/* Raw bytes of an accessor stored uncompressed in the BIN chunk. */
-static const unsigned char *accessor_data(const sy_gltf_file *f, int acc, size_t *count, size_t *stride)
-{
-    int view = (int)num(f, "/accessors/%d/bufferView", acc);
-    assert_int_equal((int)num(f, "/bufferViews/%d/buffer", view), 0);
-    char p[64];
-    snprintf(p, sizeof p, "/bufferViews/%d/byteOffset", view);
-    size_t off = (size_t)sy_gltf_number(f, p, 0);
-    size_t len = (size_t)num(f, "/bufferViews/%d/byteLength", view);
-    size_t bin_size;
-    const unsigned char *bin = sy_gltf_bin(f, &bin_size);
-    assert_true(off + len <= bin_size);
-    *count = (size_t)num(f, "/accessors/%d/count", acc);
-    snprintf(p, sizeof p, "/bufferViews/%d/byteStride", view);
-    *stride = (size_t)sy_gltf_number(f, p, 0);
-    return bin + off;
+    return (int)glb_num(f, "/meshes/%d/primitives/0/attributes/%s", mesh, name);
 }
 
 /* Node index of the LOD0 group's child whose name ends with suffix. */
 static int lod0_child(const sy_gltf_file *f, const char *suffix)
 {
-    int root = (int)num(f, "/scenes/0/nodes/0");
+    int root = (int)glb_num(f, "/scenes/0/nodes/0");
     char p[64], s[128];
     for (int c = 0;; c++) {
         snprintf(p, sizeof p, "/nodes/%d/children/%d", root, c);
@@ -437,13 +398,13 @@ static void images_are_png_buffer_views(void **state)
         assert_int_equal(sy_gltf_size(f, "/images"), 6);
         for (int i = 0; i < 6; i++) {
             char s[64];
-            assert_false(has(f, "/images/%d/uri", i));
+            assert_false(glb_has(f, "/images/%d/uri", i));
             char p[64];
             snprintf(p, sizeof p, "/images/%d/mimeType", i);
             assert_string_equal(sy_gltf_string(f, p, s, sizeof s), "image/png");
-            int view = (int)num(f, "/images/%d/bufferView", i);
-            assert_int_equal((int)num(f, "/bufferViews/%d/buffer", view), 0);
-            assert_false(has(f, "/bufferViews/%d/byteStride", view));
+            int view = (int)glb_num(f, "/images/%d/bufferView", i);
+            assert_int_equal((int)glb_num(f, "/bufferViews/%d/buffer", view), 0);
+            assert_false(glb_has(f, "/bufferViews/%d/byteStride", view));
             snprintf(p, sizeof p, "/images/%d/name", i);
             sy_gltf_string(f, p, s, sizeof s);
             const sy_image *src = NULL;
@@ -451,7 +412,7 @@ static void images_are_png_buffer_views(void **state)
                 if (strcmp(tree.images[k].name, s) == 0) src = &tree.images[k];
             assert_non_null(src);
             snprintf(p, sizeof p, "/bufferViews/%d/byteOffset", view);
-            size_t off = (size_t)sy_gltf_number(f, p, 0), len = (size_t)num(f, "/bufferViews/%d/byteLength", view);
+            size_t off = (size_t)sy_gltf_number(f, p, 0), len = (size_t)glb_num(f, "/bufferViews/%d/byteLength", view);
             assert_int_equal(len, src->size);
             assert_true(off + len <= bin_size);
             assert_memory_equal(bin + off, src->png, len);
@@ -471,8 +432,8 @@ static void buffer_views_are_aligned_and_strided(void **state)
             assert_int_equal((long)sy_gltf_number(f, p, 0) % 4, 0);
             snprintf(p, sizeof p, "/bufferViews/%d/extensions/EXT_meshopt_compression/byteOffset", i);
             assert_int_equal((long)sy_gltf_number(f, p, 0) % 4, 0);
-            if (num(f, "/bufferViews/%d/target", i) == 34962) {
-                double stride = num(f, "/bufferViews/%d/byteStride", i);
+            if (glb_num(f, "/bufferViews/%d/target", i) == 34962) {
+                double stride = glb_num(f, "/bufferViews/%d/byteStride", i);
                 assert_true(stride >= 4 && fmod(stride, 4) == 0);
             }
         }
@@ -490,35 +451,63 @@ static void materials_samplers_and_transmission(void **state)
     assert_true(sy_gltf_has(f, "/materials/0/normalTexture/index"));
     assert_false(sy_gltf_has(f, "/materials/0/alphaMode"));
     int bark_tex = (int)sy_gltf_number(f, "/materials/0/pbrMetallicRoughness/baseColorTexture/index", -1);
-    int bark_sampler = (int)num(f, "/textures/%d/sampler", bark_tex);
-    assert_int_equal((int)num(f, "/samplers/%d/wrapS", bark_sampler), 10497); /* REPEAT */
-    assert_int_equal((int)num(f, "/samplers/%d/minFilter", bark_sampler), 9987);
+    int bark_sampler = (int)glb_num(f, "/textures/%d/sampler", bark_tex);
+    assert_int_equal((int)glb_num(f, "/samplers/%d/wrapS", bark_sampler), 10497); /* REPEAT */
+    assert_int_equal((int)glb_num(f, "/samplers/%d/minFilter", bark_sampler), 9987);
 
     const char *leaf = "/materials/1";
     char p[160];
     snprintf(p, sizeof p, "%s/alphaMode", leaf);
     assert_string_equal(sy_gltf_string(f, p, s, sizeof s), "MASK");
-    assert_float_equal(num(f, "%s/alphaCutoff", leaf), 0.4, 1e-6);
+    assert_float_equal(glb_num(f, "%s/alphaCutoff", leaf), 0.4, 1e-6);
     snprintf(p, sizeof p, "%s/doubleSided", leaf);
     assert_true(sy_gltf_has(f, p));
-    assert_true(has(f, "%s/normalTexture/index", leaf));
+    assert_true(glb_has(f, "%s/normalTexture/index", leaf));
     const char *dt = "/materials/1/extensions/KHR_materials_diffuse_transmission";
-    assert_float_equal(num(f, "%s/diffuseTransmissionFactor", dt), 0.3, 1e-6);
-    assert_float_equal(num(f, "%s/diffuseTransmissionColorFactor/0", dt), 0.6, 1e-6);
-    assert_float_equal(num(f, "%s/diffuseTransmissionColorFactor/1", dt), 0.8, 1e-6);
-    assert_float_equal(num(f, "%s/diffuseTransmissionColorFactor/2", dt), 0.2, 1e-6);
-    int dtex = (int)num(f, "%s/diffuseTransmissionTexture/index", dt);
+    assert_float_equal(glb_num(f, "%s/diffuseTransmissionFactor", dt), 0.3, 1e-6);
+    assert_float_equal(glb_num(f, "%s/diffuseTransmissionColorFactor/0", dt), 0.6, 1e-6);
+    assert_float_equal(glb_num(f, "%s/diffuseTransmissionColorFactor/1", dt), 0.8, 1e-6);
+    assert_float_equal(glb_num(f, "%s/diffuseTransmissionColorFactor/2", dt), 0.2, 1e-6);
+    int dtex = (int)glb_num(f, "%s/diffuseTransmissionTexture/index", dt);
     assert_true(dtex >= 0 && dtex < sy_gltf_size(f, "/textures"));
-    int leaf_tex = (int)num(f, "%s/pbrMetallicRoughness/baseColorTexture/index", leaf);
-    int leaf_sampler = (int)num(f, "/textures/%d/sampler", leaf_tex);
-    assert_int_equal((int)num(f, "/samplers/%d/wrapS", leaf_sampler), 33071); /* CLAMP_TO_EDGE */
-    assert_int_equal((int)num(f, "/samplers/%d/wrapT", leaf_sampler), 33071);
-    assert_int_equal((int)num(f, "/samplers/%d/minFilter", leaf_sampler), 9987);
+    int leaf_tex = (int)glb_num(f, "%s/pbrMetallicRoughness/baseColorTexture/index", leaf);
+    int leaf_sampler = (int)glb_num(f, "/textures/%d/sampler", leaf_tex);
+    assert_int_equal((int)glb_num(f, "/samplers/%d/wrapS", leaf_sampler), 33071); /* CLAMP_TO_EDGE */
+    assert_int_equal((int)glb_num(f, "/samplers/%d/wrapT", leaf_sampler), 33071);
+    assert_int_equal((int)glb_num(f, "/samplers/%d/minFilter", leaf_sampler), 9987);
     assert_true(string_in_array(f, "/extensionsUsed", "KHR_materials_diffuse_transmission"));
     assert_false(string_in_array(f, "/extensionsRequired", "KHR_materials_diffuse_transmission"));
     /* The impostor has no transmission, so no extension object. */
     assert_false(sy_gltf_has(f, "/materials/2/extensions"));
     sy_gltf_close(f);
+}
+
+/* _WIND_ANCHOR (VEC3) and _WIND_LEVEL_STIFFNESS (VEC2), float, n each, hold
+ * the wind-table entry of the branch in _WIND_BRANCH at every vertex. */
+static void check_wind_branch_values(const sy_gltf_file *f, int v, int anchor, int ls, int branch, size_t n)
+{
+    char p[64], s[16];
+    const int acc[2] = {anchor, ls};
+    const char *type[2] = {"VEC3", "VEC2"};
+    for (int k = 0; k < 2; k++) {
+        assert_true(acc[k] >= 0);
+        assert_int_equal((size_t)glb_num(f, "/accessors/%d/count", acc[k]), n);
+        assert_int_equal((int)glb_num(f, "/accessors/%d/componentType", acc[k]), 5126);
+        snprintf(p, sizeof p, "/accessors/%d/type", acc[k]);
+        assert_string_equal(sy_gltf_string(f, p, s, sizeof s), type[k]);
+    }
+    if (variant_meshopt[v]) return; /* the data is checked on the uncompressed files */
+    size_t count, stride;
+    const float *an = (const float *)glb_accessor(f, anchor, &count, &stride);
+    const float *lv = (const float *)glb_accessor(f, ls, &count, &stride);
+    const unsigned char *br = glb_accessor(f, branch, &count, &stride);
+    for (size_t i = 0; i < n; i++) {
+        uint16_t b;
+        memcpy(&b, br + 4 * i, sizeof b);
+        assert_true(b < tree.n_wind);
+        assert_memory_equal(an + 3 * i, tree.wind[b].anchor, 12);
+        assert_true(lv[2 * i] == (float)tree.wind[b].level && lv[2 * i + 1] == tree.wind[b].stiffness);
+    }
 }
 
 static void meshes_have_attributes_bounds_and_wind(void **state)
@@ -530,32 +519,34 @@ static void meshes_have_attributes_bounds_and_wind(void **state)
         for (int m = 0; m < sy_gltf_size(f, "/meshes"); m++) {
             int pos = attribute(f, m, "POSITION");
             assert_true(pos >= 0);
-            assert_int_equal((int)num(f, "/accessors/%d/componentType", pos), 5126);
-            assert_true(has(f, "/accessors/%d/min/2", pos) && has(f, "/accessors/%d/max/2", pos));
-            assert_true(num(f, "/accessors/%d/min/1", pos) < num(f, "/accessors/%d/max/1", pos));
-            size_t n = (size_t)num(f, "/accessors/%d/count", pos);
+            assert_int_equal((int)glb_num(f, "/accessors/%d/componentType", pos), 5126);
+            assert_true(glb_has(f, "/accessors/%d/min/2", pos) && glb_has(f, "/accessors/%d/max/2", pos));
+            assert_true(glb_num(f, "/accessors/%d/min/1", pos) < glb_num(f, "/accessors/%d/max/1", pos));
+            size_t n = (size_t)glb_num(f, "/accessors/%d/count", pos);
             assert_true(attribute(f, m, "NORMAL") >= 0 && attribute(f, m, "TEXCOORD_0") >= 0);
             int ww = attribute(f, m, "_WIND_W");
             if (ww >= 0) {
                 with_wind++;
-                assert_int_equal((size_t)num(f, "/accessors/%d/count", ww), n);
+                assert_int_equal((size_t)glb_num(f, "/accessors/%d/count", ww), n);
                 int wb = attribute(f, m, "_WIND_BRANCH");
-                assert_int_equal((size_t)num(f, "/accessors/%d/count", wb), n);
-                assert_int_equal((int)num(f, "/accessors/%d/componentType", wb), 5123);
-                assert_int_equal((int)num(f, "/bufferViews/%d/byteStride", (int)num(f, "/accessors/%d/bufferView", wb)),
+                assert_int_equal((size_t)glb_num(f, "/accessors/%d/count", wb), n);
+                assert_int_equal((int)glb_num(f, "/accessors/%d/componentType", wb), 5123);
+                assert_int_equal((int)glb_num(f, "/bufferViews/%d/byteStride", (int)glb_num(f, "/accessors/%d/bufferView", wb)),
                                  4);
+                check_wind_branch_values(f, v, attribute(f, m, "_WIND_ANCHOR"), attribute(f, m, "_WIND_LEVEL_STIFFNESS"),
+                                         wb, n);
             }
-            int idx = (int)num(f, "/meshes/%d/primitives/0/indices", m);
-            assert_int_equal((int)num(f, "/accessors/%d/componentType", idx), n <= 65535 ? 5123 : 5125);
-            assert_false(has(f, "/bufferViews/%d/byteStride", (int)num(f, "/accessors/%d/bufferView", idx)));
+            int idx = (int)glb_num(f, "/meshes/%d/primitives/0/indices", m);
+            assert_int_equal((int)glb_num(f, "/accessors/%d/componentType", idx), n <= 65535 ? 5123 : 5125);
+            assert_false(glb_has(f, "/bufferViews/%d/byteStride", (int)glb_num(f, "/accessors/%d/bufferView", idx)));
         }
         /* 3 trunks + the leaf card (one shared mesh, or one baked mesh per level); not the impostor. */
         assert_int_equal(with_wind, variant_instancing[v] ? 4 : 6);
         int imp = mesh_named(f, "impostor");
         assert_true(imp >= 0);
-        assert_false(has(f, "/meshes/%d/primitives/0/attributes/TANGENT", imp));
+        assert_false(glb_has(f, "/meshes/%d/primitives/0/attributes/TANGENT", imp));
         /* trunk_lod2 came without tangents but has a normal map: generated. */
-        assert_true(has(f, "/meshes/%d/primitives/0/attributes/TANGENT", mesh_named(f, "trunk_lod2")));
+        assert_true(glb_has(f, "/meshes/%d/primitives/0/attributes/TANGENT", mesh_named(f, "trunk_lod2")));
         sy_gltf_close(f);
     }
 }
@@ -567,7 +558,7 @@ static void position_bounds_and_generated_tangents_match_data(void **state)
     int m = mesh_named(f, "trunk_lod0");
     int pos = attribute(f, m, "POSITION");
     size_t count, stride;
-    const float *p = (const float *)accessor_data(f, pos, &count, &stride);
+    const float *p = (const float *)glb_accessor(f, pos, &count, &stride);
     assert_int_equal(count, tree.meshes[0].n_vertices);
     assert_int_equal(stride, 12);
     assert_memory_equal(p, tree.meshes[0].position, count * 12);
@@ -577,13 +568,13 @@ static void position_bounds_and_generated_tangents_match_data(void **state)
             if (p[3 * i + c] < lo) lo = p[3 * i + c];
             if (p[3 * i + c] > hi) hi = p[3 * i + c];
         }
-        assert_true(num(f, "/accessors/%d/min/%d", pos, c) == (double)lo);
-        assert_true(num(f, "/accessors/%d/max/%d", pos, c) == (double)hi);
+        assert_true(glb_num(f, "/accessors/%d/min/%d", pos, c) == (double)lo);
+        assert_true(glb_num(f, "/accessors/%d/max/%d", pos, c) == (double)hi);
     }
     /* Generated tangents of trunk_lod2 follow +u around the tube, w = +1,
      * the same frame the test writes by hand for trunk_lod0. */
     int m2 = mesh_named(f, "trunk_lod2");
-    const float *t = (const float *)accessor_data(f, attribute(f, m2, "TANGENT"), &count, &stride);
+    const float *t = (const float *)glb_accessor(f, attribute(f, m2, "TANGENT"), &count, &stride);
     const sy_mesh *src = &tree.meshes[2];
     assert_int_equal(count, src->n_vertices);
     for (size_t i = 0; i < count; i++) {
@@ -605,21 +596,21 @@ static void leaves_are_gpu_instances(void **state)
         assert_true(string_in_array(f, "/extensionsRequired", "EXT_mesh_gpu_instancing"));
         int node = lod0_child(f, "_instances");
         assert_true(node >= 0);
-        assert_int_equal((int)num(f, "/nodes/%d/mesh", node), mesh_named(f, "leaf_card"));
+        assert_int_equal((int)glb_num(f, "/nodes/%d/mesh", node), mesh_named(f, "leaf_card"));
         const char *names[3] = {"TRANSLATION", "ROTATION", "SCALE"};
         const char *types[3] = {"VEC3", "VEC4", "VEC3"};
         for (int k = 0; k < 3; k++) {
-            int acc = (int)num(f, "/nodes/%d/extensions/EXT_mesh_gpu_instancing/attributes/%s", node, names[k]);
+            int acc = (int)glb_num(f, "/nodes/%d/extensions/EXT_mesh_gpu_instancing/attributes/%s", node, names[k]);
             assert_true(acc >= 0);
-            assert_int_equal((int)num(f, "/accessors/%d/count", acc), N_LEAVES);
-            assert_int_equal((int)num(f, "/accessors/%d/componentType", acc), 5126);
+            assert_int_equal((int)glb_num(f, "/accessors/%d/count", acc), N_LEAVES);
+            assert_int_equal((int)glb_num(f, "/accessors/%d/componentType", acc), 5126);
             char p[64], s[16];
             snprintf(p, sizeof p, "/accessors/%d/type", acc);
             assert_string_equal(sy_gltf_string(f, p, s, sizeof s), types[k]);
-            assert_false(has(f, "/bufferViews/%d/target", (int)num(f, "/accessors/%d/bufferView", acc)));
+            assert_false(glb_has(f, "/bufferViews/%d/target", (int)glb_num(f, "/accessors/%d/bufferView", acc)));
             if (v == V_PLAIN) {
                 size_t count, stride;
-                const float *d = (const float *)accessor_data(f, acc, &count, &stride);
+                const float *d = (const float *)glb_accessor(f, acc, &count, &stride);
                 const sy_instances *in = &tree.lods[0].instances[0];
                 const float *src = k == 0 ? in->translation : k == 1 ? in->rotation : in->scale;
                 assert_memory_equal(d, src, N_LEAVES * (k == 1 ? 16 : 12));
@@ -637,15 +628,15 @@ static void baked_fallback_has_no_instancing(void **state)
     sy_gltf_file *f = open_variant(V_BAKED);
     assert_false(string_in_array(f, "/extensionsUsed", "EXT_mesh_gpu_instancing"));
     assert_false(string_in_array(f, "/extensionsRequired", "EXT_mesh_gpu_instancing"));
-    for (int i = 0; i < sy_gltf_size(f, "/nodes"); i++) assert_false(has(f, "/nodes/%d/extensions/EXT_mesh_gpu_instancing", i));
+    for (int i = 0; i < sy_gltf_size(f, "/nodes"); i++) assert_false(glb_has(f, "/nodes/%d/extensions/EXT_mesh_gpu_instancing", i));
     int node = lod0_child(f, "_instances");
     assert_true(node >= 0);
-    int mesh = (int)num(f, "/nodes/%d/mesh", node);
+    int mesh = (int)glb_num(f, "/nodes/%d/mesh", node);
     int pos = attribute(f, mesh, "POSITION");
     size_t count, stride;
-    const float *p = (const float *)accessor_data(f, pos, &count, &stride);
+    const float *p = (const float *)glb_accessor(f, pos, &count, &stride);
     assert_int_equal(count, 4 * N_LEAVES);
-    assert_int_equal((int)num(f, "/accessors/%d/count", (int)num(f, "/meshes/%d/primitives/0/indices", mesh)),
+    assert_int_equal((int)glb_num(f, "/accessors/%d/count", (int)glb_num(f, "/meshes/%d/primitives/0/indices", mesh)),
                      6 * N_LEAVES);
     /* Vertex 2 of instance k = T + R (S p), R a rotation about Y by ang. */
     const sy_instances *in = &tree.lods[0].instances[0];
@@ -657,7 +648,7 @@ static void baked_fallback_has_no_instancing(void **state)
         assert_float_equal(p[3 * (4 * k + 2) + 2], in->translation[3 * k + 2] + z, 1e-5);
     }
     /* Normals rotate with the card: +Z turned about Y. */
-    const float *nrm = (const float *)accessor_data(f, attribute(f, mesh, "NORMAL"), &count, &stride);
+    const float *nrm = (const float *)glb_accessor(f, attribute(f, mesh, "NORMAL"), &count, &stride);
     assert_float_equal(nrm[3 * 4 * 7 + 0], sin(2.4 * 7), 1e-5);
     assert_float_equal(nrm[3 * 4 * 7 + 2], cos(2.4 * 7), 1e-5);
     sy_gltf_close(f);
@@ -670,7 +661,7 @@ static void lod_chain_uses_msft_lod(void **state)
         sy_gltf_file *f = open_variant(v);
         assert_int_equal(sy_gltf_size(f, "/scenes"), 1);
         assert_int_equal(sy_gltf_size(f, "/scenes/0/nodes"), 1);
-        int root = (int)num(f, "/scenes/0/nodes/0");
+        int root = (int)glb_num(f, "/scenes/0/nodes/0");
         int n_nodes = sy_gltf_size(f, "/nodes");
         char p[96];
         snprintf(p, sizeof p, "/nodes/%d/extensions/MSFT_lod/ids", root);
@@ -678,31 +669,31 @@ static void lod_chain_uses_msft_lod(void **state)
         snprintf(p, sizeof p, "/nodes/%d/extras/MSFT_screencoverage", root);
         assert_int_equal(sy_gltf_size(f, p), 4);
         for (int l = 0; l < 4; l++) {
-            double c = num(f, "/nodes/%d/extras/MSFT_screencoverage/%d", root, l);
+            double c = glb_num(f, "/nodes/%d/extras/MSFT_screencoverage/%d", root, l);
             assert_float_equal(c, tree.lods[l].screen_coverage, 1e-7);
-            if (l) assert_true(c < num(f, "/nodes/%d/extras/MSFT_screencoverage/%d", root, l - 1));
+            if (l) assert_true(c < glb_num(f, "/nodes/%d/extras/MSFT_screencoverage/%d", root, l - 1));
         }
         for (int l = 0; l < 3; l++) {
-            int id = (int)num(f, "/nodes/%d/extensions/MSFT_lod/ids/%d", root, l);
+            int id = (int)glb_num(f, "/nodes/%d/extensions/MSFT_lod/ids/%d", root, l);
             assert_true(id >= 0 && id < n_nodes && id != root);
             /* Each level groups its parts: trunk + leaves, or the impostor. */
             snprintf(p, sizeof p, "/nodes/%d/children", id);
             assert_int_equal(sy_gltf_size(f, p), l < 2 ? 2 : 1);
-            assert_false(has(f, "/nodes/%d/mesh", id));
+            assert_false(glb_has(f, "/nodes/%d/mesh", id));
         }
         snprintf(p, sizeof p, "/nodes/%d/children", root);
         assert_int_equal(sy_gltf_size(f, p), 2);
         assert_true(string_in_array(f, "/extensionsUsed", "MSFT_lod"));
         assert_false(string_in_array(f, "/extensionsRequired", "MSFT_lod"));
         /* The per-branch wind table rides on the root node. */
-        assert_int_equal((int)num(f, "/nodes/%d/extras/sylva_wind/count", root), 2);
-        assert_true(has(f, "/nodes/%d/extras/sylva_wind/parent/0", root));
-        assert_int_equal((int)num(f, "/nodes/%d/extras/sylva_wind/parent/0", root), -1);
-        assert_int_equal((int)num(f, "/nodes/%d/extras/sylva_wind/parent/1", root), 0);
+        assert_int_equal((int)glb_num(f, "/nodes/%d/extras/sylva_wind/count", root), 2);
+        assert_true(glb_has(f, "/nodes/%d/extras/sylva_wind/parent/0", root));
+        assert_int_equal((int)glb_num(f, "/nodes/%d/extras/sylva_wind/parent/0", root), -1);
+        assert_int_equal((int)glb_num(f, "/nodes/%d/extras/sylva_wind/parent/1", root), 0);
         snprintf(p, sizeof p, "/nodes/%d/extras/sylva_wind/anchor", root);
         assert_int_equal(sy_gltf_size(f, p), 6);
-        assert_float_equal(num(f, "/nodes/%d/extras/sylva_wind/anchor/4", root), 1.2, 1e-6);
-        assert_float_equal(num(f, "/nodes/%d/extras/sylva_wind/frequency/1", root), 2.7, 1e-6);
+        assert_float_equal(glb_num(f, "/nodes/%d/extras/sylva_wind/anchor/4", root), 1.2, 1e-6);
+        assert_float_equal(glb_num(f, "/nodes/%d/extras/sylva_wind/frequency/1", root), 2.7, 1e-6);
         sy_gltf_close(f);
     }
 }
@@ -721,23 +712,23 @@ static void meshopt_streams_decode_to_the_originals(void **state)
     int m = mesh_named(f, "trunk_lod0");
     const sy_mesh *src = &tree.meshes[0];
 
-    int views[2] = {(int)num(f, "/accessors/%d/bufferView", attribute(f, m, "POSITION")),
-                    (int)num(f, "/accessors/%d/bufferView", (int)num(f, "/meshes/%d/primitives/0/indices", m))};
+    int views[2] = {(int)glb_num(f, "/accessors/%d/bufferView", attribute(f, m, "POSITION")),
+                    (int)glb_num(f, "/accessors/%d/bufferView", (int)glb_num(f, "/meshes/%d/primitives/0/indices", m))};
     for (int k = 0; k < 2; k++) {
         int view = views[k];
-        assert_int_equal((int)num(f, "/bufferViews/%d/buffer", view), 1);
+        assert_int_equal((int)glb_num(f, "/bufferViews/%d/buffer", view), 1);
         char p[128];
         snprintf(p, sizeof p, "/bufferViews/%d/byteOffset", view);
-        assert_true(sy_gltf_number(f, p, 0) + num(f, "/bufferViews/%d/byteLength", view) <= fallback_len);
+        assert_true(sy_gltf_number(f, p, 0) + glb_num(f, "/bufferViews/%d/byteLength", view) <= fallback_len);
         snprintf(p, sizeof p, "/bufferViews/%d/extensions/EXT_meshopt_compression", view);
         char q[192], mode[32];
         snprintf(q, sizeof q, "%s/mode", p);
         sy_gltf_string(f, q, mode, sizeof mode);
-        assert_int_equal((int)num(f, "%s/buffer", p), 0);
-        size_t off = (size_t)num(f, "%s/byteOffset", p), len = (size_t)num(f, "%s/byteLength", p);
-        size_t count = (size_t)num(f, "%s/count", p), stride = (size_t)num(f, "%s/byteStride", p);
+        assert_int_equal((int)glb_num(f, "%s/buffer", p), 0);
+        size_t off = (size_t)glb_num(f, "%s/byteOffset", p), len = (size_t)glb_num(f, "%s/byteLength", p);
+        size_t count = (size_t)glb_num(f, "%s/count", p), stride = (size_t)glb_num(f, "%s/byteStride", p);
         assert_true(off + len <= bin_size);
-        assert_int_equal(count * stride, (size_t)num(f, "/bufferViews/%d/byteLength", view));
+        assert_int_equal(count * stride, (size_t)glb_num(f, "/bufferViews/%d/byteLength", view));
         if (k == 0) {
             assert_string_equal(mode, "ATTRIBUTES");
             assert_int_equal(bin[off], 0xa0);
@@ -761,7 +752,7 @@ static void meshopt_streams_decode_to_the_originals(void **state)
     }
     /* Images are never compressed and never point at the fallback buffer. */
     for (int i = 0; i < sy_gltf_size(f, "/images"); i++)
-        assert_int_equal((int)num(f, "/bufferViews/%d/buffer", (int)num(f, "/images/%d/bufferView", i)), 0);
+        assert_int_equal((int)glb_num(f, "/bufferViews/%d/buffer", (int)glb_num(f, "/images/%d/bufferView", i)), 0);
     sy_gltf_close(f);
 
     struct stat a, b;
@@ -794,15 +785,15 @@ static void large_meshes_use_32_bit_indices(void **state)
     sy_gltf_file *f = NULL;
     assert_int_equal(sy_gltf_open(path, &f, &err), SY_OK);
     int idx = (int)sy_gltf_number(f, "/meshes/0/primitives/0/indices", -1);
-    assert_int_equal((int)num(f, "/accessors/%d/componentType", idx), 5125);
+    assert_int_equal((int)glb_num(f, "/accessors/%d/componentType", idx), 5125);
     assert_false(sy_gltf_has(f, "/meshes/0/primitives/0/attributes/_WIND_W"));
     assert_false(sy_gltf_has(f, "/meshes/0/primitives/0/attributes/TANGENT")); /* no normal map */
     assert_false(sy_gltf_has(f, "/extensionsUsed"));
     /* One level, no wind: the root carries neither MSFT_lod nor extras. */
     int root = (int)sy_gltf_number(f, "/scenes/0/nodes/0", -1);
-    assert_true(has(f, "/nodes/%d/children/0", root));
-    assert_false(has(f, "/nodes/%d/extras", root));
-    assert_false(has(f, "/nodes/%d/extensions", root));
+    assert_true(glb_has(f, "/nodes/%d/children/0", root));
+    assert_false(glb_has(f, "/nodes/%d/extras", root));
+    assert_false(glb_has(f, "/nodes/%d/extensions", root));
     sy_gltf_close(f);
     sy_asset_free(&a);
 }

@@ -360,6 +360,115 @@ static void straight_trunk_is_closed_and_stands_along_y(void **state)
     sy_skeleton_free(&s);
 }
 
+/* Distances from the axis x = 1, z = -2 (Y-up) of the P + 1 vertices of
+ * tube ring r of m, as the amplitudes |c_k| / c_0 of their harmonics
+ * k = 0..P/2 around the ring (vertex j at angle 2 pi j / P). */
+static void ring_harmonics(const sy_mesh *m, size_t r, size_t P, double *amp)
+{
+    double rho[65];
+    for (size_t j = 0; j < P; j++) {
+        const float *p = m->position + 3 * (r * (P + 1) + j);
+        rho[j] = hypot(p[0] - 1.0, p[2] + 2.0);
+    }
+    for (size_t k = 0; k <= P / 2; k++) {
+        double re = 0, im = 0;
+        for (size_t j = 0; j < P; j++) {
+            double th = 2 * PI * (double)(k * j) / (double)P;
+            re += rho[j] * cos(th), im -= rho[j] * sin(th);
+        }
+        amp[k] = hypot(re, im) / (double)P;
+    }
+    for (size_t k = 1; k <= P / 2; k++) amp[k] = 2 * amp[k] / amp[0];
+}
+
+/* Weber-Penn lobes on a straight cylinder trunk: each LOD0 ring's distance
+ * from the axis is R (1 + d sin(L theta)), a pure L-th harmonic of relative
+ * amplitude d about the node radius; normals stay unit, orthogonal to the
+ * tangents and perpendicular to the ring (no slope); a ring too coarse for
+ * L lobes is the circle of the same area. */
+static void lobed_trunk_ripples_with_lobes_and_depth(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_error err;
+    memset(&s, 0, sizeof s);
+    int32_t prev = -1;
+    for (int i = 0; i <= 8; i++) {
+        float p[3] = {1.0f, 2.0f, (float)i};
+        prev = sy_skeleton_add(&s, p, 0.4f, prev, 0, 0, &err);
+    }
+    s.lobes = 3;
+    s.lobe_depth = 0.3f;
+    sy_mesh_options o = sy_mesh_options_default();
+    o.impostor_size = 64;
+    /* Rings fine enough that chords follow the analytic curve; LOD3 gets 6. */
+    o.radial_segments = 48;
+    sy_asset a;
+    mesh_tree(&s, NULL, &o, &a);
+    const sy_mesh *m = bark0(&a);
+    check_mesh_basics(m);
+    sy_stems st;
+    assert_int_equal(sy_stems_build(&s, &o, &st, &err), SY_OK);
+    size_t P = (size_t)st.s[0].radial, rings = st.s[0].n_samp;
+    assert_int_equal(P, 48);
+    for (size_t r = 0; r < rings; r++) {
+        double amp[25];
+        ring_harmonics(m, r, P, amp);
+        assert_float_equal(amp[0], 0.4, 1e-5);
+        for (size_t k = 1; k <= P / 2; k++) assert_float_equal(amp[k], k == 3 ? 0.3 : 0.0, 1e-4);
+        for (size_t j = 0; j <= P; j++) {
+            size_t v = r * (P + 1) + j;
+            const float *n = m->normal + 3 * v;
+            /* No taper: the normal lies in the ring's plane (Y-up: y = 0)... */
+            assert_true(fabsf(n[1]) < 1e-5f);
+            /* ...and is perpendicular to the ring's chord through v, to the
+             * chord's own O(h^2) error (a purely radial normal, ignoring
+             * df/dtheta, is off by up to d L / (1 - d) = 1.3 rad here). */
+            const float *a0 = m->position + 3 * (r * (P + 1) + (j + P - 1) % P);
+            const float *a1 = m->position + 3 * (r * (P + 1) + (j + 1) % P);
+            float chord[3] = {a1[0] - a0[0], a1[1] - a0[1], a1[2] - a0[2]};
+            assert_true(fabsf(sy_dot3(n, chord)) < 0.05f * sqrtf(sy_dot3(chord, chord)));
+            /* The tangent follows the ring (+u) the same way. */
+            assert_true(sy_dot3(m->tangent + 4 * v, chord) > 0.998f * sqrtf(sy_dot3(chord, chord)));
+        }
+    }
+    /* Level 3 draws the trunk with 6 vertices: below 2 L + 1, so a circle of
+     * radius R sqrt(1 + d^2 / 2). */
+    const sy_mesh *m3 = &a.meshes[a.lods[3].meshes[0]];
+    double amp[4];
+    ring_harmonics(m3, 0, 6, amp);
+    assert_float_equal(amp[0], 0.4 * sqrt(1 + 0.5 * 0.09), 1e-5);
+    for (int k = 1; k <= 3; k++) assert_float_equal(amp[k], 0, 1e-5);
+    sy_stems_free(&st);
+    sy_asset_free(&a);
+    /* Reconstructed trees carry no lobes; out-of-range values are refused. */
+    s.lobe_depth = 1.0f;
+    assert_int_equal(sy_skeleton_validate(&s, &err), SY_EINPUT);
+    assert_non_null(strstr(err.msg, "lobes"));
+    sy_skeleton_free(&s);
+}
+
+/* Children of a lobed trunk start on its rippled surface, not on the mean
+ * circle: every junction ring lies on the drawn parent (check_branches). */
+static void branches_sit_on_a_lobed_trunk(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_leaves lv;
+    assert_int_equal(tg_tree(5, 2, 9, 0, 6.0f, &s, &lv), 0);
+    s.lobes = 5;
+    s.lobe_depth = 0.25f;
+    sy_mesh_options o = sy_mesh_options_default();
+    o.impostor_size = 64;
+    sy_asset a;
+    mesh_tree(&s, &lv, &o, &a);
+    check_mesh_basics(bark0(&a));
+    assert_true(check_branches(&s, &a) > 5);
+    sy_asset_free(&a);
+    sy_skeleton_free(&s);
+    sy_leaves_free(&lv);
+}
+
 static void bent_trunk_branches_sit_on_the_parent(void **state)
 {
     (void)state;
@@ -620,6 +729,8 @@ int main(void)
         cmocka_unit_test(hermite_and_beam_match_references),
         cmocka_unit_test(rmf_has_no_twist_on_a_planar_s_curve),
         cmocka_unit_test(straight_trunk_is_closed_and_stands_along_y),
+        cmocka_unit_test(lobed_trunk_ripples_with_lobes_and_depth),
+        cmocka_unit_test(branches_sit_on_a_lobed_trunk),
         cmocka_unit_test(bent_trunk_branches_sit_on_the_parent),
         cmocka_unit_test(random_tree_meets_every_property),
         cmocka_unit_test(bad_input_is_refused_with_a_message),

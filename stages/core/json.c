@@ -99,6 +99,28 @@ void sy_json_int(sy_json *j, const char *key, long long value)
     fprintf(j->fp, "%lld", value);
 }
 
+void sy_json_uint(sy_json *j, const char *key, unsigned long long value)
+{
+    prefix(j, key);
+    fprintf(j->fp, "%llu", value);
+}
+
+void sy_json_float(sy_json *j, const char *key, float value)
+{
+    prefix(j, key);
+    if (!isfinite(value)) {
+        fputs("null", j->fp);
+        return;
+    }
+    /* 9 significant digits always round-trip a float; most need fewer. */
+    char buf[32];
+    for (int digits = 6; digits <= 9; digits++) {
+        snprintf(buf, sizeof buf, "%.*g", digits, (double)value);
+        if (strtof(buf, NULL) == value) break;
+    }
+    fputs(buf, j->fp);
+}
+
 void sy_json_bool(sy_json *j, const char *key, int value)
 {
     prefix(j, key);

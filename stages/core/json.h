@@ -19,7 +19,11 @@ void sy_json_array(sy_json *j, const char *key);
 void sy_json_end(sy_json *j);                     /* closes the innermost object/array */
 void sy_json_string(sy_json *j, const char *key, const char *value);
 void sy_json_number(sy_json *j, const char *key, double value); /* NaN/Inf become null */
+/* A float as the shortest decimal that reads back as the same float: 0.05,
+ * not 0.05000000074505806. NaN/Inf become null. */
+void sy_json_float(sy_json *j, const char *key, float value);
 void sy_json_int(sy_json *j, const char *key, long long value);
+void sy_json_uint(sy_json *j, const char *key, unsigned long long value);
 void sy_json_bool(sy_json *j, const char *key, int value);
 void sy_json_numbers(sy_json *j, const char *key, const double *v, int n);
 void sy_json_finish(sy_json *j); /* trailing newline */

@@ -75,6 +75,9 @@ int32_t sy_skeleton_add(sy_skeleton *s, const float pos[3], float radius, int32_
 sy_code sy_skeleton_validate(const sy_skeleton *s, sy_error *err)
 {
     size_t roots = 0;
+    if (s->lobes < 0 || !(s->lobe_depth >= 0 && s->lobe_depth < 1))
+        return sy_fail(err, SY_EINPUT, "skeleton: %d trunk lobes of depth %g (want lobes >= 0, depth in [0, 1))",
+                       s->lobes, (double)s->lobe_depth);
     for (size_t i = 0; i < s->n; i++) {
         if (s->parent[i] < -1 || s->parent[i] >= (int32_t)s->n || s->parent[i] == (int32_t)i)
             return sy_fail(err, SY_EINPUT, "skeleton: node %zu has invalid parent %d", i, s->parent[i]);

@@ -25,6 +25,12 @@ typedef struct {
      * Points of node i are support[support_start[i] .. support_start[i+1]). */
     uint32_t *support_start; /* n+1 or NULL */
     uint32_t *support;       /* or NULL */
+    /* Weber-Penn trunk lobes (grown trees): the cross-section of every
+     * order-0 stem ripples as radius * (1 + lobe_depth * sin(lobes * angle)),
+     * the node radius being the mean. 0 and 0 for reconstructed trees: a
+     * scan's trunk has no such parameters. */
+    int lobes;
+    float lobe_depth; /* [0, 1) */
 } sy_skeleton;
 
 sy_code sy_skeleton_init(sy_skeleton *s, size_t n, sy_error *err);
@@ -33,7 +39,8 @@ void sy_skeleton_free(sy_skeleton *s);
 int32_t sy_skeleton_add(sy_skeleton *s, const float pos[3], float radius, int32_t parent, int order,
                         int32_t branch, sy_error *err);
 /* Checks the invariants (one root, no cycles, parents in range, finite
- * positions, radius > 0); the message names the first violation. */
+ * positions, radius > 0, lobes >= 0 with depth in [0, 1)); the message names
+ * the first violation. */
 sy_code sy_skeleton_validate(const sy_skeleton *s, sy_error *err);
 /* Number of branches (max branch id + 1). */
 int32_t sy_skeleton_branch_count(const sy_skeleton *s);

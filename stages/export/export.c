@@ -317,6 +317,33 @@ static int add_float_stream(builder *b, const float *data, size_t count, int com
     return add_accessor(b, view, SY_GLTF_FLOAT, components, count, bounds ? data : NULL);
 }
 
+/* The per-branch values a simple sway shader needs, copied from asset.wind
+ * to every vertex or instance so it needs no table lookup (docs/wind.md):
+ * the anchor of the branch each element follows (VEC3) and (level,
+ * stiffness) (VEC2). Float, because the level is an exact small integer and
+ * shaders read float attributes everywhere. Returns 0, or -1 with err set. */
+static int add_wind_branch_streams(builder *b, const uint16_t *branch, size_t n, int target, int *anchor,
+                                   int *level_stiffness)
+{
+    float *an = sy_calloc(3 * n, sizeof *an, b->err, "wind anchor stream");
+    float *ls = an ? sy_calloc(2 * n, sizeof *ls, b->err, "wind level stream") : NULL;
+    if (!ls) {
+        free(an);
+        return -1;
+    }
+    for (size_t i = 0; i < n; i++) {
+        const sy_wind_branch *w = &b->asset->wind[branch[i]];
+        memcpy(an + 3 * i, w->anchor, sizeof w->anchor);
+        ls[2 * i] = (float)w->level;
+        ls[2 * i + 1] = w->stiffness;
+    }
+    *anchor = add_float_stream(b, an, n, 3, target, 0);
+    *level_stiffness = add_float_stream(b, ls, n, 2, target, 0);
+    free(an);
+    free(ls);
+    return *anchor < 0 || *level_stiffness < 0 ? -1 : 0;
+}
+
 /* Tangents from uv derivatives, for normal-mapped meshes that came without
  * them (the validator warns when a viewer must generate them). glTF's v axis
  * points down the image while its normal maps have +Y up, so the bitangent
@@ -377,7 +404,7 @@ static int emit_mesh(builder *b, const sy_mesh *m)
     memset(&gm, 0, sizeof gm);
     snprintf(gm.name, sizeof gm.name, "%s", m->name);
     gm.material = m->material;
-    gm.tangent = gm.texcoord = gm.wind_w = gm.wind_branch = -1;
+    gm.tangent = gm.texcoord = gm.wind_w = gm.wind_branch = gm.wind_anchor = gm.wind_level_stiffness = -1;
     gm.position = add_float_stream(b, m->position, n, 3, SY_GLTF_ARRAY_BUFFER, 1);
     gm.normal = add_float_stream(b, m->normal, n, 3, SY_GLTF_ARRAY_BUFFER, 0);
     if (gm.position < 0 || gm.normal < 0) return -1;
@@ -403,7 +430,10 @@ static int emit_mesh(builder *b, const sy_mesh *m)
         int view = add_view(b, padded, n, 4, SY_GLTF_ARRAY_BUFFER, NULL, 0);
         free(padded);
         gm.wind_branch = add_accessor(b, view, SY_GLTF_UNSIGNED_SHORT, 1, n, NULL);
-        if (gm.wind_branch < 0) return -1;
+        if (gm.wind_branch < 0 ||
+            add_wind_branch_streams(b, m->wind_branch, n, SY_GLTF_ARRAY_BUFFER, &gm.wind_anchor,
+                                    &gm.wind_level_stiffness))
+            return -1;
     }
     /* 16-bit indices when every index fits below the primitive-restart value. */
     int narrow = n <= 65535;
@@ -443,7 +473,7 @@ static int add_node(builder *b, const char *name, int mesh)
     snprintf(nd->name, sizeof nd->name, "%s", name);
     nd->mesh = mesh;
     nd->inst_translation = nd->inst_rotation = nd->inst_scale = -1;
-    nd->inst_wind_w = nd->inst_wind_branch = -1;
+    nd->inst_wind_w = nd->inst_wind_branch = nd->inst_wind_anchor = nd->inst_wind_level_stiffness = -1;
     return (int)d->n_nodes++;
 }
 
@@ -562,6 +592,9 @@ static int emit_instances(builder *b, const sy_instances *in, const char *name)
             if (w < 0 || wb < 0) return -1;
             b->doc.nodes[node].inst_wind_w = w;
             b->doc.nodes[node].inst_wind_branch = wb;
+            if (add_wind_branch_streams(b, in->wind_branch, in->n, 0, &b->doc.nodes[node].inst_wind_anchor,
+                                        &b->doc.nodes[node].inst_wind_level_stiffness))
+                return -1;
         }
         return node;
     }

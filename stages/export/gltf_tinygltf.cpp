@@ -148,9 +148,14 @@ void add_mesh(tinygltf::Model &model, const sy_gltf_mesh &gm)
     prim.mode = TINYGLTF_MODE_TRIANGLES;
     prim.indices = gm.indices;
     prim.material = gm.material;
-    const std::pair<const char *, int> attrs[] = {{"POSITION", gm.position}, {"NORMAL", gm.normal},
-                                                  {"TANGENT", gm.tangent},   {"TEXCOORD_0", gm.texcoord},
-                                                  {"_WIND_W", gm.wind_w},    {"_WIND_BRANCH", gm.wind_branch}};
+    const std::pair<const char *, int> attrs[] = {{"POSITION", gm.position},
+                                                  {"NORMAL", gm.normal},
+                                                  {"TANGENT", gm.tangent},
+                                                  {"TEXCOORD_0", gm.texcoord},
+                                                  {"_WIND_W", gm.wind_w},
+                                                  {"_WIND_BRANCH", gm.wind_branch},
+                                                  {"_WIND_ANCHOR", gm.wind_anchor},
+                                                  {"_WIND_LEVEL_STIFFNESS", gm.wind_level_stiffness}};
     for (const auto &a : attrs)
         if (a.second >= 0) prim.attributes[a.first] = a.second;
     tinygltf::Mesh mesh;
@@ -172,6 +177,9 @@ void add_node(tinygltf::Model &model, const sy_gltf_doc &doc, const sy_gltf_node
         attrs["SCALE"] = tinygltf::Value(gn.inst_scale);
         if (gn.inst_wind_w >= 0) attrs["_WIND_W"] = tinygltf::Value(gn.inst_wind_w);
         if (gn.inst_wind_branch >= 0) attrs["_WIND_BRANCH"] = tinygltf::Value(gn.inst_wind_branch);
+        if (gn.inst_wind_anchor >= 0) attrs["_WIND_ANCHOR"] = tinygltf::Value(gn.inst_wind_anchor);
+        if (gn.inst_wind_level_stiffness >= 0)
+            attrs["_WIND_LEVEL_STIFFNESS"] = tinygltf::Value(gn.inst_wind_level_stiffness);
         tinygltf::Value::Object ext;
         ext["attributes"] = tinygltf::Value(std::move(attrs));
         node.extensions["EXT_mesh_gpu_instancing"] = tinygltf::Value(std::move(ext));
@@ -446,6 +454,17 @@ extern "C" int sy_gltf_size(const sy_gltf_file *f, const char *pointer)
 {
     const json *v = lookup(f, pointer);
     return v && (v->is_array() || v->is_object()) ? (int)v->size() : -1;
+}
+
+extern "C" const char *sy_gltf_key(const sy_gltf_file *f, const char *pointer, int index, char *buf, size_t size)
+{
+    const json *v = lookup(f, pointer);
+    buf[0] = 0;
+    if (!v || !v->is_object() || index < 0 || (size_t)index >= v->size()) return buf;
+    auto it = v->begin();
+    std::advance(it, index);
+    snprintf(buf, size, "%s", it.key().c_str());
+    return buf;
 }
 
 extern "C" const unsigned char *sy_gltf_bin(const sy_gltf_file *f, size_t *size)

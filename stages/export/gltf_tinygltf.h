@@ -50,6 +50,7 @@ typedef struct {
 typedef struct {
     char name[48];
     int position, normal, tangent, texcoord, wind_w, wind_branch; /* accessors, -1 absent */
+    int wind_anchor, wind_level_stiffness;                      /* idem */
     int indices;
     int material;
 } sy_gltf_mesh;
@@ -72,8 +73,9 @@ typedef struct {
     int children[SY_GLTF_MAX_CHILDREN];
     /* EXT_mesh_gpu_instancing accessors, -1 when the node is not instanced. */
     int inst_translation, inst_rotation, inst_scale;
-    /* Per-instance wind (_WIND_W VEC4 float, _WIND_BRANCH SCALAR float), -1 none. */
-    int inst_wind_w, inst_wind_branch;
+    /* Per-instance wind (_WIND_W VEC4, _WIND_BRANCH SCALAR, _WIND_ANCHOR VEC3,
+     * _WIND_LEVEL_STIFFNESS VEC2, all float), -1 none. */
+    int inst_wind_w, inst_wind_branch, inst_wind_anchor, inst_wind_level_stiffness;
     /* MSFT_lod on the LOD0 node: ids of lower levels, coverage per level. */
     int n_lod_ids;
     int lod_ids[64];
@@ -127,6 +129,9 @@ double sy_gltf_number(const sy_gltf_file *f, const char *pointer, double fallbac
 const char *sy_gltf_string(const sy_gltf_file *f, const char *pointer, char *buf, size_t size);
 /* Length of the array or object at pointer, -1 when absent or a scalar. */
 int sy_gltf_size(const sy_gltf_file *f, const char *pointer);
+/* The index-th key of the object at pointer (in the JSON's key order), ""
+ * when absent; returns buf. */
+const char *sy_gltf_key(const sy_gltf_file *f, const char *pointer, int index, char *buf, size_t size);
 /* The BIN chunk (buffer 0). */
 const unsigned char *sy_gltf_bin(const sy_gltf_file *f, size_t *size);
 /* 1 if tinygltf itself loads the file without errors (files whose only

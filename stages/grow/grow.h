@@ -14,6 +14,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "stages/core/json.h"
 #include "stages/core/skeleton.h"
 #include "stages/core/status.h"
 
@@ -76,6 +77,16 @@ sy_code sy_species_load(const char *path, sy_species *sp, sy_error *err);
  * '/' or ending in ".ini" is loaded as a path. */
 sy_code sy_species_find(const char *name, sy_species *sp, sy_error *err);
 void sy_species_free(sy_species *sp);
+
+/* Writes every parameter into the open JSON object j, one object per
+ * species-file section ("General", "ParamLevel0".."ParamLevel3", "Sylva")
+ * keyed by the file's key names, floats as their shortest round-tripping
+ * decimals: "[Section]" plus "Key = value" per entry ({a, b, c} for the
+ * arrays) parses back to the same species. Unset strings are left out;
+ * bark and leaf are written relative to SYLVA_SPECIES_DIR when they lie in
+ * it, else as file names only (the resolved absolute paths belong to the
+ * machine that grew the tree). */
+void sy_species_write_json(const sy_species *sp, sy_json *j);
 
 /* Weber-Penn ShapeRatio; shape 8 is the pruning envelope of sp (may be NULL
  * for shapes 0..7). Ratios outside [0,1] are clamped. */

@@ -142,6 +142,56 @@ void sy_species_free(sy_species *sp)
     sp->material = sp->material_normal = sp->name = sp->bark_texture = sp->leaf_texture = NULL;
 }
 
+/* One table's keys of base (sy_species or sy_wp_level) as a JSON object.
+ * Aliases (recLevels = Levels) share an offset and are written once;
+ * BaseSplits only on the trunk, where the parser accepts it. */
+static void write_keys(sy_json *j, const char *section, const key_def *keys, size_t n, const void *base, int level)
+{
+    sy_json_object(j, section);
+    for (size_t i = 0; i < n; i++) {
+        const key_def *k = &keys[i];
+        int alias = 0;
+        for (size_t e = 0; e < i; e++) alias |= keys[e].offset == k->offset;
+        if (alias || (level > 0 && k->offset == offsetof(sy_wp_level, base_splits) && keys == level_keys)) continue;
+        const char *field = (const char *)base + k->offset;
+        switch (k->type) {
+        case K_FLOAT: sy_json_float(j, k->name, *(const float *)field); break;
+        case K_INT: sy_json_int(j, k->name, *(const int *)field); break;
+        case K_VEC3:
+            sy_json_array(j, k->name);
+            for (int c = 0; c < 3; c++) sy_json_float(j, NULL, ((const float *)field)[c]);
+            sy_json_end(j);
+            break;
+        case K_STRING: {
+            const char *v = *(char *const *)field;
+            if (!v) break;
+            /* Textures: relative to the library folder when they are in it
+             * (as its .ini files write them), else the file name only. */
+            if (keys == sylva_keys && k->offset != offsetof(sy_species, name)) {
+                size_t lib = strlen(SYLVA_SPECIES_DIR);
+                const char *slash = strrchr(v, '/');
+                if (strncmp(v, SYLVA_SPECIES_DIR, lib) == 0 && v[lib] == '/') v += lib + 1;
+                else if (slash) v = slash + 1;
+            }
+            sy_json_string(j, k->name, v);
+            break;
+        }
+        }
+    }
+    sy_json_end(j);
+}
+
+void sy_species_write_json(const sy_species *sp, sy_json *j)
+{
+    write_keys(j, "General", general_keys, N_GENERAL, sp, 0);
+    for (int l = 0; l < SY_WP_LEVELS; l++) {
+        char section[16];
+        snprintf(section, sizeof section, "ParamLevel%d", l);
+        write_keys(j, section, level_keys, N_LEVEL, &sp->level[l], l);
+    }
+    write_keys(j, "Sylva", sylva_keys, N_SYLVA, sp, 0);
+}
+
 /* Parser state: where we are, for messages and the duplicate check. */
 typedef struct {
     const char *path;

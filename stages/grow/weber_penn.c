@@ -161,7 +161,7 @@ typedef struct {
     sy_leaves *lv;
     int32_t next_branch;
     float split_error[SY_WP_LEVELS];
-    float scale_tree, length_base, lobe_factor;
+    float scale_tree, length_base;
     sy_error *err;
 } grower;
 
@@ -332,7 +332,7 @@ static float node_radius(const grower *g, const stem *st, float offset)
     float z = st->length > 0 ? offset / st->length : 0;
     if (z > 1) z = 1;
     float r = sy_stem_radius_z(z, lvl(g, st->level)->taper, st->radius, st->length);
-    if (st->level == 0) r *= sy_flare_z(z, g->sp->flare) * g->lobe_factor;
+    if (st->level == 0) r *= sy_flare_z(z, g->sp->flare);
     return r > MIN_RADIUS ? r : MIN_RADIUS;
 }
 
@@ -621,9 +621,10 @@ sy_code sy_grow_tree(const sy_species *sp, uint64_t seed, sy_skeleton *out, sy_l
     g.r.s = seed ^ 0x5EED5A1FA5EEDull;
     g.scale_tree = sp->scale + vary(&g.r, sp->scale_v);
     float zscale = sp->zscale + vary(&g.r, sp->zscale_v);
-    /* Lobes fold into the circular section as its area-equivalent radius:
-     * the mean of (1 + d sin(L t))^2 over a turn is 1 + d^2/2. */
-    g.lobe_factor = sp->lobes > 0 ? sqrtf(1 + 0.5f * sp->lobe_depth * sp->lobe_depth) : 1;
+    /* Node radii stay the circular Weber-Penn radius; the mesher ripples the
+     * trunk's cross-section around it. */
+    out->lobes = sp->lobe_depth > 0 ? sp->lobes : 0;
+    out->lobe_depth = out->lobes > 0 ? sp->lobe_depth : 0;
     stem trunk = {.level = 0};
     trunk.length_max = sp->level[0].length + vary(&g.r, sp->level[0].length_v);
     trunk.length = trunk.length_max * g.scale_tree;

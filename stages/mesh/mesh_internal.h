@@ -62,6 +62,10 @@ typedef struct {
     int has_geometry;    /* 0: fewer than two distinct points, or buried in its parent */
     int junction;        /* base ring is projected onto the parent's surface */
     int has_children;    /* some stem attaches to it: keeps at least 6 ring vertices */
+    /* Weber-Penn lobes of an order-0 stem of a grown tree (sy_skeleton.lobes),
+     * 0 / 0 otherwise: rings have radius R (1 + lobe_depth sin(lobes theta)). */
+    int lobes;
+    float lobe_depth;
     /* Wind: the asset.wind entry the vertices follow (itself, or its level-3
      * ancestor for deeper stems), the w template (ancestor attachment
      * positions) and the slot that receives the vertex's own position (-1:

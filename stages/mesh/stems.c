@@ -17,6 +17,8 @@
 #define MAX_RADIUS_STEP 0.15f
 #define RINGS_PER_STEM 6
 #define MAX_SUBDIV 64
+/* Ring vertices of a lobed trunk at most (Lobes goes up to 64). */
+#define LOBED_MAX_RADIAL 64
 
 void sy_stems_free(sy_stems *st)
 {
@@ -491,6 +493,13 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
         int radial = (int)lroundf((float)opt->radial_segments * sqrtf(s->r_base / st->trunk_radius));
         s->radial = radial < 3 ? 3 : radial > opt->radial_segments ? opt->radial_segments : radial;
         if (s->radial < 3) s->radial = 3;
+        if (sk->lobes > 0 && sk->order[s->nodes[0]] == 0) {
+            s->lobes = sk->lobes;
+            s->lobe_depth = sk->lobe_depth;
+            /* Four ring vertices per lobe draw the ripple; fewer alias it. */
+            int want = 4 * s->lobes > LOBED_MAX_RADIAL ? LOBED_MAX_RADIAL : 4 * s->lobes;
+            if (s->radial < want) s->radial = want;
+        }
         if (s->parent >= 0 && st->s[s->parent].has_geometry) trim_junction(st, s);
     }
     return SY_OK;

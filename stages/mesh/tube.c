@@ -49,10 +49,74 @@ void sy_tube_counts(const sy_stems *st, size_t stem, const sy_lod_params *lp, si
     *ni = 3 * tris;
 }
 
+/* Weber-Penn lobes (digest 1.8): the cross-section radius factor
+ * f = 1 + d sin(L theta) of stem s drawn with P ring vertices, and df/dtheta.
+ * A ring shows L lobes only when P >= 2L + 1 (Nyquist); a coarser ring would
+ * alias them into fewer, mirrored ones, so it keeps the circle of the same
+ * area, sqrt(1 + d^2 / 2) (the mean of f^2 over a turn). */
+static float lobe(const sy_stem *s, int P, float theta, float *dfdt)
+{
+    *dfdt = 0;
+    if (s->lobes <= 0 || s->lobe_depth <= 0) return 1;
+    float d = s->lobe_depth, L = (float)s->lobes;
+    if (P < 2 * s->lobes + 1) return sqrtf(1 + 0.5f * d * d);
+    *dfdt = d * L * cosf(L * theta);
+    return 1 + d * sinf(L * theta);
+}
+
+/* Vertex j of stem p's P-gon cross-section of radius R as drawn (lobed on a
+ * grown trunk), in the ring's (N, B) coordinates. */
+static void section_vertex(const sy_stem *p, int P, float R, int j, float v[2])
+{
+    float th = 2 * SY_PI * (float)(j % P) / (float)P, df, f = R * lobe(p, P, th, &df);
+    v[0] = f * cosf(th);
+    v[1] = f * sinf(th);
+}
+
+static float cross2(const float a[2], const float b[2]) { return a[0] * b[1] - a[1] * b[0]; }
+
+/* Where the line w + lam d leaves the section for the last time: the largest
+ * lam at which it crosses an edge outwards (edges run counter-clockwise, so
+ * outwards is cross(d, e) > 0). A lobed section need not be convex; the last
+ * exit keeps the whole child outside it. Returns 0 when the line misses. */
+static int section_exit(const sy_stem *p, int P, float R, const float w[2], const float d[2], float *lam)
+{
+    int found = 0;
+    float a[2], b[2];
+    section_vertex(p, P, R, 0, a);
+    for (int j = 0; j < P; j++, a[0] = b[0], a[1] = b[1]) {
+        section_vertex(p, P, R, j + 1, b);
+        float e[2] = {b[0] - a[0], b[1] - a[1]}, aw[2] = {a[0] - w[0], a[1] - w[1]}, den = cross2(d, e);
+        if (!(den > 1e-12f)) continue;
+        float mu = cross2(aw, d) / den, l = cross2(aw, e) / den;
+        if (mu < -1e-5f || mu > 1 + 1e-5f) continue;
+        if (!found || l > *lam) *lam = l;
+        found = 1;
+    }
+    return found;
+}
+
+/* Distance from the centre to the section's boundary along unit u (the
+ * section is star-shaped about its centre, so there is one crossing). */
+static float section_reach(const sy_stem *p, int P, float R, const float u[2])
+{
+    float a[2], b[2], best = 0;
+    section_vertex(p, P, R, 0, a);
+    for (int j = 0; j < P; j++, a[0] = b[0], a[1] = b[1]) {
+        section_vertex(p, P, R, j + 1, b);
+        float e[2] = {b[0] - a[0], b[1] - a[1]}, den = cross2(u, e);
+        if (!(den > 1e-12f)) continue;
+        float t = cross2(a, e) / den, mu = cross2(a, u) / den;
+        if (mu >= -1e-5f && mu <= 1 + 1e-5f && t > best) best = t;
+    }
+    return best;
+}
+
 /* Moves q along unit d onto the polygonal tube of stem p as drawn at this
- * level (P-gon cross-sections through the rings pidx), iterating the local
- * frame so a curved parent is followed. Falls back to the radial projection
- * when the line misses the tube. Returns the signed distance along d. */
+ * level (P-gon cross-sections through the rings pidx, lobed on a grown
+ * trunk), iterating the local frame so a curved parent is followed. Falls
+ * back to the radial projection when the line misses the tube. Returns the
+ * signed distance along d. */
 static float project_to_parent(const sy_stem *p, const int32_t *pidx, size_t np, int P, const float q[3],
                                const float d[3], float s_est, float limit, float out[3])
 {
@@ -62,43 +126,36 @@ static float project_to_parent(const sy_stem *p, const int32_t *pidx, size_t np,
         sy_stem_frame_at(p, pidx, np, s_est, c, T, N, &R);
         sy_cross3(T, N, B);
         float w[3] = {q[0] - c[0], q[1] - c[1], q[2] - c[2]};
-        float wx = sy_dot3(w, N), wy = sy_dot3(w, B), dx = sy_dot3(d, N), dy = sy_dot3(d, B);
-        float apo = R * cosf(SY_PI / (float)P);
-        float best = INFINITY;
-        for (int j = 0; j < P; j++) {
-            float ph = 2 * SY_PI * ((float)j + 0.5f) / (float)P, mx = cosf(ph), my = sinf(ph);
-            float md = mx * dx + my * dy;
-            if (md > 1e-6f) best = fminf(best, (apo - mx * wx - my * wy) / md);
-        }
-        int valid = isfinite(best) && fabsf(best) <= limit;
-        for (int j = 0; valid && j < P; j++) {
-            float ph = 2 * SY_PI * ((float)j + 0.5f) / (float)P, mx = cosf(ph), my = sinf(ph);
-            if (mx * (wx + best * dx) + my * (wy + best * dy) > apo + 1e-4f * R) valid = 0;
-        }
-        if (valid) {
+        float w2[2] = {sy_dot3(w, N), sy_dot3(w, B)}, d2[2] = {sy_dot3(d, N), sy_dot3(d, B)}, best = 0;
+        if (section_exit(p, P, R, w2, d2, &best) && fabsf(best) <= limit) {
             lam = best;
             for (int k = 0; k < 3; k++) out[k] = q[k] + lam * d[k];
         } else {
             /* The line misses the tube: take its closest approach to the
              * parent's axis, then scale that point's cross-section offset
              * onto the polygon, so the vertex still moves mostly along d. */
-            float dd = dx * dx + dy * dy, bb = wx * dx + wy * dy, disc = bb * bb - dd * (wx * wx + wy * wy - R * R);
+            float Rc = 0, v[2];
+            for (int j = 0; j < P; j++) {
+                section_vertex(p, P, R, j, v);
+                Rc = fmaxf(Rc, hypotf(v[0], v[1]));
+            }
+            float dd = d2[0] * d2[0] + d2[1] * d2[1], bb = w2[0] * d2[0] + w2[1] * d2[1];
+            float disc = bb * bb - dd * (w2[0] * w2[0] + w2[1] * w2[1] - Rc * Rc);
             float l0 = dd > 1e-12f ? -bb / dd : 0;
             /* Prefer where the line leaves the circumscribed circle: the snap
-             * onto the polygon is then at most R (1 - cos(pi/P)). */
+             * onto the polygon is then at most its sagitta. */
             if (dd > 1e-12f && disc >= 0) l0 = (-bb + sqrtf(disc)) / dd;
             l0 = l0 > limit ? limit : l0 < -limit ? -limit : l0;
             for (int k = 0; k < 3; k++) w[k] += l0 * d[k];
-            wx += l0 * dx, wy += l0 * dy;
-            float reach = 0;
-            for (int j = 0; j < P; j++) {
-                float ph = 2 * SY_PI * ((float)j + 0.5f) / (float)P;
-                reach = fmaxf(reach, cosf(ph) * wx + sinf(ph) * wy);
+            w2[0] += l0 * d2[0], w2[1] += l0 * d2[1];
+            float len = hypotf(w2[0], w2[1]), f = 0;
+            if (len > 1e-9f) {
+                float u[2] = {w2[0] / len, w2[1] / len};
+                f = section_reach(p, P, R, u) / len;
             }
-            float f = reach > 1e-9f ? apo / reach : 0;
             float wt = sy_dot3(w, T);
-            if (f == 0) wx = R, wy = 0, f = 1;
-            for (int k = 0; k < 3; k++) out[k] = c[k] + wt * T[k] + f * (wx * N[k] + wy * B[k]);
+            if (f == 0) section_vertex(p, P, R, 0, w2), f = 1;
+            for (int k = 0; k < 3; k++) out[k] = c[k] + wt * T[k] + f * (w2[0] * N[k] + w2[1] * B[k]);
             float mv[3] = {out[0] - q[0], out[1] - q[1], out[2] - q[2]};
             lam = sy_dot3(mv, d);
         }
@@ -162,13 +219,18 @@ void sy_tube_emit(const sy_stems *st, size_t stem, const sy_lod_params *lp, sy_m
         sy_cross3(T, N, B);
         for (int j = 0; j <= P; j++) {
             float radial[3], pos[3], nrm[3], tan[3], arc = s->ss[k];
+            /* p = c + r f(theta) e_r: dp/dtheta ~ f' e_r + f e_theta and the
+             * normal ~ e_r - (f'/f) e_theta - r' f T (r' = dr/ds). */
+            float df, f = lobe(s, P, 2 * SY_PI * (float)(j % P) / (float)P, &df);
             for (int q = 0; q < 3; q++) {
+                float et = -sw[j] * N[q] + cw[j] * B[q];
                 radial[q] = cw[j] * N[q] + sw[j] * B[q];
-                pos[q] = c[q] + rad * radial[q];
-                nrm[q] = radial[q] - slope * T[q];
-                tan[q] = -sw[j] * N[q] + cw[j] * B[q];
+                pos[q] = c[q] + rad * f * radial[q];
+                nrm[q] = radial[q] - (df / f) * et - slope * f * T[q];
+                tan[q] = df * radial[q] + f * et;
             }
             sy_normalize3(nrm);
+            if (df != 0) sy_normalize3(tan);
             if (r == 0 && par && j < P) {
                 float limit = 4 * (s->r_base + st->s[s->parent].r_base) + 0.5f * s->length, out[3];
                 arc += project_to_parent(par, pidx, npr, Pp, pos, T, s->attach_s, limit, out);
@@ -191,10 +253,10 @@ void sy_tube_emit(const sy_stems *st, size_t stem, const sy_lod_params *lp, sy_m
         arc += hypotf(prev_r - rr, hh - prev_h);
         prev_r = rr, prev_h = hh;
         for (int j = 0; j <= P; j++) {
-            float pos[3], nrm[3], tan[3];
+            float pos[3], nrm[3], tan[3], df, f = lobe(s, P, 2 * SY_PI * (float)(j % P) / (float)P, &df);
             for (int q = 0; q < 3; q++) {
                 float radial = cw[j] * N[q] + sw[j] * B[q];
-                pos[q] = c[q] + hh * T[q] + rr * radial;
+                pos[q] = c[q] + hh * T[q] + rr * f * radial;
                 nrm[q] = cosf(ph) * radial / rad + sinf(ph) * T[q] / h;
                 tan[q] = -sw[j] * N[q] + cw[j] * B[q];
             }
