@@ -15,14 +15,20 @@
 #include "stages/qsm/leaf_placement.h"
 #include "stages/qsm/qsm_io.h"
 
+/* Leaf density and size for models that name no species: a common
+ * broadleaf (4.3 leaf cards a metre of twig, 0.3 m long), the species of
+ * the README's first example. Bark and leaf materials stay the neutral
+ * defaults, so the asset claims no species. */
+#define DEFAULT_LEAVES "quaking_aspen"
+
 static const char *out_path, *species_name;
 static int no_leaves, tree_index;
 static double leaf_density;
 static const sy_opt opts[] = {
     {"-o", OPT_STRING, &out_path, "OUT.glb", "output glTF binary"},
     {"--species", OPT_STRING, &species_name, "NAME", "bark, leaf material and leaves of a library species (or an .ini)"},
-    {"--no-leaves", OPT_FLAG, &no_leaves, NULL, "with --species: its materials, but no leaf cards"},
-    {"--leaf-density", OPT_DOUBLE, &leaf_density, "N", "leaves per metre of twig (default: from the species)"},
+    {"--no-leaves", OPT_FLAG, &no_leaves, NULL, "no leaf cards (with --species: its materials only)"},
+    {"--leaf-density", OPT_DOUBLE, &leaf_density, "N", "leaves per metre of twig (default: from the species, else " DEFAULT_LEAVES "'s)"},
     {"--tree", OPT_INT, &tree_index, "I", "which tree of a truth file with several (0-based)"},
     SY_GLB_OPTIONS,
     {NULL, 0, NULL, NULL, NULL},
@@ -32,8 +38,10 @@ static const sy_cmd_spec spec = {
     "Mesh a skeleton or QSM (.sylva, .ply, .csv, .json, .obj, TreeQSM .txt) into a glTF tree asset.",
     "Meshing, LODs, impostor and export are those of `sylva grow`. The root is moved to the\n"
     "origin of the glb; its world position is kept in asset.extras.origin. The cluster hulls of\n"
-    "a .sylva become the semi-transparent \"foliage_proxy\" mesh `sylva run` draws. --species adds\n"
-    "leaf cards along the finest branches. See docs/qsm-formats.md.",
+    "a .sylva become the semi-transparent \"foliage_proxy\" mesh `sylva run` draws. Leaf cards go\n"
+    "along the finest branches: --species gives its bark, leaf material and leaf density and size;\n"
+    "without it the default bark and plain green cards at " DEFAULT_LEAVES "'s density and size\n"
+    "(a model with hulls has its foliage already and gets none). See docs/qsm-formats.md.",
     opts, 1, 1};
 
 typedef struct {
@@ -72,9 +80,9 @@ static void print_report(const sy_cli *cli, const sy_tree_asset_report *rep, con
     } else if (!cli->quiet) {
         fprintf(stderr, "read %s (%s) in %.3f s; root %.3f %.3f %.3f moved to the origin\n", f->model, f->format,
                 f->seconds_read, f->origin[0], f->origin[1], f->origin[2]);
-        if (sp && rep->leaves)
-            fprintf(stderr, "placed %zu %s leaves on %.2f m of twig in %.3f s\n", rep->leaves, sp->name,
-                    f->twig_length, f->seconds_leaves);
+        if (rep->leaves)
+            fprintf(stderr, "placed %zu %s leaves on %.2f m of twig in %.3f s\n", rep->leaves,
+                    sp ? sp->name : "default", f->twig_length, f->seconds_leaves);
         sy_tree_asset_report_text(rep, out_path);
     }
 }
@@ -122,14 +130,17 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
     if (species_name) {
         if ((rc = sy_species_find(species_name, &sp, &err))) goto done;
         have_species = 1;
-        if (!no_leaves) {
-            sy_leaf_placement lp = sy_leaf_placement_from_species(&sp, cli->seed);
-            if (leaf_density >= 0) lp.per_metre = leaf_density;
-            t0 = sy_now();
-            rc = sy_place_leaves(&skel, &lp, &leaves, &f.twig_length, &err);
-            f.seconds_leaves = sy_now() - t0;
-            if (rc) goto done;
-        }
+    }
+    if (!no_leaves && (have_species || !hulls.n)) {
+        sy_species leaf_sp;
+        if (!have_species && (rc = sy_species_find(DEFAULT_LEAVES, &leaf_sp, &err))) goto done;
+        sy_leaf_placement lp = sy_leaf_placement_from_species(have_species ? &sp : &leaf_sp, cli->seed);
+        if (!have_species) sy_species_free(&leaf_sp);
+        if (leaf_density >= 0) lp.per_metre = leaf_density;
+        t0 = sy_now();
+        rc = sy_place_leaves(&skel, &lp, &leaves, &f.twig_length, &err);
+        f.seconds_leaves = sy_now() - t0;
+        if (rc) goto done;
     }
     sy_tree_asset_report rep;
     rc = sy_tree_asset_write(out_path, &skel, &leaves, have_species ? &sp : NULL, &o, &rep, &err);

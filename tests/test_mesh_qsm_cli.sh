@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # sylva mesh and the skeleton interchange end to end on rTwig's reference QSM
 # and its point cloud: the QSM becomes a valid glb centred at its base (with
-# and without species leaves), eval scores the QSM against the cloud and
+# species leaves, default leaves, none), eval scores the QSM against the cloud and
 # Sylva's own skeleton against the QSM, every `sylva skeleton -o` format
 # meshes into a valid glb (a .sylva with its hulls, scoring like the .sylva),
 # `sylva run`'s glb lines up with the cloud, bad models exit 2 with one line and no output.
@@ -21,10 +21,14 @@ valid() { glbs+=("$1"); }
 # Value of a top-level numeric key in a flat JSON report.
 key() { node -e 'const r = JSON.parse(require("fs").readFileSync(process.argv[1])); console.log(r[process.argv[2]])' "$1" "$2"; }
 
-# The QSM as a bare glb: valid, centred at its base, the survey origin kept.
+# The QSM without a species: valid, centred at its base, the survey origin
+# kept, default bark and leaves (quaking aspen's density: as many as with
+# --species quaking_aspen, same seed).
 "$SYLVA" mesh "$qsm" -o "$tmp/q.glb" --json > "$tmp/q.json" 2> "$tmp/q.err" || { echo "FAIL: mesh QSM.csv: $(cat "$tmp/q.err")"; exit 1; }
 valid "$tmp/q.glb"
-check "bare QSM has no leaves" "[[ \$(key '$tmp/q.json' leaves) == 0 ]]"
+check "QSM without a species gets default leaves" "(( \$(key '$tmp/q.json' leaves) > 20 ))"
+"$SYLVA" mesh "$qsm" -o "$tmp/q0.glb" --no-leaves --json > "$tmp/q0.json" || fail=1
+check "--no-leaves without a species: bark only" "[[ \$(key '$tmp/q0.json' leaves) == 0 ]]"
 check "glb centred at the trunk base, origin in asset.extras" "node -e '
   const b = require(\"fs\").readFileSync(\"$tmp/q.glb\");
   const j = JSON.parse(b.slice(20, 20 + b.readUInt32LE(12)).toString());
@@ -49,6 +53,7 @@ check "sylva export is sylva mesh" "cmp -s '$tmp/qa.glb' '$tmp/qe.glb'"
 check "--leaf-density scales the count" "(( \$(key '$tmp/qd.json' leaves) > 5 * \$(key '$tmp/qa.json' leaves) ))"
 "$SYLVA" mesh "$qsm" -o "$tmp/qn.glb" --species quaking_aspen --no-leaves --json > "$tmp/qn.json" || fail=1
 check "--no-leaves" "[[ \$(key '$tmp/qn.json' leaves) == 0 ]]"
+check "default leaves are quaking aspen's count" "[[ \$(key '$tmp/q.json' leaves) == \$(key '$tmp/qa.json' leaves) ]]"
 valid "$tmp/qn.glb"
 
 # The QSM's cones against the cloud it was fitted to (measured 3.0 mm, 99.1 %),
@@ -75,10 +80,11 @@ check "skeleton json is in the scan's world frame" "node -e '
 # A .sylva keeps its cluster hulls: meshed, they are the foliage_proxy mesh
 # `sylva run` draws, and the glb scores like the .sylva (measured coverage
 # 0.984 vs 0.987; without the hulls the glb covered 0.29).
-check "mesh of a .sylva has the foliage_proxy mesh" "node -e '
+check "mesh of a .sylva has the foliage_proxy mesh and, its foliage, no default leaves" "node -e '
   const b = require(\"fs\").readFileSync(\"$tmp/s_sylva.glb\");
   const j = JSON.parse(b.slice(20, 20 + b.readUInt32LE(12)).toString());
   if (!j.meshes.some(m => m.name === \"foliage_proxy\")) process.exit(1);
+  if (j.meshes.some(m => m.name.startsWith(\"leaf\"))) process.exit(1);
 '"
 "$SYLVA" eval --points "$cloud" "$tmp/s.sylva" --json > "$tmp/es.json" || fail=1
 "$SYLVA" eval --points "$cloud" "$tmp/s_sylva.glb" --json > "$tmp/esg.json" || fail=1
