@@ -15,14 +15,20 @@
 #include "stages/qsm/leaf_placement.h"
 #include "stages/qsm/qsm_io.h"
 
+/* Leaf density and size for models that name no species: a common
+ * broadleaf (4.3 leaf cards a metre of twig, 0.3 m long), the species of
+ * the README's first example. Bark and leaf materials stay the neutral
+ * defaults, so the asset claims no species. */
+#define DEFAULT_LEAVES "quaking_aspen"
+
 static const char *out_path, *species_name;
 static int no_leaves, tree_index;
 static double leaf_density;
 static const sy_opt opts[] = {
     {"-o", OPT_STRING, &out_path, "OUT.glb", "output glTF binary"},
     {"--species", OPT_STRING, &species_name, "NAME", "bark, leaf material and leaves of a library species (or an .ini)"},
-    {"--no-leaves", OPT_FLAG, &no_leaves, NULL, "with --species: its materials, but no leaf cards"},
-    {"--leaf-density", OPT_DOUBLE, &leaf_density, "N", "leaves per metre of twig (default: from the species)"},
+    {"--no-leaves", OPT_FLAG, &no_leaves, NULL, "no leaf cards (with --species: its materials only)"},
+    {"--leaf-density", OPT_DOUBLE, &leaf_density, "N", "leaves per metre of twig (default: from the species, else " DEFAULT_LEAVES "'s)"},
     {"--tree", OPT_INT, &tree_index, "I", "which tree of a truth file with several (0-based)"},
     SY_GLB_OPTIONS,
     {NULL, 0, NULL, NULL, NULL},
@@ -31,61 +37,12 @@ static const sy_cmd_spec spec = {
     "mesh", "MODEL -o OUT.glb",
     "Mesh a skeleton or QSM (.sylva, .ply, .csv, .json, .obj, TreeQSM .txt) into a glTF tree asset.",
     "Meshing, LODs, impostor and export are those of `sylva grow`. The root is moved to the\n"
-    "origin of the glb; its world position is kept in asset.extras.origin. --species adds leaf\n"
-    "cards along the finest branches. See docs/qsm-formats.md.",
+    "origin of the glb; its world position is kept in asset.extras.origin. The cluster hulls of\n"
+    "a .sylva become the semi-transparent \"foliage_proxy\" mesh `sylva run` draws. Leaf cards go\n"
+    "along the finest branches: --species gives its bark, leaf material and leaf density and size;\n"
+    "without it the default bark and plain green cards at " DEFAULT_LEAVES "'s density and size\n"
+    "(a model with hulls has its foliage already and gets none). See docs/qsm-formats.md.",
     opts, 1, 1};
-
-/* Moves the root to (0,0,0): the glb is centred at the trunk base whatever
- * survey frame the model came in; world = origin + pos keeps holding. */
-static void root_to_origin(sy_skeleton *s)
-{
-    double root[3];
-    for (int k = 0; k < 3; k++) root[k] = s->origin[k] + (double)s->pos[k];
-    for (size_t i = 0; i < s->n; i++)
-        for (int k = 0; k < 3; k++) s->pos[3 * i + k] = (float)((s->origin[k] + (double)s->pos[3 * i + k]) - root[k]);
-    memcpy(s->origin, root, sizeof root);
-}
-
-/* Appends "origin" (and where the model came from) to the asset's extras object. */
-static sy_code add_origin_extras(sy_asset *a, const sy_skeleton *s, const char *model, const char *format,
-                                 sy_error *err)
-{
-    char *add = NULL;
-    size_t len = 0;
-    FILE *fp = open_memstream(&add, &len);
-    if (!fp) return sy_fail(err, SY_EINTERNAL, "asset extras: out of memory");
-    sy_json j;
-    sy_json_begin(&j, fp, 0);
-    sy_json_object(&j, NULL);
-    sy_json_numbers(&j, "origin", s->origin, 3);
-    const char *slash = strrchr(model, '/');
-    sy_json_string(&j, "source", slash ? slash + 1 : model); /* the file name: no local paths in assets */
-    sy_json_string(&j, "source_format", format);
-    sy_json_end(&j);
-    sy_json_finish(&j);
-    fclose(fp);
-    const char *base = a->extras_json ? a->extras_json : "{}";
-    size_t blen = strlen(base);
-    while (blen && base[blen - 1] != '}') blen--;
-    int base_empty = 1;
-    for (size_t i = 1; i + 1 < blen; i++)
-        if (base[i] != ' ' && base[i] != '\n') base_empty = 0;
-    char *merged = add && blen ? malloc(blen + len + 2) : NULL;
-    if (!merged) {
-        free(add);
-        return sy_fail(err, SY_EINTERNAL, "asset extras: out of memory");
-    }
-    /* {base members} + {added members} -> {base members, added members} */
-    memcpy(merged, base, blen - 1);
-    size_t m = blen - 1;
-    if (!base_empty) merged[m++] = ',';
-    memcpy(merged + m, add + 1, len - 1);
-    merged[m + len - 1] = '\0';
-    free(add);
-    free(a->extras_json);
-    a->extras_json = merged;
-    return SY_OK;
-}
 
 typedef struct {
     const char *model, *format;
@@ -109,6 +66,7 @@ static void print_report(const sy_cli *cli, const sy_tree_asset_report *rep, con
         sy_json_int(&j, "nodes", (long long)rep->nodes);
         sy_json_int(&j, "branches", (long long)rep->branches);
         sy_json_int(&j, "leaves", (long long)rep->leaves);
+        sy_json_int(&j, "hull_triangles", (long long)rep->hull_triangles);
         sy_json_number(&j, "twig_length", f->twig_length);
         sy_json_number(&j, "height", f->height);
         sy_json_int(&j, "bytes", (long long)rep->bytes);
@@ -122,34 +80,11 @@ static void print_report(const sy_cli *cli, const sy_tree_asset_report *rep, con
     } else if (!cli->quiet) {
         fprintf(stderr, "read %s (%s) in %.3f s; root %.3f %.3f %.3f moved to the origin\n", f->model, f->format,
                 f->seconds_read, f->origin[0], f->origin[1], f->origin[2]);
-        if (sp && rep->leaves)
-            fprintf(stderr, "placed %zu %s leaves on %.2f m of twig in %.3f s\n", rep->leaves, sp->name,
-                    f->twig_length, f->seconds_leaves);
+        if (rep->leaves)
+            fprintf(stderr, "placed %zu %s leaves on %.2f m of twig in %.3f s\n", rep->leaves,
+                    sp ? sp->name : "default", f->twig_length, f->seconds_leaves);
         sy_tree_asset_report_text(rep, out_path);
     }
-}
-
-/* The shared tail (sy_tree_asset_build) and the export sy_tree_asset_write
- * does, with the origin added to the extras in between. */
-static sy_code build_and_write(const sy_skeleton *s, const sy_leaves *lv, const sy_species *sp,
-                               const sy_tree_asset_options *o, const mesh_facts *f, sy_tree_asset_report *rep,
-                               sy_error *err)
-{
-    sy_asset asset;
-    sy_code rc = sy_tree_asset_build(s, lv, sp, o, &asset, rep, err);
-    if (rc) return rc;
-    rc = add_origin_extras(&asset, s, f->model, f->format, err);
-    double t0 = sy_now();
-    sy_export_options eo = sy_export_options_default();
-    eo.meshopt = o->meshopt;
-    eo.instancing = o->instancing;
-    if (!rc) rc = sy_export_glb(out_path, &asset, &eo, err);
-    if (!rc) {
-        rep->seconds_export = sy_now() - t0;
-        rep->bytes = sy_export_last_size(out_path);
-    }
-    sy_asset_free(&asset);
-    return rc;
 }
 
 int cmd_mesh(int argc, char **argv, sy_cli *cli)
@@ -177,12 +112,16 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
     sy_error err = {0};
     mesh_facts f = {pos[0], "", 0, 0, 0, 0, {0, 0, 0}};
     sy_skeleton skel;
+    sy_clusters hulls; /* a .sylva's: the same foliage proxy `sylva run` draws */
     sy_skeleton_read_info info;
     double t0 = sy_now();
-    if (sy_skeleton_read_tree(pos[0], tree_index, &skel, &info, &err)) return sy_cli_report(&err);
+    if (sy_skeleton_read_model(pos[0], tree_index, &skel, &hulls, &info, &err)) return sy_cli_report(&err);
     f.seconds_read = sy_now() - t0;
     f.format = sy_skel_format_name(info.format);
-    root_to_origin(&skel);
+    sy_tree_asset_root_to_origin(&skel, &hulls);
+    o.hulls = &hulls;
+    o.source = f.model;
+    o.source_format = f.format;
     memcpy(f.origin, skel.origin, sizeof f.origin);
     f.height = sy_skeleton_height(&skel);
     sy_species sp;
@@ -191,21 +130,25 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
     if (species_name) {
         if ((rc = sy_species_find(species_name, &sp, &err))) goto done;
         have_species = 1;
-        if (!no_leaves) {
-            sy_leaf_placement lp = sy_leaf_placement_from_species(&sp, cli->seed);
-            if (leaf_density >= 0) lp.per_metre = leaf_density;
-            t0 = sy_now();
-            rc = sy_place_leaves(&skel, &lp, &leaves, &f.twig_length, &err);
-            f.seconds_leaves = sy_now() - t0;
-            if (rc) goto done;
-        }
+    }
+    if (!no_leaves && (have_species || !hulls.n)) {
+        sy_species leaf_sp;
+        if (!have_species && (rc = sy_species_find(DEFAULT_LEAVES, &leaf_sp, &err))) goto done;
+        sy_leaf_placement lp = sy_leaf_placement_from_species(have_species ? &sp : &leaf_sp, cli->seed);
+        if (!have_species) sy_species_free(&leaf_sp);
+        if (leaf_density >= 0) lp.per_metre = leaf_density;
+        t0 = sy_now();
+        rc = sy_place_leaves(&skel, &lp, &leaves, &f.twig_length, &err);
+        f.seconds_leaves = sy_now() - t0;
+        if (rc) goto done;
     }
     sy_tree_asset_report rep;
-    rc = build_and_write(&skel, &leaves, have_species ? &sp : NULL, &o, &f, &rep, &err);
+    rc = sy_tree_asset_write(out_path, &skel, &leaves, have_species ? &sp : NULL, &o, &rep, &err);
     if (!rc) print_report(cli, &rep, &f, have_species ? &sp : NULL);
 done:
     sy_leaves_free(&leaves);
     if (have_species) sy_species_free(&sp);
+    sy_clusters_free(&hulls);
     sy_skeleton_free(&skel);
     return rc ? sy_cli_report(&err) : 0;
 }

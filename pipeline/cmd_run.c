@@ -40,7 +40,8 @@ static const sy_cmd_spec spec = {
     "Steps: ingest, preprocess (up axis, statistical outliers, ground classified and removed;\n"
     "the defaults of `sylva preprocess`), skeleton and alpha-shape clusters (docs/skeleton.md),\n"
     "mesh (LOD chain, impostor), export. The hulls become one semi-transparent mesh with the\n"
-    "material \"foliage_proxy\" in every level. SCAN must hold one tree. The .sylva species id\n"
+    "material \"foliage_proxy\" in every level. The glb is centred at the tree's base, its world\n"
+    "position in asset.extras.origin (as `sylva mesh` does). SCAN must hold one tree. The .sylva species id\n"
     "is the species' index in the library plus one (0: unknown).",
     opts, 1, 1};
 
@@ -194,6 +195,10 @@ static sy_code reconstruct_and_write(const char *in, const sy_cli *cli, const sy
         sy_glb_cli_apply("run", &o); /* checked in check_options */
         o.seed = cli->seed;
         o.hulls = &cl;
+        o.source = in;
+        o.source_format = "scan";
+        /* After encoding: the .sylva keeps the scan's own frame. */
+        sy_tree_asset_root_to_origin(&s, &cl);
         rc = sy_tree_asset_write(out_path, &s, NULL, sp, &o, a, err);
     }
     if (!rc) {

@@ -54,9 +54,26 @@ void sy_tree_asset_report_lods_json(sy_json *j, const sy_tree_asset_report *rep)
     sy_json_end(j);
 }
 
-/* asset.extras: which species, every one of its parameters and the seed,
- * enough to grow the same tree again (docs/gltf.md). */
-static char *species_extras(const sy_species *sp, uint64_t seed)
+void sy_tree_asset_root_to_origin(sy_skeleton *s, sy_clusters *hulls)
+{
+    double root[3];
+    for (int k = 0; k < 3; k++) root[k] = s->origin[k] + (double)(s->n ? s->pos[k] : 0);
+    /* In double through the world position: origin and root can be survey-sized. */
+    for (size_t i = 0; i < s->n; i++)
+        for (int k = 0; k < 3; k++) s->pos[3 * i + k] = (float)((s->origin[k] + (double)s->pos[3 * i + k]) - root[k]);
+    for (size_t c = 0; hulls && c < hulls->n; c++) {
+        sy_cluster *h = &hulls->items[c];
+        for (size_t i = 0; i < h->n_verts; i++)
+            for (int k = 0; k < 3; k++)
+                h->verts[3 * i + k] = (float)((s->origin[k] + (double)h->verts[3 * i + k]) - root[k]);
+    }
+    memcpy(s->origin, root, sizeof root);
+}
+
+/* asset.extras: which species, every one of its parameters and the seed
+ * (enough to grow the same tree again), and where a model from a file stands
+ * in the world (docs/gltf.md). */
+static char *asset_extras(const sy_species *sp, const sy_skeleton *skel, const sy_tree_asset_options *opt)
 {
     char *buf = NULL;
     size_t len = 0;
@@ -68,10 +85,16 @@ static char *species_extras(const sy_species *sp, uint64_t seed)
     sy_json_string(&j, "generator", "sylva");
     if (sp) {
         sy_json_string(&j, "species", sp->name ? sp->name : "");
-        sy_json_uint(&j, "seed", (unsigned long long)seed);
+        sy_json_uint(&j, "seed", (unsigned long long)opt->seed);
         sy_json_object(&j, "parameters");
         sy_species_write_json(sp, &j);
         sy_json_end(&j);
+    }
+    if (opt->source) {
+        sy_json_numbers(&j, "origin", skel->origin, 3);
+        const char *slash = strrchr(opt->source, '/');
+        sy_json_string(&j, "source", slash ? slash + 1 : opt->source);
+        sy_json_string(&j, "source_format", opt->source_format ? opt->source_format : "");
     }
     sy_json_end(&j);
     fclose(fp);
@@ -201,7 +224,7 @@ sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, co
         if (opt->impostor && (rc = sy_mesh_add_impostor(out, 0, opt->impostor_size, err))) goto fail;
     }
     snprintf(out->name, sizeof out->name, "%s", species && species->name ? species->name : "tree");
-    if (!(out->extras_json = species_extras(species, opt->seed))) {
+    if (!(out->extras_json = asset_extras(species, skel, opt))) {
         rc = sy_fail(err, SY_EINTERNAL, "asset extras: out of memory");
         goto fail;
     }

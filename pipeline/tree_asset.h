@@ -25,9 +25,20 @@ typedef struct {
      * drawn as one semi-transparent "foliage_proxy" mesh in every mesh level
      * and the impostor. NULL (the default) or no triangles: none. */
     const sy_clusters *hulls;
+    /* Models from files (mesh, run): asset.extras gets "origin", the
+     * skeleton's origin (the world position, Z up, of the glb's (0,0,0);
+     * world = origin + (x, -z, y) of a vertex, which `sylva eval` applies),
+     * "source" (source's file name; directories stay private) and
+     * "source_format". NULL (the default): none of them (grown trees). */
+    const char *source, *source_format;
 } sy_tree_asset_options;
 
 sy_tree_asset_options sy_tree_asset_options_default(void);
+
+/* Moves the root to (0,0,0) and hulls (may be NULL) with it, the origin
+ * taking the root's world position: a tree from a survey frame comes out
+ * standing at the glb's origin, and world = origin + pos keeps holding. */
+void sy_tree_asset_root_to_origin(sy_skeleton *s, sy_clusters *hulls);
 
 /* The .glb output options grow, mesh and run share: SY_GLB_OPTIONS goes into
  * their option tables, sy_glb_cli_reset() runs before parsing and

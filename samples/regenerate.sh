@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
 # Regenerates the simulated scans in samples/ with `sylva scan` (see README.md).
-# Usage: bash samples/regenerate.sh [path/to/sylva]   (default: build/sylva)
-# Deterministic: the same sylva gives the same files (LAS date pinned below).
+# Usage: bash samples/regenerate.sh [path/to/sylva [OUTDIR]]   (default: build/sylva, samples/)
+# Deterministic: the same sylva gives the same files (LAS date pinned below);
+# tests/test_samples_cli.sh regenerates them into a temporary OUTDIR and
+# compares, so a change to the scanner that moves a point fails there.
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
-SYLVA=${1:-$here/../build/sylva}
+SYLVA=$(realpath "${1:-$here/../build/sylva}")
 export SOURCE_DATE_EPOCH=1700000000
-cd "$here"
+cd "${2:-$here}"
 scan() { echo "sylva scan $*" >&2; "$SYLVA" scan "$@" --quiet --json; }
 
 # Terrestrial: four stations on a circle, 0.4-0.7 degree steps keep ~20k points.

@@ -37,6 +37,40 @@ static void filter_keeps_every_array_aligned(void **state)
     sy_cloud_free(&c);
 }
 
+/* Labels by name from standard fields and extra bytes alike. */
+static void scalars_by_field_name(void **state)
+{
+    (void)state;
+    sy_cloud c;
+    sy_error err = {0};
+    assert_int_equal(sy_cloud_init(&c, 3, &err), SY_OK);
+    assert_int_equal(sy_cloud_add_classification(&c, &err), SY_OK);
+    assert_int_equal(sy_cloud_add_rgb(&c, &err), SY_OK);
+    double *id = sy_cloud_add_attr(&c, "treeID", &err);
+    for (int i = 0; i < 3; i++) {
+        c.classification[i] = (uint8_t)(2 + 3 * i);
+        for (int k = 0; k < 3; k++) c.rgb[3 * i + k] = (uint16_t)(1000 * k + i);
+        id[i] = 7 - i;
+    }
+    double *v;
+    assert_int_equal(sy_cloud_scalar(&c, "classification", &v, &err), SY_OK);
+    assert_non_null(v);
+    assert_true(v[0] == 2 && v[1] == 5 && v[2] == 8);
+    free(v);
+    assert_int_equal(sy_cloud_scalar(&c, "blue", &v, &err), SY_OK);
+    assert_true(v[0] == 2000 && v[2] == 2002);
+    free(v);
+    assert_int_equal(sy_cloud_scalar(&c, "treeID", &v, &err), SY_OK);
+    assert_true(v[0] == 7 && v[2] == 5);
+    free(v);
+    /* Absent fields: no values, no error (the caller names what exists). */
+    assert_int_equal(sy_cloud_scalar(&c, "intensity", &v, &err), SY_OK);
+    assert_null(v);
+    assert_int_equal(sy_cloud_scalar(&c, "nope", &v, &err), SY_OK);
+    assert_null(v);
+    sy_cloud_free(&c);
+}
+
 static void rebase_keeps_world_positions(void **state)
 {
     (void)state;
@@ -133,6 +167,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(filter_keeps_every_array_aligned),
+        cmocka_unit_test(scalars_by_field_name),
         cmocka_unit_test(rebase_keeps_world_positions),
         cmocka_unit_test(atomic_write_leaves_nothing_on_abort),
         cmocka_unit_test(json_nests_and_escapes),

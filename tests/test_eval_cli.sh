@@ -57,6 +57,14 @@ done
 json=$("$SYLVA" eval --json --segmentation "$MC" "$MC") || fail "segmentation exited $?"
 echo "$json" | grep -q '"f1":1,' || fail "segmentation F1 is not 1: $json"
 echo "$json" | grep -q '"truth_instances":205' || fail "205 trees expected: $json"
+# Standard LAS fields name labels too: MixedConifer's classes 1, 2 and 11 are
+# three instances; none overlaps one tree by IoU > 0.5 (class 1 holds 31,832
+# of the 37,657 points).
+json=$("$SYLVA" eval --json --segmentation "$MC" "$MC" --truth-attr classification --pred-attr classification) ||
+  fail "segmentation by classification exited $?"
+echo "$json" | grep -q '"truth_instances":3,"pred_instances":3,"matched_instances":3' || fail "classes: $json"
+json=$("$SYLVA" eval --json --segmentation "$MC" "$MC" --pred-attr classification) || fail "treeID vs classification exited $?"
+echo "$json" | grep -q '"truth_instances":205,"pred_instances":3,"matched_instances":0' || fail "treeID vs classes: $json"
 
 # Species: CSV against CSV, with the PNG.
 printf 'id,species\n1,oak\n2,oak\n3,pine\n4,pine\n' >"$TMP/t.csv"

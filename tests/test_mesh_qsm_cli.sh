@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # sylva mesh and the skeleton interchange end to end on rTwig's reference QSM
 # and its point cloud: the QSM becomes a valid glb centred at its base (with
-# and without species leaves), eval scores the QSM against the cloud and
+# species leaves, default leaves, none), eval scores the QSM against the cloud and
 # Sylva's own skeleton against the QSM, every `sylva skeleton -o` format
-# meshes into a valid glb, bad models exit 2 with one line and no output.
+# meshes into a valid glb (a .sylva with its hulls, scoring like the .sylva),
+# `sylva run`'s glb lines up with the cloud, bad models exit 2 with one line and no output.
 set -u
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
@@ -20,10 +21,14 @@ valid() { glbs+=("$1"); }
 # Value of a top-level numeric key in a flat JSON report.
 key() { node -e 'const r = JSON.parse(require("fs").readFileSync(process.argv[1])); console.log(r[process.argv[2]])' "$1" "$2"; }
 
-# The QSM as a bare glb: valid, centred at its base, the survey origin kept.
+# The QSM without a species: valid, centred at its base, the survey origin
+# kept, default bark and leaves (quaking aspen's density: as many as with
+# --species quaking_aspen, same seed).
 "$SYLVA" mesh "$qsm" -o "$tmp/q.glb" --json > "$tmp/q.json" 2> "$tmp/q.err" || { echo "FAIL: mesh QSM.csv: $(cat "$tmp/q.err")"; exit 1; }
 valid "$tmp/q.glb"
-check "bare QSM has no leaves" "[[ \$(key '$tmp/q.json' leaves) == 0 ]]"
+check "QSM without a species gets default leaves" "(( \$(key '$tmp/q.json' leaves) > 20 ))"
+"$SYLVA" mesh "$qsm" -o "$tmp/q0.glb" --no-leaves --json > "$tmp/q0.json" || fail=1
+check "--no-leaves without a species: bark only" "[[ \$(key '$tmp/q0.json' leaves) == 0 ]]"
 check "glb centred at the trunk base, origin in asset.extras" "node -e '
   const b = require(\"fs\").readFileSync(\"$tmp/q.glb\");
   const j = JSON.parse(b.slice(20, 20 + b.readUInt32LE(12)).toString());
@@ -48,6 +53,7 @@ check "sylva export is sylva mesh" "cmp -s '$tmp/qa.glb' '$tmp/qe.glb'"
 check "--leaf-density scales the count" "(( \$(key '$tmp/qd.json' leaves) > 5 * \$(key '$tmp/qa.json' leaves) ))"
 "$SYLVA" mesh "$qsm" -o "$tmp/qn.glb" --species quaking_aspen --no-leaves --json > "$tmp/qn.json" || fail=1
 check "--no-leaves" "[[ \$(key '$tmp/qn.json' leaves) == 0 ]]"
+check "default leaves are quaking aspen's count" "[[ \$(key '$tmp/q.json' leaves) == \$(key '$tmp/qa.json' leaves) ]]"
 valid "$tmp/qn.glb"
 
 # The QSM's cones against the cloud it was fitted to (measured 3.0 mm, 99.1 %),
@@ -71,6 +77,28 @@ check "skeleton json is in the scan's world frame" "node -e '
   const r = s.nodes[0];
   if (Math.abs(r.x - 0.76) > 0.1 || Math.abs(r.y + 16.36) > 0.1 || Math.abs(r.z - 253.9) > 0.2) process.exit(1);
 '"
+# A .sylva keeps its cluster hulls: meshed, they are the foliage_proxy mesh
+# `sylva run` draws, and the glb scores like the .sylva (measured coverage
+# 0.984 vs 0.987; without the hulls the glb covered 0.29).
+check "mesh of a .sylva has the foliage_proxy mesh and, its foliage, no default leaves" "node -e '
+  const b = require(\"fs\").readFileSync(\"$tmp/s_sylva.glb\");
+  const j = JSON.parse(b.slice(20, 20 + b.readUInt32LE(12)).toString());
+  if (!j.meshes.some(m => m.name === \"foliage_proxy\")) process.exit(1);
+  if (j.meshes.some(m => m.name.startsWith(\"leaf\"))) process.exit(1);
+'"
+"$SYLVA" eval --points "$cloud" "$tmp/s.sylva" --json > "$tmp/es.json" || fail=1
+"$SYLVA" eval --points "$cloud" "$tmp/s_sylva.glb" --json > "$tmp/esg.json" || fail=1
+echo ".sylva vs cloud: coverage $(key "$tmp/es.json" coverage); its glb: coverage $(key "$tmp/esg.json" coverage)"
+check "the .sylva's glb covers the cloud within 0.01 of the .sylva" \
+  "node -e 'process.exit(Math.abs($(key "$tmp/es.json" coverage) - $(key "$tmp/esg.json" coverage)) < 0.01 ? 0 : 1)'"
+# `sylva run` keeps the world position too, so its glb lines up with the scan
+# (measured mean 2.9 mm; without asset.extras.origin it was 252 m off).
+"$SYLVA" run "$cloud" -o "$tmp/r.glb" --quiet || { echo "FAIL: run cloud.txt"; fail=1; }
+valid "$tmp/r.glb"
+"$SYLVA" eval --points "$cloud" "$tmp/r.glb" --json > "$tmp/er.json" || fail=1
+echo "run glb vs cloud: mean $(key "$tmp/er.json" mean_distance) m, coverage $(key "$tmp/er.json" coverage)"
+check "run glb within 3 cm of the cloud on average" "node -e 'process.exit(($(key "$tmp/er.json" mean_distance)) < 0.03 ? 0 : 1)'"
+
 "$SYLVA" eval --truth "$qsm" "$tmp/s.json" --json > "$tmp/t.json" || fail=1
 echo "Sylva skeleton vs QSM: recall $(key "$tmp/t.json" recall), precision $(key "$tmp/t.json" precision), radius error (median rel.) $(key "$tmp/t.json" radius_error_median)"
 check "skeleton recall against the QSM > 0.5" "node -e 'process.exit(($(key "$tmp/t.json" recall)) > 0.5 ? 0 : 1)'"
@@ -95,5 +123,5 @@ node "$validator" "${glbs[@]}" > "$tmp/validate.txt"
 for g in "${glbs[@]}"; do
   check "$(basename "$g") validates with 0 errors, 0 warnings" "grep -qF '$g: errors=0 warnings=0 ' '$tmp/validate.txt'"
 done
-(( ${#glbs[@]} == 8 )) || { echo "FAIL: expected 8 glb files, validated ${#glbs[@]}"; fail=1; }
+(( ${#glbs[@]} == 9 )) || { echo "FAIL: expected 9 glb files, validated ${#glbs[@]}"; fail=1; }
 exit $fail

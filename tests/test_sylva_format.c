@@ -1,5 +1,6 @@
-/* The .sylva file: round trip within the quantisation, byte-identical
- * re-encoding, < 40 kB per scanned tree, and one-line SY_EINPUT errors for
+/* The .sylva file: round trip within the quantisation (branch orders
+ * exact), byte-identical re-encoding, version 1 still read, < 40 kB per
+ * scanned tree, and one-line SY_EINPUT errors for
  * every corrupted, truncated or malformed file. */
 #include "testutil.h"
 
@@ -10,6 +11,7 @@
 
 #include "stages/core/fileio.h"
 #include "stages/encode/sylva_format.h"
+#include "stages/qsm/qsm_io.h"
 #include "stages/skeleton/skeleton_stage.h"
 #include "synthetic_tree.h"
 #include "xyz_text.h"
@@ -208,6 +210,94 @@ static unsigned char *tiny_file(size_t *size)
     return data;
 }
 
+/* The tiny file's branch-order bytes (version 2): after the 64-byte header,
+ * the node count and its three nodes (8, 1 + 8, 1 + 8 bytes), one a branch. */
+enum { TINY_ORDERS_AT = 64 + 1 + 8 + 9 + 9, TINY_BRANCHES = 2 };
+
+/* Version 1 files (no branch orders) still read, their orders derived from
+ * the branch starts; a stored order out of 0..255 is refused. */
+static void version1_files_still_read(void **state)
+{
+    (void)state;
+    size_t size;
+    unsigned char *v2 = tiny_file(&size);
+    assert_int_equal(v2[4], 2);
+    /* Both branches follow the derived rule: each order is stored as 0. */
+    assert_int_equal(v2[TINY_ORDERS_AT], 0);
+    assert_int_equal(v2[TINY_ORDERS_AT + 1], 0);
+    unsigned char *v1 = malloc(size);
+    memcpy(v1, v2, TINY_ORDERS_AT);
+    memcpy(v1 + TINY_ORDERS_AT, v2 + TINY_ORDERS_AT + TINY_BRANCHES, size - TINY_ORDERS_AT - TINY_BRANCHES);
+    size_t size1 = size - TINY_BRANCHES;
+    v1[4] = 1;
+    reseal(v1, size1);
+    sy_skeleton a, b;
+    sy_clusters ca, cb;
+    sy_sylva_meta ma, mb;
+    sy_error err = {0};
+    assert_int_equal(sy_decode_mem("v2.sylva", v2, size, &a, &ca, &ma, &err), SY_OK);
+    assert_int_equal(sy_decode_mem("v1.sylva", v1, size1, &b, &cb, &mb, &err), SY_OK);
+    assert_int_equal(b.n, 3);
+    assert_memory_equal(a.order, b.order, 3 * sizeof *a.order);
+    assert_memory_equal(a.pos, b.pos, 9 * sizeof *a.pos);
+    assert_int_equal(b.order[2], 1);
+    assert_int_equal(cb.n, 1);
+    sy_skeleton_free(&a);
+    sy_skeleton_free(&b);
+    sy_clusters_free(&ca);
+    sy_clusters_free(&cb);
+    /* zigzag 1 = -1: the root's order would be -1. */
+    v2[TINY_ORDERS_AT] = 1;
+    reseal(v2, size);
+    sy_code rc = sy_decode_mem("neg.sylva", v2, size, &a, &ca, &ma, &err);
+    assert_one_line_input_error(rc, &err, "neg.sylva");
+    assert_non_null(strstr(err.msg, "branch order"));
+    free(v1);
+    free(v2);
+}
+
+/* rTwig's QSM: its segments run fork to fork, so rebuilding orders from
+ * branch starts gave max order 17 instead of 4; version 2 stores them. */
+static void qsm_branch_orders_round_trip(void **state)
+{
+    (void)state;
+    sy_skeleton s, d;
+    sy_clusters dc;
+    sy_sylva_meta meta;
+    sy_error err = {0};
+    assert_int_equal(sy_skeleton_read(data_path("real/rtwig/QSM.csv"), &s, &err), SY_OK);
+    unsigned char *data;
+    size_t size;
+    assert_int_equal(sy_encode_mem(&s, NULL, 0, 1, NULL, &data, &size, &err), SY_OK);
+    assert_int_equal(sy_decode_mem("qsm.sylva", data, size, &d, &dc, &meta, &err), SY_OK);
+    size_t branches = (size_t)sy_skeleton_branch_count(&s);
+    printf("QSM.csv: %zu nodes, %zu branches -> %zu bytes\n", s.n, branches, size);
+    /* 8 bytes a node plus its parent link; orders add about a byte a branch. */
+    assert_true(size < 10 * s.n + 2 * branches + 100);
+    assert_int_equal(d.n, s.n);
+    /* The encoder renumbers nodes breadth-first: match them by position
+     * (the 2^-14 m grid puts each within 31 microns of its original). */
+    double half = ldexp(1.0, meta.quant.step_log2) / 2 * (1 + 1e-6);
+    int max_order = 0;
+    for (size_t i = 0; i < d.n; i++) {
+        size_t best = 0;
+        double bd = INFINITY;
+        for (size_t j = 0; j < s.n; j++) {
+            double e = 0;
+            for (int k = 0; k < 3; k++) e = fmax(e, fabs((double)d.pos[3 * i + k] - s.pos[3 * j + k]));
+            if (e < bd) bd = e, best = j;
+        }
+        assert_true(bd <= half);
+        assert_int_equal(d.order[i], s.order[best]);
+        if (d.order[i] > max_order) max_order = d.order[i];
+    }
+    assert_int_equal(max_order, 4);
+    free(data);
+    sy_skeleton_free(&s);
+    sy_skeleton_free(&d);
+    sy_clusters_free(&dc);
+}
+
 static void damaged_files_fail_cleanly(void **state)
 {
     (void)state;
@@ -305,6 +395,8 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(damaged_files_fail_cleanly),
         cmocka_unit_test(encoder_rejects_bad_input),
+        cmocka_unit_test(version1_files_still_read),
+        cmocka_unit_test(qsm_branch_orders_round_trip),
         cmocka_unit_test(synthetic_tree_round_trips),
         cmocka_unit_test(real_trees_round_trip_under_40kB),
     };

@@ -213,6 +213,38 @@ void sy_cloud_rebase(sy_cloud *c)
     }
 }
 
+sy_code sy_cloud_scalar(const sy_cloud *c, const char *name, double **out, sy_error *err)
+{
+    *out = NULL;
+    const double *extra = sy_cloud_attr(c, name);
+    /* Standard fields: array, element type (1 u8, 2 u16, 8 f64), stride, first component. */
+    struct { const char *name; const void *p; int type, stride, at; } fixed[] = {
+        {"intensity", c->intensity, 2, 1, 0},       {"nir", c->nir, 2, 1, 0},
+        {"classification", c->classification, 1, 1, 0}, {"return_number", c->return_number, 1, 1, 0},
+        {"number_of_returns", c->num_returns, 1, 1, 0}, {"gps_time", c->gps_time, 8, 1, 0},
+        {"red", c->rgb, 2, 3, 0}, {"green", c->rgb, 2, 3, 1}, {"blue", c->rgb, 2, 3, 2},
+    };
+    int which = -1;
+    for (int f = 0; f < (int)(sizeof fixed / sizeof fixed[0]) && !extra; f++)
+        if (fixed[f].p && strcmp(fixed[f].name, name) == 0) which = f;
+    if (!extra && which < 0) return SY_OK;
+    double *v = sy_calloc(c->n ? c->n : 1, sizeof *v, err, "point values");
+    if (!v) return SY_EINTERNAL;
+    for (size_t i = 0; i < c->n; i++) {
+        if (extra) {
+            v[i] = extra[i];
+            continue;
+        }
+        size_t k = i * (size_t)fixed[which].stride + (size_t)fixed[which].at;
+        const void *p = fixed[which].p;
+        v[i] = fixed[which].type == 1   ? ((const uint8_t *)p)[k]
+               : fixed[which].type == 2 ? ((const uint16_t *)p)[k]
+                                        : ((const double *)p)[k];
+    }
+    *out = v;
+    return SY_OK;
+}
+
 void sy_cloud_attribute_names(const sy_cloud *c, char *buf, size_t size)
 {
     struct { const void *p; const char *name; } fixed[] = {

@@ -76,4 +76,11 @@ void sy_cloud_rebase(sy_cloud *c);
 /* Comma-separated attribute list, e.g. "xyz,intensity,rgb,treeID". */
 void sy_cloud_attribute_names(const sy_cloud *c, char *buf, size_t size);
 
+/* One value a point of the scalar named as sy_cloud_attribute_names lists
+ * it: an extra-bytes attribute, or a standard field (intensity, nir,
+ * classification, return_number, number_of_returns, gps_time, and red,
+ * green, blue of rgb), so labels can live in either. *out: n doubles
+ * (malloc'd), NULL when the cloud has no such field (SY_OK all the same). */
+sy_code sy_cloud_scalar(const sy_cloud *c, const char *name, double **out, sy_error *err);
+
 #endif

@@ -171,6 +171,10 @@ static int cmp_tri(const void *a, const void *b)
     return 0;
 }
 
+/* Signed steps as varints: 0, -1, 1, -2, ... -> 0, 1, 2, 3, ... */
+static uint64_t zigzag(int32_t v) { return v < 0 ? ((uint64_t)(-(int64_t)v) << 1) - 1 : (uint64_t)v << 1; }
+static int64_t unzigzag(uint64_t u) { return u & 1 ? -(int64_t)(u >> 1) - 1 : (int64_t)(u >> 1); }
+
 /* Breadth-first order from the root, children by index: order[new] = old. */
 static sy_code bfs(const sy_skeleton *s, int32_t *order, int32_t *newid, sy_error *err)
 {
@@ -272,6 +276,16 @@ sy_code sy_encode_mem(const sy_skeleton *s, const sy_clusters *cl, uint16_t spec
         }
         for (int k = 0; k < 3; k++) put_le(&b, qp[k], 2);
         put_le(&b, quant_radius(&q, s->radius[o]), 2);
+    }
+    /* Version 2: each branch's order, in the order the branches open, as the
+     * zigzag of its step from the parent's order + 1 (the root's: from 0).
+     * Side branches one order up cost 0, a stem continued as a new segment
+     * (QSM segments run fork to fork) -1: one byte a branch either way. */
+    for (size_t i = 0; i < s->n; i++) {
+        int32_t o = order[i];
+        int32_t p = i ? s->parent[o] : -1;
+        if (p >= 0 && s->branch[o] == s->branch[p]) continue;
+        put_varint(&b, zigzag((int32_t)s->order[o] - (p >= 0 ? (int32_t)s->order[p] + 1 : 0)));
     }
 
     put_varint(&b, cl ? cl->n : 0);
@@ -380,8 +394,9 @@ sy_code sy_decode_mem(const char *path, const unsigned char *data, size_t size, 
     memset(meta, 0, sizeof *meta);
     if (size < 4 || memcmp(data, "SYLV", 4) != 0) return sy_fail(err, SY_EINPUT, "%s: not a .sylva file", path);
     if (size < HEADER_SIZE + 4) return sy_fail(err, SY_EINPUT, "%s: truncated header (%zu bytes)", path, size);
-    if (data[4] != SY_SYLVA_VERSION)
-        return sy_fail(err, SY_EINPUT, "%s: unsupported .sylva version %u", path, (unsigned)data[4]);
+    unsigned version = data[4];
+    if (version < 1 || version > SY_SYLVA_VERSION)
+        return sy_fail(err, SY_EINPUT, "%s: unsupported .sylva version %u", path, version);
     rbuf r = {data, size - 4, 0, 0};
     rbuf tail = {data, size, size - 4, 0};
     if ((uint32_t)get_le(&tail, 4) != crc32(data, size - 4))
@@ -443,6 +458,20 @@ sy_code sy_decode_mem(const char *path, const unsigned char *data, size_t size, 
             rc = sy_fail(err, SY_EINPUT, "%s: truncated in node %zu", path, i);
             goto fail;
         }
+    }
+    /* Version 1 stores no orders: the derived ones above stand. */
+    for (size_t i = 0; i < n && version >= 2; i++) {
+        int32_t p = s->parent[i];
+        if (p >= 0 && s->branch[i] == s->branch[p]) {
+            s->order[i] = s->order[p]; /* parents come first (breadth-first order) */
+            continue;
+        }
+        int64_t o = (p >= 0 ? (int64_t)s->order[p] + 1 : 0) + unzigzag(get_varint(&r));
+        if (r.bad || o < 0 || o > 255) {
+            rc = sy_fail(err, SY_EINPUT, "%s: node %zu has an invalid branch order", path, i);
+            goto fail;
+        }
+        s->order[i] = (uint8_t)o;
     }
 
     uint64_t nc = get_varint(&r);

@@ -1,6 +1,6 @@
 /* The .sylva file: one reconstructed tree in a few kilobytes (Pirk 2013
  * Table 3.2: < 40 kB per scanned tree). It holds the main skeleton as spline
- * control points with radii, the cluster hulls with their seed nodes, the
+ * control points with radii and branch orders, the cluster hulls with their seed nodes, the
  * species id and the synthesis seed. Layout: docs/sylva-format.md.
  *
  * Quantisation: positions are 16-bit multiples of a power-of-two step, the
@@ -20,7 +20,9 @@
 #include "stages/core/skeleton.h"
 #include "stages/core/status.h"
 
-#define SY_SYLVA_VERSION 1
+/* Written version; the decoder reads 1 (orders derived from branch starts)
+ * and 2 (orders stored per branch). */
+#define SY_SYLVA_VERSION 2
 
 /* The quantisation grid of one file. */
 typedef struct {

@@ -3,7 +3,9 @@
 
 #include <tiny_gltf.h>
 
+#include <algorithm>
 #include <array>
+#include <cstdint>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -127,9 +129,36 @@ class AccessorView {
     bool normalized_ = false;
 };
 
+// Sylva draws cluster hulls, each closed and facing outward, as one mesh of
+// this name (pipeline/tree_asset.c): its connected parts are those hulls.
+constexpr const char *kHullMesh = "foliage_proxy";
+
+// Connected part of each index (0-based, in order of first appearance).
+std::vector<size_t> components(const std::vector<size_t> &idx, size_t n_vertices)
+{
+    std::vector<size_t> up(n_vertices);
+    for (size_t i = 0; i < n_vertices; i++) up[i] = i;
+    auto find = [&up](size_t x) {
+        while (up[x] != x) x = up[x] = up[up[x]];
+        return x;
+    };
+    for (size_t t = 0; t + 2 < idx.size(); t += 3)
+        for (int k = 1; k < 3; k++) up[find(idx[t + size_t(k)])] = find(idx[t]);
+    std::vector<size_t> label(n_vertices, SIZE_MAX), part(idx.size() / 3);
+    size_t next = 0;
+    for (size_t t = 0; t + 2 < idx.size(); t += 3) {
+        size_t r = find(idx[t]);
+        if (label[r] == SIZE_MAX) label[r] = next++;
+        part[t / 3] = label[r];
+    }
+    return part;
+}
+
 struct Reader {
     const tinygltf::Model &m;
     std::vector<double> out;
+    std::vector<size_t> hull; // per triangle: 0, or 1 + the closed hull it belongs to
+    size_t n_hulls = 0;
     size_t visits = 0;
 
     // Instance matrices of EXT_mesh_gpu_instancing, or one identity.
@@ -167,9 +196,10 @@ struct Reader {
         return result;
     }
 
-    void emit(const Mat4 &xf, const AccessorView &pos, size_t a, size_t b, size_t c)
+    void emit(const Mat4 &xf, const AccessorView &pos, size_t a, size_t b, size_t c, size_t hull_id)
     {
         if (out.size() / 9 >= kMaxTriangles) throw Failure{2, "more than 2^28 triangles"};
+        hull.push_back(hull_id);
         for (size_t v : {a, b, c}) {
             double p[3] = {pos.get(v, 0), pos.get(v, 1), pos.get(v, 2)}, w[3];
             for (int r = 0; r < 3; r++) w[r] = xf[r] * p[0] + xf[4 + r] * p[1] + xf[8 + r] * p[2] + xf[12 + r];
@@ -180,7 +210,7 @@ struct Reader {
         }
     }
 
-    void primitive(const tinygltf::Primitive &prim, const std::vector<Mat4> &xfs)
+    void primitive(const tinygltf::Primitive &prim, const std::vector<Mat4> &xfs, bool hulls)
     {
         int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
         if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP && mode != TINYGLTF_MODE_TRIANGLE_FAN) return;
@@ -201,14 +231,21 @@ struct Reader {
             idx.resize(pos.count());
             for (size_t i = 0; i < idx.size(); i++) idx[i] = i;
         }
+        // Hulls are plain triangle lists (as Sylva writes them); each instance is hulls of its own.
+        hulls = hulls && mode == TINYGLTF_MODE_TRIANGLES;
+        std::vector<size_t> part = hulls ? components(idx, pos.count()) : std::vector<size_t>();
+        size_t n_parts = 0;
+        for (size_t p : part) n_parts = std::max(n_parts, p + 1);
         for (const Mat4 &xf : xfs) {
             if (mode == TINYGLTF_MODE_TRIANGLES)
-                for (size_t i = 0; i + 2 < idx.size(); i += 3) emit(xf, pos, idx[i], idx[i + 1], idx[i + 2]);
+                for (size_t i = 0; i + 2 < idx.size(); i += 3)
+                    emit(xf, pos, idx[i], idx[i + 1], idx[i + 2], hulls ? n_hulls + 1 + part[i / 3] : 0);
             else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP)
                 for (size_t i = 0; i + 2 < idx.size(); i++)
-                    i % 2 ? emit(xf, pos, idx[i + 1], idx[i], idx[i + 2]) : emit(xf, pos, idx[i], idx[i + 1], idx[i + 2]);
+                    i % 2 ? emit(xf, pos, idx[i + 1], idx[i], idx[i + 2], 0) : emit(xf, pos, idx[i], idx[i + 1], idx[i + 2], 0);
             else
-                for (size_t i = 1; i + 1 < idx.size(); i++) emit(xf, pos, idx[0], idx[i], idx[i + 1]);
+                for (size_t i = 1; i + 1 < idx.size(); i++) emit(xf, pos, idx[0], idx[i], idx[i + 1], 0);
+            n_hulls += n_parts;
         }
     }
 
@@ -224,7 +261,8 @@ struct Reader {
             if (size_t(n.mesh) >= m.meshes.size()) throw Failure{2, "mesh index out of range"};
             std::vector<Mat4> xfs = instances(n);
             for (Mat4 &x : xfs) x = mul(world, x);
-            for (const tinygltf::Primitive &p : m.meshes[size_t(n.mesh)].primitives) primitive(p, xfs);
+            const tinygltf::Mesh &mesh = m.meshes[size_t(n.mesh)];
+            for (const tinygltf::Primitive &p : mesh.primitives) primitive(p, xfs, mesh.name == kHullMesh);
         }
         for (int c : n.children) node(c, world, depth + 1);
     }
@@ -247,9 +285,11 @@ void set_msg(char *msg, size_t size, const char *path, const std::string &what)
 
 } // namespace
 
-extern "C" int sy_gltf_read_triangles(const char *path, double **tri, size_t *n_tri, char *msg, size_t msg_size)
+extern "C" int sy_gltf_read_triangles(const char *path, double **tri, size_t *n_tri, size_t **hull, char *msg,
+                                      size_t msg_size)
 {
     *tri = nullptr;
+    *hull = nullptr;
     *n_tri = 0;
     try {
         tinygltf::TinyGLTF loader;
@@ -271,7 +311,7 @@ extern "C" int sy_gltf_read_triangles(const char *path, double **tri, size_t *n_
             set_msg(msg, msg_size, path, err.empty() ? "not a readable glTF file" : "invalid glTF: " + err);
             return 2;
         }
-        Reader r{model, {}};
+        Reader r{model, {}, {}};
         std::vector<int> roots;
         if (!model.scenes.empty()) {
             int s = model.defaultScene >= 0 ? model.defaultScene : 0;
@@ -295,12 +335,18 @@ extern "C" int sy_gltf_read_triangles(const char *path, double **tri, size_t *n_
             for (size_t i = 0; i < r.out.size(); i++) r.out[i] += origin.Get(int(i % 3)).GetNumberAsDouble();
         *n_tri = r.out.size() / 9;
         *tri = static_cast<double *>(std::malloc(r.out.size() ? r.out.size() * sizeof(double) : sizeof(double)));
-        if (!*tri) {
+        *hull = static_cast<size_t *>(std::malloc(r.hull.size() ? r.hull.size() * sizeof(size_t) : sizeof(size_t)));
+        if (!*tri || !*hull) {
+            std::free(*tri);
+            std::free(*hull);
+            *tri = nullptr;
+            *hull = nullptr;
             *n_tri = 0;
             set_msg(msg, msg_size, path, "out of memory");
             return 3;
         }
         if (!r.out.empty()) std::memcpy(*tri, r.out.data(), r.out.size() * sizeof(double));
+        if (!r.hull.empty()) std::memcpy(*hull, r.hull.data(), r.hull.size() * sizeof(size_t));
         return 0;
     } catch (const Failure &f) {
         set_msg(msg, msg_size, path, f.what);

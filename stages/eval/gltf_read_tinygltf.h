@@ -14,9 +14,13 @@ extern "C" {
  * turned into Sylva's Z-up: (x, y, z) -> (x, -z, y), then moved by
  * asset.extras.origin [x, y, z] (Z-up world, as `sylva mesh` writes it)
  * when the file has one. *tri gets 9 doubles per
- * triangle (malloc'd). Returns 0 on success; otherwise 2 (bad input) or 3
- * (out of memory) with a one-line reason in msg. */
-int sy_gltf_read_triangles(const char *path, double **tri, size_t *n_tri, char *msg, size_t msg_size);
+ * triangle (malloc'd); *hull one entry per triangle (malloc'd): 0, or k >= 1
+ * when the triangle belongs to the k-th closed hull, a connected part of a
+ * mesh named "foliage_proxy" (Sylva's cluster hulls, each closed and facing
+ * outward; one hull per part and instance). Returns 0 on success; otherwise
+ * 2 (bad input) or 3 (out of memory) with a one-line reason in msg. */
+int sy_gltf_read_triangles(const char *path, double **tri, size_t *n_tri, size_t **hull, char *msg,
+                           size_t msg_size);
 
 #ifdef __cplusplus
 }

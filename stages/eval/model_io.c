@@ -30,26 +30,41 @@ sy_code sy_eval_model_add_mesh(sy_eval_model *m, const double *tri, size_t n, in
     return SY_OK;
 }
 
+/* The glb's surfaces as one mesh (closed when the caller says so) and each
+ * foliage-proxy hull as a closed mesh of its own, as load_sylva does for the
+ * same hulls: a .sylva and the glb made from it score alike. */
 static sy_code load_gltf(const char *path, int closed, sy_eval_model *out, sy_error *err)
 {
     double *tri;
-    size_t n;
+    size_t n, *hull;
     char msg[900];
-    int rc = sy_gltf_read_triangles(path, &tri, &n, msg, sizeof msg);
+    int rc = sy_gltf_read_triangles(path, &tri, &n, &hull, msg, sizeof msg);
     if (rc) return sy_fail(err, rc == 3 ? SY_EINTERNAL : SY_EINPUT, "%s", msg);
-    if (!n) {
-        free(tri);
-        return sy_fail(err, SY_EINPUT, "%s: no triangles in the default scene", path);
+    sy_code code = SY_OK;
+    size_t n_groups = 1;
+    for (size_t t = 0; t < n; t++) n_groups = hull[t] + 1 > n_groups ? hull[t] + 1 : n_groups;
+    /* Triangles sorted by group (counting sort): group g is [first[g], first[g + 1]). */
+    size_t *first = sy_calloc(n_groups + 1, sizeof *first, err, "model triangles");
+    double *sorted = sy_calloc(n ? 9 * n : 1, sizeof *sorted, err, "model triangles");
+    if (!n) code = sy_fail(err, SY_EINPUT, "%s: no triangles in the default scene", path);
+    else if (!first || !sorted) code = SY_EINTERNAL;
+    if (!code) {
+        for (size_t t = 0; t < n; t++) first[hull[t] + 1]++;
+        for (size_t g = 0; g < n_groups; g++) first[g + 1] += first[g];
+        for (size_t t = 0; t < n; t++) memcpy(sorted + 9 * first[hull[t]]++, tri + 9 * t, 9 * sizeof *tri);
+        for (size_t g = n_groups; g > 0; g--) first[g] = first[g - 1];
+        first[0] = 0;
+        for (size_t g = 0; g < n_groups && !code; g++)
+            if (first[g + 1] > first[g] || g == 0)
+                code = sy_eval_model_add_mesh(out, sorted + 9 * first[g], first[g + 1] - first[g], g ? 1 : closed,
+                                              err);
     }
-    sy_tri_mesh *one = malloc(sizeof *one);
-    if (!one) {
-        free(tri);
-        return sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
-    }
-    *one = (sy_tri_mesh){n, tri, closed};
-    out->meshes = one;
-    out->n_meshes = 1;
-    return SY_OK;
+    free(first);
+    free(sorted);
+    free(tri);
+    free(hull);
+    if (code) sy_eval_model_free(out);
+    return code;
 }
 
 /* One cluster hull as a closed mesh in world coordinates. */

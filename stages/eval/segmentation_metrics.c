@@ -96,10 +96,11 @@ sy_code sy_segmentation_metrics_labels(const double *truth, const double *pred, 
     return SY_OK;
 }
 
-static sy_code need_attr(const sy_cloud *c, const char *path, const char *attr, const double **out, sy_error *err)
+/* The labels: an extra-bytes attribute or a standard field (classification, ...). */
+static sy_code need_attr(const sy_cloud *c, const char *path, const char *attr, double **out, sy_error *err)
 {
-    *out = sy_cloud_attr(c, attr);
-    if (*out) return SY_OK;
+    sy_code rc = sy_cloud_scalar(c, attr, out, err);
+    if (rc || *out) return rc;
     char names[512];
     sy_cloud_attribute_names(c, names, sizeof names);
     return sy_fail(err, SY_EINPUT, "%s: no attribute '%s' (has: %s)", path, attr, names);
@@ -155,17 +156,17 @@ sy_code sy_segmentation_metrics_clouds(const sy_cloud *truth, const char *truth_
                                        const sy_cloud *pred, const char *pred_path, const char *pred_attr,
                                        double match_dist, sy_segmentation_metrics *out, sy_error *err)
 {
-    const double *tlab, *plab;
+    double *tlab = NULL, *plab = NULL, *moved = NULL;
     sy_code rc = need_attr(truth, truth_path, truth_attr, &tlab, err);
     if (!rc) rc = need_attr(pred, pred_path, pred_attr, &plab, err);
-    if (rc) return rc;
-    if (same_points(truth, pred)) return sy_segmentation_metrics_labels(tlab, plab, truth->n, out, err);
-    double *moved = sy_calloc(truth->n ? truth->n : 1, sizeof *moved, err, "labels");
-    if (!moved) return SY_EINTERNAL;
-    size_t unmatched = 0;
-    rc = transfer_labels(truth, pred, plab, match_dist, moved, &unmatched, err);
-    if (!rc) rc = sy_segmentation_metrics_labels(tlab, moved, truth->n, out, err);
-    out->n_unmatched_points = unmatched;
-    free(moved);
+    if (!rc && same_points(truth, pred)) rc = sy_segmentation_metrics_labels(tlab, plab, truth->n, out, err);
+    else if (!rc) {
+        moved = sy_calloc(truth->n ? truth->n : 1, sizeof *moved, err, "labels");
+        size_t unmatched = 0;
+        rc = moved ? transfer_labels(truth, pred, plab, match_dist, moved, &unmatched, err) : SY_EINTERNAL;
+        if (!rc) rc = sy_segmentation_metrics_labels(tlab, moved, truth->n, out, err);
+        out->n_unmatched_points = unmatched;
+    }
+    free(tlab), free(plab), free(moved);
     return rc;
 }

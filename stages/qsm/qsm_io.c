@@ -87,20 +87,28 @@ sy_skel_format sy_skeleton_sniff(const char *path, const unsigned char *data, si
 typedef sy_code (*reader_fn)(const char *, const unsigned char *, size_t, sy_skeleton *, sy_skeleton_read_info *,
                              sy_error *);
 
-sy_code sy_skeleton_read_sylva_mem(const char *path, const unsigned char *data, size_t size, sy_skeleton *out,
-                                   sy_skeleton_read_info *info, sy_error *err)
+/* hulls NULL: the cluster hulls are dropped (a skeleton reader's answer). */
+static sy_code read_sylva(const char *path, const unsigned char *data, size_t size, sy_skeleton *out,
+                          sy_clusters *hulls, sy_skeleton_read_info *info, sy_error *err)
 {
     sy_clusters cl;
     sy_sylva_meta meta;
     sy_code rc = sy_decode_mem(path, data, size, out, &cl, &meta, err);
     if (rc) return rc;
-    sy_clusters_free(&cl);
+    if (hulls) *hulls = cl;
+    else sy_clusters_free(&cl);
     if (info) {
         info->records = out->n;
         info->input_roots = 1;
         info->origin_from_file = 1;
     }
     return SY_OK;
+}
+
+sy_code sy_skeleton_read_sylva_mem(const char *path, const unsigned char *data, size_t size, sy_skeleton *out,
+                                   sy_skeleton_read_info *info, sy_error *err)
+{
+    return read_sylva(path, data, size, out, NULL, info, err);
 }
 
 /* One row per readable format. */
@@ -116,10 +124,11 @@ static const struct {
     {SY_SKEL_SYLVA, sy_skeleton_read_sylva_mem},
 };
 
-sy_code sy_skeleton_read_tree(const char *path, long tree, sy_skeleton *out, sy_skeleton_read_info *info,
-                              sy_error *err)
+sy_code sy_skeleton_read_model(const char *path, long tree, sy_skeleton *out, sy_clusters *hulls,
+                               sy_skeleton_read_info *info, sy_error *err)
 {
     memset(out, 0, sizeof *out);
+    if (hulls) memset(hulls, 0, sizeof *hulls);
     sy_skeleton_read_info local;
     if (!info) info = &local;
     memset(info, 0, sizeof *info);
@@ -141,15 +150,26 @@ sy_code sy_skeleton_read_tree(const char *path, long tree, sy_skeleton *out, sy_
     rc = sy_fail(err, SY_EINPUT,
                  "%s: not a skeleton file this build reads (PLY, cylinder CSV, TreeQSM text, OBJ, JSON, .sylva)",
                  path);
-    for (size_t i = 0; i < sizeof READERS / sizeof READERS[0]; i++)
-        if (READERS[i].format == f) {
-            sy_error_clear(err);
-            rc = READERS[i].read(path, buf.data, buf.size, out, info, err);
-            break;
-        }
+    if (f == SY_SKEL_SYLVA && hulls) {
+        /* The one format that holds more than a skeleton: keep the hulls. */
+        sy_error_clear(err);
+        rc = read_sylva(path, buf.data, buf.size, out, hulls, info, err);
+    } else
+        for (size_t i = 0; i < sizeof READERS / sizeof READERS[0]; i++)
+            if (READERS[i].format == f) {
+                sy_error_clear(err);
+                rc = READERS[i].read(path, buf.data, buf.size, out, info, err);
+                break;
+            }
     sy_buffer_free(&buf);
     if (rc == SY_OK) info->format = f;
     return rc;
+}
+
+sy_code sy_skeleton_read_tree(const char *path, long tree, sy_skeleton *out, sy_skeleton_read_info *info,
+                              sy_error *err)
+{
+    return sy_skeleton_read_model(path, tree, out, NULL, info, err);
 }
 
 sy_code sy_skeleton_read_ex(const char *path, sy_skeleton *out, sy_skeleton_read_info *info, sy_error *err)

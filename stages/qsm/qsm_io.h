@@ -18,6 +18,7 @@
 #include <stddef.h>
 #include <stdio.h>
 
+#include "stages/clusters/clusters.h"
 #include "stages/core/fileio.h"
 #include "stages/core/json.h"
 #include "stages/core/json_read.h"
@@ -65,6 +66,11 @@ sy_code sy_skeleton_read_ex(const char *path, sy_skeleton *out, sy_skeleton_read
  * when a truth file holds several; other formats hold one tree (0 or -1). */
 sy_code sy_skeleton_read_tree(const char *path, long tree, sy_skeleton *out, sy_skeleton_read_info *info,
                               sy_error *err);
+/* As sy_skeleton_read_tree, and hulls (may be NULL) receives what else the
+ * file holds: the cluster hulls of a .sylva file (same frame as out), none
+ * for the skeleton-only formats. Owned by the caller (sy_clusters_free). */
+sy_code sy_skeleton_read_model(const char *path, long tree, sy_skeleton *out, sy_clusters *hulls,
+                               sy_skeleton_read_info *info, sy_error *err);
 
 /* The individual writers and in-memory readers (path names the file in
  * messages); the readers are what fuzz targets drive. */
