@@ -12,7 +12,8 @@
 # Env: SYLVA (default build/sylva), BENCH_SKELETON (default build/bench/bench_skeleton),
 #      BENCH_VISIBILITY (default build/bench/bench_visibility),
 #      SYLVA_DATA_DIR (default ../shared/data), SEED (default 1), KEEP=DIR keeps the files,
-#      SPECIES="a b" limits part (a) to those species, RUN_ARGS adds options to every `sylva run`.
+#      SPECIES="a b" limits part (a) to those species, RUN_ARGS adds options to every `sylva run`,
+#      SCAN_ARGS to every `sylva scan` of part (a) (SCAN_ARGS=--no-leaves: leaf-off scans).
 set -u
 cd "$(dirname "$0")/../.."
 sylva=${SYLVA:-build/sylva}
@@ -35,12 +36,12 @@ note() { [[ $1 == ok ]] || misses=$((misses + 1)); }
 # degrees, rescanned at a coarser step when the tree is large.
 scan_species() {
   local sp=$1 step=0.15 out n
-  out=$("$sylva" scan "$sp" --seed "$seed" --scanner terrestrial --step $step -o "$tmp/$sp.las" \
+  out=$("$sylva" scan "$sp" --seed "$seed" --scanner terrestrial --step $step ${SCAN_ARGS:-} -o "$tmp/$sp.las" \
         --truth "$tmp/$sp.json" --quiet --json) || return 1
   n=$(key point_count "$out")
   if (( n > 300000 )); then
     step=$(awk -v s=$step -v n="$n" 'BEGIN { printf "%.3f", s * sqrt(n / 250000) }')
-    out=$("$sylva" scan "$sp" --seed "$seed" --scanner terrestrial --step "$step" -o "$tmp/$sp.las" \
+    out=$("$sylva" scan "$sp" --seed "$seed" --scanner terrestrial --step "$step" ${SCAN_ARGS:-} -o "$tmp/$sp.las" \
           --truth "$tmp/$sp.json" --quiet --json) || return 1
   fi
   echo "$(key point_count "$out") $step"
