@@ -15,8 +15,9 @@
 sy_code sy_read_cloud(const char *path, sy_cloud *out, sy_error *err);
 
 /* Writes by extension: .ply (binary little endian), .las (LAS 1.4, point
- * format 6, or 7 when the cloud has RGB, extra bytes for named attributes),
- * .xyz/.txt (ASCII x y z [attributes]). Atomic: temp file + rename. */
+ * format 6, 7 with RGB, 8 with NIR, or 0-3 when the CRS is GeoTIFF keys;
+ * extra bytes for named attributes), .xyz/.txt (ASCII x y z [attributes]).
+ * Atomic: temp file + rename. */
 sy_code sy_write_cloud(const char *path, const sy_cloud *c, sy_error *err);
 
 /* The individual readers, over a file already in memory (path is for messages).

@@ -24,6 +24,7 @@ enum {
     LAS_POINT_FORMAT = 104,
     LAS_RECORD_LENGTH = 105,
     LAS_LEGACY_COUNT = 107,
+    LAS_LEGACY_BY_RETURN = 111, /* 5 x u32 */
     LAS_SCALE = 131,
     LAS_OFFSET = 155,
     LAS_BOUNDS = 179,         /* max x, min x, max y, min y, max z, min z */
@@ -35,6 +36,7 @@ enum {
     LAS_EVLR_HEADER = 60,
     LAS_EB_DESCRIPTOR = 192,  /* one extra-bytes descriptor */
     LAS_MAX_FORMAT = 10,
+    LAS_GLOBAL_GPS_STANDARD = 1 << 0, /* global encoding bit: adjusted standard GPS time */
     LAS_GLOBAL_WKT = 1 << 4,  /* global encoding bit: CRS is WKT */
 };
 
