@@ -863,6 +863,62 @@ static void gps_time_type_survives(void **state)
     sy_cloud_free(&a);
 }
 
+/* Normals go out as float extra bytes NormalX/Y/Z after the attributes and
+ * come back as the cloud's normals, bit for bit, not as attributes. */
+static void normals_round_trip_as_extra_bytes(void **state)
+{
+    (void)state;
+    sy_cloud a, b;
+    sy_buffer out;
+    sy_error err = {0};
+    fill_cloud(&a, 3000, 0, 0);
+    assert_int_equal(sy_cloud_add_normals(&a, &err), SY_OK);
+    for (size_t i = 0; i < a.n; i++) {
+        double t = 0.01 * (double)i, p = 0.37 * (double)i;
+        a.normal[3 * i] = (float)(sin(t) * cos(p));
+        a.normal[3 * i + 1] = (float)(sin(t) * sin(p));
+        a.normal[3 * i + 2] = (float)cos(t);
+    }
+    write_and_reread(&a, "normals.las", &out, &b);
+    assert_int_equal(b.meta.point_format, 6);
+    assert_non_null(b.normal);
+    for (size_t i = 0; i < 3 * a.n; i++) assert_true(b.normal[i] == a.normal[i]);
+    assert_int_equal(b.n_attrs, a.n_attrs);
+    assert_null(sy_cloud_attr(&b, "NormalX"));
+    assert_non_null(sy_cloud_attr(&b, "treeID"));
+    size_t len = 0;
+    const unsigned char *desc = find_vlr(&out, 4, &len);
+    assert_non_null(desc);
+    assert_int_equal(len, (a.n_attrs + 3) * 192);
+    const char *names[3] = {"NormalX", "NormalY", "NormalZ"};
+    for (int k = 0; k < 3; k++) {
+        const unsigned char *d = desc + (a.n_attrs + (size_t)k) * 192;
+        assert_string_equal((const char *)d + 4, names[k]);
+        assert_int_equal(d[2], 9); /* float */
+        assert_true(getf64(d + 64) >= -1.0 && getf64(d + 88) <= 1.0);
+    }
+    /* 30 bytes of format 6, 4 + 8 + 8 for the attributes, 12 for the normals. */
+    assert_int_equal(out.data[105] | out.data[106] << 8, 30 + 20 + 12);
+    sy_cloud_free(&b);
+    sy_buffer_free(&out);
+    sy_cloud_free(&a);
+    /* Another writer's double NormalX/Y/Z (names in any case, any order among
+     * the fields) are normals too. */
+    const eb_desc eb[] = {{10, 0, "normalz", 0, 0}, {6, 0, "treeID", 0, 0}, {10, 0, "NormalX", 0, 0},
+                          {10, 0, "NORMALY", 0, 0}};
+    las_spec sp = {.format = 6, .minor = 4, .n = 10, .eb = eb, .n_eb = 4};
+    if (read_built(&sp, &b, &err) != SY_OK) fail_msg("%s", err.msg);
+    assert_non_null(b.normal);
+    assert_int_equal(b.n_attrs, 1);
+    assert_non_null(sy_cloud_attr(&b, "treeID"));
+    for (size_t i = 0; i < b.n; i++) {
+        assert_float_equal(b.normal[3 * i], eb_raw(10, i, 2), 1e-6);
+        assert_float_equal(b.normal[3 * i + 1], eb_raw(10, i, 3), 1e-6);
+        assert_float_equal(b.normal[3 * i + 2], eb_raw(10, i, 0), 1e-6);
+    }
+    sy_cloud_free(&b);
+}
+
 static void wide_cloud_gets_a_coarser_scale(void **state)
 {
     (void)state;
@@ -917,6 +973,7 @@ int main(void)
         cmocka_unit_test(geotiff_crs_keeps_a_legacy_format),
         cmocka_unit_test(wkt_crs_is_written_whole),
         cmocka_unit_test(gps_time_type_survives),
+        cmocka_unit_test(normals_round_trip_as_extra_bytes),
         cmocka_unit_test(wide_cloud_gets_a_coarser_scale),
         cmocka_unit_test(failed_write_leaves_no_file),
     };

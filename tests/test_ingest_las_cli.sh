@@ -38,6 +38,13 @@ DBH="$SYLVA_DATA_DIR/real/lidr/dbh.las"
 json=$("$SYLVA" info --json "$TMP/dbh.las") || fail "info on converted dbh exited $?"
 echo "$json" | grep -q '"point_format":6,"global_encoding":17,' || fail "converted dbh format/encoding: $json"
 
+# Normals from preprocess survive a LAS file (float extra bytes NormalX/Y/Z).
+"$SYLVA" preprocess "$SYLVA_DATA_DIR/real/adtree/tree1.xyz" -o "$TMP/pp.las" >/dev/null 2>"$TMP/err" \
+    || fail "preprocess to .las exited $?: $(cat "$TMP/err")"
+json=$("$SYLVA" info --json "$TMP/pp.las") || fail "info on preprocessed .las exited $?"
+echo "$json" | grep -q '"attributes":\["xyz","normal",' || fail "normals lost in .las: $json"
+echo "$json" | grep -q 'NormalX' && fail "normals read back as attributes: $json"
+
 # A failing convert (LAZ input; then a truncated LAS) leaves nothing behind.
 mkdir "$TMP/out_dir"
 "$SYLVA" convert "$LAZ" -o "$TMP/out_dir/Y.las" 2>/dev/null && fail "convert of .laz succeeded"

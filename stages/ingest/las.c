@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 #include "ingest.h"
 #include "las_format.h"
@@ -492,6 +493,32 @@ static sy_code decode_extra_bytes(const las_header *h, const las_vlrs *v, const 
     return SY_OK;
 }
 
+/* NormalX/NormalY/NormalZ extra bytes (PDAL's names, which the writer uses)
+ * are the cloud's normals, not three attributes: moved over when all three
+ * are present. */
+static sy_code adopt_normals(sy_cloud *c, sy_error *err)
+{
+    size_t at[3];
+    for (int k = 0; k < 3; k++) {
+        at[k] = c->n_attrs;
+        for (size_t a = 0; a < c->n_attrs && at[k] == c->n_attrs; a++)
+            if (strcasecmp(c->attrs[a].name, las_normal_names[k]) == 0) at[k] = a;
+        if (at[k] == c->n_attrs) return SY_OK;
+    }
+    if (sy_cloud_add_normals(c, err)) return SY_EINTERNAL;
+    for (int k = 0; k < 3; k++) {
+        const double *v = c->attrs[at[k]].values;
+        for (size_t i = 0; i < c->n; i++) c->normal[3 * i + k] = (float)v[i];
+    }
+    size_t kept = 0;
+    for (size_t a = 0; a < c->n_attrs; a++) {
+        if (a == at[0] || a == at[1] || a == at[2]) free(c->attrs[a].values);
+        else c->attrs[kept++] = c->attrs[a];
+    }
+    c->n_attrs = kept;
+    return SY_OK;
+}
+
 static sy_code fill_meta(const char *path, const las_header *h, las_vlrs *v, sy_cloud *c, sy_error *err)
 {
     snprintf(c->meta.format, sizeof c->meta.format, "LAS");
@@ -545,7 +572,7 @@ static sy_code read_las(const char *path, const unsigned char *data, size_t size
     const unsigned char *pts = data + h.point_offset;
     if ((rc = decode_points(path, &h, pts, out, err))) return rc;
     if (v->extra_bytes && h.record_length > las_layouts[h.format].size &&
-        (rc = decode_extra_bytes(&h, v, pts, out, err)))
+        ((rc = decode_extra_bytes(&h, v, pts, out, err)) || (rc = adopt_normals(out, err))))
         return rc;
     return fill_meta(path, &h, v, out, err);
 }

@@ -1,9 +1,10 @@
 /* LAS 1.4 writer: point format 6 (7 with RGB, 8 with near infrared), named
- * attributes as extra bytes, the CRS carried over the way LAS 1.4 allows:
- * formats 6-10 must declare WKT (global encoding bit 4), so a WKT CRS goes out
- * with them as a WKT VLR; a CRS known only as GeoTIFF keys (turning keys into
- * WKT needs a projection database) goes out verbatim with a legacy point
- * format 0-3, where GeoTIFF is the CRS encoding, whenever the cloud fits one.
+ * attributes and normals (float NormalX/Y/Z, PDAL's names) as extra bytes,
+ * the CRS carried over the way LAS 1.4 allows: formats 6-10 must declare WKT
+ * (global encoding bit 4), so a WKT CRS goes out with them as a WKT VLR; a
+ * CRS known only as GeoTIFF keys (turning keys into WKT needs a projection
+ * database) goes out verbatim with a legacy point format 0-3, where GeoTIFF
+ * is the CRS encoding, whenever the cloud fits one.
  * docs/formats.md has the full rule.
  *
  * Scale 0.0001 m with offset = the cloud origin: positions are float offsets
@@ -106,35 +107,40 @@ static unsigned char *put_vlr_header(unsigned char *q, const char *user, unsigne
     return q + LAS_VLR_HEADER;
 }
 
-static void put_descriptor(unsigned char *d, const sy_attr *a, unsigned char type, size_t n)
+/* The non-NaN extremes of a column (NaN when it has none) and whether NaN occurs. */
+typedef struct {
+    double lo, hi;
+    int any_nan;
+} value_range;
+
+static void range_add(value_range *r, double v)
 {
-    double lo = NAN, hi = NAN;
-    int any_nan = 0;
-    for (size_t i = 0; i < n; i++) {
-        double v = a->values[i];
-        any_nan |= isnan(v);
-        if (isnan(v)) continue;
-        if (isnan(lo) || v < lo) lo = v;
-        if (isnan(hi) || v > hi) hi = v;
-    }
-    int has_range = !isnan(lo) && !isinf(lo) && !isinf(hi);
-    int no_data = any_nan && type == LAS_EB_INT32;
+    r->any_nan |= isnan(v);
+    if (isnan(v)) return;
+    if (isnan(r->lo) || v < r->lo) r->lo = v;
+    if (isnan(r->hi) || v > r->hi) r->hi = v;
+}
+
+static void put_descriptor(unsigned char *d, const char *name, unsigned char type, value_range r)
+{
+    int has_range = !isnan(r.lo) && !isinf(r.lo) && !isinf(r.hi);
+    int no_data = r.any_nan && type == LAS_EB_INT32;
     d[LAS_EB_TYPE] = type;
     d[LAS_EB_OPTIONS] = (unsigned char)((has_range ? LAS_EB_OPT_MIN | LAS_EB_OPT_MAX : 0) |
                                         (no_data ? LAS_EB_OPT_NO_DATA : 0));
-    put_text(d + LAS_EB_NAME, 32, a->name);
+    put_text(d + LAS_EB_NAME, 32, name);
     if (type == LAS_EB_INT32) {
         if (no_data) las_put_u64(d + LAS_EB_NO_DATA, (uint64_t)(int64_t)INT32_MIN);
         if (has_range) {
-            las_put_u64(d + LAS_EB_MIN, (uint64_t)(int64_t)lo);
-            las_put_u64(d + LAS_EB_MAX, (uint64_t)(int64_t)hi);
+            las_put_u64(d + LAS_EB_MIN, (uint64_t)(int64_t)r.lo);
+            las_put_u64(d + LAS_EB_MAX, (uint64_t)(int64_t)r.hi);
         }
-    } else if (has_range) {
-        las_put_f64(d + LAS_EB_MIN, lo);
-        las_put_f64(d + LAS_EB_MAX, hi);
+    } else if (has_range) { /* float and double fields both store the range as double */
+        las_put_f64(d + LAS_EB_MIN, r.lo);
+        las_put_f64(d + LAS_EB_MAX, r.hi);
     }
     char desc[32];
-    snprintf(desc, sizeof desc, "%.20s (%s)", a->name, type == LAS_EB_INT32 ? "integer" : "real");
+    snprintf(desc, sizeof desc, "%.20s (%s)", name, type == LAS_EB_INT32 ? "integer" : "real");
     put_text(d + LAS_EB_DESCRIPTION, 32, desc);
 }
 
@@ -247,10 +253,11 @@ static int choose_format(const sy_cloud *c, const las_plan *p)
 /* Builds header and VLRs into p->header. */
 static sy_code build_header(const char *path, const sy_cloud *c, las_plan *p, sy_error *err)
 {
-    if (c->n_attrs > MAX_DESCRIPTORS)
+    size_t n_fields = c->n_attrs + (c->normal ? 3 : 0);
+    if (n_fields > MAX_DESCRIPTORS)
         return sy_fail(err, SY_EINPUT, "%s: %zu attributes exceed the %d a LAS extra-bytes record can describe",
-                       path, c->n_attrs, MAX_DESCRIPTORS);
-    size_t eb_len = c->n_attrs * LAS_EB_DESCRIPTOR, wkt_len = p->wkt ? strlen(p->wkt) + 1 : 0;
+                       path, n_fields, MAX_DESCRIPTORS);
+    size_t eb_len = n_fields * LAS_EB_DESCRIPTOR, wkt_len = p->wkt ? strlen(p->wkt) + 1 : 0;
     size_t len = LAS_HDR_14 + (eb_len ? LAS_VLR_HEADER + eb_len : 0) + p->geotiff_len +
                  (wkt_len ? LAS_VLR_HEADER + wkt_len : 0);
     p->header = sy_calloc(len, 1, err, "LAS header");
@@ -260,8 +267,16 @@ static sy_code build_header(const char *path, const sy_cloud *c, las_plan *p, sy
     uint32_t n_vlrs = 0;
     if (eb_len) {
         q = put_vlr_header(q, "LASF_Spec", 4, eb_len, "Extra bytes: Sylva attributes");
-        for (size_t a = 0; a < c->n_attrs; a++)
-            put_descriptor(q + a * LAS_EB_DESCRIPTOR, &c->attrs[a], p->eb_types[a], c->n);
+        for (size_t a = 0; a < c->n_attrs; a++) {
+            value_range r = {NAN, NAN, 0};
+            for (size_t i = 0; i < c->n; i++) range_add(&r, c->attrs[a].values[i]);
+            put_descriptor(q + a * LAS_EB_DESCRIPTOR, c->attrs[a].name, p->eb_types[a], r);
+        }
+        for (int k = 0; c->normal && k < 3; k++) {
+            value_range r = {NAN, NAN, 0};
+            for (size_t i = 0; i < c->n; i++) range_add(&r, c->normal[3 * i + k]);
+            put_descriptor(q + (c->n_attrs + (size_t)k) * LAS_EB_DESCRIPTOR, las_normal_names[k], LAS_EB_FLOAT, r);
+        }
         q += eb_len;
         n_vlrs++;
     }
@@ -311,6 +326,7 @@ static void encode_point(unsigned char *r, const sy_cloud *c, const las_plan *p,
             e += 8;
         }
     }
+    for (int k = 0; c->normal && k < 3; k++, e += 4) las_put_f32(e, c->normal[3 * i + k]);
 }
 
 static sy_code write_file(const char *path, const sy_cloud *c, const las_plan *p, sy_error *err)
@@ -353,6 +369,7 @@ sy_code sy_write_las(const char *path, const sy_cloud *c, sy_error *err)
         p.eb_types[a] = attr_type(&c->attrs[a], c->n);
         record += p.eb_types[a] == LAS_EB_INT32 ? 4 : 8;
     }
+    if (c->normal) record += 3 * sizeof(float);
     if (record > 65535) {
         free(p.eb_types);
         return sy_fail(err, SY_EINPUT, "%s: %zu attributes make a %zu-byte record, over LAS's 65535", path,
