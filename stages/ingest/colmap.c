@@ -140,6 +140,7 @@ static sy_code bin_end(const bin_cursor *c, sy_error *err)
 
 /* ---- cameras ----------------------------------------------------------- */
 
+
 /* unit/where locate the record in messages: "camera 3" or "line 7". */
 static sy_code add_camera(colmap_model *m, size_t *cap, uint64_t id, int model, const char *path, const char *unit,
                           size_t where, sy_error *err)
@@ -496,21 +497,18 @@ static int has_model_files(const char *dir)
     return 0;
 }
 
-typedef sy_code (*model_parser)(const char *, const unsigned char *, size_t, colmap_model *, sy_error *);
-
-static sy_code parse_model_file(const char *dir, const char *stem, model_parser bin, model_parser txt, colmap_model *m,
-                                sy_error *err)
+/* Reads "<dir>/<stem>.bin" or ".txt" into *b and describes it in *f (whose
+ * path points into path). */
+static sy_code load_model_file(const char *dir, const char *stem, char *path, size_t cap, sy_buffer *b,
+                               sy_colmap_file *f, sy_error *err)
 {
-    char path[4200];
     int binary;
-    if (!pick_file(dir, stem, path, sizeof path, &binary))
+    if (!pick_file(dir, stem, path, cap, &binary))
         return sy_fail(err, SY_EINPUT, "%s: COLMAP model lacks %s.bin or %s.txt", dir, stem, stem);
-    sy_buffer b;
-    sy_code rc = sy_read_file(path, &b, err);
+    sy_code rc = sy_read_file(path, b, err);
     if (rc) return rc;
-    rc = (binary ? bin : txt)(path, b.data, b.size, m, err);
-    sy_buffer_free(&b);
-    return rc;
+    *f = (sy_colmap_file){path, b->data, b->size, binary};
+    return SY_OK;
 }
 
 /* meta.vlr_summary: "N cameras, M images" and the camera models in use. */
@@ -531,24 +529,34 @@ static sy_code summarize(const colmap_model *m, sy_cloud *c, sy_error *err)
     return SY_OK;
 }
 
-static sy_code read_model(const char *dir, sy_cloud *out, sy_error *err)
+sy_code sy_read_colmap_model_mem(const sy_colmap_file *cameras, const sy_colmap_file *images,
+                                 const sy_colmap_file *points, sy_cloud *out, sy_error *err)
 {
-    char path[4200];
-    int binary;
-    if (!pick_file(dir, "points3D", path, sizeof path, &binary))
-        return sy_fail(err, SY_EINPUT, "%s: COLMAP model lacks points3D.bin or points3D.txt", dir);
+    memset(out, 0, sizeof *out);
     colmap_model m;
     memset(&m, 0, sizeof m);
-    sy_code rc = parse_model_file(dir, "cameras", cameras_bin, cameras_txt, &m, err);
-    if (!rc) rc = parse_model_file(dir, "images", images_bin, images_txt, &m, err);
-    sy_buffer b = {NULL, 0};
-    if (!rc) rc = sy_read_file(path, &b, err);
-    if (!rc) rc = read_points(path, b.data, b.size, binary, &m, out, err);
-    sy_buffer_free(&b);
-    if (!rc && out->n == 0) rc = sy_fail(err, SY_EINPUT, "%s: no points", path);
+    sy_code rc = (cameras->binary ? cameras_bin : cameras_txt)(cameras->path, cameras->data, cameras->size, &m, err);
+    if (!rc) rc = (images->binary ? images_bin : images_txt)(images->path, images->data, images->size, &m, err);
+    if (!rc) rc = read_points(points->path, points->data, points->size, points->binary, &m, out, err);
+    if (!rc && out->n == 0) rc = sy_fail(err, SY_EINPUT, "%s: no points", points->path);
     if (!rc) rc = summarize(&m, out, err);
     if (rc) sy_cloud_free(out);
     model_free(&m);
+    return rc;
+}
+
+static sy_code read_model(const char *dir, sy_cloud *out, sy_error *err)
+{
+    static const char *stems[3] = {"cameras", "images", "points3D"};
+    char paths[3][4200];
+    sy_buffer bufs[3] = {{NULL, 0}, {NULL, 0}, {NULL, 0}};
+    sy_colmap_file files[3];
+    /* points3D first: a model without points is not worth parsing. */
+    sy_code rc = load_model_file(dir, stems[2], paths[2], sizeof paths[2], &bufs[2], &files[2], err);
+    for (int i = 0; i < 2 && !rc; i++)
+        rc = load_model_file(dir, stems[i], paths[i], sizeof paths[i], &bufs[i], &files[i], err);
+    if (!rc) rc = sy_read_colmap_model_mem(&files[0], &files[1], &files[2], out, err);
+    for (int i = 0; i < 3; i++) sy_buffer_free(&bufs[i]);
     return rc;
 }
 

@@ -33,6 +33,19 @@ sy_code sy_read_xyz_mem(const char *path, const unsigned char *data, size_t size
 /* COLMAP points3D.txt / points3D.bin contents (kind: 't' or 'b'). */
 sy_code sy_read_colmap_points_mem(const char *path, const unsigned char *data, size_t size, int kind,
                                   sy_cloud *out, sy_error *err);
+/* One COLMAP model file in memory: path names it in messages; binary picks
+ * the .bin layout over the .txt one. */
+typedef struct {
+    const char *path;
+    const unsigned char *data;
+    size_t size;
+    int binary;
+} sy_colmap_file;
+/* A sparse model from its three files: cameras and images are validated
+ * (camera models, parameter counts, image -> camera and track -> image
+ * references), the points become the cloud. */
+sy_code sy_read_colmap_model_mem(const sy_colmap_file *cameras, const sy_colmap_file *images,
+                                 const sy_colmap_file *points, sy_cloud *out, sy_error *err);
 /* A COLMAP workspace (dir with sparse/0/, sparse/ or the model files, or
  * dense/fused.ply): cameras, images and points3D in .txt or .bin. */
 sy_code sy_read_colmap_dir(const char *dir, sy_cloud *out, sy_error *err);
