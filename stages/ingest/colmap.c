@@ -57,11 +57,20 @@ static int cmp_u32(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+static int cmp_camera(const void *a, const void *b)
+{
+    uint32_t x = ((const colmap_camera *)a)->id, y = ((const colmap_camera *)b)->id;
+    return (x > y) - (x < y);
+}
+
+/* Cameras are sorted once parsed (index_cameras), as image ids are: a model
+ * with a camera per image has as many of each, and linear lookups made 100k
+ * of them take seconds. */
 static int has_camera(const colmap_model *m, uint64_t id)
 {
-    for (size_t i = 0; i < m->ncams; i++)
-        if (m->cams[i].id == id) return 1;
-    return 0;
+    if (id > UINT32_MAX) return 0;
+    colmap_camera key = {(uint32_t)id, 0};
+    return bsearch(&key, m->cams, m->ncams, sizeof key, cmp_camera) != NULL;
 }
 
 static int has_image(const colmap_model *m, uint64_t id)
@@ -140,6 +149,15 @@ static sy_code bin_end(const bin_cursor *c, sy_error *err)
 
 /* ---- cameras ----------------------------------------------------------- */
 
+/* Sorts the cameras for lookup and rejects duplicate ids. */
+static sy_code index_cameras(const char *path, colmap_model *m, sy_error *err)
+{
+    if (m->ncams) qsort(m->cams, m->ncams, sizeof *m->cams, cmp_camera);
+    for (size_t i = 1; i < m->ncams; i++)
+        if (m->cams[i].id == m->cams[i - 1].id)
+            return sy_fail(err, SY_EINPUT, "%s: duplicate camera id %u", path, (unsigned)m->cams[i].id);
+    return SY_OK;
+}
 
 /* unit/where locate the record in messages: "camera 3" or "line 7". */
 static sy_code add_camera(colmap_model *m, size_t *cap, uint64_t id, int model, const char *path, const char *unit,
@@ -147,8 +165,6 @@ static sy_code add_camera(colmap_model *m, size_t *cap, uint64_t id, int model, 
 {
     if (id > UINT32_MAX)
         return sy_fail(err, SY_EINPUT, "%s: %s %zu: camera id %llu out of range", path, unit, where, (unsigned long long)id);
-    if (has_camera(m, id))
-        return sy_fail(err, SY_EINPUT, "%s: %s %zu: duplicate camera id %llu", path, unit, where, (unsigned long long)id);
     colmap_camera *cams = grow(m->cams, cap, m->ncams, sizeof *cams, err);
     if (!cams) return SY_EINTERNAL;
     m->cams = cams;
@@ -175,7 +191,8 @@ static sy_code cameras_bin(const char *path, const unsigned char *d, size_t size
         c.pos += 8 * (size_t)MODELS[model].params;
         rc = add_camera(m, &cap, id, model, path, "camera", i, err);
     }
-    return rc ? rc : bin_end(&c, err);
+    if (!rc) rc = bin_end(&c, err);
+    return rc ? rc : index_cameras(path, m, err);
 }
 
 static sy_code camera_line(const char *path, size_t line, const char *p, const char *e, colmap_model *m, size_t *cap,
@@ -221,7 +238,7 @@ static sy_code cameras_txt(const char *path, const unsigned char *d, size_t size
         sy_code rc = camera_line(path, l.line, p, e, m, &cap, err);
         if (rc) return rc;
     }
-    return SY_OK;
+    return index_cameras(path, m, err);
 }
 
 /* ---- images ------------------------------------------------------------ */
