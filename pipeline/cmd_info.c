@@ -10,8 +10,8 @@ static const sy_cmd_spec spec = {
     "info", "FILE...", "Describe point-cloud files: format, version, point count, bounds, attributes, CRS/VLRs.",
     "Bounds are computed from the points, never copied from headers. With --json, one\n"
     "object per file (an array when several files are given) with flat keys: path, format,\n"
-    "version, point_format, point_count, header_point_count, bounds_min, bounds_max,\n"
-    "attributes, crs, vlrs.",
+    "version, point_format and global_encoding (LAS), point_count, header_point_count,\n"
+    "bounds_min, bounds_max, attributes, crs, vlrs.",
     NULL, 1, -1};
 
 static void print_json(sy_json *j, const char *path, const sy_cloud *c)
@@ -25,6 +25,7 @@ static void print_json(sy_json *j, const char *path, const sy_cloud *c)
     sy_json_string(j, "format", c->meta.format);
     sy_json_string(j, "version", c->meta.version);
     if (c->meta.point_format >= 0) sy_json_int(j, "point_format", c->meta.point_format);
+    if (strcmp(c->meta.format, "LAS") == 0) sy_json_int(j, "global_encoding", c->meta.las_global_encoding);
     sy_json_int(j, "point_count", (long long)c->n);
     sy_json_int(j, "header_point_count", (long long)c->meta.header_count);
     sy_json_numbers(j, "bounds_min", lo, 3);
@@ -52,6 +53,7 @@ static void print_text(const char *path, const sy_cloud *c)
     printf("%s\n", path);
     printf("  format       %s %s", c->meta.format, c->meta.version);
     if (c->meta.point_format >= 0) printf(", point format %d", c->meta.point_format);
+    if (strcmp(c->meta.format, "LAS") == 0) printf(", global encoding %u", c->meta.las_global_encoding);
     printf("\n  points       %zu", c->n);
     if (c->meta.header_count && c->meta.header_count != c->n)
         printf(" (header says %llu)", (unsigned long long)c->meta.header_count);

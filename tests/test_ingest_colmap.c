@@ -285,6 +285,7 @@ static void bad_text_lines(void **state)
         {"t_model", "cameras.txt", "SIMPLE_PINHOLE", "FISHEYE9", "cameras.txt: line 4: unknown camera model 'FISHEYE9'"},
         {"t_params", "cameras.txt", "500 320 240", "500 320", "line 4: SIMPLE_PINHOLE takes 3 parameters, found 2"},
         {"t_camera", "images.txt", "0 0 0 1 IMG_0001", "0 0 0 7 IMG_0001", "images.txt: line 5: image 1 uses camera 7"},
+        {"t_dup_camera", "cameras.txt", "2 OPENCV", "1 OPENCV", "cameras.txt: duplicate camera id 1"},
         {"t_2d", "images.txt", "80.25 120\n2 ", "80.25 120 7\n2 ", "images.txt: line 6: 43 values"},
         {"t_short", "images.txt", " 1 IMG_0001.jpg", "", "images.txt: line 5: want IMAGE_ID"},
     };
@@ -293,6 +294,40 @@ static void bad_text_lines(void **state)
                    strlen(cases[i].new));
         expect_dir_error(cases[i].dir, cases[i].dir, cases[i].needle);
     }
+}
+
+/* A model from memory, as the fuzz targets drive it: cameras listed out of
+ * id order (the reader sorts them for lookup) and one camera per image, the
+ * layout whose linear lookups once took seconds at 100k cameras. */
+static void model_from_memory_with_many_cameras(void **state)
+{
+    (void)state;
+    enum { N = 20000 };
+    size_t cap = (size_t)N * 64;
+    char *cams = malloc(cap), *imgs = malloc(cap);
+    assert_non_null(cams);
+    assert_non_null(imgs);
+    size_t nc = 0, ni = 0;
+    for (int i = N; i >= 1; i--) nc += (size_t)snprintf(cams + nc, cap - nc, "%d PINHOLE 640 480 500 500 320 240\n", i);
+    for (int i = 1; i <= N; i++) ni += (size_t)snprintf(imgs + ni, cap - ni, "%d 1 0 0 0 0 0 0 %d im%d.jpg\n\n", i, i, i);
+    static const char points[] = "7 1.5 2.5 3.5 10 20 30 0.5 1 0 20000 4\n";
+    sy_colmap_file cf = {"cameras.txt", (const unsigned char *)cams, nc, 0};
+    sy_colmap_file imf = {"images.txt", (const unsigned char *)imgs, ni, 0};
+    sy_colmap_file pf = {"points3D.txt", (const unsigned char *)points, sizeof points - 1, 0};
+    sy_cloud c;
+    sy_error err = {0};
+    if (sy_read_colmap_model_mem(&cf, &imf, &pf, &c, &err)) fail_msg("%s", err.msg);
+    assert_int_equal(c.n, 1);
+    assert_non_null(strstr(c.meta.vlr_summary, "20000 cameras, 20000 images"));
+    assert_near(c.origin[2] + c.xyz[2], 3.5, 1e-6);
+    sy_cloud_free(&c);
+    /* An image naming a camera the (sorted) list lacks is still caught. */
+    ni = (size_t)snprintf(imgs, cap, "5 1 0 0 0 0 0 0 %d im.jpg\n\n", N + 1);
+    imf.size = ni;
+    assert_input_error(sy_read_colmap_model_mem(&cf, &imf, &pf, &c, &err), &err, "images.txt",
+                       "image 5 uses camera 20001");
+    free(cams);
+    free(imgs);
 }
 
 int main(void)
@@ -305,6 +340,7 @@ int main(void)
         cmocka_unit_test(missing_and_truncated_files),
         cmocka_unit_test(bad_binary_records),
         cmocka_unit_test(bad_text_lines),
+        cmocka_unit_test(model_from_memory_with_many_cameras),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -469,13 +469,20 @@ static void wkt_crs_from_vlr_and_evlr(void **state)
     }
 }
 
-static void long_wkt_is_cut_and_many_vlrs_are_counted(void **state)
+/* A WKT of about 2000 characters, far past the 512 of the CRS summary. */
+static const char *long_wkt(void)
 {
-    (void)state;
     static char wkt[2000];
     snprintf(wkt, sizeof wkt, "PROJCS[\"Long\",");
     while (strlen(wkt) < sizeof wkt - 20) strcat(wkt, "PARAMETER[\"x\",1],");
     strcat(wkt, "]");
+    return wkt;
+}
+
+static void long_wkt_is_cut_and_many_vlrs_are_counted(void **state)
+{
+    (void)state;
+    const char *wkt = long_wkt();
     las_spec s = {.format = 1, .minor = 2, .n = 3, .wkt = wkt, .n_empty_vlrs = 100};
     sy_cloud c;
     sy_error err = {0};
@@ -647,6 +654,9 @@ static void round_trip(int with_rgb, int with_nir, int format)
     uint64_t count64 = 0;
     for (int i = 0; i < 8; i++) count64 |= (uint64_t)f.data[247 + i] << (8 * i);
     assert_int_equal(count64, a.n);
+    /* Formats 6-10 must declare WKT (global encoding bit 4), CRS or not; the
+     * cloud's GPS time is week time, so bit 0 stays clear. */
+    assert_int_equal(f.data[6] | f.data[7] << 8, 16);
     double lo[3], hi[3];
     sy_cloud_bounds(&b, lo, hi);
     for (int k = 0; k < 3; k++) {
@@ -718,6 +728,197 @@ static void round_trip_real_file_and_crs(void **state)
     sy_cloud_free(&a);
 }
 
+/* The payload of the first VLR with this record id in a LAS file, or NULL. */
+static const unsigned char *find_vlr(const sy_buffer *f, unsigned record_id, size_t *len)
+{
+    size_t pos = f->data[94] | (size_t)f->data[95] << 8;
+    uint32_t n = (uint32_t)(f->data[100] | f->data[101] << 8 | f->data[102] << 16 | (uint32_t)f->data[103] << 24);
+    for (uint32_t i = 0; i < n && pos + 54 <= f->size; i++) {
+        size_t l = f->data[pos + 20] | (size_t)f->data[pos + 21] << 8;
+        if ((unsigned)(f->data[pos + 18] | f->data[pos + 19] << 8) == record_id) {
+            *len = l;
+            return f->data + pos + 54;
+        }
+        pos += 54 + l;
+    }
+    return NULL;
+}
+
+static unsigned global_encoding(const sy_buffer *f) { return f->data[6] | (unsigned)f->data[7] << 8; }
+
+/* Writes c to name, reads the bytes and the cloud back. */
+static void write_and_reread(const sy_cloud *c, const char *name, sy_buffer *f, sy_cloud *back)
+{
+    sy_error err = {0};
+    const char *path = tmp_path(name);
+    if (sy_write_las(path, c, &err) != SY_OK) fail_msg("%s", err.msg);
+    assert_int_equal(sy_read_file(path, f, &err), SY_OK);
+    if (sy_read_cloud(path, back, &err) != SY_OK) fail_msg("%s", err.msg);
+}
+
+/* GeoTIFF keys are legal only with point formats 0-5: MixedConifer (format 1,
+ * EPSG:26912 as keys) comes out as format 1 with its keys byte for byte, the
+ * WKT bit clear and the legacy count filled; every field survives. */
+static void geotiff_crs_keeps_a_legacy_format(void **state)
+{
+    (void)state;
+    sy_cloud a, b;
+    sy_buffer in, out;
+    sy_error err = {0};
+    const char *src = data_path("real/lidr/MixedConifer.las");
+    assert_int_equal(sy_read_cloud(src, &a, &err), SY_OK);
+    assert_int_equal(sy_read_file(src, &in, &err), SY_OK);
+    write_and_reread(&a, "geotiff.las", &out, &b);
+    assert_int_equal(b.meta.point_format, 1);
+    assert_int_equal(global_encoding(&out) & 16, 0);
+    size_t in_len = 0, out_len = 0;
+    const unsigned char *in_keys = find_vlr(&in, 34735, &in_len), *out_keys = find_vlr(&out, 34735, &out_len);
+    assert_non_null(in_keys);
+    assert_non_null(out_keys);
+    assert_int_equal(out_len, in_len);
+    assert_memory_equal(out_keys, in_keys, in_len);
+    assert_int_equal(out.data[107] | out.data[108] << 8 | out.data[109] << 16, 37657);
+    assert_null(find_vlr(&out, 2112, &out_len));
+    assert_string_equal(b.meta.crs, "EPSG:26912");
+    for (size_t i = 0; i < a.n; i++) {
+        assert_int_equal(b.classification[i], a.classification[i]);
+        assert_int_equal(b.return_number[i], a.return_number[i]);
+        assert_int_equal(b.num_returns[i], a.num_returns[i]);
+        assert_int_equal(b.intensity[i], a.intensity[i]);
+        assert_true(b.gps_time[i] == a.gps_time[i]);
+    }
+    sy_cloud_free(&b);
+    sy_buffer_free(&out);
+    /* Near infrared or a class above 31 fits no legacy format: formats 6-10
+     * with the WKT bit they require, the keys still kept verbatim. */
+    a.nir = calloc(a.n, sizeof(uint16_t));
+    assert_non_null(a.nir);
+    a.nir[0] = 7;
+    write_and_reread(&a, "geotiff_nir.las", &out, &b);
+    assert_int_equal(b.meta.point_format, 8);
+    assert_int_equal(global_encoding(&out) & 16, 16);
+    out_keys = find_vlr(&out, 34735, &out_len);
+    assert_non_null(out_keys);
+    assert_memory_equal(out_keys, in_keys, in_len);
+    assert_string_equal(b.meta.crs, "EPSG:26912");
+    sy_cloud_free(&b);
+    sy_buffer_free(&out);
+    free(a.nir);
+    a.nir = NULL;
+    a.classification[5] = 40;
+    write_and_reread(&a, "geotiff_class.las", &out, &b);
+    assert_int_equal(b.meta.point_format, 6);
+    assert_int_equal(b.classification[5], 40);
+    assert_int_equal(global_encoding(&out) & 16, 16);
+    sy_cloud_free(&b);
+    sy_buffer_free(&out);
+    sy_buffer_free(&in);
+    sy_cloud_free(&a);
+}
+
+/* A WKT CRS goes out whole (the 512-character summary is only for `info`)
+ * with point format 6 and the WKT bit. */
+static void wkt_crs_is_written_whole(void **state)
+{
+    (void)state;
+    const char *wkt = long_wkt();
+    las_spec s = {.format = 1, .minor = 2, .n = 3, .wkt = wkt};
+    sy_cloud a, b;
+    sy_buffer out;
+    sy_error err = {0};
+    if (read_built(&s, &a, &err) != SY_OK) fail_msg("%s", err.msg);
+    assert_string_equal(a.meta.crs_wkt, wkt);
+    write_and_reread(&a, "wkt.las", &out, &b);
+    assert_int_equal(b.meta.point_format, 6);
+    assert_int_equal(global_encoding(&out) & 16, 16);
+    size_t len = 0;
+    const unsigned char *w = find_vlr(&out, 2112, &len);
+    assert_non_null(w);
+    assert_int_equal(len, strlen(wkt) + 1);
+    assert_memory_equal(w, wkt, len);
+    assert_null(find_vlr(&out, 34735, &len));
+    assert_string_equal(b.meta.crs_wkt, wkt);
+    sy_cloud_free(&b);
+    sy_buffer_free(&out);
+    sy_cloud_free(&a);
+}
+
+/* dbh.las has global encoding 17: adjusted standard GPS time (bit 0) and WKT.
+ * Dropping bit 0 would shift every gps_time by the GPS week it was taken in. */
+static void gps_time_type_survives(void **state)
+{
+    (void)state;
+    sy_cloud a, b;
+    sy_buffer out;
+    sy_error err = {0};
+    assert_int_equal(sy_read_cloud(data_path("real/lidr/dbh.las"), &a, &err), SY_OK);
+    assert_int_equal(a.meta.las_global_encoding, 17);
+    assert_int_equal(a.meta.gps_time_standard, 1);
+    write_and_reread(&a, "gps.las", &out, &b);
+    assert_int_equal(global_encoding(&out), 17);
+    assert_int_equal(b.meta.gps_time_standard, 1);
+    for (size_t i = 0; i < a.n; i++) assert_true(b.gps_time[i] == a.gps_time[i]);
+    sy_cloud_free(&b);
+    sy_buffer_free(&out);
+    sy_cloud_free(&a);
+}
+
+/* Normals go out as float extra bytes NormalX/Y/Z after the attributes and
+ * come back as the cloud's normals, bit for bit, not as attributes. */
+static void normals_round_trip_as_extra_bytes(void **state)
+{
+    (void)state;
+    sy_cloud a, b;
+    sy_buffer out;
+    sy_error err = {0};
+    fill_cloud(&a, 3000, 0, 0);
+    assert_int_equal(sy_cloud_add_normals(&a, &err), SY_OK);
+    for (size_t i = 0; i < a.n; i++) {
+        double t = 0.01 * (double)i, p = 0.37 * (double)i;
+        a.normal[3 * i] = (float)(sin(t) * cos(p));
+        a.normal[3 * i + 1] = (float)(sin(t) * sin(p));
+        a.normal[3 * i + 2] = (float)cos(t);
+    }
+    write_and_reread(&a, "normals.las", &out, &b);
+    assert_int_equal(b.meta.point_format, 6);
+    assert_non_null(b.normal);
+    for (size_t i = 0; i < 3 * a.n; i++) assert_true(b.normal[i] == a.normal[i]);
+    assert_int_equal(b.n_attrs, a.n_attrs);
+    assert_null(sy_cloud_attr(&b, "NormalX"));
+    assert_non_null(sy_cloud_attr(&b, "treeID"));
+    size_t len = 0;
+    const unsigned char *desc = find_vlr(&out, 4, &len);
+    assert_non_null(desc);
+    assert_int_equal(len, (a.n_attrs + 3) * 192);
+    const char *names[3] = {"NormalX", "NormalY", "NormalZ"};
+    for (int k = 0; k < 3; k++) {
+        const unsigned char *d = desc + (a.n_attrs + (size_t)k) * 192;
+        assert_string_equal((const char *)d + 4, names[k]);
+        assert_int_equal(d[2], 9); /* float */
+        assert_true(getf64(d + 64) >= -1.0 && getf64(d + 88) <= 1.0);
+    }
+    /* 30 bytes of format 6, 4 + 8 + 8 for the attributes, 12 for the normals. */
+    assert_int_equal(out.data[105] | out.data[106] << 8, 30 + 20 + 12);
+    sy_cloud_free(&b);
+    sy_buffer_free(&out);
+    sy_cloud_free(&a);
+    /* Another writer's double NormalX/Y/Z (names in any case, any order among
+     * the fields) are normals too. */
+    const eb_desc eb[] = {{10, 0, "normalz", 0, 0}, {6, 0, "treeID", 0, 0}, {10, 0, "NormalX", 0, 0},
+                          {10, 0, "NORMALY", 0, 0}};
+    las_spec sp = {.format = 6, .minor = 4, .n = 10, .eb = eb, .n_eb = 4};
+    if (read_built(&sp, &b, &err) != SY_OK) fail_msg("%s", err.msg);
+    assert_non_null(b.normal);
+    assert_int_equal(b.n_attrs, 1);
+    assert_non_null(sy_cloud_attr(&b, "treeID"));
+    for (size_t i = 0; i < b.n; i++) {
+        assert_float_equal(b.normal[3 * i], eb_raw(10, i, 2), 1e-6);
+        assert_float_equal(b.normal[3 * i + 1], eb_raw(10, i, 3), 1e-6);
+        assert_float_equal(b.normal[3 * i + 2], eb_raw(10, i, 0), 1e-6);
+    }
+    sy_cloud_free(&b);
+}
+
 static void wide_cloud_gets_a_coarser_scale(void **state)
 {
     (void)state;
@@ -769,6 +970,10 @@ int main(void)
         cmocka_unit_test(round_trip_format_7_rgb),
         cmocka_unit_test(round_trip_format_8_nir),
         cmocka_unit_test(round_trip_real_file_and_crs),
+        cmocka_unit_test(geotiff_crs_keeps_a_legacy_format),
+        cmocka_unit_test(wkt_crs_is_written_whole),
+        cmocka_unit_test(gps_time_type_survives),
+        cmocka_unit_test(normals_round_trip_as_extra_bytes),
         cmocka_unit_test(wide_cloud_gets_a_coarser_scale),
         cmocka_unit_test(failed_write_leaves_no_file),
     };

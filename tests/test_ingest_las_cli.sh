@@ -27,6 +27,23 @@ json=$("$SYLVA" info --json "$TMP/X.las") || fail "info on converted file exited
 echo "$json" | grep -q '"point_count":37657' || fail "converted point_count: $json"
 echo "$json" | grep -q '"attributes":\[[^]]*"treeID"' || fail "converted treeID: $json"
 echo "$json" | grep -q '"version":"1.4"' || fail "converted version: $json"
+# GeoTIFF keys only go with legacy point formats, so the CRS keeps format 1.
+echo "$json" | grep -q '"point_format":1,"global_encoding":0,' || fail "converted format/encoding: $json"
+echo "$json" | grep -q '"crs":"EPSG:26912"' || fail "converted crs: $json"
+
+# dbh.las: global encoding 17 (adjusted standard GPS time + WKT) survives.
+DBH="$SYLVA_DATA_DIR/real/lidr/dbh.las"
+"$SYLVA" info --json "$DBH" | grep -q '"global_encoding":17,' || fail "dbh.las global_encoding is not 17"
+"$SYLVA" convert "$DBH" -o "$TMP/dbh.las" 2>"$TMP/err" || fail "convert dbh exited $?: $(cat "$TMP/err")"
+json=$("$SYLVA" info --json "$TMP/dbh.las") || fail "info on converted dbh exited $?"
+echo "$json" | grep -q '"point_format":6,"global_encoding":17,' || fail "converted dbh format/encoding: $json"
+
+# Normals from preprocess survive a LAS file (float extra bytes NormalX/Y/Z).
+"$SYLVA" preprocess "$SYLVA_DATA_DIR/real/adtree/tree1.xyz" -o "$TMP/pp.las" >/dev/null 2>"$TMP/err" \
+    || fail "preprocess to .las exited $?: $(cat "$TMP/err")"
+json=$("$SYLVA" info --json "$TMP/pp.las") || fail "info on preprocessed .las exited $?"
+echo "$json" | grep -q '"attributes":\["xyz","normal",' || fail "normals lost in .las: $json"
+echo "$json" | grep -q 'NormalX' && fail "normals read back as attributes: $json"
 
 # A failing convert (LAZ input; then a truncated LAS) leaves nothing behind.
 mkdir "$TMP/out_dir"

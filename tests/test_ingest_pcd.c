@@ -373,6 +373,103 @@ static void bad_headers(void **state)
     expect_error(&b, "value.pcd", "bad value '19x9.75' for field y");
 }
 
+/* ---- generated binary files larger than one decoding block ---- */
+
+static unsigned char *append(unsigned char *q, const void *v, size_t n)
+{
+    memcpy(q, v, n);
+    return q + n;
+}
+
+/* 2500 points (blocks are 1024 rows) with NaN points on both sides of block
+ * edges: every kept point lands in its own slot with all its fields. */
+static void nan_points_across_blocks(void **state)
+{
+    (void)state;
+    enum { N = 2500 };
+    static unsigned char file[64 + 256 + N * 24];
+    int head = snprintf((char *)file, 256,
+                        "VERSION 0.7\nFIELDS x y z rgb label weight\nSIZE 4 4 4 4 4 8\nTYPE F F F U I F\n"
+                        "COUNT 1 1 1 1 1 1\nWIDTH %d\nHEIGHT 1\nPOINTS %d\nDATA binary\n", N, N);
+    unsigned char *q = file + head;
+    for (int i = 0; i < N; i++) {
+        int skip = i == 0 || i == 1023 || i == 1024 || i == N - 1;
+        float xyz[3] = {skip ? NAN : 5000.0f + 0.5f * (float)(i % 50), -20.0f + 0.25f * (float)(i % 40),
+                        0.01f * (float)i};
+        uint32_t rgb = (uint32_t)((i % 256) << 16 | (255 - i % 256) << 8 | 7);
+        int32_t label = i - 1000;
+        double weight = 1.0 / (1.0 + i);
+        q = append(append(append(append(q, xyz, 12), &rgb, 4), &label, 4), &weight, 8);
+    }
+    sy_cloud c;
+    sy_error err = {0};
+    if (sy_read_pcd_mem("blocks.pcd", file, (size_t)(q - file), &c, &err)) fail_msg("%s", err.msg);
+    assert_int_equal(c.n, N - 4);
+    assert_non_null(strstr(c.meta.vlr_summary, "skipped 4 NaN points"));
+    const double *label = sy_cloud_attr(&c, "label"), *weight = sy_cloud_attr(&c, "weight");
+    assert_non_null(label);
+    assert_non_null(weight);
+    size_t j = 0;
+    for (int i = 0; i < N; i++) {
+        if (i == 0 || i == 1023 || i == 1024 || i == N - 1) continue;
+        double p[3];
+        world(&c, j, p);
+        assert_near(p[0], 5000.0 + 0.5 * (i % 50), 1e-3);
+        assert_near(p[1], -20.0 + 0.25 * (i % 40), 1e-4);
+        assert_near(p[2], (double)(0.01f * (float)i), 1e-4);
+        assert_int_equal(c.rgb[3 * j], (i % 256) * 257);
+        assert_int_equal(c.rgb[3 * j + 1], (255 - i % 256) * 257);
+        assert_int_equal(c.rgb[3 * j + 2], 7 * 257);
+        assert_near(label[j], i - 1000, 0);
+        assert_near(weight[j], 1.0 / (1.0 + i), 0);
+        j++;
+    }
+    /* The origin is the metre floor of the first point kept (point 1). */
+    assert_near(c.origin[0], 5000.0, 0);
+    assert_near(c.origin[1], -20.0, 0);
+    sy_cloud_free(&c);
+}
+
+/* 200 fields make a block shorter than 1024 rows; values still line up. */
+static void many_fields_shorten_the_block(void **state)
+{
+    (void)state;
+    enum { N = 700, F = 200 };
+    static unsigned char file[8192 + (size_t)N * F * 4];
+    char *h = (char *)file;
+    size_t used = (size_t)sprintf(h, "VERSION 0.7\nFIELDS x y z");
+    for (int k = 3; k < F; k++) used += (size_t)sprintf(h + used, " a%d", k);
+    used += (size_t)sprintf(h + used, "\nSIZE");
+    for (int k = 0; k < F; k++) used += (size_t)sprintf(h + used, " 4");
+    used += (size_t)sprintf(h + used, "\nTYPE");
+    for (int k = 0; k < F; k++) used += (size_t)sprintf(h + used, " F");
+    used += (size_t)sprintf(h + used, "\nPOINTS %d\nDATA binary\n", N);
+    unsigned char *q = file + used;
+    for (int i = 0; i < N; i++)
+        for (int k = 0; k < F; k++) {
+            float v = (float)(i * 1000 + k);
+            q = append(q, &v, 4);
+        }
+    sy_cloud c;
+    sy_error err = {0};
+    if (sy_read_pcd_mem("wide.pcd", file, (size_t)(q - file), &c, &err)) fail_msg("%s", err.msg);
+    assert_int_equal(c.n, N);
+    assert_int_equal(c.n_attrs, F - 3);
+    for (int k = 3; k < F; k += 49) {
+        char name[16];
+        snprintf(name, sizeof name, "a%d", k);
+        const double *v = sy_cloud_attr(&c, name);
+        assert_non_null(v);
+        for (int i = 0; i < N; i++) assert_near(v[i], i * 1000 + k, 0);
+    }
+    for (int i = 0; i < N; i++) {
+        double p[3];
+        world(&c, (size_t)i, p);
+        assert_near(p[2], i * 1000 + 2, 0);
+    }
+    sy_cloud_free(&c);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -386,6 +483,8 @@ int main(void)
         cmocka_unit_test(corrupt_lzf),
         cmocka_unit_test(inflated_counts),
         cmocka_unit_test(bad_headers),
+        cmocka_unit_test(nan_points_across_blocks),
+        cmocka_unit_test(many_fields_shorten_the_block),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

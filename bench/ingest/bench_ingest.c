@@ -1,6 +1,8 @@
 /* bench_ingest [POINTS] [DIR]: reader throughput in points/s for every format
- * on a generated cloud (default 5 M points), with PCL's PLY and PCD readers
- * timed on the same files in the same run. Prints a table and the ratios. */
+ * and encoding on a generated cloud (default 5 M points), with PCL's PLY and
+ * PCD readers timed on the same files in the same run where PCL has one
+ * (COLMAP has none). Prints one row per file: sylva's and PCL's points/s and
+ * the ratio. */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -87,11 +89,64 @@ static int write_pcd(const char *path, const float *xyz, size_t n)
     return fclose(fp);
 }
 
-static int write_xyz(const char *path, const float *xyz, size_t n)
+/* "x y z" lines in millimetres after an optional header: XYZ and ASCII PLY. */
+static int write_text(const char *path, const char *header, const float *xyz, size_t n)
 {
     FILE *fp = fopen(path, "wb");
     if (!fp) return -1;
+    fputs(header, fp);
     for (size_t i = 0; i < n; i++) fprintf(fp, "%.3f %.3f %.3f\n", xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+    return fclose(fp);
+}
+
+static int write_xyz(const char *path, const float *xyz, size_t n) { return write_text(path, "", xyz, n); }
+
+static int write_ply_ascii(const char *path, const float *xyz, size_t n)
+{
+    char header[256];
+    snprintf(header, sizeof header,
+             "ply\nformat ascii 1.0\nelement vertex %zu\n"
+             "property float x\nproperty float y\nproperty float z\nend_header\n",
+             n);
+    return write_text(path, header, xyz, n);
+}
+
+/* COLMAP points carry a colour, a reprojection error and a track; each point
+ * here is seen in two images, as in a sparse SfM model. */
+static int write_colmap_txt(const char *path, const float *xyz, size_t n)
+{
+    FILE *fp = fopen(path, "wb");
+    if (!fp) return -1;
+    fprintf(fp, "# 3D point list with one line of data per point:\n"
+                "#   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] as (IMAGE_ID, POINT2D_IDX)\n"
+                "# Number of points: %zu, mean track length: 2\n", n);
+    for (size_t i = 0; i < n; i++)
+        fprintf(fp, "%zu %.6f %.6f %.6f %u %u %u %.4f %zu %zu %zu %zu\n", i + 1, xyz[3 * i], xyz[3 * i + 1],
+                xyz[3 * i + 2], (unsigned)(i % 256), 128u, 64u, 0.5 + 0.001 * (double)(i % 1000), 1 + i % 50, i,
+                2 + i % 50, i + 1);
+    return fclose(fp);
+}
+
+static int write_colmap_bin(const char *path, const float *xyz, size_t n)
+{
+    FILE *fp = fopen(path, "wb");
+    if (!fp) return -1;
+    uint64_t count = n;
+    fwrite(&count, 8, 1, fp);
+    unsigned char rec[8 + 24 + 3 + 8 + 8 + 2 * 8];
+    for (size_t i = 0; i < n; i++) {
+        uint64_t id = i + 1, track = 2;
+        double p[3] = {xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]}, error = 0.5 + 0.001 * (double)(i % 1000);
+        uint32_t obs[4] = {(uint32_t)(1 + i % 50), (uint32_t)i, (uint32_t)(2 + i % 50), (uint32_t)(i + 1)};
+        unsigned char *q = rec;
+        memcpy(q, &id, 8), q += 8;
+        memcpy(q, p, 24), q += 24;
+        *q++ = (unsigned char)(i % 256), *q++ = 128, *q++ = 64;
+        memcpy(q, &error, 8), q += 8;
+        memcpy(q, &track, 8), q += 8;
+        memcpy(q, obs, 16);
+        fwrite(rec, 1, sizeof rec, fp);
+    }
     return fclose(fp);
 }
 
@@ -127,6 +182,13 @@ static double time_pcl(long (*load)(const char *), const char *path)
     return best;
 }
 
+typedef struct {
+    const char *name, *file;
+    int (*write)(const char *path, const float *xyz, size_t n);
+    long (*pcl_load)(const char *path); /* NULL: PCL has no reader for it */
+    char path[4096];
+} bench_row;
+
 int main(int argc, char **argv)
 {
     size_t n = argc > 1 ? strtoull(argv[1], NULL, 10) : 5000000;
@@ -134,30 +196,35 @@ int main(int argc, char **argv)
     float *xyz = malloc(n * 3 * sizeof(float));
     if (!xyz) return 3;
     generate(n, xyz);
-    char las[4096], ply[4096], pcd[4096], txt[4096];
-    snprintf(las, sizeof las, "%s/sylva_bench.las", dir);
-    snprintf(ply, sizeof ply, "%s/sylva_bench.ply", dir);
-    snprintf(pcd, sizeof pcd, "%s/sylva_bench.pcd", dir);
-    snprintf(txt, sizeof txt, "%s/sylva_bench.xyz", dir);
-    if (write_las(las, xyz, n) || write_ply(ply, xyz, n) || write_pcd(pcd, xyz, n) || write_xyz(txt, xyz, n)) {
-        fprintf(stderr, "bench_ingest: cannot write the test files in %s\n", dir);
-        return 2;
+    bench_row rows[] = {
+        {"LAS (fmt 0)", "sylva_bench.las", write_las, NULL, ""},
+        {"PLY (binary)", "sylva_bench.ply", write_ply, bench_pcl_load_ply, ""},
+        {"PLY (ascii)", "sylva_bench_ascii.ply", write_ply_ascii, bench_pcl_load_ply, ""},
+        {"PCD (binary)", "sylva_bench.pcd", write_pcd, bench_pcl_load_pcd, ""},
+        {"PCD (compressed)", "sylva_bench_lzf.pcd", bench_pcl_save_pcd_compressed, bench_pcl_load_pcd, ""},
+        {"XYZ (text)", "sylva_bench.xyz", write_xyz, NULL, ""},
+        {"COLMAP points3D.txt", "sylva_bench_points3D.txt", write_colmap_txt, NULL, ""},
+        {"COLMAP points3D.bin", "sylva_bench_points3D.bin", write_colmap_bin, NULL, ""},
+    };
+    const size_t n_rows = sizeof rows / sizeof rows[0];
+    for (size_t r = 0; r < n_rows; r++) {
+        snprintf(rows[r].path, sizeof rows[r].path, "%s/%s", dir, rows[r].file);
+        if (rows[r].write(rows[r].path, xyz, n)) {
+            fprintf(stderr, "bench_ingest: cannot write %s\n", rows[r].path);
+            return 2;
+        }
     }
     free(xyz);
     printf("ingest benchmark: %zu points, best of 3, one thread\n", n);
-    printf("%-22s %10s %14s\n", "reader", "seconds", "Mpoints/s");
-    struct { const char *name; const char *path; } rows[] = {
-        {"sylva LAS (fmt 0)", las}, {"sylva PLY (binary)", ply}, {"sylva PCD (binary)", pcd}, {"sylva XYZ (text)", txt}};
-    double t_sylva[4];
-    for (int i = 0; i < 4; i++) {
-        t_sylva[i] = time_sylva(rows[i].path, n);
-        printf("%-22s %10.3f %14.1f\n", rows[i].name, t_sylva[i], t_sylva[i] > 0 ? n / t_sylva[i] / 1e6 : 0);
+    printf("%-20s %10s %14s %10s %14s %8s\n", "format", "sylva s", "sylva Mpt/s", "PCL s", "PCL Mpt/s", "ratio");
+    for (size_t r = 0; r < n_rows; r++) {
+        double t = time_sylva(rows[r].path, n);
+        printf("%-20s %10.3f %14.1f", rows[r].name, t, t > 0 ? n / t / 1e6 : 0);
+        double t_pcl = rows[r].pcl_load ? time_pcl(rows[r].pcl_load, rows[r].path) : -1;
+        if (t_pcl > 0 && t > 0) printf(" %10.3f %14.1f %7.2fx\n", t_pcl, n / t_pcl / 1e6, t_pcl / t);
+        else printf(" %10s %14s %8s\n", "-", "-", "-");
+        remove(rows[r].path);
     }
-    double t_ply = time_pcl(bench_pcl_load_ply, ply), t_pcd = time_pcl(bench_pcl_load_pcd, pcd);
-    printf("%-22s %10.3f %14.1f\n", "PCL loadPLYFile", t_ply, t_ply > 0 ? n / t_ply / 1e6 : 0);
-    printf("%-22s %10.3f %14.1f\n", "PCL loadPCDFile", t_pcd, t_pcd > 0 ? n / t_pcd / 1e6 : 0);
-    if (t_sylva[1] > 0 && t_ply > 0) printf("PLY: sylva is %.2fx PCL's speed\n", t_ply / t_sylva[1]);
-    if (t_sylva[2] > 0 && t_pcd > 0) printf("PCD: sylva is %.2fx PCL's speed\n", t_pcd / t_sylva[2]);
-    remove(las), remove(ply), remove(pcd), remove(txt);
+    printf("ratio: sylva's speed over PCL's (loadPLYFile / loadPCDFile into PointXYZ)\n");
     return 0;
 }

@@ -17,3 +17,11 @@ extern "C" long bench_pcl_load_pcd(const char *path)
     if (pcl::io::loadPCDFile(path, cloud) < 0) return -1;
     return (long)cloud.size();
 }
+
+extern "C" int bench_pcl_save_pcd_compressed(const char *path, const float *xyz, size_t n)
+{
+    pcl::PointCloud<pcl::PointXYZ> cloud;
+    cloud.resize(n);
+    for (size_t i = 0; i < n; i++) cloud[i] = pcl::PointXYZ(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+    return pcl::io::savePCDFileBinaryCompressed(path, cloud) < 0 ? -1 : 0;
+}

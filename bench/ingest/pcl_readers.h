@@ -1,4 +1,5 @@
-/* PCL's PLY and PCD readers behind a C call, for the ingest benchmark. */
+/* PCL's PLY and PCD readers (and its binary_compressed PCD writer, which
+ * makes that benchmark file) behind C calls, for the ingest benchmark. */
 #ifndef SYLVA_BENCH_PCL_READERS_H
 #define SYLVA_BENCH_PCL_READERS_H
 #include <stddef.h>
@@ -8,6 +9,8 @@ extern "C" {
 /* Loads into pcl::PointCloud<pcl::PointXYZ>; returns the point count or -1. */
 long bench_pcl_load_ply(const char *path);
 long bench_pcl_load_pcd(const char *path);
+/* Writes n points as a binary_compressed PCD; 0 or -1. */
+int bench_pcl_save_pcd_compressed(const char *path, const float *xyz, size_t n);
 #ifdef __cplusplus
 }
 #endif

@@ -32,6 +32,8 @@ void sy_cloud_free(sy_cloud *c)
     free(c->attrs);
     free(c->meta.crs);
     free(c->meta.vlr_summary);
+    free(c->meta.crs_wkt);
+    free(c->meta.geotiff);
     memset(c, 0, sizeof *c);
 }
 
@@ -176,6 +178,8 @@ sy_code sy_cloud_copy(sy_cloud *dst, const sy_cloud *src, sy_error *err)
     dst->meta = src->meta;
     dst->meta.crs = dup_string(src->meta.crs, &failed);
     dst->meta.vlr_summary = dup_string(src->meta.vlr_summary, &failed);
+    dst->meta.crs_wkt = dup_string(src->meta.crs_wkt, &failed);
+    dst->meta.geotiff = dup_array(src->meta.geotiff, src->meta.geotiff_len, err, &failed);
     dst->xyz = dup_array(src->xyz, n * 3 * sizeof(float), err, &failed);
     dst->normal = dup_array(src->normal, n * 3 * sizeof(float), err, &failed);
     dst->intensity = dup_array(src->intensity, n * sizeof(uint16_t), err, &failed);

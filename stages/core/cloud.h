@@ -25,6 +25,18 @@ typedef struct {
     char *crs;              /* CRS summary (WKT or GeoTIFF keys), NULL if none; owned */
     char *vlr_summary;      /* one line per VLR "user_id/record_id: description", owned */
     uint64_t header_count;  /* count promised by the header (0 if none) */
+    /* What a LAS writer needs to carry the CRS over exactly (the summary above
+     * is cut and normalised): the whole WKT text of a WKT VLR, and the GeoTIFF
+     * VLRs (LASF_Projection 34735-34737) as complete 54-byte-header records. */
+    char *crs_wkt;           /* owned, NULL if none */
+    unsigned char *geotiff;  /* owned, geotiff_len bytes holding geotiff_vlrs records */
+    size_t geotiff_len;
+    unsigned geotiff_vlrs;
+    unsigned las_global_encoding; /* as read from a LAS header (reported by `sylva info`) */
+    /* gps_time holds adjusted standard GPS time (GPS seconds - 1e9, LAS global
+     * encoding bit 0) rather than seconds of the GPS week: the same numbers
+     * mean different instants, so writers must keep the flag with the values. */
+    int gps_time_standard;
 } sy_cloud_meta;
 
 typedef struct {

@@ -57,11 +57,20 @@ static int cmp_u32(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+static int cmp_camera(const void *a, const void *b)
+{
+    uint32_t x = ((const colmap_camera *)a)->id, y = ((const colmap_camera *)b)->id;
+    return (x > y) - (x < y);
+}
+
+/* Cameras are sorted once parsed (index_cameras), as image ids are: a model
+ * with a camera per image has as many of each, and linear lookups made 100k
+ * of them take seconds. */
 static int has_camera(const colmap_model *m, uint64_t id)
 {
-    for (size_t i = 0; i < m->ncams; i++)
-        if (m->cams[i].id == id) return 1;
-    return 0;
+    if (id > UINT32_MAX) return 0;
+    colmap_camera key = {(uint32_t)id, 0};
+    return bsearch(&key, m->cams, m->ncams, sizeof key, cmp_camera) != NULL;
 }
 
 static int has_image(const colmap_model *m, uint64_t id)
@@ -140,14 +149,22 @@ static sy_code bin_end(const bin_cursor *c, sy_error *err)
 
 /* ---- cameras ----------------------------------------------------------- */
 
+/* Sorts the cameras for lookup and rejects duplicate ids. */
+static sy_code index_cameras(const char *path, colmap_model *m, sy_error *err)
+{
+    if (m->ncams) qsort(m->cams, m->ncams, sizeof *m->cams, cmp_camera);
+    for (size_t i = 1; i < m->ncams; i++)
+        if (m->cams[i].id == m->cams[i - 1].id)
+            return sy_fail(err, SY_EINPUT, "%s: duplicate camera id %u", path, (unsigned)m->cams[i].id);
+    return SY_OK;
+}
+
 /* unit/where locate the record in messages: "camera 3" or "line 7". */
 static sy_code add_camera(colmap_model *m, size_t *cap, uint64_t id, int model, const char *path, const char *unit,
                           size_t where, sy_error *err)
 {
     if (id > UINT32_MAX)
         return sy_fail(err, SY_EINPUT, "%s: %s %zu: camera id %llu out of range", path, unit, where, (unsigned long long)id);
-    if (has_camera(m, id))
-        return sy_fail(err, SY_EINPUT, "%s: %s %zu: duplicate camera id %llu", path, unit, where, (unsigned long long)id);
     colmap_camera *cams = grow(m->cams, cap, m->ncams, sizeof *cams, err);
     if (!cams) return SY_EINTERNAL;
     m->cams = cams;
@@ -174,7 +191,8 @@ static sy_code cameras_bin(const char *path, const unsigned char *d, size_t size
         c.pos += 8 * (size_t)MODELS[model].params;
         rc = add_camera(m, &cap, id, model, path, "camera", i, err);
     }
-    return rc ? rc : bin_end(&c, err);
+    if (!rc) rc = bin_end(&c, err);
+    return rc ? rc : index_cameras(path, m, err);
 }
 
 static sy_code camera_line(const char *path, size_t line, const char *p, const char *e, colmap_model *m, size_t *cap,
@@ -220,7 +238,7 @@ static sy_code cameras_txt(const char *path, const unsigned char *d, size_t size
         sy_code rc = camera_line(path, l.line, p, e, m, &cap, err);
         if (rc) return rc;
     }
-    return SY_OK;
+    return index_cameras(path, m, err);
 }
 
 /* ---- images ------------------------------------------------------------ */
@@ -496,21 +514,18 @@ static int has_model_files(const char *dir)
     return 0;
 }
 
-typedef sy_code (*model_parser)(const char *, const unsigned char *, size_t, colmap_model *, sy_error *);
-
-static sy_code parse_model_file(const char *dir, const char *stem, model_parser bin, model_parser txt, colmap_model *m,
-                                sy_error *err)
+/* Reads "<dir>/<stem>.bin" or ".txt" into *b and describes it in *f (whose
+ * path points into path). */
+static sy_code load_model_file(const char *dir, const char *stem, char *path, size_t cap, sy_buffer *b,
+                               sy_colmap_file *f, sy_error *err)
 {
-    char path[4200];
     int binary;
-    if (!pick_file(dir, stem, path, sizeof path, &binary))
+    if (!pick_file(dir, stem, path, cap, &binary))
         return sy_fail(err, SY_EINPUT, "%s: COLMAP model lacks %s.bin or %s.txt", dir, stem, stem);
-    sy_buffer b;
-    sy_code rc = sy_read_file(path, &b, err);
+    sy_code rc = sy_read_file(path, b, err);
     if (rc) return rc;
-    rc = (binary ? bin : txt)(path, b.data, b.size, m, err);
-    sy_buffer_free(&b);
-    return rc;
+    *f = (sy_colmap_file){path, b->data, b->size, binary};
+    return SY_OK;
 }
 
 /* meta.vlr_summary: "N cameras, M images" and the camera models in use. */
@@ -531,24 +546,34 @@ static sy_code summarize(const colmap_model *m, sy_cloud *c, sy_error *err)
     return SY_OK;
 }
 
-static sy_code read_model(const char *dir, sy_cloud *out, sy_error *err)
+sy_code sy_read_colmap_model_mem(const sy_colmap_file *cameras, const sy_colmap_file *images,
+                                 const sy_colmap_file *points, sy_cloud *out, sy_error *err)
 {
-    char path[4200];
-    int binary;
-    if (!pick_file(dir, "points3D", path, sizeof path, &binary))
-        return sy_fail(err, SY_EINPUT, "%s: COLMAP model lacks points3D.bin or points3D.txt", dir);
+    memset(out, 0, sizeof *out);
     colmap_model m;
     memset(&m, 0, sizeof m);
-    sy_code rc = parse_model_file(dir, "cameras", cameras_bin, cameras_txt, &m, err);
-    if (!rc) rc = parse_model_file(dir, "images", images_bin, images_txt, &m, err);
-    sy_buffer b = {NULL, 0};
-    if (!rc) rc = sy_read_file(path, &b, err);
-    if (!rc) rc = read_points(path, b.data, b.size, binary, &m, out, err);
-    sy_buffer_free(&b);
-    if (!rc && out->n == 0) rc = sy_fail(err, SY_EINPUT, "%s: no points", path);
+    sy_code rc = (cameras->binary ? cameras_bin : cameras_txt)(cameras->path, cameras->data, cameras->size, &m, err);
+    if (!rc) rc = (images->binary ? images_bin : images_txt)(images->path, images->data, images->size, &m, err);
+    if (!rc) rc = read_points(points->path, points->data, points->size, points->binary, &m, out, err);
+    if (!rc && out->n == 0) rc = sy_fail(err, SY_EINPUT, "%s: no points", points->path);
     if (!rc) rc = summarize(&m, out, err);
     if (rc) sy_cloud_free(out);
     model_free(&m);
+    return rc;
+}
+
+static sy_code read_model(const char *dir, sy_cloud *out, sy_error *err)
+{
+    static const char *stems[3] = {"cameras", "images", "points3D"};
+    char paths[3][4200];
+    sy_buffer bufs[3] = {{NULL, 0}, {NULL, 0}, {NULL, 0}};
+    sy_colmap_file files[3];
+    /* points3D first: a model without points is not worth parsing. */
+    sy_code rc = load_model_file(dir, stems[2], paths[2], sizeof paths[2], &bufs[2], &files[2], err);
+    for (int i = 0; i < 2 && !rc; i++)
+        rc = load_model_file(dir, stems[i], paths[i], sizeof paths[i], &bufs[i], &files[i], err);
+    if (!rc) rc = sy_read_colmap_model_mem(&files[0], &files[1], &files[2], out, err);
+    for (int i = 0; i < 3; i++) sy_buffer_free(&bufs[i]);
     return rc;
 }
 

@@ -15,8 +15,9 @@
 sy_code sy_read_cloud(const char *path, sy_cloud *out, sy_error *err);
 
 /* Writes by extension: .ply (binary little endian), .las (LAS 1.4, point
- * format 6, or 7 when the cloud has RGB, extra bytes for named attributes),
- * .xyz/.txt (ASCII x y z [attributes]). Atomic: temp file + rename. */
+ * format 6, 7 with RGB, 8 with NIR, or 0-3 when the CRS is GeoTIFF keys;
+ * extra bytes for named attributes), .xyz/.txt (ASCII x y z [attributes]).
+ * Atomic: temp file + rename. */
 sy_code sy_write_cloud(const char *path, const sy_cloud *c, sy_error *err);
 
 /* The individual readers, over a file already in memory (path is for messages).
@@ -32,6 +33,19 @@ sy_code sy_read_xyz_mem(const char *path, const unsigned char *data, size_t size
 /* COLMAP points3D.txt / points3D.bin contents (kind: 't' or 'b'). */
 sy_code sy_read_colmap_points_mem(const char *path, const unsigned char *data, size_t size, int kind,
                                   sy_cloud *out, sy_error *err);
+/* One COLMAP model file in memory: path names it in messages; binary picks
+ * the .bin layout over the .txt one. */
+typedef struct {
+    const char *path;
+    const unsigned char *data;
+    size_t size;
+    int binary;
+} sy_colmap_file;
+/* A sparse model from its three files: cameras and images are validated
+ * (camera models, parameter counts, image -> camera and track -> image
+ * references), the points become the cloud. */
+sy_code sy_read_colmap_model_mem(const sy_colmap_file *cameras, const sy_colmap_file *images,
+                                 const sy_colmap_file *points, sy_cloud *out, sy_error *err);
 /* A COLMAP workspace (dir with sparse/0/, sparse/ or the model files, or
  * dense/fused.ply): cameras, images and points3D in .txt or .bin. */
 sy_code sy_read_colmap_dir(const char *dir, sy_cloud *out, sy_error *err);

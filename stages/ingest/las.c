@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 #include "ingest.h"
 #include "las_format.h"
@@ -36,6 +37,9 @@ typedef struct {
     char *summary;
     size_t summary_len, summary_cap;
     unsigned summary_lines, summary_dropped;
+    unsigned char *geotiff; /* GeoTIFF records kept for a writer, as VLRs */
+    size_t geotiff_len;
+    unsigned geotiff_vlrs;
 } las_vlrs;
 
 enum { SUMMARY_MAX_LINES = 64, WKT_MAX_CHARS = 512 };
@@ -141,6 +145,28 @@ static int summary_append(las_vlrs *v, const char *user, unsigned record_id, con
     return summary_line(v, line);
 }
 
+/* Appends one GeoTIFF record (GeoKeyDirectory, DoubleParams or AsciiParams)
+ * as a VLR with the input's user id, record id and description, so a writer
+ * can copy the CRS verbatim. An EVLR too long for a VLR is not kept: nothing
+ * could write it back where GeoTIFF keys belong. */
+static int keep_geotiff(las_vlrs *v, const unsigned char *hdr, const unsigned char *desc,
+                        const unsigned char *payload, size_t len)
+{
+    if (len > 65535) return 0;
+    unsigned char *grown = realloc(v->geotiff, v->geotiff_len + LAS_VLR_HEADER + len);
+    if (!grown) return -1;
+    v->geotiff = grown;
+    unsigned char *q = grown + v->geotiff_len;
+    memset(q, 0, LAS_VLR_HEADER);
+    memcpy(q + 2, hdr + 2, 18); /* user id and record id */
+    las_put_u16(q + 20, (uint16_t)len);
+    memcpy(q + 22, desc, 32);
+    memcpy(q + LAS_VLR_HEADER, payload, len);
+    v->geotiff_len += LAS_VLR_HEADER + len;
+    v->geotiff_vlrs++;
+    return 0;
+}
+
 /* Records one (E)VLR: its summary line and the payloads the reader uses. */
 static sy_code note_vlr(const char *path, las_vlrs *v, const unsigned char *hdr, const unsigned char *payload,
                         size_t len, size_t desc_at, sy_error *err)
@@ -160,6 +186,9 @@ static sy_code note_vlr(const char *path, las_vlrs *v, const unsigned char *hdr,
         v->geokeys = payload;
         v->geokeys_len = len;
     }
+    if (strcmp(user, "LASF_Projection") == 0 && record_id >= 34735 && record_id <= 34737 &&
+        keep_geotiff(v, hdr, hdr + desc_at, payload, len))
+        return sy_fail(err, SY_EINTERNAL, "%s: out of memory for the GeoTIFF keys", path);
     if (strcmp(user, "LASF_Projection") == 0 && record_id == 2112 && !v->wkt) {
         v->wkt = payload;
         v->wkt_len = len;
@@ -464,6 +493,32 @@ static sy_code decode_extra_bytes(const las_header *h, const las_vlrs *v, const 
     return SY_OK;
 }
 
+/* NormalX/NormalY/NormalZ extra bytes (PDAL's names, which the writer uses)
+ * are the cloud's normals, not three attributes: moved over when all three
+ * are present. */
+static sy_code adopt_normals(sy_cloud *c, sy_error *err)
+{
+    size_t at[3];
+    for (int k = 0; k < 3; k++) {
+        at[k] = c->n_attrs;
+        for (size_t a = 0; a < c->n_attrs && at[k] == c->n_attrs; a++)
+            if (strcasecmp(c->attrs[a].name, las_normal_names[k]) == 0) at[k] = a;
+        if (at[k] == c->n_attrs) return SY_OK;
+    }
+    if (sy_cloud_add_normals(c, err)) return SY_EINTERNAL;
+    for (int k = 0; k < 3; k++) {
+        const double *v = c->attrs[at[k]].values;
+        for (size_t i = 0; i < c->n; i++) c->normal[3 * i + k] = (float)v[i];
+    }
+    size_t kept = 0;
+    for (size_t a = 0; a < c->n_attrs; a++) {
+        if (a == at[0] || a == at[1] || a == at[2]) free(c->attrs[a].values);
+        else c->attrs[kept++] = c->attrs[a];
+    }
+    c->n_attrs = kept;
+    return SY_OK;
+}
+
 static sy_code fill_meta(const char *path, const las_header *h, las_vlrs *v, sy_cloud *c, sy_error *err)
 {
     snprintf(c->meta.format, sizeof c->meta.format, "LAS");
@@ -481,6 +536,20 @@ static sy_code fill_meta(const char *path, const las_header *h, las_vlrs *v, sy_
         return sy_fail(err, SY_EINTERNAL, "%s: out of memory for the CRS summary", path);
     if (!c->meta.crs && v->wkt && wkt_crs(v->wkt, v->wkt_len, &c->meta.crs))
         return sy_fail(err, SY_EINTERNAL, "%s: out of memory for the CRS summary", path);
+    if (v->wkt && v->wkt_len && v->wkt[0]) {
+        /* The WKT payload is NUL-terminated text; a missing terminator is tolerated. */
+        size_t len = strnlen((const char *)v->wkt, v->wkt_len);
+        if (!(c->meta.crs_wkt = malloc(len + 1)))
+            return sy_fail(err, SY_EINTERNAL, "%s: out of memory for the WKT", path);
+        memcpy(c->meta.crs_wkt, v->wkt, len);
+        c->meta.crs_wkt[len] = '\0';
+    }
+    c->meta.geotiff = v->geotiff;
+    c->meta.geotiff_len = v->geotiff_len;
+    c->meta.geotiff_vlrs = v->geotiff_vlrs;
+    v->geotiff = NULL;
+    c->meta.las_global_encoding = h->global_encoding;
+    c->meta.gps_time_standard = h->global_encoding & LAS_GLOBAL_GPS_STANDARD;
     return SY_OK;
 }
 
@@ -503,7 +572,7 @@ static sy_code read_las(const char *path, const unsigned char *data, size_t size
     const unsigned char *pts = data + h.point_offset;
     if ((rc = decode_points(path, &h, pts, out, err))) return rc;
     if (v->extra_bytes && h.record_length > las_layouts[h.format].size &&
-        (rc = decode_extra_bytes(&h, v, pts, out, err)))
+        ((rc = decode_extra_bytes(&h, v, pts, out, err)) || (rc = adopt_normals(out, err))))
         return rc;
     return fill_meta(path, &h, v, out, err);
 }
@@ -516,6 +585,7 @@ sy_code sy_read_las_mem(const char *path, const unsigned char *data, size_t size
     memset(&v, 0, sizeof v);
     sy_code rc = read_las(path, data, size, out, &v, err);
     free(v.summary);
+    free(v.geotiff);
     if (rc) sy_cloud_free(out);
     return rc;
 }

@@ -24,6 +24,7 @@ enum {
     LAS_POINT_FORMAT = 104,
     LAS_RECORD_LENGTH = 105,
     LAS_LEGACY_COUNT = 107,
+    LAS_LEGACY_BY_RETURN = 111, /* 5 x u32 */
     LAS_SCALE = 131,
     LAS_OFFSET = 155,
     LAS_BOUNDS = 179,         /* max x, min x, max y, min y, max z, min z */
@@ -35,6 +36,7 @@ enum {
     LAS_EVLR_HEADER = 60,
     LAS_EB_DESCRIPTOR = 192,  /* one extra-bytes descriptor */
     LAS_MAX_FORMAT = 10,
+    LAS_GLOBAL_GPS_STANDARD = 1 << 0, /* global encoding bit: adjusted standard GPS time */
     LAS_GLOBAL_WKT = 1 << 4,  /* global encoding bit: CRS is WKT */
 };
 
@@ -55,8 +57,12 @@ enum {
     LAS_EB_OPT_SCALE = 1 << 3,
     LAS_EB_OPT_OFFSET = 1 << 4,
     LAS_EB_INT32 = 6,
+    LAS_EB_FLOAT = 9,
     LAS_EB_DOUBLE = 10,
 };
+
+/* Extra-bytes names that carry normals (PDAL's dimension names), x, y, z. */
+static const char *const las_normal_names[3] = {"NormalX", "NormalY", "NormalZ"};
 
 /* Where the optional fields sit in a point record of each format; -1 when
  * the format lacks the field. Formats 0-5 pack returns in 3-bit fields and
@@ -106,6 +112,12 @@ static inline void las_put_u32(unsigned char *p, uint32_t v)
 static inline void las_put_u64(unsigned char *p, uint64_t v)
 {
     for (int i = 0; i < 8; i++) p[i] = (unsigned char)(v >> (8 * i));
+}
+static inline void las_put_f32(unsigned char *p, float f)
+{
+    uint32_t u;
+    memcpy(&u, &f, sizeof u);
+    las_put_u32(p, u);
 }
 static inline void las_put_f64(unsigned char *p, double d)
 {

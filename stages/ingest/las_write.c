@@ -1,5 +1,11 @@
 /* LAS 1.4 writer: point format 6 (7 with RGB, 8 with near infrared), named
- * attributes as extra bytes, CRS carried over as GeoTIFF EPSG keys or WKT.
+ * attributes and normals (float NormalX/Y/Z, PDAL's names) as extra bytes,
+ * the CRS carried over the way LAS 1.4 allows: formats 6-10 must declare WKT
+ * (global encoding bit 4), so a WKT CRS goes out with them as a WKT VLR; a
+ * CRS known only as GeoTIFF keys (turning keys into WKT needs a projection
+ * database) goes out verbatim with a legacy point format 0-3, where GeoTIFF
+ * is the CRS encoding, whenever the cloud fits one.
+ * docs/formats.md has the full rule.
  *
  * Scale 0.0001 m with offset = the cloud origin: positions are float offsets
  * from the origin, whose precision near 100 m is ~8 um, so 0.1 mm steps lose
@@ -26,6 +32,11 @@ typedef struct {
     unsigned char *eb_types; /* per attribute: LAS_EB_INT32 or LAS_EB_DOUBLE */
     unsigned char *header;   /* header + VLRs */
     size_t header_len;
+    const char *wkt;               /* CRS to write as a WKT VLR, or NULL */
+    const unsigned char *geotiff;  /* GeoTIFF VLRs to copy, or NULL */
+    size_t geotiff_len;
+    unsigned geotiff_vlrs;
+    unsigned char made_geotiff[LAS_VLR_HEADER + 24]; /* keys made from an "EPSG:<code>" summary */
 } las_plan;
 
 static int32_t quantise(float v, double scale) { return (int32_t)llround((double)v / scale); }
@@ -96,35 +107,40 @@ static unsigned char *put_vlr_header(unsigned char *q, const char *user, unsigne
     return q + LAS_VLR_HEADER;
 }
 
-static void put_descriptor(unsigned char *d, const sy_attr *a, unsigned char type, size_t n)
+/* The non-NaN extremes of a column (NaN when it has none) and whether NaN occurs. */
+typedef struct {
+    double lo, hi;
+    int any_nan;
+} value_range;
+
+static void range_add(value_range *r, double v)
 {
-    double lo = NAN, hi = NAN;
-    int any_nan = 0;
-    for (size_t i = 0; i < n; i++) {
-        double v = a->values[i];
-        any_nan |= isnan(v);
-        if (isnan(v)) continue;
-        if (isnan(lo) || v < lo) lo = v;
-        if (isnan(hi) || v > hi) hi = v;
-    }
-    int has_range = !isnan(lo) && !isinf(lo) && !isinf(hi);
-    int no_data = any_nan && type == LAS_EB_INT32;
+    r->any_nan |= isnan(v);
+    if (isnan(v)) return;
+    if (isnan(r->lo) || v < r->lo) r->lo = v;
+    if (isnan(r->hi) || v > r->hi) r->hi = v;
+}
+
+static void put_descriptor(unsigned char *d, const char *name, unsigned char type, value_range r)
+{
+    int has_range = !isnan(r.lo) && !isinf(r.lo) && !isinf(r.hi);
+    int no_data = r.any_nan && type == LAS_EB_INT32;
     d[LAS_EB_TYPE] = type;
     d[LAS_EB_OPTIONS] = (unsigned char)((has_range ? LAS_EB_OPT_MIN | LAS_EB_OPT_MAX : 0) |
                                         (no_data ? LAS_EB_OPT_NO_DATA : 0));
-    put_text(d + LAS_EB_NAME, 32, a->name);
+    put_text(d + LAS_EB_NAME, 32, name);
     if (type == LAS_EB_INT32) {
         if (no_data) las_put_u64(d + LAS_EB_NO_DATA, (uint64_t)(int64_t)INT32_MIN);
         if (has_range) {
-            las_put_u64(d + LAS_EB_MIN, (uint64_t)(int64_t)lo);
-            las_put_u64(d + LAS_EB_MAX, (uint64_t)(int64_t)hi);
+            las_put_u64(d + LAS_EB_MIN, (uint64_t)(int64_t)r.lo);
+            las_put_u64(d + LAS_EB_MAX, (uint64_t)(int64_t)r.hi);
         }
-    } else if (has_range) {
-        las_put_f64(d + LAS_EB_MIN, lo);
-        las_put_f64(d + LAS_EB_MAX, hi);
+    } else if (has_range) { /* float and double fields both store the range as double */
+        las_put_f64(d + LAS_EB_MIN, r.lo);
+        las_put_f64(d + LAS_EB_MAX, r.hi);
     }
     char desc[32];
-    snprintf(desc, sizeof desc, "%.20s (%s)", a->name, type == LAS_EB_INT32 ? "integer" : "real");
+    snprintf(desc, sizeof desc, "%.20s (%s)", name, type == LAS_EB_INT32 ? "integer" : "real");
     put_text(d + LAS_EB_DESCRIPTION, 32, desc);
 }
 
@@ -148,10 +164,12 @@ static size_t geokeys_payload(unsigned char *q, unsigned code)
     return sizeof keys;
 }
 
-static void put_header(unsigned char *h, const sy_cloud *c, const las_plan *p, uint32_t n_vlrs, int wkt)
+static void put_header(unsigned char *h, const sy_cloud *c, const las_plan *p, uint32_t n_vlrs)
 {
     memcpy(h, "LASF", 4);
-    las_put_u16(h + 6, wkt ? LAS_GLOBAL_WKT : 0);
+    unsigned encoding = (c->meta.gps_time_standard ? LAS_GLOBAL_GPS_STANDARD : 0) |
+                        (p->format >= 6 ? LAS_GLOBAL_WKT : 0); /* LAS 1.4: required for formats 6-10 */
+    las_put_u16(h + 6, (uint16_t)encoding);
     h[LAS_VERSION_MAJOR] = 1;
     h[LAS_VERSION_MINOR] = 4;
     put_text(h + LAS_SYSTEM_ID, 32, "Sylva");
@@ -169,7 +187,12 @@ static void put_header(unsigned char *h, const sy_cloud *c, const las_plan *p, u
     las_put_u32(h + LAS_N_VLRS, n_vlrs);
     h[LAS_POINT_FORMAT] = (unsigned char)p->format;
     las_put_u16(h + LAS_RECORD_LENGTH, (uint16_t)p->record_length);
-    /* Legacy counts stay 0: LAS 1.4 requires that for point formats 6-10. */
+    /* Legacy counts stay 0 for point formats 6-10, as LAS 1.4 requires;
+     * formats 0-5 fill them (the writer only picks those below 2^32 points). */
+    if (p->format <= 5) {
+        las_put_u32(h + LAS_LEGACY_COUNT, (uint32_t)c->n);
+        for (int r = 0; r < 5; r++) las_put_u32(h + LAS_LEGACY_BY_RETURN + 4 * r, (uint32_t)p->by_return[r]);
+    }
     for (int k = 0; k < 3; k++) {
         las_put_f64(h + LAS_SCALE + 8 * k, p->scale);
         las_put_f64(h + LAS_OFFSET + 8 * k, c->origin[k]);
@@ -180,22 +203,63 @@ static void put_header(unsigned char *h, const sy_cloud *c, const las_plan *p, u
     for (int r = 0; r < 15; r++) las_put_u64(h + LAS_BY_RETURN64 + 8 * r, p->by_return[r]);
 }
 
+/* Picks the CRS records: the whole WKT text when the input had one (a
+ * complete WKT summary counts too), else the input's GeoTIFF VLRs, else keys
+ * made from an "EPSG:<code>" summary. */
+static void choose_crs(const sy_cloud *c, las_plan *p)
+{
+    const char *crs = c->meta.crs;
+    p->wkt = c->meta.crs_wkt ? c->meta.crs_wkt : crs && is_wkt(crs) ? crs : NULL;
+    if (p->wkt && strlen(p->wkt) >= 65535) p->wkt = NULL; /* past a VLR's 16-bit length */
+    if (p->wkt) return;
+    if (c->meta.geotiff) {
+        p->geotiff = c->meta.geotiff;
+        p->geotiff_len = c->meta.geotiff_len;
+        p->geotiff_vlrs = c->meta.geotiff_vlrs;
+    } else if (crs && strncmp(crs, "EPSG:", 5) == 0) {
+        unsigned long code = strtoul(crs + 5, NULL, 10);
+        if (code == 0 || code >= 32767) return;
+        unsigned char *q = put_vlr_header(p->made_geotiff, "LASF_Projection", 34735, 24, "GeoKeyDirectoryTag");
+        geokeys_payload(q, (unsigned)code);
+        p->geotiff = p->made_geotiff;
+        p->geotiff_len = sizeof p->made_geotiff;
+        p->geotiff_vlrs = 1;
+    }
+}
+
+/* Whether a legacy point format (0-3) holds every field the cloud has: no
+ * near infrared, classes below 32 and at most 7 returns (their 5- and 3-bit
+ * fields), and a count that fits the 32-bit legacy fields. */
+static int legacy_fits(const sy_cloud *c)
+{
+    if (c->nir || c->n > UINT32_MAX) return 0;
+    for (size_t i = 0; i < c->n; i++)
+        if ((c->classification && c->classification[i] > 31) || (c->return_number && c->return_number[i] > 7) ||
+            (c->num_returns && c->num_returns[i] > 7))
+            return 0;
+    return 1;
+}
+
+/* GeoTIFF keys are the CRS encoding of the legacy formats only, so a GeoTIFF
+ * CRS picks one when the cloud fits; otherwise (e.g. near infrared) formats
+ * 6-8 with the keys kept as they were, which a strict reader ignores but
+ * loses nothing. */
+static int choose_format(const sy_cloud *c, const las_plan *p)
+{
+    if (p->geotiff && legacy_fits(c)) return (c->gps_time ? 1 : 0) + (c->rgb ? 2 : 0);
+    return c->nir ? 8 : c->rgb ? 7 : 6;
+}
+
 /* Builds header and VLRs into p->header. */
 static sy_code build_header(const char *path, const sy_cloud *c, las_plan *p, sy_error *err)
 {
-    if (c->n_attrs > MAX_DESCRIPTORS)
+    size_t n_fields = c->n_attrs + (c->normal ? 3 : 0);
+    if (n_fields > MAX_DESCRIPTORS)
         return sy_fail(err, SY_EINPUT, "%s: %zu attributes exceed the %d a LAS extra-bytes record can describe",
-                       path, c->n_attrs, MAX_DESCRIPTORS);
-    const char *crs = c->meta.crs;
-    unsigned epsg = 0;
-    if (crs && strncmp(crs, "EPSG:", 5) == 0) {
-        unsigned long v = strtoul(crs + 5, NULL, 10);
-        epsg = v > 0 && v < 32767 ? (unsigned)v : 0;
-    }
-    int wkt = !epsg && crs && is_wkt(crs) && strlen(crs) < 65535;
-    size_t eb_len = c->n_attrs * LAS_EB_DESCRIPTOR;
-    size_t len = LAS_HDR_14 + (eb_len ? LAS_VLR_HEADER + eb_len : 0) + (epsg ? LAS_VLR_HEADER + 24 : 0) +
-                 (wkt ? LAS_VLR_HEADER + strlen(crs) + 1 : 0);
+                       path, n_fields, MAX_DESCRIPTORS);
+    size_t eb_len = n_fields * LAS_EB_DESCRIPTOR, wkt_len = p->wkt ? strlen(p->wkt) + 1 : 0;
+    size_t len = LAS_HDR_14 + (eb_len ? LAS_VLR_HEADER + eb_len : 0) + p->geotiff_len +
+                 (wkt_len ? LAS_VLR_HEADER + wkt_len : 0);
     p->header = sy_calloc(len, 1, err, "LAS header");
     if (!p->header) return SY_EINTERNAL;
     p->header_len = len;
@@ -203,39 +267,55 @@ static sy_code build_header(const char *path, const sy_cloud *c, las_plan *p, sy
     uint32_t n_vlrs = 0;
     if (eb_len) {
         q = put_vlr_header(q, "LASF_Spec", 4, eb_len, "Extra bytes: Sylva attributes");
-        for (size_t a = 0; a < c->n_attrs; a++)
-            put_descriptor(q + a * LAS_EB_DESCRIPTOR, &c->attrs[a], p->eb_types[a], c->n);
+        for (size_t a = 0; a < c->n_attrs; a++) {
+            value_range r = {NAN, NAN, 0};
+            for (size_t i = 0; i < c->n; i++) range_add(&r, c->attrs[a].values[i]);
+            put_descriptor(q + a * LAS_EB_DESCRIPTOR, c->attrs[a].name, p->eb_types[a], r);
+        }
+        for (int k = 0; c->normal && k < 3; k++) {
+            value_range r = {NAN, NAN, 0};
+            for (size_t i = 0; i < c->n; i++) range_add(&r, c->normal[3 * i + k]);
+            put_descriptor(q + (c->n_attrs + (size_t)k) * LAS_EB_DESCRIPTOR, las_normal_names[k], LAS_EB_FLOAT, r);
+        }
         q += eb_len;
         n_vlrs++;
     }
-    if (epsg) {
-        q = put_vlr_header(q, "LASF_Projection", 34735, 24, "GeoKeyDirectoryTag");
-        q += geokeys_payload(q, epsg);
+    if (p->geotiff_len) {
+        memcpy(q, p->geotiff, p->geotiff_len);
+        q += p->geotiff_len;
+        n_vlrs += p->geotiff_vlrs;
+    }
+    if (wkt_len) {
+        q = put_vlr_header(q, "LASF_Projection", 2112, wkt_len, "OGC coordinate system WKT");
+        memcpy(q, p->wkt, wkt_len);
         n_vlrs++;
     }
-    if (wkt) {
-        size_t wlen = strlen(crs) + 1;
-        q = put_vlr_header(q, "LASF_Projection", 2112, wlen, "OGC coordinate system WKT");
-        memcpy(q, crs, wlen);
-        n_vlrs++;
-    }
-    put_header(p->header, c, p, n_vlrs, wkt);
+    put_header(p->header, c, p, n_vlrs);
     return SY_OK;
 }
 
+/* Formats 0-5 pack return number and count in 3 bits each and the class in 5
+ * bits of byte 15; formats 6-10 use 4 bits each and all of byte 16. */
 static void encode_point(unsigned char *r, const sy_cloud *c, const las_plan *p, size_t i)
 {
+    const las_layout *lay = &las_layouts[p->format];
+    const int legacy = p->format <= 5;
     memset(r, 0, p->record_length);
     for (int k = 0; k < 3; k++) las_put_u32(r + 4 * k, (uint32_t)quantise(c->xyz[3 * i + k], p->scale));
     if (c->intensity) las_put_u16(r + 12, c->intensity[i]);
-    if (c->return_number)
-        r[14] = (unsigned char)((c->return_number[i] & 0x0F) | (c->num_returns ? (c->num_returns[i] & 0x0F) << 4 : 0));
-    if (c->classification) r[16] = c->classification[i];
-    if (c->gps_time) las_put_f64(r + 22, c->gps_time[i]);
-    if (c->rgb && p->format >= 7)
-        for (int k = 0; k < 3; k++) las_put_u16(r + 30 + 2 * k, c->rgb[3 * i + k]);
-    if (c->nir && p->format == 8) las_put_u16(r + 36, c->nir[i]);
-    unsigned char *e = r + las_layouts[p->format].size;
+    if (c->return_number) {
+        unsigned rn = c->return_number[i], nr = c->num_returns ? c->num_returns[i] : 0;
+        r[14] = (unsigned char)(legacy ? (rn & 0x07) | (nr & 0x07) << 3 : (rn & 0x0F) | (nr & 0x0F) << 4);
+    }
+    if (c->classification) {
+        if (legacy) r[15] = c->classification[i] & 0x1F;
+        else r[16] = c->classification[i];
+    }
+    if (c->gps_time && lay->gps >= 0) las_put_f64(r + lay->gps, c->gps_time[i]);
+    if (c->rgb && lay->rgb >= 0)
+        for (int k = 0; k < 3; k++) las_put_u16(r + lay->rgb + 2 * k, c->rgb[3 * i + k]);
+    if (c->nir && lay->nir >= 0) las_put_u16(r + lay->nir, c->nir[i]);
+    unsigned char *e = r + lay->size;
     for (size_t a = 0; a < c->n_attrs; a++) {
         double v = c->attrs[a].values[i];
         if (p->eb_types[a] == LAS_EB_INT32) {
@@ -246,6 +326,7 @@ static void encode_point(unsigned char *r, const sy_cloud *c, const las_plan *p,
             e += 8;
         }
     }
+    for (int k = 0; c->normal && k < 3; k++, e += 4) las_put_f32(e, c->normal[3 * i + k]);
 }
 
 static sy_code write_file(const char *path, const sy_cloud *c, const las_plan *p, sy_error *err)
@@ -276,7 +357,8 @@ sy_code sy_write_las(const char *path, const sy_cloud *c, sy_error *err)
 {
     las_plan p;
     memset(&p, 0, sizeof p);
-    p.format = c->nir ? 8 : c->rgb ? 7 : 6;
+    choose_crs(c, &p);
+    p.format = choose_format(c, &p);
     sy_code rc = choose_scale(path, c, &p, err);
     if (rc) return rc;
     scan_points(c, &p);
@@ -287,6 +369,7 @@ sy_code sy_write_las(const char *path, const sy_cloud *c, sy_error *err)
         p.eb_types[a] = attr_type(&c->attrs[a], c->n);
         record += p.eb_types[a] == LAS_EB_INT32 ? 4 : 8;
     }
+    if (c->normal) record += 3 * sizeof(float);
     if (record > 65535) {
         free(p.eb_types);
         return sy_fail(err, SY_EINPUT, "%s: %zu attributes make a %zu-byte record, over LAS's 65535", path,

@@ -76,30 +76,6 @@ static uint64_t load_le(const unsigned char *p, unsigned size)
     return v;
 }
 
-/* One binary element as a double, by PCD type and size. */
-static double decode_value(const unsigned char *p, char type, unsigned size)
-{
-    uint64_t u = load_le(p, size);
-    if (type == 'F') {
-        if (size == 4) {
-            uint32_t b = (uint32_t)u;
-            float f;
-            memcpy(&f, &b, sizeof f);
-            return f;
-        }
-        double d;
-        memcpy(&d, &u, sizeof d);
-        return d;
-    }
-    if (type == 'U') return (double)u;
-    switch (size) {
-    case 1: return (double)(int8_t)(uint8_t)u;
-    case 2: return (double)(int16_t)(uint16_t)u;
-    case 4: return (double)(int32_t)(uint32_t)u;
-    default: return (double)(int64_t)u;
-    }
-}
-
 /* ---- header ---------------------------------------------------------- */
 
 static sy_code parse_fields(pcd_header *h, const char *p, const char *e, size_t line, sy_error *err)
@@ -317,8 +293,11 @@ static const char *lzf_decompress(const unsigned char *in, size_t in_len, unsign
         len += 2;
         if (back > op) return "back-reference before the start of the data";
         if (len > out_len - op) return "back-reference past the declared uncompressed size";
-        /* Byte by byte: source and destination may overlap (run-length case). */
-        for (size_t k = 0; k < len; k++) out[op + k] = out[op - back + k];
+        /* Byte by byte only when source and destination overlap (the
+         * run-length case); memcpy is several times faster otherwise. */
+        if (back >= len) memcpy(out + op, out + op - back, len);
+        else
+            for (size_t k = 0; k < len; k++) out[op + k] = out[op - back + k];
         op += len;
     }
     if (op != out_len) return "decompressed data is shorter than declared";
@@ -327,12 +306,19 @@ static const char *lzf_decompress(const unsigned char *in, size_t in_len, unsign
 
 /* ---- body -------------------------------------------------------------- */
 
+/* Points are decoded a block at a time into per-field columns of doubles,
+ * then stored field by field: the type and role switches run once per field
+ * and block instead of once per field and point. A block holds up to
+ * PCD_BLOCK_VALUES values, so thousands of fields still cost only 512 KiB. */
+enum { PCD_BLOCK = 1024, PCD_BLOCK_VALUES = 1 << 16 };
+
 typedef struct {
     pcd_header *h;
     sy_lines lines;   /* ascii cursor */
-    sy_tok *toks;    /* ascii: columns + 1 slots */
-    double *vals;     /* per field: value of the current point */
-    uint32_t *bits;   /* per field: raw bits of a packed colour */
+    sy_tok *toks;     /* ascii: columns + 1 slots */
+    size_t rows;      /* points per block */
+    double *cols;     /* nf x rows: field k of block row i at cols[k * rows + i] */
+    size_t *slot;     /* rows: the row's cloud index, or SIZE_MAX for a skipped NaN point */
 } pcd_body;
 
 /* Points binary fields at their data: point-major records for binary,
@@ -355,19 +341,49 @@ static void bind_binary(pcd_header *h, const unsigned char *data)
     }
 }
 
-static void binary_point(pcd_body *b, size_t i)
+static float bits_float(uint32_t b)
 {
-    for (size_t k = 0; k < b->h->nf; k++) {
-        const pcd_field *f = &b->h->f[k];
-        if (f->role == ROLE_SKIP) continue;
-        const unsigned char *p = f->base + i * f->stride;
-        b->vals[k] = decode_value(p, f->type, f->size);
-        b->bits[k] = (uint32_t)load_le(p, f->size < 4 ? f->size : 4);
-    }
+    float f;
+    memcpy(&f, &b, sizeof f);
+    return f;
 }
 
-/* Tokenizes the next non-empty ascii line into b->toks. */
-static sy_code ascii_point(pcd_body *b, size_t i, sy_error *err)
+static double bits_double(uint64_t b)
+{
+    double d;
+    memcpy(&d, &b, sizeof d);
+    return d;
+}
+
+/* One binary field for points [start, start + m). A packed colour (always 4
+ * bytes, see role_of) gives its raw bits. */
+static void decode_column(const pcd_field *f, size_t start, size_t m, double *out)
+{
+    const unsigned char *p = f->base + start * f->stride;
+    const size_t s = f->stride;
+#define COLUMN_LOOP(expr)                              \
+    for (size_t i = 0; i < m; i++) out[i] = (double)(expr); \
+    return
+    if (f->role == ROLE_RGB) {
+        COLUMN_LOOP((uint32_t)load_le(p + i * s, 4));
+    }
+    switch (f->type == 'F' ? f->size : f->type == 'U' ? 16 + f->size : 32 + f->size) {
+    case 4: COLUMN_LOOP(bits_float((uint32_t)load_le(p + i * s, 4)));
+    case 8: COLUMN_LOOP(bits_double(load_le(p + i * s, 8)));
+    case 16 + 1: COLUMN_LOOP(p[i * s]);
+    case 16 + 2: COLUMN_LOOP(load_le(p + i * s, 2));
+    case 16 + 4: COLUMN_LOOP(load_le(p + i * s, 4));
+    case 16 + 8: COLUMN_LOOP(load_le(p + i * s, 8));
+    case 32 + 1: COLUMN_LOOP((int8_t)p[i * s]);
+    case 32 + 2: COLUMN_LOOP((int16_t)load_le(p + i * s, 2));
+    case 32 + 4: COLUMN_LOOP((int32_t)load_le(p + i * s, 4));
+    default: COLUMN_LOOP((int64_t)load_le(p + i * s, 8));
+    }
+#undef COLUMN_LOOP
+}
+
+/* Tokenizes the next non-empty ascii line into block row `row`. */
+static sy_code ascii_point(pcd_body *b, size_t i, size_t row, sy_error *err)
 {
     const pcd_header *h = b->h;
     size_t ntok = 0;
@@ -386,7 +402,10 @@ static sy_code ascii_point(pcd_body *b, size_t i, sy_error *err)
         const pcd_field *f = &h->f[k];
         if (f->role == ROLE_SKIP) continue;
         const sy_tok *t = &b->toks[nopad ? f->column_nopad : f->column];
-        int ok = f->role == ROLE_RGB ? tok_rgb_bits(t, &b->bits[k]) : sy_tok_double(t, &b->vals[k]);
+        double *v = &b->cols[k * b->rows + row];
+        uint32_t bits = 0;
+        int ok = f->role == ROLE_RGB ? tok_rgb_bits(t, &bits) : sy_tok_double(t, v);
+        if (ok && f->role == ROLE_RGB) *v = bits;
         if (!ok)
             return sy_fail(err, SY_EINPUT, "%s: line %zu: bad value '%.*s' for field %s", h->path, b->lines.line,
                            sy_tok_shown(t), t->s, f->name);
@@ -445,22 +464,67 @@ static void store_intensity(sy_cloud *c, const double *raw)
     }
 }
 
-/* Copies the current point's values (b->vals/bits) into cloud slot j. */
-static void store_point(sy_cloud *c, const pcd_body *b, size_t j, const double xyz[3], double *intensity)
+/* Positions of the block's m rows: NaN points (PCL's "no return") are
+ * skipped, the rest get cloud slots from *j on. The origin is the metre floor
+ * of the first point kept, as in the LAS reader, so float offsets stay small
+ * without a second pass over the cloud. */
+static sy_code store_positions(pcd_body *b, sy_cloud *c, size_t start, size_t m, const size_t axis[3], size_t *j,
+                               size_t *nan_skipped, sy_error *err)
 {
-    for (int k = 0; k < 3; k++) c->xyz[3 * j + k] = (float)(xyz[k] - c->origin[k]);
+    const double *x = b->cols + axis[0] * b->rows, *y = b->cols + axis[1] * b->rows,
+                 *z = b->cols + axis[2] * b->rows;
+    for (size_t i = 0; i < m; i++) {
+        if (isnan(x[i]) || isnan(y[i]) || isnan(z[i])) {
+            b->slot[i] = SIZE_MAX;
+            ++*nan_skipped;
+            continue;
+        }
+        if (!(isfinite(x[i]) && isfinite(y[i]) && isfinite(z[i])))
+            return sy_check_finite(b->h->path, x[i], y[i], z[i], start + i, err);
+        if (*j == 0) {
+            c->origin[0] = floor(x[i]);
+            c->origin[1] = floor(y[i]);
+            c->origin[2] = floor(z[i]);
+        }
+        float *q = c->xyz + 3 * *j;
+        q[0] = (float)(x[i] - c->origin[0]);
+        q[1] = (float)(y[i] - c->origin[1]);
+        q[2] = (float)(z[i] - c->origin[2]);
+        b->slot[i] = (*j)++;
+    }
+    return SY_OK;
+}
+
+/* The block's other fields into their cloud arrays, one field at a time. */
+static void store_fields(const pcd_body *b, sy_cloud *c, size_t m, double *intensity)
+{
     for (size_t k = 0; k < b->h->nf; k++) {
         const pcd_field *f = &b->h->f[k];
-        double v = b->vals[k];
+        const double *v = b->cols + k * b->rows;
+        const size_t *slot = b->slot;
         switch (f->role) {
-        case ROLE_NX: case ROLE_NY: case ROLE_NZ:
-            c->normal[3 * j + (size_t)(f->role - ROLE_NX)] = (float)v;
+        case ROLE_NX: case ROLE_NY: case ROLE_NZ: {
+            size_t axis = (size_t)(f->role - ROLE_NX);
+            for (size_t i = 0; i < m; i++)
+                if (slot[i] != SIZE_MAX) c->normal[3 * slot[i] + axis] = (float)v[i];
             break;
+        }
         case ROLE_RGB:
-            for (int ch = 0; ch < 3; ch++) c->rgb[3 * j + ch] = (uint16_t)(((b->bits[k] >> (16 - 8 * ch)) & 0xff) * 257);
+            for (size_t i = 0; i < m; i++) {
+                if (slot[i] == SIZE_MAX) continue;
+                uint32_t bits = (uint32_t)v[i];
+                for (int ch = 0; ch < 3; ch++)
+                    c->rgb[3 * slot[i] + ch] = (uint16_t)(((bits >> (16 - 8 * ch)) & 0xff) * 257);
+            }
             break;
-        case ROLE_INTENSITY: intensity[j] = v; break;
-        case ROLE_ATTR: f->attr[j] = v; break;
+        case ROLE_INTENSITY:
+            for (size_t i = 0; i < m; i++)
+                if (slot[i] != SIZE_MAX) intensity[slot[i]] = v[i];
+            break;
+        case ROLE_ATTR:
+            for (size_t i = 0; i < m; i++)
+                if (slot[i] != SIZE_MAX) f->attr[slot[i]] = v[i];
+            break;
         default: break;
         }
     }
@@ -469,29 +533,21 @@ static void store_point(sy_cloud *c, const pcd_body *b, size_t j, const double x
 static sy_code read_points(pcd_body *b, sy_cloud *c, double *intensity, size_t *nan_skipped, sy_error *err)
 {
     const pcd_header *h = b->h;
-    size_t j = 0;
-    int have_origin = 0;
-    for (size_t i = 0; i < (size_t)h->points; i++) {
-        if (h->kind == PCD_ASCII) {
-            sy_code rc = ascii_point(b, i, err);
-            if (rc) return rc;
-        } else {
-            binary_point(b, i);
-        }
-        double xyz[3] = {0, 0, 0};
+    size_t axis[3] = {0, 0, 0}, j = 0;
+    for (size_t k = 0; k < h->nf; k++)
+        if (h->f[k].role >= ROLE_X && h->f[k].role <= ROLE_Z) axis[h->f[k].role - ROLE_X] = k;
+    for (size_t start = 0; start < (size_t)h->points; start += b->rows) {
+        size_t m = (size_t)h->points - start < b->rows ? (size_t)h->points - start : b->rows;
         for (size_t k = 0; k < h->nf; k++)
-            if (h->f[k].role >= ROLE_X && h->f[k].role <= ROLE_Z) xyz[h->f[k].role - ROLE_X] = b->vals[k];
-        if (isnan(xyz[0]) || isnan(xyz[1]) || isnan(xyz[2])) {
-            ++*nan_skipped;
-            continue;
+            if (h->f[k].role != ROLE_SKIP && h->kind != PCD_ASCII)
+                decode_column(&h->f[k], start, m, b->cols + k * b->rows);
+        for (size_t i = 0; h->kind == PCD_ASCII && i < m; i++) {
+            sy_code rc = ascii_point(b, start + i, i, err);
+            if (rc) return rc;
         }
-        sy_code rc = sy_check_finite(h->path, xyz[0], xyz[1], xyz[2], i, err);
+        sy_code rc = store_positions(b, c, start, m, axis, &j, nan_skipped, err);
         if (rc) return rc;
-        if (!have_origin) {
-            for (int k = 0; k < 3; k++) c->origin[k] = floor(xyz[k]);
-            have_origin = 1;
-        }
-        store_point(c, b, j++, xyz, intensity);
+        store_fields(b, c, m, intensity);
     }
     c->n = j;
     return SY_OK;
@@ -579,10 +635,12 @@ sy_code sy_read_pcd_mem(const char *path, const unsigned char *data, size_t size
     if (!rc) {
         b.h = &h;
         b.lines = (sy_lines){(const char *)data, size, h.data, h.data_line};
-        b.vals = sy_calloc(h.nf, sizeof *b.vals, err, "PCD values");
-        b.bits = sy_calloc(h.nf, sizeof *b.bits, err, "PCD values");
+        b.rows = PCD_BLOCK_VALUES / h.nf < PCD_BLOCK ? PCD_BLOCK_VALUES / h.nf : PCD_BLOCK;
+        if (b.rows == 0) b.rows = 1;
+        b.cols = sy_calloc(h.nf, b.rows * sizeof *b.cols, err, "PCD values");
+        b.slot = sy_calloc(b.rows, sizeof *b.slot, err, "PCD values");
         if (h.kind == PCD_ASCII) b.toks = sy_calloc(h.columns + 1, sizeof *b.toks, err, "PCD tokens");
-        if (!b.vals || !b.bits || (h.kind == PCD_ASCII && !b.toks)) rc = SY_EINTERNAL;
+        if (!b.cols || !b.slot || (h.kind == PCD_ASCII && !b.toks)) rc = SY_EINTERNAL;
     }
     if (!rc) rc = read_points(&b, out, intensity, &nan_skipped, err);
     if (!rc && intensity) store_intensity(out, intensity);
@@ -593,10 +651,9 @@ sy_code sy_read_pcd_mem(const char *path, const unsigned char *data, size_t size
         if (h.version[0]) snprintf(out->meta.version, sizeof out->meta.version, "%.12s %s", h.version, kind);
         else snprintf(out->meta.version, sizeof out->meta.version, "%s", kind);
         out->meta.header_count = h.points;
-        sy_cloud_rebase(out);
     }
-    free(b.vals);
-    free(b.bits);
+    free(b.cols);
+    free(b.slot);
     free(b.toks);
     free(intensity);
     free(owned);
