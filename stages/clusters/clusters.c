@@ -24,11 +24,9 @@ void sy_clusters_free(sy_clusters *c)
 
 /* ---- Low-confidence rule and the cut ---- */
 
-/* Distance of p from the ray that starts at a and runs through b: the branch
- * axis of the edge a -> b. The points of b's level set straddle b (half a bin
- * lies beyond it), so a segment ending at b would count their axial offset as
- * spread: on a limb thinner than the bin that alone tripped the rule. */
-static double axis_dist(const float a[3], const float b[3], const float p[3])
+/* Distance of p from the segment a-b, or with ray != 0 from the ray that
+ * starts at a and runs through b. */
+static double line_dist(const float a[3], const float b[3], const float p[3], int ray)
 {
     double ab[3], ap[3], t = 0, L = 0;
     for (int k = 0; k < 3; k++) {
@@ -38,25 +36,7 @@ static double axis_dist(const float a[3], const float b[3], const float p[3])
         L += ab[k] * ab[k];
     }
     t = L > 0 ? fmax(0, t / L) : 0;
-    double d2 = 0;
-    for (int k = 0; k < 3; k++) {
-        double d = ap[k] - t * ab[k];
-        d2 += d * d;
-    }
-    return sqrt(d2);
-}
-
-/* Distance of p from the segment a-b. */
-static double seg_dist(const float a[3], const float b[3], const float p[3])
-{
-    double ab[3], ap[3], t = 0, L = 0;
-    for (int k = 0; k < 3; k++) {
-        ab[k] = (double)b[k] - a[k];
-        ap[k] = (double)p[k] - a[k];
-        t += ab[k] * ap[k];
-        L += ab[k] * ab[k];
-    }
-    t = L > 0 ? fmin(1, fmax(0, t / L)) : 0;
+    if (!ray) t = fmin(1, t);
     double d2 = 0;
     for (int k = 0; k < 3; k++) {
         double d = ap[k] - t * ab[k];
@@ -72,8 +52,8 @@ int sy_edge_low_confidence(const float parent[3], const float child[3], const fl
     double sum = 0;
     for (size_t i = 0; i < n_points; i++) {
         const float *P = xyz + 3 * (size_t)points[i];
-        double d = n_next ? seg_dist(parent, child, P) : axis_dist(parent, child, P);
-        for (size_t c = 0; c < n_next; c++) d = fmin(d, seg_dist(child, next + 3 * c, P));
+        double d = line_dist(parent, child, P, n_next == 0);
+        for (size_t c = 0; c < n_next; c++) d = fmin(d, line_dist(child, next + 3 * c, P, 0));
         sum += d;
     }
     return sum / (double)n_points > fs * diameter;
