@@ -387,7 +387,7 @@ static void nan_points_across_blocks(void **state)
 {
     (void)state;
     enum { N = 2500 };
-    static unsigned char file[64 + 256 + N * 24];
+    static unsigned char file[256 + N * 28]; /* header, then 28-byte records */
     int head = snprintf((char *)file, 256,
                         "VERSION 0.7\nFIELDS x y z rgb label weight\nSIZE 4 4 4 4 4 8\nTYPE F F F U I F\n"
                         "COUNT 1 1 1 1 1 1\nWIDTH %d\nHEIGHT 1\nPOINTS %d\nDATA binary\n", N, N);
