@@ -21,6 +21,7 @@
 
 static const char *out_path, *sylva_path, *species_name;
 static double beta, gamma_, fs, voxel, wood_share;
+static int spread_around;
 static const sy_opt opts[] = {
     {"-o", OPT_STRING, &out_path, "OUT.glb", "output glTF binary"},
     {"--sylva", OPT_STRING, &sylva_path, "OUT.sylva", "also write the compact .sylva file of the reconstruction"},
@@ -31,6 +32,8 @@ static const sy_opt opts[] = {
     {"--wood-share", OPT_DOUBLE, &wood_share, "W",
      "wood/leaf separation: wood = shortest-path subtrees of >= W of the points (e.g. 0.005; default 0 = off)"},
     {"--voxel", OPT_DOUBLE, &voxel, "SIZE", "thin the scan to one point per SIZE-metre voxel (default off)"},
+    {"--spread-around", OPT_FLAG, &spread_around, NULL,
+     "judge a level set's spread from the skeleton around its node, not its edge (leaf-off scans)"},
     SY_GLB_OPTIONS,
     {NULL, 0, NULL, NULL, NULL},
 };
@@ -168,6 +171,7 @@ static sy_code reconstruct_and_write(const char *in, const sy_cli *cli, const sy
     if (!isnan(gamma_)) so.gamma = gamma_;
     so.fs = fs;
     so.wood_share = wood_share;
+    so.spread_around = spread_around;
     sy_skeleton s;
     sy_clusters cl;
     rc = sy_reconstruct_skeleton(&c, &so, &s, &cl, r, err);
@@ -233,6 +237,7 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
     beta = gamma_ = NAN;
     fs = 1;
     wood_share = 0;
+    spread_around = 0;
     voxel = 0;
     sy_glb_cli_reset();
     int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);

@@ -32,6 +32,8 @@ static const sy_opt opts[] = {
     {"--alpha-scale", OPT_DOUBLE, &o.alpha_scale, "A", "alpha = A * alpha_min, CGAL squared radii (default 5)"},
     {"--min-cluster", OPT_INT, &o.min_cluster_points, "N", "smallest cluster in points (default 24)"},
     {"--species", OPT_INT, &species, "ID", "species id stored in the file (default 0: unknown)"},
+    {"--spread-around", OPT_FLAG, &o.spread_around, NULL,
+     "judge a level set's spread from the skeleton around its node, not its edge (leaf-off scans)"},
     {"--no-clusters", OPT_FLAG, &no_clusters, NULL, "keep every point on the skeleton"},
     {NULL, 0, NULL, NULL, NULL},
 };

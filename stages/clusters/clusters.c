@@ -45,21 +45,21 @@ static double line_dist(const float a[3], const float b[3], const float p[3], in
     return sqrt(d2);
 }
 
-int sy_edge_low_confidence(const float parent[3], const float child[3], const float *next, size_t n_next,
+int sy_edge_low_confidence(const float parent[3], const float child[3], int around, const float *next, size_t n_next,
                            const float *xyz, const uint32_t *points, size_t n_points, double diameter, double fs)
 {
     if (n_points == 0) return 0;
     double sum = 0;
     for (size_t i = 0; i < n_points; i++) {
         const float *P = xyz + 3 * (size_t)points[i];
-        double d = line_dist(parent, child, P, n_next == 0);
-        for (size_t c = 0; c < n_next; c++) d = fmin(d, line_dist(child, next + 3 * c, P, 0));
+        double d = line_dist(parent, child, P, around && n_next == 0);
+        for (size_t c = 0; around && c < n_next; c++) d = fmin(d, line_dist(child, next + 3 * c, P, 0));
         sum += d;
     }
     return sum / (double)n_points > fs * diameter;
 }
 
-sy_code sy_clusters_cut(const sy_skeleton *s, const float *xyz, const float *measured, double fs, int min_points,
+sy_code sy_clusters_cut(const sy_skeleton *s, const float *xyz, const float *measured, int around, double fs, int min_points,
                         int32_t *cluster_of, int32_t *seed_of, size_t *n_clusters, sy_error *err)
 {
     size_t n = s->n;
@@ -100,7 +100,8 @@ sy_code sy_clusters_cut(const sy_skeleton *s, const float *xyz, const float *mea
         size_t nk = 0;
         for (int32_t c = first_child[i]; c >= 0; c = next_sibling[c], nk++)
             memcpy(next + 3 * nk, s->pos + 3 * (size_t)c, 3 * sizeof *next);
-        if (sy_edge_low_confidence(s->pos + 3 * (size_t)p, s->pos + 3 * i, next, nk, xyz, sp, cnt, 2.0 * s->radius[i], fs))
+        if (sy_edge_low_confidence(s->pos + 3 * (size_t)p, s->pos + 3 * i, around, next, nk, xyz, sp, cnt,
+                                   2.0 * s->radius[i], fs))
             group[i] = p;
     }
     for (size_t i = 0; i < n; i++)

@@ -39,16 +39,18 @@ void sy_clusters_free(sy_clusters *c);
 
 /* The low-confidence edge rule (Pirk 2013 eq. 3.2 and §3.3.2, interpretation B
  * of the digest): the edge parent->child is low-confidence when the mean
- * distance of the child's supporting points from the skeleton around the
- * child exceeds fs * the child's diameter, i.e. the points spread wider than
- * a branch of that diameter could. The skeleton around the child
- * is the segments parent->child and child->next[k] (its n_next children);
- * for a tip, the ray from the parent through the child (its level set
- * straddles it). A fork's level set holds both limbs' rings, each near its own
- * segment; a segment ending at the child would count the half of the level
- * set beyond it as spread (on a limb thinner than the bin, that alone tripped
- * the rule). Returns 1 for low confidence. */
-int sy_edge_low_confidence(const float parent[3], const float child[3], const float *next, size_t n_next,
+ * distance of the child's supporting points from the edge segment exceeds
+ * fs * the child's diameter, i.e. the points spread wider than a branch of
+ * that diameter could.
+ * With around != 0 the distance is taken from the skeleton around the child
+ * instead: the segments parent->child and child->next[k] (its n_next
+ * children), or for a tip the ray from the parent through the child. A level
+ * set straddles its node, so half its points lie beyond the incoming
+ * segment's end and their axial offset counts as spread (a 1 cm limb in a
+ * 7 cm bin fails on that alone), and a fork's level set holds the rings of
+ * both limbs, each near its own outgoing segment. Returns 1 for low
+ * confidence. */
+int sy_edge_low_confidence(const float parent[3], const float child[3], int around, const float *next, size_t n_next,
                            const float *xyz, const uint32_t *points, size_t n_points, double diameter, double fs);
 
 /* Walks the full skeleton from the root and stops at low-confidence edges.
@@ -57,8 +59,10 @@ int sy_edge_low_confidence(const float parent[3], const float child[3], const fl
  * with fewer than min_points supporting points in total stay on the skeleton.
  * measured (may be NULL): per node a measured radius (a ring of returns was
  * fitted, 0 = none); such an edge is high-confidence whatever its spread.
+ * around: the spread of sy_edge_low_confidence.
  * full must carry support. seed_of has room for full->n entries. */
-sy_code sy_clusters_cut(const sy_skeleton *full, const float *xyz, const float *measured, double fs, int min_points,
+sy_code sy_clusters_cut(const sy_skeleton *full, const float *xyz, const float *measured, int around, double fs,
+                        int min_points,
                         int32_t *cluster_of, int32_t *seed_of, size_t *n_clusters, sy_error *err);
 
 /* Builds the hull of c from its points: the alpha shape of (a thinned copy

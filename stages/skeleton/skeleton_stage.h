@@ -41,6 +41,9 @@ typedef struct {
     int min_cluster_points; /* smaller low-confidence groups stay on the skeleton (24) */
     int hull_triangles;   /* hull triangle budget per cluster; 0 = from the 40 kB file budget */
     int clusters;         /* 0: skeleton only, every point stays on the skeleton */
+    int spread_around;    /* low-confidence spread from the skeleton around the node, not the
+                             incoming edge (0; 1 recovers more limbs on leaf-off scans but cuts
+                             less in leafy crowns and sparse scans: docs/skeleton.md) */
     double wood_share;    /* wood/leaf separation: wood = shortest-path subtrees holding at least this
                              share of the points, plus their neighbours; 0 = off, all wood (default:
                              on leafy TLS scans it gained little and hurt leafless trees, docs/skeleton.md) */

@@ -32,6 +32,7 @@ void sy_skeleton_options_default(sy_skeleton_options *o)
     o->hull_triangles = 0;
     o->clusters = 1;
     o->wood_share = 0;
+    o->spread_around = 0;
 }
 
 /* The node graph while it is being edited: nodes are merged by aliasing. */
@@ -861,7 +862,7 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
         goto done;
     }
     if (o->clusters && clusters) {
-        rc = sy_clusters_cut(&full, xyz, fit, o->fs, o->min_cluster_points, cluster_of, seed_of, &n_clusters, err);
+        rc = sy_clusters_cut(&full, xyz, fit, o->spread_around, o->fs, o->min_cluster_points, cluster_of, seed_of, &n_clusters, err);
         if (rc) goto done;
     } else {
         for (size_t i = 0; i < full.n; i++) cluster_of[i] = -1;
