@@ -19,8 +19,10 @@ static float outline_width(int shape, float y)
         return sqrtf(fmaxf(0, 1 - (2 * y - 1) * (2 * y - 1)));
     case 2: /* ovate: widest at about a third, pointed tip */
         return sinf(SY_PI * powf(y, 0.7f));
-    case 3: /* lanceolate: narrow, long taper */
-        return powf(sinf(SY_PI * y), 1.5f);
+    case 3: /* lanceolate: narrow, long taper. sinf(pi) rounds to a tiny
+             * negative number, and a negative base to the power 1.5 is NaN,
+             * so the tip is clamped to the 0 it is meant to be. */
+        return powf(fmaxf(0, sinf(SY_PI * y)), 1.5f);
     default:
         return 1;
     }
