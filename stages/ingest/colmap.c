@@ -68,14 +68,15 @@ static int cmp_camera(const void *a, const void *b)
  * of them take seconds. */
 static int has_camera(const colmap_model *m, uint64_t id)
 {
-    if (id > UINT32_MAX) return 0;
+    /* bsearch must not see a NULL array, even an empty one (UBSan, fuzz find). */
+    if (id > UINT32_MAX || m->ncams == 0) return 0;
     colmap_camera key = {(uint32_t)id, 0};
     return bsearch(&key, m->cams, m->ncams, sizeof key, cmp_camera) != NULL;
 }
 
 static int has_image(const colmap_model *m, uint64_t id)
 {
-    if (id > UINT32_MAX) return 0;
+    if (id > UINT32_MAX || m->nimages == 0) return 0;
     uint32_t key = (uint32_t)id;
     return bsearch(&key, m->images, m->nimages, sizeof key, cmp_u32) != NULL;
 }
