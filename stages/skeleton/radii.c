@@ -391,12 +391,17 @@ size_t sy_measure_node_radii(const sy_skeleton *s, const float *xyz, double spac
         /* This node's points and those of its neighbours on the branch: one
          * level set alone holds too few points on a thin limb. */
         int32_t near[3] = {(int32_t)i, prev, c};
-        size_t k = 0;
+        size_t k = 0, total = 0;
+        for (int q = 0; q < 3; q++)
+            if (near[q] >= 0) total += s->support_start[near[q] + 1] - s->support_start[near[q]];
+        /* A few hundred points define a circle as well as thousands: a dense
+         * scan's level sets hold 1000+ and RANSAC's cost grows with them. */
+        size_t stride = total > 384 ? total / 256 : 1;
         double cx = 0, cy = 0;
         const float *o = s->pos + 3 * i;
         for (int q = 0; q < 3; q++) {
             if (near[q] < 0) continue;
-            for (uint32_t j = s->support_start[near[q]]; j < s->support_start[near[q] + 1]; j++) {
+            for (uint32_t j = s->support_start[near[q]]; j < s->support_start[near[q] + 1]; j += (uint32_t)stride) {
                 const float *P = xyz + 3 * (size_t)s->support[j];
                 double d[3] = {P[0] - o[0], P[1] - o[1], P[2] - o[2]};
                 xy[2 * k] = d[0] * u[0] + d[1] * u[1] + d[2] * u[2];
