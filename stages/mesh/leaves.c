@@ -137,13 +137,9 @@ static size_t outline_extra(int shape, float aspect, float *pts, int *centred, f
     return n;
 }
 
-/* Shapes 4..9: a fan over outline_extra's polygon. */
-static sy_code extra_card(int shape, float aspect, sy_mesh *out, sy_error *err)
+/* The card's arrays for nv vertices and nt triangles; frees it all on failure. */
+static int card_alloc(sy_mesh *out, size_t nv, size_t nt, sy_error *err)
 {
-    float pts[2 * MAX_OUTLINE], cx = 0, cy = 0;
-    int centred;
-    size_t n = outline_extra(shape, aspect, pts, &centred, &cx, &cy);
-    size_t nv = n + (centred ? 1 : 0), nt = centred ? n : n - 2;
     out->n_vertices = nv;
     out->n_indices = 3 * nt;
     out->position = sy_calloc(nv, 3 * sizeof(float), err, "leaf card");
@@ -151,10 +147,19 @@ static sy_code extra_card(int shape, float aspect, sy_mesh *out, sy_error *err)
     out->tangent = sy_calloc(nv, 4 * sizeof(float), err, "leaf card");
     out->uv = sy_calloc(nv, 2 * sizeof(float), err, "leaf card");
     out->indices = sy_calloc(3 * nt, sizeof(uint32_t), err, "leaf card");
-    if (!out->position || !out->normal || !out->tangent || !out->uv || !out->indices) {
-        sy_mesh_free(out);
-        return SY_EINTERNAL;
-    }
+    if (out->position && out->normal && out->tangent && out->uv && out->indices) return 0;
+    sy_mesh_free(out);
+    return -1;
+}
+
+/* Shapes 4..9: a fan over outline_extra's polygon. */
+static sy_code extra_card(int shape, float aspect, sy_mesh *out, sy_error *err)
+{
+    float pts[2 * MAX_OUTLINE], cx = 0, cy = 0;
+    int centred;
+    size_t n = outline_extra(shape, aspect, pts, &centred, &cx, &cy);
+    size_t nv = n + (centred ? 1 : 0), nt = centred ? n : n - 2;
+    if (card_alloc(out, nv, nt, err)) return SY_EINTERNAL;
     size_t k = 0;
     if (centred) put(out, k++, cx, cy, aspect);
     for (size_t i = 0; i < n; i++) put(out, k++, pts[2 * i], pts[2 * i + 1], aspect);
@@ -179,17 +184,7 @@ sy_code sy_leaf_card(int shape, float aspect, int material, sy_mesh *out, sy_err
     if (shape >= 4 && shape <= 9) return extra_card(shape, aspect, out, err);
     int shaped = shape >= 1 && shape <= 3;
     size_t nv = shaped ? 1 + 2 * OUTLINE_STEPS : 4, nt = shaped ? 2 * OUTLINE_STEPS : 2;
-    out->n_vertices = nv;
-    out->n_indices = 3 * nt;
-    out->position = sy_calloc(nv, 3 * sizeof(float), err, "leaf card");
-    out->normal = sy_calloc(nv, 3 * sizeof(float), err, "leaf card");
-    out->tangent = sy_calloc(nv, 4 * sizeof(float), err, "leaf card");
-    out->uv = sy_calloc(nv, 2 * sizeof(float), err, "leaf card");
-    out->indices = sy_calloc(3 * nt, sizeof(uint32_t), err, "leaf card");
-    if (!out->position || !out->normal || !out->tangent || !out->uv || !out->indices) {
-        sy_mesh_free(out);
-        return SY_EINTERNAL;
-    }
+    if (card_alloc(out, nv, nt, err)) return SY_EINTERNAL;
     float h = 0.5f * aspect;
     if (!shaped) {
         put(out, 0, -h, 0, aspect);
