@@ -4,12 +4,7 @@
 # (LOD0 bark <= 60k triangles, each level <= 50% of the previous), and the
 # same seed gives a byte-identical file.
 set -u
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail=0
-check() { if ! eval "$2"; then echo "FAIL: $1"; fail=1; else echo "ok: $1"; fi; }
-validator="$SYLVA_SOURCE_DIR/tests/gltf_validate.mjs"
-[[ -f $SYLVA_SOURCE_DIR/node_modules/gltf-validator/package.json ]] || { echo "FAIL: gltf-validator missing (run scripts/install-deps.sh)"; exit 1; }
+source "$SYLVA_SOURCE_DIR/tests/glb_cli_common.sh"
 
 for sp in "$SYLVA_SOURCE_DIR"/species/*.ini; do
   name=$(basename "$sp" .ini)

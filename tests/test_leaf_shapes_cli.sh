@@ -3,12 +3,7 @@
 # validates with 0 errors and 0 warnings, and its leaf_card mesh has the
 # triangle count of that shape's outline.
 set -u
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail=0
-check() { if ! eval "$2"; then echo "FAIL: $1"; fail=1; else echo "ok: $1"; fi; }
-validator="$SYLVA_SOURCE_DIR/tests/gltf_validate.mjs"
-[[ -f $SYLVA_SOURCE_DIR/node_modules/gltf-validator/package.json ]] || { echo "FAIL: gltf-validator missing (run scripts/install-deps.sh)"; exit 1; }
+source "$SYLVA_SOURCE_DIR/tests/glb_cli_common.sh"
 # The species' texture paths are relative to the file.
 ln -s "$SYLVA_SOURCE_DIR/species/textures" "$tmp/textures"
 

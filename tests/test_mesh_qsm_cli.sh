@@ -6,12 +6,7 @@
 # meshes into a valid glb (a .sylva with its hulls, scoring like the .sylva),
 # `sylva run`'s glb lines up with the cloud, bad models exit 2 with one line and no output.
 set -u
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail=0
-check() { if ! eval "$2"; then echo "FAIL: $1"; fail=1; else echo "ok: $1"; fi; }
-validator="$SYLVA_SOURCE_DIR/tests/gltf_validate.mjs"
-[[ -f $SYLVA_SOURCE_DIR/node_modules/gltf-validator/package.json ]] || { echo "FAIL: gltf-validator missing (run npm ci)"; exit 1; }
+source "$SYLVA_SOURCE_DIR/tests/glb_cli_common.sh"
 rtwig="$SYLVA_DATA_DIR/real/rtwig"
 qsm="$rtwig/QSM.csv"
 cloud="$rtwig/cloud.txt"
