@@ -82,11 +82,8 @@ sy_code sy_clusters_cut(const sy_skeleton *s, const float *xyz, const float *mea
         free(next);
         return SY_EINTERNAL;
     }
-    for (size_t i = 0; i < n; i++) group[i] = first_child[i] = next_sibling[i] = -1;
-    for (size_t i = n; i-- > 1;) {
-        next_sibling[i] = first_child[s->parent[i]];
-        first_child[s->parent[i]] = (int32_t)i;
-    }
+    for (size_t i = 0; i < n; i++) group[i] = -1;
+    sy_skeleton_children(s, first_child, next_sibling);
     for (size_t i = 1; i < n; i++) {
         int32_t p = s->parent[i];
         if (group[p] >= 0) {

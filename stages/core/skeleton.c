@@ -175,3 +175,14 @@ sy_code sy_leaves_add(sy_leaves *l, const float pos[3], const float rot[4], floa
     l->n = n + 1;
     return SY_OK;
 }
+
+void sy_skeleton_children(const sy_skeleton *s, int32_t *first_child, int32_t *next_sibling)
+{
+    for (size_t i = 0; i < s->n; i++) first_child[i] = next_sibling[i] = -1;
+    for (size_t i = s->n; i-- > 0;) {
+        int32_t p = s->parent[i];
+        if (p < 0) continue;
+        next_sibling[i] = first_child[p];
+        first_child[p] = (int32_t)i;
+    }
+}

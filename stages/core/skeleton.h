@@ -48,6 +48,9 @@ int32_t sy_skeleton_branch_count(const sy_skeleton *s);
 double sy_skeleton_height(const sy_skeleton *s);
 /* Total length of all edges in metres. */
 double sy_skeleton_length(const sy_skeleton *s);
+/* Child lists (s->n entries each, -1 = none): node i's children are
+ * first_child[i], next_sibling[first_child[i]], ... in ascending index order. */
+void sy_skeleton_children(const sy_skeleton *s, int32_t *first_child, int32_t *next_sibling);
 
 /* Leaf placements of a generated tree: each leaf is a card of size scale,
  * positioned at pos, oriented by the unit quaternion rot (x, y, z, w) whose

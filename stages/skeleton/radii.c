@@ -365,12 +365,7 @@ size_t sy_measure_node_radii(const sy_skeleton *s, const float *xyz, double spac
         free(ang);
         return (size_t)-1;
     }
-    for (size_t i = 0; i < m; i++) first_child[i] = next_sibling[i] = -1;
-    for (size_t i = m; i-- > 1;) {
-        int32_t p = s->parent[i];
-        next_sibling[i] = first_child[p];
-        first_child[p] = (int32_t)i;
-    }
+    sy_skeleton_children(s, first_child, next_sibling);
     /* The inlier band: the scan's own roughness, a few millimetres at least. */
     double tol = fmax(0.5 * spacing, 0.006);
     for (size_t i = 1; i < m; i++) {
