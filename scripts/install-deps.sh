@@ -12,9 +12,11 @@ APT_PACKAGES=(
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev
   libtinygltf-dev libmeshoptimizer-dev nlohmann-json3-dev libstb-dev
   # GL preview and headless rendering
-  libglfw3-dev libepoxy-dev libegl-dev libgl1-mesa-dri xvfb xauth
-  # tests
-  libcmocka-dev nodejs npm
+  libglfw3-dev libepoxy-dev libegl-dev libegl-mesa0 libgl1-mesa-dri xvfb xauth
+  # classification baseline (xgboost C API) and photogrammetry (COLMAP CLI as a subprocess)
+  libxgboost-dev colmap
+  # tests: a second glTF client (three.js in headless Chromium), image tools
+  libcmocka-dev nodejs npm chromium imagemagick
 )
 
 missing=()
@@ -35,9 +37,13 @@ fi
 
 # Node test tools (Khronos glTF validator), pinned by the committed lock file.
 if [[ -f package-lock.json ]]; then
-  if [[ ! -d node_modules/gltf-validator ]]; then
+  # Reinstall whenever the lock file changed since the last install.
+  stamp=node_modules/.sylva-lock.sha256
+  want=$(sha256sum package-lock.json | cut -d' ' -f1)
+  if [[ ! -f $stamp || $(cat "$stamp") != "$want" ]]; then
     echo "install-deps: npm ci"
     npm ci --no-audit --no-fund --loglevel=error
+    echo "$want" > "$stamp"
   fi
 fi
 echo "install-deps: ok"
