@@ -23,6 +23,7 @@ int cmd_convert(int argc, char **argv, sy_cli *cli)
     out_path = NULL;
     int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
     if (rc) return rc < 0 ? 0 : rc;
+    sy_cli_apply_settings(cli);
     if (!out_path) {
         fprintf(stderr, "sylva convert: -o OUT is required\n");
         return SY_EUSAGE;

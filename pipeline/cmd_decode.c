@@ -8,8 +8,8 @@
 #include "pipeline/commands.h"
 #include "stages/core/json.h"
 #include "stages/core/fileio.h"
-#include "stages/encode/sylva_json.h"
-#include "stages/qsm/qsm_io.h"
+#include "stages/qsm/sylva_json.h"
+#include "stages/qsm/qsm.h"
 
 static const char *out_path;
 static const sy_opt opts[] = {
@@ -31,6 +31,7 @@ int cmd_decode(int argc, char **argv, sy_cli *cli)
     out_path = NULL;
     int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
     if (rc) return rc < 0 ? 0 : rc;
+    sy_cli_apply_settings(cli);
     char ext[16] = "";
     if (out_path) sy_extension(out_path, ext, sizeof ext);
     if (out_path && strcmp(ext, "json") && strcmp(ext, "ply") && strcmp(ext, "csv") && strcmp(ext, "obj")) {

@@ -8,8 +8,8 @@
 #include "pipeline/commands.h"
 #include "stages/core/fileio.h"
 #include "stages/core/json.h"
-#include "stages/encode/sylva_json.h"
-#include "stages/qsm/qsm_io.h"
+#include "stages/qsm/sylva_json.h"
+#include "stages/qsm/qsm.h"
 
 static const char *out_path;
 static int species;
@@ -57,6 +57,7 @@ int cmd_encode(int argc, char **argv, sy_cli *cli)
     species = -1;
     int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
     if (rc) return rc < 0 ? 0 : rc;
+    sy_cli_apply_settings(cli);
     char ext[16];
     sy_extension(out_path ? out_path : "", ext, sizeof ext);
     if (!out_path || strcmp(ext, "sylva") != 0 || species < -1 || species > 65535) {

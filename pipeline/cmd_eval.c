@@ -293,6 +293,7 @@ int cmd_eval(int argc, char **argv, sy_cli *cli)
     match_distance = 0.01;
     int rc = sy_cli_parse(&spec, argc, argv, cli, pos, 2, &n);
     if (rc) return rc < 0 ? 0 : rc;
+    sy_cli_apply_settings(cli);
     int modes = (truth_path != NULL) + (points_path != NULL) + segmentation_mode + species_mode;
     if (modes != 1) {
         fprintf(stderr, "sylva eval: choose exactly one of --truth, --points, --segmentation, --species\n");

@@ -38,8 +38,8 @@ static const sy_cmd_spec spec = {
 
 static void set_defaults(void)
 {
-    sy_preprocess_opts d;
-    sy_preprocess_defaults(&d);
+    sy_preprocess_options d;
+    d = sy_preprocess_options_default();
     out_path = NULL;
     up_text = "auto";
     for (int i = 0; i < 6; i++) crop_box[i] = NAN;
@@ -51,9 +51,9 @@ static void set_defaults(void)
     no_sor = no_ground = no_normals = remove_ground = 0;
 }
 
-static int build_opts(sy_preprocess_opts *o, sy_error *err)
+static int build_opts(sy_preprocess_options *o, sy_error *err)
 {
-    sy_preprocess_defaults(o);
+    *o = sy_preprocess_options_default();
     if (sy_up_parse(up_text, &o->up))
         return sy_fail(err, SY_EUSAGE, "--up: expected auto, z, y, x, -z, -y or -x, got '%s'", up_text);
     o->crop = !isnan(crop_box[0]);
@@ -64,7 +64,7 @@ static int build_opts(sy_preprocess_opts *o, sy_error *err)
     o->ground_cell = ground_cell, o->ground_slope = ground_slope;
     o->ground_max_window = ground_window, o->ground_threshold = ground_threshold;
     o->normals = !no_normals, o->normal_k = normal_k;
-    return sy_preprocess_check(o, err);
+    return sy_preprocess_options_check(o, err);
 }
 
 static void print_report(const sy_preprocess_result *r, const char *in, const char *out, int json)
@@ -116,12 +116,13 @@ int cmd_preprocess(int argc, char **argv, sy_cli *cli)
     set_defaults();
     int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
     if (rc) return rc < 0 ? 0 : rc;
+    sy_cli_apply_settings(cli);
     sy_error err = {0};
     if (!out_path) {
         fprintf(stderr, "sylva preprocess: -o OUT is required\n");
         return SY_EUSAGE;
     }
-    sy_preprocess_opts o;
+    sy_preprocess_options o;
     if (build_opts(&o, &err)) {
         fprintf(stderr, "sylva preprocess: %s\n", err.msg);
         return SY_EUSAGE;

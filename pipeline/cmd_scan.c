@@ -121,7 +121,7 @@ static int parse_path(const char *text, double **out, size_t *n)
     return 0;
 }
 
-static void configure(sy_scanner *sc, const sy_cli *cli)
+static void configure(sy_scan_options *sc, const sy_cli *cli)
 {
     sc->seed = cli->seed;
     SET_I(positions, positions);
@@ -147,7 +147,7 @@ static void configure(sy_scanner *sc, const sy_cli *cli)
 }
 
 /* Splits the comma list in place into o->species. */
-static int split_species(char *list, sy_scene_opts *o)
+static int split_species(char *list, sy_scene_options *o)
 {
     for (char *s = list, *e; s && *s; s = e) {
         e = strchr(s, ',');
@@ -159,7 +159,7 @@ static int split_species(char *list, sy_scene_opts *o)
     return o->n_species > 0;
 }
 
-static void print_report(const sy_cli *cli, const sy_scene *scene, const sy_scanner *sc, const sy_scan_stats *st,
+static void print_report(const sy_cli *cli, const sy_scene *scene, const sy_scan_options *sc, const sy_scan_stats *st,
                          double seconds)
 {
     size_t tree_pts = st->wood + st->leaf;
@@ -193,7 +193,7 @@ static void print_report(const sy_cli *cli, const sy_scene *scene, const sy_scan
 }
 
 /* Truth into memory first, so a failure after the scan leaves nothing. */
-static sy_code render_truth(const sy_scene *scene, const sy_scanner *sc, int stations, char **buf, size_t *len,
+static sy_code render_truth(const sy_scene *scene, const sy_scan_options *sc, int stations, char **buf, size_t *len,
                             sy_error *err)
 {
     FILE *fp = open_memstream(buf, len);
@@ -203,7 +203,7 @@ static sy_code render_truth(const sy_scene *scene, const sy_scanner *sc, int sta
     return SY_OK;
 }
 
-static sy_code write_outputs(const sy_cloud *cloud, const sy_scene *scene, const sy_scanner *sc, int stations,
+static sy_code write_outputs(const sy_cloud *cloud, const sy_scene *scene, const sy_scan_options *sc, int stations,
                              sy_error *err)
 {
     char *truth = NULL;
@@ -237,6 +237,7 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
     reset_options();
     int rc = sy_cli_parse(&spec, argc, argv, cli, pos, 1, &n_pos);
     if (rc) return rc < 0 ? 0 : rc;
+    sy_cli_apply_settings(cli);
     sy_scanner_kind kind;
     if (!out_path) {
         fprintf(stderr, "sylva scan: -o OUT is required\n");
@@ -255,8 +256,8 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
     if (sy_check_writable(out_path, &werr) || (truth_path && sy_check_writable(truth_path, &werr)))
         return sy_cli_report(&werr);
     double t0 = sy_now();
-    sy_scanner sc;
-    sy_scanner_defaults(&sc, kind);
+    sy_scan_options sc;
+    sc = sy_scan_options_for(kind);
     configure(&sc, cli);
     double *path = NULL;
     if (path_text) {
@@ -266,8 +267,8 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
         }
         sc.path = path;
     }
-    sy_scene_opts so;
-    sy_scene_opts_defaults(&so);
+    sy_scene_options so;
+    so = sy_scene_options_default();
     so.seed = cli->seed;
     so.plot_size = plot_size;
     if (trees >= 0) so.trees = trees;
@@ -289,13 +290,13 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
     /* Every species must load before any progress is printed: a bad name
      * makes exactly one line of output. */
     for (int i = 0; i < so.n_species; i++) {
-        sy_species sp;
-        if (sy_species_find(so.species[i], &sp, &err)) {
+        sy_species_params sp;
+        if (sy_species_params_find(so.species[i], &sp, &err)) {
             free(list);
             free(path);
             return sy_cli_report(&err);
         }
-        sy_species_free(&sp);
+        sy_species_params_free(&sp);
     }
     sy_scene scene;
     if (!cli->quiet && !cli->json) fprintf(stderr, "growing %d tree(s)\n", plot_size > 0 ? so.trees : 1);

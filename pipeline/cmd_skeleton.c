@@ -1,6 +1,6 @@
 /* sylva skeleton SCAN -o tree.sylva: one segmented tree scan to its skeleton,
  * clusters and hulls, written as a compact .sylva file, or the skeleton alone
- * in an interchange format (.ply .csv .json .obj, stages/qsm/qsm_io.h). */
+ * in an interchange format (.ply .csv .json .obj, stages/qsm/qsm.h). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -9,10 +9,10 @@
 #include "pipeline/commands.h"
 #include "stages/core/fileio.h"
 #include "stages/core/json.h"
-#include "stages/encode/sylva_format.h"
+#include "stages/encode/encode.h"
 #include "stages/ingest/ingest.h"
-#include "stages/qsm/qsm_io.h"
-#include "stages/skeleton/skeleton_stage.h"
+#include "stages/qsm/qsm.h"
+#include "stages/skeleton/skeleton.h"
 
 static const char *out_path;
 static double voxel;
@@ -148,9 +148,10 @@ int cmd_skeleton(int argc, char **argv, sy_cli *cli)
     voxel = 0;
     species = 0;
     no_clusters = 0;
-    sy_skeleton_options_default(&o);
+    o = sy_skeleton_options_default();
     int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
     if (rc) return rc < 0 ? 0 : rc;
+    sy_cli_apply_settings(cli);
     if (!out_path) {
         fprintf(stderr, "sylva skeleton: -o OUT is required\n");
         return SY_EUSAGE;

@@ -15,7 +15,8 @@ run_all() {
   "$b" grow --species quaking_aspen --seed 3 -o grow_aspen.glb --quiet
   "$b" grow --species balsam_fir --seed 1 --lods 2 --meshopt -o grow_fir.glb --quiet
   "$b" grow --species palm --no-instancing --no-impostor -o grow_palm.glb --quiet
-  "$b" grow "$here/species/weeping_willow.ini" -o grow_willow.glb --quiet
+  grep -v "^bark\|^leaf" "$here/species/weeping_willow.ini" > willow.ini
+  "$b" grow willow.ini -o grow_willow.glb --quiet
   "$b" skeleton "$s/aspen_tls.las" -o skel_aspen.sylva --quiet > /dev/null
   "$b" skeleton "$s/fir_tls.las" -o skel_fir.ply --quiet > /dev/null
   "$b" skeleton "$s/palm_tls.las" -o skel_palm.json --k 10 --quiet > /dev/null

@@ -9,7 +9,7 @@
 
 #include "stages/clusters/alpha_shape_cgal.h"
 #include "stages/clusters/clusters.h"
-#include "stages/skeleton/skeleton_stage.h"
+#include "stages/skeleton/skeleton.h"
 #include "synthetic_tree.h"
 
 static void assert_good_hull(const sy_cluster *c, const float *xyz)
@@ -176,7 +176,7 @@ static void foliage_becomes_clusters(void **state)
     sy_error err = {0};
     assert_int_equal(syn_sample(&t, 40000, 0.4, 0.002, 21, &cloud, &err), SY_OK);
     sy_skeleton_options o;
-    sy_skeleton_options_default(&o);
+    o = sy_skeleton_options_default();
     sy_skeleton s;
     sy_clusters cl;
     sy_skeleton_report r;

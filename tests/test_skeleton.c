@@ -8,7 +8,7 @@
 #include <string.h>
 
 #include "stages/core/fileio.h"
-#include "stages/skeleton/skeleton_stage.h"
+#include "stages/skeleton/skeleton.h"
 #include "synthetic_tree.h"
 #include "xyz_text.h"
 
@@ -75,7 +75,7 @@ static void sample_and_reconstruct(const syn_tree *t, size_t n, uint64_t seed, s
     sy_error err = {0};
     assert_int_equal(syn_sample(t, n, 0, 0.002, seed, c, &err), SY_OK);
     sy_skeleton_options o;
-    sy_skeleton_options_default(&o);
+    o = sy_skeleton_options_default();
     assert_int_equal(sy_reconstruct_skeleton(c, &o, s, cl, r, &err), SY_OK);
 }
 
@@ -182,7 +182,7 @@ static void dbh_is_measured_from_the_ground(void **state)
         }
     c.n = m;
     sy_skeleton_options o;
-    sy_skeleton_options_default(&o);
+    o = sy_skeleton_options_default();
     sy_skeleton s;
     sy_clusters cl;
     sy_skeleton_report from_base, from_ground;
@@ -335,7 +335,7 @@ static void real_trees_reconstruct(void **state)
         assert_int_equal(load_xyz(data_path(files[f]), &c), 0);
         assert_true(c.n > 1000);
         sy_skeleton_options o;
-        sy_skeleton_options_default(&o);
+        o = sy_skeleton_options_default();
         sy_skeleton s;
         sy_clusters cl;
         sy_skeleton_report r;
@@ -362,7 +362,7 @@ static void rejects_tiny_and_bad_options(void **state)
     sy_error err = {0};
     assert_int_equal(sy_cloud_init(&c, 5, &err), SY_OK);
     sy_skeleton_options o;
-    sy_skeleton_options_default(&o);
+    o = sy_skeleton_options_default();
     sy_skeleton s;
     sy_clusters cl;
     assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, NULL, &err), SY_EINPUT);

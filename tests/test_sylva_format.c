@@ -10,9 +10,9 @@
 #include <string.h>
 
 #include "stages/core/fileio.h"
-#include "stages/encode/sylva_format.h"
-#include "stages/qsm/qsm_io.h"
-#include "stages/skeleton/skeleton_stage.h"
+#include "stages/encode/encode.h"
+#include "stages/qsm/qsm.h"
+#include "stages/skeleton/skeleton.h"
 #include "synthetic_tree.h"
 #include "xyz_text.h"
 
@@ -138,7 +138,7 @@ static void real_trees_round_trip_under_40kB(void **state)
         sy_cloud c;
         assert_int_equal(load_xyz(data_path(files[f]), &c), 0);
         sy_skeleton_options o;
-        sy_skeleton_options_default(&o);
+        o = sy_skeleton_options_default();
         sy_skeleton s;
         sy_clusters cl;
         sy_error err = {0};
@@ -161,7 +161,7 @@ static void synthetic_tree_round_trips(void **state)
     c.origin[0] = 1.17e6; /* survey coordinates survive in the double origin */
     c.origin[1] = -4.2e5;
     sy_skeleton_options o;
-    sy_skeleton_options_default(&o);
+    o = sy_skeleton_options_default();
     sy_skeleton s;
     sy_clusters cl;
     assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, NULL, &err), SY_OK);

@@ -80,7 +80,7 @@ static void reconstruction_with_separation_keeps_every_point_once(void **state)
     sy_error err = {0};
     assert_int_equal(syn_sample(&t, N_POINTS, BLOB_FRAC, 0.002, 7, &c, &err), SY_OK);
     sy_skeleton_options o;
-    sy_skeleton_options_default(&o);
+    o = sy_skeleton_options_default();
     assert_true(o.wood_share == 0); /* opt-in */
     o.wood_share = 0.005;
     sy_skeleton s;

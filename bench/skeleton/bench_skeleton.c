@@ -8,8 +8,8 @@
 #include <sys/resource.h>
 
 #include "stages/core/parallel.h"
-#include "stages/encode/sylva_format.h"
-#include "stages/skeleton/skeleton_stage.h"
+#include "stages/encode/encode.h"
+#include "stages/skeleton/skeleton.h"
 #include "tests/synthetic_tree.h"
 
 static double peak_rss_mb(void)
@@ -27,7 +27,7 @@ static int run(size_t n)
     sy_error err = {0};
     if (syn_sample(&t, n, 0.4, 0.002, 42, &c, &err)) return 1;
     sy_skeleton_options o;
-    sy_skeleton_options_default(&o);
+    o = sy_skeleton_options_default();
     sy_skeleton s;
     sy_clusters cl;
     sy_skeleton_report r;

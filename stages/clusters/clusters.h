@@ -12,6 +12,10 @@
 #include "stages/core/skeleton.h"
 #include "stages/core/status.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef enum {
     SY_HULL_ALPHA = 0,  /* alpha shape (alpha_scale * alpha_min), possibly simplified */
     SY_HULL_CONVEX = 1, /* convex hull: the alpha shape was not a closed manifold or lost points */
@@ -83,5 +87,9 @@ double sy_mesh_signed_volume(const float *verts, const uint32_t *tris, size_t n_
 /* Fraction of the points inside the closed mesh or within tol of it. */
 double sy_mesh_containment(const float *verts, const uint32_t *tris, size_t n_tris, const float *xyz,
                            const uint32_t *points, size_t n_points, double tol);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -9,6 +9,10 @@
 
 #include "status.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     char name[48];
     size_t n_vertices;
@@ -117,5 +121,9 @@ int sy_asset_add_lod(sy_asset *a, const sy_lod *lod, sy_error *err);
 
 /* A material with sensible defaults: white, roughness 0.8, no textures, opaque. */
 sy_material sy_material_default(const char *name);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -2,7 +2,7 @@
  * treats every byte as hostile: the checksum is verified first, every count
  * is checked against the bytes left before anything is allocated, every
  * index against what it indexes. */
-#include "sylva_format.h"
+#include "stages/encode/encode.h"
 
 #include <math.h>
 #include <stdlib.h>

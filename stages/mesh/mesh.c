@@ -26,18 +26,25 @@ sy_mesh_options sy_mesh_options_default(void)
     return o;
 }
 
-static sy_code check_options(const sy_mesh_options *o, const sy_asset *a, sy_error *err)
+sy_code sy_mesh_options_check(const sy_mesh_options *o, sy_error *err)
 {
     if (o->radial_segments < 3 || o->radial_segments > 256)
-        return sy_fail(err, SY_EUSAGE, "mesh: radial segments %d outside [3, 256]", o->radial_segments);
+        return sy_fail(err, SY_EUSAGE, "mesh: radial_segments %d outside [3, 256]", o->radial_segments);
     if (!(o->segment_length >= 0) || !isfinite(o->segment_length))
-        return sy_fail(err, SY_EUSAGE, "mesh: segment length %g is not >= 0", o->segment_length);
+        return sy_fail(err, SY_EUSAGE, "mesh: segment_length %g is not >= 0", o->segment_length);
     if (o->n_lods < 1 || o->n_lods > 7)
-        return sy_fail(err, SY_EUSAGE, "mesh: %d LOD levels outside [1, 7]", o->n_lods);
+        return sy_fail(err, SY_EUSAGE, "mesh: n_lods %d outside [1, 7]", o->n_lods);
     if (o->impostor && (o->impostor_size < 16 || o->impostor_size > 4096))
-        return sy_fail(err, SY_EUSAGE, "mesh: impostor size %d outside [16, 4096]", o->impostor_size);
+        return sy_fail(err, SY_EUSAGE, "mesh: impostor_size %d outside [16, 4096]", o->impostor_size);
     if (!(o->leaf_aspect > 0) || !isfinite(o->leaf_aspect))
-        return sy_fail(err, SY_EUSAGE, "mesh: leaf aspect %g is not positive", o->leaf_aspect);
+        return sy_fail(err, SY_EUSAGE, "mesh: leaf_aspect %g is not positive", o->leaf_aspect);
+    return SY_OK;
+}
+
+static sy_code check_options(const sy_mesh_options *o, const sy_asset *a, sy_error *err)
+{
+    sy_code rc = sy_mesh_options_check(o, err);
+    if (rc) return rc;
     if (o->bark_material >= (int)a->n_materials || o->leaf_material >= (int)a->n_materials)
         return sy_fail(err, SY_EUSAGE, "mesh: material index beyond the asset's %zu materials", a->n_materials);
     return SY_OK;

@@ -9,6 +9,10 @@
 
 #include "mesh.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* ---- small vector helpers ---- */
 static inline float sy_dot3(const float a[3], const float b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 static inline void sy_cross3(const float a[3], const float b[3], float out[3])
@@ -153,5 +157,9 @@ sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint32_
  * horizontal directions, adds the atlas image, its material and the crossed
  * card mesh; returns the mesh index or -1. */
 int sy_impostor_build(sy_asset *asset, const sy_lod *lod0, int size, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -5,13 +5,13 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "qsm_io.h"
+#include "stages/qsm/qsm.h"
 
 /* Beyond this the asset is no longer a game asset; the caller lowers the density. */
 #define MAX_PLACED_LEAVES 2000000
 #define PI 3.14159265358979323846
 
-sy_leaf_placement sy_leaf_placement_from_species(const sy_species *sp, uint64_t seed)
+sy_leaf_placement sy_leaf_placement_from_species(const sy_species_params *sp, uint64_t seed)
 {
     sy_leaf_placement p;
     memset(&p, 0, sizeof p);

@@ -5,7 +5,7 @@
  * to the join radius (about two point spacings) a query almost always ends
  * after the 27 cells around the point, which is faster than a kd-tree for the
  * near-uniform spacing of voxel-thinned scans and keeps the code in C. */
-#include "skeleton_stage.h"
+#include "stages/skeleton/skeleton.h"
 
 #include <math.h>
 #include <stdlib.h>

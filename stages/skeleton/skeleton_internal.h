@@ -2,7 +2,11 @@
 #ifndef SYLVA_SKELETON_INTERNAL_H
 #define SYLVA_SKELETON_INTERNAL_H
 
-#include "skeleton_stage.h"
+#include "stages/skeleton/skeleton.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
 
 /* l[i] = length of all edges below node i plus its incoming edge (so leaves
  * get their own edge length, never 0). Needs parent[i] < i (breadth-first
@@ -51,5 +55,9 @@ size_t sy_base_sources(const float *xyz, size_t n, const sy_graph *g, uint32_t r
  * the points by ascending dist (parents before children). */
 sy_code sy_classify_wood(const sy_graph *g, const int32_t *spt, const double *dist, double min_share, uint8_t *wood,
                          uint32_t *order, size_t *n_wood, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

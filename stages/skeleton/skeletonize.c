@@ -12,8 +12,10 @@
 #include "skeleton_internal.h"
 #include "stages/core/progress.h"
 
-void sy_skeleton_options_default(sy_skeleton_options *o)
+sy_skeleton_options sy_skeleton_options_default(void)
 {
+    sy_skeleton_options value_, *o = &value_;
+    memset(o, 0, sizeof *o);
     o->beta = 1.0;
     o->gamma = 2.0;
     o->fs = 1.0;
@@ -33,6 +35,7 @@ void sy_skeleton_options_default(sy_skeleton_options *o)
     o->clusters = 1;
     o->wood_share = 0;
     o->spread_around = 0;
+    return value_;
 }
 
 /* The node graph while it is being edited: nodes are merged by aliasing. */

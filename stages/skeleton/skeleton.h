@@ -13,8 +13,8 @@
  *
  * Every input point ends up in exactly one place: the support of one skeleton
  * node (skel->support) or the point list of one cluster. */
-#ifndef SYLVA_SKELETON_STAGE_H
-#define SYLVA_SKELETON_STAGE_H
+#ifndef SYLVA_STAGE_SKELETON_H
+#define SYLVA_STAGE_SKELETON_H
 
 #include <stddef.h>
 
@@ -22,6 +22,10 @@
 #include "stages/core/cloud.h"
 #include "stages/core/skeleton.h"
 #include "stages/core/status.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
 
 typedef struct {
     double beta;          /* Dijkstra edge weight |u-v|^beta (1) */
@@ -49,7 +53,7 @@ typedef struct {
                              on leafy TLS scans it gained little and hurt leafless trees, docs/skeleton.md) */
 } sy_skeleton_options;
 
-void sy_skeleton_options_default(sy_skeleton_options *o);
+sy_skeleton_options sy_skeleton_options_default(void);
 
 typedef struct {
     size_t points, graph_edges, components, bridges;
@@ -108,5 +112,9 @@ int sy_fit_circle(const double *xy, size_t n, double inlier_tol, unsigned long l
  * The slab starts at the 0.5th percentile of z (stray points below ignored);
  * *z0 (may be NULL) receives that height. */
 uint32_t sy_find_root(const float *xyz, size_t n, double slab, double *z0);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif
