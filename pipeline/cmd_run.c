@@ -46,8 +46,8 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
     sy_json_object(&j, "seconds");
     sy_json_number(&j, "ingest", res->t_ingest);
     sy_json_number(&j, "preprocess", res->t_preprocess);
-    sy_json_number(&j, "skeleton", r->t_total - r->t_clusters - r->t_hulls);
-    sy_json_number(&j, "clusters", r->t_clusters + r->t_hulls);
+    sy_json_number(&j, "skeleton", r->t_total - r->t_clusters);
+    sy_json_number(&j, "clusters", r->t_clusters + res->hulls.seconds);
     sy_json_number(&j, "mesh", res->asset.seconds_mesh);
     sy_json_number(&j, "export", res->asset.seconds_export);
     sy_json_end(&j);

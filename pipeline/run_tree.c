@@ -63,6 +63,23 @@ static sy_code name_input(sy_code rc, const char *name, sy_error *err)
     return rc;
 }
 
+sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, double alpha_scale, sy_skeleton *out,
+                            sy_clusters *clusters, sy_skeleton_report *report, sy_hull_report *hulls, sy_error *err)
+{
+    sy_hull_options ho = sy_hull_options_default();
+    if (alpha_scale > 0) ho.alpha_scale = alpha_scale;
+    sy_code rc = sy_hull_options_check(&ho, err);
+    if (rc) return rc;
+    if ((rc = sy_reconstruct_skeleton(c, o, out, clusters, report, err))) return rc;
+    if (!clusters) return SY_OK;
+    ho.triangles = sy_sylva_hull_budget(clusters->n, out->n);
+    if ((rc = sy_clusters_build_hulls(clusters, c->xyz, &ho, hulls, err))) {
+        sy_clusters_free(clusters);
+        sy_skeleton_free(out);
+    }
+    return rc;
+}
+
 /* Preprocess: a clean, Z-up cloud of the tree alone. */
 static sy_code clean(sy_cloud *c, const char *name, const sy_run_tree_options *o, sy_run_tree_result *r,
                      sy_error *err)
@@ -100,16 +117,16 @@ static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_opti
     sy_skeleton s;
     sy_clusters cl;
     sy_skeleton_report *sr = &r->skeleton;
-    rc = sy_reconstruct_skeleton(c, &so, &s, &cl, sr, err);
+    rc = sy_reconstruct_tree(c, &so, 0, &s, &cl, sr, &r->hulls, err);
     sy_cloud_free(c);
     if (rc) return name_input(rc, name, err);
     char line[200];
     snprintf(line, sizeof line, "%zu nodes, %zu branches, DBH %.3f m, height %.2f m", sr->nodes, sr->branches,
              sr->dbh, sr->height);
-    step(o, "skeleton", sr->t_total - sr->t_clusters - sr->t_hulls, line);
+    step(o, "skeleton", sr->t_total - sr->t_clusters, line);
     snprintf(line, sizeof line, "%zu clusters (%zu alpha, %zu convex, %zu box), %zu points", sr->clusters,
-             sr->hulls_alpha, sr->hulls_convex, sr->hulls_box, sr->cluster_points);
-    step(o, "clusters", sr->t_clusters + sr->t_hulls, line);
+             r->hulls.alpha, r->hulls.convex, r->hulls.box, sr->cluster_points);
+    step(o, "clusters", sr->t_clusters + r->hulls.seconds, line);
 
     /* The .sylva keeps the scan's own frame: encode before the root moves. */
     if (o->sylva) {

@@ -55,6 +55,7 @@ typedef struct {
     int species_id;       /* library id of options.species, -1 when none or not in the library */
     size_t points_in, points_clean; /* after ingest, after preprocessing */
     sy_skeleton_report skeleton;
+    sy_hull_report hulls;
     sy_tree_asset_report asset;
     double t_ingest, t_preprocess; /* seconds; skeleton and mesh times are in the reports */
 } sy_run_tree_result;
@@ -71,6 +72,14 @@ sy_code sy_run_tree(const char *path, const sy_run_tree_options *o, sy_run_tree_
  * messages and becomes asset.extras.source. */
 sy_code sy_run_tree_cloud(sy_cloud *c, const char *name, const sy_run_tree_options *o, sy_run_tree_result *r,
                           sy_error *err);
+
+/* The reconstruction steps alone: the skeleton stage, then the clusters
+ * stage's hulls with the encode stage's .sylva triangle budget. clusters
+ * NULL: skeleton only (o->clusters is then ignored). hulls may be NULL; the
+ * hull options are the defaults except alpha_scale (0: the default). On
+ * failure out and clusters hold nothing to free. */
+sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, double alpha_scale, sy_skeleton *out,
+                            sy_clusters *clusters, sy_skeleton_report *report, sy_hull_report *hulls, sy_error *err);
 
 /* Writes r->glb to glb_path and, when sylva_path is not NULL, r->sylva there:
  * each atomically, both or neither. */

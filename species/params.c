@@ -1,5 +1,6 @@
 /* Species parameter files: a strict INI reader for the Weber-Penn tree-type
- * layout of seed 004's Appendix C ([General], [ParamLevelN]) plus [Sylva].
+ * layout of the Weber & Penn GPU-trees thesis's Appendix C ([General],
+ * [ParamLevelN]) plus [Sylva].
  * Keys are case-insensitive; per-level keys may carry their level digit
  * ("1Branches"), which must then match the section. */
 /* realpath() is XSI. */

@@ -12,6 +12,7 @@
 #include "stages/core/fileio.h"
 #include "stages/encode/encode.h"
 #include "stages/qsm/qsm.h"
+#include "pipeline/run_tree.h"
 #include "stages/skeleton/skeleton.h"
 #include "synthetic_tree.h"
 #include "xyz_text.h"
@@ -142,7 +143,7 @@ static void real_trees_round_trip_under_40kB(void **state)
         sy_skeleton s;
         sy_clusters cl;
         sy_error err = {0};
-        assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, NULL, &err), SY_OK);
+        assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, NULL, NULL, &err), SY_OK);
         round_trip(names[f], &s, &cl);
         sy_clusters_free(&cl);
         sy_skeleton_free(&s);
@@ -164,7 +165,7 @@ static void synthetic_tree_round_trips(void **state)
     o = sy_skeleton_options_default();
     sy_skeleton s;
     sy_clusters cl;
-    assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, NULL, &err), SY_OK);
+    assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, NULL, NULL, &err), SY_OK);
     round_trip("synthetic.sylva", &s, &cl);
     /* Same input, same bytes, whatever ran before in the process (CGAL's
      * facet order follows heap addresses; the hull builder must not). */
@@ -173,7 +174,7 @@ static void synthetic_tree_round_trips(void **state)
     assert_int_equal(sy_encode_mem(&s, &cl, 0, 1, NULL, &a, &na, &err), SY_OK);
     sy_clusters_free(&cl);
     sy_skeleton_free(&s);
-    assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, NULL, &err), SY_OK);
+    assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, NULL, NULL, &err), SY_OK);
     assert_int_equal(sy_encode_mem(&s, &cl, 0, 1, NULL, &b, &nb, &err), SY_OK);
     assert_int_equal(na, nb);
     assert_memory_equal(a, b, na);

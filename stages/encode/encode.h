@@ -53,6 +53,11 @@ sy_code sy_encode_mem(const sy_skeleton *skel, const sy_clusters *clusters, uint
 sy_code sy_encode_write(const char *path, const sy_skeleton *skel, const sy_clusters *clusters, uint16_t species_id,
                         uint64_t seed, sy_error *err);
 
+/* Triangles per cluster hull that keep a .sylva file of n_nodes skeleton
+ * nodes and n_clusters hulls under its 40 kB target (Pirk 2013 Table 3.2),
+ * in [16, 160]; the hull step (sy_hull_options.triangles) takes it. */
+int sy_sylva_hull_budget(size_t n_clusters, size_t n_nodes);
+
 /* Decodes a file image; path names it in messages. Every malformed,
  * truncated or corrupted input fails with one SY_EINPUT line naming path. */
 sy_code sy_decode_mem(const char *path, const unsigned char *data, size_t size, sy_skeleton *skel,

@@ -14,6 +14,7 @@
 #include "gltf_tinygltf.h"
 #include "meshopt_codec.h"
 #include "stages/core/fileio.h"
+#include "stages/core/vec3.h"
 
 #define SY_MAX_LODS 65 /* sy_gltf_node holds 64 lower-level ids */
 
@@ -489,12 +490,7 @@ static void quat_rotate(const float *q, const double *v, double *out)
     out[2] = v[2] + 2 * (q[0] * t[1] - q[1] * t[0]);
 }
 
-static void normalize3(double *v)
-{
-    double len = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-    if (len > 0)
-        for (int c = 0; c < 3; c++) v[c] /= len;
-}
+static void normalize3(double *v) { sy_v3_normalize(v); }
 
 /* The instancing fallback: one mesh holding every copy, transformed by its
  * TRS. Normals use the inverse-transpose (1/scale); a mirroring scale flips

@@ -1,9 +1,10 @@
-/* Weber & Penn (1995) tree generation, following the seed 004 digest
+/* Weber & Penn (1995) tree generation, following the GPU-trees thesis digest
  * (docs/species.md says where we depart from it). Each stem is a polyline
  * of CurveRes straight segments whose frames turn by Curve/CurveBack/CurveV
  * at the joints; split clones continue the remaining segments as stems of
  * their own; children and leaves are spread along every stem piece. */
 #include "grow.h"
+#include "stages/core/rng.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -73,13 +74,7 @@ typedef struct {
     uint64_t s;
 } rng;
 
-static uint64_t rng_next(rng *r) /* splitmix64 */
-{
-    uint64_t z = (r->s += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
+static uint64_t rng_next(rng *r) { return sy_splitmix64(&r->s); }
 
 static float rng_unit(rng *r) { return (float)(rng_next(r) >> 40) * (1.0f / 16777216.0f); }
 

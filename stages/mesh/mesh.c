@@ -98,14 +98,13 @@ typedef struct {
     size_t n;
 } leaf_level;
 
-/* Level k keeps the first half of level k-1's list, less the leaves on stems
- * dropped at k; its cards grow (at most 4x) so their total area matches all
- * level-0 leaves, keeping the crown's coverage roughly constant. */
 /* The next level keeps the first half of the previous level's leaves (a
  * prefix of the stored seeded order). Leaves of twigs the level drops stay:
  * at a distance they stand in for the twig's foliage, and they keep swaying
  * with it because every wind entry survives. Dropping them instead left the
- * coarse levels bare (LOD3 of a 20k-leaf tree kept none). */
+ * coarse levels bare (LOD3 of a 20k-leaf tree kept none). Returns how much the
+ * kept cards grow (at most 4x) so their total area matches all level-0
+ * leaves, keeping the crown's coverage roughly constant. */
 static float next_leaf_level(const sy_leaves *lv, const leaf_level *prev, const leaf_level *all, leaf_level *next)
 {
     next->n = 0;
@@ -205,7 +204,7 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
     memset(keep, 1, st.n);
     size_t tris = sy_lod_bark_triangles(&st, &lp);
     if (opt->lod0_max_triangles > 0 && tris > (size_t)opt->lod0_max_triangles &&
-        (tris = sy_lod_fit_budget(&st, &lp, tris, (size_t)opt->lod0_max_triangles)) == (size_t)-1) {
+        !sy_lod_fit_budget(&st, &lp, &tris, (size_t)opt->lod0_max_triangles)) {
         rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
         goto done;
     }

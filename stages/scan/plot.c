@@ -9,16 +9,11 @@
 #include "species/library.h"
 #include "stages/core/json.h"
 #include "stages/grow/grow.h"
+#include "stages/core/rng.h"
 
 #define PI 3.14159265358979323846
 
-static uint64_t mix64(uint64_t z)
-{
-    z += 0x9E3779B97F4A7C15ull;
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
+static uint64_t mix64(uint64_t z) { return sy_mix64(z); }
 
 /* A small sequential generator for scene layout (placement is serial). */
 typedef struct {
@@ -26,8 +21,8 @@ typedef struct {
 } rng;
 static double rng_u01(rng *r)
 {
-    r->s += 0x9E3779B97F4A7C15ull;
-    return (double)(mix64(r->s) >> 11) * (1.0 / 9007199254740992.0);
+    r->s += SY_GOLDEN_GAMMA;
+    return sy_unit53(mix64(r->s));
 }
 static double rng_range(rng *r, double lo, double hi) { return lo + (hi - lo) * rng_u01(r); }
 

@@ -10,6 +10,7 @@
 #include "scan.h"
 #include "stages/core/parallel.h"
 #include "stages/core/progress.h"
+#include "stages/core/rng.h"
 
 #define PI 3.14159265358979323846
 #define DEG (PI / 180)
@@ -51,13 +52,7 @@ const char *sy_scanner_kind_name(sy_scanner_kind kind)
 
 /* ------------------------------------------------------------------ RNG */
 
-static uint64_t mix64(uint64_t z)
-{
-    z += 0x9E3779B97F4A7C15ull;
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
+static uint64_t mix64(uint64_t z) { return sy_mix64(z); }
 
 /* Uniform in (0, 1]: draw number `stream` of pulse `pulse`. */
 static double pulse_u01(uint64_t key, uint64_t pulse, uint64_t stream)
