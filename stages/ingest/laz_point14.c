@@ -415,13 +415,15 @@ static void decode_point14(state14 *s, layers *ly, unsigned char *out)
 static void decode_rgb14(state14 *s, layers *ly, unsigned char *out)
 {
     ctx14 *c = &s->ctx[s->rgb_current];
+    uint16_t *last = c->last_rgb;
     if (s->rgb_current != s->current) {
-        const uint16_t *from = c->last_rgb;
         s->rgb_current = s->current;
-        if (!s->ctx[s->current].rgb_used) ctx_start_rgb(s, s->current, from);
+        if (!s->ctx[s->current].rgb_used) {
+            ctx_start_rgb(s, s->current, last);
+            last = s->ctx[s->current].last_rgb;
+        }
         c = &s->ctx[s->current];
     }
-    uint16_t *last = c->last_rgb;
     if (ly->rgb_present) {
         uint16_t rgb[3];
         laz_rgb_decode(&ly->rgb, &c->rgb, last, rgb);
@@ -442,17 +444,20 @@ static void decode_rgb14(state14 *s, layers *ly, unsigned char *out)
 static void decode_bytes14(state14 *s, layers *ly, unsigned char *out)
 {
     ctx14 *c = &s->ctx[s->bytes_current];
+    unsigned char *last = c->last_bytes;
     if (s->bytes_current != s->current) {
-        const unsigned char *from = c->last_bytes;
         s->bytes_current = s->current;
-        if (!s->ctx[s->current].bytes_used) ctx_start_bytes(s, s->current, from);
+        if (!s->ctx[s->current].bytes_used) {
+            ctx_start_bytes(s, s->current, last);
+            last = s->ctx[s->current].last_bytes;
+        }
         c = &s->ctx[s->current];
     }
-    if (!c->bytes_used) return; /* out of memory: reported at the chunk's end */
+    if (!c->bytes_used || !last) return; /* out of memory: reported at the chunk's end */
     for (unsigned i = 0; i < s->extra; i++) {
         if (ly->bytes_present[i])
-            c->last_bytes[i] = (unsigned char)(c->last_bytes[i] + laz_dec_symbol(&ly->bytes[i], &c->byte_models[i]));
-        out[i] = c->last_bytes[i];
+            last[i] = (unsigned char)(last[i] + laz_dec_symbol(&ly->bytes[i], &c->byte_models[i]));
+        out[i] = last[i];
     }
 }
 
@@ -627,14 +632,16 @@ static void encode_point14(state14 *s, out_layers *o, const p14 *item)
 static void encode_rgb14(state14 *s, out_layers *o, const unsigned char *rec)
 {
     ctx14 *c = &s->ctx[s->rgb_current];
+    uint16_t *last = c->last_rgb;
     if (s->rgb_current != s->current) {
-        const uint16_t *from = c->last_rgb;
         s->rgb_current = s->current;
-        if (!s->ctx[s->current].rgb_used) ctx_start_rgb(s, s->current, from);
+        if (!s->ctx[s->current].rgb_used) {
+            ctx_start_rgb(s, s->current, last);
+            last = s->ctx[s->current].last_rgb;
+        }
         c = &s->ctx[s->current];
     }
     uint16_t cur[3] = {laz_get16(rec + 30), laz_get16(rec + 32), laz_get16(rec + 34)};
-    uint16_t *last = c->last_rgb;
     if (memcmp(cur, last, sizeof cur) != 0) o->rgb_changed = 1;
     laz_rgb_encode(&o->rgb, &c->rgb, last, cur);
     memcpy(last, cur, sizeof cur);
@@ -652,18 +659,21 @@ static void encode_rgb14(state14 *s, out_layers *o, const unsigned char *rec)
 static void encode_bytes14(state14 *s, out_layers *o, const unsigned char *bytes)
 {
     ctx14 *c = &s->ctx[s->bytes_current];
+    unsigned char *last = c->last_bytes;
     if (s->bytes_current != s->current) {
-        const unsigned char *from = c->last_bytes;
         s->bytes_current = s->current;
-        if (!s->ctx[s->current].bytes_used) ctx_start_bytes(s, s->current, from);
+        if (!s->ctx[s->current].bytes_used) {
+            ctx_start_bytes(s, s->current, last);
+            last = s->ctx[s->current].last_bytes;
+        }
         c = &s->ctx[s->current];
     }
-    if (!c->bytes_used) return;
+    if (!c->bytes_used || !last) return;
     for (unsigned i = 0; i < s->extra; i++) {
-        unsigned diff = (unsigned)(bytes[i] - c->last_bytes[i]) & 0xFF;
+        unsigned diff = (unsigned)(bytes[i] - last[i]) & 0xFF;
         laz_enc_symbol(&o->bytes[i], &c->byte_models[i], diff);
         if (diff) o->bytes_changed[i] = 1;
-        c->last_bytes[i] = bytes[i];
+        last[i] = bytes[i];
     }
 }
 
