@@ -8,6 +8,7 @@
 #include <stdint.h>
 #include <stdio.h>
 
+#include "../core/fileio.h"
 #include "../core/status.h"
 #include "laz_items.h"
 
@@ -62,5 +63,10 @@ typedef void (*laz_source)(void *user, uint64_t first, uint32_t count, unsigned 
  * the pointer. */
 sy_code laz_write_points(FILE *fp, const char *path, const laz_layout *L, uint64_t n, laz_source source, void *user,
                          sy_error *err);
+
+/* sy_laz_compress_mem with a chosen chunk size (UINT32_MAX: variable-size
+ * chunks, their point counts in the chunk table, as COPC files have). */
+sy_code laz_compress_mem_chunked(const char *path, const unsigned char *las, size_t size, uint32_t chunk_size,
+                                 sy_buffer *out, sy_error *err);
 
 #endif

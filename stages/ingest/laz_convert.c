@@ -144,6 +144,12 @@ static void copy_records(void *user, uint64_t first, uint32_t count, unsigned ch
 
 sy_code sy_laz_compress_mem(const char *path, const unsigned char *d, size_t size, sy_buffer *out, sy_error *err)
 {
+    return laz_compress_mem_chunked(path, d, size, LAZ_DEFAULT_CHUNK, out, err);
+}
+
+sy_code laz_compress_mem_chunked(const char *path, const unsigned char *d, size_t size, uint32_t chunk_size,
+                                 sy_buffer *out, sy_error *err)
+{
     memset(out, 0, sizeof *out);
     las_frame f;
     sy_code rc = read_frame(path, d, size, &f, err);
@@ -157,17 +163,16 @@ sy_code sy_laz_compress_mem(const char *path, const unsigned char *d, size_t siz
                        (unsigned long long)((f.points_end - f.point_offset) / f.record_length));
     if (f.vlrs_end + LAZ_VLR_MAX > UINT32_MAX) return sy_fail(err, SY_EINPUT, "%s: header too large", path);
     laz_layout L = {(int)f.format, f.record_length, f.record_length - las_layouts[f.format].size, f.format >= 6,
-                    LAZ_DEFAULT_CHUNK};
+                    chunk_size ? chunk_size : LAZ_DEFAULT_CHUNK};
     unsigned char vlr[LAZ_VLR_MAX];
     size_t vlr_len = laz_make_vlr(&L, vlr);
-    char *mem = NULL;
-    size_t mem_size = 0;
-    FILE *fp = open_memstream(&mem, &mem_size);
-    if (!fp) return sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
+    /* A temporary file rather than a memory stream: the writer seeks back to
+     * patch offsets, which memory streams do not all handle the same way. */
+    FILE *fp = tmpfile();
+    if (!fp) return sy_fail(err, SY_EINTERNAL, "%s: cannot create a temporary file", path);
     unsigned char *h = malloc(f.point_offset);
     if (!h) {
         fclose(fp);
-        free(mem);
         return sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
     }
     /* the LASzip VLR goes after the last VLR, before any padding */
@@ -181,23 +186,30 @@ sy_code sy_laz_compress_mem(const char *path, const unsigned char *d, size_t siz
     records_source src = {d + f.point_offset, f.record_length};
     rc = ok ? laz_write_points(fp, path, &L, f.count, copy_records, &src, err)
             : sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
+    long total = -1, evlrs = -1;
     if (rc == SY_OK) {
-        long evlrs = ftell(fp);
+        evlrs = ftell(fp);
         size_t tail = size - f.points_end;
-        if (evlrs < 0 || fwrite(d + f.points_end, 1, tail, fp) != tail) rc = sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
+        if (evlrs < 0 || fwrite(d + f.points_end, 1, tail, fp) != tail || (total = ftell(fp)) < 0)
+            rc = sy_fail(err, SY_EINTERNAL, "%s: temporary file write failed", path);
         if (rc == SY_OK && f.evlr_start) {
             unsigned char word[8];
             las_put_u64(word, (uint64_t)evlrs);
-            if (fseek(fp, LAS_EVLR_START, SEEK_SET) || fwrite(word, 1, 8, fp) != 8 || fseek(fp, 0, SEEK_END))
-                rc = sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
+            if (fseek(fp, LAS_EVLR_START, SEEK_SET) || fwrite(word, 1, 8, fp) != 8)
+                rc = sy_fail(err, SY_EINTERNAL, "%s: temporary file write failed", path);
         }
     }
-    if (fclose(fp) && rc == SY_OK) rc = sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
+    unsigned char *o = rc == SY_OK ? malloc((size_t)total + 1) : NULL;
+    if (rc == SY_OK && !o) rc = sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
+    if (rc == SY_OK && (fflush(fp) || fseek(fp, 0, SEEK_SET) || fread(o, 1, (size_t)total, fp) != (size_t)total))
+        rc = sy_fail(err, SY_EINTERNAL, "%s: temporary file read failed", path);
+    fclose(fp);
     if (rc) {
-        free(mem);
+        free(o);
         return rc;
     }
-    out->data = (unsigned char *)mem;
-    out->size = mem_size;
+    o[total] = 0;
+    out->data = o;
+    out->size = (size_t)total;
     return SY_OK;
 }

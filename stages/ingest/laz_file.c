@@ -364,7 +364,9 @@ static int write_table(FILE *fp, const laz_layout *L, const uint32_t *points, co
 sy_code laz_write_points(FILE *fp, const char *path, const laz_layout *L, uint64_t n, laz_source source, void *user,
                          sy_error *err)
 {
-    const uint32_t chunk = L->chunk_size == UINT32_MAX ? LAZ_DEFAULT_CHUNK : L->chunk_size;
+    /* variable-size chunks (COPC's layout) are written LAZ_DEFAULT_CHUNK / 5
+     * points each, their counts in the table */
+    const uint32_t chunk = L->chunk_size == UINT32_MAX ? LAZ_DEFAULT_CHUNK / 5 : L->chunk_size;
     const size_t n_chunks = (size_t)((n + chunk - 1) / chunk);
     long start = ftell(fp);
     unsigned char word[8] = {0};
