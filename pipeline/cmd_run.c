@@ -20,6 +20,7 @@
 #include "stages/skeleton/skeleton_stage.h"
 
 static const char *out_path, *sylva_path, *species_name;
+static sy_photo_cli photo;
 static double beta, gamma_, fs, voxel, wood_share;
 static int spread_around;
 static const sy_opt opts[] = {
@@ -35,17 +36,19 @@ static const sy_opt opts[] = {
     {"--spread-around", OPT_FLAG, &spread_around, NULL,
      "judge a level set's spread from the skeleton around its node, not its edge (leaf-off scans)"},
     SY_GLB_OPTIONS,
+    SY_PHOTO_OPTIONS(photo),
     {NULL, 0, NULL, NULL, NULL},
 };
 static const sy_cmd_spec spec = {
-    "run", "SCAN -o OUT.glb [--sylva OUT.sylva]",
+    "run", "SCAN|PHOTOS/ -o OUT.glb [--sylva OUT.sylva]",
     "Reconstruct one scanned tree and write it as glTF: branch meshes plus cluster hulls.",
     "Steps: ingest, preprocess (up axis, statistical outliers, ground classified and removed;\n"
     "the defaults of `sylva preprocess`), skeleton and alpha-shape clusters (docs/skeleton.md),\n"
     "mesh (LOD chain, impostor), export. The hulls become one semi-transparent mesh with the\n"
     "material \"foliage_proxy\" in every level. The glb is centred at the tree's base, its world\n"
     "position in asset.extras.origin (as `sylva mesh` does). SCAN must hold one tree. The .sylva species id\n"
-    "is the species' index in the library plus one (0: unknown).",
+    "is the species' index in the library plus one (0: unknown). A folder of photos is turned into\n"
+    "points first, as `sylva photogrammetry` does (give --scale-ref or --camera-spacing for metres).",
     opts, 1, 1};
 
 typedef struct {
@@ -119,8 +122,17 @@ static int check_options(void)
 static sy_code load_clean(const char *in, const sy_cli *cli, sy_cloud *c, run_stats *st, sy_error *err)
 {
     double t = sy_now();
-    sy_code rc = sy_read_cloud(in, c, err);
-    if (rc) return rc;
+    sy_code rc;
+    if (sy_is_directory(in) && sy_photogrammetry_count_images(in) >= 3) {
+        /* photos, not a scan: COLMAP first */
+        sy_photogrammetry_result r;
+        if ((rc = sy_photos_to_cloud(in, out_path, &photo, cli, &r, err))) return rc;
+        *c = r.cloud;
+        memset(&r.cloud, 0, sizeof r.cloud);
+        sy_photogrammetry_result_free(&r);
+    } else if ((rc = sy_read_cloud(in, c, err))) {
+        return rc;
+    }
     st->t_ingest = sy_now() - t;
     st->points_in = c->n;
     char line[160];
@@ -234,6 +246,7 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
     const char *in[1];
     int n;
     out_path = sylva_path = species_name = NULL;
+    memset(&photo, 0, sizeof photo);
     beta = gamma_ = NAN;
     fs = 1;
     wood_share = 0;

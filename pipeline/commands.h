@@ -15,5 +15,31 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli);
 int cmd_run(int argc, char **argv, sy_cli *cli);
 int cmd_encode(int argc, char **argv, sy_cli *cli);
 int cmd_decode(int argc, char **argv, sy_cli *cli);
+int cmd_photogrammetry(int argc, char **argv, sy_cli *cli);
+
+/* Photo input, shared by `photogrammetry` and `run PHOTOS/`: the flags and
+ * the call that turns a folder of photos into a levelled, scaled cloud. */
+#include "stages/photogrammetry/photogrammetry.h"
+typedef struct {
+    const char *workspace, *scale_ref, *quality, *colmap;
+    double camera_spacing, min_registered;
+} sy_photo_cli;
+#define SY_PHOTO_OPTIONS(p)                                                                                          \
+    {"--workspace", OPT_STRING, &(p).workspace, "DIR", "COLMAP workspace: database, models, colmap.log (default OUT.colmap)"}, \
+        {"--scale-ref", OPT_STRING, &(p).scale_ref, "A,B,M", "photos A and B were taken M metres apart (sets the scale)"}, \
+        {"--camera-spacing", OPT_DOUBLE, &(p).camera_spacing, "M",                                                     \
+         "mean distance between consecutive photos in metres (sets the scale)"},                                     \
+        {"--quality", OPT_STRING, &(p).quality, "Q", "low, medium (default) or high: image size and features COLMAP uses"}, \
+        {"--colmap", OPT_STRING, &(p).colmap, "PATH", "the colmap executable (default: colmap on PATH)"},            \
+    {                                                                                                                \
+        "--min-registered", OPT_DOUBLE, &(p).min_registered, "F",                                                    \
+            "fail unless this fraction of the photos registers (default 0.5)"                                        \
+    }
+/* Fills photogrammetry options from the flags (workspace given). */
+sy_code sy_photo_cli_apply(const sy_photo_cli *c, const char *workspace, sy_photogrammetry_options *o, sy_error *err);
+/* Runs photogrammetry on dir with the workspace from --workspace or
+ * "<out_path_hint>.colmap", reporting progress and the outcome on stderr. */
+sy_code sy_photos_to_cloud(const char *dir, const char *out_path_hint, const sy_photo_cli *c, const sy_cli *cli,
+                           sy_photogrammetry_result *r, sy_error *err);
 
 #endif

@@ -52,6 +52,18 @@ sy_code sy_read_colmap_model_mem(const sy_colmap_file *cameras, const sy_colmap_
  * dense/fused.ply): cameras, images and points3D in .txt or .bin. */
 sy_code sy_read_colmap_dir(const char *dir, sy_cloud *out, sy_error *err);
 
+/* One registered image of a COLMAP model: world-to-camera rotation as a unit
+ * quaternion (w, x, y, z) and translation, so the camera centre is -R^T t
+ * and its up direction -R^T (0, 1, 0) (image y points down). */
+typedef struct {
+    uint32_t id;
+    double q[4], t[3];
+    char name[128];
+} sy_colmap_pose;
+/* The image poses of the sparse model in dir (cameras and images .bin or
+ * .txt, validated as sy_read_colmap_dir does); *poses is malloc'ed. */
+sy_code sy_read_colmap_poses(const char *dir, sy_colmap_pose **poses, size_t *n, sy_error *err);
+
 /* Lossless LAS <-> LAZ transcoding of a whole file in memory (header, VLRs,
  * EVLRs and every record byte kept; only the LASzip VLR, the compression bit
  * and the offsets they move change). out->data is malloc'ed; compressing and
