@@ -390,9 +390,12 @@ sy_code sy_photogrammetry_run(const char *images_dir, const sy_photogrammetry_op
     char *map[] = {colmap, "mapper", "--database_path", db, "--image_path", img, "--output_path", sparse,
                    "--Mapper.num_threads", threads, NULL};
     if ((rc = colmap_step(extract, out->log_path, o, "feature extraction", 1, steps, err)) ||
-        (rc = colmap_step(match, out->log_path, o, "matching", 2, steps, err)) ||
-        (rc = colmap_step(map, out->log_path, o, "mapping", 3, steps, err)))
+        (rc = colmap_step(match, out->log_path, o, "matching", 2, steps, err)))
         return rc;
+    /* The mapper exits 1 when it builds no model; that is the photos' fault,
+     * explained below from the models it left (none). */
+    rc = colmap_step(map, out->log_path, o, "mapping", 3, steps, err);
+    if (rc && !log_mentions(out->log_path, "failed to create sparse model")) return rc;
     sy_colmap_pose *poses = NULL;
     size_t n = 0;
     pick_model(ws, out->model_dir, sizeof out->model_dir, &poses, &n, err);
