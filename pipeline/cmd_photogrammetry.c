@@ -67,6 +67,7 @@ sy_code sy_photo_cli_apply(const sy_photo_cli *c, const char *workspace, sy_phot
     }
     if (c->min_registered != 0) o->min_registered = c->min_registered;
     o->camera_spacing = c->camera_spacing;
+    o->sequential_overlap = c->sequential;
     if (c->scale_ref) {
         /* "A,B,METRES" */
         static char a[256], b[256];

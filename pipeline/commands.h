@@ -23,6 +23,7 @@ int cmd_photogrammetry(int argc, char **argv, sy_cli *cli);
 typedef struct {
     const char *workspace, *scale_ref, *quality, *colmap;
     double camera_spacing, min_registered;
+    int sequential;
 } sy_photo_cli;
 #define SY_PHOTO_OPTIONS(p)                                                                                          \
     {"--workspace", OPT_STRING, &(p).workspace, "DIR", "COLMAP workspace: database, models, colmap.log (default OUT.colmap)"}, \
@@ -31,6 +32,8 @@ typedef struct {
          "mean distance between consecutive photos in metres (sets the scale)"},                                     \
         {"--quality", OPT_STRING, &(p).quality, "Q", "low, medium (default) or high: image size and features COLMAP uses"}, \
         {"--colmap", OPT_STRING, &(p).colmap, "PATH", "the colmap executable (default: colmap on PATH)"},            \
+        {"--sequential", OPT_INT, &(p).sequential, "N",                                                              \
+         "match each photo with the N next in name order only (a walk around; default: all pairs)"},                \
     {                                                                                                                \
         "--min-registered", OPT_DOUBLE, &(p).min_registered, "F",                                                    \
             "fail unless this fraction of the photos registers (default 0.5)"                                        \

@@ -114,6 +114,7 @@ static void reconstructs_the_tree(void **state)
     o.workspace = tmp_path("ws");
     o.quality = SY_PHOTO_LOW;
     o.camera_spacing = true_spacing();
+    o.sequential_overlap = 3; /* photos in walking order: a third of the exhaustive pairs */
     sy_photogrammetry_result r;
     sy_error err = {0};
     sy_code rc = sy_photogrammetry_run(photos, &o, &r, &err);
@@ -215,7 +216,7 @@ static void run_goes_end_to_end(void **state)
     (void)state;
     const char *glb = tmp_path("tree.glb");
     char cmd[9000];
-    snprintf(cmd, sizeof cmd, "'%s' run '%s' -o '%s' --camera-spacing %.6f --quality low --quiet 2>'%s'", SYLVA_BIN,
+    snprintf(cmd, sizeof cmd, "'%s' run '%s' -o '%s' --camera-spacing %.6f --quality low --sequential 3 --quiet 2>'%s'", SYLVA_BIN,
              photos, glb, true_spacing(), tmp_path("run.err"));
     int rc = system(cmd);
     if (rc != 0) {

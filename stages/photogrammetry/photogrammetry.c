@@ -43,6 +43,8 @@ sy_code sy_photogrammetry_options_check(const sy_photogrammetry_options *o, sy_e
     if (o->quality < SY_PHOTO_LOW || o->quality > SY_PHOTO_HIGH)
         return sy_fail(err, SY_EUSAGE, "photogrammetry: quality must be low, medium or high");
     if (o->threads < 0) return sy_fail(err, SY_EUSAGE, "photogrammetry: threads must be >= 0");
+    if (o->sequential_overlap < 0 || o->sequential_overlap > 1000)
+        return sy_fail(err, SY_EUSAGE, "photogrammetry: sequential_overlap must be in 0..1000");
     if (!(o->min_registered > 0 && o->min_registered <= 1))
         return sy_fail(err, SY_EUSAGE, "photogrammetry: min_registered must be in (0, 1], got %g", o->min_registered);
     int ref = o->scale_image_a || o->scale_image_b || o->scale_distance != 0;
@@ -385,8 +387,14 @@ sy_code sy_photogrammetry_run(const char *images_dir, const sy_photogrammetry_op
                        "--SiftExtraction.use_gpu", "0", "--SiftExtraction.num_threads", threads,
                        "--SiftExtraction.max_image_size", (char *)sizes[o->quality],
                        "--SiftExtraction.max_num_features", (char *)features[o->quality], NULL};
-    char *match[] = {colmap, "exhaustive_matcher", "--database_path", db, "--SiftMatching.use_gpu", "0",
-                     "--SiftMatching.num_threads", threads, NULL};
+    char overlap[32];
+    snprintf(overlap, sizeof overlap, "%d", o->sequential_overlap);
+    char *match_all[] = {colmap, "exhaustive_matcher", "--database_path", db, "--SiftMatching.use_gpu", "0",
+                         "--SiftMatching.num_threads", threads, NULL};
+    char *match_seq[] = {colmap, "sequential_matcher", "--database_path", db, "--SiftMatching.use_gpu", "0",
+                         "--SiftMatching.num_threads", threads, "--SequentialMatching.overlap", overlap,
+                         "--SequentialMatching.loop_detection", "0", NULL};
+    char **match = o->sequential_overlap ? match_seq : match_all;
     char *map[] = {colmap, "mapper", "--database_path", db, "--image_path", img, "--output_path", sparse,
                    "--Mapper.num_threads", threads, NULL};
     if ((rc = colmap_step(extract, out->log_path, o, "feature extraction", 1, steps, err)) ||

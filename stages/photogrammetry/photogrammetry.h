@@ -18,6 +18,9 @@ typedef struct {
     const char *workspace;    /* folder for COLMAP's database, models and log (created; required) */
     sy_photo_quality quality; /* image size and feature count COLMAP works at */
     int threads;              /* COLMAP's thread count; 0 = all cores */
+    /* 0: match every pair of photos (exhaustive); N > 0: each photo with the
+     * N next in name order (a walk around the tree, frames of a video). */
+    int sequential_overlap;
     /* Scale, at most one of: the distance in metres between the centres of
      * the cameras that took scale_image_a and scale_image_b ... */
     const char *scale_image_a, *scale_image_b;
