@@ -85,25 +85,6 @@ static uint32_t rnd(void)
 }
 static int chance(double p) { return rnd() < p * 2147483648.0; }
 
-static void put16(unsigned char *p, unsigned v)
-{
-    p[0] = (unsigned char)v;
-    p[1] = (unsigned char)(v >> 8);
-}
-static void put32(unsigned char *p, uint32_t v)
-{
-    for (int i = 0; i < 4; i++) p[i] = (unsigned char)(v >> (8 * i));
-}
-static void put64(unsigned char *p, uint64_t v)
-{
-    for (int i = 0; i < 8; i++) p[i] = (unsigned char)(v >> (8 * i));
-}
-static void putf64(unsigned char *p, double d)
-{
-    uint64_t u;
-    memcpy(&u, &d, 8);
-    put64(p, u);
-}
 
 /* A LAS 1.4 file of n points of format fmt (0-3, 6-8) with `extra` extra
  * bytes; channels > 1 lets formats 6-8 switch scanner channel. Every field
@@ -119,24 +100,24 @@ static unsigned char *make_las(int fmt, size_t n, unsigned extra, int channels, 
     memcpy(d, "LASF", 4);
     d[24] = 1;
     d[25] = 4;
-    put16(d + 94, 375);
-    put32(d + 96, (uint32_t)(375 + vlr));
-    put32(d + 100, 1);
+    put_le16(d + 94, 375);
+    put_le32(d + 96, (uint32_t)(375 + vlr));
+    put_le32(d + 100, 1);
     d[104] = (unsigned char)fmt;
-    put16(d + 105, rl);
-    if (fmt <= 3) put32(d + 107, (uint32_t)n);
-    for (int k = 0; k < 3; k++) putf64(d + 131 + 8 * k, 0.001);
-    put64(d + 235, 375 + vlr + n * rl);
-    put32(d + 243, 1);
-    put64(d + 247, n);
+    put_le16(d + 105, rl);
+    if (fmt <= 3) put_le32(d + 107, (uint32_t)n);
+    for (int k = 0; k < 3; k++) put_lef64(d + 131 + 8 * k, 0.001);
+    put_le64(d + 235, 375 + vlr + n * rl);
+    put_le32(d + 243, 1);
+    put_le64(d + 247, n);
     memcpy(d + 375 + 2, "SylvaTest", 9);
-    put16(d + 375 + 18, 7);
-    put16(d + 375 + 20, 16);
+    put_le16(d + 375 + 18, 7);
+    put_le16(d + 375 + 20, 16);
     memset(d + 375 + 54, 0xAB, 16);
     unsigned char *e = d + 375 + vlr + n * rl;
     memcpy(e + 2, "SylvaTest", 9);
-    put16(e + 18, 8);
-    put64(e + 20, 24);
+    put_le16(e + 18, 8);
+    put_le64(e + 20, 24);
     memset(e + 60, 0xCD, 24);
     rng_state = seed;
     int32_t x = 0, y = 0, z = 0;
@@ -168,36 +149,36 @@ static unsigned char *make_las(int fmt, size_t n, unsigned extra, int channels, 
         if (chance(0.3)) sa = (int)(rnd() % 60001) - 30000;
         inten = (inten + rnd() % 101 - 50) & 0xFFFF;
         unsigned flags = chance(0.1) ? rnd() % 16 : 0, dir = rnd() % 2, edge = chance(0.02);
-        put32(r, (uint32_t)x);
-        put32(r + 4, (uint32_t)y);
-        put32(r + 8, (uint32_t)z);
-        put16(r + 12, inten);
+        put_le32(r, (uint32_t)x);
+        put_le32(r + 4, (uint32_t)y);
+        put_le32(r + 8, (uint32_t)z);
+        put_le16(r + 12, inten);
         if (legacy) {
             r[14] = (unsigned char)(rn | nr << 3 | dir << 6 | edge << 7);
             r[15] = (unsigned char)cls;
             r[16] = (unsigned char)(sa / 300);
             r[17] = (unsigned char)ud;
-            put16(r + 18, psid);
+            put_le16(r + 18, psid);
         } else {
             r[14] = (unsigned char)(rn | nr << 4);
             r[15] = (unsigned char)(flags | ch << 4 | dir << 6 | edge << 7);
             r[16] = (unsigned char)cls;
             r[17] = (unsigned char)ud;
-            put16(r + 18, (unsigned)(int16_t)sa);
-            put16(r + 20, psid);
+            put_le16(r + 18, (unsigned)(int16_t)sa);
+            put_le16(r + 20, psid);
         }
         int gps_at = fmt == 1 || fmt == 3 ? 20 : fmt >= 6 ? 22 : -1;
         int rgb_at = fmt == 2 ? 20 : fmt == 3 ? 28 : fmt >= 7 ? 30 : -1;
-        if (gps_at >= 0) putf64(r + gps_at, t);
+        if (gps_at >= 0) put_lef64(r + gps_at, t);
         if (rgb_at >= 0) {
             if (chance(0.3))
                 for (int k = 0; k < 3; k++) rgb[k] = (uint16_t)(rgb[k] + rnd() % 601 - 300);
             if (chance(0.1)) rgb[1] = rgb[2] = rgb[0];
-            for (int k = 0; k < 3; k++) put16(r + rgb_at + 2 * k, rgb[k]);
+            for (int k = 0; k < 3; k++) put_le16(r + rgb_at + 2 * k, rgb[k]);
         }
         if (fmt == 8) {
             if (chance(0.2)) nir = (uint16_t)(nir + rnd() % 2001 - 1000);
-            put16(r + 36, nir);
+            put_le16(r + 36, nir);
         }
         for (unsigned b = 0; b < extra; b++) r[core[fmt] + b] = b == 1 ? 42 : (unsigned char)(i * (b + 1));
     }
@@ -305,7 +286,7 @@ static void copc_reads_as_plain_laz(void **state)
     unsigned char *las = make_las(6, 25000, 0, 1, &size, 11);
     memset(las + 375 + 2, 0, 16);
     memcpy(las + 375 + 2, "copc", 4);
-    put16(las + 375 + 18, 1);
+    put_le16(las + 375 + 18, 1);
     sy_buffer z;
     sy_error err = {0};
     assert_int_equal(laz_compress_mem_chunked("t.copc.las", las, size, UINT32_MAX, &z, &err), SY_OK);
@@ -395,14 +376,14 @@ static void corrupt_laz_fails_cleanly(void **state)
     uint64_t bad_tables[] = {n + 5, off, off + 3};
     for (size_t k = 0; k < 3; k++) {
         memcpy(d, laz.data, n);
-        put64(d + off, bad_tables[k]);
+        put_le64(d + off, bad_tables[k]);
         expect_bad(d, n, "chunk table");
     }
     memcpy(d, laz.data, n);
     d[table] = 1;
     expect_bad(d, n, "version");
     memcpy(d, laz.data, n);
-    put32(d + table + 4, 0xFFFFFF);
+    put_le32(d + table + 4, 0xFFFFFF);
     expect_bad(d, n, "chunks");
     /* wrong item version and type, wrong compressor */
     size_t vlr = 0;
@@ -410,13 +391,13 @@ static void corrupt_laz_fails_cleanly(void **state)
         if (memcmp(laz.data + p, "laszip encoded", 14) == 0) vlr = p - 2 + 54;
     assert_true(vlr > 0);
     memcpy(d, laz.data, n);
-    put16(d + vlr + 34 + 4, 1);
+    put_le16(d + vlr + 34 + 4, 1);
     expect_bad(d, n, "version 1");
     memcpy(d, laz.data, n);
-    put16(d + vlr + 34, 9);
+    put_le16(d + vlr + 34, 9);
     expect_bad(d, n, "WAVEPACKET13");
     memcpy(d, laz.data, n);
-    put16(d + vlr, 1);
+    put_le16(d + vlr, 1);
     expect_bad(d, n, "compressor");
     /* a chunk cut short inside the file: the table says fewer bytes */
     memcpy(d, laz.data, n);
@@ -447,10 +428,10 @@ static void corrupt_laz_fails_cleanly(void **state)
     unsigned char *e = malloc(z.size);
     assert_non_null(e);
     memcpy(e, z.data, z.size);
-    put32(e + chunk + rl, 2999);
+    put_le32(e + chunk + rl, 2999);
     expect_bad(e, z.size, "point count");
     memcpy(e, z.data, z.size);
-    put32(e + chunk + rl + 4, 0x7FFFFFFF);
+    put_le32(e + chunk + rl + 4, 0x7FFFFFFF);
     expect_bad(e, z.size, "layer sizes");
     for (size_t cut = zoff; cut < z.size; cut += 997) expect_bad(z.data, cut, NULL);
     free(e);

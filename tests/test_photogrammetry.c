@@ -165,12 +165,12 @@ static void reconstructs_the_tree(void **state)
            n ? sum / (double)n : 0.0, n, n ? 100.0 * (double)within / (double)n : 0.0);
     printf("  on the tree: %zu points, mean distance %.4f m, median %.4f m\n", n_tree,
            n_tree ? sum_tree / (double)n_tree : 0.0, tree_median);
-    assert_true(cam_err < 0.10);
+    assert_true(cam_err < 0.08);
     assert_true(n > 200);
-    assert_true(sum / (double)n < 0.06);
-    assert_true(n_tree > 30);
-    assert_true(tree_median < 0.05);
-    assert_true(sum_tree / (double)n_tree < 0.10);
+    assert_true(sum / (double)n < 0.04);
+    assert_true(n_tree > 60);
+    assert_true(tree_median < 0.03);
+    assert_true(sum_tree / (double)n_tree < 0.05);
     sy_photogrammetry_result_free(&r);
 }
 

@@ -93,8 +93,8 @@ sy_code laz_parse_vlr(const char *path, const unsigned char *v, size_t len, int 
         return sy_fail(err, SY_EINPUT, "%s: LAZ point format %d (waveform data) is not supported", path, format);
     if (len < VLR_ITEMS_AT)
         return sy_fail(err, SY_EINPUT, "%s: LASzip VLR is truncated (%zu bytes)", path, len);
-    unsigned compressor = laz_get16(v), coder = laz_get16(v + 2);
-    unsigned n_items = laz_get16(v + 32);
+    unsigned compressor = las_u16(v), coder = las_u16(v + 2);
+    unsigned n_items = las_u16(v + 32);
     if (len < VLR_ITEMS_AT + 6 * (size_t)n_items)
         return sy_fail(err, SY_EINPUT, "%s: LASzip VLR lists %u items but holds %zu bytes", path, n_items, len);
     if (coder != 0) return sy_fail(err, SY_EINPUT, "%s: LAZ coder %u is not LASzip's arithmetic coder", path, coder);
@@ -114,7 +114,7 @@ sy_code laz_parse_vlr(const char *path, const unsigned char *v, size_t len, int 
                        path, n_items, format, extra, n_want);
     for (unsigned i = 0; i < n_items; i++) {
         const unsigned char *it = v + VLR_ITEMS_AT + 6 * i;
-        unsigned type = laz_get16(it), size = laz_get16(it + 2), ver = laz_get16(it + 4);
+        unsigned type = las_u16(it), size = las_u16(it + 2), ver = las_u16(it + 4);
         if (type != types[i] || size != sizes[i])
             return sy_fail(err, SY_EINPUT, "%s: LAZ item %u is %s of %u bytes, point format %d needs %s of %u", path,
                            i + 1, item_name(type), size, format, item_name(types[i]), sizes[i]);
@@ -126,7 +126,7 @@ sy_code laz_parse_vlr(const char *path, const unsigned char *v, size_t len, int 
     out->record_length = record_length;
     out->extra = extra;
     out->layered = layered;
-    out->chunk_size = laz_get32(v + 12);
+    out->chunk_size = las_u32(v + 12);
     if (out->chunk_size == 0)
         return sy_fail(err, SY_EINPUT, "%s: LASzip VLR has a chunk size of 0", path);
     return SY_OK;
@@ -139,24 +139,24 @@ size_t laz_make_vlr(const laz_layout *L, unsigned char out[LAZ_VLR_MAX])
     size_t payload = VLR_ITEMS_AT + 6 * (size_t)n;
     memset(out, 0, LAZ_VLR_MAX);
     memcpy(out + 2, "laszip encoded", 14);
-    laz_set16(out + 18, LAZ_VLR_RECORD_ID);
-    laz_set16(out + 20, (uint16_t)payload);
+    las_put_u16(out + 18, LAZ_VLR_RECORD_ID);
+    las_put_u16(out + 20, (uint16_t)payload);
     memcpy(out + 22, "Sylva LAZ codec", 15);
     unsigned char *v = out + 54;
-    laz_set16(v, L->layered ? COMPRESSOR_LAYERED_CHUNKED : COMPRESSOR_POINTWISE_CHUNKED);
-    laz_set16(v + 2, 0); /* arithmetic coder */
+    las_put_u16(v, L->layered ? COMPRESSOR_LAYERED_CHUNKED : COMPRESSOR_POINTWISE_CHUNKED);
+    las_put_u16(v + 2, 0); /* arithmetic coder */
     v[4] = 3;            /* LASzip 3.4 r3 is the version whose items these are */
     v[5] = 4;
-    laz_set16(v + 6, 3);
-    laz_set32(v + 8, 0);
-    laz_set32(v + 12, L->chunk_size);
-    laz_set64(v + 16, UINT64_MAX); /* no special EVLRs */
-    laz_set64(v + 24, UINT64_MAX);
-    laz_set16(v + 32, (uint16_t)n);
+    las_put_u16(v + 6, 3);
+    las_put_u32(v + 8, 0);
+    las_put_u32(v + 12, L->chunk_size);
+    las_put_u64(v + 16, UINT64_MAX); /* no special EVLRs */
+    las_put_u64(v + 24, UINT64_MAX);
+    las_put_u16(v + 32, (uint16_t)n);
     for (unsigned i = 0; i < n; i++) {
-        laz_set16(v + VLR_ITEMS_AT + 6 * i, (uint16_t)types[i]);
-        laz_set16(v + VLR_ITEMS_AT + 6 * i + 2, (uint16_t)sizes[i]);
-        laz_set16(v + VLR_ITEMS_AT + 6 * i + 4, (uint16_t)version);
+        las_put_u16(v + VLR_ITEMS_AT + 6 * i, (uint16_t)types[i]);
+        las_put_u16(v + VLR_ITEMS_AT + 6 * i + 2, (uint16_t)sizes[i]);
+        las_put_u16(v + VLR_ITEMS_AT + 6 * i + 4, (uint16_t)version);
     }
     return 54 + payload;
 }
@@ -169,18 +169,18 @@ sy_code laz_read_chunks(const char *path, const unsigned char *data, size_t size
     *n_chunks = 0;
     if (points_end > size || point_offset > points_end || points_end - point_offset < 8)
         return sy_fail(err, SY_EINPUT, "%s: LAZ point data too short for its chunk table offset", path);
-    uint64_t table = laz_get64(data + point_offset);
+    uint64_t table = las_u64(data + point_offset);
     if (table == UINT64_MAX) {
         /* written to a stream: the offset follows at the very end of the file */
         if (size < 8) return sy_fail(err, SY_EINPUT, "%s: LAZ chunk table offset missing", path);
-        table = laz_get64(data + size - 8);
+        table = las_u64(data + size - 8);
     }
     const uint64_t chunks_start = point_offset + 8;
     if (count == 0) return SY_OK;
     if (table < chunks_start || table > points_end || points_end - table < 8)
         return sy_fail(err, SY_EINPUT, "%s: bad LAZ chunk table offset %llu (point data spans %llu-%llu)", path,
                        (unsigned long long)table, (unsigned long long)chunks_start, (unsigned long long)points_end);
-    uint32_t version = laz_get32(data + table), n = laz_get32(data + table + 4);
+    uint32_t version = las_u32(data + table), n = las_u32(data + table + 4);
     if (version != 0) return sy_fail(err, SY_EINPUT, "%s: LAZ chunk table version %u is not 0", path, version);
     /* Each chunk holds at least its raw first record. */
     uint64_t room = table - chunks_start;
@@ -340,8 +340,8 @@ static int write_table(FILE *fp, const laz_layout *L, const uint32_t *points, co
 {
     laz_buf buf = {0};
     unsigned char head[8];
-    laz_set32(head, 0);
-    laz_set32(head + 4, (uint32_t)n);
+    las_put_u32(head, 0);
+    las_put_u32(head + 4, (uint32_t)n);
     laz_buf_put(&buf, head, 8);
     laz_ic ic;
     if (laz_ic_init(&ic, 32, 2, 0)) {
@@ -407,7 +407,7 @@ sy_code laz_write_points(FILE *fp, const char *path, const laz_layout *L, uint64
     if (rc == SY_OK && (table < 0 || write_table(fp, L, counts, sizes, n_chunks)))
         rc = sy_fail(err, SY_EINPUT, "%s: write failed", path);
     if (rc == SY_OK) {
-        laz_set64(word, (uint64_t)table);
+        las_put_u64(word, (uint64_t)table);
         long end = ftell(fp);
         if (end < 0 || fseek(fp, start, SEEK_SET) || fwrite(word, 1, 8, fp) != 8 || fseek(fp, end, SEEK_SET))
             rc = sy_fail(err, SY_EINPUT, "%s: write failed", path);

@@ -14,6 +14,7 @@
 
 #include <stdint.h>
 
+#include "las_format.h"
 #include "laz_codec.h"
 
 typedef struct {
@@ -86,25 +87,5 @@ int laz_chunk10_encode(const laz_layout *L, const unsigned char *records, uint32
 int laz_chunk14_decode(const laz_layout *L, const unsigned char *in, size_t len, uint32_t n, unsigned char *out,
                        const char **why);
 int laz_chunk14_encode(const laz_layout *L, const unsigned char *records, uint32_t n, laz_buf *out);
-
-static inline uint16_t laz_get16(const unsigned char *p) { return (uint16_t)(p[0] | (unsigned)p[1] << 8); }
-static inline uint32_t laz_get32(const unsigned char *p)
-{
-    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
-}
-static inline uint64_t laz_get64(const unsigned char *p) { return laz_get32(p) | (uint64_t)laz_get32(p + 4) << 32; }
-static inline void laz_set16(unsigned char *p, uint16_t v)
-{
-    p[0] = (unsigned char)v;
-    p[1] = (unsigned char)(v >> 8);
-}
-static inline void laz_set32(unsigned char *p, uint32_t v)
-{
-    for (int i = 0; i < 4; i++) p[i] = (unsigned char)(v >> (8 * i));
-}
-static inline void laz_set64(unsigned char *p, uint64_t v)
-{
-    for (int i = 0; i < 8; i++) p[i] = (unsigned char)(v >> (8 * i));
-}
 
 #endif

@@ -263,12 +263,12 @@ static int state10_init(state10 *s, const laz_layout *L, const unsigned char *fi
     if (s->has_gps) {
         bad |= laz_model_init(&s->gps.multi, GPS10_TOTAL, decoding) | laz_model_init(&s->gps.zero_diff, 6, decoding);
         bad |= laz_ic_init(&s->gps.ic, 32, 9, decoding);
-        s->gps.last_time[0] = laz_get64(p);
+        s->gps.last_time[0] = las_u64(p);
         p += 8;
     }
     if (s->has_rgb) {
         bad |= laz_rgb_models_init(&s->rgb, decoding);
-        for (int k = 0; k < 3; k++) s->last_rgb[k] = laz_get16(p + 2 * k);
+        for (int k = 0; k < 3; k++) s->last_rgb[k] = las_u16(p + 2 * k);
         p += 6;
     }
     if (s->extra) {
@@ -300,9 +300,9 @@ static void decode_point10(state10 *s, laz_decoder *d, unsigned char *out)
         if (changed & 16) {
             uint16_t v = (uint16_t)laz_ic_decompress(&s->ic_intensity, d, s->last_intensity[m], m < 3 ? m : 3);
             s->last_intensity[m] = v;
-            laz_set16(last + 12, v);
+            las_put_u16(last + 12, v);
         } else {
-            laz_set16(last + 12, s->last_intensity[m]);
+            las_put_u16(last + 12, s->last_intensity[m]);
         }
         if (changed & 8) {
             laz_model *mc = laz_lazy_model(&s->classification[last[15]], 256, 1, &s->failed, &s->fallback);
@@ -317,7 +317,7 @@ static void decode_point10(state10 *s, laz_decoder *d, unsigned char *out)
             last[17] = (unsigned char)laz_dec_symbol(d, mu);
         }
         if (changed & 1)
-            laz_set16(last + 18, (uint16_t)laz_ic_decompress(&s->ic_point_source, d, laz_get16(last + 18), 0));
+            las_put_u16(last + 18, (uint16_t)laz_ic_decompress(&s->ic_point_source, d, las_u16(last + 18), 0));
     } else {
         r = last[14] & 7;
         n = (last[14] >> 3) & 7;
@@ -325,15 +325,15 @@ static void decode_point10(state10 *s, laz_decoder *d, unsigned char *out)
         l = return_level(n, r);
     }
     int32_t diff = laz_ic_decompress(&s->ic_dx, d, s->x_med[m].v[2], n == 1);
-    laz_set32(last, laz_get32(last) + (uint32_t)diff);
+    las_put_u32(last, las_u32(last) + (uint32_t)diff);
     laz_median5_add(&s->x_med[m], diff);
     uint32_t k = s->ic_dx.k;
     diff = laz_ic_decompress(&s->ic_dy, d, s->y_med[m].v[2], (n == 1) + (k < 20 ? even(k) : 20));
-    laz_set32(last + 4, laz_get32(last + 4) + (uint32_t)diff);
+    las_put_u32(last + 4, las_u32(last + 4) + (uint32_t)diff);
     laz_median5_add(&s->y_med[m], diff);
     k = (s->ic_dx.k + s->ic_dy.k) / 2;
     int32_t z = laz_ic_decompress(&s->ic_z, d, s->last_height[l], (n == 1) + (k < 18 ? even(k) : 18));
-    laz_set32(last + 8, (uint32_t)z);
+    las_put_u32(last + 8, (uint32_t)z);
     s->last_height[l] = z;
     memcpy(out, last, 20);
 }
@@ -343,10 +343,10 @@ static void encode_point10(state10 *s, laz_encoder *e, const unsigned char *item
     unsigned char *last = s->last;
     unsigned r = item[14] & 7, n = (item[14] >> 3) & 7;
     unsigned m = return_map[n][r], l = return_level(n, r);
-    uint16_t intensity = laz_get16(item + 12);
+    uint16_t intensity = las_u16(item + 12);
     uint32_t changed = (uint32_t)(last[14] != item[14]) << 5 | (uint32_t)(s->last_intensity[m] != intensity) << 4 |
                        (uint32_t)(last[15] != item[15]) << 3 | (uint32_t)(last[16] != item[16]) << 2 |
-                       (uint32_t)(last[17] != item[17]) << 1 | (uint32_t)(laz_get16(last + 18) != laz_get16(item + 18));
+                       (uint32_t)(last[17] != item[17]) << 1 | (uint32_t)(las_u16(last + 18) != las_u16(item + 18));
     laz_enc_symbol(e, &s->changed_values, changed);
     if (changed & 32)
         laz_enc_symbol(e, laz_lazy_model(&s->bit_byte[last[14]], 256, 0, &s->failed, &s->fallback), item[14]);
@@ -359,16 +359,16 @@ static void encode_point10(state10 *s, laz_encoder *e, const unsigned char *item
     if (changed & 4) laz_enc_symbol(e, &s->scan_angle[(item[14] >> 6) & 1], (uint32_t)(item[16] - last[16]) & 0xFF);
     if (changed & 2)
         laz_enc_symbol(e, laz_lazy_model(&s->user_data[last[17]], 256, 0, &s->failed, &s->fallback), item[17]);
-    if (changed & 1) laz_ic_compress(&s->ic_point_source, e, laz_get16(last + 18), laz_get16(item + 18), 0);
-    int32_t diff = (int32_t)(laz_get32(item) - laz_get32(last));
+    if (changed & 1) laz_ic_compress(&s->ic_point_source, e, las_u16(last + 18), las_u16(item + 18), 0);
+    int32_t diff = (int32_t)(las_u32(item) - las_u32(last));
     laz_ic_compress(&s->ic_dx, e, s->x_med[m].v[2], diff, n == 1);
     laz_median5_add(&s->x_med[m], diff);
     uint32_t k = s->ic_dx.k;
-    diff = (int32_t)(laz_get32(item + 4) - laz_get32(last + 4));
+    diff = (int32_t)(las_u32(item + 4) - las_u32(last + 4));
     laz_ic_compress(&s->ic_dy, e, s->y_med[m].v[2], diff, (n == 1) + (k < 20 ? even(k) : 20));
     laz_median5_add(&s->y_med[m], diff);
     k = (s->ic_dx.k + s->ic_dy.k) / 2;
-    int32_t z = (int32_t)laz_get32(item + 8);
+    int32_t z = (int32_t)las_u32(item + 8);
     laz_ic_compress(&s->ic_z, e, s->last_height[l], z, (n == 1) + (k < 18 ? even(k) : 18));
     s->last_height[l] = z;
     memcpy(last, item, 20);
@@ -449,7 +449,7 @@ static void decode_gps10(laz_gps_state *g, laz_decoder *d, unsigned char *out)
         }
         break;
     }
-    laz_set64(out, g->last_time[g->last]);
+    las_put_u64(out, g->last_time[g->last]);
 }
 
 static inline int fits32(int64_t v) { return v == (int64_t)(int32_t)v; }
@@ -593,7 +593,7 @@ int laz_chunk10_decode(const laz_layout *L, const unsigned char *in, size_t len,
         if (s.has_rgb) {
             uint16_t rgb[3];
             laz_rgb_decode(&d, &s.rgb, s.last_rgb, rgb);
-            for (int k = 0; k < 3; k++) laz_set16(rec + rgb_at + 2 * k, s.last_rgb[k] = rgb[k]);
+            for (int k = 0; k < 3; k++) las_put_u16(rec + rgb_at + 2 * k, s.last_rgb[k] = rgb[k]);
         }
         for (unsigned b = 0; b < s.extra; b++) {
             s.last_extra[b] = (unsigned char)(s.last_extra[b] + laz_dec_symbol(&d, &s.extra_models[b]));
@@ -625,10 +625,10 @@ int laz_chunk10_encode(const laz_layout *L, const unsigned char *records, uint32
     for (uint32_t i = 1; i < n; i++) {
         const unsigned char *rec = records + i * rl;
         encode_point10(&s, &e, rec);
-        if (s.has_gps) encode_gps10(&s.gps, &e, laz_get64(rec + gps_at));
+        if (s.has_gps) encode_gps10(&s.gps, &e, las_u64(rec + gps_at));
         if (s.has_rgb) {
             uint16_t rgb[3];
-            for (int k = 0; k < 3; k++) rgb[k] = laz_get16(rec + rgb_at + 2 * k);
+            for (int k = 0; k < 3; k++) rgb[k] = las_u16(rec + rgb_at + 2 * k);
             laz_rgb_encode(&e, &s.rgb, s.last_rgb, rgb);
             memcpy(s.last_rgb, rgb, sizeof rgb);
         }

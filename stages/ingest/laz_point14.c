@@ -50,10 +50,10 @@ typedef struct {
 
 static void unpack14(const unsigned char *r, p14 *p)
 {
-    p->x = (int32_t)laz_get32(r);
-    p->y = (int32_t)laz_get32(r + 4);
-    p->z = (int32_t)laz_get32(r + 8);
-    p->intensity = laz_get16(r + 12);
+    p->x = (int32_t)las_u32(r);
+    p->y = (int32_t)las_u32(r + 4);
+    p->z = (int32_t)las_u32(r + 8);
+    p->intensity = las_u16(r + 12);
     p->rn = r[14] & 0x0F;
     p->nr = r[14] >> 4;
     p->class_flags = r[15] & 0x0F;
@@ -62,25 +62,25 @@ static void unpack14(const unsigned char *r, p14 *p)
     p->edge = r[15] >> 7;
     p->classification = r[16];
     p->user_data = r[17];
-    p->scan_angle = (int16_t)laz_get16(r + 18);
-    p->point_source = laz_get16(r + 20);
-    p->gps = laz_get64(r + 22);
+    p->scan_angle = (int16_t)las_u16(r + 18);
+    p->point_source = las_u16(r + 20);
+    p->gps = las_u64(r + 22);
     p->gps_change = 0;
 }
 
 static void pack14(const p14 *p, unsigned char *r)
 {
-    laz_set32(r, (uint32_t)p->x);
-    laz_set32(r + 4, (uint32_t)p->y);
-    laz_set32(r + 8, (uint32_t)p->z);
-    laz_set16(r + 12, p->intensity);
+    las_put_u32(r, (uint32_t)p->x);
+    las_put_u32(r + 4, (uint32_t)p->y);
+    las_put_u32(r + 8, (uint32_t)p->z);
+    las_put_u16(r + 12, p->intensity);
     r[14] = (unsigned char)(p->rn | p->nr << 4);
     r[15] = (unsigned char)(p->class_flags | p->channel << 4 | p->scan_dir << 6 | p->edge << 7);
     r[16] = (unsigned char)p->classification;
     r[17] = (unsigned char)p->user_data;
-    laz_set16(r + 18, (uint16_t)p->scan_angle);
-    laz_set16(r + 20, p->point_source);
-    laz_set64(r + 22, p->gps);
+    las_put_u16(r + 18, (uint16_t)p->scan_angle);
+    las_put_u16(r + 20, p->point_source);
+    las_put_u64(r + 22, p->gps);
 }
 
 /* Everything one scanner channel predicts from. */
@@ -239,12 +239,48 @@ static int state14_init(state14 *s, const laz_layout *L, const unsigned char *fi
     s->current = s->rgb_current = s->bytes_current = p.channel;
     ctx_start_point(s, p.channel, &p);
     if (s->has_rgb) {
-        uint16_t rgb[4] = {laz_get16(first + 30), laz_get16(first + 32), laz_get16(first + 34),
-                           s->has_nir ? laz_get16(first + 36) : 0};
+        uint16_t rgb[4] = {las_u16(first + 30), las_u16(first + 32), las_u16(first + 34),
+                           s->has_nir ? las_u16(first + 36) : 0};
         ctx_start_rgb(s, p.channel, rgb);
     }
     if (s->extra) ctx_start_bytes(s, p.channel, first + (L->record_length - L->extra));
     return s->failed ? -1 : 0;
+}
+
+/* RGB14 and BYTE14 follow POINT14's scanner channel. A channel seen for the
+ * first time starts from the previous point's values; on a switch to a
+ * channel already in use LASzip keeps predicting from the previous
+ * channel's last values (with the new channel's models) for that point, and
+ * writes them back there. That is the format as LASzip defines it, so both
+ * directions do the same. */
+static ctx14 *follow_rgb(state14 *s, uint16_t **last)
+{
+    ctx14 *c = &s->ctx[s->rgb_current];
+    *last = c->last_rgb;
+    if (s->rgb_current != s->current) {
+        s->rgb_current = s->current;
+        if (!s->ctx[s->current].rgb_used) {
+            ctx_start_rgb(s, s->current, *last);
+            *last = s->ctx[s->current].last_rgb;
+        }
+        c = &s->ctx[s->current];
+    }
+    return c;
+}
+
+static ctx14 *follow_bytes(state14 *s, unsigned char **last)
+{
+    ctx14 *c = &s->ctx[s->bytes_current];
+    *last = c->last_bytes;
+    if (s->bytes_current != s->current) {
+        s->bytes_current = s->current;
+        if (!s->ctx[s->current].bytes_used) {
+            ctx_start_bytes(s, s->current, *last);
+            *last = s->ctx[s->current].last_bytes;
+        }
+        c = &s->ctx[s->current];
+    }
+    return c;
 }
 
 static laz_model *lazy(state14 *s, laz_model **slot, uint32_t symbols)
@@ -414,22 +450,14 @@ static void decode_point14(state14 *s, layers *ly, unsigned char *out)
 
 static void decode_rgb14(state14 *s, layers *ly, unsigned char *out)
 {
-    ctx14 *c = &s->ctx[s->rgb_current];
-    uint16_t *last = c->last_rgb;
-    if (s->rgb_current != s->current) {
-        s->rgb_current = s->current;
-        if (!s->ctx[s->current].rgb_used) {
-            ctx_start_rgb(s, s->current, last);
-            last = s->ctx[s->current].last_rgb;
-        }
-        c = &s->ctx[s->current];
-    }
+    uint16_t *last;
+    ctx14 *c = follow_rgb(s, &last);
     if (ly->rgb_present) {
         uint16_t rgb[3];
         laz_rgb_decode(&ly->rgb, &c->rgb, last, rgb);
         memcpy(last, rgb, sizeof rgb);
     }
-    for (int k = 0; k < 3; k++) laz_set16(out + 30 + 2 * k, last[k]);
+    for (int k = 0; k < 3; k++) las_put_u16(out + 30 + 2 * k, last[k]);
     if (!s->has_nir) return;
     if (ly->nir_present) {
         uint32_t sym = laz_dec_symbol(&ly->nir, &c->nir_used);
@@ -438,21 +466,13 @@ static void decode_rgb14(state14 *s, layers *ly, unsigned char *out)
         if (sym & 2) hi = (laz_dec_symbol(&ly->nir, &c->nir_diff[1]) + hi) & 0xFF;
         last[3] = (uint16_t)(lo | hi << 8);
     }
-    laz_set16(out + 36, last[3]);
+    las_put_u16(out + 36, last[3]);
 }
 
 static void decode_bytes14(state14 *s, layers *ly, unsigned char *out)
 {
-    ctx14 *c = &s->ctx[s->bytes_current];
-    unsigned char *last = c->last_bytes;
-    if (s->bytes_current != s->current) {
-        s->bytes_current = s->current;
-        if (!s->ctx[s->current].bytes_used) {
-            ctx_start_bytes(s, s->current, last);
-            last = s->ctx[s->current].last_bytes;
-        }
-        c = &s->ctx[s->current];
-    }
+    unsigned char *last;
+    ctx14 *c = follow_bytes(s, &last);
     if (!c->bytes_used || !last) return; /* out of memory: reported at the chunk's end */
     for (unsigned i = 0; i < s->extra; i++) {
         if (ly->bytes_present[i])
@@ -471,7 +491,7 @@ int laz_chunk14_decode(const laz_layout *L, const unsigned char *in, size_t len,
         return LAZ_CORRUPT;
     }
     memcpy(out, in, rl);
-    uint32_t count = laz_get32(in + rl);
+    uint32_t count = las_u32(in + rl);
     if (count != n) {
         *why = "chunk point count disagrees with the chunk table";
         return LAZ_CORRUPT;
@@ -488,7 +508,7 @@ int laz_chunk14_decode(const laz_layout *L, const unsigned char *in, size_t len,
     }
     int corrupt = 0;
     for (unsigned i = 0; i < n_layers; i++) {
-        uint32_t size = laz_get32(sizes + 4 * i);
+        uint32_t size = las_u32(sizes + 4 * i);
         if (size > (size_t)(end - at)) {
             corrupt = 1;
             break;
@@ -631,22 +651,14 @@ static void encode_point14(state14 *s, out_layers *o, const p14 *item)
 
 static void encode_rgb14(state14 *s, out_layers *o, const unsigned char *rec)
 {
-    ctx14 *c = &s->ctx[s->rgb_current];
-    uint16_t *last = c->last_rgb;
-    if (s->rgb_current != s->current) {
-        s->rgb_current = s->current;
-        if (!s->ctx[s->current].rgb_used) {
-            ctx_start_rgb(s, s->current, last);
-            last = s->ctx[s->current].last_rgb;
-        }
-        c = &s->ctx[s->current];
-    }
-    uint16_t cur[3] = {laz_get16(rec + 30), laz_get16(rec + 32), laz_get16(rec + 34)};
+    uint16_t *last;
+    ctx14 *c = follow_rgb(s, &last);
+    uint16_t cur[3] = {las_u16(rec + 30), las_u16(rec + 32), las_u16(rec + 34)};
     if (memcmp(cur, last, sizeof cur) != 0) o->rgb_changed = 1;
     laz_rgb_encode(&o->rgb, &c->rgb, last, cur);
     memcpy(last, cur, sizeof cur);
     if (!s->has_nir) return;
-    uint16_t nir = laz_get16(rec + 36);
+    uint16_t nir = las_u16(rec + 36);
     unsigned lo = nir & 0xFF, hi = nir >> 8, llo = last[3] & 0xFF, lhi = last[3] >> 8;
     uint32_t sym = (uint32_t)(lo != llo) | (uint32_t)(hi != lhi) << 1;
     laz_enc_symbol(&o->nir, &c->nir_used, sym);
@@ -658,16 +670,8 @@ static void encode_rgb14(state14 *s, out_layers *o, const unsigned char *rec)
 
 static void encode_bytes14(state14 *s, out_layers *o, const unsigned char *bytes)
 {
-    ctx14 *c = &s->ctx[s->bytes_current];
-    unsigned char *last = c->last_bytes;
-    if (s->bytes_current != s->current) {
-        s->bytes_current = s->current;
-        if (!s->ctx[s->current].bytes_used) {
-            ctx_start_bytes(s, s->current, last);
-            last = s->ctx[s->current].last_bytes;
-        }
-        c = &s->ctx[s->current];
-    }
+    unsigned char *last;
+    ctx14 *c = follow_bytes(s, &last);
     if (!c->bytes_used || !last) return;
     for (unsigned i = 0; i < s->extra; i++) {
         unsigned diff = (unsigned)(bytes[i] - last[i]) & 0xFF;
@@ -707,7 +711,7 @@ int laz_chunk14_encode(const laz_layout *L, const unsigned char *records, uint32
         o.changed[L_XY] = o.changed[L_Z] = 1;
         laz_buf_put(out, records, rl);
         unsigned char word[4];
-        laz_set32(word, n);
+        las_put_u32(word, n);
         laz_buf_put(out, word, 4);
         for (int pass = 0; pass < 2; pass++) { /* sizes, then the bytes */
             for (int i = 0; i < N_POINT_LAYERS + 2 + (int)extra; i++) {
@@ -736,7 +740,7 @@ int laz_chunk14_encode(const laz_layout *L, const unsigned char *records, uint32
                 }
                 if (pass == 0) {
                     if (used) laz_enc_done(e);
-                    laz_set32(word, used ? (uint32_t)b->len : 0);
+                    las_put_u32(word, used ? (uint32_t)b->len : 0);
                     laz_buf_put(out, word, 4);
                 } else if (used) {
                     laz_buf_put(out, b->data, b->len);
