@@ -20,6 +20,7 @@ const file = LazPerf._malloc(laz.length);
 LazPerf.HEAPU8.set(laz, file);
 const reader = new LazPerf.LASZip();
 const t0 = process.hrtime.bigint();
+const c0 = process.cpuUsage();
 reader.open(file, laz.length);
 const count = reader.getCount();
 const length = reader.getPointLength();
@@ -48,12 +49,13 @@ for (let i = 0; i < count; i++) {
   }
 }
 const seconds = Number(process.hrtime.bigint() - t0) / 1e9;
+const cpu = process.cpuUsage(c0);
 reader.delete();
 LazPerf._free(point);
 LazPerf._free(file);
 const ok = !las || (mismatches === 0 && count === lasCount && length === recordLength);
 const out = { points: count, record_length: length };
 if (las) Object.assign(out, { las_points: lasCount, las_record_length: recordLength, mismatches, first_mismatch: first });
-if (timing) out.seconds = seconds;
+if (timing) Object.assign(out, { seconds, cpu_seconds: (cpu.user + cpu.system) / 1e6 });
 console.log(JSON.stringify(out));
 process.exit(ok ? 0 : 1);
