@@ -12,24 +12,6 @@
 #include "stages/ingest/ingest.h"
 #include "stages/photogrammetry/photogrammetry.h"
 
-static const char *out_path;
-static sy_photo_cli photo;
-static const sy_opt opts[] = {
-    {"-o", OPT_STRING, &out_path, "OUT", "point cloud to write (.ply .las .laz .xyz)"},
-    SY_PHOTO_OPTIONS(photo),
-    {NULL, 0, NULL, NULL, NULL},
-};
-static const sy_cmd_spec spec = {
-    "photogrammetry", "PHOTOS/ -o OUT [--scale-ref A,B,METRES | --camera-spacing METRES]",
-    "Reconstruct a point cloud from photos with COLMAP (feature extraction, matching, mapping).",
-    "Runs Debian's `colmap` as a subprocess with the GPU off; dense stereo only where colmap has\n"
-    "CUDA, else the sparse model's points (the output says which). The cloud is levelled (Z along\n"
-    "the cameras' mean up vector) and scaled to metres by --scale-ref (two photo names and the\n"
-    "distance between the cameras that took them) or --camera-spacing (mean distance between\n"
-    "consecutive photos, in name order); without either the unit is COLMAP's. COLMAP's database,\n"
-    "models and log (colmap.log) stay in the workspace, OUT.colmap/ by default.",
-    opts, 1, 1};
-
 typedef struct {
     const sy_cli *cli;
     int tty;
@@ -53,8 +35,7 @@ static void show_progress(void *user, const char *step, int index, int steps, do
     if (seconds == 0.0) p->last_line = 0.0;
 }
 
-sy_code sy_photo_cli_apply(const sy_photo_cli *c, const char *workspace, sy_photogrammetry_options *o,
-                           sy_error *err)
+sy_code sy_photo_cli_apply(sy_photo_cli *c, const char *workspace, sy_photogrammetry_options *o, sy_error *err)
 {
     *o = sy_photogrammetry_options_default();
     o->workspace = workspace;
@@ -70,9 +51,9 @@ sy_code sy_photo_cli_apply(const sy_photo_cli *c, const char *workspace, sy_phot
     o->sequential_overlap = c->sequential;
     if (c->scale_ref) {
         /* "A,B,METRES" */
-        static char a[256], b[256];
+        char *a = c->scale_a, *b = c->scale_b; /* storage in the flags struct: no globals */
         const char *p1 = strchr(c->scale_ref, ','), *p2 = p1 ? strchr(p1 + 1, ',') : NULL;
-        if (!p1 || !p2 || (size_t)(p1 - c->scale_ref) >= sizeof a || (size_t)(p2 - p1 - 1) >= sizeof b)
+        if (!p1 || !p2 || (size_t)(p1 - c->scale_ref) >= sizeof c->scale_a || (size_t)(p2 - p1 - 1) >= sizeof c->scale_b)
             return sy_fail(err, SY_EUSAGE, "--scale-ref wants PHOTO_A,PHOTO_B,METRES, got '%s'", c->scale_ref);
         memcpy(a, c->scale_ref, (size_t)(p1 - c->scale_ref));
         a[p1 - c->scale_ref] = 0;
@@ -88,14 +69,13 @@ sy_code sy_photo_cli_apply(const sy_photo_cli *c, const char *workspace, sy_phot
     return sy_photogrammetry_options_check(o, err);
 }
 
-sy_code sy_photos_to_cloud(const char *dir, const char *out_path_hint, const sy_photo_cli *c, const sy_cli *cli,
+sy_code sy_photos_to_cloud(const char *dir, const char *out_path_hint, sy_photo_cli *c, const sy_cli *cli,
                            sy_photogrammetry_result *r, sy_error *err)
 {
-    static char workspace[4096];
-    if (c->workspace) snprintf(workspace, sizeof workspace, "%s", c->workspace);
-    else snprintf(workspace, sizeof workspace, "%.4080s.colmap", out_path_hint);
+    if (c->workspace) snprintf(c->workspace_path, sizeof c->workspace_path, "%s", c->workspace);
+    else snprintf(c->workspace_path, sizeof c->workspace_path, "%.4080s.colmap", out_path_hint);
     sy_photogrammetry_options o;
-    sy_code rc = sy_photo_cli_apply(c, workspace, &o, err);
+    sy_code rc = sy_photo_cli_apply(c, c->workspace_path, &o, err);
     if (rc) return rc;
     o.threads = cli->threads;
     photo_progress p = {cli, isatty(2), 0};
@@ -117,12 +97,29 @@ sy_code sy_photos_to_cloud(const char *dir, const char *out_path_hint, const sy_
 
 int cmd_photogrammetry(int argc, char **argv, sy_cli *cli)
 {
+    const char *out_path = NULL;
+    sy_photo_cli photo;
+    memset(&photo, 0, sizeof photo);
+    const sy_opt opts[] = {
+        {"-o", OPT_STRING, &out_path, "OUT", "point cloud to write (.ply .las .laz .xyz)"},
+        SY_PHOTO_OPTIONS(photo),
+        {NULL, 0, NULL, NULL, NULL},
+    };
+    const sy_cmd_spec spec = {
+        "photogrammetry", "PHOTOS/ -o OUT [--scale-ref A,B,METRES | --camera-spacing METRES]",
+        "Reconstruct a point cloud from photos with COLMAP (feature extraction, matching, mapping).",
+        "Runs Debian's `colmap` as a subprocess with the GPU off; dense stereo only where colmap has\n"
+        "CUDA, else the sparse model's points (the output says which). The cloud is levelled (Z along\n"
+        "the cameras' mean up vector) and scaled to metres by --scale-ref (two photo names and the\n"
+        "distance between the cameras that took them) or --camera-spacing (mean distance between\n"
+        "consecutive photos, in name order); without either the unit is COLMAP's. COLMAP's database,\n"
+        "models and log (colmap.log) stay in the workspace, OUT.colmap/ by default.",
+        opts, 1, 1};
     const char *in[1];
     int n;
-    out_path = NULL;
-    memset(&photo, 0, sizeof photo);
     int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
     if (rc) return rc < 0 ? 0 : rc;
+    sy_cli_apply_settings(cli);
     if (!out_path) {
         fprintf(stderr, "sylva photogrammetry: -o OUT is required\n");
         return SY_EUSAGE;

@@ -3,6 +3,11 @@
 #define SYLVA_COMMANDS_H
 
 #include "pipeline/cli.h"
+#include "stages/photogrammetry/photogrammetry.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
 
 int cmd_info(int argc, char **argv, sy_cli *cli);
 int cmd_convert(int argc, char **argv, sy_cli *cli);
@@ -15,15 +20,16 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli);
 int cmd_run(int argc, char **argv, sy_cli *cli);
 int cmd_encode(int argc, char **argv, sy_cli *cli);
 int cmd_decode(int argc, char **argv, sy_cli *cli);
+int cmd_library(int argc, char **argv, sy_cli *cli);
 int cmd_photogrammetry(int argc, char **argv, sy_cli *cli);
 
 /* Photo input, shared by `photogrammetry` and `run PHOTOS/`: the flags and
  * the call that turns a folder of photos into a levelled, scaled cloud. */
-#include "stages/photogrammetry/photogrammetry.h"
 typedef struct {
     const char *workspace, *scale_ref, *quality, *colmap;
     double camera_spacing, min_registered;
     int sequential;
+    char scale_a[256], scale_b[256], workspace_path[4096]; /* filled by the calls below */
 } sy_photo_cli;
 #define SY_PHOTO_OPTIONS(p)                                                                                          \
     {"--workspace", OPT_STRING, &(p).workspace, "DIR", "COLMAP workspace: database, models, colmap.log (default OUT.colmap)"}, \
@@ -39,10 +45,14 @@ typedef struct {
             "fail unless this fraction of the photos registers (default 0.5)"                                        \
     }
 /* Fills photogrammetry options from the flags (workspace given). */
-sy_code sy_photo_cli_apply(const sy_photo_cli *c, const char *workspace, sy_photogrammetry_options *o, sy_error *err);
+sy_code sy_photo_cli_apply(sy_photo_cli *c, const char *workspace, sy_photogrammetry_options *o, sy_error *err);
 /* Runs photogrammetry on dir with the workspace from --workspace or
  * "<out_path_hint>.colmap", reporting progress and the outcome on stderr. */
-sy_code sy_photos_to_cloud(const char *dir, const char *out_path_hint, const sy_photo_cli *c, const sy_cli *cli,
+sy_code sy_photos_to_cloud(const char *dir, const char *out_path_hint, sy_photo_cli *c, const sy_cli *cli,
                            sy_photogrammetry_result *r, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

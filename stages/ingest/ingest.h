@@ -9,6 +9,10 @@
 #include "../core/cloud.h"
 #include "../core/fileio.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Reads any supported format, chosen by magic bytes first, then extension:
  * LAS or LAZ ("LASF"; LAZ chunks decode on sy_threads() threads), PLY ("ply\n"),
  * PCD ("# .PCD" / "VERSION"), a COLMAP workspace or sparse-model directory,
@@ -80,5 +84,9 @@ sy_code sy_write_xyz(const char *path, const sy_cloud *c, sy_error *err);
 /* Shared by the readers: rejects non-finite coordinates with a message naming
  * path and the point index; returns SY_OK when all are finite. */
 sy_code sy_check_finite(const char *path, double x, double y, double z, size_t index, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif
