@@ -75,6 +75,17 @@ typedef struct {
     laz_ic ic;
 } laz_gps_state;
 
+/* Which symbol means what in the two item versions (-1: no such code). */
+typedef struct {
+    int32_t zero_unchanged, zero_delta, zero_full, zero_switch; /* the model used after a zero difference */
+    int32_t multi_unchanged, multi_full;                        /* the multiplier model */
+} laz_gps_codes;
+extern const laz_gps_codes laz_gps_codes_v2;
+
+/* One GPS time (as its bit pattern) through the state: decode leaves it in
+ * g->last_time[g->last]. */
+void laz_gps_decode(laz_gps_state *g, laz_decoder *d, const laz_gps_codes *codes);
+void laz_gps_encode(laz_gps_state *g, laz_encoder *e, uint64_t t, const laz_gps_codes *codes);
 void laz_gps_decode_full(laz_gps_state *g, laz_decoder *d);
 int32_t laz_gps_decode_multi(laz_gps_state *g, laz_decoder *d, int32_t multi);
 void laz_gps_encode_diff(laz_gps_state *g, laz_encoder *e, laz_model *multi_model, int32_t diff);

@@ -418,38 +418,44 @@ int32_t laz_gps_decode_multi(laz_gps_state *g, laz_decoder *d, int32_t multi)
     return diff;
 }
 
-static void decode_gps10(laz_gps_state *g, laz_decoder *d, unsigned char *out)
+/* Both item versions code GPS time the same way and differ only in which
+ * symbols mean what: version 2 has an "unchanged" code in each model,
+ * version 3 leaves that to POINT14's change bits and shifts the others down. */
+const laz_gps_codes laz_gps_codes_v2 = {0, 1, 2, 2, GPS10_UNCHANGED, GPS10_CODE_FULL};
+
+void laz_gps_decode(laz_gps_state *g, laz_decoder *d, const laz_gps_codes *codes)
 {
     for (int hops = 0; hops < 8; hops++) { /* a sequence switch restarts; a valid stream switches once */
         if (g->last_diff[g->last] == 0) {
-            uint32_t multi = laz_dec_symbol(d, &g->zero_diff);
-            if (multi == 1) {
+            int32_t multi = (int32_t)laz_dec_symbol(d, &g->zero_diff);
+            if (multi == codes->zero_unchanged) {
+            } else if (multi == codes->zero_delta) {
                 g->last_diff[g->last] = laz_ic_decompress(&g->ic, d, 0, 0);
                 g->last_time[g->last] += (uint64_t)(int64_t)g->last_diff[g->last];
                 g->extreme_count[g->last] = 0;
-            } else if (multi == 2) {
+            } else if (multi == codes->zero_full) {
                 laz_gps_decode_full(g, d);
-            } else if (multi > 2) {
-                g->last = (g->last + multi - 2) & 3;
+            } else {
+                g->last = (g->last + (uint32_t)(multi - codes->zero_switch)) & 3;
                 continue;
             }
         } else {
-            uint32_t multi = laz_dec_symbol(d, &g->multi);
+            int32_t multi = (int32_t)laz_dec_symbol(d, &g->multi);
             if (multi == 1) {
                 g->last_time[g->last] += (uint64_t)(int64_t)laz_ic_decompress(&g->ic, d, g->last_diff[g->last], 1);
                 g->extreme_count[g->last] = 0;
-            } else if (multi < GPS10_UNCHANGED) {
-                g->last_time[g->last] += (uint64_t)(int64_t)laz_gps_decode_multi(g, d, (int32_t)multi);
-            } else if (multi == GPS10_CODE_FULL) {
+            } else if (multi < LAZ_GPS_MULTI - LAZ_GPS_MULTI_MINUS + 1) {
+                g->last_time[g->last] += (uint64_t)(int64_t)laz_gps_decode_multi(g, d, multi);
+            } else if (multi == codes->multi_unchanged) {
+            } else if (multi == codes->multi_full) {
                 laz_gps_decode_full(g, d);
-            } else if (multi > GPS10_CODE_FULL) {
-                g->last = (g->last + multi - GPS10_CODE_FULL) & 3;
+            } else {
+                g->last = (g->last + (uint32_t)(multi - codes->multi_full)) & 3;
                 continue;
             }
         }
-        break;
+        return;
     }
-    las_put_u64(out, g->last_time[g->last]);
 }
 
 static inline int fits32(int64_t v) { return v == (int64_t)(int32_t)v; }
@@ -522,33 +528,33 @@ uint32_t laz_gps_other_sequence(const laz_gps_state *g, uint64_t t)
     return 0;
 }
 
-static void encode_gps10(laz_gps_state *g, laz_encoder *e, uint64_t t)
+void laz_gps_encode(laz_gps_state *g, laz_encoder *e, uint64_t t, const laz_gps_codes *codes)
 {
     for (;;) {
         int64_t diff64 = (int64_t)(t - g->last_time[g->last]);
         if (g->last_diff[g->last] == 0) {
-            if (diff64 == 0) {
-                laz_enc_symbol(e, &g->zero_diff, 0);
+            if (diff64 == 0 && codes->zero_unchanged >= 0) {
+                laz_enc_symbol(e, &g->zero_diff, (uint32_t)codes->zero_unchanged);
                 return;
             }
             if (fits32(diff64)) {
-                laz_enc_symbol(e, &g->zero_diff, 1);
+                laz_enc_symbol(e, &g->zero_diff, (uint32_t)codes->zero_delta);
                 laz_ic_compress(&g->ic, e, 0, (int32_t)diff64, 0);
                 g->last_diff[g->last] = (int32_t)diff64;
                 g->extreme_count[g->last] = 0;
             } else {
                 uint32_t i = laz_gps_other_sequence(g, t);
                 if (i) {
-                    laz_enc_symbol(e, &g->zero_diff, i + 2);
+                    laz_enc_symbol(e, &g->zero_diff, (uint32_t)codes->zero_switch + i);
                     g->last = (g->last + i) & 3;
                     continue;
                 }
-                laz_enc_symbol(e, &g->zero_diff, 2);
+                laz_enc_symbol(e, &g->zero_diff, (uint32_t)codes->zero_full);
                 laz_gps_encode_full(g, e, t);
             }
         } else {
-            if (diff64 == 0) {
-                laz_enc_symbol(e, &g->multi, GPS10_UNCHANGED);
+            if (diff64 == 0 && codes->multi_unchanged >= 0) {
+                laz_enc_symbol(e, &g->multi, (uint32_t)codes->multi_unchanged);
                 return;
             }
             if (fits32(diff64)) {
@@ -556,11 +562,11 @@ static void encode_gps10(laz_gps_state *g, laz_encoder *e, uint64_t t)
             } else {
                 uint32_t i = laz_gps_other_sequence(g, t);
                 if (i) {
-                    laz_enc_symbol(e, &g->multi, GPS10_CODE_FULL + i);
+                    laz_enc_symbol(e, &g->multi, (uint32_t)codes->multi_full + i);
                     g->last = (g->last + i) & 3;
                     continue;
                 }
-                laz_enc_symbol(e, &g->multi, GPS10_CODE_FULL);
+                laz_enc_symbol(e, &g->multi, (uint32_t)codes->multi_full);
                 laz_gps_encode_full(g, e, t);
             }
         }
@@ -589,7 +595,10 @@ int laz_chunk10_decode(const laz_layout *L, const unsigned char *in, size_t len,
     for (uint32_t i = 1; i < n && !d.overrun; i++) {
         unsigned char *rec = out + i * rl;
         decode_point10(&s, &d, rec);
-        if (s.has_gps) decode_gps10(&s.gps, &d, rec + gps_at);
+        if (s.has_gps) {
+            laz_gps_decode(&s.gps, &d, &laz_gps_codes_v2);
+            las_put_u64(rec + gps_at, s.gps.last_time[s.gps.last]);
+        }
         if (s.has_rgb) {
             uint16_t rgb[3];
             laz_rgb_decode(&d, &s.rgb, s.last_rgb, rgb);
@@ -625,7 +634,7 @@ int laz_chunk10_encode(const laz_layout *L, const unsigned char *records, uint32
     for (uint32_t i = 1; i < n; i++) {
         const unsigned char *rec = records + i * rl;
         encode_point10(&s, &e, rec);
-        if (s.has_gps) encode_gps10(&s.gps, &e, las_u64(rec + gps_at));
+        if (s.has_gps) laz_gps_encode(&s.gps, &e, las_u64(rec + gps_at), &laz_gps_codes_v2);
         if (s.has_rgb) {
             uint16_t rgb[3];
             for (int k = 0; k < 3; k++) rgb[k] = las_u16(rec + rgb_at + 2 * k);

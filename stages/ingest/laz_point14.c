@@ -288,81 +288,9 @@ static laz_model *lazy(state14 *s, laz_model **slot, uint32_t symbols)
     return laz_lazy_model(slot, symbols, s->decoding, &s->failed, &s->fallback);
 }
 
-/* POINT14's GPS time: v3 codes "unchanged" in the point's change bits, so
- * the zero-difference model has five symbols and the full-value code 511. */
-static void decode_gps14(laz_gps_state *g, laz_decoder *d)
-{
-    for (int hops = 0; hops < 8; hops++) {
-        if (g->last_diff[g->last] == 0) {
-            uint32_t multi = laz_dec_symbol(d, &g->zero_diff);
-            if (multi == 0) {
-                g->last_diff[g->last] = laz_ic_decompress(&g->ic, d, 0, 0);
-                g->last_time[g->last] += (uint64_t)(int64_t)g->last_diff[g->last];
-                g->extreme_count[g->last] = 0;
-            } else if (multi == 1) {
-                laz_gps_decode_full(g, d);
-            } else {
-                g->last = (g->last + multi - 1) & 3;
-                continue;
-            }
-        } else {
-            uint32_t multi = laz_dec_symbol(d, &g->multi);
-            if (multi == 1) {
-                g->last_time[g->last] += (uint64_t)(int64_t)laz_ic_decompress(&g->ic, d, g->last_diff[g->last], 1);
-                g->extreme_count[g->last] = 0;
-            } else if (multi < GPS14_CODE_FULL) {
-                g->last_time[g->last] += (uint64_t)(int64_t)laz_gps_decode_multi(g, d, (int32_t)multi);
-            } else if (multi == GPS14_CODE_FULL) {
-                laz_gps_decode_full(g, d);
-            } else {
-                g->last = (g->last + multi - GPS14_CODE_FULL) & 3;
-                continue;
-            }
-        }
-        return;
-    }
-}
-
-static inline int fits32(int64_t v) { return v == (int64_t)(int32_t)v; }
-
-static void encode_gps14(laz_gps_state *g, laz_encoder *e, uint64_t t)
-{
-    for (;;) {
-        int64_t diff64 = (int64_t)(t - g->last_time[g->last]);
-        if (g->last_diff[g->last] == 0) {
-            if (fits32(diff64)) {
-                laz_enc_symbol(e, &g->zero_diff, 0);
-                laz_ic_compress(&g->ic, e, 0, (int32_t)diff64, 0);
-                g->last_diff[g->last] = (int32_t)diff64;
-                g->extreme_count[g->last] = 0;
-            } else {
-                uint32_t i = laz_gps_other_sequence(g, t);
-                if (i) {
-                    laz_enc_symbol(e, &g->zero_diff, i + 1);
-                    g->last = (g->last + i) & 3;
-                    continue;
-                }
-                laz_enc_symbol(e, &g->zero_diff, 1);
-                laz_gps_encode_full(g, e, t);
-            }
-        } else {
-            if (fits32(diff64)) {
-                laz_gps_encode_diff(g, e, &g->multi, (int32_t)diff64);
-            } else {
-                uint32_t i = laz_gps_other_sequence(g, t);
-                if (i) {
-                    laz_enc_symbol(e, &g->multi, GPS14_CODE_FULL + i);
-                    g->last = (g->last + i) & 3;
-                    continue;
-                }
-                laz_enc_symbol(e, &g->multi, GPS14_CODE_FULL);
-                laz_gps_encode_full(g, e, t);
-            }
-        }
-        g->last_time[g->last] = t;
-        return;
-    }
-}
+/* POINT14's GPS time: "unchanged" lives in the point's change bits, so the
+ * zero-difference model has five symbols and the full-value code is 511. */
+static const laz_gps_codes gps_codes_v3 = {-1, 0, 1, 1, -1, GPS14_CODE_FULL};
 
 static inline uint32_t even(uint32_t k) { return k & ~1u; }
 
@@ -441,7 +369,7 @@ static void decode_point14(state14 *s, layers *ly, unsigned char *out)
         p->point_source =
             (uint16_t)laz_ic_decompress(&c->ic_point_source, &ly->point[L_POINT_SOURCE], p->point_source, 0);
     if (ly->present[L_GPS] && gps_change) {
-        decode_gps14(&c->gps, &ly->point[L_GPS]);
+        laz_gps_decode(&c->gps, &ly->point[L_GPS], &gps_codes_v3);
         p->gps = c->gps.last_time[c->gps.last];
     }
     pack14(p, out);
@@ -643,7 +571,7 @@ static void encode_point14(state14 *s, out_layers *o, const p14 *item)
     }
     if (gps_change) {
         o->changed[L_GPS] = 1;
-        encode_gps14(&c->gps, &o->point[L_GPS], item->gps);
+        laz_gps_encode(&c->gps, &o->point[L_GPS], item->gps, &gps_codes_v3);
     }
     c->last = *item;
     c->last.gps_change = gps_change;
