@@ -64,6 +64,8 @@ static void step_line(void *ctx, const char *step, double seconds, const char *d
 int cmd_run(int argc, char **argv, sy_cli *cli)
 {
     run_args a = {NULL, NULL, sy_run_tree_options_default(), sy_glb_args_default()};
+    sy_photo_cli photo;
+    memset(&photo, 0, sizeof photo);
     const sy_opt opts[] = {
         {"-o", OPT_STRING, &a.out_path, "OUT.glb", "output glTF binary"},
         {"--sylva", OPT_STRING, &a.sylva_path, "OUT.sylva", "also write the compact .sylva file of the reconstruction"},
@@ -77,17 +79,19 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
         {"--spread-around", OPT_FLAG, &a.run.spread_around, NULL,
          "judge a level set's spread from the skeleton around its node, not its edge (leaf-off scans)"},
         SY_GLB_OPTIONS(a.glb),
+        SY_PHOTO_OPTIONS(photo),
         {NULL, 0, NULL, NULL, NULL},
     };
     const sy_cmd_spec spec = {
-        "run", "SCAN -o OUT.glb [--sylva OUT.sylva]",
+        "run", "SCAN|PHOTOS/ -o OUT.glb [--sylva OUT.sylva]",
         "Reconstruct one scanned tree and write it as glTF: branch meshes plus cluster hulls.",
     "Steps: ingest, preprocess (up axis, statistical outliers, ground classified and removed;\n"
     "the defaults of `sylva preprocess`), skeleton and alpha-shape clusters (docs/skeleton.md),\n"
     "mesh (LOD chain, impostor), export. The hulls become one semi-transparent mesh with the\n"
     "material \"foliage_proxy\" in every level. The glb is centred at the tree's base, its world\n"
     "position in asset.extras.origin (as `sylva mesh` does). SCAN must hold one tree. The .sylva species id\n"
-    "is the species' index in the library plus one (0: unknown).",
+    "is the species' index in the library plus one (0: unknown). A folder of photos is turned into\n"
+    "points first, as `sylva photogrammetry` does (give --scale-ref or --camera-spacing for metres).",
         opts, 1, 1};
     const char *in[1];
     int n;
@@ -109,7 +113,18 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
     sy_error err = {0};
     if (sy_run_tree_options_check(&a.run, &err)) return sy_cli_report(&err);
     sy_run_tree_result res;
-    if (sy_run_tree(in[0], &a.run, &res, &err) || sy_run_tree_write(&res, a.out_path, a.sylva_path, &err)) {
+    if (sy_is_directory(in[0]) && sy_photogrammetry_count_images(in[0]) >= 3) {
+        /* photos, not a scan: COLMAP first, then the tree from its points */
+        sy_photogrammetry_result pr;
+        if (sy_photos_to_cloud(in[0], a.out_path, &photo, cli, &pr, &err)) return sy_cli_report(&err);
+        sy_cloud cloud = pr.cloud;
+        memset(&pr.cloud, 0, sizeof pr.cloud);
+        sy_photogrammetry_result_free(&pr);
+        rc = sy_run_tree_cloud(&cloud, in[0], &a.run, &res, &err);
+    } else {
+        rc = sy_run_tree(in[0], &a.run, &res, &err);
+    }
+    if (rc || sy_run_tree_write(&res, a.out_path, a.sylva_path, &err)) {
         sy_run_tree_result_free(&res);
         return sy_cli_report(&err);
     }

@@ -23,8 +23,9 @@ declare -A allowed=(
   [export]="core gltf"
   [scan]="core grow species"
   [eval]="core encode qsm gltf"
+  [photogrammetry]="core ingest"
 )
-main_path="core species ingest preprocess clusters skeleton encode grow mesh gltf export"
+main_path="core species ingest preprocess clusters skeleton encode grow mesh gltf export photogrammetry"
 reconstruction="skeleton clusters encode"
 
 folder_of() { case $1 in species) echo "$root/species" ;; *) echo "$root/stages/$1" ;; esac; }
