@@ -24,7 +24,7 @@ sy_view_options sy_view_options_default(void)
     o.wind = 1, o.wind_strength = 1.0, o.wind_dir_deg = 0, o.wind_stop = -1;
     o.translucency = 1, o.lod_override = -1;
     o.ground = 1, o.shadows = 1, o.stats = 1;
-    o.sun_az = 200, o.sun_el = 40, o.turbidity = 3, o.ambient = 1, o.exposure = 1.6;
+    o.sun_az = 80, o.sun_el = 45, o.turbidity = 3, o.ambient = 1, o.exposure = 1.0;
     o.copies = 1;
     o.show_points = 1;
     o.seed = 1;
@@ -130,7 +130,7 @@ static int expand(char **args, int n, char ***out, int *n_out)
 }
 
 /* The scan in the first asset's glTF frame: world (Z up) minus asset.extras.origin, then
- * (x, y, z) -> (x, z, -y). Without an origin the scan's base centre goes to the asset's. */
+ * (x, y, z) -> (x, z, -y). */
 static int load_points(const char *path, const sy_gltf_scene *s, sy_view_points *out)
 {
     sy_cloud c;
@@ -152,18 +152,9 @@ static int load_points(const char *path, const sy_gltf_scene *s, sy_view_points 
         sy_cloud_free(&c);
         return 3;
     }
-    double shift[3] = {0, 0, 0};
-    if (s->has_origin) {
-        for (int k = 0; k < 3; k++) shift[k] = c.origin[k] - s->origin[k];
-    } else {
-        double lo[3], hi[3];
-        sy_cloud_bounds(&c, lo, hi);
-        const sy_gltf_object *o = &s->objects[0];
-        /* Z-up cloud vs Y-up asset: centre x and horizontal y, align the lowest points. */
-        shift[0] = 0.5 * (o->bounds_min[0] + o->bounds_max[0]) - 0.5 * (lo[0] + hi[0]);
-        shift[1] = -0.5 * (o->bounds_min[2] + o->bounds_max[2]) - 0.5 * (lo[1] + hi[1]);
-        shift[2] = o->bounds_min[1] - lo[2];
-    }
+    /* Without asset.extras.origin the asset's origin is the world's (grown trees stand there). */
+    double shift[3];
+    for (int k = 0; k < 3; k++) shift[k] = c.origin[k] - (s->has_origin ? s->origin[k] : 0.0);
     double zmin = HUGE_VAL, zmax = -HUGE_VAL;
     for (size_t i = 0; i < c.n; i += step) zmin = fmin(zmin, c.xyz[3 * i + 2]), zmax = fmax(zmax, c.xyz[3 * i + 2]);
     size_t k = 0;

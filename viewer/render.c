@@ -317,17 +317,28 @@ static int upload_scene(renderer *r, gscene *g)
     if (!g->prims || !g->textures || !g->inst_buf || !g->inst_tex) return -1;
     GLint max_tex = 0;
     glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_tex);
+    /* Colour textures are sRGB-encoded (glTF 2.0 §3.9.2); data textures (normals, roughness,
+     * HL2 coefficients, transmission factors) are linear. */
+    char *srgb = calloc(s->n_textures + 1, 1);
+    if (!srgb) return -1;
+    for (size_t i = 0; i < s->n_materials; i++) {
+        const sy_gltf_material *m = &s->materials[i];
+        if (m->base_color_texture >= 0) srgb[m->base_color_texture] = 1;
+        if (m->diffuse_transmission_color_texture >= 0) srgb[m->diffuse_transmission_color_texture] = 1;
+        if (m->hl2_translucency_texture >= 0) srgb[m->hl2_translucency_texture] = 1;
+    }
     for (size_t i = 0; i < s->n_textures; i++) {
         const sy_gltf_texture *t = &s->textures[i];
         const sy_gltf_image *im = &s->images[t->image];
         if (im->width > max_tex || im->height > max_tex) {
             snprintf(r->msg, sizeof r->msg, "image %d is %dx%d, larger than this GL's %d", t->image, im->width, im->height, max_tex);
+            free(srgb);
             return -2;
         }
         glGenTextures(1, &g->textures[i]);
         glBindTexture(GL_TEXTURE_2D, g->textures[i]);
         glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-        glTexImage2D(GL_TEXTURE_2D, 0, im->bits == 16 ? GL_RGBA16 : GL_RGBA8, im->width, im->height, 0, GL_RGBA,
+        glTexImage2D(GL_TEXTURE_2D, 0, srgb[i] ? GL_SRGB8_ALPHA8 : im->bits == 16 ? GL_RGBA16 : GL_RGBA8, im->width, im->height, 0, GL_RGBA,
                      im->bits == 16 ? GL_UNSIGNED_SHORT : GL_UNSIGNED_BYTE, im->pixels);
         glGenerateMipmap(GL_TEXTURE_2D);
         glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, t->wrap_s);
@@ -335,6 +346,7 @@ static int upload_scene(renderer *r, gscene *g)
         glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, t->min_filter > 0 ? t->min_filter : GL_LINEAR_MIPMAP_LINEAR);
         glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, t->mag_filter > 0 ? t->mag_filter : GL_LINEAR);
     }
+    free(srgb);
     for (size_t i = 0; i < s->n_primitives; i++) {
         const sy_gltf_primitive *p = &s->primitives[i];
         gprim *q = &g->prims[i];
@@ -599,7 +611,7 @@ static void setup_ground(renderer *r)
 {
     double cx = 0.5 * (r->scene_min[0] + r->scene_max[0]), cz = 0.5 * (r->scene_min[2] + r->scene_max[2]);
     double ext = fmax(r->scene_max[0] - r->scene_min[0], r->scene_max[2] - r->scene_min[2]);
-    double h = fmax(ext * 3.0, 20.0);
+    double h = fmax(ext * 40.0, 400.0);
     float q[12] = {(float)(cx - h), (float)(cz - h), (float)(cx + h), (float)(cz - h), (float)(cx + h), (float)(cz + h),
                    (float)(cx - h), (float)(cz - h), (float)(cx + h), (float)(cz + h), (float)(cx - h), (float)(cz + h)};
     /* Counter-clockwise seen from above. */
@@ -1144,6 +1156,7 @@ static int dump_wind(renderer *r, const char *path, double time)
     glUniform1i(U(p, "u_tree_base"), 0);
     glUniform1i(U(p, "u_instanced"), 0);
     glUniform1i(U(p, "u_per_tree"), 1);
+    glBindFramebuffer(GL_FRAMEBUFFER, r->fbo); /* surfaceless EGL has no default framebuffer */
     glEnable(GL_RASTERIZER_DISCARD);
     for (size_t di = 0; di < s->n_draws; di++) {
         const sy_gltf_draw *d = &s->draws[di];
@@ -1172,6 +1185,7 @@ static int dump_wind(renderer *r, const char *path, double time)
                 glDrawArrays(GL_POINTS, 0, (GLsizei)n);
                 glEndTransformFeedback();
                 glGetBufferSubData(GL_TRANSFORM_FEEDBACK_BUFFER, 0, (GLsizeiptr)(n * 3 * sizeof(float)), out[pass]);
+
             }
             glDeleteBuffers(1, &tf);
             for (size_t v = 0; v < n && out[0] && out[1]; v++) {
@@ -1197,6 +1211,8 @@ static void print_json(renderer *r, const camera *c, double frame_ms, double cpu
     printf("{\"width\": %d, \"height\": %d, \"fovy_deg\": %.1f, \"eye\": [%.6f, %.6f, %.6f], \"target\": [%.6f, %.6f, %.6f],\n",
            r->width, r->height, FOVY_DEG, c->eye[0], c->eye[1], c->eye[2], c->target[0], c->target[1], c->target[2]);
     printf(" \"camera\": [%.4f, %.4f, %.6f], \"near\": %.6f,\n", c->az, c->el, c->dist, fmax(0.01, c->dist * 0.01));
+    printf(" \"sun_dir\": [%.6f, %.6f, %.6f], \"sun_color\": [%.6f, %.6f, %.6f], \"exposure\": %.6f,\n", r->sky.sun_dir[0],
+           r->sky.sun_dir[1], r->sky.sun_dir[2], r->sky.sun_color[0], r->sky.sun_color[1], r->sky.sun_color[2], r->opt.exposure);
     printf(" \"triangles\": %zu, \"draw_calls\": %zu, \"frames\": %d, \"frame_ms\": %.3f, \"cpu_ms_per_frame\": %.3f,\n",
            r->stats.triangles, r->stats.draw_calls, frames, frame_ms, cpu_ms);
     size_t lod0 = 0;

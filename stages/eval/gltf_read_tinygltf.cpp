@@ -331,7 +331,7 @@ extern "C" int sy_gltf_read_triangles(const char *path, double **tri, size_t *n_
         for (int n : roots) r.node(n, identity(), 0);
         // `sylva mesh` centres the tree at its base and keeps the world position
         // of that point in asset.extras.origin (Z up): put the tree back there.
-        const tinygltf::Value &origin = model.asset.extras.Get("origin");
+        const tinygltf::Value &origin = model.asset.extras.IsObject() ? model.asset.extras.Get("origin") : model.asset.extras;
         if (origin.IsArray() && origin.ArrayLen() == 3 && origin.Get(0).IsNumber() && origin.Get(1).IsNumber() &&
             origin.Get(2).IsNumber())
             for (size_t i = 0; i < r.out.size(); i++) r.out[i] += origin.Get(int(i % 3)).GetNumberAsDouble();
@@ -406,8 +406,20 @@ struct SceneBuilder {
     std::vector<sy_gltf_mesh> meshes;
     std::vector<sy_gltf_draw> draws;
     std::vector<sy_gltf_object> objects;
-    std::vector<std::vector<sy_gltf_wind_branch>> winds;
     size_t visits = 0;
+
+    // What was not handed to the scene yet (a failure part way) is freed here.
+    ~SceneBuilder()
+    {
+        for (sy_gltf_primitive &p : prims) {
+            for (float *f : {p.position, p.normal, p.tangent, p.uv, p.color, p.wind_w, p.wind_branch, p.wind_anchor, p.wind_level_stiffness})
+                std::free(f);
+            std::free(p.indices);
+        }
+        for (sy_gltf_draw &d : draws)
+            for (float *f : {d.instance_matrix, d.inst_wind_w, d.inst_wind_branch, d.inst_wind_anchor, d.inst_wind_level_stiffness}) std::free(f);
+        for (sy_gltf_object &o : objects) std::free(o.wind);
+    }
 
     int texture_ref(int index, const char *what)
     {
@@ -819,9 +831,6 @@ extern "C" void sy_gltf_scene_free(sy_gltf_scene *s)
 extern "C" int sy_gltf_read_scene(const char *path, sy_gltf_scene *out, char *msg, size_t msg_size)
 {
     std::memset(out, 0, sizeof *out);
-    std::vector<sy_gltf_primitive> *prims_owner = nullptr;
-    std::vector<sy_gltf_draw> *draws_owner = nullptr;
-    std::vector<sy_gltf_object> *objects_owner = nullptr;
     try {
         tinygltf::TinyGLTF loader;
         tinygltf::Model model;
@@ -840,10 +849,7 @@ extern "C" int sy_gltf_read_scene(const char *path, sy_gltf_scene *out, char *ms
             set_msg(msg, msg_size, path, err.empty() ? "not a readable glTF file" : "invalid glTF: " + err);
             return 2;
         }
-        SceneBuilder b{model, *out, {}, {}, {}, {}, {}};
-        prims_owner = &b.prims;
-        draws_owner = &b.draws;
-        objects_owner = &b.objects;
+        SceneBuilder b{model, *out, {}, {}, {}, {}};
         b.build_images();
         b.build_textures();
         b.build_materials();
@@ -902,53 +908,28 @@ extern "C" int sy_gltf_read_scene(const char *path, sy_gltf_scene *out, char *ms
         out->n_objects = b.objects.size();
         out->objects = c_copy(b.objects);
         b.objects.clear();
-        prims_owner = nullptr, draws_owner = nullptr, objects_owner = nullptr;
         if (out->n_objects == 0) {
             free_scene(out);
             set_msg(msg, msg_size, path, "no triangle mesh in the scene");
             return 2;
         }
-        const tinygltf::Value &origin = model.asset.extras.Get("origin");
+        const tinygltf::Value &origin = model.asset.extras.IsObject() ? model.asset.extras.Get("origin") : model.asset.extras;
         if (origin.IsArray() && origin.ArrayLen() == 3 && origin.Get(0).IsNumber() && origin.Get(1).IsNumber() && origin.Get(2).IsNumber()) {
             out->has_origin = 1;
             for (int c = 0; c < 3; c++) out->origin[c] = origin.Get(c).GetNumberAsDouble();
         }
         return 0;
-    } catch (...) {
-        // Hand whatever the builder already owns to the scene so one routine frees it.
-        auto adopt = [&]() {
-            if (prims_owner && !prims_owner->empty()) {
-                out->primitives = static_cast<sy_gltf_primitive *>(std::malloc(prims_owner->size() * sizeof(sy_gltf_primitive)));
-                if (out->primitives) {
-                    std::memcpy(out->primitives, prims_owner->data(), prims_owner->size() * sizeof(sy_gltf_primitive));
-                    out->n_primitives = prims_owner->size();
-                } else
-                    for (auto &p : *prims_owner) {
-                        for (float *f : {p.position, p.normal, p.tangent, p.uv, p.color, p.wind_w, p.wind_branch, p.wind_anchor, p.wind_level_stiffness}) std::free(f);
-                        std::free(p.indices);
-                    }
-            }
-            if (draws_owner)
-                for (auto &d : *draws_owner)
-                    for (float *f : {d.instance_matrix, d.inst_wind_w, d.inst_wind_branch, d.inst_wind_anchor, d.inst_wind_level_stiffness}) std::free(f);
-            if (objects_owner)
-                for (auto &o : *objects_owner) std::free(o.wind);
-            free_scene(out);
-        };
-        try {
-            throw;
-        } catch (const Failure &f) {
-            adopt();
-            set_msg(msg, msg_size, path, f.what);
-            return f.code;
-        } catch (const std::bad_alloc &) {
-            adopt();
-            set_msg(msg, msg_size, path, "out of memory");
-            return 3;
-        } catch (const std::exception &e) {
-            adopt();
-            set_msg(msg, msg_size, path, std::string("invalid glTF: ") + e.what());
-            return 2;
-        }
+    } catch (const Failure &f) {
+        free_scene(out);
+        set_msg(msg, msg_size, path, f.what);
+        return f.code;
+    } catch (const std::bad_alloc &) {
+        free_scene(out);
+        set_msg(msg, msg_size, path, "out of memory");
+        return 3;
+    } catch (const std::exception &e) {
+        free_scene(out);
+        set_msg(msg, msg_size, path, std::string("invalid glTF: ") + e.what());
+        return 2;
     }
 }

@@ -116,14 +116,15 @@ void main()
         tn.xy *= u_normal_scale;
         n = normalize(mat3(t, b, ng) * tn);
     }
+    vec3 l = normalize(u_sun_dir);
     float rough = u_roughness, metallic = u_metallic;
     if (u_has_mr_tex != 0) {
         vec4 mr = texture(u_mr_tex, v_uv);
         rough *= mr.g;
         metallic *= mr.b;
     }
-    vec3 l = normalize(u_sun_dir);
-    float sh = shadow_at(v_world, ng);
+    // Offset the lookup towards the light: a back-lit leaf must not shadow itself.
+    float sh = shadow_at(v_world, dot(ng, l) >= 0.0 ? ng : -ng);
     vec3 albedo = base.rgb;
     vec3 color = vec3(0.0);
     float nl = dot(ng, l);
