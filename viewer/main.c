@@ -39,6 +39,7 @@ static const char *kUsage =
     "  --screenshot OUT.png    render one frame headless and exit\n"
     "  --size WxH              image size (default 1280x720)\n"
     "  --camera AZ,EL[,DIST]   orbit angles in degrees, distance in metres (default: framed)\n"
+    "  --target X,Y,Z          orbit centre in metres, glTF frame (default: the scene's centre)\n"
     "  --time T                wind time in seconds (default 0)\n"
     "  --frames N --fps F -o DIR   headless wind animation DIR/frame_NNNN.png\n"
     "  --no-wind  --wind-strength S  --wind-dir DEG  --wind-stop T\n"
@@ -200,6 +201,10 @@ int main(int argc, char **argv)
             int n = parse_list(s, v, 2, 3);
             if (n < 0 || fabs(v[1]) > 90 || (n == 3 && !(v[2] > 0 && v[2] < 1e6))) return bad("--camera must be AZ,EL[,DIST] (|EL| <= 90, DIST > 0), not", s);
             o.camera_set = 1, o.cam_az = v[0], o.cam_el = v[1], o.cam_dist = n == 3 ? v[2] : 0;
+        } else if (!strcmp(a, "--target")) {
+            const char *s = NEXT();
+            if (parse_list(s, v, 3, 3) < 0) return bad("--target must be X,Y,Z (metres, glTF frame), not", s);
+            o.target_set = 1, o.target[0] = v[0], o.target[1] = v[1], o.target[2] = v[2];
         } else if (!strcmp(a, "--time")) {
             const char *s = NEXT();
             if (parse_list(s, v, 1, 1) < 0 || fabs(v[0]) > 1e6) return bad("--time must be seconds, not", s);

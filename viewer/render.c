@@ -1454,6 +1454,7 @@ int sy_view_run(const sy_view_input *in, const sy_view_options *opt)
         cam.az = opt->cam_az, cam.el = opt->cam_el;
         if (opt->cam_dist > 0) cam.dist = opt->cam_dist;
     }
+    if (opt->target_set) memcpy(cam.target, opt->target, sizeof cam.target);
     if (opt->dump_wind) {
         rc = dump_wind(r, opt->dump_wind, opt->time);
         if (rc) goto fail;

@@ -13,6 +13,8 @@ typedef struct {
     int width, height;
     int camera_set;                 /* --camera given */
     double cam_az, cam_el, cam_dist; /* degrees, degrees, metres (dist <= 0: frame the scene) */
+    int target_set;                 /* --target given */
+    double target[3];               /* orbit centre, world (glTF frame) */
     double time;                    /* seconds of wind */
     const char *screenshot;         /* PNG path, headless */
     int frames;                     /* > 0: headless animation */

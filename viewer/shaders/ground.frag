@@ -44,7 +44,9 @@ float shadow_at(vec3 p)
 
 vec3 soil(vec3 p)
 {
-    float k = 0.5 + 0.5 * sin(p.x * 1.3) * sin(p.z * 1.7);
+    // Soil and sparse cover: incommensurate ripples, no visible period.
+    float k = 0.5 + 0.18 * sin(p.x * 0.71 + sin(p.z * 0.37) * 2.0) + 0.14 * sin(p.z * 1.13 + sin(p.x * 0.53) * 1.7) +
+              0.08 * sin((p.x + p.z) * 2.9);
     vec3 albedo = mix(vec3(0.20, 0.17, 0.11), vec3(0.25, 0.27, 0.13), k);
     vec3 up = vec3(0.0, 1.0, 0.0);
     return albedo * (u_sun_color * shadow_at(p) * max(dot(up, u_sun_dir), 0.0) / 3.14159265 + sh_irradiance(up));
