@@ -40,6 +40,9 @@ V "$tmp/beam.glb" --dump-wind "$tmp/b2.csv" --static-load --wind-strength 0.4
 check "beam deflection matches the analytic cantilever within 1 %" "node '$here/check.mjs' beam '$tmp/b1.csv' '$tmp/beam.json'"
 check "deflection is linear in the load" "node '$here/check.mjs' linear '$tmp/b1.csv' '$tmp/b2.csv' 2"
 
+V "$tmp/fork.glb" --dump-wind "$tmp/fork.csv" --time 1.3 --wind-strength 2
+check "children follow their parents: no crack at the fork" "node '$here/check.mjs' fork '$tmp/fork.csv'"
+
 # --- wind on a grown tree: bounded, continuous, back to rest when it stops ---
 "$SYLVA" grow --species palm --seed 4 --lods 2 -o "$tmp/palm.glb" --quiet
 H=$(V "$tmp/palm.glb" --json --size 64x64 --no-shadows --no-ground | node -e 'const v=JSON.parse(require("fs").readFileSync(0));const t=v.trees[0];console.log(t.bounds_max[1]-t.bounds_min[1])')
@@ -100,6 +103,11 @@ V "$tmp/palm.glb" "${ov[@]}" --mask --screenshot "$tmp/ov_mask.png"
 V "$tmp/palm.glb" "${ov[@]}" --screenshot "$tmp/ov_off.png"
 V "$tmp/palm.glb" "${ov[@]}" --points "$scan" --screenshot "$tmp/ov_on.png"
 check "the scan overlay draws points" "[[ -f '$tmp/ov_on.png' && -f '$tmp/ov_off.png' ]] && ! cmp -s '$tmp/ov_on.png' '$tmp/ov_off.png'"
+
+# --- a folder of glbs: every tree, laid out on the ground ---
+mkdir -p "$tmp/trees" && cp "$tmp/palm.glb" "$tmp/trees/a.glb" && cp "$tmp/lod.glb" "$tmp/trees/b.glb" && touch "$tmp/trees/notes.txt"
+V "$tmp/trees" --json --size 64x64 --no-shadows >"$tmp/folder.json"
+check "a folder shows each of its glbs, side by side" "node -e 'const v=JSON.parse(require(\"fs\").readFileSync(\"$tmp/folder.json\"));const t=v.trees;process.exit(t.length==2&&(t[0].bounds_max[0]<=t[1].bounds_min[0]||t[1].bounds_max[0]<=t[0].bounds_min[0])?0:1)'"
 
 # --- animation ---
 V "$tmp/palm.glb" --size 64x64 --frames 3 --fps 10 -o "$tmp/anim" --no-shadows

@@ -1367,7 +1367,7 @@ static int interactive(renderer *r, camera *c, void *window)
         }
         glfwPollEvents();
         acc += now_s() - t0;
-        if (++count == 20) {
+        if (++count == 20 || acc > 0.5) { /* 20 frames or half a second, whichever comes first */
             r->stats.frame_ms = acc / count * 1000;
             r->stats.fps = 1000 / r->stats.frame_ms;
             acc = 0, count = 0;

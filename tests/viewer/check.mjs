@@ -3,6 +3,7 @@
 //   node check.mjs linear DUMP_A.csv DUMP_B.csv K    B's deflection = K x A's, within 1 %
 //   node check.mjs wind REST_OR_T0.csv T1.csv HEIGHT MAXFRAC   max displacement between two dumps <= MAXFRAC x HEIGHT
 //   node check.mjs moves DUMP.csv HEIGHT MINFRAC    some vertex moved >= MINFRAC x HEIGHT
+//   node check.mjs fork DUMP.csv                    the child's base ring moves with the trunk's ring at the attachment
 //   node check.mjs bbox MASK.png VIEW.json TOL MINW MINH   silhouette inside the projected bounding box, spanning it
 //   node check.mjs iou A.png B.png MIN              mask IoU
 //   node check.mjs brighter ON.png OFF.png          centre pixel of ON brighter than OFF
@@ -33,6 +34,18 @@ if (what === 'beam') {
   if (!(tip > 0)) fail('the beam did not bend');
   if (worst > 0.01) fail(`beam profile differs from the analytic cantilever by ${(worst * 100).toFixed(2)} % of the tip deflection`);
   ok(`beam profile within ${(worst * 100).toFixed(3)} % of the analytic cantilever (tip ${tip.toExponential(3)} m)`);
+} else if (what === 'fork') {
+  // Mean displacement of the trunk's ring at x = 0.5 and of the child's base ring (x = 0).
+  const rows = csv(a[0]);
+  const mean = (sel) => { const m = [0, 0, 0]; let n = 0; for (const r of rows) if (sel(r)) { for (let k = 0; k < 3; k++) m[k] += r[10 + k] - r[7 + k]; n++; } return [m.map((v) => v / n), n]; };
+  const [trunk, nt] = mean((r) => r[2] === 0 && Math.abs(r[3] - 0.5) < 1e-6), [child, nc] = mean((r) => r[2] === 1 && Math.abs(r[4]) < 1e-6);
+  const tipRows = rows.filter((r) => r[2] === 1 && Math.abs(r[4] - 1) < 1e-6);
+  const gap = Math.hypot(trunk[0] - child[0], trunk[1] - child[1], trunk[2] - child[2]), move = Math.hypot(...trunk);
+  const tip = Math.max(...tipRows.map(disp));
+  if (!nt || !nc || !(move > 1e-4)) fail(`fork did not sway (trunk ring ${nt}, child ring ${nc}, move ${move})`);
+  if (gap > 1e-3 * move + 1e-6) fail(`child's base ring moved ${gap.toExponential(2)} m apart from the trunk at the attachment (trunk moved ${move.toExponential(2)} m)`);
+  if (!(tip > move)) fail(`the child's tip (${tip}) moves no more than its base (${move})`);
+  ok(`child's base follows the trunk at the attachment to ${gap.toExponential(2)} m (trunk moved ${move.toExponential(2)} m, child tip ${tip.toExponential(2)} m)`);
 } else if (what === 'linear') {
   const A = csv(a[0]), B = csv(a[1]), k = Number(a[2]);
   const ta = Math.max(...A.map(disp)), tb = Math.max(...B.map(disp));

@@ -1,5 +1,6 @@
 // Writes the small glTF inputs the viewer tests need into a folder (argv[2]):
 //   beam.glb       one tapered cantilever (taper 0.1) with Sylva's wind attributes and table
+//   fork.glb       a trunk and one horizontal child at half its height (children follow parents)
 //   leaf_hl2.glb   a double-sided leaf quad with HL2 translucency maps (extras.sylva_hl2)
 //   leaf_dt.glb    the same quad with KHR_materials_diffuse_transmission only
 //   lod.glb        three boxes as MSFT_lod levels with MSFT_screencoverage [0.5, 0.2, 0.05]
@@ -109,6 +110,37 @@ function fit(a) {
   writeFileSync(`${dir}/corrupt.glb`, file.subarray(0, Math.floor(file.length * 0.6)));
   const u = []; for (let i = 0; i <= 20; i++) u.push(beamU(i / 20, alpha));
   writeFileSync(`${dir}/beam.json`, JSON.stringify({ length: L, alpha, c2, c4, x: u.map((_, i) => i / 20), u }));
+}
+
+// --- fork.glb: trunk (branch 0, 2 m up +Y) and a child (branch 1, 1 m along +Z from y = 1). ---
+{
+  const L = [2, 1], sides = 8, rings = 11;
+  const pos = [], ww = [], wb = [], idx = [];
+  const tube = (branch, base, axis, ux, vx, len, r1, r2, w) => {
+    const first = pos.length / 3;
+    for (let i = 0; i < rings; i++) {
+      const x = i / (rings - 1), r = r1 + (r2 - r1) * x;
+      for (let k = 0; k < sides; k++) {
+        const th = (2 * Math.PI * k) / sides, c = Math.cos(th) * r, s = Math.sin(th) * r;
+        pos.push(base[0] + axis[0] * len * x + ux[0] * c + vx[0] * s, base[1] + axis[1] * len * x + ux[1] * c + vx[1] * s, base[2] + axis[2] * len * x + ux[2] * c + vx[2] * s);
+        ww.push(...w(x)); wb.push(branch);
+      }
+    }
+    for (let i = 0; i + 1 < rings; i++) for (let k = 0; k < sides; k++) {
+      const a = first + i * sides + k, b = first + i * sides + ((k + 1) % sides);
+      idx.push(a, a + sides, b, b, a + sides, b + sides);
+    }
+  };
+  tube(0, [0, 0, 0], [0, 1, 0], [1, 0, 0], [0, 0, 1], L[0], 0.06, 0.02, (x) => [x, 0, 0, 0]);
+  tube(1, [0, 1, 0], [0, 0, 1], [1, 0, 0], [0, 1, 0], L[1], 0.02, 0.005, (x) => [0.5, x, 0, 0]);
+  const B = new Builder();
+  const attrs = { POSITION: B.add(new Float32Array(pos), 'VEC3', 5126, 34962, true), _WIND_W: B.add(new Float32Array(ww), 'VEC4', 5126, 34962), _WIND_BRANCH: B.add(new Float32Array(wb), 'SCALAR', 5126, 34962) };
+  const ind = B.add(new Uint16Array(idx), 'SCALAR', 5123, 34963);
+  const [c2a, c4a] = fit(1 / 3), [c2b, c4b] = fit(0.25);
+  B.json.meshes = [{ name: 'fork', primitives: [{ attributes: attrs, indices: ind }] }];
+  B.json.nodes = [{ name: 'fork', mesh: 0, extras: { sylva_wind: { version: 1, count: 2, parent: [-1, 0], level: [0, 1], anchor: [0, 0, 0, 0, 1, 0], axis: [0, 1, 0, 0, 0, 1], length: L, c2: [c2a, c2b], c4: [c4a, c4b], frequency: L.map((l) => 2.55 * l ** -0.59), stiffness: [1, 0] } } }];
+  B.json.scenes = [{ nodes: [0] }]; B.json.scene = 0;
+  writeFileSync(`${dir}/fork.glb`, B.finish());
 }
 
 // --- leaves: a 1 m quad facing +Z, double sided, lit from behind in the tests. ---
