@@ -6,10 +6,7 @@
 # under 100 x LOD0 triangles, the silhouette against the projected bounding box, the scan
 # overlay in the asset's frame and an animation. Small images: llvmpipe is slow.
 set -u
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail=0
-check() { if ! eval "$2"; then echo "FAIL: $1"; fail=1; else echo "ok: $1"; fi; }
+source "$SYLVA_SOURCE_DIR/tests/glb_cli_common.sh"
 here="$SYLVA_SOURCE_DIR/tests/viewer"
 node "$here/fixtures.mjs" "$tmp"
 V() { "$SYLVA" view "$@"; }

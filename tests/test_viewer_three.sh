@@ -4,10 +4,7 @@
 # Chromium (SwiftShader). The masks must agree: IoU >= 0.9. Both at LOD0 (three.js ignores
 # MSFT_lod), wind off, leaves alpha-tested against their own cut-off.
 set -u
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail=0
-check() { if ! eval "$2"; then echo "FAIL: $1"; fail=1; else echo "ok: $1"; fi; }
+source "$SYLVA_SOURCE_DIR/tests/glb_cli_common.sh"
 here="$SYLVA_SOURCE_DIR/tests/viewer"
 [[ -f $SYLVA_SOURCE_DIR/node_modules/three/build/three.module.js ]] ||
     { echo "FAIL: three.js missing (run scripts/install-deps.sh)"; exit 1; }

@@ -285,6 +285,57 @@ void set_msg(char *msg, size_t size, const char *path, const std::string &what)
     std::snprintf(msg, size, "%s: %s", path, one.c_str());
 }
 
+
+// Loads a .glb or .gltf (told apart by the GLB magic); false with msg set on failure.
+// images: decode them (the scene reader) or skip them (geometry only).
+bool load_model(const char *path, tinygltf::Model &model, bool images, char *msg, size_t msg_size)
+{
+    tinygltf::TinyGLTF loader;
+    if (!images) loader.SetImageLoader(skip_image, nullptr);
+    std::string err, warn;
+    FILE *fp = std::fopen(path, "rb");
+    if (!fp) {
+        set_msg(msg, msg_size, path, "cannot open");
+        return false;
+    }
+    unsigned char magic[4] = {0, 0, 0, 0};
+    size_t got = std::fread(magic, 1, 4, fp);
+    std::fclose(fp);
+    bool binary = got == 4 && std::memcmp(magic, "glTF", 4) == 0;
+    bool ok = binary ? loader.LoadBinaryFromFile(&model, &err, &warn, path) : loader.LoadASCIIFromFile(&model, &err, &warn, path);
+    if (!ok) set_msg(msg, msg_size, path, err.empty() ? "not a readable glTF file" : "invalid glTF: " + err);
+    return ok;
+}
+
+// The default scene's root nodes (or scene 0's); with no scene, every node that is nobody's child.
+std::vector<int> scene_roots(const tinygltf::Model &model)
+{
+    std::vector<int> roots;
+    if (!model.scenes.empty()) {
+        int s = model.defaultScene >= 0 ? model.defaultScene : 0;
+        if (size_t(s) >= model.scenes.size()) throw Failure{2, "default scene index out of range"};
+        return model.scenes[size_t(s)].nodes;
+    }
+    std::vector<char> child(model.nodes.size(), 0);
+    for (const auto &n : model.nodes)
+        for (int c : n.children)
+            if (c >= 0 && size_t(c) < child.size()) child[size_t(c)] = 1;
+    for (size_t i = 0; i < model.nodes.size(); i++)
+        if (!child[i]) roots.push_back(int(i));
+    return roots;
+}
+
+// asset.extras.origin [x, y, z] when present: the world position (Z up) of the glTF origin.
+bool asset_origin(const tinygltf::Model &model, double o[3])
+{
+    if (!model.asset.extras.IsObject()) return false;
+    const tinygltf::Value &origin = model.asset.extras.Get("origin");
+    if (!(origin.IsArray() && origin.ArrayLen() == 3 && origin.Get(0).IsNumber() && origin.Get(1).IsNumber() && origin.Get(2).IsNumber()))
+        return false;
+    for (int c = 0; c < 3; c++) o[c] = origin.Get(c).GetNumberAsDouble();
+    return true;
+}
+
 } // namespace
 
 extern "C" int sy_gltf_read_triangles(const char *path, double **tri, size_t *n_tri, size_t **hull, char *msg,
@@ -294,47 +345,16 @@ extern "C" int sy_gltf_read_triangles(const char *path, double **tri, size_t *n_
     *hull = nullptr;
     *n_tri = 0;
     try {
-        tinygltf::TinyGLTF loader;
-        loader.SetImageLoader(skip_image, nullptr);
         tinygltf::Model model;
-        std::string err, warn;
-        FILE *fp = std::fopen(path, "rb");
-        if (!fp) {
-            set_msg(msg, msg_size, path, "cannot open");
-            return 2;
-        }
-        unsigned char magic[4] = {0, 0, 0, 0};
-        size_t got = std::fread(magic, 1, 4, fp);
-        std::fclose(fp);
-        bool binary = got == 4 && std::memcmp(magic, "glTF", 4) == 0;
-        bool ok = binary ? loader.LoadBinaryFromFile(&model, &err, &warn, path)
-                         : loader.LoadASCIIFromFile(&model, &err, &warn, path);
-        if (!ok) {
-            set_msg(msg, msg_size, path, err.empty() ? "not a readable glTF file" : "invalid glTF: " + err);
-            return 2;
-        }
+        if (!load_model(path, model, false, msg, msg_size)) return 2;
         Reader r{model, {}, {}};
-        std::vector<int> roots;
-        if (!model.scenes.empty()) {
-            int s = model.defaultScene >= 0 ? model.defaultScene : 0;
-            if (size_t(s) >= model.scenes.size()) throw Failure{2, "default scene index out of range"};
-            roots = model.scenes[size_t(s)].nodes;
-        } else {
-            // No scene: every node that is nobody's child is a root.
-            std::vector<char> child(model.nodes.size(), 0);
-            for (const auto &n : model.nodes)
-                for (int c : n.children)
-                    if (c >= 0 && size_t(c) < child.size()) child[size_t(c)] = 1;
-            for (size_t i = 0; i < model.nodes.size(); i++)
-                if (!child[i]) roots.push_back(int(i));
-        }
+        std::vector<int> roots = scene_roots(model);
         for (int n : roots) r.node(n, identity(), 0);
         // `sylva mesh` centres the tree at its base and keeps the world position
         // of that point in asset.extras.origin (Z up): put the tree back there.
-        const tinygltf::Value &origin = model.asset.extras.IsObject() ? model.asset.extras.Get("origin") : model.asset.extras;
-        if (origin.IsArray() && origin.ArrayLen() == 3 && origin.Get(0).IsNumber() && origin.Get(1).IsNumber() &&
-            origin.Get(2).IsNumber())
-            for (size_t i = 0; i < r.out.size(); i++) r.out[i] += origin.Get(int(i % 3)).GetNumberAsDouble();
+        double origin[3];
+        if (asset_origin(model, origin))
+            for (size_t i = 0; i < r.out.size(); i++) r.out[i] += origin[i % 3];
         *n_tri = r.out.size() / 9;
         *tri = static_cast<double *>(std::malloc(r.out.size() ? r.out.size() * sizeof(double) : sizeof(double)));
         *hull = static_cast<size_t *>(std::malloc(r.hull.size() ? r.hull.size() * sizeof(size_t) : sizeof(size_t)));
@@ -832,41 +852,14 @@ extern "C" int sy_gltf_read_scene(const char *path, sy_gltf_scene *out, char *ms
 {
     std::memset(out, 0, sizeof *out);
     try {
-        tinygltf::TinyGLTF loader;
         tinygltf::Model model;
-        std::string err, warn;
-        FILE *fp = std::fopen(path, "rb");
-        if (!fp) {
-            set_msg(msg, msg_size, path, "cannot open");
-            return 2;
-        }
-        unsigned char magic[4] = {0, 0, 0, 0};
-        size_t got = std::fread(magic, 1, 4, fp);
-        std::fclose(fp);
-        bool binary = got == 4 && std::memcmp(magic, "glTF", 4) == 0;
-        bool ok = binary ? loader.LoadBinaryFromFile(&model, &err, &warn, path) : loader.LoadASCIIFromFile(&model, &err, &warn, path);
-        if (!ok) {
-            set_msg(msg, msg_size, path, err.empty() ? "not a readable glTF file" : "invalid glTF: " + err);
-            return 2;
-        }
+        if (!load_model(path, model, true, msg, msg_size)) return 2;
         SceneBuilder b{model, *out, {}, {}, {}, {}};
         b.build_images();
         b.build_textures();
         b.build_materials();
         b.build_meshes();
-        std::vector<int> roots;
-        if (!model.scenes.empty()) {
-            int sc = model.defaultScene >= 0 ? model.defaultScene : 0;
-            if (size_t(sc) >= model.scenes.size()) throw Failure{2, "default scene index out of range"};
-            roots = model.scenes[size_t(sc)].nodes;
-        } else {
-            std::vector<char> child(model.nodes.size(), 0);
-            for (const auto &n : model.nodes)
-                for (int c : n.children)
-                    if (c >= 0 && size_t(c) < child.size()) child[size_t(c)] = 1;
-            for (size_t i = 0; i < model.nodes.size(); i++)
-                if (!child[i]) roots.push_back(int(i));
-        }
+        std::vector<int> roots = scene_roots(model);
         for (int r : roots) b.object(r);
         // Objects that draw nothing (cameras, lights, empty groups) are dropped.
         std::vector<int> remap(b.objects.size(), -1);
@@ -913,11 +906,7 @@ extern "C" int sy_gltf_read_scene(const char *path, sy_gltf_scene *out, char *ms
             set_msg(msg, msg_size, path, "no triangle mesh in the scene");
             return 2;
         }
-        const tinygltf::Value &origin = model.asset.extras.IsObject() ? model.asset.extras.Get("origin") : model.asset.extras;
-        if (origin.IsArray() && origin.ArrayLen() == 3 && origin.Get(0).IsNumber() && origin.Get(1).IsNumber() && origin.Get(2).IsNumber()) {
-            out->has_origin = 1;
-            for (int c = 0; c < 3; c++) out->origin[c] = origin.Get(c).GetNumberAsDouble();
-        }
+        out->has_origin = asset_origin(model, out->origin);
         return 0;
     } catch (const Failure &f) {
         free_scene(out);
