@@ -101,6 +101,12 @@ V "$tmp/palm.glb" "${ov[@]}" --screenshot "$tmp/ov_off.png"
 V "$tmp/palm.glb" "${ov[@]}" --points "$scan" --screenshot "$tmp/ov_on.png"
 check "the scan overlay draws points" "[[ -f '$tmp/ov_on.png' && -f '$tmp/ov_off.png' ]] && ! cmp -s '$tmp/ov_on.png' '$tmp/ov_off.png'"
 
+# --- EXT_meshopt_compression (sylva grow --meshopt) decodes to the same tree ---
+"$SYLVA" grow --species palm --seed 4 --lods 2 --meshopt -o "$tmp/palm_mo.glb" --quiet
+V "$tmp/palm_mo.glb" --mask --lod 0 --no-wind --size 160x160 --screenshot "$tmp/mo.png"
+V "$tmp/palm.glb" --mask --lod 0 --no-wind --size 160x160 --screenshot "$tmp/plain.png"
+check "a meshopt-compressed glb shows the same silhouette (IoU >= 0.999)" "node '$here/check.mjs' iou '$tmp/mo.png' '$tmp/plain.png' 0.999"
+
 # --- a folder of glbs: every tree, laid out on the ground ---
 mkdir -p "$tmp/trees" && cp "$tmp/palm.glb" "$tmp/trees/a.glb" && cp "$tmp/lod.glb" "$tmp/trees/b.glb" && touch "$tmp/trees/notes.txt"
 V "$tmp/trees" --json --size 64x64 --no-shadows >"$tmp/folder.json"

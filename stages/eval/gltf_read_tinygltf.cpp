@@ -1,6 +1,7 @@
 // tinygltf shim: triangle soup of a glTF scene in world space (Z up).
 #include "gltf_read_tinygltf.h"
 
+#include <meshoptimizer.h>
 #include <tiny_gltf.h>
 
 #include <algorithm>
@@ -286,6 +287,59 @@ void set_msg(char *msg, size_t size, const char *path, const std::string &what)
 }
 
 
+// EXT_meshopt_compression: every compressed bufferView is decoded into a buffer of its own and
+// the view pointed at it, so accessors read plain data (tinygltf leaves the extension alone).
+void decode_meshopt(tinygltf::Model &m)
+{
+    for (size_t i = 0; i < m.bufferViews.size(); i++) {
+        tinygltf::BufferView &bv = m.bufferViews[i];
+        auto it = bv.extensions.find("EXT_meshopt_compression");
+        if (it == bv.extensions.end()) continue;
+        const tinygltf::Value &e = it->second;
+        std::string what = "EXT_meshopt_compression of bufferView " + std::to_string(i);
+        auto num = [&](const char *k, double dflt) {
+            if (!e.IsObject() || !e.Has(k)) return dflt;
+            const tinygltf::Value &v = e.Get(k);
+            if (!v.IsNumber()) throw Failure{2, what + ": " + k + " is not a number"};
+            return v.GetNumberAsDouble();
+        };
+        auto str = [&](const char *k, const char *dflt) {
+            return e.IsObject() && e.Has(k) && e.Get(k).IsString() ? e.Get(k).Get<std::string>() : std::string(dflt);
+        };
+        double buffer = num("buffer", -1), offset = num("byteOffset", 0), length = num("byteLength", -1), stride = num("byteStride", -1),
+               count = num("count", -1);
+        std::string mode = str("mode", ""), filter = str("filter", "NONE");
+        if (!(buffer >= 0 && buffer < double(m.buffers.size()))) throw Failure{2, what + " names a missing buffer"};
+        const std::vector<unsigned char> &src = m.buffers[size_t(buffer)].data;
+        if (!(offset >= 0 && length >= 0 && offset + length <= double(src.size()))) throw Failure{2, what + " lies outside its buffer"};
+        if (!(stride >= 1 && stride <= 256 && count >= 0 && count * stride <= double(1u << 31)))
+            throw Failure{2, what + " has an invalid byteStride or count"};
+        std::vector<unsigned char> out(size_t(count) * size_t(stride));
+        const unsigned char *data = src.data() + size_t(offset);
+        int rc = -1;
+        if (mode == "ATTRIBUTES" && size_t(stride) % 4 == 0)
+            rc = meshopt_decodeVertexBuffer(out.data(), size_t(count), size_t(stride), data, size_t(length));
+        else if (mode == "TRIANGLES" && (stride == 2 || stride == 4) && size_t(count) % 3 == 0)
+            rc = meshopt_decodeIndexBuffer(out.data(), size_t(count), size_t(stride), data, size_t(length));
+        else if (mode == "INDICES" && (stride == 2 || stride == 4))
+            rc = meshopt_decodeIndexSequence(out.data(), size_t(count), size_t(stride), data, size_t(length));
+        else
+            throw Failure{2, what + " has an unknown mode '" + mode + "' for its stride"};
+        if (rc != 0) throw Failure{2, what + " does not decode"};
+        if (filter == "OCTAHEDRAL" && (stride == 4 || stride == 8)) meshopt_decodeFilterOct(out.data(), size_t(count), size_t(stride));
+        else if (filter == "QUATERNION" && stride == 8) meshopt_decodeFilterQuat(out.data(), size_t(count), size_t(stride));
+        else if (filter == "EXPONENTIAL" && size_t(stride) % 4 == 0) meshopt_decodeFilterExp(out.data(), size_t(count), size_t(stride));
+        else if (filter != "NONE") throw Failure{2, what + " has an unknown filter '" + filter + "'"};
+        tinygltf::Buffer decoded;
+        decoded.data.swap(out);
+        m.buffers.push_back(std::move(decoded));
+        bv.buffer = int(m.buffers.size() - 1);
+        bv.byteOffset = 0;
+        bv.byteLength = m.buffers.back().data.size();
+        bv.byteStride = mode == "ATTRIBUTES" ? size_t(stride) : 0;
+    }
+}
+
 // Loads a .glb or .gltf (told apart by the GLB magic); false with msg set on failure.
 // images: decode them (the scene reader) or skip them (geometry only).
 bool load_model(const char *path, tinygltf::Model &model, bool images, char *msg, size_t msg_size)
@@ -304,6 +358,7 @@ bool load_model(const char *path, tinygltf::Model &model, bool images, char *msg
     bool binary = got == 4 && std::memcmp(magic, "glTF", 4) == 0;
     bool ok = binary ? loader.LoadBinaryFromFile(&model, &err, &warn, path) : loader.LoadASCIIFromFile(&model, &err, &warn, path);
     if (!ok) set_msg(msg, msg_size, path, err.empty() ? "not a readable glTF file" : "invalid glTF: " + err);
+    else decode_meshopt(model);
     return ok;
 }
 
