@@ -112,6 +112,13 @@ mkdir -p "$tmp/trees" && cp "$tmp/palm.glb" "$tmp/trees/a.glb" && cp "$tmp/lod.g
 V "$tmp/trees" --json --size 64x64 --no-shadows >"$tmp/folder.json"
 check "a folder shows each of its glbs, side by side" "node -e 'const v=JSON.parse(require(\"fs\").readFileSync(\"$tmp/folder.json\"));const t=v.trees;process.exit(t.length==2&&(t[0].bounds_max[0]<=t[1].bounds_min[0]||t[1].bounds_max[0]<=t[0].bounds_min[0])?0:1)'"
 
+# The frame change: a scan in survey coordinates (Z up) lands on an asset placed by asset.extras.origin.
+V "$tmp/beam_origin.glb" --points "$tmp/beam_scan.xyz" --json --size 64x64 --no-shadows >"$tmp/origin.json"
+check "the scan lands on the asset through asset.extras.origin (bounds within 1 mm)" "node -e '
+  const v = JSON.parse(require(\"fs\").readFileSync(\"$tmp/origin.json\")), t = v.trees[0];
+  let w = 0; for (let k = 0; k < 3; k++) w = Math.max(w, Math.abs(v.points_min[k] - t.bounds_min[k]), Math.abs(v.points_max[k] - t.bounds_max[k]));
+  console.log(\"  largest bound difference \" + w.toExponential(2) + \" m\"); process.exit(v.points > 0 && w < 1e-3 ? 0 : 1)'"
+
 # --- animation ---
 V "$tmp/palm.glb" --size 64x64 --frames 3 --fps 10 -o "$tmp/anim" --no-shadows
 check "--frames writes the frames" "[[ -f '$tmp/anim/frame_0000.png' && -f '$tmp/anim/frame_0002.png' ]]"

@@ -1220,7 +1220,20 @@ static void print_json(renderer *r, const camera *c, double frame_ms, double cpu
         const gobject *go = &r->objs[r->trees[i].object];
         lod0 += r->in->scenes[go->scene].objects[go->object].n_triangles[0];
     }
-    printf(" \"lod0_triangles\": %zu, \"renderer\": \"%s\",\n \"trees\": [", lod0, (const char *)glGetString(GL_RENDERER));
+    printf(" \"lod0_triangles\": %zu, \"renderer\": \"%s\",\n", lod0, (const char *)glGetString(GL_RENDERER));
+    if (r->n_points) {
+        /* The overlay's bounds as drawn (glTF frame of the scene), for checking the frame change. */
+        double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+        const sy_view_points *p = &r->in->points;
+        for (size_t i = 0; i < p->n; i++)
+            for (int k = 0; k < 3; k++) {
+                double v = p->xyz[3 * i + k] + r->points_offset[k];
+                lo[k] = fmin(lo[k], v), hi[k] = fmax(hi[k], v);
+            }
+        printf(" \"points\": %zu, \"points_min\": [%.5f, %.5f, %.5f], \"points_max\": [%.5f, %.5f, %.5f],\n", p->n, lo[0], lo[1], lo[2],
+               hi[0], hi[1], hi[2]);
+    }
+    printf(" \"trees\": [");
     for (size_t i = 0; i < r->n_trees; i++) {
         const gtree *t = &r->trees[i];
         const gobject *go = &r->objs[t->object];

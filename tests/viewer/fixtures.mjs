@@ -1,5 +1,6 @@
 // Writes the small glTF inputs the viewer tests need into a folder (argv[2]):
 //   beam.glb       one tapered cantilever (taper 0.1) with Sylva's wind attributes and table
+//   beam_origin.glb, beam_scan.xyz  the beam at asset.extras.origin and its vertices as a Z-up scan there
 //   fork.glb       a trunk and one horizontal child at half its height (children follow parents)
 //   leaf_hl2.glb   a double-sided leaf quad with HL2 translucency maps (extras.sylva_hl2)
 //   leaf_dt.glb    the same quad with KHR_materials_diffuse_transmission only
@@ -107,6 +108,13 @@ function fit(a) {
   B.json.scenes = [{ nodes: [0] }]; B.json.scene = 0;
   const file = B.finish();
   writeFileSync(`${dir}/beam.glb`, file);
+  // The same beam placed in a survey frame, and a "scan" of its vertices there (Z up).
+  const origin = [1000.5, 2000.25, 10];
+  B.json.asset.extras = { origin };
+  writeFileSync(`${dir}/beam_origin.glb`, B.finish());
+  const lines = [];
+  for (let i = 0; i < pos.length; i += 3) lines.push(`${(pos[i] + origin[0]).toFixed(4)} ${(-pos[i + 2] + origin[1]).toFixed(4)} ${(pos[i + 1] + origin[2]).toFixed(4)}`);
+  writeFileSync(`${dir}/beam_scan.xyz`, lines.join('\n') + '\n');
   writeFileSync(`${dir}/corrupt.glb`, file.subarray(0, Math.floor(file.length * 0.6)));
   const u = []; for (let i = 0; i <= 20; i++) u.push(beamU(i / 20, alpha));
   writeFileSync(`${dir}/beam.json`, JSON.stringify({ length: L, alpha, c2, c4, x: u.map((_, i) => i / 20), u }));
