@@ -825,6 +825,19 @@ static void set_wind_uniforms(renderer *r, GLuint p, const gobject *o, double ti
     glUniform1f(U(p, "u_flutter"), o->n_branches > 0 && !r->opt.static_load ? 1.0f : 0.0f);
 }
 
+/* The inverse transpose of a node matrix's upper 3x3 (normals), as a uniform. */
+static void set_node_normal(GLuint p, const double *w)
+{
+    double a = w[0], b = w[4], c = w[8], d = w[1], e = w[5], f = w[9], g = w[2], h = w[6], k = w[10];
+    double det = a * (e * k - f * h) - b * (d * k - f * g) + c * (d * h - e * g);
+    if (fabs(det) < 1e-30) det = 1e-30;
+    /* inverse transpose = cofactor matrix / det, stored column-major */
+    float m[9] = {(float)((e * k - f * h) / det), (float)(-(b * k - c * h) / det), (float)((b * f - c * e) / det),
+                  (float)(-(d * k - f * g) / det), (float)((a * k - c * g) / det), (float)(-(a * f - c * d) / det),
+                  (float)((d * h - e * g) / det), (float)(-(a * h - b * g) / det), (float)((a * e - b * d) / det)};
+    glUniformMatrix3fv(U(p, "u_node_normal"), 1, GL_FALSE, m);
+}
+
 /* Draws every (object, level) group of entries with program p. */
 static void draw_trees(renderer *r, GLuint p, const camera *c, const mat4 *view_proj, double time, int shadow, int blend_pass)
 {
@@ -847,6 +860,7 @@ static void draw_trees(renderer *r, GLuint p, const camera *c, const mat4 *view_
             float node[16];
             for (int k = 0; k < 16; k++) node[k] = (float)d->world[k];
             glUniformMatrix4fv(U(p, "u_node"), 1, GL_FALSE, node);
+            set_node_normal(p, d->world);
             glUniform1i(U(p, "u_instanced"), d->n_instances > 0);
             glUniform1i(U(p, "u_per_tree"), d->n_instances > 0 ? (GLint)d->n_instances : 1);
             if (d->n_instances) bind_tex(p, "u_inst", 11, GL_TEXTURE_BUFFER, g->inst_tex[di]);
@@ -1164,6 +1178,7 @@ static int dump_wind(renderer *r, const char *path, double time)
         float node[16];
         for (int k = 0; k < 16; k++) node[k] = (float)d->world[k];
         glUniformMatrix4fv(U(p, "u_node"), 1, GL_FALSE, node);
+        set_node_normal(p, d->world);
         const sy_gltf_mesh *mesh = &s->meshes[d->mesh];
         for (int pi = 0; pi < mesh->n_primitives; pi++) {
             const sy_gltf_primitive *sp = &s->primitives[mesh->first_primitive + pi];

@@ -8,6 +8,7 @@ layout(location = 5) in vec4 a_wind_w;
 layout(location = 6) in float a_wind_branch;
 uniform mat4 u_view_proj;
 uniform mat4 u_node;             // node-to-asset matrix
+uniform mat3 u_node_normal;      // its inverse transpose (from the CPU)
 uniform int u_instanced;         // leaves: per-instance matrices and wind
 uniform int u_per_tree;          // instances (leaves) per tree copy: gl_InstanceID / u_per_tree = copy
 uniform samplerBuffer u_trees;   // per tree copy: 4 texels of its asset-to-world matrix, 1 texel (fade, phase, sign, -)
@@ -40,8 +41,11 @@ void main()
     }
     mat4 local = u_node * inst;
     vec3 p = (local * vec4(a_position, 1.0)).xyz;
-    mat3 nm = transpose(inverse(mat3(local)));
-    vec3 n = normalize(nm * a_normal);
+    // Normals: the node's inverse transpose, and for a TRS instance M = R S the exact
+    // R S^-1 n = M (n / s^2) with s^2 the squared column lengths (no per-vertex inverse).
+    mat3 im = mat3(inst);
+    vec3 s2 = vec3(dot(im[0], im[0]), dot(im[1], im[1]), dot(im[2], im[2]));
+    vec3 n = normalize(u_node_normal * (im * (a_normal / max(s2, vec3(1e-12)))));
     vec3 t = normalize(mat3(local) * (length(a_tangent.xyz) > 0.0 ? a_tangent.xyz : vec3(1.0, 0.0, 0.0)));
     if (u_instanced != 0) {
         float size = length(inst[0].xyz) * 0.5 + length(inst[1].xyz) * 0.5;
