@@ -325,7 +325,6 @@ static int upload_scene(renderer *r, gscene *g)
         const sy_gltf_material *m = &s->materials[i];
         if (m->base_color_texture >= 0) srgb[m->base_color_texture] = 1;
         if (m->diffuse_transmission_color_texture >= 0) srgb[m->diffuse_transmission_color_texture] = 1;
-        if (m->hl2_translucency_texture >= 0) srgb[m->hl2_translucency_texture] = 1;
     }
     for (size_t i = 0; i < s->n_textures; i++) {
         const sy_gltf_texture *t = &s->textures[i];
@@ -786,16 +785,15 @@ static void set_material(renderer *r, GLuint p, const gscene *g, int mi, int sha
         {"u_normal_tex", "u_has_normal_tex", m->normal_texture, 1}, {"u_mr_tex", "u_has_mr_tex", m->metallic_roughness_texture, 2},
         {"u_dt_tex", "u_has_dt_tex", m->diffuse_transmission_texture, 3},
         {"u_dt_color_tex", "u_has_dt_color_tex", m->diffuse_transmission_color_texture, 4},
-        {"u_hl2_front", NULL, m->hl2_front_texture, 5}, {"u_hl2_back", NULL, m->hl2_back_texture, 6},
-        {"u_hl2_rho", NULL, m->hl2_translucency_texture, 7}};
+        {"u_hl2_adaxial", NULL, m->hl2_adaxial_texture, 5}, {"u_hl2_abaxial", NULL, m->hl2_abaxial_texture, 6}};
     for (size_t i = 0; i < sizeof maps / sizeof maps[0]; i++) {
         bind_tex(p, maps[i].name, maps[i].unit, GL_TEXTURE_2D, maps[i].tex >= 0 ? g->textures[maps[i].tex] : r->white_tex);
         if (maps[i].flag) glUniform1i(U(p, maps[i].flag), maps[i].tex >= 0);
     }
-    int hl2 = m->hl2_front_texture >= 0 && m->hl2_back_texture >= 0;
+    int hl2 = m->hl2_adaxial_texture >= 0 && m->hl2_abaxial_texture >= 0;
     glUniform1i(U(p, "u_has_hl2"), hl2);
-    glUniform1f(U(p, "u_hl2_scale"), m->hl2_scale);
-    glUniform1f(U(p, "u_hl2_bias"), m->hl2_bias);
+    glUniform1f(U(p, "u_hl2_min"), m->hl2_min);
+    glUniform1f(U(p, "u_hl2_max"), m->hl2_max);
     glUniform1f(U(p, "u_normal_scale"), m->normal_scale);
     glUniform1f(U(p, "u_metallic"), m->metallic);
     glUniform1f(U(p, "u_roughness"), m->roughness);
@@ -1440,8 +1438,8 @@ int sy_view_run(const sy_view_input *in, const sy_view_options *opt)
     r->default_material = (sy_gltf_material){.base_color = {1, 1, 1, 1}, .metallic = 1, .roughness = 1, .base_color_texture = -1,
                                              .metallic_roughness_texture = -1, .normal_texture = -1, .normal_scale = 1,
                                              .alpha_cutoff = 0.5f, .diffuse_transmission_texture = -1,
-                                             .diffuse_transmission_color_texture = -1, .hl2_front_texture = -1,
-                                             .hl2_back_texture = -1, .hl2_translucency_texture = -1, .hl2_scale = 1};
+                                             .diffuse_transmission_color_texture = -1, .hl2_adaxial_texture = -1,
+                                             .hl2_abaxial_texture = -1, .hl2_min = -1, .hl2_max = 3};
     /* The glTF default material is metallic 1; a preview of untextured scans reads better dielectric. */
     r->default_material.metallic = 0;
     r->default_material.roughness = 0.8f;

@@ -599,8 +599,8 @@ struct SceneBuilder {
             o.alpha_cutoff = float(mt.alphaCutoff);
             o.double_sided = mt.doubleSided;
             o.diffuse_transmission_texture = o.diffuse_transmission_color_texture = -1;
-            o.hl2_front_texture = o.hl2_back_texture = o.hl2_translucency_texture = -1;
-            o.hl2_scale = 1, o.hl2_bias = 0;
+            o.hl2_adaxial_texture = o.hl2_abaxial_texture = -1;
+            o.hl2_min = -1, o.hl2_max = 3;
             auto dt = mt.extensions.find("KHR_materials_diffuse_transmission");
             if (dt != mt.extensions.end()) {
                 const tinygltf::Value &v = dt->second;
@@ -614,14 +614,16 @@ struct SceneBuilder {
                 o.diffuse_transmission_texture = texture_in(v, "diffuseTransmissionTexture", what.c_str());
                 o.diffuse_transmission_color_texture = texture_in(v, "diffuseTransmissionColorTexture", what.c_str());
             }
-            if (mt.extras.IsObject() && mt.extras.Has("sylva_hl2")) {
-                const tinygltf::Value &h = mt.extras.Get("sylva_hl2");
-                if (!h.IsObject()) throw Failure{2, what + ": extras.sylva_hl2 is not an object"};
-                o.hl2_front_texture = texture_in(h, "frontTexture", what.c_str());
-                o.hl2_back_texture = texture_in(h, "backTexture", what.c_str());
-                o.hl2_translucency_texture = texture_in(h, "translucencyTexture", what.c_str());
-                o.hl2_scale = number(h, "scale", 1);
-                o.hl2_bias = number(h, "bias", 0);
+            auto lt = mt.extensions.find("SYLVA_leaf_translucency");
+            if (lt != mt.extensions.end()) {
+                const tinygltf::Value &h = lt->second;
+                if (!h.IsObject()) throw Failure{2, what + ": SYLVA_leaf_translucency is not an object"};
+                o.hl2_adaxial_texture = texture_in(h, "adaxialTexture", what.c_str());
+                o.hl2_abaxial_texture = texture_in(h, "abaxialTexture", what.c_str());
+                o.hl2_min = number(h, "decodeMin", -1);
+                o.hl2_max = number(h, "decodeMax", 3);
+                if (!(std::isfinite(o.hl2_min) && std::isfinite(o.hl2_max)))
+                    throw Failure{2, what + ": SYLVA_leaf_translucency decodeMin/decodeMax are not finite"};
             }
         }
     }

@@ -82,11 +82,11 @@ typedef struct {
     float diffuse_transmission_color[3];
     int diffuse_transmission_texture;       /* A channel */
     int diffuse_transmission_color_texture; /* RGB */
-    /* Half-Life 2 translucency maps (Habel 2009 §3.3.8-3.3.9; docs/viewer.md):
-     * material.extras.sylva_hl2 = {frontTexture, backTexture, translucencyTexture,
-     * scale, bias}: h_i = scale * texel + bias per channel. -1 when absent. */
-    int hl2_front_texture, hl2_back_texture, hl2_translucency_texture;
-    float hl2_scale, hl2_bias;
+    /* Half-Life 2 translucency (Habel 2009 §3.3.8-3.3.9) from the material extension
+     * SYLVA_leaf_translucency (docs/leafmaps.md): RGB = h1 h2 h3 for light arriving on the
+     * adaxial (normal) side / the abaxial side, decoded as min + texel (max - min). -1 absent. */
+    int hl2_adaxial_texture, hl2_abaxial_texture;
+    float hl2_min, hl2_max;
 } sy_gltf_material;
 
 /* One node that has a mesh, flattened: its world transform and its copies. */

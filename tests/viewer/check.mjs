@@ -107,21 +107,23 @@ if (what === 'beam') {
   if (!(c(A) > c(B) + 6)) fail(`centre pixel with translucency ${c(A)} is not brighter than without ${c(B)}`);
   ok(`back-lit leaf: ${c(A)} with translucency, ${c(B)} without (sum of RGB)`);
 } else if (what === 'hl2') {
-  // Expected radiance: L_D rho_t sum_i h_i sqrt(3/(2 pi)) H_i . w, with w the sun direction in the
-  // lit side's tangent frame (viewed side's frame, z mirrored), then exposure, Reinhard, gamma 2.2.
+  // Expected radiance (docs/leafmaps.md, eq. 3.23): L_D t / pi * max(0, sum_i h_i sqrt(3/(2 pi)) H_i . w),
+  // the sun behind the quad (light arrives on the abaxial side, frame T, B, -N), t the diffuse
+  // transmission factor x colour, then exposure, Reinhard, gamma 2.2.
   const I = readPng(a[0]), v = JSON.parse(readFileSync(a[1], 'utf8')), tol = Number(a[2]);
   const H = [[-1 / Math.sqrt(6), -1 / Math.SQRT2, 1 / Math.sqrt(3)], [-1 / Math.sqrt(6), 1 / Math.SQRT2, 1 / Math.sqrt(3)], [Math.sqrt(2 / 3), 0, 1 / Math.sqrt(3)]];
-  const dec = (b) => Math.round(((b + 1) / 2) * 255) / 255 * 2 - 1;      // the 8-bit texels of the fixture
-  const h = [dec(0.8), dec(0.6), dec(0.9)];
-  const l = v.sun_dir, lt = [l[0], l[1], -l[2]];                          // quad: T = +X, B = +Y, N = +Z
+  const dec = (h) => -1 + (Math.round(((h + 1) / 4) * 255) / 255) * 4;     // the fixture's 8-bit texels
+  const h = [dec(0.5), dec(0.7), dec(1.1)];
+  const l = v.sun_dir;
+  if (!(l[2] < 0)) fail('the sun must be behind the quad');
+  const w = [l[0], l[1], -l[2]];                                          // quad: T = +X, B = +Y, N = +Z
   let rec = 0;
-  for (let i = 0; i < 3; i++) rec += h[i] * Math.sqrt(3 / (2 * Math.PI)) * (H[i][0] * lt[0] + H[i][1] * lt[1] + H[i][2] * lt[2]);
-  const srgb = (c) => (c <= 0.04045 ? c / 12.92 : ((c + 0.055) / 1.055) ** 2.4);
-  const rho = [200, 220, 120].map((c) => srgb(c / 255));
+  for (let i = 0; i < 3; i++) rec += h[i] * Math.sqrt(3 / (2 * Math.PI)) * (H[i][0] * w[0] + H[i][1] * w[1] + H[i][2] * w[2]);
+  const t = [0.9, 1.0, 0.6].map((c) => 0.6 * c);
   const k = 4 * ((I.height >> 1) * I.width + (I.width >> 1));
   let worst = 0;
   for (let ch = 0; ch < 3; ch++) {
-    const want = v.sun_color[ch] * rho[ch] * Math.max(rec, 0) * v.exposure;
+    const want = (v.sun_color[ch] * t[ch] * Math.max(rec, 0) * v.exposure) / Math.PI;
     const c = (I.rgba[k + ch] / 255) ** 2.2, got = c / (1 - c);
     worst = Math.max(worst, Math.abs(got / want - 1));
   }

@@ -2,7 +2,7 @@
 //   beam.glb       one tapered cantilever (taper 0.1) with Sylva's wind attributes and table
 //   beam_origin.glb, beam_scan.xyz  the beam at asset.extras.origin and its vertices as a Z-up scan there
 //   fork.glb       a trunk and one horizontal child at half its height (children follow parents)
-//   leaf_hl2.glb   a double-sided leaf quad with HL2 translucency maps (extras.sylva_hl2)
+//   leaf_hl2.glb   a double-sided leaf quad with HL2 translucency maps (SYLVA_leaf_translucency)
 //   leaf_dt.glb    the same quad with KHR_materials_diffuse_transmission only
 //   lod.glb        three boxes as MSFT_lod levels with MSFT_screencoverage [0.5, 0.2, 0.05]
 //   nomesh.glb     a valid file whose scene has no mesh
@@ -167,13 +167,14 @@ function leaf(hl2) {
     extensions: { KHR_materials_diffuse_transmission: { diffuseTransmissionFactor: 0.6, diffuseTransmissionColorFactor: [0.9, 1.0, 0.6] } } };
   B.json.extensionsUsed = ['KHR_materials_diffuse_transmission'];
   if (hl2) {
-    // h = texel / 255 * 2 - 1 per channel: front (0.8, 0.6, 0.9), back the same; rho (sRGB) a yellow green.
-    const enc = (h) => Math.round(((h + 1) / 2) * 255);
-    const front = B.image(solidPng(4, 4, [enc(0.8), enc(0.6), enc(0.9), 255]));
-    const back = B.image(solidPng(4, 4, [enc(0.8), enc(0.6), enc(0.9), 255]));
-    const rho = B.image(solidPng(4, 4, [200, 220, 120, 255]));
-    B.json.textures.push({ source: front, sampler: 0 }, { source: back, sampler: 0 }, { source: rho, sampler: 0 });
-    mat.extras = { sylva_hl2: { frontTexture: { index: 1 }, backTexture: { index: 2 }, translucencyTexture: { index: 3 }, scale: 2, bias: -1 } };
+    // SYLVA_leaf_translucency (docs/leafmaps.md): h = decodeMin + texel (decodeMax - decodeMin),
+    // adaxial (0.8, 0.6, 0.9) for light arriving on the normal side, abaxial (0.5, 0.7, 1.1).
+    const enc = (h) => Math.round(((h + 1) / 4) * 255);
+    const ad = B.image(solidPng(4, 4, [enc(0.8), enc(0.6), enc(0.9), 255]));
+    const ab = B.image(solidPng(4, 4, [enc(0.5), enc(0.7), enc(1.1), 255]));
+    B.json.textures.push({ source: ad, sampler: 0 }, { source: ab, sampler: 0 });
+    mat.extensions.SYLVA_leaf_translucency = { adaxialTexture: { index: 1 }, abaxialTexture: { index: 2 }, decodeMin: -1, decodeMax: 3 };
+    B.json.extensionsUsed.push('SYLVA_leaf_translucency');
   }
   B.json.materials = [mat];
   B.json.meshes = [{ name: 'leaf', primitives: [{ attributes: attrs, indices: ind, material: 0 }] }];

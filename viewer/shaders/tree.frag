@@ -23,9 +23,9 @@ uniform float u_dt_factor;         // KHR_materials_diffuse_transmission
 uniform vec3 u_dt_color;
 uniform sampler2D u_dt_tex;        uniform int u_has_dt_tex;
 uniform sampler2D u_dt_color_tex;  uniform int u_has_dt_color_tex;
-uniform sampler2D u_hl2_front;     uniform sampler2D u_hl2_back;  uniform sampler2D u_hl2_rho;
+uniform sampler2D u_hl2_adaxial;   uniform sampler2D u_hl2_abaxial;   // SYLVA_leaf_translucency
 uniform int u_has_hl2;
-uniform float u_hl2_scale, u_hl2_bias;
+uniform float u_hl2_min, u_hl2_max;
 uniform int u_translucency;        // user toggle
 uniform int u_mask;                // silhouette mode: white where the surface is
 
@@ -129,23 +129,31 @@ void main()
     vec3 color = vec3(0.0);
     float nl = dot(ng, l);
     bool transmits = u_dt_factor > 0.0 || u_has_hl2 != 0;
+    // KHR_materials_diffuse_transmission: the diffuse lobe splits into (1 - f) reflected and f
+    // transmitted, the transmitted part tinted by its own colour only.
+    float f = u_dt_factor;
+    if (u_has_dt_tex != 0) f *= texture(u_dt_tex, v_uv).a;
+    vec3 tc = u_dt_color;
+    if (u_has_dt_color_tex != 0) tc *= texture(u_dt_color_tex, v_uv).rgb;
+    if (transmits) albedo *= 1.0 - f;
     if (nl >= 0.0 || !transmits) {
         color += u_sun_color * sh * cook_torrance(n, v, l, albedo, metallic, rough);
     } else if (u_translucency != 0) {
         // Lit from behind: light through the leaf (only one of L_r, L_t is non-zero, §3.3.1).
+        // The transmittance seen on this side, t = f x colour (docs/leafmaps.md writes it so).
         if (u_has_hl2 != 0) {
-            // Sun direction in the viewed side's tangent frame, mirrored into the lit side (z flipped).
-            vec3 lt = vec3(dot(l, t), dot(l, b), -dot(l, ng));
-            vec3 h = (back ? texture(u_hl2_back, v_uv).rgb : texture(u_hl2_front, v_uv).rgb) * u_hl2_scale + u_hl2_bias;
-            float rec = 0.69098830 * (h.r * dot(H1, lt) + h.g * dot(H2, lt) + h.b * dot(H3, lt));   // sqrt(3/(2 pi))
-            vec3 rho = texture(u_hl2_rho, v_uv).rgb;
-            color += u_sun_color * sh * rho * max(rec, 0.0);
+            // docs/leafmaps.md: the coefficients of the side the light hits, in that side's frame
+            // (adaxial T, B, N; abaxial T, B, -N), two fetches and three dot products (eq. 3.23).
+            vec3 N = normalize(v_normal);
+            vec3 T = normalize(v_tangent.xyz - N * dot(N, v_tangent.xyz));
+            vec3 B = cross(N, T) * v_tangent.w;
+            bool adaxial = dot(l, N) > 0.0;
+            vec3 w = vec3(dot(l, T), dot(l, B), adaxial ? dot(l, N) : -dot(l, N));
+            vec3 h = u_hl2_min + (adaxial ? texture(u_hl2_adaxial, v_uv).rgb : texture(u_hl2_abaxial, v_uv).rgb) * (u_hl2_max - u_hl2_min);
+            float rec = 0.69098830 * (h.r * dot(H1, w) + h.g * dot(H2, w) + h.b * dot(H3, w));   // sqrt(3/(2 pi))
+            color += u_sun_color * sh * f * tc * max(rec, 0.0) / 3.14159265;
         } else {
-            float f = u_dt_factor;
-            if (u_has_dt_tex != 0) f *= texture(u_dt_tex, v_uv).a;
-            vec3 c = u_dt_color;
-            if (u_has_dt_color_tex != 0) c *= texture(u_dt_color_tex, v_uv).rgb;
-            color += u_sun_color * sh * f * c * albedo * (-nl) / 3.14159265;   // diffuse BTDF (3.24)
+            color += u_sun_color * sh * f * tc * (-nl) / 3.14159265;   // diffuse BTDF (3.24)
         }
     }
     color += albedo * sh_irradiance(n) * (1.0 - metallic);
