@@ -63,6 +63,16 @@ check "diffuse-transmission leaf brighter on than off" "node '$here/check.mjs' b
 V "$tmp/leaf_hl2.glb" "${leaf[@]}" --ambient 0 --no-shadows --screenshot "$tmp/hl2_exact.png" --json >"$tmp/hl2.json"
 check "HL2 translucency matches the reconstruction of its maps within 3 %" "node '$here/check.mjs' hl2 '$tmp/hl2_exact.png' '$tmp/hl2.json' 0.03"
 
+# A grown tree with the species' leaf maps (SYLVA_leaf_translucency when the library ships them),
+# seen against the sun: translucency brightens the crown, and the HL2 path is the one used.
+"$SYLVA" grow --species quaking_aspen --seed 1 --lods 1 --no-impostor -o "$tmp/aspen.glb" --quiet
+crown=(--size 128x128 --camera 40,20,7 --sun 220,30 --no-wind --no-stats --no-shadows --no-ground)
+V "$tmp/aspen.glb" "${crown[@]}" --screenshot "$tmp/aspen_on.png" --json >"$tmp/aspen.json"
+V "$tmp/aspen.glb" "${crown[@]}" --screenshot "$tmp/aspen_off.png" --no-translucency
+V "$tmp/aspen.glb" "${crown[@]}" --screenshot "$tmp/aspen_mask.png" --mask
+check "back-lit crown brighter with translucency" "node '$here/check.mjs' mean_brighter '$tmp/aspen_on.png' '$tmp/aspen_off.png' '$tmp/aspen_mask.png'"
+check "leaf maps in the file are drawn through HL2" "! grep -q SYLVA_leaf_translucency '$tmp/aspen.glb' || node -e 'process.exit(JSON.parse(require(\"fs\").readFileSync(\"$tmp/aspen.json\")).hl2_materials>0?0:1)'"
+
 # --- LOD: thresholds 0.5, 0.2, 0.05 of the screen height (MSFT_screencoverage) ---
 # coverage = bounding-sphere radius / (distance tan(fovy / 2)); the box's radius is sqrt(0.75).
 dist() { node -e "console.log(Math.sqrt(0.75) / ($1 * Math.tan(22.5 * Math.PI / 180)))"; }

@@ -1233,7 +1233,15 @@ static void print_json(renderer *r, const camera *c, double frame_ms, double cpu
         const gobject *go = &r->objs[r->trees[i].object];
         lod0 += r->in->scenes[go->scene].objects[go->object].n_triangles[0];
     }
-    printf(" \"lod0_triangles\": %zu, \"renderer\": \"%s\",\n", lod0, (const char *)glGetString(GL_RENDERER));
+    size_t hl2 = 0, transmitting = 0;
+    for (size_t i = 0; i < r->n_gs; i++)
+        for (size_t k = 0; k < r->gs[i].scene->n_materials; k++) {
+            const sy_gltf_material *m = &r->gs[i].scene->materials[k];
+            hl2 += m->hl2_adaxial_texture >= 0 && m->hl2_abaxial_texture >= 0;
+            transmitting += m->diffuse_transmission > 0;
+        }
+    printf(" \"lod0_triangles\": %zu, \"renderer\": \"%s\", \"hl2_materials\": %zu, \"transmitting_materials\": %zu,\n", lod0,
+           (const char *)glGetString(GL_RENDERER), hl2, transmitting);
     if (r->n_points) {
         /* The overlay's bounds as drawn (glTF frame of the scene), for checking the frame change. */
         double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};

@@ -7,6 +7,7 @@
 //   node check.mjs bbox MASK.png VIEW.json TOL MINW MINH   silhouette inside the projected bounding box, spanning it
 //   node check.mjs iou A.png B.png MIN              mask IoU
 //   node check.mjs brighter ON.png OFF.png          centre pixel of ON brighter than OFF
+//   node check.mjs mean_brighter ON.png OFF.png MASK.png   ON brighter (by 2 %) than OFF over the mask
 //   node check.mjs hl2 SHOT.png VIEW.json TOL       centre radiance vs the HL2 reconstruction (eq. 3.23)
 import { readFileSync } from 'node:fs';
 import { readPng, mask } from './png.mjs';
@@ -106,6 +107,11 @@ if (what === 'beam') {
   const c = (I) => { const k = 4 * ((I.height >> 1) * I.width + (I.width >> 1)); return I.rgba[k] + I.rgba[k + 1] + I.rgba[k + 2]; };
   if (!(c(A) > c(B) + 6)) fail(`centre pixel with translucency ${c(A)} is not brighter than without ${c(B)}`);
   ok(`back-lit leaf: ${c(A)} with translucency, ${c(B)} without (sum of RGB)`);
+} else if (what === 'mean_brighter') {
+  const A = readPng(a[0]), B = readPng(a[1]), M = mask(readPng(a[2]));
+  const m = (I) => { let t = 0, n = 0; for (let i = 0; i < I.width * I.height; i++) if (M[i]) { t += I.rgba[4 * i] + I.rgba[4 * i + 1] + I.rgba[4 * i + 2]; n++; } return t / Math.max(n, 1); };
+  if (!(m(A) > m(B) * 1.02)) fail(`mean brightness with translucency ${m(A).toFixed(1)} is not above ${m(B).toFixed(1)} without`);
+  ok(`mean brightness ${m(A).toFixed(1)} with translucency, ${m(B).toFixed(1)} without`);
 } else if (what === 'hl2') {
   // Expected radiance (docs/leafmaps.md, eq. 3.23): L_D t / pi * max(0, sum_i h_i sqrt(3/(2 pi)) H_i . w),
   // the sun behind the quad (light arrives on the abaxial side, frame T, B, -N), t the diffuse
