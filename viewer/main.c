@@ -87,46 +87,47 @@ static int glb_name(const char *n)
 
 static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
 
-/* Files named, with each folder replaced by its glb/gltf files in name order. */
+/* Appends a copy of name to the growing list; 0, or 3 when out of memory. */
+static int push(char ***list, int *n, size_t *cap, const char *dir, const char *name)
+{
+    if ((size_t)*n == *cap) {
+        size_t c = *cap ? *cap * 2 : 16;
+        char **l2 = realloc(*list, c * sizeof(char *));
+        if (!l2) return 3;
+        *list = l2, *cap = c;
+    }
+    size_t len = (dir ? strlen(dir) + 1 : 0) + strlen(name) + 1;
+    char *p = malloc(len);
+    if (!p) return 3;
+    if (dir) snprintf(p, len, "%s/%s", dir, name);
+    else snprintf(p, len, "%s", name);
+    (*list)[(*n)++] = p;
+    return 0;
+}
+
+/* Files named, with each folder replaced by its glb/gltf files in name order. The list grows
+ * in *out / *n_out (the caller frees it, also after a failure). */
 static int expand(char **args, int n, char ***out, int *n_out)
 {
-    size_t cap = 16, k = 0;
-    char **list = malloc(cap * sizeof(char *));
-    if (!list) return 3;
+    size_t cap = 0;
     for (int i = 0; i < n; i++) {
-        if (sy_is_directory(args[i])) {
-            DIR *d = opendir(args[i]);
-            if (!d) return bad("cannot read the folder", args[i]);
-            struct dirent *e;
-            size_t first = k;
-            while ((e = readdir(d))) {
-                if (e->d_name[0] == '.' || !glb_name(e->d_name)) continue;
-                if (k == cap) {
-                    cap *= 2;
-                    char **l2 = realloc(list, cap * sizeof(char *));
-                    if (!l2) { closedir(d); return 3; }
-                    list = l2;
-                }
-                size_t len = strlen(args[i]) + strlen(e->d_name) + 2;
-                list[k] = malloc(len);
-                if (!list[k]) { closedir(d); return 3; }
-                snprintf(list[k++], len, "%s/%s", args[i], e->d_name);
-            }
-            closedir(d);
-            if (k == first) return bad("no .glb files in the folder", args[i]);
-            qsort(list + first, k - first, sizeof(char *), cmp_str);
-        } else {
-            if (k == cap) {
-                cap *= 2;
-                char **l2 = realloc(list, cap * sizeof(char *));
-                if (!l2) return 3;
-                list = l2;
-            }
-            list[k++] = strdup(args[i]);
+        if (!sy_is_directory(args[i])) {
+            if (push(out, n_out, &cap, NULL, args[i])) return 3;
+            continue;
         }
+        DIR *d = opendir(args[i]);
+        if (!d) return bad("cannot read the folder", args[i]);
+        struct dirent *e;
+        int first = *n_out;
+        while ((e = readdir(d)))
+            if (e->d_name[0] != '.' && glb_name(e->d_name) && push(out, n_out, &cap, args[i], e->d_name)) {
+                closedir(d);
+                return 3;
+            }
+        closedir(d);
+        if (*n_out == first) return bad("no .glb files in the folder", args[i]);
+        qsort(*out + first, (size_t)(*n_out - first), sizeof(char *), cmp_str);
     }
-    *out = list;
-    *n_out = (int)k;
     return 0;
 }
 
@@ -179,13 +180,16 @@ int main(int argc, char **argv)
 {
     sy_view_options o = sy_view_options_default();
     char **files = calloc((size_t)argc + 1, sizeof(char *));
-    int n_files = 0;
+    int n_files = 0, rc = 0;
+    char **paths = NULL;
+    int n_paths = 0;
+    sy_view_input in = {0};
     if (!files) return 3;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
 #define NEXT() (i + 1 < argc ? argv[++i] : (fprintf(stderr, "sylva view: %s needs a value\n", a), exit(1), ""))
         double v[3];
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) { fputs(kUsage, stdout); free(files); return 0; }
+        if (!strcmp(a, "--help") || !strcmp(a, "-h")) { fputs(kUsage, stdout); goto out; }
         else if (!strcmp(a, "--points")) o.points = NEXT();
         else if (!strcmp(a, "--points-beside")) o.points_beside = 1;
         else if (!strcmp(a, "--screenshot")) o.screenshot = NEXT();
@@ -194,48 +198,48 @@ int main(int argc, char **argv)
             int w = 0, h = 0;
             char tail;
             if (sscanf(s, "%dx%d%c", &w, &h, &tail) != 2 || w < 16 || h < 16 || w > 16384 || h > 16384)
-                return bad("--size must be WxH with each side in 16..16384, not", s);
+                { rc = bad("--size must be WxH with each side in 16..16384, not", s); goto out; }
             o.width = w, o.height = h;
         } else if (!strcmp(a, "--camera")) {
             const char *s = NEXT();
             int n = parse_list(s, v, 2, 3);
-            if (n < 0 || fabs(v[1]) > 90 || (n == 3 && !(v[2] > 0 && v[2] < 1e6))) return bad("--camera must be AZ,EL[,DIST] (|EL| <= 90, DIST > 0), not", s);
+            if (n < 0 || fabs(v[1]) > 90 || (n == 3 && !(v[2] > 0 && v[2] < 1e6))) { rc = bad("--camera must be AZ,EL[,DIST] (|EL| <= 90, DIST > 0), not", s); goto out; }
             o.camera_set = 1, o.cam_az = v[0], o.cam_el = v[1], o.cam_dist = n == 3 ? v[2] : 0;
         } else if (!strcmp(a, "--target")) {
             const char *s = NEXT();
-            if (parse_list(s, v, 3, 3) < 0) return bad("--target must be X,Y,Z (metres, glTF frame), not", s);
+            if (parse_list(s, v, 3, 3) < 0) { rc = bad("--target must be X,Y,Z (metres, glTF frame), not", s); goto out; }
             o.target_set = 1, o.target[0] = v[0], o.target[1] = v[1], o.target[2] = v[2];
         } else if (!strcmp(a, "--time")) {
             const char *s = NEXT();
-            if (parse_list(s, v, 1, 1) < 0 || fabs(v[0]) > 1e6) return bad("--time must be seconds, not", s);
+            if (parse_list(s, v, 1, 1) < 0 || fabs(v[0]) > 1e6) { rc = bad("--time must be seconds, not", s); goto out; }
             o.time = v[0];
         } else if (!strcmp(a, "--frames")) {
             const char *s = NEXT();
-            if (parse_list(s, v, 1, 1) < 0 || v[0] < 1 || v[0] > 100000 || v[0] != floor(v[0])) return bad("--frames must be 1..100000, not", s);
+            if (parse_list(s, v, 1, 1) < 0 || v[0] < 1 || v[0] > 100000 || v[0] != floor(v[0])) { rc = bad("--frames must be 1..100000, not", s); goto out; }
             o.frames = (int)v[0];
         } else if (!strcmp(a, "--fps")) {
             const char *s = NEXT();
-            if (parse_list(s, v, 1, 1) < 0 || !(v[0] > 0 && v[0] <= 1000)) return bad("--fps must be in (0, 1000], not", s);
+            if (parse_list(s, v, 1, 1) < 0 || !(v[0] > 0 && v[0] <= 1000)) { rc = bad("--fps must be in (0, 1000], not", s); goto out; }
             o.fps = v[0];
         } else if (!strcmp(a, "-o")) o.out_dir = NEXT();
         else if (!strcmp(a, "--no-wind")) o.wind = 0;
         else if (!strcmp(a, "--wind-strength")) {
             const char *s = NEXT();
-            if (parse_list(s, v, 1, 1) < 0 || v[0] < 0 || v[0] > 20) return bad("--wind-strength must be in 0..20, not", s);
+            if (parse_list(s, v, 1, 1) < 0 || v[0] < 0 || v[0] > 20) { rc = bad("--wind-strength must be in 0..20, not", s); goto out; }
             o.wind_strength = v[0];
         } else if (!strcmp(a, "--wind-dir")) {
             const char *s = NEXT();
-            if (parse_list(s, v, 1, 1) < 0) return bad("--wind-dir must be degrees, not", s);
+            if (parse_list(s, v, 1, 1) < 0) { rc = bad("--wind-dir must be degrees, not", s); goto out; }
             o.wind_dir_deg = v[0];
         } else if (!strcmp(a, "--wind-stop")) {
             const char *s = NEXT();
-            if (parse_list(s, v, 1, 1) < 0 || v[0] < 0) return bad("--wind-stop must be seconds >= 0, not", s);
+            if (parse_list(s, v, 1, 1) < 0 || v[0] < 0) { rc = bad("--wind-stop must be seconds >= 0, not", s); goto out; }
             o.wind_stop = v[0];
         } else if (!strcmp(a, "--static-load")) o.static_load = 1;
         else if (!strcmp(a, "--no-translucency")) o.translucency = 0;
         else if (!strcmp(a, "--lod")) {
             const char *s = NEXT();
-            if (parse_list(s, v, 1, 1) < 0 || v[0] < 0 || v[0] >= SY_GLTF_MAX_LODS || v[0] != floor(v[0])) return bad("--lod must be a level 0..15, not", s);
+            if (parse_list(s, v, 1, 1) < 0 || v[0] < 0 || v[0] >= SY_GLTF_MAX_LODS || v[0] != floor(v[0])) { rc = bad("--lod must be a level 0..15, not", s); goto out; }
             o.lod_override = (int)v[0];
         } else if (!strcmp(a, "--grass")) o.grass = 1;
         else if (!strcmp(a, "--no-ground")) o.ground = 0;
@@ -245,32 +249,32 @@ int main(int argc, char **argv)
         else if (!strcmp(a, "--mask")) o.mask = 1;
         else if (!strcmp(a, "--sun")) {
             const char *s = NEXT();
-            if (parse_list(s, v, 2, 2) < 0 || v[1] < 0 || v[1] > 90) return bad("--sun must be AZ,EL with EL in 0..90, not", s);
+            if (parse_list(s, v, 2, 2) < 0 || v[1] < 0 || v[1] > 90) { rc = bad("--sun must be AZ,EL with EL in 0..90, not", s); goto out; }
             o.sun_az = v[0], o.sun_el = v[1];
         } else if (!strcmp(a, "--turbidity")) {
             const char *s = NEXT();
-            if (parse_list(s, v, 1, 1) < 0 || v[0] < 1.7 || v[0] > 10) return bad("--turbidity must be in 1.7..10, not", s);
+            if (parse_list(s, v, 1, 1) < 0 || v[0] < 1.7 || v[0] > 10) { rc = bad("--turbidity must be in 1.7..10, not", s); goto out; }
             o.turbidity = v[0];
         } else if (!strcmp(a, "--ambient")) {
             const char *s = NEXT();
-            if (parse_list(s, v, 1, 1) < 0 || v[0] < 0 || v[0] > 100) return bad("--ambient must be in 0..100, not", s);
+            if (parse_list(s, v, 1, 1) < 0 || v[0] < 0 || v[0] > 100) { rc = bad("--ambient must be in 0..100, not", s); goto out; }
             o.ambient = v[0];
         } else if (!strcmp(a, "--exposure")) {
             const char *s = NEXT();
-            if (parse_list(s, v, 1, 1) < 0 || !(v[0] > 0 && v[0] <= 100)) return bad("--exposure must be in (0, 100], not", s);
+            if (parse_list(s, v, 1, 1) < 0 || !(v[0] > 0 && v[0] <= 100)) { rc = bad("--exposure must be in (0, 100], not", s); goto out; }
             o.exposure = v[0];
         } else if (!strcmp(a, "--copies")) {
             const char *s = NEXT();
-            if (parse_list(s, v, 1, 1) < 0 || v[0] < 1 || v[0] > 100000 || v[0] != floor(v[0])) return bad("--copies must be 1..100000, not", s);
+            if (parse_list(s, v, 1, 1) < 0 || v[0] < 1 || v[0] > 100000 || v[0] != floor(v[0])) { rc = bad("--copies must be 1..100000, not", s); goto out; }
             o.copies = (int)v[0];
         } else if (!strcmp(a, "--spacing")) {
             const char *s = NEXT();
-            if (parse_list(s, v, 1, 1) < 0 || !(v[0] > 0 && v[0] < 1e5)) return bad("--spacing must be metres > 0, not", s);
+            if (parse_list(s, v, 1, 1) < 0 || !(v[0] > 0 && v[0] < 1e5)) { rc = bad("--spacing must be metres > 0, not", s); goto out; }
             o.spacing = v[0];
         } else if (!strcmp(a, "--json")) o.json = 1;
         else if (!strcmp(a, "--bench")) {
             const char *s = NEXT();
-            if (parse_list(s, v, 1, 1) < 0 || v[0] < 1 || v[0] > 100000 || v[0] != floor(v[0])) return bad("--bench must be 1..100000 frames, not", s);
+            if (parse_list(s, v, 1, 1) < 0 || v[0] < 1 || v[0] > 100000 || v[0] != floor(v[0])) { rc = bad("--bench must be 1..100000 frames, not", s); goto out; }
             o.bench = (int)v[0];
         } else if (!strcmp(a, "--dump-wind")) o.dump_wind = NEXT();
         else if (!strcmp(a, "--seed")) {
@@ -278,52 +282,49 @@ int main(int argc, char **argv)
             char *end;
             errno = 0;
             unsigned long long x = strtoull(s, &end, 10);
-            if (*s == '-' || end == s || *end || errno) return bad("--seed must be a non-negative integer, not", s);
+            if (*s == '-' || end == s || *end || errno) { rc = bad("--seed must be a non-negative integer, not", s); goto out; }
             o.seed = x;
         } else if (a[0] == '-' && a[1]) {
             fprintf(stderr, "sylva view: unknown option '%s' (sylva view --help)\n", a);
-            free(files);
-            return 1;
+            rc = 1;
+            goto out;
         } else
             files[n_files++] = argv[i];
 #undef NEXT
     }
     if (n_files == 0) {
         fputs(kUsage, stderr);
-        free(files);
-        return 1;
+        rc = 1;
+        goto out;
     }
     if (o.frames > 0 && !o.out_dir) {
         fprintf(stderr, "sylva view: --frames needs -o DIR\n");
-        free(files);
-        return 1;
+        rc = 1;
+        goto out;
     }
-    char **paths;
-    int n_paths;
-    int rc = expand(files, n_files, &paths, &n_paths);
-    free(files);
-    if (rc) return rc;
-    sy_view_input in = {0};
-    in.scenes = calloc((size_t)n_paths, sizeof(sy_gltf_scene));
+    if ((rc = expand(files, n_files, &paths, &n_paths)) != 0) goto out;
+    in.scenes = calloc((size_t)n_paths + 1, sizeof(sy_gltf_scene));
     in.paths = paths;
-    if (!in.scenes) return 3;
+    if (!in.scenes) { rc = 3; goto out; }
     for (int i = 0; i < n_paths; i++) {
-        char msg[1024];
-        int r = sy_gltf_read_scene(paths[i], &in.scenes[i], msg, sizeof msg);
-        if (r) {
-            fprintf(stderr, "sylva view: %s\n", msg);
-            for (int k = 0; k < i; k++) sy_gltf_scene_free(&in.scenes[k]);
-            return r;
+        sy_error err = {0};
+        sy_code r = sy_gltf_read_scene(paths[i], &in.scenes[i], &err);
+        if (r != SY_OK) {
+            fprintf(stderr, "sylva view: %s\n", err.msg);
+            rc = r;
+            goto out;
         }
         in.n_scenes++;
     }
-    if (o.points && (rc = load_points(o.points, &in.scenes[0], &in.points)) != 0) return rc;
+    if (o.points && (rc = load_points(o.points, &in.scenes[0], &in.points)) != 0) goto out;
     rc = sy_view_run(&in, &o);
+out:
     for (size_t i = 0; i < in.n_scenes; i++) sy_gltf_scene_free(&in.scenes[i]);
     for (int i = 0; i < n_paths; i++) free(paths[i]);
     free(paths);
     free(in.scenes);
     free(in.points.xyz);
     free(in.points.rgb);
+    free(files);
     return rc;
 }

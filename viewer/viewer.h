@@ -7,7 +7,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "stages/eval/gltf_read_tinygltf.h"
+#include "stages/gltf/gltf_read.h"
 
 typedef struct {
     int width, height;

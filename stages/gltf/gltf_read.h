@@ -1,13 +1,41 @@
-/* Triangles of a glTF/GLB file through tinygltf, for evaluation. */
-#ifndef SYLVA_GLTF_READ_TINYGLTF_H
-#define SYLVA_GLTF_READ_TINYGLTF_H
+/* The one glTF reader: what tests check in an exported .glb, what eval
+ * scores and what the viewer draws. Three views of a file: its JSON and BIN
+ * chunks with values at JSON pointers (sy_gltf_open), its triangles in
+ * Sylva's Z-up world frame (sy_gltf_read_triangles), and the whole scene in
+ * glTF's frame for drawing (sy_gltf_read_scene). Production export
+ * (stages/export) writes glTF and never reads it back. */
+#ifndef SYLVA_GLTF_READ_H
+#define SYLVA_GLTF_READ_H
 
 #include <stddef.h>
 #include <stdint.h>
 
+#include "stages/core/status.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
+
+/* A GLB's JSON chunk (parsed) and BIN chunk. */
+typedef struct sy_gltf_file sy_gltf_file;
+sy_code sy_gltf_open(const char *path, sy_gltf_file **out, sy_error *err);
+void sy_gltf_close(sy_gltf_file *f);
+/* Values at an RFC 6901 JSON pointer ("/materials/1/alphaMode"). */
+int sy_gltf_has(const sy_gltf_file *f, const char *pointer);
+double sy_gltf_number(const sy_gltf_file *f, const char *pointer, double fallback);
+/* Copies the string into buf ("" when absent or not a string); returns buf. */
+const char *sy_gltf_string(const sy_gltf_file *f, const char *pointer, char *buf, size_t size);
+/* Length of the array or object at pointer, -1 when absent or a scalar. */
+int sy_gltf_size(const sy_gltf_file *f, const char *pointer);
+/* The index-th key of the object at pointer (in the JSON's key order), ""
+ * when absent; returns buf. */
+const char *sy_gltf_key(const sy_gltf_file *f, const char *pointer, int index, char *buf, size_t size);
+/* The BIN chunk (buffer 0). */
+const unsigned char *sy_gltf_bin(const sy_gltf_file *f, size_t *size);
+/* SY_OK if tinygltf itself loads the file without errors or warnings, else
+ * SY_EINPUT with tinygltf's complaint (files whose only buffer is the BIN
+ * chunk; a meshopt fallback buffer has no data to load). */
+sy_code sy_gltf_tinygltf_check(const char *path, sy_error *err);
 
 /* Reads every triangle of the default scene (or of scene 0, or of all root
  * nodes when the file names no scene): node transforms and
@@ -18,10 +46,9 @@ extern "C" {
  * triangle (malloc'd); *hull one entry per triangle (malloc'd): 0, or k >= 1
  * when the triangle belongs to the k-th closed hull, a connected part of a
  * mesh named "foliage_proxy" (Sylva's cluster hulls, each closed and facing
- * outward; one hull per part and instance). Returns 0 on success; otherwise
- * 2 (bad input) or 3 (out of memory) with a one-line reason in msg. */
-int sy_gltf_read_triangles(const char *path, double **tri, size_t *n_tri, size_t **hull, char *msg,
-                           size_t msg_size);
+ * outward; one hull per part and instance). SY_EINPUT (not a readable
+ * glTF) or SY_EINTERNAL (out of memory) with a one-line message naming path. */
+sy_code sy_gltf_read_triangles(const char *path, double **tri, size_t *n_tri, size_t **hull, sy_error *err);
 
 /* The whole scene, for drawing it (the GL preview): meshes with every
  * attribute a renderer needs, materials, decoded images, node transforms,
@@ -132,13 +159,14 @@ typedef struct {
     double origin[3]; /* asset.extras.origin: world position of the glTF origin, Z-up survey frame */
 } sy_gltf_scene;
 
-/* Reads a .glb or .gltf for drawing. Fails (2, one-line reason in msg naming
- * the file) on an unreadable file, a broken reference or accessor, an image
- * that does not decode or is missing, a scene with no triangle mesh, or a
- * malformed sylva_wind table; 3 on out of memory. On success the caller owns
- * *out (sy_gltf_scene_free). */
-int sy_gltf_read_scene(const char *path, sy_gltf_scene *out, char *msg, size_t msg_size);
+/* Reads a .glb or .gltf for drawing. SY_EINPUT (one-line reason naming the
+ * file) on an unreadable file, a broken reference or accessor, an image that
+ * does not decode or is missing, a scene with no triangle mesh, or a malformed
+ * sylva_wind table; SY_EINTERNAL on out of memory. EXT_meshopt_compression
+ * views are decoded. On success the caller owns *out (sy_gltf_scene_free). */
+sy_code sy_gltf_read_scene(const char *path, sy_gltf_scene *out, sy_error *err);
 void sy_gltf_scene_free(sy_gltf_scene *s);
+
 
 #ifdef __cplusplus
 }

@@ -1,5 +1,7 @@
-// tinygltf shim: triangle soup of a glTF scene in world space (Z up).
-#include "gltf_read_tinygltf.h"
+// The glTF reader's geometry side (tinygltf shim): the triangle soup of a
+// glTF scene in Sylva's world frame (Z up), and the whole scene for drawing it
+// (sy_gltf_read_scene: meshes, materials, images, instancing, LODs, wind).
+#include "stages/gltf/gltf_read.h"
 
 #include <meshoptimizer.h>
 #include <tiny_gltf.h>
@@ -393,8 +395,7 @@ bool asset_origin(const tinygltf::Model &model, double o[3])
 
 } // namespace
 
-extern "C" int sy_gltf_read_triangles(const char *path, double **tri, size_t *n_tri, size_t **hull, char *msg,
-                                      size_t msg_size)
+static int read_triangles(const char *path, double **tri, size_t *n_tri, size_t **hull, char *msg, size_t msg_size)
 {
     *tri = nullptr;
     *hull = nullptr;
@@ -435,6 +436,14 @@ extern "C" int sy_gltf_read_triangles(const char *path, double **tri, size_t *n_
         set_msg(msg, msg_size, path, std::string("invalid glTF: ") + e.what());
         return 2;
     }
+}
+
+extern "C" sy_code sy_gltf_read_triangles(const char *path, double **tri, size_t *n_tri, size_t **hull, sy_error *err)
+{
+    char msg[1024];
+    int rc = read_triangles(path, tri, n_tri, hull, msg, sizeof msg);
+    if (rc == 0) return SY_OK;
+    return sy_fail(err, rc == 3 ? SY_EINTERNAL : SY_EINPUT, "%s", msg);
 }
 
 // ---------------------------------------------------------------------------
@@ -905,7 +914,7 @@ extern "C" void sy_gltf_scene_free(sy_gltf_scene *s)
     if (s) free_scene(s);
 }
 
-extern "C" int sy_gltf_read_scene(const char *path, sy_gltf_scene *out, char *msg, size_t msg_size)
+static int read_scene(const char *path, sy_gltf_scene *out, char *msg, size_t msg_size)
 {
     std::memset(out, 0, sizeof *out);
     try {
@@ -978,4 +987,12 @@ extern "C" int sy_gltf_read_scene(const char *path, sy_gltf_scene *out, char *ms
         set_msg(msg, msg_size, path, std::string("invalid glTF: ") + e.what());
         return 2;
     }
+}
+
+extern "C" sy_code sy_gltf_read_scene(const char *path, sy_gltf_scene *out, sy_error *err)
+{
+    char msg[1024];
+    int rc = read_scene(path, out, msg, sizeof msg);
+    if (rc == 0) return SY_OK;
+    return sy_fail(err, rc == 3 ? SY_EINTERNAL : SY_EINPUT, "%s", msg);
 }
