@@ -18,5 +18,6 @@ const sy_command sy_commands[] = {
     {"decode", "summarise a .sylva tree file, or write it out as JSON", cmd_decode},
     {"library", "list the species library or show one species (stable ids, names, kinds, files)", cmd_library},
     {"photogrammetry", "photos -> point cloud through COLMAP, levelled and scaled", cmd_photogrammetry},
+    {"view", "preview .glb trees in OpenGL (window or headless screenshots), with wind, LOD and the scan", cmd_view},
     {NULL, NULL, NULL},
 };

@@ -50,6 +50,7 @@ sy_code sy_photo_cli_apply(sy_photo_cli *c, const char *workspace, sy_photogramm
  * "<out_path_hint>.colmap", reporting progress and the outcome on stderr. */
 sy_code sy_photos_to_cloud(const char *dir, const char *out_path_hint, sy_photo_cli *c, const sy_cli *cli,
                            sy_photogrammetry_result *r, sy_error *err);
+int cmd_view(int argc, char **argv, sy_cli *cli);
 
 #ifdef __cplusplus
 }
