@@ -15,5 +15,6 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli);
 int cmd_run(int argc, char **argv, sy_cli *cli);
 int cmd_encode(int argc, char **argv, sy_cli *cli);
 int cmd_decode(int argc, char **argv, sy_cli *cli);
+int cmd_leaf(int argc, char **argv, sy_cli *cli);
 
 #endif

@@ -233,7 +233,7 @@ static sy_code photo_mask(const sy_fimage *im, unsigned char *mask, const char *
     /* An alpha channel is exact: only specks and pinholes go. A colour
      * threshold also needs an opening (noise) and a closing (dark veins). */
     int r = alpha_used ? 0 : 1;
-    int max_hole = alpha_used ? 2 : (int)(n / 20000) + 4;
+    int max_hole = alpha_used ? 2 : (int)(n / 2000) + 4; /* glints look like background */
     if (sy_lcv_mask_clean(mask, w, h, r, alpha_used ? 0.0005 : 0.002, max_hole)) return cv_fail(err, what);
     size_t count = 0;
     for (size_t i = 0; i < n; i++) count += mask[i] != 0;
@@ -1125,7 +1125,8 @@ static sy_code build(const sy_leaf_capture *cap, const sy_leafmaps_options *o, s
             for (int ch = 0; ch < 3; ch++) {
                 float *t = &m->translucency[s][3 * i + ch];
                 float lim = 1.0f - m->albedo[1 - s][3 * i + ch];
-                if (*t > lim) *t = lim, m->energy_clamped++;
+                if (m->alpha[i] < 0.5f) *t = 0; /* no leaf: nothing to transmit */
+                else if (*t > lim) *t = lim, m->energy_clamped++;
             }
     /* Heights without scans: half the thickness variation each side plus the
      * albedo's luminance detail (veins) as relief. */
