@@ -552,31 +552,31 @@ typedef struct {
     int w, h, sectors;
     double texel;
     float *hz;
+    const int *off;         /* per sector and step: texel offset (dx, dy) */
+    double inv_dist[HORIZON_STEPS]; /* 1 / (step * texel) */
 } horizon_job;
 
 static void horizon_rows(void *ctx, size_t begin, size_t end, size_t chunk)
 {
     (void)chunk;
     const horizon_job *j = ctx;
-    static const int steps[HORIZON_STEPS] = {1, 2, 3, 4, 6, 8, 11, 16, 22, 32, 45, 64};
     for (size_t y = begin; y < end; y++)
         for (int x = 0; x < j->w; x++) {
             size_t i = y * (size_t)j->w + (size_t)x;
             float *out = j->hz + i * (size_t)j->sectors;
             float h0 = j->height[i];
             for (int k = 0; k < j->sectors; k++) {
-                double phi = 2 * SY_LEAF_PI * k / j->sectors;
-                double cx = cos(phi), cy = -sin(phi); /* +Y up is -row */
-                double best = -SY_LEAF_PI / 2;
+                /* The steepest slope along the sector, one atan at the end. */
+                double best = -1e30;
                 for (int s = 0; s < HORIZON_STEPS; s++) {
-                    int px = x + (int)lround(cx * steps[s]), py = (int)y + (int)lround(cy * steps[s]);
+                    int px = x + j->off[2 * (k * HORIZON_STEPS + s)], py = (int)y + j->off[2 * (k * HORIZON_STEPS + s) + 1];
                     if (px < 0 || py < 0 || px >= j->w || py >= j->h) break;
                     size_t q = (size_t)py * (size_t)j->w + (size_t)px;
                     if (j->alpha[q] < 0.5f) break; /* beyond the leaf nothing occludes */
-                    double e = atan2(j->height[q] - h0, steps[s] * j->texel);
-                    if (e > best) best = e;
+                    double slope = (j->height[q] - h0) * j->inv_dist[s];
+                    if (slope > best) best = slope;
                 }
-                out[k] = (float)best;
+                out[k] = best > -1e29 ? (float)atan(best) : (float)(-SY_LEAF_PI / 2);
             }
         }
 }
@@ -584,21 +584,52 @@ static void horizon_rows(void *ctx, size_t begin, size_t end, size_t chunk)
 sy_code sy_leaf_horizon(const float *height, const float *alpha, int w, int h, double texel_mm, int sectors, float *hz,
                         sy_error *err)
 {
-    (void)err;
-    horizon_job j = {height, alpha, w, h, sectors, texel_mm, hz};
+    static const int steps[HORIZON_STEPS] = {1, 2, 3, 4, 6, 8, 11, 16, 22, 32, 45, 64};
+    int *off = sy_calloc((size_t)sectors * HORIZON_STEPS * 2, sizeof *off, err, "horizon");
+    if (!off) return SY_EINTERNAL;
+    horizon_job j = {height, alpha, w, h, sectors, texel_mm, hz, off, {0}};
+    for (int k = 0; k < sectors; k++) {
+        double phi = 2 * SY_LEAF_PI * k / sectors;
+        for (int s = 0; s < HORIZON_STEPS; s++) {
+            off[2 * (k * HORIZON_STEPS + s)] = (int)lround(cos(phi) * steps[s]);
+            off[2 * (k * HORIZON_STEPS + s) + 1] = (int)lround(-sin(phi) * steps[s]); /* +Y up is -row */
+        }
+    }
+    for (int s = 0; s < HORIZON_STEPS; s++) j.inv_dist[s] = 1 / (steps[s] * texel_mm);
     sy_parallel_for((size_t)h, 16, horizon_rows, &j);
+    free(off);
     return SY_OK;
+}
+
+/* Where direction w falls among the horizon sectors: its elevation, the two
+ * sectors around its azimuth and the interpolation weight of the second. */
+typedef struct {
+    float elevation, t;
+    int k0, k1;
+} sector_pos;
+
+static sector_pos sector_of(int sectors, const double w[3])
+{
+    sector_pos p;
+    p.elevation = (float)asin(fmax(-1, fmin(1, w[2])));
+    double az = atan2(w[1], w[0]);
+    if (az < 0) az += 2 * SY_LEAF_PI;
+    double f = az / (2 * SY_LEAF_PI) * sectors;
+    p.k0 = (int)floor(f) % sectors;
+    p.k1 = (p.k0 + 1) % sectors;
+    p.t = (float)(f - floor(f));
+    return p;
+}
+
+static int visible_at(const float *hz, const sector_pos *p)
+{
+    return p->elevation > hz[p->k0] * (1 - p->t) + hz[p->k1] * p->t;
 }
 
 int sy_leaf_visible(const float *hz, int sectors, const double w[3])
 {
-    double el = asin(fmax(-1, fmin(1, w[2])));
-    double az = atan2(w[1], w[0]);
-    if (az < 0) az += 2 * SY_LEAF_PI;
-    double f = az / (2 * SY_LEAF_PI) * sectors;
-    int k0 = (int)floor(f) % sectors, k1 = (k0 + 1) % sectors;
-    double t = f - floor(f);
-    return el > hz[k0] * (1 - t) + hz[k1] * t;
+    sector_pos p = sector_of(sectors, w);
+    return visible_at(hz, &p);
 }
 
 /* ------------------------------------------------------------ convolution */
@@ -675,6 +706,7 @@ typedef struct {
     const float *alpha, *albedo, *normal, *hz;
     int size, sectors, n_dirs;
     const double *dirs, *W; /* 3 x n_dirs */
+    const sector_pos *pos;  /* per direction */
     float *E[3];
 } irradiance_job;
 
@@ -694,7 +726,7 @@ static void irradiance_rows(void *ctx, size_t begin, size_t end, size_t chunk)
                 for (int m = 0; m < j->n_dirs; m++) {
                     const double *w = j->dirs + 3 * m;
                     double c = n[0] * w[0] + n[1] * w[1] + n[2] * w[2];
-                    if (c <= 0 || !sy_leaf_visible(hz, j->sectors, w)) continue;
+                    if (c <= 0 || !visible_at(hz, &j->pos[m])) continue;
                     for (int k = 0; k < 3; k++) e[k] += j->W[(size_t)k * j->n_dirs + m] * c;
                 }
                 double entry = 1 - j->albedo[3 * i + 1]; /* 510 nm: the green channel */
@@ -753,16 +785,19 @@ static sy_code precompute(sy_leaf_maps *m, const sy_leafmaps_options *o, sy_erro
         h[k] = malloc(n * sizeof(float));
         if (!E[k] || !h[k]) rc = sy_fail(err, SY_EINTERNAL, "precompute: out of memory");
     }
+    sector_pos *pos = rc ? NULL : malloc((size_t)nd * sizeof *pos);
+    if (!rc && !pos) rc = sy_fail(err, SY_EINTERNAL, "precompute: out of memory");
     if (!rc) {
         sy_hl2_directions(nd, o->seed, dirs);
         if (sy_hl2_projection(dirs, nd, W)) rc = sy_fail(err, SY_EINPUT, "directions %d give a singular HL2 projection", nd);
+        for (int k = 0; !rc && k < nd; k++) pos[k] = sector_of(o->sectors, dirs + 3 * k);
     }
     double t0 = wall_now();
     for (int s = 0; !rc && s < 2; s++) {
         say(o, s ? "horizon and irradiance, abaxial side lit" : "horizon and irradiance, adaxial side lit");
         rc = sy_leaf_horizon(m->height[s], m->alpha, size, size, m->texel_mm, o->sectors, hz, err);
         if (rc) break;
-        irradiance_job j = {m->alpha, m->albedo[s], m->normal[s], hz, size, o->sectors, nd, dirs, W,
+        irradiance_job j = {m->alpha, m->albedo[s], m->normal[s], hz, size, o->sectors, nd, dirs, W, pos,
                             {E[3 * s], E[3 * s + 1], E[3 * s + 2]}};
         sy_parallel_for((size_t)size, 8, irradiance_rows, &j);
     }
@@ -798,7 +833,7 @@ static sy_code precompute(sy_leaf_maps *m, const sy_leafmaps_options *o, sy_erro
     }
     m->seconds[4] = wall_now() - t0;
     for (int k = 0; k < 6; k++) free(E[k]), free(h[k]);
-    free(dirs), free(W), free(hz);
+    free(dirs), free(W), free(hz), free(pos);
     return rc;
 }
 
