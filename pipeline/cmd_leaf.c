@@ -12,7 +12,9 @@
 #include "pipeline/commands.h"
 #include "stages/core/fileio.h"
 #include "stages/core/json.h"
+#include "stages/core/cloud.h"
 #include "stages/core/parallel.h"
+#include "stages/ingest/ingest.h"
 #include "stages/leafmaps/leaf_material.h"
 #include "stages/leafmaps/leafmaps.h"
 #include "stages/leafmaps/leafmaps_cv.h"
@@ -29,12 +31,12 @@ static const sy_opt opts[] = {
     {"--library", OPT_STRING, &library_dir, "DIR", "species library folder (default: the built-in species/)"},
     {"--back-lit", OPT_STRING, &back_lit, "IMG", "back-lit photo of the adaxial side (light behind the leaf)"},
     {"--flat-field", OPT_STRING, &flat_field, "IMG", "the back light alone, same exposure"},
-    {"--height", OPT_STRING, &height, "PNG16", "displacement scan of the adaxial side (16-bit grey PNG)"},
+    {"--height", OPT_STRING, &height, "SCAN", "displacement scan of the adaxial side (16-bit grey PNG, or PLY in mm)"},
     {"--abaxial", OPT_STRING, &abaxial, "IMG", "front-lit photo of the abaxial side (leaf turned over)"},
     {"--abaxial-back-lit", OPT_STRING, &abaxial_back_lit, "IMG", "back-lit photo of the abaxial side"},
     {"--abaxial-flat-field", OPT_STRING, &abaxial_flat_field, "IMG", "flat field of the abaxial back-lit photo"},
-    {"--abaxial-height", OPT_STRING, &abaxial_height, "PNG16", "displacement scan of the abaxial side"},
-    {"--height-scale", OPT_DOUBLE, &height_scale, "MM", "millimetres of the scans' full 16-bit range (default 1)"},
+    {"--abaxial-height", OPT_STRING, &abaxial_height, "SCAN", "displacement scan of the abaxial side"},
+    {"--height-scale", OPT_DOUBLE, &height_scale, "MM", "mm of a PNG scan's full 16-bit range, or per PLY unit (default 1)"},
     {"--white", OPT_STRING, &white, "X,Y,W,H", "grey/white reference rectangle in the adaxial photo (pixels)"},
     {"--white-reflectance", OPT_DOUBLE, &white_reflectance, "R", "reflectance of that reference (default 0.9)"},
     {"--thickness", OPT_DOUBLE, &thickness, "MM", "measured leaf thickness, the thickness map's anchor (default 0.2)"},
@@ -87,9 +89,87 @@ static sy_code load_photo(const char *path, sy_fimage *im, sy_error *err)
     return SY_OK;
 }
 
+/* A displacement scan as a point cloud (PLY, or any format ingest reads):
+ * x, y, z in mm times `scale`, x right and y up in the photo, its bounding
+ * box's corner (min x, max y) on the photo's top-left pixel, one photo pixel
+ * = texel mm. Each pixel keeps the highest point; empty pixels take the
+ * mean of their filled neighbours, grown outwards until none is left. */
+static sy_code rasterize_scan(const char *path, double scale, double texel_mm, int w, int h, sy_fimage *im,
+                              sy_error *err)
+{
+    if (!(texel_mm > 0)) return sy_fail(err, SY_EINPUT, "%s: a point-cloud scan needs --texel (photo pixel size)", path);
+    sy_cloud c;
+    sy_code rc = sy_read_cloud(path, &c, err);
+    if (rc) return rc;
+    if (c.n < 3) {
+        sy_cloud_free(&c);
+        return sy_fail(err, SY_EINPUT, "%s: a height scan needs points, it has %zu", path, c.n);
+    }
+    double xmin = 1e300, ymax = -1e300;
+    for (size_t i = 0; i < c.n; i++) {
+        double x = (c.origin[0] + c.xyz[3 * i]) * scale, y = (c.origin[1] + c.xyz[3 * i + 1]) * scale;
+        if (x < xmin) xmin = x;
+        if (y > ymax) ymax = y;
+    }
+    size_t n = (size_t)w * h;
+    if ((rc = sy_fimage_alloc(im, w, h, 1, err))) {
+        sy_cloud_free(&c);
+        return rc;
+    }
+    unsigned char *filled = calloc(n, 1);
+    if (!filled) rc = sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
+    size_t hits = 0;
+    for (size_t i = 0; !rc && i < c.n; i++) {
+        double x = (c.origin[0] + c.xyz[3 * i]) * scale, y = (c.origin[1] + c.xyz[3 * i + 1]) * scale;
+        double z = (c.origin[2] + c.xyz[3 * i + 2]) * scale;
+        long px = lround((x - xmin) / texel_mm), py = lround((ymax - y) / texel_mm);
+        if (px < 0 || py < 0 || px >= w || py >= h) continue;
+        size_t q = (size_t)py * w + (size_t)px;
+        if (!filled[q] || z > im->px[q]) im->px[q] = (float)z, hits += !filled[q], filled[q] = 1;
+    }
+    sy_cloud_free(&c);
+    if (!rc && hits == 0) rc = sy_fail(err, SY_EINPUT, "%s: no point falls on the photo", path);
+    for (int pass = 0; !rc && hits < n && pass < w + h; pass++) {
+        unsigned char *next = malloc(n);
+        if (!next) {
+            rc = sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
+            break;
+        }
+        memcpy(next, filled, n);
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++) {
+                size_t q = (size_t)y * w + x;
+                if (filled[q]) continue;
+                double sum = 0;
+                int k = 0;
+                for (int dy = -1; dy <= 1; dy++)
+                    for (int dx = -1; dx <= 1; dx++) {
+                        int xx = x + dx, yy = y + dy;
+                        if (xx < 0 || yy < 0 || xx >= w || yy >= h || !filled[(size_t)yy * w + xx]) continue;
+                        sum += im->px[(size_t)yy * w + xx], k++;
+                    }
+                if (k) im->px[q] = (float)(sum / k), next[q] = 1, hits++;
+            }
+        free(filled);
+        filled = next;
+    }
+    free(filled);
+    if (rc) sy_fimage_free(im);
+    return rc;
+}
+
 static sy_code load_height(const char *path, double scale, sy_fimage *im, sy_error *err)
 {
     int depth;
+    char ext[16];
+    sy_extension(path, ext, sizeof ext);
+    if (strcmp(ext, "png") != 0) {
+        /* A point cloud: rasterised once the photo's size is known. */
+        im->w = im->h = 0;
+        im->px = NULL;
+        im->c = -1;
+        return SY_OK;
+    }
     if (access(path, R_OK) != 0) return sy_fail(err, SY_EINPUT, "%s: cannot open (%s)", path, strerror(errno));
     if (sy_lcv_read(path, &im->px, &im->w, &im->h, &im->c, &depth))
         return sy_fail(err, SY_EINPUT, "%s: not an image this build can decode", path);
@@ -256,6 +336,10 @@ int cmd_leaf(int argc, char **argv, sy_cli *cli)
         rc = (k == 2 || k == 6) ? load_height(extra_path[k], height_scale, &extra[k], &err)
                                 : load_photo(extra_path[k], &extra[k], &err);
     }
+    for (int k = 2; !rc && k <= 6; k += 4)
+        if (extra_path[k] && extra[k].c == -1)
+            rc = rasterize_scan(extra_path[k], height_scale, texel > 0 ? texel : 0, photos[0].w, photos[0].h, &extra[k],
+                                &err);
     sy_leaf_maps maps[MAX_PHOTOS];
     memset(maps, 0, sizeof maps);
     int built = 0;
@@ -268,7 +352,8 @@ int cmd_leaf(int argc, char **argv, sy_cli *cli)
             cap.side[0].height = extra[2].px ? &extra[2] : NULL;
             cap.side[1].reflected = extra[3].px ? &extra[3] : NULL;
             cap.side[1].transmitted = extra[4].px ? &extra[4] : NULL;
-            cap.side[1].flat_field = extra[5].px ? &extra[5] : (extra[1].px ? &extra[1] : NULL);
+            /* One back light: the adaxial flat field serves both sides. */
+            cap.side[1].flat_field = !extra[4].px ? NULL : extra[5].px ? &extra[5] : extra[1].px ? &extra[1] : NULL;
             cap.side[1].height = extra[6].px ? &extra[6] : NULL;
         }
         int white_rect[4];

@@ -30,11 +30,14 @@ check "json reports the median thickness" "grep -q '\"thickness_median_mm\"' '$t
 
 # Bad input: one line on stderr, exit 2, nothing written.
 printf 'not an image\n' >"$tmp/text.png"
-convert -size 1x1 xc:green "$tmp/one.png"
-convert -size 64x64 xc:'#808080' "$tmp/bg.png"
-convert -size 64x48 xc:white "$tmp/small_back.png"
-convert -size 64x64 xc:'#808080' -fill '#206020' -draw 'ellipse 32,32 12,24 0,360' -depth 16 "$tmp/photo16.png"
-convert -size 64x64 xc:'#808080' -fill '#206020' -draw 'ellipse 32,32 12,24 0,360' "$tmp/photo8.png"
+convert -size 1x1 xc:green -depth 8 PNG24:"$tmp/one.png"
+convert -size 64x64 xc:'#808080' -depth 8 PNG24:"$tmp/bg.png"
+convert -size 64x48 xc:white -depth 8 PNG24:"$tmp/small_back.png"
+leaf_drawing=(-size 64x64 xc:'#808080' -fill '#206020' -draw 'ellipse 32,32 12,24 0,360')
+convert "${leaf_drawing[@]}" -depth 16 PNG48:"$tmp/photo16.png"
+convert "${leaf_drawing[@]}" -depth 8 PNG24:"$tmp/photo8.png"
+check "test photos have the intended depths" \
+  "file '$tmp/photo8.png' | grep -q 8-bit && file '$tmp/photo16.png' | grep -q 16-bit"
 bad() { # NAME ARGS...
   local name=$1; shift
   rm -rf "$tmp/bad"
@@ -53,6 +56,30 @@ bad "8-bit height scan" "$tmp/photo8.png" --height "$tmp/photo8.png"
 bad "missing file" "$tmp/none.png"
 "$SYLVA" leaf "$tmp/photo8.png" --species no_such_species --quiet 2>"$tmp/sp.err"
 check "unknown species: exit 2" "[[ $? == 2 ]] && grep -q 'no such species' '$tmp/sp.err'"
+
+# A displacement scan as a PLY point cloud (mm): a plane rising to the right
+# tilts every normal towards -X.
+python3 -c "
+n = 64
+with open('$tmp/tilt.ply', 'w') as f:
+    f.write('ply\\nformat ascii 1.0\\nelement vertex %d\\nproperty float x\\nproperty float y\\nproperty float z\\nend_header\\n' % (n * n))
+    for y in range(n):
+        for x in range(n):
+            f.write('%d %d %g\\n' % (x, n - 1 - y, 0.5 * x))
+"
+"$SYLVA" leaf "$tmp/photo8.png" --height "$tmp/tilt.ply" --texel 1 --size 64 --no-orient --directions 16 \
+  -o "$tmp/ply" --quiet
+check "PLY scan tilts the normals" \
+  "[[ \$(convert '$tmp/ply/normal.png' -format '%[fx:mean.r < 0.47]' info:) == 1 ]]"
+
+# Same input and seed, any thread count: the same bytes.
+for t in 1 2; do
+  "$SYLVA" leaf "$cap/adaxial.png" --back-lit "$cap/adaxial_back_lit.png" --flat-field "$cap/flat_field.png" \
+    --abaxial "$cap/abaxial.png" --size 128 --directions 32 --threads $t -o "$tmp/t$t" --quiet
+done
+same=1
+for f in "$tmp"/t1/*; do cmp -s "$f" "$tmp/t2/$(basename "$f")" || same=0; done
+check "--threads 1 and 2 write identical files" "[[ $same == 1 ]]"
 
 # A library species with shipped maps: the glb carries them and validates.
 if [[ -f $SYLVA_SOURCE_DIR/species/leafmaps/quaking_aspen/leaf.material ]]; then
