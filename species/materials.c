@@ -377,8 +377,10 @@ static float to_srgb(float v)
 /* The leaf of a species with maps from `sylva leaf`. KHR_materials_diffuse_
  * transmission splits the non-specular light: (1 - f) baseColor is
  * reflected and f colour transmitted. With measured albedo a and
- * transmittance t per texel: f = max_c t_c, colour = t / f, baseColor =
- * a / (1 - f), so a viewer reflects a and transmits t exactly. */
+ * transmittance t per texel: f = max_c t_c and colour = t / f, so the
+ * transmitted light is t exactly. baseColor stays a: viewers without the
+ * extension (most engines' importers) show the measured albedo, and those
+ * with it reflect (1 - f) a, a little darker, never more than a + t <= 1. */
 static sy_code make_leaf_from_maps(const sy_material_spec *spec, int max_size, sy_asset *asset, int *out, sy_error *err)
 {
     sy_leaf_material lm;
@@ -405,7 +407,7 @@ static sy_code make_leaf_from_maps(const sy_material_spec *spec, int max_size, s
         }
         if (f > 0.95f) f = 0.95f;
         for (int c = 0; c < 3; c++) {
-            base[4 * i + c] = to_srgb(a[c] / (1 - f));
+            base[4 * i + c] = to_srgb(a[c]);
             trans[4 * i + c] = to_srgb(f > 1e-4f ? t[c] / f : 1.0f);
         }
         base[4 * i + 3] = alb[4 * i + 3];

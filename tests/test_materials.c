@@ -282,7 +282,8 @@ static void unreadable_images_are_input_errors(void **state)
 }
 
 /* A species' leaf maps from `sylva leaf`: every slot is filled, and the
- * KHR split reflects the measured albedo: (1 - f) baseColor = albedo. */
+ * base colour is the measured albedo, and the KHR split conserves energy:
+ * (1 - f) baseColor + f colour <= 1. */
 static void leaf_maps_become_the_leaf_material(void **state)
 {
     (void)state;
@@ -328,7 +329,9 @@ static void leaf_maps_become_the_leaf_material(void **state)
                 }
             if (!full) continue;
             want /= f * f;
-            double bv = b[1] / 255.0, got = (bv <= 0.04045 ? bv / 12.92 : pow((bv + 0.055) / 1.055, 2.4)) * (1 - fac);
+            double bv = b[1] / 255.0, got = bv <= 0.04045 ? bv / 12.92 : pow((bv + 0.055) / 1.055, 2.4);
+            double cv = t[1] / 255.0, col = cv <= 0.04045 ? cv / 12.92 : pow((cv + 0.055) / 1.055, 2.4);
+            assert_true((1 - fac) * got + fac * col <= 1.0 + 1e-6);
             err_sum += fabs(got - want);
             n++;
         }
