@@ -13,6 +13,7 @@
 #include "stages/core/fileio.h"
 #include "stages/core/json.h"
 #include "stages/core/cloud.h"
+#include "stages/core/color.h"
 #include "stages/core/parallel.h"
 #include "stages/ingest/ingest.h"
 #include "stages/leafmaps/leaf_material.h"
@@ -61,11 +62,6 @@ static const sy_cmd_spec spec = {
 
 /* ------------------------------------------------------------- loading */
 
-static double srgb_to_linear(double c)
-{
-    return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
-}
-
 static sy_code load_photo(const char *path, sy_fimage *im, sy_error *err)
 {
     int depth;
@@ -85,7 +81,7 @@ static sy_code load_photo(const char *path, sy_fimage *im, sy_error *err)
         im->c = 3;
     }
     for (size_t i = 0; i < (size_t)im->w * im->h; i++)
-        for (int c = 0; c < 3; c++) im->px[i * im->c + c] = (float)srgb_to_linear(im->px[i * im->c + c]);
+        for (int c = 0; c < 3; c++) im->px[i * im->c + c] = (float)sy_srgb_to_linear(im->px[i * im->c + c]);
     return SY_OK;
 }
 
@@ -200,10 +196,7 @@ static float *srgb_copy(const sy_fimage *im)
     size_t n = (size_t)im->w * im->h * im->c;
     float *o = malloc(n * sizeof *o);
     if (!o) return NULL;
-    for (size_t i = 0; i < n; i++) {
-        double v = im->px[i] < 0 ? 0 : im->px[i] > 1 ? 1 : im->px[i];
-        o[i] = (float)(v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1 / 2.4) - 0.055);
-    }
+    for (size_t i = 0; i < n; i++) o[i] = (float)sy_linear_to_srgb(im->px[i]);
     return o;
 }
 

@@ -14,6 +14,7 @@
 #include <stb_image_write.h>
 
 #include "species/image_cv.h"
+#include "stages/core/color.h"
 #include "stages/leafmaps/leaf_material.h"
 #include "stages/leafmaps/leafmaps_cv.h"
 
@@ -215,7 +216,7 @@ static sy_code procedural_leaf(int size, image *im, sy_error *err)
 
 static float srgb_to_linear(float c)
 {
-    return c <= 0.04045f ? c / 12.92f : powf((c + 0.055f) / 1.055f, 2.4f);
+    return (float)sy_srgb_to_linear(c);
 }
 
 /* Mean linear albedo of the opaque texels, scaled so its largest channel is
@@ -370,8 +371,7 @@ static int add_png16(sy_asset *asset, const char *name, const float *px, int sid
 
 static float to_srgb(float v)
 {
-    v = v < 0 ? 0 : v > 1 ? 1 : v;
-    return v <= 0.0031308f ? 12.92f * v : 1.055f * powf(v, 1 / 2.4f) - 0.055f;
+    return (float)sy_linear_to_srgb(v);
 }
 
 /* The leaf of a species with maps from `sylva leaf`. KHR_materials_diffuse_

@@ -10,6 +10,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "stages/core/color.h"
 #include "stages/core/fileio.h"
 #include "stages/leafmaps/leafmaps_cv.h"
 
@@ -27,12 +28,6 @@ int sy_leaf_material_valid_name(const char *name)
     for (const char *p = name; *p; p++)
         if (!isalnum((unsigned char)*p) && *p != '_' && *p != '-') return 0;
     return 1;
-}
-
-static double to_srgb(double v)
-{
-    v = v < 0 ? 0 : v > 1 ? 1 : v;
-    return v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1 / 2.4) - 0.055;
 }
 
 static sy_code add_file(sy_leaf_files *f, const char *name, const float *px, int w, int h, int c, int bits,
@@ -71,14 +66,14 @@ static float *image_of(const sy_leaf_maps *m, int kind, int side, double tmax)
     for (size_t i = 0; i < n; i++) {
         switch (kind) {
         case 0:
-            for (int k = 0; k < 3; k++) o[4 * i + k] = (float)to_srgb(m->albedo[side][3 * i + k]);
+            for (int k = 0; k < 3; k++) o[4 * i + k] = (float)sy_linear_to_srgb(m->albedo[side][3 * i + k]);
             o[4 * i + 3] = m->alpha[i];
             break;
         case 1:
             for (int k = 0; k < 3; k++) o[3 * i + k] = 0.5f * m->normal[side][3 * i + k] + 0.5f;
             break;
         case 2:
-            for (int k = 0; k < 3; k++) o[3 * i + k] = (float)to_srgb(m->translucency[side][3 * i + k]);
+            for (int k = 0; k < 3; k++) o[3 * i + k] = (float)sy_linear_to_srgb(m->translucency[side][3 * i + k]);
             break;
         case 3:
             for (int k = 0; k < 3; k++) {
