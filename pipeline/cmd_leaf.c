@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "pipeline/commands.h"
+#include "species/library.h"
 #include "stages/core/fileio.h"
 #include "stages/core/json.h"
 #include "stages/core/cloud.h"
@@ -22,43 +23,13 @@
 
 #define MAX_PHOTOS 16
 
-static const char *out_dir, *species_name, *library_dir, *back_lit, *flat_field, *height, *abaxial, *abaxial_back_lit,
-    *abaxial_flat_field, *abaxial_height, *white, *synthetic_dir;
-static double thickness, texel, leaf_length, height_scale, white_reflectance;
-static int size, no_orient, directions;
-static const sy_opt opts[] = {
-    {"-o", OPT_STRING, &out_dir, "DIR", "output folder for the maps and leaf.material"},
-    {"--species", OPT_STRING, &species_name, "NAME", "install the maps into the species library as NAME's leaf"},
-    {"--library", OPT_STRING, &library_dir, "DIR", "species library folder (default: the built-in species/)"},
-    {"--back-lit", OPT_STRING, &back_lit, "IMG", "back-lit photo of the adaxial side (light behind the leaf)"},
-    {"--flat-field", OPT_STRING, &flat_field, "IMG", "the back light alone, same exposure"},
-    {"--height", OPT_STRING, &height, "SCAN", "displacement scan of the adaxial side (16-bit grey PNG, or PLY in mm)"},
-    {"--abaxial", OPT_STRING, &abaxial, "IMG", "front-lit photo of the abaxial side (leaf turned over)"},
-    {"--abaxial-back-lit", OPT_STRING, &abaxial_back_lit, "IMG", "back-lit photo of the abaxial side"},
-    {"--abaxial-flat-field", OPT_STRING, &abaxial_flat_field, "IMG", "flat field of the abaxial back-lit photo"},
-    {"--abaxial-height", OPT_STRING, &abaxial_height, "SCAN", "displacement scan of the abaxial side"},
-    {"--height-scale", OPT_DOUBLE, &height_scale, "MM", "mm of a PNG scan's full 16-bit range, or per PLY unit (default 1)"},
-    {"--white", OPT_STRING, &white, "X,Y,W,H", "grey/white reference rectangle in the adaxial photo (pixels)"},
-    {"--white-reflectance", OPT_DOUBLE, &white_reflectance, "R", "reflectance of that reference (default 0.9)"},
-    {"--thickness", OPT_DOUBLE, &thickness, "MM", "measured leaf thickness, the thickness map's anchor (default 0.2)"},
-    {"--texel", OPT_DOUBLE, &texel, "MM", "size of one photo pixel on the leaf (default: from --leaf-length)"},
-    {"--leaf-length", OPT_DOUBLE, &leaf_length, "MM", "leaf length along its axis when --texel is not given (default 80)"},
-    {"--size", OPT_INT, &size, "N", "maps are N x N texels, a power of two (default 1024)"},
-    {"--directions", OPT_INT, &directions, "N", "light directions of the HL2 projection (default 128)"},
-    {"--no-orient", OPT_FLAG, &no_orient, NULL, "keep the photo's orientation (default: petiole down, axis vertical)"},
-    {"--synthetic-capture", OPT_STRING, &synthetic_dir, "DIR",
-     "write a synthetic capture set (photos, scans, truth) of --size pixels and stop"},
-    {NULL, 0, NULL, NULL, NULL},
-};
-static const sy_cmd_spec spec = {
-    "leaf", "PHOTO... (-o DIR | --species NAME)",
-    "Leaf maps from photos: albedo, normal, thickness, translucency and Half-Life 2 translucency maps.",
-    "PHOTO is a front-lit photo of the leaf's adaxial side (or a plain photo of a leaf or twig card\n"
-    "on a uniform or transparent background); the optional captures of the thesis setup refine it.\n"
-    "Further PHOTOs are more leaves of the species for the atlas. Photos are 8-bit sRGB, scans 16-bit.\n"
-    "Writes albedo.png, normal.png, thickness.png, translucency.png, hl2_adaxial.png, ... and\n"
-    "leaf.material (docs/leafmaps.md); --species NAME installs them as NAME's leaf.",
-    opts, 0, MAX_PHOTOS};
+/* One call's command line. */
+typedef struct {
+    const char *out_dir, *species_name, *library_dir, *back_lit, *flat_field, *height, *abaxial, *abaxial_back_lit,
+        *abaxial_flat_field, *abaxial_height, *white, *synthetic_dir;
+    double thickness, texel, leaf_length, height_scale, white_reflectance;
+    int size, no_orient, directions;
+} leaf_args;
 
 /* ------------------------------------------------------------- loading */
 
@@ -200,12 +171,13 @@ static float *srgb_copy(const sy_fimage *im)
     return o;
 }
 
-static int make_synthetic(sy_cli *cli)
+static int make_synthetic(const leaf_args *a, sy_cli *cli)
 {
     sy_error err = {0};
     sy_leafmaps_options o = sy_leafmaps_options_default();
     sy_leaf_synthetic s;
-    int n = size > 0 ? size : 512;
+    int n = a->size > 0 ? a->size : 512;
+    const char *synthetic_dir = a->synthetic_dir;
     sy_code rc = sy_leaf_synthesize(n, cli->seed, 3.0, &o, &s, &err);
     if (rc) return sy_cli_report(&err);
     if (mkdir(synthetic_dir, 0777) != 0 && errno != EEXIST) {
@@ -263,17 +235,54 @@ static int make_synthetic(sy_cli *cli)
 
 int cmd_leaf(int argc, char **argv, sy_cli *cli)
 {
+    leaf_args a = {0};
+    a.thickness = a.texel = a.leaf_length = -1;
+    a.height_scale = 1, a.white_reflectance = 0.9;
+    a.size = a.directions = -1;
+    const sy_opt opts[] = {
+        {"-o", OPT_STRING, &a.out_dir, "DIR", "output folder for the maps and leaf.material"},
+        {"--species", OPT_STRING, &a.species_name, "NAME", "install the maps into the species library as NAME's leaf"},
+        {"--library", OPT_STRING, &a.library_dir, "DIR", "species library folder (default: the one sylva finds)"},
+        {"--back-lit", OPT_STRING, &a.back_lit, "IMG", "back-lit photo of the adaxial side (light behind the leaf)"},
+        {"--flat-field", OPT_STRING, &a.flat_field, "IMG", "the back light alone, same exposure"},
+        {"--height", OPT_STRING, &a.height, "SCAN", "displacement scan of the adaxial side (16-bit grey PNG, or PLY in mm)"},
+        {"--abaxial", OPT_STRING, &a.abaxial, "IMG", "front-lit photo of the abaxial side (leaf turned over)"},
+        {"--abaxial-back-lit", OPT_STRING, &a.abaxial_back_lit, "IMG", "back-lit photo of the abaxial side"},
+        {"--abaxial-flat-field", OPT_STRING, &a.abaxial_flat_field, "IMG", "flat field of the abaxial back-lit photo"},
+        {"--abaxial-height", OPT_STRING, &a.abaxial_height, "SCAN", "displacement scan of the abaxial side"},
+        {"--height-scale", OPT_DOUBLE, &a.height_scale, "MM", "mm of a PNG scan's full 16-bit range, or per PLY unit (default 1)"},
+        {"--white", OPT_STRING, &a.white, "X,Y,W,H", "grey/white reference rectangle in the adaxial photo (pixels)"},
+        {"--white-reflectance", OPT_DOUBLE, &a.white_reflectance, "R", "reflectance of that reference (default 0.9)"},
+        {"--thickness", OPT_DOUBLE, &a.thickness, "MM", "measured leaf thickness, the thickness map's anchor (default 0.2)"},
+        {"--texel", OPT_DOUBLE, &a.texel, "MM", "size of one photo pixel on the leaf (default: from --leaf-length)"},
+        {"--leaf-length", OPT_DOUBLE, &a.leaf_length, "MM", "leaf length along its axis when --texel is not given (default 80)"},
+        {"--size", OPT_INT, &a.size, "N", "maps are N x N texels, a power of two (default 1024)"},
+        {"--directions", OPT_INT, &a.directions, "N", "light directions of the HL2 projection (default 128)"},
+        {"--no-orient", OPT_FLAG, &a.no_orient, NULL, "keep the photo's orientation (default: petiole down, axis vertical)"},
+        {"--synthetic-capture", OPT_STRING, &a.synthetic_dir, "DIR",
+         "write a synthetic capture set (photos, scans, truth) of --size pixels and stop"},
+        {NULL, 0, NULL, NULL, NULL},
+    };
+    const sy_cmd_spec spec = {
+        "leaf", "PHOTO... (-o DIR | --species NAME)",
+        "Leaf maps from photos: albedo, normal, thickness, translucency and Half-Life 2 translucency maps.",
+        "PHOTO is a front-lit photo of the leaf's adaxial side (or a plain photo of a leaf or twig card\n"
+        "on a uniform or transparent background); the optional captures of the thesis setup refine it.\n"
+        "Further PHOTOs are more leaves of the species for the atlas. Photos are 8-bit sRGB, scans 16-bit.\n"
+        "Writes albedo.png, normal.png, thickness.png, translucency.png, hl2_adaxial.png, ... and\n"
+        "leaf.material (docs/leafmaps.md); --species NAME installs them as NAME's leaf.",
+        opts, 0, MAX_PHOTOS};
     const char *pos[MAX_PHOTOS];
     int n_pos;
-    out_dir = species_name = library_dir = back_lit = flat_field = height = abaxial = abaxial_back_lit = NULL;
-    abaxial_flat_field = abaxial_height = white = synthetic_dir = NULL;
-    thickness = texel = leaf_length = -1;
-    height_scale = 1, white_reflectance = 0.9;
-    size = directions = -1;
-    no_orient = 0;
     int rc = sy_cli_parse(&spec, argc, argv, cli, pos, MAX_PHOTOS, &n_pos);
     if (rc) return rc < 0 ? 0 : rc;
-    if (synthetic_dir) return make_synthetic(cli);
+    sy_cli_apply_settings(cli);
+    const char *out_dir = a.out_dir, *species_name = a.species_name, *library_dir = a.library_dir, *white = a.white;
+    double thickness = a.thickness, texel = a.texel, leaf_length = a.leaf_length, height_scale = a.height_scale;
+    int size = a.size, directions = a.directions;
+    const char *extra_path[7] = {a.back_lit, a.flat_field, a.height, a.abaxial, a.abaxial_back_lit, a.abaxial_flat_field,
+                                 a.abaxial_height};
+    if (a.synthetic_dir) return make_synthetic(&a, cli);
     if (n_pos < 1 || (!out_dir && !species_name)) {
         fprintf(stderr, "sylva leaf: give at least one PHOTO and -o DIR or --species NAME\n");
         return SY_EUSAGE;
@@ -284,7 +293,7 @@ int cmd_leaf(int argc, char **argv, sy_cli *cli)
     if (leaf_length >= 0) o.leaf_length_mm = leaf_length;
     if (size >= 0) o.size = size;
     if (directions >= 0) o.directions = directions;
-    o.orient = !no_orient;
+    o.orient = !a.no_orient;
     o.seed = cli->seed;
     o.progress = !cli->quiet && !cli->json;
     sy_error err = {0};
@@ -298,7 +307,7 @@ int cmd_leaf(int argc, char **argv, sy_cli *cli)
     }
     sy_leaf_capture cap;
     memset(&cap, 0, sizeof cap);
-    cap.white_reflectance = white_reflectance;
+    cap.white_reflectance = a.white_reflectance;
     if (white && (sscanf(white, "%d,%d,%d,%d", &cap.white_rect[0], &cap.white_rect[1], &cap.white_rect[2],
                          &cap.white_rect[3]) != 4 ||
                   cap.white_rect[2] <= 0 || cap.white_rect[3] <= 0)) {
@@ -306,23 +315,24 @@ int cmd_leaf(int argc, char **argv, sy_cli *cli)
         return SY_EUSAGE;
     }
     /* Library: the species must exist before anything is computed. */
-    char library[4096];
-    snprintf(library, sizeof library, "%s", library_dir ? library_dir : SYLVA_SPECIES_DIR);
+    char library[4096] = "";
     if (species_name) {
-        char ini[4200];
         if (!sy_leaf_material_valid_name(species_name)) {
             fprintf(stderr, "sylva leaf: --species '%s' is not a species name (letters, digits, _ and -)\n", species_name);
             return SY_EUSAGE;
         }
-        snprintf(ini, sizeof ini, "%s/%s.ini", library, species_name);
-        if (access(ini, R_OK) != 0) {
-            sy_fail(&err, SY_EINPUT, "%s: no such species in the library (%s)", species_name, ini);
+        sy_library lib;
+        if (sy_library_load(library_dir, &lib, &err)) return sy_cli_report(&err);
+        snprintf(library, sizeof library, "%s", lib.dir);
+        int known = sy_library_find(&lib, species_name) != NULL;
+        sy_library_free(&lib);
+        if (!known) {
+            sy_fail(&err, SY_EINPUT, "%s: no such species in the library (%s/library.tsv)", species_name, library);
             return sy_cli_report(&err);
         }
     }
     sy_fimage photos[MAX_PHOTOS] = {{0}};
     sy_fimage extra[7] = {{0}}; /* back-lit, flat, height, abaxial, abaxial back-lit, abaxial flat, abaxial height */
-    const char *extra_path[7] = {back_lit, flat_field, height, abaxial, abaxial_back_lit, abaxial_flat_field, abaxial_height};
     for (int k = 0; !rc && k < n_pos; k++) rc = load_photo(pos[k], &photos[k], &err);
     for (int k = 0; !rc && k < 7; k++) {
         if (!extra_path[k]) continue;
@@ -369,6 +379,10 @@ int cmd_leaf(int argc, char **argv, sy_cli *cli)
     if (!rc && species_name) {
         snprintf(dest, sizeof dest, "%s/leafmaps/%s", library, species_name);
         rc = sy_leaf_files_install(&files, library, species_name, &err);
+        /* The manifest lists the material among the species' files. */
+        char rel[128];
+        snprintf(rel, sizeof rel, "leafmaps/%s/%s", species_name, SY_LEAF_MATERIAL_FILE);
+        if (!rc) rc = sy_library_add_file(library, species_name, rel, &err);
     }
     if (!rc) {
         const sy_leaf_maps *m = &maps[0];

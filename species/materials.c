@@ -14,6 +14,7 @@
 #include <stb_image_write.h>
 
 #include "species/image_cv.h"
+#include "species/library.h"
 #include "stages/core/color.h"
 #include "stages/leafmaps/leaf_material.h"
 #include "stages/leafmaps/leafmaps_cv.h"
@@ -324,7 +325,14 @@ static sy_code make_leaf(const sy_material_spec *spec, int max_size, float trans
 const char *sy_species_leaf_maps(const char *species_name, char *buf, size_t size)
 {
     if (!species_name || !sy_leaf_material_valid_name(species_name)) return NULL;
-    snprintf(buf, size, "%s/leafmaps/%s/%s", SYLVA_SPECIES_DIR, species_name, SY_LEAF_MATERIAL_FILE);
+    sy_library lib;
+    sy_error err = {0};
+    if (sy_library_load(NULL, &lib, &err)) return NULL; /* no library: cards from the species file */
+    const sy_library_entry *e = sy_library_find(&lib, species_name);
+    const char *rel = e ? sy_library_entry_leaf_maps(e) : NULL;
+    if (rel) snprintf(buf, size, "%s/%s", lib.dir, rel);
+    sy_library_free(&lib);
+    if (!rel) return NULL;
     FILE *f = fopen(buf, "rb");
     if (!f) return NULL;
     fclose(f);
@@ -443,7 +451,7 @@ static sy_code make_leaf_from_maps(const sy_material_spec *spec, int max_size, s
     return *out < 0 ? SY_EINTERNAL : SY_OK;
 }
 
-sy_code sy_species_materials(const sy_material_spec *spec, sy_asset *asset, int *bark_material, int *leaf_material,
+sy_code sy_materials_add(const sy_material_spec *spec, sy_asset *asset, int *bark_material, int *leaf_material,
                              sy_error *err)
 {
     int max_size = spec->max_size > 0 ? spec->max_size : 512;

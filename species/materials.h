@@ -7,6 +7,10 @@
 
 #include "stages/core/asset.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     const char *bark_image;  /* path or NULL for a neutral procedural bark */
     const char *leaf_image;  /* RGBA leaf/twig card or NULL for a plain green card */
@@ -18,12 +22,17 @@ typedef struct {
     float leaf_length_m;     /* card length, the unit of the volume thickness (default 0.1) */
 } sy_material_spec;
 
-/* SYLVA_SPECIES_DIR/leafmaps/<species_name>/leaf.material into buf when that
- * file exists; returns buf or NULL. */
+/* The absolute path of the library species' leaf material (its manifest's
+ * files column names leafmaps/<name>/leaf.material) into buf; NULL when the
+ * species is not in the library, has no leaf maps or there is no library. */
 const char *sy_species_leaf_maps(const char *species_name, char *buf, size_t size);
 
 /* Adds the bark and leaf materials (and their images) to the asset. */
-sy_code sy_species_materials(const sy_material_spec *spec, sy_asset *asset, int *bark_material,
+sy_code sy_materials_add(const sy_material_spec *spec, sy_asset *asset, int *bark_material,
                              int *leaf_material, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

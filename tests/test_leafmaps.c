@@ -407,7 +407,8 @@ static void test_bad_captures(void **state)
     assert_int_equal(sy_leafmaps_build(&cap, &o, &m, &err), SY_EINPUT);
     assert_non_null(strstr(err.msg, "does not match"));
     o.thickness_mm = 0.05;
-    assert_int_equal(sy_leafmaps_options_check(&o, &err), SY_EINPUT);
+    assert_int_equal(sy_leafmaps_options_check(&o, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "thickness_mm"));
     sy_fimage_free(&bg), sy_fimage_free(&other);
 }
 

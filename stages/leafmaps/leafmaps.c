@@ -84,30 +84,30 @@ sy_leafmaps_options sy_leafmaps_options_default(void)
 sy_code sy_leafmaps_options_check(const sy_leafmaps_options *o, sy_error *err)
 {
     if (!(o->texel_mm >= 0 && o->texel_mm <= 10))
-        return sy_fail(err, SY_EINPUT, "texel_mm %g is outside [0, 10] mm", o->texel_mm);
+        return sy_fail(err, SY_EUSAGE, "leafmaps: texel_mm %g is outside [0, 10] mm", o->texel_mm);
     if (!(o->leaf_length_mm > 1 && o->leaf_length_mm <= 2000))
-        return sy_fail(err, SY_EINPUT, "leaf_length_mm %g is outside (1, 2000] mm", o->leaf_length_mm);
+        return sy_fail(err, SY_EUSAGE, "leafmaps: leaf_length_mm %g is outside (1, 2000] mm", o->leaf_length_mm);
     sy_dipole m = sy_dipole_make(o->sigma_a, o->sigma_s, o->g, 0, 1);
     if (!(o->sigma_a > 0 && o->sigma_a < 100 && o->sigma_s > 0 && o->sigma_s < 1000 && o->g > -1 && o->g < 1))
-        return sy_fail(err, SY_EINPUT, "sigma_a %g, sigma_s %g or g %g is out of range", o->sigma_a, o->sigma_s,
+        return sy_fail(err, SY_EUSAGE, "leafmaps: sigma_a %g, sigma_s %g or g %g is out of range", o->sigma_a, o->sigma_s,
                        o->g);
     if (!(o->thickness_mm >= 1.2 * m.l && o->thickness_mm <= 5))
-        return sy_fail(err, SY_EINPUT,
-                       "thickness_mm %g is outside [%.3f, 5] mm (the diffusion model needs d > 1.2/sigma_t')",
+        return sy_fail(err, SY_EUSAGE,
+                       "leafmaps: thickness_mm %g is outside [%.3f, 5] mm (the diffusion model needs d > 1.2/sigma_t')",
                        o->thickness_mm, 1.2 * m.l);
-    if (o->multipoles < 0 || o->multipoles > 50) return sy_fail(err, SY_EINPUT, "multipoles %d is outside 0..50", o->multipoles);
+    if (o->multipoles < 0 || o->multipoles > 50) return sy_fail(err, SY_EUSAGE, "leafmaps: multipoles %d is outside 0..50", o->multipoles);
     if (o->directions < 3 || o->directions > 4096)
-        return sy_fail(err, SY_EINPUT, "directions %d is outside 3..4096", o->directions);
-    if (o->sectors < 4 || o->sectors > 64) return sy_fail(err, SY_EINPUT, "sectors %d is outside 4..64", o->sectors);
+        return sy_fail(err, SY_EUSAGE, "leafmaps: directions %d is outside 3..4096", o->directions);
+    if (o->sectors < 4 || o->sectors > 64) return sy_fail(err, SY_EUSAGE, "leafmaps: sectors %d is outside 4..64", o->sectors);
     if (o->thickness_bins < 1 || o->thickness_bins > 64)
-        return sy_fail(err, SY_EINPUT, "thickness_bins %d is outside 1..64", o->thickness_bins);
+        return sy_fail(err, SY_EUSAGE, "leafmaps: thickness_bins %d is outside 1..64", o->thickness_bins);
     if (o->inversion_iterations < 0 || o->inversion_iterations > 50)
-        return sy_fail(err, SY_EINPUT, "inversion_iterations %d is outside 0..50", o->inversion_iterations);
+        return sy_fail(err, SY_EUSAGE, "leafmaps: inversion_iterations %d is outside 0..50", o->inversion_iterations);
     if (o->size < 16 || o->size > 8192 || (o->size & (o->size - 1)))
-        return sy_fail(err, SY_EINPUT, "size %d is not a power of two in 16..8192", o->size);
+        return sy_fail(err, SY_EUSAGE, "leafmaps: size %d is not a power of two in 16..8192", o->size);
     if (!(o->highlight_ratio > 1 && o->highlight_ratio < 10))
-        return sy_fail(err, SY_EINPUT, "highlight_ratio %g is outside (1, 10)", o->highlight_ratio);
-    if (!(o->relief_mm >= 0 && o->relief_mm <= 5)) return sy_fail(err, SY_EINPUT, "relief_mm %g is outside [0, 5]", o->relief_mm);
+        return sy_fail(err, SY_EUSAGE, "leafmaps: highlight_ratio %g is outside (1, 10)", o->highlight_ratio);
+    if (!(o->relief_mm >= 0 && o->relief_mm <= 5)) return sy_fail(err, SY_EUSAGE, "leafmaps: relief_mm %g is outside [0, 5]", o->relief_mm);
     return SY_OK;
 }
 
