@@ -16,6 +16,7 @@ const sy_command sy_commands[] = {
     {"run", "reconstruct one scanned tree end to end: skeleton, clusters, mesh -> .glb", cmd_run},
     {"encode", "write a .sylva tree file from its JSON form or a skeleton/QSM file", cmd_encode},
     {"decode", "summarise a .sylva tree file, or write it out as JSON", cmd_decode},
+    {"leaf", "leaf photos to albedo, normal, thickness, translucency and HL2 maps (a species' leaf)", cmd_leaf},
     {"library", "list the species library or show one species (stable ids, names, kinds, files)", cmd_library},
     {"photogrammetry", "photos -> point cloud through COLMAP, levelled and scaled", cmd_photogrammetry},
     {"view", "preview .glb trees in OpenGL (window or headless screenshots), with wind, LOD and the scan", cmd_view},

@@ -20,6 +20,7 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli);
 int cmd_run(int argc, char **argv, sy_cli *cli);
 int cmd_encode(int argc, char **argv, sy_cli *cli);
 int cmd_decode(int argc, char **argv, sy_cli *cli);
+int cmd_leaf(int argc, char **argv, sy_cli *cli);
 int cmd_library(int argc, char **argv, sy_cli *cli);
 int cmd_photogrammetry(int argc, char **argv, sy_cli *cli);
 

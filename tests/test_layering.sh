@@ -10,7 +10,8 @@ root=${SYLVA_SOURCE_DIR:?}
 # Allowed dependencies per folder (besides itself). Keep in step with CMakeLists.txt.
 declare -A allowed=(
   [core]=""
-  [species]="core"
+  [leafmaps]="core"
+  [species]="core leafmaps"
   [ingest]="core"
   [preprocess]="core"
   [clusters]="core"
@@ -26,7 +27,7 @@ declare -A allowed=(
   [photogrammetry]="core ingest"
   [viewer]="core gltf ingest"
 )
-main_path="core species ingest preprocess clusters skeleton encode grow mesh gltf export photogrammetry"
+main_path="core leafmaps species ingest preprocess clusters skeleton encode grow mesh gltf export photogrammetry"
 reconstruction="skeleton clusters encode"
 
 folder_of() { case $1 in species|viewer) echo "$root/$1" ;; *) echo "$root/stages/$1" ;; esac; }
