@@ -8,12 +8,14 @@
 
 #include "pipeline/commands.h"
 #include "pipeline/tree_asset.h"
+#include "pipeline/tree_synth.h"
 #include "stages/core/fileio.h"
 #include "stages/core/json.h"
 #include "stages/core/progress.h"
 #include "stages/export/export.h"
 #include "stages/qsm/leaf_placement.h"
 #include "stages/qsm/qsm_io.h"
+#include "stages/scan/scan.h"
 
 /* Leaf density and size for models that name no species: a common
  * broadleaf (4.3 leaf cards a metre of twig, 0.3 m long), the species of
@@ -22,7 +24,7 @@
 #define DEFAULT_LEAVES "quaking_aspen"
 
 static const char *out_path, *species_name;
-static int no_leaves, tree_index;
+static int no_leaves, tree_index, proxy;
 static double leaf_density;
 static const sy_opt opts[] = {
     {"-o", OPT_STRING, &out_path, "OUT.glb", "output glTF binary"},
@@ -30,6 +32,7 @@ static const sy_opt opts[] = {
     {"--no-leaves", OPT_FLAG, &no_leaves, NULL, "no leaf cards (with --species: its materials only)"},
     {"--leaf-density", OPT_DOUBLE, &leaf_density, "N", "leaves per metre of twig (default: from the species, else " DEFAULT_LEAVES "'s)"},
     {"--tree", OPT_INT, &tree_index, "I", "which tree of a truth file with several (0-based)"},
+    {"--proxy", OPT_FLAG, &proxy, NULL, ".sylva: also draw the lobe hulls as the semi-transparent foliage_proxy mesh"},
     SY_GLB_OPTIONS,
     {NULL, 0, NULL, NULL, NULL},
 };
@@ -37,8 +40,9 @@ static const sy_cmd_spec spec = {
     "mesh", "MODEL -o OUT.glb",
     "Mesh a skeleton or QSM (.sylva, .ply, .csv, .json, .obj, TreeQSM .txt) into a glTF tree asset.",
     "Meshing, LODs, impostor and export are those of `sylva grow`. The root is moved to the\n"
-    "origin of the glb; its world position is kept in asset.extras.origin. The cluster hulls of\n"
-    "a .sylva become the semi-transparent \"foliage_proxy\" mesh `sylva run` draws. Leaf cards go\n"
+    "origin of the glb; its world position is kept in asset.extras.origin. A .sylva is decoded\n"
+    "as `sylva run` does: its lobes are filled with the species' branchlets and leaves (the file's\n"
+    "species, or --species; its seed), the same tree `run` wrote; --proxy adds the hulls. Leaf cards go\n"
     "along the finest branches: --species gives its bark, leaf material and leaf density and size;\n"
     "without it the default bark and plain green cards at " DEFAULT_LEAVES "'s density and size\n"
     "(a model with hulls has its foliage already and gets none). See docs/qsm-formats.md.",
@@ -87,6 +91,45 @@ static void print_report(const sy_cli *cli, const sy_tree_asset_report *rep, con
     }
 }
 
+/* A .sylva with lobes: decode and synthesise as `sylva run` does. */
+static int mesh_sylva(const char *path, const sy_cli *cli, sy_tree_asset_options *o, mesh_facts *f,
+                      const sy_skeleton *read)
+{
+    sy_error err = {0};
+    sy_buffer buf;
+    if (sy_read_file(path, &buf, &err)) return sy_cli_report(&err);
+    sy_species sp;
+    int have_species = 0;
+    sy_code rc = SY_OK;
+    uint16_t id = buf.size >= 8 ? (uint16_t)(buf.data[6] | buf.data[7] << 8) : 0;
+    char name[128];
+    if (species_name) rc = sy_species_find(species_name, &sp, &err), have_species = !rc;
+    else if (id > 0 && sy_species_name_at(id - 1, name, sizeof name)) rc = sy_species_find(name, &sp, &err), have_species = !rc;
+    sy_decoded_tree dt;
+    double t0 = sy_now();
+    if (!rc) rc = sy_decoded_tree_build(path, buf.data, buf.size, have_species ? &sp : NULL, &dt, &err);
+    sy_buffer_free(&buf);
+    if (!rc) {
+        f->seconds_leaves = sy_now() - t0;
+        memcpy(f->origin, dt.skel.origin, sizeof f->origin);
+        f->height = sy_skeleton_height(&dt.skel);
+        if (!cli->quiet && !cli->json) sy_decoded_tree_report_bare("mesh", &dt);
+        o->seed = dt.meta.seed;
+        o->keep_leaf_order = 1;
+        o->hulls = proxy ? &dt.lobes : NULL;
+        o->source = f->model;
+        o->source_format = f->format;
+        sy_tree_asset_report rep;
+        rc = sy_tree_asset_write(out_path, &dt.grown, no_leaves ? NULL : &dt.leaves, have_species ? &sp : NULL, o, &rep,
+                                 &err);
+        if (!rc) print_report(cli, &rep, f, have_species ? &sp : NULL);
+        sy_decoded_tree_free(&dt);
+    }
+    (void)read;
+    if (have_species) sy_species_free(&sp);
+    return rc ? sy_cli_report(&err) : 0;
+}
+
 int cmd_mesh(int argc, char **argv, sy_cli *cli)
 {
     const char *pos[1];
@@ -94,6 +137,7 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
     out_path = species_name = NULL;
     sy_glb_cli_reset();
     no_leaves = 0;
+    proxy = 0;
     tree_index = -1;
     leaf_density = -1;
     int rc = sy_cli_parse(&spec, argc, argv, cli, pos, 1, &n);
@@ -118,6 +162,12 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
     if (sy_skeleton_read_model(pos[0], tree_index, &skel, &hulls, &info, &err)) return sy_cli_report(&err);
     f.seconds_read = sy_now() - t0;
     f.format = sy_skel_format_name(info.format);
+    if (info.format == SY_SKEL_SYLVA && hulls.n > 0) {
+        sy_clusters_free(&hulls);
+        rc = mesh_sylva(pos[0], cli, &o, &f, &skel);
+        sy_skeleton_free(&skel);
+        return rc;
+    }
     sy_tree_asset_root_to_origin(&skel, &hulls);
     o.hulls = &hulls;
     o.source = f.model;

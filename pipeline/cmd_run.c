@@ -1,7 +1,7 @@
 /* sylva run SCAN -o tree.glb: the whole reconstruction of one scanned tree:
- * ingest -> preprocess -> skeleton -> clusters -> mesh -> export, with the
- * cluster hulls as a semi-transparent foliage proxy and optionally the
- * compact .sylva file of the same reconstruction. */
+ * ingest -> preprocess -> skeleton -> lobes -> encode (.sylva image) ->
+ * decode -> synthesis (species branchlets fill the lobes) -> mesh -> export,
+ * optionally writing the .sylva image and keeping the hulls as a proxy. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -10,6 +10,7 @@
 
 #include "pipeline/commands.h"
 #include "pipeline/tree_asset.h"
+#include "pipeline/tree_synth.h"
 #include "stages/core/fileio.h"
 #include "stages/core/json.h"
 #include "stages/core/progress.h"
@@ -20,12 +21,16 @@
 #include "stages/skeleton/skeleton_stage.h"
 
 static const char *out_path, *sylva_path, *species_name;
-static double beta, gamma_, fs, voxel, wood_share;
-static int spread_around;
+static double beta, gamma_, fs, voxel, wood_share, lobe_size;
+static int spread_around, proxy;
 static const sy_opt opts[] = {
     {"-o", OPT_STRING, &out_path, "OUT.glb", "output glTF binary"},
     {"--sylva", OPT_STRING, &sylva_path, "OUT.sylva", "also write the compact .sylva file of the reconstruction"},
-    {"--species", OPT_STRING, &species_name, "NAME", "library species: its beta/gamma, bark and leaf materials"},
+    {"--species", OPT_STRING, &species_name, "NAME",
+     "library species: its beta/gamma, branchlets, bark and leaf materials (default: species/default.lsys, plain materials)"},
+    {"--proxy", OPT_FLAG, &proxy, NULL, "also draw the lobe hulls as a semi-transparent foliage_proxy mesh"},
+    {"--lobe-size", OPT_DOUBLE, &lobe_size, "F",
+     "largest lobe as a share of the tree's extent, in [0,1]; 0: one cluster per cut (default 0.25)"},
     {"--beta", OPT_DOUBLE, &beta, "B", "Dijkstra edge weight |u-v|^B (default: species, else 1)"},
     {"--gamma", OPT_DOUBLE, &gamma_, "G", "allometry exponent (default: species, else 2)"},
     {"--fs", OPT_DOUBLE, &fs, "F", "scan-density factor f_s in (0,1]; smaller gives larger clusters (default 1)"},
@@ -39,19 +44,22 @@ static const sy_opt opts[] = {
 };
 static const sy_cmd_spec spec = {
     "run", "SCAN -o OUT.glb [--sylva OUT.sylva]",
-    "Reconstruct one scanned tree and write it as glTF: branch meshes plus cluster hulls.",
+    "Reconstruct one scanned tree and write it as glTF: bark mesh, leaf instances, LODs, impostor.",
     "Steps: ingest, preprocess (up axis, statistical outliers, ground classified and removed;\n"
-    "the defaults of `sylva preprocess`), skeleton and alpha-shape clusters (docs/skeleton.md),\n"
-    "mesh (LOD chain, impostor), export. The hulls become one semi-transparent mesh with the\n"
-    "material \"foliage_proxy\" in every level. The glb is centred at the tree's base, its world\n"
+    "the defaults of `sylva preprocess`), skeleton and alpha-shape lobes (docs/skeleton.md),\n"
+    "the compact .sylva image, then from that image (so `sylva mesh OUT.sylva` makes the same\n"
+    "tree) synthesis: the species' L-system branchlets fill each lobe (docs/synthesize.md); mesh\n"
+    "(one bark mesh, leaf instances whose stored order drives the LOD chain, impostor), export.\n"
+    "--proxy adds the hulls as one semi-transparent \"foliage_proxy\" mesh. The glb is centred at the tree's base, its world\n"
     "position in asset.extras.origin (as `sylva mesh` does). SCAN must hold one tree. The .sylva species id\n"
     "is the species' index in the library plus one (0: unknown).",
     opts, 1, 1};
 
 typedef struct {
     size_t points_in, points_clean;
-    double t_ingest, t_preprocess, t_skeleton, t_mesh, t_export;
+    double t_ingest, t_preprocess, t_skeleton, t_synth, t_mesh, t_export;
     size_t sylva_bytes;
+    sy_synth_report synth;
 } run_stats;
 
 static void stage_line(const sy_cli *cli, const char *what, double seconds, const char *detail)
@@ -82,6 +90,12 @@ static void print_json(const char *in, const sy_skeleton_report *r, const sy_tre
     sy_json_bool(&j, "dbh_fitted", r->dbh_fitted);
     sy_json_number(&j, "height", r->height);
     sy_json_int(&j, "hull_triangles", (long long)a->hull_triangles);
+    sy_json_int(&j, "patches", (long long)st->synth.patches);
+    sy_json_int(&j, "leaves", (long long)st->synth.leaves);
+    sy_json_int(&j, "lobes_bare", (long long)st->synth.lobes_bare);
+    sy_json_number(&j, "lobe_coverage", st->synth.coverage);
+    sy_json_number(&j, "leaves_in_hull",
+                   st->synth.leaves ? (double)st->synth.leaves_in_hull / (double)st->synth.leaves : 0);
     sy_tree_asset_report_lods_json(&j, a);
     sy_json_int(&j, "bytes", (long long)a->bytes);
     sy_json_object(&j, "seconds");
@@ -89,6 +103,7 @@ static void print_json(const char *in, const sy_skeleton_report *r, const sy_tre
     sy_json_number(&j, "preprocess", st->t_preprocess);
     sy_json_number(&j, "skeleton", r->t_total - r->t_clusters - r->t_hulls);
     sy_json_number(&j, "clusters", r->t_clusters + r->t_hulls);
+    sy_json_number(&j, "synthesize", st->t_synth);
     sy_json_number(&j, "mesh", st->t_mesh);
     sy_json_number(&j, "export", st->t_export);
     sy_json_end(&j);
@@ -103,8 +118,10 @@ static int check_options(void)
         return SY_EUSAGE;
     }
     if ((!isnan(beta) && !(beta > 0)) || (!isnan(gamma_) && !(gamma_ > 0)) || !(fs > 0 && fs <= 1) ||
-        !(wood_share >= 0 && wood_share < 1) || !(voxel >= 0) || !isfinite(voxel)) {
-        fprintf(stderr, "sylva run: --beta and --gamma must be > 0, --fs in (0,1], --wood-share in [0,1), --voxel >= 0\n");
+        !(wood_share >= 0 && wood_share < 1) || !(voxel >= 0) || !isfinite(voxel) ||
+        !(lobe_size >= 0 && lobe_size <= 1)) {
+        fprintf(stderr, "sylva run: --beta and --gamma must be > 0, --fs in (0,1], --wood-share in [0,1), --voxel >= 0, "
+                        "--lobe-size in [0,1]\n");
         return SY_EUSAGE;
     }
     if (sylva_path && strcmp(sylva_path, out_path) == 0) {
@@ -172,6 +189,7 @@ static sy_code reconstruct_and_write(const char *in, const sy_cli *cli, const sy
     so.fs = fs;
     so.wood_share = wood_share;
     so.spread_around = spread_around;
+    so.lobe_size = lobe_size;
     sy_skeleton s;
     sy_clusters cl;
     rc = sy_reconstruct_skeleton(&c, &so, &s, &cl, r, err);
@@ -183,7 +201,7 @@ static sy_code reconstruct_and_write(const char *in, const sy_cli *cli, const sy
         }
         return rc;
     }
-    char line[200];
+    char line[512];
     snprintf(line, sizeof line, "%zu nodes, %zu branches, DBH %.3f m, height %.2f m", r->nodes, r->branches, r->dbh,
              r->height);
     stage_line(cli, "skeleton", r->t_total - r->t_clusters - r->t_hulls, line);
@@ -191,25 +209,40 @@ static sy_code reconstruct_and_write(const char *in, const sy_cli *cli, const sy
              r->hulls_alpha, r->hulls_convex, r->hulls_box, r->cluster_points);
     stage_line(cli, "clusters", r->t_clusters + r->t_hulls, line);
 
+    /* Everything after the reconstruction reads the .sylva image, as
+     * `sylva mesh OUT.sylva` does: the same bytes give the same tree. */
     unsigned char *sylva = NULL;
     size_t sylva_size = 0;
-    if (sylva_path) rc = encode_sylva(&s, &cl, cli, &sylva, &sylva_size, err);
+    rc = encode_sylva(&s, &cl, cli, &sylva, &sylva_size, err);
+    sy_decoded_tree dt;
+    int have_tree = 0;
     if (!rc) {
+        double t = sy_now();
+        rc = sy_decoded_tree_build(sylva_path ? sylva_path : "(the .sylva image)", sylva, sylva_size, sp, &dt, err);
+        st->t_synth = sy_now() - t;
+        have_tree = !rc;
+    }
+    if (!rc) {
+        st->synth = dt.synth;
+        snprintf(line, sizeof line, "%zu patches (%s: %zu branchlets, %zu patches), %zu leaves, %zu lobes bare",
+                 dt.synth.patches, strrchr(dt.lsys, '/') ? strrchr(dt.lsys, '/') + 1 : dt.lsys, dt.branchlets,
+                 dt.patches, dt.synth.leaves, dt.synth.lobes_bare);
+        stage_line(cli, "synthesize", st->t_synth, line);
+        if (!cli->quiet && !cli->json) sy_decoded_tree_report_bare("run", &dt);
         sy_tree_asset_options o = sy_tree_asset_options_default();
         sy_glb_cli_apply("run", &o); /* checked in check_options */
         o.seed = cli->seed;
-        o.hulls = &cl;
+        o.keep_leaf_order = 1;
+        o.hulls = proxy ? &dt.lobes : NULL;
         o.source = in;
         o.source_format = "scan";
-        /* After encoding: the .sylva keeps the scan's own frame. */
-        sy_tree_asset_root_to_origin(&s, &cl);
-        rc = sy_tree_asset_write(out_path, &s, NULL, sp, &o, a, err);
+        rc = sy_tree_asset_write(out_path, &dt.grown, &dt.leaves, sp, &o, a, err);
     }
     if (!rc) {
         st->t_mesh = a->seconds_mesh;
         st->t_export = a->seconds_export;
-        snprintf(line, sizeof line, "%zu levels, LOD0 %zu triangles (%zu of them hulls)", a->lods, a->triangles[0],
-                 a->hull_triangles);
+        snprintf(line, sizeof line, "%zu levels, LOD0 %zu triangles (%zu leaf cards, %zu of them hulls)", a->lods,
+                 a->triangles[0], a->leaf_cards[0], a->hull_triangles);
         stage_line(cli, "mesh", st->t_mesh, line);
         snprintf(line, sizeof line, "%s, %zu bytes", out_path, a->bytes);
         stage_line(cli, "export", st->t_export, line);
@@ -223,6 +256,7 @@ static sy_code reconstruct_and_write(const char *in, const sy_cli *cli, const sy
             stage_line(cli, "sylva", 0, line);
         }
     }
+    if (have_tree) sy_decoded_tree_free(&dt);
     free(sylva);
     sy_clusters_free(&cl);
     sy_skeleton_free(&s);
@@ -238,6 +272,8 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
     fs = 1;
     wood_share = 0;
     spread_around = 0;
+    proxy = 0;
+    lobe_size = 0.25;
     voxel = 0;
     sy_glb_cli_reset();
     int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);

@@ -211,6 +211,7 @@ sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, co
     mo.impostor = opt->impostor && !hulls;
     mo.impostor_size = opt->impostor_size;
     mo.seed = opt->seed;
+    mo.keep_leaf_order = opt->keep_leaf_order;
     mo.bark_material = bark;
     mo.leaf_material = leaf;
     if (species) {

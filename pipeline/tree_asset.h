@@ -21,6 +21,7 @@ typedef struct {
     int instancing;    /* EXT_mesh_gpu_instancing (0 bakes leaves) */
     int texture_size;  /* longest side of material textures */
     uint64_t seed;
+    int keep_leaf_order; /* 1: the leaves' order is their pruning order (synthesised trees) */
     /* Reconstructed trees: the cluster hulls (same frame as the skeleton),
      * drawn as one semi-transparent "foliage_proxy" mesh in every mesh level
      * and the impostor. NULL (the default) or no triangles: none. */

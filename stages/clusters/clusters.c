@@ -17,6 +17,7 @@ void sy_clusters_free(sy_clusters *c)
         free(c->items[i].points);
         free(c->items[i].verts);
         free(c->items[i].tris);
+        free(c->items[i].occupancy);
     }
     free(c->items);
     memset(c, 0, sizeof *c);

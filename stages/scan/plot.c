@@ -316,11 +316,11 @@ sy_code sy_scene_finish(sy_scene *s, sy_error *err)
 
 static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
 
-int sy_species_index(const char *name)
+/* The library's species names (*.ini), sorted; returns the count (<= 256). */
+static int species_names(char *names[256])
 {
     DIR *d = opendir(SYLVA_SPECIES_DIR);
-    if (!d) return -1;
-    char *names[256];
+    if (!d) return 0;
     int n = 0;
     struct dirent *e;
     while ((e = readdir(d)) && n < 256) {
@@ -332,12 +332,32 @@ int sy_species_index(const char *name)
     }
     closedir(d);
     qsort(names, (size_t)n, sizeof *names, cmp_str);
-    int found = -1;
+    return n;
+}
+
+int sy_species_index(const char *name)
+{
+    char *names[256];
+    int n = species_names(names), found = -1;
     for (int i = 0; i < n; i++) {
         if (found < 0 && strcmp(names[i], name) == 0) found = i;
         free(names[i]);
     }
     return found;
+}
+
+int sy_species_name_at(int index, char *buf, size_t size)
+{
+    char *names[256];
+    int n = species_names(names), ok = 0;
+    for (int i = 0; i < n; i++) {
+        if (i == index && strlen(names[i]) < size) {
+            memcpy(buf, names[i], strlen(names[i]) + 1);
+            ok = 1;
+        }
+        free(names[i]);
+    }
+    return ok;
 }
 
 void sy_scene_opts_defaults(sy_scene_opts *o)

@@ -136,6 +136,8 @@ sy_code sy_scene_finish(sy_scene *s, sy_error *err);
 
 /* Index of `name` in the sorted list of the species library (*.ini) names, -1 if absent. */
 int sy_species_index(const char *name);
+/* The name at index of that list into buf; 0 when there is none. */
+int sy_species_name_at(int index, char *buf, size_t size);
 /* Trunk radius at `above` metres over the root along the trunk stem
  * (linear between nodes, as the cones are); NaN if the trunk is shorter. */
 double sy_trunk_radius_at(const sy_skeleton *s, double above);

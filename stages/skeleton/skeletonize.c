@@ -33,6 +33,7 @@ void sy_skeleton_options_default(sy_skeleton_options *o)
     o->clusters = 1;
     o->wood_share = 0;
     o->spread_around = 0;
+    o->lobe_size = 0.25;
 }
 
 /* The node graph while it is being edited: nodes are merged by aliasing. */
@@ -471,10 +472,12 @@ static sy_code extend_root_to_ground(sy_skeleton *s, sy_clusters *cl, double gro
     return SY_OK;
 }
 
-/* Splits the full skeleton into the main skeleton (out) and clusters. */
+/* Splits the full skeleton into the main skeleton (out) and clusters.
+ * point_lobe (may be NULL): per input point a cluster that takes it from its
+ * main-skeleton node (-1: it stays with its node). */
 static sy_code split_clusters(const sy_skeleton *full, const float *xyz, const int32_t *cluster_of,
-                              const int32_t *seed_of, size_t n_clusters, sy_skeleton *out, sy_clusters *cl,
-                              sy_error *err)
+                              const int32_t *seed_of, const int32_t *point_lobe, size_t n_clusters, sy_skeleton *out,
+                              sy_clusters *cl, sy_error *err)
 {
     size_t n = full->n;
     int32_t *newid = sy_calloc(n, sizeof *newid, err, "skeleton");
@@ -488,6 +491,7 @@ static sy_code split_clusters(const sy_skeleton *full, const float *xyz, const i
     memcpy(out->origin, full->origin, sizeof out->origin);
     size_t kept_points = 0;
     for (size_t i = 0; i < n && !rc; i++) {
+        const uint32_t *sp = full->support + full->support_start[i];
         size_t sc = full->support_start[i + 1] - full->support_start[i];
         if (cluster_of[i] >= 0) {
             cnt[cluster_of[i]] += sc;
@@ -497,7 +501,11 @@ static sy_code split_clusters(const sy_skeleton *full, const float *xyz, const i
         int32_t p = full->parent[i] >= 0 ? newid[full->parent[i]] : -1;
         newid[i] = sy_skeleton_add(out, full->pos + 3 * i, full->radius[i], p, full->order[i], full->branch[i], err);
         if (newid[i] < 0) rc = SY_EINTERNAL;
-        kept_points += sc;
+        for (size_t k = 0; k < sc; k++) {
+            int32_t l = point_lobe ? point_lobe[sp[k]] : -1;
+            if (l >= 0) cnt[l]++;
+            else kept_points++;
+        }
     }
     if (!rc) {
         out->support_start = sy_calloc(out->n + 1, sizeof *out->support_start, err, "skeleton");
@@ -524,8 +532,11 @@ static sy_code split_clusters(const sy_skeleton *full, const float *xyz, const i
                 c->n_points += sc;
             } else {
                 out->support_start[newid[i]] = w;
-                memcpy(out->support + w, sp, sc * sizeof *sp);
-                w += sc;
+                for (size_t k = 0; k < sc; k++) {
+                    int32_t l = point_lobe ? point_lobe[sp[k]] : -1;
+                    if (l >= 0) cl->items[l].points[cl->items[l].n_points++] = sp[k];
+                    else out->support[w++] = sp[k];
+                }
             }
         }
         out->support_start[out->n] = w;
@@ -690,7 +701,8 @@ size_t sy_base_sources(const float *xyz, size_t n, const sy_graph *g, uint32_t r
 static int hull_budget(size_t n_clusters, size_t n_nodes)
 {
     if (n_clusters == 0) return 160;
-    double bytes = 36000.0 - 64 - 10.0 * (double)n_nodes;
+    /* 70 bytes a cluster go to its occupancy grid (8 x 8 x 8 bits at most). */
+    double bytes = 36000.0 - 64 - 10.0 * (double)n_nodes - 70.0 * (double)n_clusters;
     double t = bytes / (6.5 * (double)n_clusters);
     return t < 16 ? 16 : t > 160 ? 160 : (int)t;
 }
@@ -739,8 +751,9 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     const float *xyz = cloud->xyz;
     if (n < 16) return sy_fail(err, SY_EINPUT, "skeleton: %zu points are too few for a tree", n);
     if (!(o->beta > 0) || !(o->gamma > 0) || !(o->fs > 0 && o->fs <= 1) || !(o->bin_factor > 0) ||
-        !(o->radius_factor > 0) || !(o->spacing >= 0) || !(o->wood_share >= 0 && o->wood_share < 1) || !isfinite(o->beta + o->gamma + o->spacing))
-        return sy_fail(err, SY_EINPUT, "skeleton: beta, gamma, bin and radius factors must be > 0 f_s in (0, 1], wood share in [0, 1)");
+        !(o->radius_factor > 0) || !(o->spacing >= 0) || !(o->wood_share >= 0 && o->wood_share < 1) || !isfinite(o->beta + o->gamma + o->spacing) ||
+        !(o->lobe_size >= 0 && o->lobe_size <= 1))
+        return sy_fail(err, SY_EINPUT, "skeleton: beta, gamma, bin and radius factors must be > 0 f_s in (0, 1], wood share in [0, 1), lobe size in [0, 1]");
     double t0 = sy_now(), t = t0;
     rep->points = n;
 
@@ -774,7 +787,7 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     int32_t *point_node = sy_calloc(n, sizeof *point_node, err, "skeleton");
     nodes N = {0};
     sy_skeleton full = {0};
-    int32_t *order = NULL, *stack = NULL, *cluster_of = NULL, *seed_of = NULL;
+    int32_t *order = NULL, *stack = NULL, *cluster_of = NULL, *seed_of = NULL, *point_lobe = NULL;
     uint8_t *wood = NULL; /* NULL: every point is wood */
     uint32_t *by_dist = NULL;
     float *fit = NULL; /* measured radius per node of the full skeleton, 0 = none */
@@ -856,7 +869,7 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
 
     size_t n_clusters = 0;
     cluster_of = sy_calloc(full.n, sizeof *cluster_of, err, "clusters");
-    seed_of = sy_calloc(full.n, sizeof *seed_of, err, "clusters");
+    seed_of = sy_calloc(full.n + n, sizeof *seed_of, err, "clusters"); /* lobes: up to a chunk a point */
     if (!cluster_of || !seed_of) {
         rc = SY_EINTERNAL;
         goto done;
@@ -864,11 +877,28 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     if (o->clusters && clusters) {
         rc = sy_clusters_cut(&full, xyz, fit, o->spread_around, o->fs, o->min_cluster_points, cluster_of, seed_of, &n_clusters, err);
         if (rc) goto done;
+        if (o->lobe_size > 0) {
+            float lo[3], hi[3];
+            for (int k = 0; k < 3; k++) lo[k] = hi[k] = xyz[k];
+            for (size_t i = 1; i < n; i++)
+                for (int k = 0; k < 3; k++) {
+                    if (xyz[3 * i + k] < lo[k]) lo[k] = xyz[3 * i + k];
+                    if (xyz[3 * i + k] > hi[k]) hi[k] = xyz[3 * i + k];
+                }
+            double ext = 0;
+            for (int k = 0; k < 3; k++)
+                if (hi[k] - lo[k] > ext) ext = hi[k] - lo[k];
+            point_lobe = sy_calloc(n, sizeof *point_lobe, err, "lobes");
+            rc = point_lobe ? sy_clusters_split_lobes(&full, xyz, o->lobe_size * ext, o->min_cluster_points, cluster_of,
+                                                      seed_of, point_lobe, &n_clusters, err)
+                            : SY_EINTERNAL;
+            if (rc) goto done;
+        }
     } else {
         for (size_t i = 0; i < full.n; i++) cluster_of[i] = -1;
     }
     sy_clusters tmp = {0};
-    rc = split_clusters(&full, xyz, cluster_of, seed_of, n_clusters, out, clusters ? clusters : &tmp, err);
+    rc = split_clusters(&full, xyz, cluster_of, seed_of, point_lobe, n_clusters, out, clusters ? clusters : &tmp, err);
     if (rc) {
         sy_clusters_free(&tmp);
         goto done;
@@ -904,6 +934,7 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
             sy_cluster *C = &clusters->items[c];
             qsort(C->points, C->n_points, sizeof *C->points, cmp_u32);
             rc = sy_cluster_build_hull(C, xyz, o->alpha_scale, budget, 0.01, err);
+            if (!rc) rc = sy_cluster_occupancy(C, xyz, 8, err);
             rep->cluster_points += C->n_points;
             if (C->hull == SY_HULL_ALPHA) rep->hulls_alpha++;
             else if (C->hull == SY_HULL_CONVEX) rep->hulls_convex++;
@@ -935,6 +966,7 @@ done:
     free(reach);
     free(cluster_of);
     free(seed_of);
+    free(point_lobe);
     free(fit);
     free(wood);
     free(by_dist);
