@@ -8,7 +8,9 @@
 #include "stages/core/fileio.h"
 #include "stages/core/json.h"
 #include "stages/eval/eval.h"
+#include "stages/eval/gltf_read_tinygltf.h"
 #include "stages/ingest/ingest.h"
+#include "stages/preprocess/preprocess.h"
 
 static const char *truth_path, *points_path, *truth_attr, *pred_attr, *png_path;
 static int segmentation_mode, species_mode, closed_flag;
@@ -38,6 +40,9 @@ static const sy_cmd_spec spec = {
     "  --points SCAN MODEL    point->model mean/RMS/95th percentile, coverage, Hausdorff both ways\n"
     "                         (MODEL: .glb/.gltf triangles, a skeleton JSON as truncated cones,\n"
     "                         or a .sylva file: cones plus its cluster hulls, inside = distance 0).\n"
+    "                         A .glb MODEL also gets its look against the scan's above-ground points:\n"
+    "                         silhouette IoU of 6 views (mean, minimum), vertical profile correlation,\n"
+    "                         relative height and crown-width errors (LOD0, foliage proxy left out).\n"
     "  --segmentation T P     instance precision/recall/F1 at IoU > 0.5 (labels 0/NaN: no tree).\n"
     "  --species T P          accuracy, macro-F1 and the confusion matrix.\n"
     "--json prints flat keys (only those that apply); exit 2 on bad input.",
@@ -184,6 +189,41 @@ static int run_truth(const char *model_path, sy_cli *cli)
     return status;
 }
 
+/* The asset's look against the scan: the glb's default scene (LOD0) without
+ * its foliage proxy, against the scan's above-ground points (the cloud
+ * preprocessed as `sylva run` does). */
+static sy_code silhouette(const char *model_path, sy_cloud *c, sy_silhouette_metrics *m, sy_error *err)
+{
+    double *tri = NULL;
+    size_t n_tri = 0, *hull = NULL;
+    char msg[512];
+    int grc = sy_gltf_read_triangles(model_path, &tri, &n_tri, &hull, msg, sizeof msg);
+    if (grc) return sy_fail(err, grc == 2 ? SY_EINPUT : SY_EINTERNAL, "%s: %s", model_path, msg);
+    size_t k = 0;
+    for (size_t t = 0; t < n_tri; t++)
+        if (!hull[t]) memmove(tri + 9 * k++, tri + 9 * t, 9 * sizeof *tri);
+    free(hull);
+    sy_preprocess_opts po;
+    sy_preprocess_defaults(&po);
+    po.remove_ground = 1;
+    po.normals = 0;
+    sy_preprocess_result pr;
+    sy_code rc = sy_preprocess(c, &po, &pr, err);
+    double *pts = rc ? NULL : sy_cloud_world_points(c, err);
+    if (!rc && !pts) rc = SY_EINTERNAL;
+    if (!rc) rc = sy_silhouette_metrics_compute(tri, k, pts, c->n, m, err);
+    free(pts);
+    free(tri);
+    return rc;
+}
+
+static int is_gltf(const char *path)
+{
+    char ext[16];
+    sy_extension(path, ext, sizeof ext);
+    return strcmp(ext, "glb") == 0 || strcmp(ext, "gltf") == 0;
+}
+
 static int run_points(const char *model_path, sy_cli *cli)
 {
     sy_error err = {0};
@@ -198,12 +238,32 @@ static int run_points(const char *model_path, sy_cli *cli)
     sy_surface_metrics s;
     sy_code rc = pts ? sy_surface_metrics_compute(&model, pts, c.n, coverage_eps, 0.01, &s, &err) : SY_EINTERNAL;
     free(pts);
-    sy_cloud_free(&c);
     sy_eval_model_free(&model);
+    sy_silhouette_metrics sm;
+    int look = !rc && is_gltf(model_path);
+    if (look) rc = silhouette(model_path, &c, &sm, &err);
+    sy_cloud_free(&c);
     if (rc) return sy_cli_report(&err);
     report r;
     report_begin(&r, cli->json, "model vs points");
     print_surface(&r, &s);
+    if (look) {
+        static const char *key[6] = {"iou_az0", "iou_az45", "iou_az90", "iou_az135", "iou_top", "iou_oblique30"};
+        static const char *label[6] = {"silhouette IoU, azimuth 0", "silhouette IoU, azimuth 45",
+                                       "silhouette IoU, azimuth 90", "silhouette IoU, azimuth 135",
+                                       "silhouette IoU, top", "silhouette IoU, 30 deg oblique"};
+        for (int v = 0; v < 6; v++) put(&r, key[v], label[v], sm.iou[v], "");
+        put(&r, "iou_mean", "silhouette IoU, mean of 6", sm.iou_mean, "");
+        put(&r, "iou_min", "silhouette IoU, minimum", sm.iou_min, "");
+        put(&r, "profile_correlation", "vertical profile correlation", sm.profile_correlation, "");
+        put(&r, "scan_height", "scan height (above ground)", sm.scan_height, " m");
+        put(&r, "model_height", "asset height", sm.model_height, " m");
+        put(&r, "height_error_rel", "height error (relative, signed)", sm.height_error, "");
+        put(&r, "scan_crown_width", "scan crown width (5-95%)", sm.scan_width, " m");
+        put(&r, "model_crown_width", "asset crown width (5-95%)", sm.model_width, " m");
+        put(&r, "crown_width_error_rel", "crown width error (relative, signed)", sm.width_error, "");
+        put(&r, "splat_radius", "splat radius (scan median spacing)", sm.splat_radius, " m");
+    }
     report_end(&r);
     return 0;
 }
