@@ -141,8 +141,19 @@ sy_code sy_clusters_split_lobes(const sy_skeleton *full, const float *xyz, doubl
         free(first), free(next), free(order), free(stack), free(cand), free(lobe), free(box), free(pts), free(lobe_pts);
         return sy_fail(err, SY_EINTERNAL, "lobes: out of memory");
     }
+    /* The grid divides the box of these points evenly (no sliver cells at
+     * its edges): as many cells a side as the bound fits, rounded. */
     size_t ncp = 0;
-    double cell = max_extent;
+    float pb[6] = {INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY};
+    for (size_t v = 0; v < n; v++)
+        if (lobe[v] == -3)
+            for (uint32_t s = full->support_start[v]; s < full->support_start[v + 1]; s++)
+                box_add_point(pb, xyz + 3 * (size_t)full->support[s]);
+    double cell[3];
+    for (int k = 0; k < 3; k++) {
+        double e = pb[3 + k] - pb[k], m = floor(e / max_extent + 0.5);
+        cell[k] = e > 0 ? e / (m < 1 ? 1 : m) * (1 + 1e-9) : 1;
+    }
     for (size_t v = 0; v < n; v++) {
         if (lobe[v] != -3) continue;
         for (uint32_t s = full->support_start[v]; s < full->support_start[v + 1]; s++) {
@@ -150,7 +161,7 @@ sy_code sy_clusters_split_lobes(const sy_skeleton *full, const float *xyz, doubl
             chunk_point *c = &cp[ncp++];
             c->node = (int32_t)v;
             c->point = full->support[s];
-            for (int k = 0; k < 3; k++) c->cell[k] = (int32_t)floor(p[k] / cell);
+            for (int k = 0; k < 3; k++) c->cell[k] = (int32_t)floor((p[k] - pb[k]) / cell[k]);
         }
     }
     /* One lobe per grid cell, seeded at the kept node holding most of its points. */

@@ -430,9 +430,14 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
         for (int k = 0; k < 3; k++) w[k] = d->pos[k] + s * w[k], pos[k] = (float)w[k];
         quat_from_basis(X, Y, Z, q);
         long c = grid_cell(g, w);
-        if (c >= 0 && g->inside[c]) rep->leaves_in_hull++;
-        if (c >= 0 && g->occupied[c] && g->leaves[c]++ == 0) g->n_filled++;
-        if (c >= 0) g->block[block_of(g, c)]++;
+        /* Leaves outside the (soft) hull, or where the lobe is already as
+         * dense as the species' leaf area density, are pruned. */
+        if (c < 0 || !g->soft[c]) continue;
+        size_t b = block_of(g, c);
+        if (g->block[b] >= g->block_cap[b]) continue;
+        if (g->inside[c]) rep->leaves_in_hull++;
+        if (g->occupied[c] && g->leaves[c]++ == 0) g->n_filled++;
+        g->block[b]++;
         so->leaf_key[so->leaves->n] = (float)((i + 0.5) / (double)p->n_leaves);
         if (sy_leaves_add(so->leaves, pos, q, (float)leaf_size, ids[p->leaf_node[i]], err)) {
             free(ids);
@@ -487,7 +492,12 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     const sy_skeleton *sk = so->out;
     int32_t seed = c->seed;
     double lobe_ext = g.h * (g.d[0] > g.d[1] ? (g.d[0] > g.d[2] ? g.d[0] : g.d[2]) : (g.d[1] > g.d[2] ? g.d[1] : g.d[2]));
-    int starts = 0, max_starts = 64;
+    int starts = 0, max_starts = 96, failed = 0;
+    uint8_t *tried = calloc(g.n + 1, 1); /* cells a start aimed at already */
+    double reach = 0;
+    for (size_t i = 0; i < lib->n_patches; i++)
+        if (lib->patches[i].extent > reach) reach = lib->patches[i].extent;
+    if (!tried) rc = sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
     size_t lobe_node0 = sk->n; /* nodes from here on are this lobe's bark */
     double min_start = sk->radius[seed] * 0.9 < max_thick ? sk->radius[seed] * 0.9 : max_thick;
     size_t lobe_patches = 0;
@@ -499,18 +509,31 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
          * than a cell, and the first patch docks at its end. */
         double target[3] = {0, 0, 0}, cnt = 0, near[3] = {0, 0, 0}, near_d = INFINITY;
         const float ss[3] = {sk->pos[3 * seed], sk->pos[3 * seed + 1], sk->pos[3 * seed + 2]};
+        long near_i = -1;
+        for (int z = 0; z < g.d[2]; z++)
+            for (int y = 0; y < g.d[1]; y++)
+                for (int x = 0; x < g.d[0]; x++) {
+                    size_t i = (size_t)x + (size_t)g.d[0] * ((size_t)y + (size_t)g.d[1] * (size_t)z);
+                    if (!g.occupied[i] || g.leaves[i] || tried[i]) continue;
+                    double c[3] = {g.lo[0] + (x + 0.5) * g.h, g.lo[1] + (y + 0.5) * g.h, g.lo[2] + (z + 0.5) * g.h};
+                    double dd = (c[0] - ss[0]) * (c[0] - ss[0]) + (c[1] - ss[1]) * (c[1] - ss[1]) + (c[2] - ss[2]) * (c[2] - ss[2]);
+                    if (dd < near_d) near_d = dd, memcpy(near, c, sizeof near), near_i = (long)i;
+                }
+        if (near_i < 0) break;
+        tried[near_i] = 1;
+        /* Aim at the empty occupied cells around it (within a large patch's reach). */
         for (int z = 0; z < g.d[2]; z++)
             for (int y = 0; y < g.d[1]; y++)
                 for (int x = 0; x < g.d[0]; x++) {
                     size_t i = (size_t)x + (size_t)g.d[0] * ((size_t)y + (size_t)g.d[1] * (size_t)z);
                     if (!g.occupied[i] || g.leaves[i]) continue;
                     double c[3] = {g.lo[0] + (x + 0.5) * g.h, g.lo[1] + (y + 0.5) * g.h, g.lo[2] + (z + 0.5) * g.h};
-                    double dd = (c[0] - ss[0]) * (c[0] - ss[0]) + (c[1] - ss[1]) * (c[1] - ss[1]) + (c[2] - ss[2]) * (c[2] - ss[2]);
-                    if (dd < near_d) near_d = dd, memcpy(near, c, sizeof near);
+                    double dd = (c[0] - near[0]) * (c[0] - near[0]) + (c[1] - near[1]) * (c[1] - near[1]) +
+                                (c[2] - near[2]) * (c[2] - near[2]);
+                    if (dd > reach * reach) continue;
                     for (int k = 0; k < 3; k++) target[k] += c[k];
                     cnt++;
                 }
-        if (cnt == 0) break;
         for (int k = 0; k < 3; k++) target[k] /= cnt;
         /* From the nearest bark this lobe has so far (or its seed). */
         int32_t from = seed;
@@ -603,7 +626,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
                     placement(p, &d, phi0 + 2 * M_PI * r / o->rolls, R);
                     fit_geo f = patch_fit(p, &d, R, s, &g);
                     if (d.depth > 0 && f.outside > o->outside_max) continue;
-                    if (f.gain < 0.1) { /* the lobe is full where it would go */
+                    if (f.gain < 0.15) { /* the lobe is full where it would go */
                         full = 1;
                         continue;
                     }
@@ -620,7 +643,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
             if (!rc && d.depth > 0) rep->docks_filled++;
             lobe_patches++;
         }
-        if (rep->patches == before) break; /* nothing fits from the seed any more */
+        if (rep->patches == before && ++failed >= 48) break; /* nothing fits any more */
     }
     if (!rc && bare_reason < 0 && rep->patches == placed0) bare_reason = 1;
     if (!rc && bare_reason >= 0) {
@@ -637,6 +660,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     /* Summed over lobes; the caller divides by all occupied cells. */
     if (!rc) rep->coverage += (double)g.n_filled;
     *occupied += g.n_occupied;
+    free(tried);
     free(Q.q);
     grid_free(&g);
     return rc;
