@@ -526,8 +526,10 @@ static sy_code partition(const sy_lsystem *ls, const raw_branchlet *b, uint64_t 
             float dd[3] = {b->pos[3 * i] - a[0], b->pos[3 * i + 1] - a[1], b->pos[3 * i + 2] - a[2]};
             v_norm(dd);
             RF(D->dir, dd);
-            D->thickness = b->radius[i];
             D->node = local[b->parent[i]];
+            /* Strictly thinner than where it docks (a lone side stem carries
+             * its parent's whole pipe otherwise). */
+            D->thickness = b->radius[i] < 0.95f * P->radius[D->node] ? b->radius[i] : 0.95f * P->radius[D->node];
         }
         /* Leaves in a stored random order (Fisher-Yates). */
         size_t *ord = malloc((nl + 1) * sizeof *ord), m = 0;

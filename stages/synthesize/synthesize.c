@@ -138,7 +138,7 @@ typedef struct {
     int bd[3];           /* blocks of 2 x 2 x 2 cells, where fullness is counted */
     uint32_t *block;     /* leaves per block */
     float *block_cap;    /* leaves a block holds: capacity x its occupied cells */
-    size_t n_occupied, n_filled;
+    size_t n_occupied, n_blocks, n_filled; /* occupied cells; blocks with room; blocks holding a leaf */
     double capacity;     /* leaves a cell holds before docking there stops */
     float centroid[3];   /* of the occupied cells */
 } lobe_grid;
@@ -264,6 +264,7 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
     g->capacity = density * g->h * g->h * g->h / (leaf_area > 1e-6 ? leaf_area : 1e-6); /* per occupied cell */
     for (size_t i = 0; i < g->n; i++)
         if (g->occupied[i]) g->block_cap[block_of(g, (long)i)] += (float)g->capacity;
+    for (size_t b = 0; b < (size_t)g->bd[0] * g->bd[1] * g->bd[2]; b++) g->n_blocks += g->block_cap[b] > 0;
     return SY_OK;
 }
 
@@ -436,8 +437,8 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
         size_t b = block_of(g, c);
         if (g->block[b] >= g->block_cap[b]) continue;
         if (g->inside[c]) rep->leaves_in_hull++;
-        if (g->occupied[c] && g->leaves[c]++ == 0) g->n_filled++;
-        g->block[b]++;
+        if (g->occupied[c]) g->leaves[c]++;
+        if (g->block[b]++ == 0) g->n_filled++;
         so->leaf_key[so->leaves->n] = (float)((i + 0.5) / (double)p->n_leaves);
         if (sy_leaves_add(so->leaves, pos, q, (float)leaf_size, ids[p->leaf_node[i]], err)) {
             free(ids);
@@ -502,7 +503,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     double min_start = sk->radius[seed] * 0.9 < max_thick ? sk->radius[seed] * 0.9 : max_thick;
     size_t lobe_patches = 0;
     while (!rc && bare_reason < 0 && starts < max_starts && lobe_patches < (size_t)o->max_patches &&
-           g.n_filled < g.n_occupied) {
+           g.n_filled < g.n_blocks) {
         /* A new start from the seed toward the occupied cells still empty:
          * a carrier limb (the part of the limb the scan does not resolve)
          * runs from the seed to the nearest of them when it lies farther
@@ -659,7 +660,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
                 rep->patches - placed0, starts, rep->docks_outside, rep->docks_rejected, rep->docks_full, rep->docks_depth);
     /* Summed over lobes; the caller divides by all occupied cells. */
     if (!rc) rep->coverage += (double)g.n_filled;
-    *occupied += g.n_occupied;
+    *occupied += g.n_blocks;
     free(tried);
     free(Q.q);
     grid_free(&g);

@@ -50,7 +50,7 @@ typedef struct {
     int bare_reason[8];         /* 0 no room inside the hull, 1 no candidate fitted */
     size_t patches, docks_filled, docks_outside, docks_depth, docks_full, docks_rejected;
     size_t nodes_added, leaves, leaves_in_hull;
-    double coverage;            /* occupied lobe cells holding a leaf, share over all lobes */
+    double coverage;            /* share of the lobes' occupied blocks (2 x 2 x 2 grid cells) holding a leaf */
     double seconds;
 } sy_synth_report;
 
