@@ -90,6 +90,8 @@ static void print_json(const char *in, const sy_skeleton_report *r, const sy_tre
     sy_json_bool(&j, "dbh_fitted", r->dbh_fitted);
     sy_json_number(&j, "height", r->height);
     sy_json_int(&j, "hull_triangles", (long long)a->hull_triangles);
+    sy_json_int(&j, "lod0_bark_triangles", (long long)(a->bark_triangles[0] - a->hull_triangles));
+    sy_json_int(&j, "lod0_leaf_instances", (long long)a->leaf_cards[0]);
     sy_json_int(&j, "patches", (long long)st->synth.patches);
     sy_json_int(&j, "leaves", (long long)st->synth.leaves);
     sy_json_int(&j, "lobes_bare", (long long)st->synth.lobes_bare);

@@ -63,7 +63,8 @@ int sy_glb_cli_apply(const char *command, sy_tree_asset_options *o);
 typedef struct {
     size_t nodes, branches, leaves;
     size_t lods;
-    size_t triangles[16];   /* per LOD: mesh triangles + 2 per leaf card instance */
+    size_t triangles[16];   /* per LOD: mesh triangles + card triangles x leaf instances */
+    size_t bark_triangles[16]; /* per LOD: the bark (and proxy) meshes' triangles alone */
     size_t hull_triangles;  /* foliage proxy triangles (in every mesh level) */
     size_t leaf_cards[16];
     size_t bytes;

@@ -626,7 +626,8 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
                     double R[9];
                     placement(p, &d, phi0 + 2 * M_PI * r / o->rolls, R);
                     fit_geo f = patch_fit(p, &d, R, s, &g);
-                    if (d.depth > 0 && f.outside > o->outside_max) continue;
+                    /* A start may leave from a seed outside the hull: half of it may lie out. */
+                    if (f.outside > (d.depth > 0 ? o->outside_max : 0.5)) continue;
                     if (f.gain < 0.15) { /* the lobe is full where it would go */
                         full = 1;
                         continue;
