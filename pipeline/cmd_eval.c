@@ -43,6 +43,8 @@ static const sy_cmd_spec spec = {
     "                         A .glb MODEL also gets its look against the scan's above-ground points:\n"
     "                         silhouette IoU of 6 views (mean, minimum), vertical profile correlation,\n"
     "                         relative height and crown-width errors (LOD0, foliage proxy left out).\n"
+    "                         SCAN may be a .glb too (a reference asset, e.g. `sylva grow`'s true tree:\n"
+    "                         its LOD0 surface sampled every 2 cm).\n"
     "  --segmentation T P     instance precision/recall/F1 at IoU > 0.5 (labels 0/NaN: no tree).\n"
     "  --species T P          accuracy, macro-F1 and the confusion matrix.\n"
     "--json prints flat keys (only those that apply); exit 2 on bad input.",
@@ -192,26 +194,59 @@ static int run_truth(const char *model_path, sy_cli *cli)
 /* The asset's look against the scan: the glb's default scene (LOD0) without
  * its foliage proxy, against the scan's above-ground points (the cloud
  * preprocessed as `sylva run` does). */
-static sy_code silhouette(const char *model_path, sy_cloud *c, sy_silhouette_metrics *m, sy_error *err)
+static sy_code glb_triangles(const char *path, double **tri, size_t *n, sy_error *err)
 {
-    double *tri = NULL;
     size_t n_tri = 0, *hull = NULL;
     char msg[512];
-    int grc = sy_gltf_read_triangles(model_path, &tri, &n_tri, &hull, msg, sizeof msg);
-    if (grc) return sy_fail(err, grc == 2 ? SY_EINPUT : SY_EINTERNAL, "%s: %s", model_path, msg);
+    int grc = sy_gltf_read_triangles(path, tri, &n_tri, &hull, msg, sizeof msg);
+    if (grc) return sy_fail(err, grc == 2 ? SY_EINPUT : SY_EINTERNAL, "%s: %s", path, msg);
     size_t k = 0;
     for (size_t t = 0; t < n_tri; t++)
-        if (!hull[t]) memmove(tri + 9 * k++, tri + 9 * t, 9 * sizeof *tri);
+        if (!hull[t]) memmove(*tri + 9 * k++, *tri + 9 * t, 9 * sizeof **tri);
     free(hull);
-    sy_preprocess_opts po;
-    sy_preprocess_defaults(&po);
-    po.remove_ground = 1;
-    po.normals = 0;
-    sy_preprocess_result pr;
-    sy_code rc = sy_preprocess(c, &po, &pr, err);
-    double *pts = rc ? NULL : sy_cloud_world_points(c, err);
-    if (!rc && !pts) rc = SY_EINTERNAL;
-    if (!rc) rc = sy_silhouette_metrics_compute(tri, k, pts, c->n, m, err);
+    *n = k;
+    return SY_OK;
+}
+
+/* A reference asset (SCAN given as a .glb, e.g. the true tree's own asset
+ * from `sylva grow`) as points: its LOD0 surface, proxy left out, sampled
+ * every 2 cm. */
+static sy_code glb_points(const char *path, double **pts, size_t *n, sy_error *err)
+{
+    double *tri;
+    size_t nt;
+    sy_code rc = glb_triangles(path, &tri, &nt, err);
+    if (rc) return rc;
+    sy_eval_model m = {0};
+    rc = sy_eval_model_add_mesh(&m, tri, nt, 0, err);
+    free(tri);
+    if (!rc && !(*pts = sy_model_surface_samples(&m, 0.02, n, err))) rc = SY_EINTERNAL;
+    sy_eval_model_free(&m);
+    return rc;
+}
+
+/* The asset's look against the scan: the glb's default scene (LOD0) without
+ * its foliage proxy, against the scan's above-ground points (the cloud
+ * preprocessed as `sylva run` does) or a reference asset's surface. */
+static sy_code silhouette(const char *model_path, sy_cloud *c, const double *ref, size_t n_ref,
+                          sy_silhouette_metrics *m, sy_error *err)
+{
+    double *tri = NULL;
+    size_t k = 0;
+    sy_code rc = glb_triangles(model_path, &tri, &k, err);
+    if (rc) return rc;
+    double *pts = NULL;
+    if (!ref) {
+        sy_preprocess_opts po;
+        sy_preprocess_defaults(&po);
+        po.remove_ground = 1;
+        po.normals = 0;
+        sy_preprocess_result pr;
+        rc = sy_preprocess(c, &po, &pr, err);
+        pts = rc ? NULL : sy_cloud_world_points(c, err);
+        if (!rc && !pts) rc = SY_EINTERNAL;
+    }
+    if (!rc) rc = sy_silhouette_metrics_compute(tri, k, ref ? ref : pts, ref ? n_ref : c->n, m, err);
     free(pts);
     free(tri);
     return rc;
@@ -228,21 +263,28 @@ static int run_points(const char *model_path, sy_cli *cli)
 {
     sy_error err = {0};
     sy_cloud c;
+    memset(&c, 0, sizeof c);
     sy_eval_model model;
-    if (sy_read_cloud(points_path, &c, &err)) return sy_cli_report(&err);
+    double *ref = NULL;
+    size_t n_ref = 0;
+    if (is_gltf(points_path) ? glb_points(points_path, &ref, &n_ref, &err) : sy_read_cloud(points_path, &c, &err))
+        return sy_cli_report(&err);
     if (sy_eval_load_model(model_path, closed_flag, &model, &err)) {
         sy_cloud_free(&c);
+        free(ref);
         return sy_cli_report(&err);
     }
-    double *pts = sy_cloud_world_points(&c, &err);
+    double *pts = ref ? ref : sy_cloud_world_points(&c, &err);
     sy_surface_metrics s;
-    sy_code rc = pts ? sy_surface_metrics_compute(&model, pts, c.n, coverage_eps, 0.01, &s, &err) : SY_EINTERNAL;
-    free(pts);
+    sy_code rc = pts ? sy_surface_metrics_compute(&model, pts, ref ? n_ref : c.n, coverage_eps, 0.01, &s, &err)
+                     : SY_EINTERNAL;
+    if (!ref) free(pts);
     sy_eval_model_free(&model);
     sy_silhouette_metrics sm;
     int look = !rc && is_gltf(model_path);
-    if (look) rc = silhouette(model_path, &c, &sm, &err);
+    if (look) rc = silhouette(model_path, &c, ref, n_ref, &sm, &err);
     sy_cloud_free(&c);
+    free(ref);
     if (rc) return sy_cli_report(&err);
     report r;
     report_begin(&r, cli->json, "model vs points");

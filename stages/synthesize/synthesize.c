@@ -431,9 +431,10 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
         for (int k = 0; k < 3; k++) w[k] = d->pos[k] + s * w[k], pos[k] = (float)w[k];
         quat_from_basis(X, Y, Z, q);
         long c = grid_cell(g, w);
-        /* Leaves outside the (soft) hull, or where the lobe is already as
-         * dense as the species' leaf area density, are pruned. */
-        if (c < 0 || !g->soft[c]) continue;
+        /* Leaves outside the hull (the bark may leave it by a cell, leaves
+         * not), or where the lobe is already as dense as the species' leaf
+         * area density, are pruned. */
+        if (c < 0 || !g->inside[c]) continue;
         size_t b = block_of(g, c);
         if (g->block[b] >= g->block_cap[b]) continue;
         if (g->inside[c]) rep->leaves_in_hull++;
