@@ -125,6 +125,12 @@ static void quat_from_basis(const double X[3], const double Y[3], const double Z
 }
 
 /* ---- The lobe's grid ---- */
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
 typedef struct {
     float lo[3], hi[3];  /* hull box */
     double h;            /* cell size */
@@ -208,14 +214,41 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
     g->block_cap = sy_calloc((size_t)g->bd[0] * g->bd[1] * g->bd[2], sizeof *g->block_cap, err, "synthesis grid");
     if (!g->inside || !g->occupied || !g->dist || !g->leaves || !g->soft || !g->block || !g->block_cap)
         return SY_EINTERNAL;
+    /* Inside by parity along vertical rays through the cell centres: one
+     * pass over the triangles per column instead of a winding number per
+     * cell (the hull is closed and outward, so parity and winding agree). The
+     * rays are nudged off the cell centres so they miss edges and vertices. */
+    double *hits = malloc((c->n_tris + 1) * sizeof *hits);
+    if (!hits) return sy_fail(err, SY_EINTERNAL, "synthesis grid: out of memory");
+    for (int y = 0; y < g->d[1]; y++)
+        for (int x = 0; x < g->d[0]; x++) {
+            double px = g->lo[0] + (x + 0.5) * g->h + 1.3e-7 * g->h, py = g->lo[1] + (y + 0.5) * g->h + 2.9e-7 * g->h;
+            size_t nh = 0;
+            for (size_t t = 0; t < c->n_tris; t++) {
+                const float *a = c->verts + 3 * c->tris[3 * t], *b = c->verts + 3 * c->tris[3 * t + 1],
+                            *e = c->verts + 3 * c->tris[3 * t + 2];
+                double d = (b[0] - a[0]) * (e[1] - a[1]) - (e[0] - a[0]) * (b[1] - a[1]);
+                if (fabs(d) < 1e-18) continue;
+                double u = ((px - a[0]) * (e[1] - a[1]) - (e[0] - a[0]) * (py - a[1])) / d;
+                double v = ((b[0] - a[0]) * (py - a[1]) - (px - a[0]) * (b[1] - a[1])) / d;
+                if (u < 0 || v < 0 || u + v > 1) continue;
+                hits[nh++] = a[2] + u * (b[2] - a[2]) + v * (e[2] - a[2]);
+            }
+            qsort(hits, nh, sizeof *hits, cmp_double);
+            for (int z = 0; z < g->d[2]; z++) {
+                double pz = g->lo[2] + (z + 0.5) * g->h;
+                size_t below = 0;
+                while (below < nh && hits[below] < pz) below++;
+                g->inside[(size_t)x + (size_t)g->d[0] * ((size_t)y + (size_t)g->d[1] * (size_t)z)] = (uint8_t)(below & 1);
+            }
+        }
+    free(hits);
     double cs[3] = {0, 0, 0};
     for (int z = 0; z < g->d[2]; z++)
         for (int y = 0; y < g->d[1]; y++)
             for (int x = 0; x < g->d[0]; x++) {
                 size_t i = (size_t)x + (size_t)g->d[0] * ((size_t)y + (size_t)g->d[1] * (size_t)z);
                 double p[3] = {g->lo[0] + (x + 0.5) * g->h, g->lo[1] + (y + 0.5) * g->h, g->lo[2] + (z + 0.5) * g->h};
-                float pf[3] = {(float)p[0], (float)p[1], (float)p[2]};
-                g->inside[i] = sy_winding_number(c->verts, c->tris, c->n_tris, pf) >= 0.5;
                 g->occupied[i] = g->inside[i] && occ_bit(c, g->lo, g->hi, p);
                 if (g->occupied[i]) {
                     g->n_occupied++;
