@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include "pipeline/tree_asset.h"
+#include "species/library.h"
 #include "stages/core/progress.h"
 
 void sy_decoded_tree_free(sy_decoded_tree *t)
@@ -17,7 +18,7 @@ void sy_decoded_tree_free(sy_decoded_tree *t)
     memset(t, 0, sizeof *t);
 }
 
-sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_t size, const sy_species *species,
+sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_t size, const sy_species_params *species,
                               sy_decoded_tree *t, sy_error *err)
 {
     memset(t, 0, sizeof *t);
@@ -27,10 +28,15 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
     sy_tree_asset_root_to_origin(&t->skel, &t->lobes);
     t->seconds_decode = sy_now() - t0;
     t0 = sy_now();
-    snprintf(t->lsys, sizeof t->lsys, "%s/default.lsys", SYLVA_SPECIES_DIR);
+    char dir[4096];
+    if ((rc = sy_library_locate(dir, sizeof dir, err))) {
+        sy_decoded_tree_free(t);
+        return rc;
+    }
+    snprintf(t->lsys, sizeof t->lsys, "%.200s/default.lsys", dir);
     if (species && species->name) {
-        char p[256];
-        snprintf(p, sizeof p, "%s/%s.lsys", SYLVA_SPECIES_DIR, species->name);
+        char p[512];
+        snprintf(p, sizeof p, "%.200s/%.200s.lsys", dir, species->name);
         if (access(p, R_OK) == 0) snprintf(t->lsys, sizeof t->lsys, "%s", p);
     }
     sy_lsystem ls;

@@ -9,8 +9,8 @@
 
 #include "stages/clusters/clusters.h"
 #include "stages/core/skeleton.h"
-#include "stages/encode/sylva_format.h"
-#include "stages/grow/grow.h"
+#include "species/params.h"
+#include "stages/encode/encode.h"
 #include "stages/synthesize/synthesize.h"
 
 typedef struct {
@@ -25,10 +25,10 @@ typedef struct {
     double seconds_decode, seconds_library;
 } sy_decoded_tree;
 
-/* species (may be NULL): its branchlets (SYLVA_SPECIES_DIR/NAME.lsys) and leaf
- * size; NULL or a species without an .lsys: species/default.lsys. name names
- * the image in messages. */
-sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_t size, const sy_species *species,
+/* species (may be NULL): its branchlets (NAME.lsys in the species library's
+ * folder, beside its .ini) and leaf size; NULL or a species without an
+ * .lsys: the library's default.lsys. name names the image in messages. */
+sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_t size, const sy_species_params *species,
                               sy_decoded_tree *t, sy_error *err);
 void sy_decoded_tree_free(sy_decoded_tree *t);
 
