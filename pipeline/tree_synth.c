@@ -35,7 +35,7 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
     }
     snprintf(t->lsys, sizeof t->lsys, "%.200s/default.lsys", dir);
     if (species && species->name) {
-        char p[512];
+        char p[500];
         snprintf(p, sizeof p, "%.200s/%.200s.lsys", dir, species->name);
         if (access(p, R_OK) == 0) snprintf(t->lsys, sizeof t->lsys, "%s", p);
     }

@@ -21,7 +21,7 @@ typedef struct {
     sy_leaves leaves;     /* in stochastic-pruning order */
     sy_synth_report synth;
     size_t branchlets, patches; /* the species library used */
-    char lsys[256];       /* its file */
+    char lsys[512];       /* its file */
     double seconds_decode, seconds_library;
 } sy_decoded_tree;
 
