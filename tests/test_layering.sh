@@ -15,6 +15,7 @@ declare -A allowed=(
   [preprocess]="core"
   [clusters]="core"
   [skeleton]="core clusters"
+  [synthesize]="core clusters"
   [encode]="core clusters"
   [grow]="core species"
   [qsm]="core clusters encode grow"
@@ -24,7 +25,7 @@ declare -A allowed=(
   [scan]="core grow species"
   [eval]="core encode qsm gltf"
 )
-main_path="core species ingest preprocess clusters skeleton encode grow mesh gltf export"
+main_path="core species ingest preprocess clusters skeleton synthesize encode grow mesh gltf export"
 reconstruction="skeleton clusters encode"
 
 folder_of() { case $1 in species) echo "$root/species" ;; *) echo "$root/stages/$1" ;; esac; }
