@@ -53,9 +53,6 @@ at_least "$(key iou_min "$ev")" 0.70 || fail "iou_min: $ev"
 at_least "$(key profile_correlation "$ev")" 0.80 || fail "profile: $ev"
 abs_at_most "$(key height_error_rel "$ev")" 0.12 || fail "height: $ev"
 abs_at_most "$(key crown_width_error_rel "$ev")" 0.25 || fail "width: $ev"
-# The proxy never counts: the same numbers with it.
-ev2=$("$SYLVA" eval --points "$scan" "$tmp/p.glb" --json) || fail "eval proxy exit $?"
-[[ $(key iou_mean "$ev") == $(key iou_mean "$ev2") ]] || fail "proxy changed the silhouette: $ev2"
 
 # Species that do not exist, a bad grammar: clear errors.
 "$SYLVA" run "$scan" -o "$tmp/x.glb" --species no_such_tree 2>"$tmp/err"; rc=$?
