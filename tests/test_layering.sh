@@ -16,6 +16,7 @@ declare -A allowed=(
   [preprocess]="core"
   [clusters]="core"
   [skeleton]="core clusters"
+  [synthesize]="core clusters"
   [encode]="core clusters"
   [grow]="core species"
   [qsm]="core clusters encode grow"
@@ -27,7 +28,7 @@ declare -A allowed=(
   [photogrammetry]="core ingest"
   [viewer]="core gltf ingest"
 )
-main_path="core leafmaps species ingest preprocess clusters skeleton encode grow mesh gltf export photogrammetry"
+main_path="core leafmaps species ingest preprocess clusters skeleton synthesize encode grow mesh gltf export photogrammetry"
 reconstruction="skeleton clusters encode"
 
 folder_of() { case $1 in species|viewer) echo "$root/$1" ;; *) echo "$root/stages/$1" ;; esac; }
