@@ -210,7 +210,13 @@ sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, co
     memset(out, 0, sizeof *out);
     double t0 = sy_now();
     sy_material_spec ms = {species ? species->bark_texture : NULL, species ? species->leaf_texture : NULL,
-                           species ? species->leaf_translucency : -1.0f, opt->texture_size};
+                           species ? species->leaf_translucency : -1.0f, opt->texture_size, NULL, 0};
+    char leaf_maps[4096];
+    if (species) {
+        /* A species' leaf maps from `sylva leaf`, when the library has them. */
+        ms.leaf_maps = sy_species_leaf_maps(species->name, leaf_maps, sizeof leaf_maps);
+        ms.leaf_length_m = species->leaf_scale > 0 ? species->leaf_scale : 0.1f;
+    }
     int bark = -1, leaf = -1;
     sy_code rc = sy_materials_add(&ms, out, &bark, &leaf, err);
     if (rc) goto fail;
@@ -221,6 +227,7 @@ sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, co
     mo.impostor = opt->impostor && !hulls;
     mo.impostor_size = opt->impostor_size;
     mo.seed = opt->seed;
+    mo.keep_leaf_order = opt->keep_leaf_order;
     mo.bark_material = bark;
     mo.leaf_material = leaf;
     if (species) {
@@ -248,6 +255,7 @@ sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, co
         for (size_t l = 0; l < out->n_lods && l < 16; l++) {
             const sy_lod *lod = &out->lods[l];
             for (int k = 0; k < lod->n_meshes; k++) rep->triangles[l] += out->meshes[lod->meshes[k]].n_indices / 3;
+            rep->bark_triangles[l] = rep->triangles[l];
             for (int k = 0; k < lod->n_instances; k++) {
                 const sy_instances *in = &lod->instances[k];
                 rep->leaf_cards[l] += in->n;

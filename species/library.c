@@ -284,7 +284,85 @@ void sy_library_entry_json(const sy_library_entry *e, sy_json *j)
     sy_json_array(j, "files");
     for (size_t f = 0; f < e->n_files; f++) sy_json_string(j, NULL, e->files[f]);
     sy_json_end(j);
-    /* Filled by the leaf-maps stage once a species has maps (docs/species.md). */
-    sy_json_null(j, "leaf_maps");
+    /* The species' leaf material from `sylva leaf` (docs/leafmaps.md), or null. */
+    const char *lm = sy_library_entry_leaf_maps(e);
+    if (lm) sy_json_string(j, "leaf_maps", lm);
+    else sy_json_null(j, "leaf_maps");
     sy_json_end(j);
+}
+
+const char *sy_library_entry_leaf_maps(const sy_library_entry *e)
+{
+    static const char tail[] = "leaf.material";
+    for (size_t f = 1; f < e->n_files; f++) {
+        size_t n = strlen(e->files[f]), t = sizeof tail - 1;
+        if (n >= t && strcmp(e->files[f] + n - t, tail) == 0 && (n == t || e->files[f][n - t - 1] == '/'))
+            return e->files[f];
+    }
+    return NULL;
+}
+
+sy_code sy_library_add_file(const char *dir, const char *name, const char *rel, sy_error *err)
+{
+    char path[4200];
+    snprintf(path, sizeof path, "%.4096s/library.tsv", dir);
+    sy_buffer buf;
+    sy_code rc = sy_read_file(path, &buf, err);
+    if (rc) return rc;
+    const char *text = (const char *)buf.data;
+    size_t n = buf.size, rl = strlen(rel);
+    char *out = malloc(n + rl + 2);
+    if (!out) {
+        sy_buffer_free(&buf);
+        return sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
+    }
+    size_t o = 0, pos = 0;
+    int found = 0;
+    while (pos < n) {
+        size_t end = pos;
+        while (end < n && text[end] != '\n') end++;
+        size_t len = end - pos;
+        /* Fields: id, name, scientific name, kind, files. */
+        const char *line = text + pos, *f[5] = {0};
+        size_t nf = 0;
+        if (len && line[0] != '#') {
+            f[nf++] = line;
+            for (size_t k = 0; k < len && nf < 5; k++)
+                if (line[k] == '\t') f[nf++] = line + k + 1;
+        }
+        size_t name_len = nf >= 3 ? (size_t)(f[2] - f[1] - 1) : 0;
+        int match = nf == 5 && name_len == strlen(name) && memcmp(f[1], name, name_len) == 0;
+        memcpy(out + o, line, len);
+        o += len;
+        if (match) {
+            found = 1;
+            /* Already listed? Compare each comma-separated file. */
+            const char *files = f[4], *stop = line + len;
+            while (stop > files && (stop[-1] == '\r' || stop[-1] == ' ')) stop--;
+            int listed = 0;
+            for (const char *s = files; s < stop;) {
+                const char *c = s;
+                while (c < stop && *c != ',') c++;
+                if ((size_t)(c - s) == rl && memcmp(s, rel, rl) == 0) listed = 1;
+                s = c + 1;
+            }
+            if (!listed) {
+                size_t keep = (size_t)(stop - line), tail = len - keep;
+                memmove(out + o - tail + rl + 1, out + o - tail, tail);
+                out[o - tail] = ',';
+                memcpy(out + o - tail + 1, rel, rl);
+                o += rl + 1;
+            }
+        }
+        if (end < n) out[o++] = '\n';
+        pos = end + 1;
+    }
+    sy_buffer_free(&buf);
+    if (!found) {
+        free(out);
+        return sy_fail(err, SY_EINPUT, "%s: species '%s' is not in the library", path, name);
+    }
+    rc = sy_write_file_atomic(path, out, o, err);
+    free(out);
+    return rc;
 }

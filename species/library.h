@@ -74,6 +74,16 @@ sy_code sy_library_params(const sy_library *lib, const sy_library_entry *e, sy_s
  * the species has leaf maps). */
 void sy_library_entry_json(const sy_library_entry *e, sy_json *j);
 
+/* Adds rel (a path relative to dir) to the files column of species name in
+ * dir/library.tsv unless it is listed already; the manifest is rewritten
+ * atomically, every other byte kept. SY_EINPUT when name is not listed. */
+sy_code sy_library_add_file(const char *dir, const char *name, const char *rel, sy_error *err);
+
+/* The entry's leaf material (a file named leaf.material among files[1..],
+ * relative to the library folder, written by `sylva leaf --species`), or
+ * NULL when the species has no leaf maps. */
+const char *sy_library_entry_leaf_maps(const sy_library_entry *e);
+
 #ifdef __cplusplus
 }
 #endif

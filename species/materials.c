@@ -14,6 +14,10 @@
 #include <stb_image_write.h>
 
 #include "species/image_cv.h"
+#include "species/library.h"
+#include "stages/core/color.h"
+#include "stages/leafmaps/leaf_material.h"
+#include "stages/leafmaps/leafmaps_cv.h"
 
 #define BARK_NORMAL_STRENGTH 6.0f /* bark photos have shallow luminance relief */
 #define LEAF_NORMAL_STRENGTH 2.0f
@@ -213,7 +217,7 @@ static sy_code procedural_leaf(int size, image *im, sy_error *err)
 
 static float srgb_to_linear(float c)
 {
-    return c <= 0.04045f ? c / 12.92f : powf((c + 0.055f) / 1.055f, 2.4f);
+    return (float)sy_srgb_to_linear(c);
 }
 
 /* Mean linear albedo of the opaque texels, scaled so its largest channel is
@@ -316,6 +320,137 @@ static sy_code make_leaf(const sy_material_spec *spec, int max_size, float trans
     return *out < 0 ? SY_EINTERNAL : SY_OK;
 }
 
+/* ------------------------------------------------- leaf maps (sylva leaf) */
+
+const char *sy_species_leaf_maps(const char *species_name, char *buf, size_t size)
+{
+    if (!species_name || !sy_leaf_material_valid_name(species_name)) return NULL;
+    sy_library lib;
+    sy_error err = {0};
+    if (sy_library_load(NULL, &lib, &err)) return NULL; /* no library: cards from the species file */
+    const sy_library_entry *e = sy_library_find(&lib, species_name);
+    const char *rel = e ? sy_library_entry_leaf_maps(e) : NULL;
+    if (rel) snprintf(buf, size, "%s/%s", lib.dir, rel);
+    sy_library_free(&lib);
+    if (!rel) return NULL;
+    FILE *f = fopen(buf, "rb");
+    if (!f) return NULL;
+    fclose(f);
+    return buf;
+}
+
+/* Reads a map of the leaf material at side x side texels (float, c channels). */
+static sy_code read_map(const char *path, int want_c, int want_bits, int side, float **out, sy_error *err)
+{
+    float *px;
+    int w, h, c, depth;
+    if (sy_lcv_read(path, &px, &w, &h, &c, &depth)) return sy_fail(err, SY_EINPUT, "%s: cannot read the leaf map", path);
+    if (c != want_c || depth != want_bits || w != h || w < 1) {
+        free(px);
+        return sy_fail(err, SY_EINPUT, "%s: expected a square %d-bit %d-channel leaf map", path, want_bits, want_c);
+    }
+    if (w == side) {
+        *out = px;
+        return SY_OK;
+    }
+    float *r = malloc((size_t)side * side * (size_t)c * sizeof *r);
+    if (!r || sy_lcv_resize(px, w, h, c, r, side, side)) {
+        free(px), free(r);
+        return sy_fail(err, SY_EINTERNAL, "%s: resize failed", path);
+    }
+    free(px);
+    *out = r;
+    return SY_OK;
+}
+
+static int add_png16(sy_asset *asset, const char *name, const float *px, int side, int c, int bits, sy_error *err)
+{
+    sy_image img;
+    memset(&img, 0, sizeof img);
+    if (sy_lcv_encode_png(px, side, side, c, bits, &img.png, &img.size)) {
+        sy_fail(err, SY_EINTERNAL, "%s: PNG encoding failed", name);
+        return -1;
+    }
+    snprintf(img.name, sizeof img.name, "%s", name);
+    int idx = sy_asset_add_image(asset, &img, err);
+    if (idx < 0) free(img.png);
+    return idx;
+}
+
+static float to_srgb(float v)
+{
+    return (float)sy_linear_to_srgb(v);
+}
+
+/* The leaf of a species with maps from `sylva leaf`. KHR_materials_diffuse_
+ * transmission splits the non-specular light: (1 - f) baseColor is
+ * reflected and f colour transmitted. With measured albedo a and
+ * transmittance t per texel: f = max_c t_c and colour = t / f, so the
+ * transmitted light is t exactly. baseColor stays a: viewers without the
+ * extension (most engines' importers) show the measured albedo, and those
+ * with it reflect (1 - f) a, a little darker, never more than a + t <= 1. */
+static sy_code make_leaf_from_maps(const sy_material_spec *spec, int max_size, sy_asset *asset, int *out, sy_error *err)
+{
+    sy_leaf_material lm;
+    sy_code rc = sy_leaf_material_load(spec->leaf_maps, &lm, err);
+    if (rc) return rc;
+    int side = lm.size > 0 ? lm.size : 1024;
+    while (side > max_size && side > 1) side /= 2;
+    float *alb = NULL, *nrm = NULL, *tr = NULL, *th = NULL, *hl[2] = {NULL, NULL};
+    if (!rc) rc = read_map(lm.albedo, 4, 8, side, &alb, err);
+    if (!rc) rc = read_map(lm.normal, 3, 8, side, &nrm, err);
+    if (!rc && lm.translucency[0]) rc = read_map(lm.translucency, 3, 8, side, &tr, err);
+    if (!rc && lm.thickness[0]) rc = read_map(lm.thickness, 1, 16, side, &th, err);
+    for (int s = 0; !rc && s < 2; s++)
+        if (lm.hl2[s][0]) rc = read_map(lm.hl2[s], 3, 16, side, &hl[s], err);
+    size_t n = (size_t)side * side;
+    float *base = rc ? NULL : malloc(n * 4 * sizeof *base), *trans = rc ? NULL : malloc(n * 4 * sizeof *trans);
+    if (!rc && (!base || !trans)) rc = sy_fail(err, SY_EINTERNAL, "leaf maps: out of memory");
+    for (size_t i = 0; !rc && i < n; i++) {
+        float a[3], t[3] = {0, 0, 0}, f = 0;
+        for (int c = 0; c < 3; c++) {
+            a[c] = srgb_to_linear(alb[4 * i + c]);
+            if (tr) t[c] = srgb_to_linear(tr[3 * i + c]);
+            if (t[c] > f) f = t[c];
+        }
+        if (f > 0.95f) f = 0.95f;
+        for (int c = 0; c < 3; c++) {
+            base[4 * i + c] = to_srgb(a[c]);
+            trans[4 * i + c] = to_srgb(f > 1e-4f ? t[c] / f : 1.0f);
+        }
+        base[4 * i + 3] = alb[4 * i + 3];
+        trans[4 * i + 3] = f;
+    }
+    sy_material m = sy_material_default("leaf");
+    if (!rc && ((m.base_color_image = add_png16(asset, "leaf_color", base, side, 4, 8, err)) < 0 ||
+                (m.normal_image = add_png16(asset, "leaf_normal", nrm, side, 3, 8, err)) < 0))
+        rc = err->code;
+    if (!rc && tr && (m.diffuse_transmission_image = add_png16(asset, "leaf_transmission", trans, side, 4, 8, err)) < 0)
+        rc = err->code;
+    if (!rc && th && (m.thickness_image = add_png16(asset, "leaf_thickness", th, side, 1, 8, err)) < 0) rc = err->code;
+    static const char *hl_names[2] = {"leaf_hl2_adaxial", "leaf_hl2_abaxial"};
+    for (int s = 0; !rc && s < 2; s++)
+        if (hl[s] && (m.hl2_image[s] = add_png16(asset, hl_names[s], hl[s], side, 3, 16, err)) < 0) rc = err->code;
+    free(alb), free(nrm), free(tr), free(th), free(hl[0]), free(hl[1]), free(base), free(trans);
+    if (rc) return rc;
+    m.roughness = 0.7f;
+    m.alpha_mode = SY_ALPHA_MASK;
+    m.alpha_cutoff = 0.5f;
+    m.double_sided = 1;
+    if (m.diffuse_transmission_image >= 0) {
+        m.diffuse_transmission = 1.0f; /* the texture's alpha carries the factor */
+        for (int c = 0; c < 3; c++) m.diffuse_transmission_color[c] = 1.0f;
+    }
+    float card = spec->leaf_length_m > 0 ? spec->leaf_length_m : 0.1f;
+    if (m.thickness_image >= 0) m.thickness_factor = (float)(lm.thickness_max_mm / 1000.0 / card);
+    m.hl2_min = (float)SY_LEAF_HL2_MIN;
+    m.hl2_max = (float)SY_LEAF_HL2_MAX;
+    m.hl2_transmit[0] = (float)lm.transmit_normal[0];
+    m.hl2_transmit[1] = (float)lm.transmit_normal[1];
+    *out = sy_asset_add_material(asset, &m, err);
+    return *out < 0 ? SY_EINTERNAL : SY_OK;
+}
+
 sy_code sy_materials_add(const sy_material_spec *spec, sy_asset *asset, int *bark_material, int *leaf_material,
                              sy_error *err)
 {
@@ -326,5 +461,6 @@ sy_code sy_materials_add(const sy_material_spec *spec, sy_asset *asset, int *bar
         return sy_fail(err, SY_EINPUT, "leaf translucency %g is outside [0, 1]", translucency);
     sy_code rc = make_bark(spec, max_size, asset, bark_material, err);
     if (rc) return rc;
+    if (spec->leaf_maps) return make_leaf_from_maps(spec, max_size, asset, leaf_material, err);
     return make_leaf(spec, max_size, translucency, asset, leaf_material, err);
 }

@@ -16,7 +16,16 @@ typedef struct {
     const char *leaf_image;  /* RGBA leaf/twig card or NULL for a plain green card */
     float leaf_translucency; /* diffuse transmission factor 0..1 (default 0.4) */
     int max_size;            /* longest side after resizing (default 512) */
+    /* A leaf material made by `sylva leaf` (its leaf.material) or NULL: when
+     * given it replaces leaf_image and leaf_translucency (docs/leafmaps.md). */
+    const char *leaf_maps;
+    float leaf_length_m;     /* card length, the unit of the volume thickness (default 0.1) */
 } sy_material_spec;
+
+/* The absolute path of the library species' leaf material (its manifest's
+ * files column names leafmaps/<name>/leaf.material) into buf; NULL when the
+ * species is not in the library, has no leaf maps or there is no library. */
+const char *sy_species_leaf_maps(const char *species_name, char *buf, size_t size);
 
 /* Adds the bark and leaf materials (and their images) to the asset. */
 sy_code sy_materials_add(const sy_material_spec *spec, sy_asset *asset, int *bark_material,

@@ -115,7 +115,7 @@ static void library_textures_become_materials(void **state)
 {
     (void)state;
     sy_material_spec spec = {SYLVA_SPECIES_DIR "/textures/bark.png", SYLVA_SPECIES_DIR "/textures/ash_color.png",
-                             0.45f, 128};
+                             0.45f, 128, NULL, 0};
     sy_asset asset;
     memset(&asset, 0, sizeof asset);
     sy_error err = {0};
@@ -174,7 +174,7 @@ static void cards_keep_a_power_of_two_aspect(void **state)
     (void)state;
     /* oak_leaf.png is 171 x 256: the long side becomes 128, the short side
      * the nearest power of two to 85.5, 64. */
-    sy_material_spec spec = {NULL, SYLVA_SPECIES_DIR "/textures/oak_leaf.png", 0.3f, 128};
+    sy_material_spec spec = {NULL, SYLVA_SPECIES_DIR "/textures/oak_leaf.png", 0.3f, 128, NULL, 0};
     sy_asset asset;
     memset(&asset, 0, sizeof asset);
     sy_error err = {0};
@@ -191,7 +191,7 @@ static void cards_keep_a_power_of_two_aspect(void **state)
 static void procedural_fallbacks_are_deterministic(void **state)
 {
     (void)state;
-    sy_material_spec spec = {NULL, NULL, 0.4f, 64};
+    sy_material_spec spec = {NULL, NULL, 0.4f, 64, NULL, 0};
     sy_asset a, b;
     memset(&a, 0, sizeof a);
     memset(&b, 0, sizeof b);
@@ -243,7 +243,7 @@ static void leaf_without_alpha_is_cut_from_its_background(void **state)
         }
     const char *path = tmp_path("leaf_rgb.png");
     assert_int_equal(stbi_write_png(path, n, n, 3, rgb, n * 3) != 0, 1);
-    sy_material_spec spec = {NULL, path, 0.5f, 64};
+    sy_material_spec spec = {NULL, path, 0.5f, 64, NULL, 0};
     sy_asset asset;
     memset(&asset, 0, sizeof asset);
     sy_error err = {0};
@@ -262,7 +262,7 @@ static void leaf_without_alpha_is_cut_from_its_background(void **state)
 static void unreadable_images_are_input_errors(void **state)
 {
     (void)state;
-    sy_material_spec spec = {"/nonexistent/bark.png", NULL, 0.4f, 64};
+    sy_material_spec spec = {"/nonexistent/bark.png", NULL, 0.4f, 64, NULL, 0};
     sy_asset asset;
     memset(&asset, 0, sizeof asset);
     sy_error err = {0};
@@ -281,9 +281,70 @@ static void unreadable_images_are_input_errors(void **state)
     sy_asset_free(&asset);
 }
 
+/* A species' leaf maps from `sylva leaf`: every slot is filled, and the
+ * base colour is the measured albedo, and the KHR split conserves energy:
+ * (1 - f) baseColor + f colour <= 1. */
+static void leaf_maps_become_the_leaf_material(void **state)
+{
+    (void)state;
+    const char *lm = SYLVA_SPECIES_DIR "/leafmaps/quaking_aspen/leaf.material";
+    sy_material_spec spec = {NULL, NULL, -1.0f, 128, lm, 0.3f};
+    sy_asset asset;
+    memset(&asset, 0, sizeof asset);
+    sy_error err = {0};
+    int bark = -1, leaf = -1;
+    assert_int_equal(sy_materials_add(&spec, &asset, &bark, &leaf, &err), SY_OK);
+    const sy_material *m = &asset.materials[leaf];
+    assert_true(m->base_color_image >= 0 && m->normal_image >= 0 && m->diffuse_transmission_image >= 0);
+    assert_true(m->thickness_image >= 0 && m->thickness_factor > 0);
+    assert_true(m->hl2_image[0] >= 0 && m->hl2_image[1] >= 0);
+    assert_true(m->double_sided && m->alpha_mode == SY_ALPHA_MASK);
+    int w, h, c, w2, h2, c2, w3, h3, c3;
+    const sy_image *bi = &asset.images[m->base_color_image], *ti = &asset.images[m->diffuse_transmission_image];
+    unsigned char *base = stbi_load_from_memory(bi->png, (int)bi->size, &w, &h, &c, 4);
+    unsigned char *tr = stbi_load_from_memory(ti->png, (int)ti->size, &w2, &h2, &c2, 4);
+    unsigned char *alb = stbi_load(SYLVA_SPECIES_DIR "/leafmaps/quaking_aspen/albedo.png", &w3, &h3, &c3, 4);
+    assert_non_null(base);
+    assert_non_null(tr);
+    assert_non_null(alb);
+    assert_int_equal(w, 128);
+    assert_int_equal(w2, 128);
+    /* Compare against the albedo reduced to 128 by sampling 4x4 blocks' mean is
+     * what the resize does; compare block means in linear light. */
+    int f = w3 / w;
+    double err_sum = 0;
+    size_t n = 0;
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            const unsigned char *b = base + 4 * ((size_t)y * w + x), *t = tr + 4 * ((size_t)y * w + x);
+            if (b[3] < 250) continue;
+            double fac = t[3] / 255.0, want = 0;
+            int full = 1;
+            for (int dy = 0; dy < f; dy++)
+                for (int dx = 0; dx < f; dx++) {
+                    const unsigned char *a = alb + 4 * ((size_t)(y * f + dy) * w3 + x * f + dx);
+                    full &= a[3] == 255;
+                    double v = a[1] / 255.0;
+                    want += v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4);
+                }
+            if (!full) continue;
+            want /= f * f;
+            double bv = b[1] / 255.0, got = bv <= 0.04045 ? bv / 12.92 : pow((bv + 0.055) / 1.055, 2.4);
+            double cv = t[1] / 255.0, col = cv <= 0.04045 ? cv / 12.92 : pow((cv + 0.055) / 1.055, 2.4);
+            assert_true((1 - fac) * got + fac * col <= 1.0 + 1e-6);
+            err_sum += fabs(got - want);
+            n++;
+        }
+    assert_true(n > 100);
+    assert_true(err_sum / n < 0.01);
+    stbi_image_free(base), stbi_image_free(tr), stbi_image_free(alb);
+    sy_asset_free(&asset);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(leaf_maps_become_the_leaf_material),
         cmocka_unit_test(flat_image_gives_straight_up_normals),
         cmocka_unit_test(ramps_tilt_the_normal_downhill),
         cmocka_unit_test(library_textures_become_materials),

@@ -79,7 +79,8 @@ sy_material sy_material_default(const char *name)
     for (int k = 0; k < 4; k++) m.base_color[k] = 1.0f;
     m.metallic = 0.0f;
     m.roughness = 0.8f;
-    m.base_color_image = m.normal_image = m.diffuse_transmission_image = -1;
+    m.base_color_image = m.normal_image = m.diffuse_transmission_image = m.thickness_image = -1;
+    m.hl2_image[0] = m.hl2_image[1] = -1;
     m.alpha_mode = SY_ALPHA_OPAQUE;
     m.alpha_cutoff = 0.5f;
     return m;

@@ -51,7 +51,17 @@ typedef struct {
     /* KHR_materials_diffuse_transmission; factor 0 means the extension is omitted. */
     float diffuse_transmission;
     float diffuse_transmission_color[3];
-    int diffuse_transmission_image; /* -1 none */
+    int diffuse_transmission_image; /* RGB colour, A factor (both slots), -1 none */
+    /* KHR_materials_volume: thickness in mesh units (leaf cards: one leaf
+     * length), green channel of thickness_image; factor 0 omits it. */
+    float thickness_factor;
+    int thickness_image; /* -1 none */
+    /* SYLVA_leaf_translucency (docs/leafmaps.md "HL2 maps"): the Half-Life 2
+     * coefficient maps for light arriving on the adaxial [0] and abaxial [1]
+     * side, decoded as h = hl2_min + texel * (hl2_max - hl2_min); -1 none. */
+    int hl2_image[2];
+    float hl2_min, hl2_max;
+    float hl2_transmit[2]; /* mean L_t^D at normal incidence per lit side */
 } sy_material;
 
 /* Copies of one mesh (leaf cards): TRS per instance, rotation as (x,y,z,w). */

@@ -51,7 +51,8 @@ static int all_finite(const float *v, size_t n)
 static int material_has_textures(const sy_material *m)
 {
     return m->base_color_image >= 0 || m->normal_image >= 0 ||
-           (m->diffuse_transmission > 0 && m->diffuse_transmission_image >= 0);
+           (m->diffuse_transmission > 0 && m->diffuse_transmission_image >= 0) || m->thickness_image >= 0 ||
+           m->hl2_image[0] >= 0 || m->hl2_image[1] >= 0;
 }
 
 static sy_code check_mesh(const char *path, const sy_asset *a, size_t i, sy_error *err)
@@ -109,8 +110,15 @@ static sy_code check_materials_images(const char *path, const sy_asset *a, sy_er
         sy_code rc;
         if ((rc = check_image_ref(path, a, m, m->base_color_image, err)) ||
             (rc = check_image_ref(path, a, m, m->normal_image, err)) ||
-            (rc = check_image_ref(path, a, m, m->diffuse_transmission_image, err)))
+            (rc = check_image_ref(path, a, m, m->diffuse_transmission_image, err)) ||
+            (rc = check_image_ref(path, a, m, m->thickness_image, err)) ||
+            (rc = check_image_ref(path, a, m, m->hl2_image[0], err)) ||
+            (rc = check_image_ref(path, a, m, m->hl2_image[1], err)))
             return rc;
+        if (!isfinite(m->thickness_factor) || m->thickness_factor < 0 || !isfinite(m->hl2_min) ||
+            !isfinite(m->hl2_max) || !all_finite(m->hl2_transmit, 2))
+            return sy_fail(err, SY_EINPUT, "%s: material '%s' has a volume or HL2 factor that is NaN or negative", path,
+                           m->name);
         if (m->alpha_mode != SY_ALPHA_OPAQUE && m->alpha_mode != SY_ALPHA_MASK && m->alpha_mode != SY_ALPHA_BLEND)
             return sy_fail(err, SY_EINPUT, "%s: material '%s' has unknown alpha mode %d", path, m->name,
                            (int)m->alpha_mode);
@@ -658,9 +666,21 @@ static sy_code emit_materials(builder *b)
         gm->normal_texture = texture_for(b, m->normal_image, sampler);
         gm->transmission_texture =
             m->diffuse_transmission > 0 ? texture_for(b, m->diffuse_transmission_image, sampler) : -1;
-        if (gm->base_color_texture < -1 || gm->normal_texture < -1 || gm->transmission_texture < -1)
+        /* Volume needs a transmission extension beside it, and the spec
+         * forbids it on double-sided materials (a volume needs a closed
+         * surface): double-sided leaf cards carry their thickness map in
+         * SYLVA_leaf_translucency instead (docs/leafmaps.md). */
+        int volume = m->thickness_factor > 0 && m->diffuse_transmission > 0 && !m->double_sided;
+        gm->thickness_texture = m->thickness_factor > 0 ? texture_for(b, m->thickness_image, sampler) : -1;
+        gm->volume = volume;
+        for (int s = 0; s < 2; s++) gm->hl2_texture[s] = texture_for(b, m->hl2_image[s], sampler);
+        if (gm->base_color_texture < -1 || gm->normal_texture < -1 || gm->transmission_texture < -1 ||
+            gm->thickness_texture < -1 || gm->hl2_texture[0] < -1 || gm->hl2_texture[1] < -1)
             return b->err->code;
         if (m->diffuse_transmission > 0) d->uses_transmission = 1;
+        if (volume && gm->thickness_texture >= 0) d->uses_volume = 1;
+        if (gm->hl2_texture[0] >= 0 || gm->hl2_texture[1] >= 0 || (gm->thickness_texture >= 0 && !volume))
+            d->uses_leaf_translucency = 1;
     }
     return SY_OK;
 }

@@ -132,11 +132,44 @@ void add_material(tinygltf::Model &model, const sy_gltf_material &gm)
         ext["diffuseTransmissionFactor"] = number(m.diffuse_transmission);
         ext["diffuseTransmissionColorFactor"] = float_array(m.diffuse_transmission_color, 3);
         if (gm.transmission_texture >= 0) {
+            // One RGBA image: A is the factor, RGB the colour (both slots).
             tinygltf::Value::Object info;
             info["index"] = tinygltf::Value(gm.transmission_texture);
-            ext["diffuseTransmissionTexture"] = tinygltf::Value(std::move(info));
+            ext["diffuseTransmissionTexture"] = tinygltf::Value(info);
+            ext["diffuseTransmissionColorTexture"] = tinygltf::Value(std::move(info));
         }
         mat.extensions["KHR_materials_diffuse_transmission"] = tinygltf::Value(std::move(ext));
+    }
+    if (gm.thickness_texture >= 0 && gm.volume) {
+        tinygltf::Value::Object ext, info;
+        ext["thicknessFactor"] = number(m.thickness_factor);
+        info["index"] = tinygltf::Value(gm.thickness_texture);
+        ext["thicknessTexture"] = tinygltf::Value(std::move(info));
+        mat.extensions["KHR_materials_volume"] = tinygltf::Value(std::move(ext));
+    }
+    if (gm.hl2_texture[0] >= 0 || gm.hl2_texture[1] >= 0 || (gm.thickness_texture >= 0 && !gm.volume)) {
+        // docs/leafmaps.md "HL2 maps": the precomputed directional translucency.
+        tinygltf::Value::Object ext;
+        static const char *keys[2] = {"adaxialTexture", "abaxialTexture"};
+        for (int s = 0; s < 2; s++)
+            if (gm.hl2_texture[s] >= 0) {
+                tinygltf::Value::Object info;
+                info["index"] = tinygltf::Value(gm.hl2_texture[s]);
+                ext[keys[s]] = tinygltf::Value(std::move(info));
+            }
+        if (gm.thickness_texture >= 0 && !gm.volume) {
+            // KHR_materials_volume's semantics (green channel times the
+            // factor, mesh units), kept here because the card is double-sided.
+            tinygltf::Value::Object info;
+            info["index"] = tinygltf::Value(gm.thickness_texture);
+            ext["thicknessTexture"] = tinygltf::Value(std::move(info));
+            ext["thicknessFactor"] = number(m.thickness_factor);
+        }
+        ext["decodeMin"] = number(m.hl2_min);
+        ext["decodeMax"] = number(m.hl2_max);
+        ext["transmitAdaxial"] = number(m.hl2_transmit[0]);
+        ext["transmitAbaxial"] = number(m.hl2_transmit[1]);
+        mat.extensions["SYLVA_leaf_translucency"] = tinygltf::Value(std::move(ext));
     }
     model.materials.push_back(std::move(mat));
 }
@@ -306,6 +339,8 @@ extern "C" sy_code sy_gltf_write_glb(const sy_gltf_doc *doc, const char *path, u
         // right thing, so they are required; the material and LOD extensions
         // degrade gracefully (plain PBR, LOD0 only).
         if (doc->uses_transmission) model.extensionsUsed.push_back("KHR_materials_diffuse_transmission");
+        if (doc->uses_volume) model.extensionsUsed.push_back("KHR_materials_volume");
+        if (doc->uses_leaf_translucency) model.extensionsUsed.push_back("SYLVA_leaf_translucency");
         if (doc->uses_lod) model.extensionsUsed.push_back("MSFT_lod");
         if (doc->uses_instancing) {
             model.extensionsUsed.push_back("EXT_mesh_gpu_instancing");

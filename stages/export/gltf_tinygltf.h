@@ -63,6 +63,8 @@ typedef struct {
 typedef struct {
     const sy_material *src;
     int base_color_texture, normal_texture, transmission_texture; /* -1 none */
+    int thickness_texture, hl2_texture[2];                       /* -1 none */
+    int volume; /* thickness goes into KHR_materials_volume (else SYLVA_leaf_translucency) */
 } sy_gltf_material;
 
 #define SY_GLTF_MAX_CHILDREN (2 * SY_LOD_MAX_PARTS)
@@ -105,7 +107,7 @@ typedef struct {
     size_t n_nodes, cap_nodes;
     int scene_root;
 
-    int uses_instancing, uses_transmission, uses_lod, uses_meshopt;
+    int uses_instancing, uses_transmission, uses_lod, uses_meshopt, uses_volume, uses_leaf_translucency;
     const sy_wind_branch *wind;
     size_t n_wind;
     const char *generator;

@@ -1,0 +1,250 @@
+// OpenCV behind the leaf-maps stage (leafmaps_cv.h). GPL-3.0-or-later.
+#include "stages/leafmaps/leafmaps_cv.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cstdlib>
+#include <cstring>
+#include <thread>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
+
+namespace {
+
+template <class F> int guarded(F &&f)
+{
+    try {
+        return f();
+    } catch (...) {
+        return -1;
+    }
+}
+
+// Runs fn(i) for i in [0, n) on up to `threads` threads; each index runs
+// exactly once, so results never depend on the thread count.
+template <class F> void run_parallel(int n, int threads, F &&fn)
+{
+    threads = std::max(1, std::min(threads, n));
+    if (threads == 1) {
+        for (int i = 0; i < n; i++) fn(i);
+        return;
+    }
+    std::vector<std::thread> pool;
+    for (int t = 0; t < threads; t++)
+        pool.emplace_back([&, t] {
+            for (int i = t; i < n; i += threads) fn(i);
+        });
+    for (auto &th : pool) th.join();
+}
+
+} // namespace
+
+extern "C" int sy_lcv_read(const char *path, float **px, int *w, int *h, int *c, int *depth)
+{
+    return guarded([&] {
+        cv::Mat m = cv::imread(path, cv::IMREAD_UNCHANGED);
+        if (m.empty()) return -1;
+        int d = m.depth();
+        if (d != CV_8U && d != CV_16U) return -1;
+        double scale = d == CV_8U ? 1.0 / 255.0 : 1.0 / 65535.0;
+        int ch = m.channels();
+        if (ch == 3) cv::cvtColor(m, m, cv::COLOR_BGR2RGB);
+        else if (ch == 4) cv::cvtColor(m, m, cv::COLOR_BGRA2RGBA);
+        else if (ch == 2) { // grey + alpha: expand to RGBA
+            std::vector<cv::Mat> p;
+            cv::split(m, p);
+            cv::merge(std::vector<cv::Mat>{p[0], p[0], p[0], p[1]}, m);
+            ch = 4;
+        } else if (ch != 1) return -1;
+        cv::Mat f;
+        m.convertTo(f, CV_MAKETYPE(CV_32F, ch), scale);
+        size_t n = (size_t)f.rows * (size_t)f.cols * (size_t)ch;
+        float *out = (float *)std::malloc(n * sizeof(float));
+        if (!out) return -1;
+        if (f.isContinuous()) std::memcpy(out, f.ptr<float>(0), n * sizeof(float));
+        else
+            for (int y = 0; y < f.rows; y++)
+                std::memcpy(out + (size_t)y * f.cols * ch, f.ptr<float>(y), (size_t)f.cols * ch * sizeof(float));
+        *px = out;
+        *w = f.cols;
+        *h = f.rows;
+        *c = ch;
+        *depth = d == CV_8U ? 8 : 16;
+        return 0;
+    });
+}
+
+extern "C" int sy_lcv_encode_png(const float *px, int w, int h, int c, int bits, unsigned char **png, size_t *size)
+{
+    return guarded([&] {
+        if (c != 1 && c != 3 && c != 4) return -1;
+        cv::Mat f(h, w, CV_MAKETYPE(CV_32F, c), const_cast<float *>(px));
+        cv::Mat q;
+        f.convertTo(q, CV_MAKETYPE(bits == 16 ? CV_16U : CV_8U, c), bits == 16 ? 65535.0 : 255.0);
+        if (c == 3) cv::cvtColor(q, q, cv::COLOR_RGB2BGR);
+        else if (c == 4) cv::cvtColor(q, q, cv::COLOR_RGBA2BGRA);
+        std::vector<unsigned char> buf;
+        // Level 3: within a few percent of the best size at a third of the time.
+        if (!cv::imencode(".png", q, buf, {cv::IMWRITE_PNG_COMPRESSION, 3})) return -1;
+        unsigned char *out = (unsigned char *)std::malloc(buf.size());
+        if (!out) return -1;
+        std::memcpy(out, buf.data(), buf.size());
+        *png = out;
+        *size = buf.size();
+        return 0;
+    });
+}
+
+extern "C" int sy_lcv_mask_clean(unsigned char *mask, int w, int h, int r, double min_frac, int max_hole)
+{
+    return guarded([&] {
+        cv::Mat m(h, w, CV_8U, mask);
+        if (r > 0) {
+            cv::Mat disc = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * r + 1, 2 * r + 1));
+            cv::morphologyEx(m, m, cv::MORPH_OPEN, disc);
+            cv::morphologyEx(m, m, cv::MORPH_CLOSE, disc);
+        }
+        cv::Mat labels, stats, centroids;
+        int n = cv::connectedComponentsWithStats(m, labels, stats, centroids, 8, CV_32S);
+        int largest = 0;
+        for (int i = 1; i < n; i++) largest = std::max(largest, stats.at<int>(i, cv::CC_STAT_AREA));
+        std::vector<unsigned char> keep((size_t)n, 0);
+        for (int i = 1; i < n; i++) keep[(size_t)i] = stats.at<int>(i, cv::CC_STAT_AREA) >= min_frac * largest;
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++) {
+                int l = labels.at<int>(y, x);
+                mask[(size_t)y * w + x] = l > 0 && keep[(size_t)l] ? 255 : 0;
+            }
+        // Holes: background components that do not reach the image border.
+        cv::Mat inv = 255 - m;
+        n = cv::connectedComponentsWithStats(inv, labels, stats, centroids, 4, CV_32S);
+        std::vector<unsigned char> fill((size_t)n, 0);
+        for (int i = 1; i < n; i++) {
+            int x0 = stats.at<int>(i, cv::CC_STAT_LEFT), y0 = stats.at<int>(i, cv::CC_STAT_TOP);
+            int bw = stats.at<int>(i, cv::CC_STAT_WIDTH), bh = stats.at<int>(i, cv::CC_STAT_HEIGHT);
+            bool border = x0 == 0 || y0 == 0 || x0 + bw == w || y0 + bh == h;
+            fill[(size_t)i] = !border && stats.at<int>(i, cv::CC_STAT_AREA) <= max_hole;
+        }
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++)
+                if (fill[(size_t)labels.at<int>(y, x)]) mask[(size_t)y * w + x] = 255;
+        return 0;
+    });
+}
+
+extern "C" int sy_lcv_otsu(const float *v, const unsigned char *use, int w, int h, double *t)
+{
+    return guarded([&] {
+        size_t n = (size_t)w * h;
+        float lo = 1e30f, hi = -1e30f;
+        for (size_t i = 0; i < n; i++)
+            if (!use || use[i]) {
+                lo = std::min(lo, v[i]);
+                hi = std::max(hi, v[i]);
+            }
+        if (!(hi > lo)) return -1;
+        // Otsu on a 1-D row of the selected values quantised to 16 bits.
+        std::vector<unsigned char> q;
+        q.reserve(n);
+        for (size_t i = 0; i < n; i++)
+            if (!use || use[i]) q.push_back((unsigned char)std::lround(255.0 * (v[i] - lo) / (hi - lo)));
+        cv::Mat row(1, (int)q.size(), CV_8U, q.data()), dummy;
+        double th = cv::threshold(row, dummy, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU);
+        *t = lo + (th + 0.5) / 255.0 * (hi - lo);
+        return 0;
+    });
+}
+
+extern "C" int sy_lcv_warp(const float *src, int w, int h, int c, const double M[6], float *dst, int dw, int dh,
+                           int replicate)
+{
+    return guarded([&] {
+        cv::Mat s(h, w, CV_MAKETYPE(CV_32F, c), const_cast<float *>(src));
+        cv::Mat d(dh, dw, CV_MAKETYPE(CV_32F, c), dst);
+        cv::Mat A = (cv::Mat_<double>(2, 3) << M[0], M[1], M[2], M[3], M[4], M[5]);
+        cv::warpAffine(s, d, A, d.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
+                       replicate ? cv::BORDER_REPLICATE : cv::BORDER_CONSTANT, cv::Scalar::all(0));
+        return d.data == (unsigned char *)dst ? 0 : -1;
+    });
+}
+
+extern "C" int sy_lcv_register(const float *ref, const float *mov, int w, int h, double M[6])
+{
+    return guarded([&] {
+        cv::Mat r(h, w, CV_32F, const_cast<float *>(ref)), m(h, w, CV_32F, const_cast<float *>(mov));
+        cv::Mat warp = (cv::Mat_<float>(2, 3) << (float)M[0], (float)M[1], (float)M[2], (float)M[3], (float)M[4],
+                        (float)M[5]);
+        cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 100, 1e-6);
+        cv::findTransformECC(r, m, warp, cv::MOTION_EUCLIDEAN, crit, cv::noArray(), 5);
+        for (int i = 0; i < 6; i++) M[i] = warp.at<float>(i / 3, i % 3);
+        return 0;
+    });
+}
+
+extern "C" int sy_lcv_blur(const float *src, int w, int h, int c, double sigma, float *dst)
+{
+    return guarded([&] {
+        cv::Mat s(h, w, CV_MAKETYPE(CV_32F, c), const_cast<float *>(src));
+        cv::Mat d(h, w, CV_MAKETYPE(CV_32F, c), dst);
+        cv::GaussianBlur(s, d, cv::Size(0, 0), sigma, sigma, cv::BORDER_REPLICATE);
+        return d.data == (unsigned char *)dst ? 0 : -1;
+    });
+}
+
+extern "C" int sy_lcv_resize(const float *src, int w, int h, int c, float *dst, int dw, int dh)
+{
+    return guarded([&] {
+        cv::Mat s(h, w, CV_MAKETYPE(CV_32F, c), const_cast<float *>(src));
+        cv::Mat d(dh, dw, CV_MAKETYPE(CV_32F, c), dst);
+        cv::resize(s, d, d.size(), 0, 0, dw <= w && dh <= h ? cv::INTER_AREA : cv::INTER_LINEAR);
+        return d.data == (unsigned char *)dst ? 0 : -1;
+    });
+}
+
+extern "C" int sy_lcv_convolve_sum(const float *const *in, int n_out, int n_k, const float *const *kernel, int r,
+                                   int w, int h, float *const *out, int threads)
+{
+    return guarded([&] {
+        int pw = cv::getOptimalDFTSize(w + 2 * r), ph = cv::getOptimalDFTSize(h + 2 * r);
+        int ks = 2 * r + 1;
+        std::vector<cv::Mat> kspec((size_t)n_k);
+        std::atomic<bool> failed{false};
+        // Kernels wrapped around the origin so the product gives 'same' output.
+        run_parallel(n_k, threads, [&](int k) {
+            try {
+                cv::Mat z = cv::Mat::zeros(ph, pw, CV_32F);
+                for (int dy = -r; dy <= r; dy++)
+                    for (int dx = -r; dx <= r; dx++)
+                        z.at<float>((dy + ph) % ph, (dx + pw) % pw) = kernel[k][(size_t)(dy + r) * ks + (dx + r)];
+                cv::dft(z, kspec[(size_t)k], 0, ks);
+            } catch (...) {
+                failed = true;
+            }
+        });
+        if (failed) return -1;
+        run_parallel(n_out, threads, [&](int i) {
+            try {
+                cv::Mat acc = cv::Mat::zeros(ph, pw, CV_32F), spec, prod;
+                cv::Mat z = cv::Mat::zeros(ph, pw, CV_32F);
+                for (int k = 0; k < n_k; k++) {
+                    cv::Mat src(h, w, CV_32F, const_cast<float *>(in[(size_t)i * n_k + k]));
+                    src.copyTo(z(cv::Rect(0, 0, w, h)));
+                    cv::dft(z, spec, 0, h);
+                    cv::mulSpectrums(spec, kspec[(size_t)k], prod, 0);
+                    acc += prod;
+                }
+                cv::Mat res;
+                cv::dft(acc, res, cv::DFT_INVERSE | cv::DFT_SCALE | cv::DFT_REAL_OUTPUT, h);
+                for (int y = 0; y < h; y++)
+                    std::memcpy(out[i] + (size_t)y * w, res.ptr<float>(y), (size_t)w * sizeof(float));
+            } catch (...) {
+                failed = true;
+            }
+        });
+        return failed ? -1 : 0;
+    });
+}
