@@ -16,6 +16,7 @@
 
 #include "species/species.h"
 #include "stages/core/fileio.h"
+#include "stages/core/array.h"
 
 #ifndef SYLVA_LIBRARY_INSTALL_DIR
 #define SYLVA_LIBRARY_INSTALL_DIR "/usr/local/share/sylva/species"
@@ -199,16 +200,7 @@ sy_code sy_library_parse(const char *path, const char *dir, const char *text, si
             p = next;
             continue;
         }
-        if (lib->n == cap) {
-            size_t nc = cap ? 2 * cap : 16;
-            sy_library_entry *ne = realloc(lib->entries, nc * sizeof *ne);
-            if (!ne) {
-                rc = sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
-                break;
-            }
-            lib->entries = ne;
-            cap = nc;
-        }
+        if ((rc = sy_array_reserve(&lib->entries, &cap, lib->n + 1, sizeof *lib->entries, 16, err, path))) break;
         char *line = strndup(p, len);
         if (!line) {
             rc = sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);

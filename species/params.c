@@ -209,7 +209,7 @@ void sy_species_params_write_json(const sy_species_params *sp, sy_json *j)
     if (sy_library_locate(lib, sizeof lib, NULL)) lib[0] = '\0';
     write_keys(j, "General", general_keys, N_GENERAL, sp, 0, lib);
     for (int l = 0; l < SY_WP_LEVELS; l++) {
-        char section[16];
+        char section[24];
         snprintf(section, sizeof section, "ParamLevel%d", l);
         write_keys(j, section, level_keys, N_LEVEL, &sp->level[l], l, lib);
     }

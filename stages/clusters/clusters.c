@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "alpha_shape_cgal.h"
+#include "stages/core/geometry.h"
 
 void sy_clusters_free(sy_clusters *c)
 {
@@ -193,46 +194,12 @@ double sy_mesh_signed_volume(const float *v, const uint32_t *tris, size_t n_tris
     return vol / 6.0;
 }
 
+/* Squared distance from p to triangle abc (the closest point of
+ * stages/core/geometry.h, squared here to compare with tol^2). */
 static double point_tri_dist2(const double p[3], const double a[3], const double b[3], const double c[3])
 {
-    /* Ericson, Real-Time Collision Detection, 5.1.5. */
-    double ab[3], ac[3], ap[3], q[3];
-    for (int k = 0; k < 3; k++) {
-        ab[k] = b[k] - a[k];
-        ac[k] = c[k] - a[k];
-        ap[k] = p[k] - a[k];
-    }
-#define DOT(x, y) ((x)[0] * (y)[0] + (x)[1] * (y)[1] + (x)[2] * (y)[2])
-    double d1 = DOT(ab, ap), d2 = DOT(ac, ap);
-    if (d1 <= 0 && d2 <= 0) {
-        memcpy(q, a, sizeof q);
-    } else {
-        double bp[3], cp[3];
-        for (int k = 0; k < 3; k++) {
-            bp[k] = p[k] - b[k];
-            cp[k] = p[k] - c[k];
-        }
-        double d3 = DOT(ab, bp), d4 = DOT(ac, bp), d5 = DOT(ab, cp), d6 = DOT(ac, cp);
-        double vc = d1 * d4 - d3 * d2, vb = d5 * d2 - d1 * d6, va = d3 * d6 - d5 * d4;
-        if (d3 >= 0 && d4 <= d3) {
-            memcpy(q, b, sizeof q);
-        } else if (d6 >= 0 && d5 <= d6) {
-            memcpy(q, c, sizeof q);
-        } else if (vc <= 0 && d1 >= 0 && d3 <= 0) {
-            double t = d1 / (d1 - d3);
-            for (int k = 0; k < 3; k++) q[k] = a[k] + t * ab[k];
-        } else if (vb <= 0 && d2 >= 0 && d6 <= 0) {
-            double t = d2 / (d2 - d6);
-            for (int k = 0; k < 3; k++) q[k] = a[k] + t * ac[k];
-        } else if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
-            double t = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-            for (int k = 0; k < 3; k++) q[k] = b[k] + t * (c[k] - b[k]);
-        } else {
-            double den = 1.0 / (va + vb + vc), v = vb * den, w = vc * den;
-            for (int k = 0; k < 3; k++) q[k] = a[k] + ab[k] * v + ac[k] * w;
-        }
-    }
-#undef DOT
+    double q[3];
+    sy_point_triangle_distance(p, a, b, c, q);
     double d = 0;
     for (int k = 0; k < 3; k++) d += (p[k] - q[k]) * (p[k] - q[k]);
     return d;

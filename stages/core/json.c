@@ -112,13 +112,18 @@ void sy_json_float(sy_json *j, const char *key, float value)
         fputs("null", j->fp);
         return;
     }
-    /* 9 significant digits always round-trip a float; most need fewer. */
     char buf[32];
-    for (int digits = 6; digits <= 9; digits++) {
-        snprintf(buf, sizeof buf, "%.*g", digits, (double)value);
-        if (strtof(buf, NULL) == value) break;
-    }
+    sy_format_float(buf, sizeof buf, value);
     fputs(buf, j->fp);
+}
+
+void sy_format_float(char *buf, size_t size, float v)
+{
+    /* 9 significant digits always round-trip a float; most need fewer. */
+    for (int digits = 6; digits <= 9; digits++) {
+        snprintf(buf, size, "%.*g", digits, (double)v);
+        if (strtof(buf, NULL) == v) return;
+    }
 }
 
 void sy_json_bool(sy_json *j, const char *key, int value)

@@ -26,6 +26,9 @@ void sy_json_number(sy_json *j, const char *key, double value); /* NaN/Inf becom
 /* A float as the shortest decimal that reads back as the same float: 0.05,
  * not 0.05000000074505806. NaN/Inf become null. */
 void sy_json_float(sy_json *j, const char *key, float value);
+/* The shortest "%.Ng" text (N = 6..9) of v that reads back as the same float
+ * ("0.8", not "0.800000011920929"): how every writer prints a float. */
+void sy_format_float(char *buf, size_t size, float v);
 void sy_json_int(sy_json *j, const char *key, long long value);
 void sy_json_uint(sy_json *j, const char *key, unsigned long long value);
 void sy_json_bool(sy_json *j, const char *key, int value);

@@ -9,6 +9,7 @@
 #include "geometry.h"
 #include "stages/core/parallel.h"
 #include "stages/core/rng.h"
+#include "stages/core/array.h"
 
 #define PI 3.14159265358979323846
 
@@ -219,13 +220,7 @@ typedef struct {
 
 static int put_sample(sample_buf *s, double x, double y, double z)
 {
-    if (s->n == s->cap) {
-        size_t cap = s->cap ? 2 * s->cap : 4096;
-        double *g = realloc(s->p, 3 * cap * sizeof *g);
-        if (!g) return 0;
-        s->p = g;
-        s->cap = cap;
-    }
+    if (sy_array_reserve(&s->p, &s->cap, s->n + 1, 3 * sizeof *s->p, 4096, NULL, "samples")) return 0;
     s->p[3 * s->n] = x;
     s->p[3 * s->n + 1] = y;
     s->p[3 * s->n + 2] = z;

@@ -15,6 +15,7 @@
 #include "meshopt_codec.h"
 #include "stages/core/fileio.h"
 #include "stages/core/vec3.h"
+#include "stages/core/array.h"
 
 #define SY_MAX_LODS 65 /* sy_gltf_node holds 64 lower-level ids */
 
@@ -222,16 +223,7 @@ typedef struct {
 /* Makes room for one more element; returns 0 or sets err. */
 static int reserve(builder *b, void **array, size_t *cap, size_t n, size_t elem)
 {
-    if (n < *cap) return 0;
-    size_t want = *cap ? *cap * 2 : 16;
-    void *grown = realloc(*array, want * elem);
-    if (!grown) {
-        sy_fail(b->err, SY_EINTERNAL, "%s: out of memory assembling glTF", b->path);
-        return -1;
-    }
-    *array = grown;
-    *cap = want;
-    return 0;
+    return sy_array_reserve(array, cap, n + 1, elem, 16, b->err, b->path) ? -1 : 0;
 }
 
 /* Appends bytes to the BIN chunk at a 4-byte aligned offset (padding zeroed). */

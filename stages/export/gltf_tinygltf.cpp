@@ -19,6 +19,7 @@
 
 extern "C" {
 #include "stages/core/fileio.h"
+#include "stages/core/json.h"
 }
 
 using nlohmann::json;
@@ -30,10 +31,7 @@ namespace {
 double tidy(float f)
 {
     char buf[32];
-    for (int digits = 6; digits <= 9; digits++) {
-        snprintf(buf, sizeof buf, "%.*g", digits, (double)f);
-        if ((float)strtod(buf, nullptr) == f) break;
-    }
+    sy_format_float(buf, sizeof buf, f);
     return strtod(buf, nullptr);
 }
 

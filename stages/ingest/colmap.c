@@ -14,6 +14,7 @@
 #include <sys/stat.h>
 
 #include "../core/fileio.h"
+#include "../core/array.h"
 
 /* COLMAP's camera model ids and parameter counts (src/base/camera_models.h);
  * the id is the index. */
@@ -88,19 +89,7 @@ static int has_image(const colmap_model *m, uint64_t id)
 /* Appends to a growing array of elem-sized items. */
 static void *grow(void *arr, size_t *cap, size_t n, size_t elem, sy_error *err)
 {
-    if (n < *cap) return arr;
-    size_t want = *cap ? *cap * 2 : 16;
-    if (want > SIZE_MAX / elem) {
-        sy_fail(err, SY_EINTERNAL, "COLMAP model: too many entries");
-        return NULL;
-    }
-    void *p = realloc(arr, want * elem);
-    if (!p) {
-        sy_fail(err, SY_EINTERNAL, "COLMAP model: out of memory");
-        return NULL;
-    }
-    *cap = want;
-    return p;
+    return sy_array_reserve(&arr, cap, n + 1, elem, 16, err, "COLMAP model") ? NULL : arr;
 }
 
 /* ---- binary cursor --------------------------------------------------- */

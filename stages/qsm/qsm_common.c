@@ -1,4 +1,5 @@
 #include "qsm_internal.h"
+#include "stages/core/json.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -129,13 +130,7 @@ sy_code sy_skel_derive_structure(sy_skeleton *s, sy_error *err)
 
 /* ------------------------------------------------------------ numbers */
 
-void sy_fmt_float(char *buf, size_t size, float v)
-{
-    for (int prec = 6; prec <= 9; prec++) {
-        snprintf(buf, size, "%.*g", prec, (double)v);
-        if ((float)strtod(buf, NULL) == v) return;
-    }
-}
+void sy_fmt_float(char *buf, size_t size, float v) { sy_format_float(buf, size, v); }
 
 void sy_fmt_coord(char *buf, size_t size, double w, double o)
 {

@@ -8,6 +8,7 @@
 
 #include "qsm_internal.h"
 #include "stages/core/fileio.h"
+#include "stages/core/array.h"
 
 /* A start within this distance of its parent's end is that end node. */
 #define CSV_JOIN_TOL 1e-6
@@ -158,16 +159,7 @@ sy_code sy_skeleton_read_csv_mem(const char *path, const unsigned char *data, si
             rc = sy_fail(err, SY_EINPUT, "%s:%zu: %d fields, the header has %d", path, L.line, got, nf);
             break;
         }
-        if (n == cap) {
-            size_t ncap = cap ? 2 * cap : 256;
-            sy_cyl *grown = realloc(cyl, ncap * sizeof *cyl);
-            if (!grown) {
-                rc = sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
-                break;
-            }
-            cyl = grown;
-            cap = ncap;
-        }
+        if ((rc = sy_array_reserve(&cyl, &cap, n + 1, sizeof *cyl, 256, err, path))) break;
         row_ctx r = {path, L.line, err};
         rc = parse_row(&r, col, fb, fe, &cyl[n]);
         if (!rc) n++;

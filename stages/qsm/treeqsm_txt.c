@@ -16,6 +16,7 @@
 #include <string.h>
 
 #include "qsm_internal.h"
+#include "stages/core/array.h"
 
 /* The file rounds coordinates to 0.1 mm, so an end recomputed from start +
  * length * axis misses the next start by a few tenths of a millimetre. */
@@ -112,16 +113,7 @@ sy_code sy_skeleton_read_treeqsm_mem(const char *path, const unsigned char *data
             rc = sy_fail(err, SY_EINPUT, "%s:%zu: %d columns, expected %d", path, L.line, nt, width);
             break;
         }
-        if (n == cap) {
-            size_t ncap = cap ? 2 * cap : 256;
-            sy_cyl *grown = realloc(cyl, ncap * sizeof *cyl);
-            if (!grown) {
-                rc = sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
-                break;
-            }
-            cyl = grown;
-            cap = ncap;
-        }
+        if ((rc = sy_array_reserve(&cyl, &cap, n + 1, sizeof *cyl, 256, err, path))) break;
         rc = parse_cylinder(path, L.line, n + 1, tb, te, &cyl[n], err);
         if (!rc) n++;
     }

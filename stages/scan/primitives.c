@@ -7,16 +7,12 @@
 
 #include "scan.h"
 #include "stages/core/vec3.h"
+#include "stages/core/array.h"
 
 sy_code sy_prims_push(sy_prims *list, const sy_prim *p, sy_error *err)
 {
-    if (list->n == list->cap) {
-        size_t cap = list->cap ? list->cap * 2 : 1024;
-        sy_prim *q = realloc(list->p, cap * sizeof *q);
-        if (!q) return sy_fail(err, SY_EINTERNAL, "out of memory for %zu scene primitives", cap);
-        list->p = q;
-        list->cap = cap;
-    }
+    sy_code rc = sy_array_reserve(&list->p, &list->cap, list->n + 1, sizeof *list->p, 1024, err, "scene primitives");
+    if (rc) return rc;
     list->p[list->n++] = *p;
     return SY_OK;
 }
