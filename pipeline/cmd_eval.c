@@ -8,7 +8,9 @@
 #include "stages/core/fileio.h"
 #include "stages/core/json.h"
 #include "stages/eval/eval.h"
+#include "stages/gltf/gltf_read.h"
 #include "stages/ingest/ingest.h"
+#include "stages/preprocess/preprocess.h"
 
 /* One call's arguments. */
 typedef struct {
@@ -158,26 +160,116 @@ static int run_truth(const eval_args *a, const char *model_path, sy_cli *cli)
     return status;
 }
 
+static sy_code glb_triangles(const char *path, double **tri, size_t *n, sy_error *err)
+{
+    size_t n_tri = 0, *hull = NULL;
+    sy_code grc = sy_gltf_read_triangles(path, tri, &n_tri, &hull, err);
+    if (grc) return grc;
+    size_t k = 0;
+    for (size_t t = 0; t < n_tri; t++)
+        if (!hull[t]) memmove(*tri + 9 * k++, *tri + 9 * t, 9 * sizeof **tri);
+    free(hull);
+    *n = k;
+    return SY_OK;
+}
+
+/* A reference asset (SCAN given as a .glb, e.g. the true tree's own asset
+ * from `sylva grow`) as points: its LOD0 surface, proxy left out, sampled
+ * every 2 cm. */
+static sy_code glb_points(const char *path, double **pts, size_t *n, sy_error *err)
+{
+    double *tri;
+    size_t nt;
+    sy_code rc = glb_triangles(path, &tri, &nt, err);
+    if (rc) return rc;
+    sy_eval_model m = {0};
+    rc = sy_eval_model_add_mesh(&m, tri, nt, 0, err);
+    free(tri);
+    if (!rc && !(*pts = sy_model_surface_samples(&m, 0.02, n, err))) rc = SY_EINTERNAL;
+    sy_eval_model_free(&m);
+    return rc;
+}
+
+/* The asset's look against the scan: the glb's default scene (LOD0) without
+ * its foliage proxy, against the scan's above-ground points (the cloud
+ * preprocessed as `sylva run` does) or a reference asset's surface. */
+static sy_code silhouette(const char *model_path, sy_cloud *c, const double *ref, size_t n_ref,
+                          sy_silhouette_metrics *m, sy_error *err)
+{
+    double *tri = NULL;
+    size_t k = 0;
+    sy_code rc = glb_triangles(model_path, &tri, &k, err);
+    if (rc) return rc;
+    double *pts = NULL;
+    if (!ref) {
+        sy_preprocess_options po = sy_preprocess_options_default();
+        po.remove_ground = 1;
+        po.normals = 0;
+        sy_preprocess_result pr;
+        rc = sy_preprocess(c, &po, &pr, err);
+        pts = rc ? NULL : sy_cloud_world_points(c, err);
+        if (!rc && !pts) rc = SY_EINTERNAL;
+    }
+    if (!rc) rc = sy_silhouette_metrics_compute(tri, k, ref ? ref : pts, ref ? n_ref : c->n, m, err);
+    free(pts);
+    free(tri);
+    return rc;
+}
+
+static int is_gltf(const char *path)
+{
+    char ext[16];
+    sy_extension(path, ext, sizeof ext);
+    return strcmp(ext, "glb") == 0 || strcmp(ext, "gltf") == 0;
+}
+
 static int run_points(const eval_args *a, const char *model_path, sy_cli *cli)
 {
     sy_error err = {0};
     sy_cloud c;
+    memset(&c, 0, sizeof c);
     sy_eval_model model;
-    if (sy_read_cloud(a->points_path, &c, &err)) return sy_cli_report(&err);
+    double *ref = NULL;
+    size_t n_ref = 0;
+    if (is_gltf(a->points_path) ? glb_points(a->points_path, &ref, &n_ref, &err) : sy_read_cloud(a->points_path, &c, &err))
+        return sy_cli_report(&err);
     if (sy_eval_load_model(model_path, a->closed_flag, &model, &err)) {
         sy_cloud_free(&c);
+        free(ref);
         return sy_cli_report(&err);
     }
-    double *pts = sy_cloud_world_points(&c, &err);
+    double *pts = ref ? ref : sy_cloud_world_points(&c, &err);
     sy_surface_metrics s;
-    sy_code rc = pts ? sy_surface_metrics_compute(&model, pts, c.n, a->coverage_eps, 0.01, &s, &err) : SY_EINTERNAL;
-    free(pts);
-    sy_cloud_free(&c);
+    sy_code rc = pts ? sy_surface_metrics_compute(&model, pts, ref ? n_ref : c.n, a->coverage_eps, 0.01, &s, &err)
+                     : SY_EINTERNAL;
+    if (!ref) free(pts);
     sy_eval_model_free(&model);
+    sy_silhouette_metrics sm;
+    int look = !rc && is_gltf(model_path);
+    if (look) rc = silhouette(model_path, &c, ref, n_ref, &sm, &err);
+    sy_cloud_free(&c);
+    free(ref);
     if (rc) return sy_cli_report(&err);
     report r;
     report_begin(&r, cli->json, "model vs points");
     print_surface(&r, &s);
+    if (look) {
+        static const char *key[6] = {"iou_az0", "iou_az45", "iou_az90", "iou_az135", "iou_top", "iou_oblique30"};
+        static const char *label[6] = {"silhouette IoU, azimuth 0", "silhouette IoU, azimuth 45",
+                                       "silhouette IoU, azimuth 90", "silhouette IoU, azimuth 135",
+                                       "silhouette IoU, top", "silhouette IoU, 30 deg oblique"};
+        for (int v = 0; v < 6; v++) put(&r, key[v], label[v], sm.iou[v], "");
+        put(&r, "iou_mean", "silhouette IoU, mean of 6", sm.iou_mean, "");
+        put(&r, "iou_min", "silhouette IoU, minimum", sm.iou_min, "");
+        put(&r, "profile_correlation", "vertical profile correlation", sm.profile_correlation, "");
+        put(&r, "scan_height", "scan height (above ground)", sm.scan_height, " m");
+        put(&r, "model_height", "asset height", sm.model_height, " m");
+        put(&r, "height_error_rel", "height error (relative, signed)", sm.height_error, "");
+        put(&r, "scan_crown_width", "scan crown width (5-95%)", sm.scan_width, " m");
+        put(&r, "model_crown_width", "asset crown width (5-95%)", sm.model_width, " m");
+        put(&r, "crown_width_error_rel", "crown width error (relative, signed)", sm.width_error, "");
+        put(&r, "splat_radius", "splat radius (scan median spacing)", sm.splat_radius, " m");
+    }
     report_end(&r);
     return 0;
 }
@@ -283,6 +375,11 @@ int cmd_eval(int argc, char **argv, sy_cli *cli)
         "  --points SCAN MODEL    point->model mean/RMS/95th percentile, coverage, Hausdorff both ways\n"
         "                         (MODEL: .glb/.gltf triangles, a skeleton JSON as truncated cones,\n"
         "                         or a .sylva file: cones plus its cluster hulls, inside = distance 0).\n"
+    "                         A .glb MODEL also gets its look against the scan's above-ground points:\n"
+    "                         silhouette IoU of 6 views (mean, minimum), vertical profile correlation,\n"
+    "                         relative height and crown-width errors (LOD0, foliage proxy left out).\n"
+    "                         SCAN may be a .glb too (a reference asset, e.g. `sylva grow`'s true tree:\n"
+    "                         its LOD0 surface sampled every 2 cm).\n"
         "  --segmentation T P     instance precision/recall/F1 at IoU > 0.5 (labels 0/NaN: no tree).\n"
         "  --species T P          accuracy, macro-F1 and the confusion matrix.\n"
         "--json prints flat keys (only those that apply); exit 2 on bad input.",

@@ -8,6 +8,8 @@
 
 #include "pipeline/commands.h"
 #include "pipeline/tree_asset.h"
+#include "pipeline/tree_synth.h"
+#include "species/library.h"
 #include "stages/core/fileio.h"
 #include "stages/core/json.h"
 #include "stages/core/progress.h"
@@ -64,10 +66,63 @@ static void print_report(const sy_cli *cli, const char *out_path, const sy_tree_
     }
 }
 
+/* A .sylva with lobes: decode and synthesise as `sylva run` does, with the
+ * file's species (or species_name) and seed. */
+static int mesh_sylva(const char *path, const char *out_path, const char *species_name, int no_leaves, int proxy,
+                      const sy_cli *cli, sy_tree_asset_options *o, mesh_facts *f)
+{
+    sy_error err = {0};
+    sy_buffer buf;
+    if (sy_read_file(path, &buf, &err)) return sy_cli_report(&err);
+    sy_species_params sp;
+    int have_species = 0;
+    sy_code rc = SY_OK;
+    uint16_t id = buf.size >= 8 ? (uint16_t)(buf.data[6] | buf.data[7] << 8) : 0;
+    if (species_name) {
+        rc = sy_species_params_find(species_name, &sp, &err);
+        have_species = !rc;
+    } else if (id > 0) {
+        sy_library lib;
+        if (!sy_library_load(NULL, &lib, &err)) {
+            const sy_library_entry *e = sy_library_by_id(&lib, id - 1);
+            if (e) {
+                rc = sy_library_params(&lib, e, &sp, &err);
+                have_species = !rc;
+            }
+            sy_library_free(&lib);
+        }
+    }
+    sy_decoded_tree dt;
+    double t0 = sy_now();
+    if (!rc) rc = sy_decoded_tree_build(path, buf.data, buf.size, have_species ? &sp : NULL, &dt, &err);
+    sy_buffer_free(&buf);
+    if (!rc) {
+        f->seconds_leaves = sy_now() - t0;
+        memcpy(f->origin, dt.skel.origin, sizeof f->origin);
+        f->height = sy_skeleton_height(&dt.skel);
+        for (size_t i = 0; i < dt.synth.lobes_bare && i < 8 && !cli->quiet && !cli->json; i++)
+            fprintf(stderr, "sylva mesh: lobe %d: %s; left bare\n", (int)dt.synth.bare_lobe[i],
+                    dt.synth.bare_reason[i] == 0 ? "no room inside its hull (flat, tiny or a single point)"
+                                                 : "no branchlet patch fits inside its hull");
+        o->seed = dt.meta.seed;
+        o->keep_leaf_order = 1;
+        o->hulls = proxy ? &dt.lobes : NULL;
+        o->source = f->model;
+        o->source_format = f->format;
+        sy_tree_asset_report rep;
+        rc = sy_tree_asset_write(out_path, &dt.grown, no_leaves ? NULL : &dt.leaves, have_species ? &sp : NULL, o,
+                                 &rep, &err);
+        if (!rc) print_report(cli, out_path, &rep, f, have_species ? &sp : NULL);
+        sy_decoded_tree_free(&dt);
+    }
+    if (have_species) sy_species_params_free(&sp);
+    return rc ? sy_cli_report(&err) : 0;
+}
+
 int cmd_mesh(int argc, char **argv, sy_cli *cli)
 {
     const char *out_path = NULL, *species_name = NULL;
-    int no_leaves = 0, tree_index = -1;
+    int no_leaves = 0, tree_index = -1, proxy = 0;
     double leaf_density = -1;
     sy_glb_args glb = sy_glb_args_default();
     const sy_opt opts[] = {
@@ -76,6 +131,7 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
         {"--no-leaves", OPT_FLAG, &no_leaves, NULL, "no leaf cards (with --species: its materials only)"},
         {"--leaf-density", OPT_DOUBLE, &leaf_density, "N", "leaves per metre of twig (default: from the species, else " DEFAULT_LEAVES "'s)"},
         {"--tree", OPT_INT, &tree_index, "I", "which tree of a truth file with several (0-based)"},
+        {"--proxy", OPT_FLAG, &proxy, NULL, ".sylva: also draw the lobe hulls as the semi-transparent foliage_proxy mesh"},
         SY_GLB_OPTIONS(glb),
         {NULL, 0, NULL, NULL, NULL},
     };
@@ -83,8 +139,9 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
         "mesh", "MODEL -o OUT.glb",
         "Mesh a skeleton or QSM (.sylva, .ply, .csv, .json, .obj, TreeQSM .txt) into a glTF tree asset.",
         "Meshing, LODs, impostor and export are those of `sylva grow`. The root is moved to the\n"
-        "origin of the glb; its world position is kept in asset.extras.origin. The cluster hulls of\n"
-        "a .sylva become the semi-transparent \"foliage_proxy\" mesh `sylva run` draws. Leaf cards go\n"
+        "origin of the glb; its world position is kept in asset.extras.origin. A .sylva is decoded\n"
+        "as `sylva run` does: its lobes are filled with the species' branchlets and leaves (the file's\n"
+        "species, or --species; its seed), the same tree `run` wrote; --proxy adds the hulls. Leaf cards go\n"
         "along the finest branches: --species gives its bark, leaf material and leaf density and size;\n"
         "without it the default bark and plain green cards at " DEFAULT_LEAVES "'s density and size\n"
         "(a model with hulls has its foliage already and gets none). See docs/qsm-formats.md.",
@@ -115,6 +172,11 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
     if (sy_skeleton_read_model(pos[0], tree_index, &skel, &hulls, &info, &err)) return sy_cli_report(&err);
     f.seconds_read = sy_now() - t0;
     f.format = sy_skel_format_name(info.format);
+    if (info.format == SY_SKEL_SYLVA && hulls.n > 0) {
+        sy_clusters_free(&hulls);
+        sy_skeleton_free(&skel);
+        return mesh_sylva(pos[0], out_path, species_name, no_leaves, proxy, cli, &o, &f);
+    }
     sy_tree_asset_root_to_origin(&skel, &hulls);
     o.hulls = &hulls;
     o.source = f.model;

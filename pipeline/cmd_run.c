@@ -1,7 +1,7 @@
 /* sylva run SCAN -o tree.glb: the whole reconstruction of one scanned tree:
- * ingest -> preprocess -> skeleton -> clusters -> mesh -> export, with the
- * cluster hulls as a semi-transparent foliage proxy and optionally the
- * compact .sylva file of the same reconstruction. */
+ * ingest -> preprocess -> skeleton -> lobes -> .sylva image -> decode ->
+ * synthesis (species branchlets fill the lobes) -> mesh -> export,
+ * optionally writing the .sylva image and keeping the hulls as a proxy. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -41,6 +41,14 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
     sy_json_bool(&j, "dbh_fitted", r->dbh_fitted);
     sy_json_number(&j, "height", r->height);
     sy_json_int(&j, "hull_triangles", (long long)res->asset.hull_triangles);
+    sy_json_int(&j, "lod0_bark_triangles", (long long)(res->asset.bark_triangles[0] - res->asset.hull_triangles));
+    sy_json_int(&j, "lod0_leaf_instances", (long long)res->asset.leaf_cards[0]);
+    sy_json_int(&j, "patches", (long long)res->synth.patches);
+    sy_json_int(&j, "leaves", (long long)res->synth.leaves);
+    sy_json_int(&j, "lobes_bare", (long long)res->synth.lobes_bare);
+    sy_json_number(&j, "lobe_coverage", res->synth.coverage);
+    sy_json_number(&j, "leaves_in_hull",
+                   res->synth.leaves ? (double)res->synth.leaves_in_hull / (double)res->synth.leaves : 0);
     sy_tree_asset_report_lods_json(&j, &res->asset);
     sy_json_int(&j, "bytes", (long long)res->asset.bytes);
     sy_json_object(&j, "seconds");
@@ -48,6 +56,7 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
     sy_json_number(&j, "preprocess", res->t_preprocess);
     sy_json_number(&j, "skeleton", r->t_total - r->t_clusters);
     sy_json_number(&j, "clusters", r->t_clusters + res->hulls.seconds);
+    sy_json_number(&j, "synthesize", res->t_synth);
     sy_json_number(&j, "mesh", res->asset.seconds_mesh);
     sy_json_number(&j, "export", res->asset.seconds_export);
     sy_json_end(&j);
@@ -64,10 +73,16 @@ static void step_line(void *ctx, const char *step, double seconds, const char *d
 int cmd_run(int argc, char **argv, sy_cli *cli)
 {
     run_args a = {NULL, NULL, sy_run_tree_options_default(), sy_glb_args_default()};
+    sy_photo_cli photo;
+    memset(&photo, 0, sizeof photo);
     const sy_opt opts[] = {
         {"-o", OPT_STRING, &a.out_path, "OUT.glb", "output glTF binary"},
         {"--sylva", OPT_STRING, &a.sylva_path, "OUT.sylva", "also write the compact .sylva file of the reconstruction"},
-        {"--species", OPT_STRING, &a.run.species, "NAME", "library species: its beta/gamma, bark and leaf materials"},
+        {"--species", OPT_STRING, &a.run.species, "NAME",
+         "library species: its beta/gamma, branchlets, bark and leaf materials (default: default.lsys, plain materials)"},
+        {"--proxy", OPT_FLAG, &a.run.proxy, NULL, "also draw the lobe hulls as a semi-transparent foliage_proxy mesh"},
+        {"--lobe-size", OPT_DOUBLE, &a.run.lobe_size, "F",
+         "largest lobe as a share of the tree's extent, in [0,1]; 0: one cluster per cut (default 0.25)"},
         {"--beta", OPT_DOUBLE, &a.run.beta, "B", "Dijkstra edge weight |u-v|^B (default: species, else 1)"},
         {"--gamma", OPT_DOUBLE, &a.run.gamma, "G", "allometry exponent (default: species, else 2)"},
         {"--fs", OPT_DOUBLE, &a.run.fs, "F", "scan-density factor f_s in (0,1]; smaller gives larger clusters (default 1)"},
@@ -77,17 +92,21 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
         {"--spread-around", OPT_FLAG, &a.run.spread_around, NULL,
          "judge a level set's spread from the skeleton around its node, not its edge (leaf-off scans)"},
         SY_GLB_OPTIONS(a.glb),
+        SY_PHOTO_OPTIONS(photo),
         {NULL, 0, NULL, NULL, NULL},
     };
     const sy_cmd_spec spec = {
-        "run", "SCAN -o OUT.glb [--sylva OUT.sylva]",
-        "Reconstruct one scanned tree and write it as glTF: branch meshes plus cluster hulls.",
+        "run", "SCAN|PHOTOS/ -o OUT.glb [--sylva OUT.sylva]",
+        "Reconstruct one scanned tree and write it as glTF: bark mesh, leaf instances, LODs, impostor.",
     "Steps: ingest, preprocess (up axis, statistical outliers, ground classified and removed;\n"
-    "the defaults of `sylva preprocess`), skeleton and alpha-shape clusters (docs/skeleton.md),\n"
-    "mesh (LOD chain, impostor), export. The hulls become one semi-transparent mesh with the\n"
-    "material \"foliage_proxy\" in every level. The glb is centred at the tree's base, its world\n"
+    "the defaults of `sylva preprocess`), skeleton and alpha-shape lobes (docs/skeleton.md),\n"
+    "the compact .sylva image, then from that image (so `sylva mesh OUT.sylva` makes the same\n"
+    "tree) synthesis: the species' L-system branchlets fill each lobe (docs/synthesize.md); mesh\n"
+    "(one bark mesh, leaf instances whose stored order drives the LOD chain, impostor), export.\n"
+    "--proxy adds the hulls as one semi-transparent \"foliage_proxy\" mesh. The glb is centred at the tree's base, its world\n"
     "position in asset.extras.origin (as `sylva mesh` does). SCAN must hold one tree. The .sylva species id\n"
-    "is the species' index in the library plus one (0: unknown).",
+    "is the species' index in the library plus one (0: unknown). A folder of photos is turned into\n"
+    "points first, as `sylva photogrammetry` does (give --scale-ref or --camera-spacing for metres).",
         opts, 1, 1};
     const char *in[1];
     int n;
@@ -109,7 +128,18 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
     sy_error err = {0};
     if (sy_run_tree_options_check(&a.run, &err)) return sy_cli_report(&err);
     sy_run_tree_result res;
-    if (sy_run_tree(in[0], &a.run, &res, &err) || sy_run_tree_write(&res, a.out_path, a.sylva_path, &err)) {
+    if (sy_is_directory(in[0]) && sy_photogrammetry_count_images(in[0]) >= 3) {
+        /* photos, not a scan: COLMAP first, then the tree from its points */
+        sy_photogrammetry_result pr;
+        if (sy_photos_to_cloud(in[0], a.out_path, &photo, cli, &pr, &err)) return sy_cli_report(&err);
+        sy_cloud cloud = pr.cloud;
+        memset(&pr.cloud, 0, sizeof pr.cloud);
+        sy_photogrammetry_result_free(&pr);
+        rc = sy_run_tree_cloud(&cloud, in[0], &a.run, &res, &err);
+    } else {
+        rc = sy_run_tree(in[0], &a.run, &res, &err);
+    }
+    if (rc || sy_run_tree_write(&res, a.out_path, a.sylva_path, &err)) {
         sy_run_tree_result_free(&res);
         return sy_cli_report(&err);
     }

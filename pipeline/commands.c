@@ -4,7 +4,7 @@
 
 const sy_command sy_commands[] = {
     {"info", "describe point-cloud files: format, count, bounds, attributes, CRS", cmd_info},
-    {"convert", "convert a point cloud between formats (PLY, LAS, XYZ)", cmd_convert},
+    {"convert", "convert a point cloud between formats (PLY, LAS, LAZ, XYZ)", cmd_convert},
     {"preprocess", "clean a scan: up-axis, crop, voxel, outliers, ground, normals", cmd_preprocess},
     {"grow", "grow a procedural species tree (Weber & Penn) and write it as glTF", cmd_grow},
     {"scan", "virtual LiDAR: scan a generated tree or plot, with exact per-point truth", cmd_scan},
@@ -18,5 +18,7 @@ const sy_command sy_commands[] = {
     {"decode", "summarise a .sylva tree file, or write it out as JSON", cmd_decode},
     {"leaf", "leaf photos to albedo, normal, thickness, translucency and HL2 maps (a species' leaf)", cmd_leaf},
     {"library", "list the species library or show one species (stable ids, names, kinds, files)", cmd_library},
+    {"photogrammetry", "photos -> point cloud through COLMAP, levelled and scaled", cmd_photogrammetry},
+    {"view", "preview .glb trees in OpenGL (window or headless screenshots), with wind, LOD and the scan", cmd_view},
     {NULL, NULL, NULL},
 };

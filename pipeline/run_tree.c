@@ -8,6 +8,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "pipeline/tree_synth.h"
 #include "species/library.h"
 #include "stages/core/fileio.h"
 #include "stages/core/progress.h"
@@ -22,6 +23,7 @@ sy_run_tree_options sy_run_tree_options_default(void)
     o.beta = o.gamma = NAN;
     o.fs = 1;
     o.seed = 1;
+    o.lobe_size = 0.25;
     o.asset = sy_tree_asset_options_default();
     return o;
 }
@@ -35,6 +37,8 @@ sy_code sy_run_tree_options_check(const sy_run_tree_options *o, sy_error *err)
     if (!(o->fs > 0 && o->fs <= 1)) return sy_fail(err, SY_EUSAGE, "run: fs %g outside (0, 1]", o->fs);
     if (!(o->wood_share >= 0 && o->wood_share < 1))
         return sy_fail(err, SY_EUSAGE, "run: wood_share %g outside [0, 1)", o->wood_share);
+    if (!(o->lobe_size >= 0 && o->lobe_size <= 1))
+        return sy_fail(err, SY_EUSAGE, "run: lobe_size %g outside [0, 1]", o->lobe_size);
     if (!(o->voxel >= 0) || !isfinite(o->voxel))
         return sy_fail(err, SY_EUSAGE, "run: voxel %g must be >= 0 metres", o->voxel);
     return sy_tree_asset_options_check(&o->asset, err);
@@ -114,13 +118,14 @@ static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_opti
     so.fs = o->fs;
     so.wood_share = o->wood_share;
     so.spread_around = o->spread_around;
+    so.lobe_size = o->lobe_size;
     sy_skeleton s;
     sy_clusters cl;
     sy_skeleton_report *sr = &r->skeleton;
     rc = sy_reconstruct_tree(c, &so, 0, &s, &cl, sr, &r->hulls, err);
     sy_cloud_free(c);
     if (rc) return name_input(rc, name, err);
-    char line[200];
+    char line[512];
     snprintf(line, sizeof line, "%zu nodes, %zu branches, DBH %.3f m, height %.2f m", sr->nodes, sr->branches,
              sr->dbh, sr->height);
     step(o, "skeleton", sr->t_total - sr->t_clusters, line);
@@ -128,25 +133,52 @@ static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_opti
              r->hulls.alpha, r->hulls.convex, r->hulls.box, sr->cluster_points);
     step(o, "clusters", sr->t_clusters + r->hulls.seconds, line);
 
-    /* The .sylva keeps the scan's own frame: encode before the root moves. */
-    if (o->sylva) {
-        int id = r->species_id;
-        uint16_t sid = (uint16_t)(id >= 0 && id < 65535 ? id + 1 : 0);
-        rc = sy_encode_mem(&s, &cl, sid, o->seed, NULL, &r->sylva, &r->sylva_size, err);
+    /* Everything after the reconstruction reads the .sylva image (the scan's
+     * own frame), as `sylva mesh OUT.sylva` does: the same bytes give the
+     * same tree. */
+    int id = r->species_id;
+    uint16_t sid = (uint16_t)(id >= 0 && id < 65535 ? id + 1 : 0);
+    rc = sy_encode_mem(&s, &cl, sid, o->seed, NULL, &r->sylva, &r->sylva_size, err);
+    sy_decoded_tree dt;
+    int have_tree = 0;
+    if (!rc) {
+        double t = sy_now();
+        rc = sy_decoded_tree_build(name, r->sylva, r->sylva_size, sp, &dt, err);
+        r->t_synth = sy_now() - t;
+        have_tree = !rc;
     }
     if (!rc) {
+        r->synth = dt.synth;
+        const char *lsys = strrchr(dt.lsys, '/') ? strrchr(dt.lsys, '/') + 1 : dt.lsys;
+        snprintf(line, sizeof line, "%zu patches (%.60s: %zu branchlets, %zu patches), %zu leaves, %zu lobes bare",
+                 dt.synth.patches, lsys, dt.branchlets, dt.patches, dt.synth.leaves, dt.synth.lobes_bare);
+        step(o, "synthesize", r->t_synth, line);
+        for (size_t i = 0; i < dt.synth.lobes_bare && i < 8; i++) {
+            int32_t c = dt.synth.bare_lobe[i];
+            snprintf(line, sizeof line, "lobe %d (node %d): %s; left bare", (int)c,
+                     c >= 0 && (size_t)c < dt.lobes.n ? (int)dt.lobes.items[c].seed : -1,
+                     dt.synth.bare_reason[i] == 0 ? "no room inside its hull (flat, tiny or a single point)"
+                                                  : "no branchlet patch fits inside its hull");
+            step(o, "synthesize", 0, line);
+        }
         sy_tree_asset_options ao = o->asset;
         ao.seed = o->seed;
-        ao.hulls = &cl;
+        ao.keep_leaf_order = 1;
+        ao.hulls = o->proxy ? &dt.lobes : NULL;
         ao.source = name;
         ao.source_format = "scan";
-        sy_tree_asset_root_to_origin(&s, &cl);
-        rc = sy_tree_asset_glb(&s, NULL, sp, &ao, name, &r->glb, &r->glb_size, &r->asset, err);
+        rc = sy_tree_asset_glb(&dt.grown, &dt.leaves, sp, &ao, name, &r->glb, &r->glb_size, &r->asset, err);
+    }
+    if (have_tree) sy_decoded_tree_free(&dt);
+    if (!o->sylva) {
+        free(r->sylva);
+        r->sylva = NULL;
+        r->sylva_size = 0;
     }
     if (!rc) {
         const sy_tree_asset_report *a = &r->asset;
-        snprintf(line, sizeof line, "%zu levels, LOD0 %zu triangles (%zu of them hulls)", a->lods, a->triangles[0],
-                 a->hull_triangles);
+        snprintf(line, sizeof line, "%zu levels, LOD0 %zu triangles (%zu leaf cards, %zu of them hulls)", a->lods,
+                 a->triangles[0], a->leaf_cards[0], a->hull_triangles);
         step(o, "mesh", a->seconds_mesh, line);
         snprintf(line, sizeof line, "%zu bytes", a->bytes);
         step(o, "export", a->seconds_export, line);

@@ -17,6 +17,7 @@
 #include <stdint.h>
 
 #include "pipeline/tree_asset.h"
+#include "stages/synthesize/synthesize.h"
 #include "stages/core/cloud.h"
 #include "stages/core/status.h"
 #include "stages/skeleton/skeleton.h"
@@ -33,7 +34,9 @@ typedef struct {
     double wood_share;   /* wood/leaf separation share in [0, 1) (0: off) */
     double voxel;        /* thin the scan to one point per voxel of this edge in metres first (0: off) */
     int spread_around;   /* skeleton: spread around the node, not the edge (0) */
-    int sylva;           /* 1: also encode the .sylva file (result->sylva) */
+    int sylva;           /* 1: also keep the .sylva file (result->sylva); the asset is always made from it */
+    int proxy;           /* 1: also draw the lobe hulls as the semi-transparent foliage_proxy mesh (0) */
+    double lobe_size;    /* largest lobe as a share of the tree's extent, [0, 1] (0.25; 0: one cluster a cut) */
     uint64_t seed;       /* every random choice (1) */
     sy_tree_asset_options asset; /* LODs, impostor, meshopt, instancing; seed, hulls and source are set
                                     by the driver */
@@ -57,6 +60,8 @@ typedef struct {
     sy_skeleton_report skeleton;
     sy_hull_report hulls;
     sy_tree_asset_report asset;
+    sy_synth_report synth; /* the lobes' texturing (docs/synthesize.md) */
+    double t_synth;        /* decode + branchlets + texturing, seconds */
     double t_ingest, t_preprocess; /* seconds; skeleton and mesh times are in the reports */
 } sy_run_tree_result;
 

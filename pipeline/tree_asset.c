@@ -227,6 +227,7 @@ sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, co
     mo.impostor = opt->impostor && !hulls;
     mo.impostor_size = opt->impostor_size;
     mo.seed = opt->seed;
+    mo.keep_leaf_order = opt->keep_leaf_order;
     mo.bark_material = bark;
     mo.leaf_material = leaf;
     if (species) {
@@ -254,6 +255,7 @@ sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, co
         for (size_t l = 0; l < out->n_lods && l < 16; l++) {
             const sy_lod *lod = &out->lods[l];
             for (int k = 0; k < lod->n_meshes; k++) rep->triangles[l] += out->meshes[lod->meshes[k]].n_indices / 3;
+            rep->bark_triangles[l] = rep->triangles[l];
             for (int k = 0; k < lod->n_instances; k++) {
                 const sy_instances *in = &lod->instances[k];
                 rep->leaf_cards[l] += in->n;

@@ -25,6 +25,7 @@ typedef struct {
     int instancing;    /* EXT_mesh_gpu_instancing (0 bakes leaves) */
     int texture_size;  /* longest side of material textures */
     uint64_t seed;
+    int keep_leaf_order; /* 1: the leaves' order is their pruning order (synthesised trees) */
     /* Reconstructed trees: the cluster hulls (same frame as the skeleton),
      * drawn as one semi-transparent "foliage_proxy" mesh in every mesh level
      * and the impostor. NULL (the default) or no triangles: none. */
@@ -68,7 +69,8 @@ void sy_glb_args_apply(const sy_glb_args *g, sy_tree_asset_options *o);
 typedef struct {
     size_t nodes, branches, leaves;
     size_t lods;
-    size_t triangles[16];   /* per LOD: mesh triangles + 2 per leaf card instance */
+    size_t triangles[16];   /* per LOD: mesh triangles + card triangles x leaf instances */
+    size_t bark_triangles[16]; /* per LOD: the bark (and proxy) meshes' triangles alone */
     size_t hull_triangles;  /* foliage proxy triangles (in every mesh level) */
     size_t leaf_cards[16];
     size_t bytes;

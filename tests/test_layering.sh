@@ -16,6 +16,7 @@ declare -A allowed=(
   [preprocess]="core"
   [clusters]="core"
   [skeleton]="core clusters"
+  [synthesize]="core clusters"
   [encode]="core clusters"
   [grow]="core species"
   [qsm]="core clusters encode grow"
@@ -24,16 +25,18 @@ declare -A allowed=(
   [export]="core gltf"
   [scan]="core grow species"
   [eval]="core encode qsm gltf"
+  [photogrammetry]="core ingest"
+  [viewer]="core gltf ingest"
 )
-main_path="core leafmaps species ingest preprocess clusters skeleton encode grow mesh gltf export"
+main_path="core leafmaps species ingest preprocess clusters skeleton synthesize encode grow mesh gltf export photogrammetry"
 reconstruction="skeleton clusters encode"
 
-folder_of() { case $1 in species) echo "$root/species" ;; *) echo "$root/stages/$1" ;; esac; }
+folder_of() { case $1 in species|viewer) echo "$root/$1" ;; *) echo "$root/stages/$1" ;; esac; }
 
 check() {
   local src=$1 fail=0
   for stage in "${!allowed[@]}"; do
-    local dir; dir=$(case $stage in species) echo "$src/species" ;; *) echo "$src/stages/$stage" ;; esac)
+    local dir; dir=$(case $stage in species|viewer) echo "$src/$stage" ;; *) echo "$src/stages/$stage" ;; esac)
     [ -d "$dir" ] || continue
     # Every "stages/X/..." or "species/..." or "pipeline/..." include of the folder.
     while IFS= read -r line; do
@@ -74,7 +77,8 @@ check() {
       d=${d#sylva_}
       if [[ " ${allowed[$name]} " != *" $d "* ]]; then echo "FAIL: CMakeLists.txt links sylva_$name to sylva_$d"; fail=1; fi
     done
-  done < <(grep -E '^sylva_stage\(' "$src/CMakeLists.txt")
+  done < <(cat "$src/CMakeLists.txt" "$src"/viewer/CMakeLists.txt 2>/dev/null | tr '\n' ' ' | sed 's/sylva_stage(/\nsylva_stage(/g' |
+           grep -E '^sylva_stage\(' | sed -E 's/\).*/)/')
   return $fail
 }
 

@@ -29,7 +29,7 @@ printf '0 0 0\n1 1 1\n' > "$tmp/two.xyz"
 [[ -z $(ls -A "$tmp" | grep -v -e '^err$' -e '^bad.las$' -e '^two.xyz$') ]] || fail "output left behind: $(ls -A "$tmp")"
 
 # End to end.
-out=$("$SYLVA" run "$scan" -o "$tmp/aspen.glb" --sylva "$tmp/aspen.sylva" --species quaking_aspen --json) ||
+out=$("$SYLVA" run "$scan" -o "$tmp/aspen.glb" --sylva "$tmp/aspen.sylva" --species quaking_aspen --proxy --json) ||
   fail "run exit $?"
 (( $(key nodes "$out") > 1 )) || fail "run json: $out"
 (( $(key points_preprocessed "$out") < $(key points_in "$out") )) || fail "no ground removed: $out"
@@ -39,7 +39,7 @@ if command -v node >/dev/null && [[ -d $src/node_modules/gltf-validator ]]; then
 else
   echo "gltf-validator not installed (npm ci): validation skipped"
 fi
-# The foliage proxy: its material, BLEND, in the glb's JSON chunk.
+# --proxy keeps the foliage proxy: its material, BLEND, in the glb's JSON chunk.
 grep -a -q '"name":"foliage_proxy"' "$tmp/aspen.glb" || fail "no foliage_proxy material"
 grep -a -q '"alphaMode":"BLEND"' "$tmp/aspen.glb" || fail "foliage proxy is not blended"
 
@@ -54,7 +54,7 @@ at_least "$(key coverage "$ev")" 0.93 || fail "coverage: $ev" # measured 0.953
 awk -v v="$(key mean_distance "$ev")" 'BEGIN { exit !(v + 0 <= 0.03) }' || fail "mean distance: $ev"
 
 # Same input, same seed: the same bytes.
-"$SYLVA" run "$scan" -o "$tmp/again.glb" --sylva "$tmp/again.sylva" --species quaking_aspen --quiet ||
+"$SYLVA" run "$scan" -o "$tmp/again.glb" --sylva "$tmp/again.sylva" --species quaking_aspen --proxy --quiet ||
   fail "second run"
 cmp -s "$tmp/aspen.sylva" "$tmp/again.sylva" || fail "two runs differ (.sylva)"
 cmp -s "$tmp/aspen.glb" "$tmp/again.glb" || fail "two runs differ (.glb)"

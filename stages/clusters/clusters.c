@@ -18,6 +18,7 @@ void sy_clusters_free(sy_clusters *c)
         free(c->items[i].points);
         free(c->items[i].verts);
         free(c->items[i].tris);
+        free(c->items[i].occupancy);
     }
     free(c->items);
     memset(c, 0, sizeof *c);
@@ -633,6 +634,7 @@ sy_code sy_clusters_build_hulls(sy_clusters *cl, const float *xyz, const sy_hull
     for (size_t c = 0; c < cl->n && !rc; c++) {
         sy_cluster *C = &cl->items[c];
         rc = sy_cluster_build_hull(C, xyz, o->alpha_scale, o->triangles, o->tol, err);
+        if (!rc) rc = sy_cluster_occupancy(C, xyz, 8, err); /* what synthesis reads on decode */
         if (C->hull == SY_HULL_ALPHA) report->alpha++;
         else if (C->hull == SY_HULL_CONVEX) report->convex++;
         else report->box++;

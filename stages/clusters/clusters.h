@@ -32,6 +32,12 @@ typedef struct {
     uint32_t *tris;      /* 3 * n_tris, counter-clockwise seen from outside */
     float alpha;         /* CGAL alpha (a SQUARED radius) of the shape; 0 unless SY_HULL_ALPHA */
     int hull;            /* sy_hull_kind */
+    /* Where the points lie inside the hull, for synthesis (decode has no
+     * points): occ_dims[0] x [1] x [2] cells (each 1..8, 0 0 0 = none) over
+     * the hull's vertex bounding box, bit x + nx (y + ny z) set when a point
+     * falls in that cell (sy_cluster_occupancy). */
+    uint8_t occ_dims[3];
+    uint8_t *occupancy;  /* ceil(nx ny nz / 8) bytes or NULL */
 } sy_cluster;
 
 typedef struct {
@@ -99,6 +105,29 @@ typedef struct {
 /* Builds every cluster's hull (sy_cluster_build_hull) from xyz, the cloud
  * the clusters' point indices refer to. report may be NULL. */
 sy_code sy_clusters_build_hulls(sy_clusters *cl, const float *xyz, const sy_hull_options *o, sy_hull_report *report,
+                                sy_error *err);
+
+/* Fills c->occ_dims and c->occupancy from its points and hull: the longest
+ * side of the hull's box gets `cells` (1..8) cells, the others as many as
+ * keep cells near cubic. */
+sy_code sy_cluster_occupancy(sy_cluster *c, const float *xyz, int cells, sy_error *err);
+/* Bytes of c's occupancy bits (0 without). */
+size_t sy_cluster_occupancy_bytes(const sy_cluster *c);
+
+/* Splits the low-confidence groups of a cut (sy_clusters_cut's cluster_of /
+ * seed_of over full) into lobes no longer than max_extent metres (largest
+ * side of their points' box): a subtree that is larger has its top node kept
+ * on the main skeleton (cluster_of = -1) and its children's subtrees split in
+ * turn, so each lobe hangs off the skeleton node next to it; siblings' small
+ * subtrees share a lobe while the union stays within the bound. The points
+ * of a kept top node (a level set through foliage, often a shell across the
+ * crown) are foliage too: they are chunked by a grid of max_extent cells
+ * into lobes, each seeded at the kept node holding most of its points
+ * (point_lobe[point] = lobe; -1 for every other point). Groups under min_points stay on the skeleton. Rewrites
+ * cluster_of, seed_of and *n_clusters; seed_of needs room for full->n +
+ * the point count entries, point_lobe one per input point. */
+sy_code sy_clusters_split_lobes(const sy_skeleton *full, const float *xyz, double max_extent, int min_points,
+                                int32_t *cluster_of, int32_t *seed_of, int32_t *point_lobe, size_t *n_clusters,
                                 sy_error *err);
 
 /* ---- Mesh checks (used by the hull builder and the tests). ---- */

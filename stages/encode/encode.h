@@ -25,8 +25,8 @@ extern "C" {
 #endif
 
 /* Written version; the decoder reads 1 (orders derived from branch starts)
- * and 2 (orders stored per branch). */
-#define SY_SYLVA_VERSION 2
+ * and 2 (orders stored per branch); 3 adds each cluster's occupancy grid. */
+#define SY_SYLVA_VERSION 3
 
 /* The quantisation grid of one file. */
 typedef struct {

@@ -322,6 +322,10 @@ sy_code sy_encode_mem(const sy_skeleton *s, const sy_clusters *cl, uint16_t spec
             put_varint(&b, tri[3 * t + 2] - tri[3 * t]);
             prev = tri[3 * t];
         }
+        /* Version 3: the occupancy grid synthesis reads (dims 0 0 0: none). */
+        size_t ob = sy_cluster_occupancy_bytes(C);
+        for (int k = 0; k < 3; k++) put_u8(&b, ob ? C->occ_dims[k] : 0);
+        if (ob) put(&b, C->occupancy, ob);
     }
     if (!b.oom) put_le(&b, crc32(b.p, b.n), 4);
     if (b.oom) {
@@ -528,6 +532,29 @@ sy_code sy_decode_mem(const char *path, const unsigned char *data, size_t size, 
             C->tris[3 * t + 1] = (uint32_t)b;
             C->tris[3 * t + 2] = (uint32_t)d;
         }
+        if (version >= 3) {
+            uint8_t d[3];
+            for (int k = 0; k < 3; k++) d[k] = (uint8_t)get_le(&r, 1);
+            int none = !d[0] && !d[1] && !d[2];
+            if (r.bad || (!none && (d[0] < 1 || d[0] > 8 || d[1] < 1 || d[1] > 8 || d[2] < 1 || d[2] > 8))) {
+                rc = sy_fail(err, SY_EINPUT, "%s: cluster %zu has a bad occupancy grid (each side 1..8 cells)", path, c);
+                goto fail;
+            }
+            if (!none) {
+                size_t ob = ((size_t)d[0] * d[1] * d[2] + 7) / 8;
+                if (ob > left(&r)) {
+                    rc = sy_fail(err, SY_EINPUT, "%s: cluster %zu occupancy is truncated", path, c);
+                    goto fail;
+                }
+                C->occupancy = sy_calloc(ob, 1, err, "decode");
+                if (!C->occupancy) {
+                    rc = SY_EINTERNAL;
+                    goto fail;
+                }
+                memcpy(C->occ_dims, d, 3);
+                for (size_t k = 0; k < ob; k++) C->occupancy[k] = (uint8_t)get_le(&r, 1);
+            }
+        }
     }
     if (left(&r) != 0) {
         rc = sy_fail(err, SY_EINPUT, "%s: %zu unexpected bytes after the clusters", path, left(&r));
@@ -560,7 +587,8 @@ sy_code sy_decode_read(const char *path, sy_skeleton *skel, sy_clusters *cluster
 int sy_sylva_hull_budget(size_t n_clusters, size_t n_nodes)
 {
     if (n_clusters == 0) return 160;
-    double bytes = 36000.0 - 64 - 10.0 * (double)n_nodes;
+    /* 70 bytes a cluster go to its occupancy grid (8 x 8 x 8 bits at most). */
+    double bytes = 36000.0 - 64 - 10.0 * (double)n_nodes - 70.0 * (double)n_clusters;
     double t = bytes / (6.5 * (double)n_clusters);
     return t < 16 ? 16 : t > 160 ? 160 : (int)t;
 }

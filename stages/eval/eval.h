@@ -100,6 +100,24 @@ sy_code sy_surface_metrics_compute(const sy_eval_model *m, const double *pts, si
  * vertices plus area-proportional samples; rings along each cone), 3 *n
  * doubles (caller frees), deterministic. */
 double *sy_model_surface_samples(const sy_eval_model *m, double spacing, size_t *n, sy_error *err);
+/* How an asset looks against its scan (docs/eval.md): silhouette IoU of six
+ * orthographic views (azimuth 0, 45, 90, 135 degrees, top, 30 degrees
+ * oblique; 256 x 256 masks over the union's extent, each set splatted with a
+ * disk of the scan's median spacing, the model's surface sampled finer than
+ * a pixel), the Pearson correlation of the vertical profiles (40 height
+ * bins: scan points against model surface area) and the relative height and
+ * crown-width (5-95% extent along x and y, averaged) errors, signed (model -
+ * scan) / scan. tri: 9 doubles per triangle, world Z up; pts: 3 per point. */
+typedef struct {
+    double iou[6], iou_mean, iou_min;
+    double profile_correlation;
+    double scan_height, model_height, height_error;
+    double scan_width, model_width, width_error;
+    double splat_radius; /* the scan's median spacing, metres */
+} sy_silhouette_metrics;
+sy_code sy_silhouette_metrics_compute(const double *tri, size_t n_tri, const double *pts, size_t n_pts,
+                                      sy_silhouette_metrics *out, sy_error *err);
+
 /* World coordinates of a cloud as 3n doubles (caller frees). */
 double *sy_cloud_world_points(const sy_cloud *c, sy_error *err);
 

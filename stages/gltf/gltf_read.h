@@ -1,12 +1,14 @@
 /* The one glTF reader: what tests check in an exported .glb, what eval
- * scores and what the viewer draws. Two views of a file: its JSON and BIN
- * chunks with values at JSON pointers (sy_gltf_open), and its triangles in
- * Sylva's Z-up world frame (sy_gltf_read_triangles). Production export
+ * scores and what the viewer draws. Three views of a file: its JSON and BIN
+ * chunks with values at JSON pointers (sy_gltf_open), its triangles in
+ * Sylva's Z-up world frame (sy_gltf_read_triangles), and the whole scene in
+ * glTF's frame for drawing (sy_gltf_read_scene). Production export
  * (stages/export) writes glTF and never reads it back. */
 #ifndef SYLVA_GLTF_READ_H
 #define SYLVA_GLTF_READ_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 #include "stages/core/status.h"
 
@@ -47,6 +49,124 @@ sy_code sy_gltf_tinygltf_check(const char *path, sy_error *err);
  * outward; one hull per part and instance). SY_EINPUT (not a readable
  * glTF) or SY_EINTERNAL (out of memory) with a one-line message naming path. */
 sy_code sy_gltf_read_triangles(const char *path, double **tri, size_t *n_tri, size_t **hull, sy_error *err);
+
+/* The whole scene, for drawing it (the GL preview): meshes with every
+ * attribute a renderer needs, materials, decoded images, node transforms,
+ * EXT_mesh_gpu_instancing copies, MSFT_lod levels with their
+ * MSFT_screencoverage, Sylva's wind data (docs/wind.md) and
+ * asset.extras.origin. Everything stays in glTF's frame (Y up, metres). */
+#define SY_GLTF_MAX_LODS 16
+
+typedef struct {
+    size_t n_vertices;
+    float *position;             /* 3n */
+    float *normal;               /* 3n or NULL */
+    float *tangent;              /* 4n or NULL */
+    float *uv;                   /* 2n (TEXCOORD_0) or NULL */
+    float *color;                /* 4n (COLOR_0, RGB gets alpha 1) or NULL */
+    float *wind_w;               /* 4n (_WIND_W) or NULL */
+    float *wind_branch;          /* n (_WIND_BRANCH, exact integers) or NULL */
+    float *wind_anchor;          /* 3n (_WIND_ANCHOR) or NULL */
+    float *wind_level_stiffness; /* 2n (_WIND_LEVEL_STIFFNESS) or NULL */
+    size_t n_indices;
+    uint32_t *indices;           /* triangle list; strips and fans are unrolled */
+    int material;                /* index into materials, -1: the glTF default material */
+} sy_gltf_primitive;
+
+typedef struct {
+    char name[64];
+    int first_primitive, n_primitives; /* range in sy_gltf_scene.primitives */
+} sy_gltf_mesh;
+
+typedef struct {
+    int width, height;
+    int bits;             /* 8 or 16 per channel */
+    unsigned char *pixels; /* width*height RGBA, 4 or 8 bytes per texel (16-bit native endian) */
+} sy_gltf_image;
+
+typedef struct {
+    int image;                    /* index into images */
+    int wrap_s, wrap_t;           /* GL enums (REPEAT 10497, CLAMP_TO_EDGE 33071, MIRRORED 33648) */
+    int min_filter, mag_filter;   /* GL enums, -1 unspecified */
+} sy_gltf_texture;
+
+typedef enum { SY_GLTF_OPAQUE = 0, SY_GLTF_MASK = 1, SY_GLTF_BLEND = 2 } sy_gltf_alpha;
+
+typedef struct {
+    char name[64];
+    float base_color[4];
+    int base_color_texture;          /* index into textures, -1 none (as every *_texture) */
+    float metallic, roughness;
+    int metallic_roughness_texture;  /* G roughness, B metallic */
+    int normal_texture;
+    float normal_scale;
+    float emissive[3];
+    sy_gltf_alpha alpha_mode;
+    float alpha_cutoff;
+    int double_sided;
+    /* KHR_materials_diffuse_transmission (factor 0 when absent). */
+    float diffuse_transmission;
+    float diffuse_transmission_color[3];
+    int diffuse_transmission_texture;       /* A channel */
+    int diffuse_transmission_color_texture; /* RGB */
+    /* Half-Life 2 translucency (Habel 2009 §3.3.8-3.3.9) from the material extension
+     * SYLVA_leaf_translucency (docs/leafmaps.md): RGB = h1 h2 h3 for light arriving on the
+     * adaxial (normal) side / the abaxial side, decoded as min + texel (max - min). -1 absent. */
+    int hl2_adaxial_texture, hl2_abaxial_texture;
+    float hl2_min, hl2_max;
+} sy_gltf_material;
+
+/* One node that has a mesh, flattened: its world transform and its copies. */
+typedef struct {
+    int mesh;
+    int object, level;          /* the root object and the LOD level it belongs to */
+    double world[16];           /* column-major node-to-world matrix */
+    size_t n_instances;         /* 0: no EXT_mesh_gpu_instancing, the node is drawn once */
+    float *instance_matrix;     /* 16n column-major, instance-to-node, or NULL */
+    float *inst_wind_w;         /* 4n (_WIND_W per instance) or NULL */
+    float *inst_wind_branch;    /* n or NULL */
+    float *inst_wind_anchor;    /* 3n or NULL */
+    float *inst_wind_level_stiffness; /* 2n or NULL */
+} sy_gltf_draw;
+
+/* Sylva's per-branch wind table (extras.sylva_wind, docs/gltf.md). */
+typedef struct {
+    int parent, level;
+    float anchor[3], axis[3];
+    float length, c2, c4, frequency, stiffness;
+} sy_gltf_wind_branch;
+
+/* A root node of the scene: one tree, with its levels of detail. */
+typedef struct {
+    char name[64];
+    int n_levels;                          /* 1 without MSFT_lod */
+    float coverage[SY_GLTF_MAX_LODS];      /* MSFT_screencoverage per level, -1 when not given */
+    double bounds_min[3], bounds_max[3];   /* LOD0 in world (glTF frame), instances included */
+    size_t n_triangles[SY_GLTF_MAX_LODS];  /* per level, instances counted */
+    size_t n_wind;
+    sy_gltf_wind_branch *wind;             /* NULL when the object has no table */
+} sy_gltf_object;
+
+typedef struct {
+    sy_gltf_primitive *primitives; size_t n_primitives;
+    sy_gltf_mesh *meshes; size_t n_meshes;
+    sy_gltf_material *materials; size_t n_materials;
+    sy_gltf_texture *textures; size_t n_textures;
+    sy_gltf_image *images; size_t n_images;
+    sy_gltf_draw *draws; size_t n_draws;
+    sy_gltf_object *objects; size_t n_objects;
+    int has_origin;
+    double origin[3]; /* asset.extras.origin: world position of the glTF origin, Z-up survey frame */
+} sy_gltf_scene;
+
+/* Reads a .glb or .gltf for drawing. SY_EINPUT (one-line reason naming the
+ * file) on an unreadable file, a broken reference or accessor, an image that
+ * does not decode or is missing, a scene with no triangle mesh, or a malformed
+ * sylva_wind table; SY_EINTERNAL on out of memory. EXT_meshopt_compression
+ * views are decoded. On success the caller owns *out (sy_gltf_scene_free). */
+sy_code sy_gltf_read_scene(const char *path, sy_gltf_scene *out, sy_error *err);
+void sy_gltf_scene_free(sy_gltf_scene *s);
+
 
 #ifdef __cplusplus
 }

@@ -1,7 +1,9 @@
 // The glTF reader's geometry side (tinygltf shim): the triangle soup of a
-// glTF scene in Sylva's world frame (Z up).
+// glTF scene in Sylva's world frame (Z up), and the whole scene for drawing it
+// (sy_gltf_read_scene: meshes, materials, images, instancing, LODs, wind).
 #include "stages/gltf/gltf_read.h"
 
+#include <meshoptimizer.h>
 #include <tiny_gltf.h>
 
 #include <algorithm>
@@ -11,6 +13,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -284,6 +288,111 @@ void set_msg(char *msg, size_t size, const char *path, const std::string &what)
     std::snprintf(msg, size, "%s: %s", path, one.c_str());
 }
 
+
+// EXT_meshopt_compression: every compressed bufferView is decoded into a buffer of its own and
+// the view pointed at it, so accessors read plain data (tinygltf leaves the extension alone).
+void decode_meshopt(tinygltf::Model &m)
+{
+    for (size_t i = 0; i < m.bufferViews.size(); i++) {
+        tinygltf::BufferView &bv = m.bufferViews[i];
+        auto it = bv.extensions.find("EXT_meshopt_compression");
+        if (it == bv.extensions.end()) continue;
+        const tinygltf::Value &e = it->second;
+        std::string what = "EXT_meshopt_compression of bufferView " + std::to_string(i);
+        auto num = [&](const char *k, double dflt) {
+            if (!e.IsObject() || !e.Has(k)) return dflt;
+            const tinygltf::Value &v = e.Get(k);
+            if (!v.IsNumber()) throw Failure{2, what + ": " + k + " is not a number"};
+            return v.GetNumberAsDouble();
+        };
+        auto str = [&](const char *k, const char *dflt) {
+            return e.IsObject() && e.Has(k) && e.Get(k).IsString() ? e.Get(k).Get<std::string>() : std::string(dflt);
+        };
+        double buffer = num("buffer", -1), offset = num("byteOffset", 0), length = num("byteLength", -1), stride = num("byteStride", -1),
+               count = num("count", -1);
+        std::string mode = str("mode", ""), filter = str("filter", "NONE");
+        if (!(buffer >= 0 && buffer < double(m.buffers.size()))) throw Failure{2, what + " names a missing buffer"};
+        const std::vector<unsigned char> &src = m.buffers[size_t(buffer)].data;
+        if (!(offset >= 0 && length >= 0 && offset + length <= double(src.size()))) throw Failure{2, what + " lies outside its buffer"};
+        if (!(stride >= 1 && stride <= 256 && count >= 0 && count * stride <= double(1u << 31)))
+            throw Failure{2, what + " has an invalid byteStride or count"};
+        std::vector<unsigned char> out(size_t(count) * size_t(stride));
+        const unsigned char *data = src.data() + size_t(offset);
+        int rc = -1;
+        if (mode == "ATTRIBUTES" && size_t(stride) % 4 == 0)
+            rc = meshopt_decodeVertexBuffer(out.data(), size_t(count), size_t(stride), data, size_t(length));
+        else if (mode == "TRIANGLES" && (stride == 2 || stride == 4) && size_t(count) % 3 == 0)
+            rc = meshopt_decodeIndexBuffer(out.data(), size_t(count), size_t(stride), data, size_t(length));
+        else if (mode == "INDICES" && (stride == 2 || stride == 4))
+            rc = meshopt_decodeIndexSequence(out.data(), size_t(count), size_t(stride), data, size_t(length));
+        else
+            throw Failure{2, what + " has an unknown mode '" + mode + "' for its stride"};
+        if (rc != 0) throw Failure{2, what + " does not decode"};
+        if (filter == "OCTAHEDRAL" && (stride == 4 || stride == 8)) meshopt_decodeFilterOct(out.data(), size_t(count), size_t(stride));
+        else if (filter == "QUATERNION" && stride == 8) meshopt_decodeFilterQuat(out.data(), size_t(count), size_t(stride));
+        else if (filter == "EXPONENTIAL" && size_t(stride) % 4 == 0) meshopt_decodeFilterExp(out.data(), size_t(count), size_t(stride));
+        else if (filter != "NONE") throw Failure{2, what + " has an unknown filter '" + filter + "'"};
+        tinygltf::Buffer decoded;
+        decoded.data.swap(out);
+        m.buffers.push_back(std::move(decoded));
+        bv.buffer = int(m.buffers.size() - 1);
+        bv.byteOffset = 0;
+        bv.byteLength = m.buffers.back().data.size();
+        bv.byteStride = mode == "ATTRIBUTES" ? size_t(stride) : 0;
+    }
+}
+
+// Loads a .glb or .gltf (told apart by the GLB magic); false with msg set on failure.
+// images: decode them (the scene reader) or skip them (geometry only).
+bool load_model(const char *path, tinygltf::Model &model, bool images, char *msg, size_t msg_size)
+{
+    tinygltf::TinyGLTF loader;
+    if (!images) loader.SetImageLoader(skip_image, nullptr);
+    std::string err, warn;
+    FILE *fp = std::fopen(path, "rb");
+    if (!fp) {
+        set_msg(msg, msg_size, path, "cannot open");
+        return false;
+    }
+    unsigned char magic[4] = {0, 0, 0, 0};
+    size_t got = std::fread(magic, 1, 4, fp);
+    std::fclose(fp);
+    bool binary = got == 4 && std::memcmp(magic, "glTF", 4) == 0;
+    bool ok = binary ? loader.LoadBinaryFromFile(&model, &err, &warn, path) : loader.LoadASCIIFromFile(&model, &err, &warn, path);
+    if (!ok) set_msg(msg, msg_size, path, err.empty() ? "not a readable glTF file" : "invalid glTF: " + err);
+    else decode_meshopt(model);
+    return ok;
+}
+
+// The default scene's root nodes (or scene 0's); with no scene, every node that is nobody's child.
+std::vector<int> scene_roots(const tinygltf::Model &model)
+{
+    std::vector<int> roots;
+    if (!model.scenes.empty()) {
+        int s = model.defaultScene >= 0 ? model.defaultScene : 0;
+        if (size_t(s) >= model.scenes.size()) throw Failure{2, "default scene index out of range"};
+        return model.scenes[size_t(s)].nodes;
+    }
+    std::vector<char> child(model.nodes.size(), 0);
+    for (const auto &n : model.nodes)
+        for (int c : n.children)
+            if (c >= 0 && size_t(c) < child.size()) child[size_t(c)] = 1;
+    for (size_t i = 0; i < model.nodes.size(); i++)
+        if (!child[i]) roots.push_back(int(i));
+    return roots;
+}
+
+// asset.extras.origin [x, y, z] when present: the world position (Z up) of the glTF origin.
+bool asset_origin(const tinygltf::Model &model, double o[3])
+{
+    if (!model.asset.extras.IsObject()) return false;
+    const tinygltf::Value &origin = model.asset.extras.Get("origin");
+    if (!(origin.IsArray() && origin.ArrayLen() == 3 && origin.Get(0).IsNumber() && origin.Get(1).IsNumber() && origin.Get(2).IsNumber()))
+        return false;
+    for (int c = 0; c < 3; c++) o[c] = origin.Get(c).GetNumberAsDouble();
+    return true;
+}
+
 } // namespace
 
 static int read_triangles(const char *path, double **tri, size_t *n_tri, size_t **hull, char *msg, size_t msg_size)
@@ -292,47 +401,16 @@ static int read_triangles(const char *path, double **tri, size_t *n_tri, size_t 
     *hull = nullptr;
     *n_tri = 0;
     try {
-        tinygltf::TinyGLTF loader;
-        loader.SetImageLoader(skip_image, nullptr);
         tinygltf::Model model;
-        std::string err, warn;
-        FILE *fp = std::fopen(path, "rb");
-        if (!fp) {
-            set_msg(msg, msg_size, path, "cannot open");
-            return 2;
-        }
-        unsigned char magic[4] = {0, 0, 0, 0};
-        size_t got = std::fread(magic, 1, 4, fp);
-        std::fclose(fp);
-        bool binary = got == 4 && std::memcmp(magic, "glTF", 4) == 0;
-        bool ok = binary ? loader.LoadBinaryFromFile(&model, &err, &warn, path)
-                         : loader.LoadASCIIFromFile(&model, &err, &warn, path);
-        if (!ok) {
-            set_msg(msg, msg_size, path, err.empty() ? "not a readable glTF file" : "invalid glTF: " + err);
-            return 2;
-        }
+        if (!load_model(path, model, false, msg, msg_size)) return 2;
         Reader r{model, {}, {}};
-        std::vector<int> roots;
-        if (!model.scenes.empty()) {
-            int s = model.defaultScene >= 0 ? model.defaultScene : 0;
-            if (size_t(s) >= model.scenes.size()) throw Failure{2, "default scene index out of range"};
-            roots = model.scenes[size_t(s)].nodes;
-        } else {
-            // No scene: every node that is nobody's child is a root.
-            std::vector<char> child(model.nodes.size(), 0);
-            for (const auto &n : model.nodes)
-                for (int c : n.children)
-                    if (c >= 0 && size_t(c) < child.size()) child[size_t(c)] = 1;
-            for (size_t i = 0; i < model.nodes.size(); i++)
-                if (!child[i]) roots.push_back(int(i));
-        }
+        std::vector<int> roots = scene_roots(model);
         for (int n : roots) r.node(n, identity(), 0);
         // `sylva mesh` centres the tree at its base and keeps the world position
         // of that point in asset.extras.origin (Z up): put the tree back there.
-        const tinygltf::Value &origin = model.asset.extras.Get("origin");
-        if (origin.IsArray() && origin.ArrayLen() == 3 && origin.Get(0).IsNumber() && origin.Get(1).IsNumber() &&
-            origin.Get(2).IsNumber())
-            for (size_t i = 0; i < r.out.size(); i++) r.out[i] += origin.Get(int(i % 3)).GetNumberAsDouble();
+        double origin[3];
+        if (asset_origin(model, origin))
+            for (size_t i = 0; i < r.out.size(); i++) r.out[i] += origin[i % 3];
         *n_tri = r.out.size() / 9;
         *tri = static_cast<double *>(std::malloc(r.out.size() ? r.out.size() * sizeof(double) : sizeof(double)));
         *hull = static_cast<size_t *>(std::malloc(r.hull.size() ? r.hull.size() * sizeof(size_t) : sizeof(size_t)));
@@ -364,6 +442,557 @@ extern "C" sy_code sy_gltf_read_triangles(const char *path, double **tri, size_t
 {
     char msg[1024];
     int rc = read_triangles(path, tri, n_tri, hull, msg, sizeof msg);
+    if (rc == 0) return SY_OK;
+    return sy_fail(err, rc == 3 ? SY_EINTERNAL : SY_EINPUT, "%s", msg);
+}
+
+// ---------------------------------------------------------------------------
+// The scene for drawing (sy_gltf_read_scene).
+
+namespace {
+
+template <typename T> T *c_copy(const std::vector<T> &v)
+{
+    if (v.empty()) return nullptr;
+    T *p = static_cast<T *>(std::malloc(v.size() * sizeof(T)));
+    if (!p) throw std::bad_alloc();
+    std::memcpy(p, v.data(), v.size() * sizeof(T));
+    return p;
+}
+
+void copy_name(char *dst, size_t size, const std::string &s) { std::snprintf(dst, size, "%s", s.c_str()); }
+
+// Reads a whole float attribute of `width` components (or NULL when absent).
+float *read_attribute(const tinygltf::Model &m, const std::map<std::string, int> &attrs, const char *name, int width,
+                      size_t n_expected, bool allow_vec3_for_vec4 = false)
+{
+    auto it = attrs.find(name);
+    if (it == attrs.end()) return nullptr;
+    AccessorView v(m, it->second, name);
+    int comps = v.components();
+    if (comps != width && !(allow_vec3_for_vec4 && comps == 3 && width == 4))
+        throw Failure{2, std::string(name) + " has " + std::to_string(comps) + " components, expected " + std::to_string(width)};
+    if (v.count() != n_expected) throw Failure{2, std::string(name) + " count differs from POSITION"};
+    std::vector<float> out(n_expected * size_t(width));
+    for (size_t i = 0; i < n_expected; i++)
+        for (int c = 0; c < width; c++) {
+            double x = c < comps ? v.get(i, c) : 1.0;
+            if (!std::isfinite(x)) throw Failure{2, std::string(name) + " holds a NaN or infinite value"};
+            out[i * size_t(width) + size_t(c)] = float(x);
+        }
+    return c_copy(out);
+}
+
+struct SceneBuilder {
+    const tinygltf::Model &m;
+    sy_gltf_scene &s;
+    std::vector<sy_gltf_primitive> prims;
+    std::vector<sy_gltf_mesh> meshes;
+    std::vector<sy_gltf_draw> draws;
+    std::vector<sy_gltf_object> objects;
+    size_t visits = 0;
+
+    // What was not handed to the scene yet (a failure part way) is freed here.
+    ~SceneBuilder()
+    {
+        for (sy_gltf_primitive &p : prims) {
+            for (float *f : {p.position, p.normal, p.tangent, p.uv, p.color, p.wind_w, p.wind_branch, p.wind_anchor, p.wind_level_stiffness})
+                std::free(f);
+            std::free(p.indices);
+        }
+        for (sy_gltf_draw &d : draws)
+            for (float *f : {d.instance_matrix, d.inst_wind_w, d.inst_wind_branch, d.inst_wind_anchor, d.inst_wind_level_stiffness}) std::free(f);
+        for (sy_gltf_object &o : objects) std::free(o.wind);
+    }
+
+    int texture_ref(int index, const char *what)
+    {
+        if (index < 0) return -1;
+        if (size_t(index) >= m.textures.size()) throw Failure{2, std::string(what) + " names texture " + std::to_string(index) + ", which does not exist"};
+        const tinygltf::Texture &t = m.textures[size_t(index)];
+        if (t.source < 0 || size_t(t.source) >= m.images.size()) throw Failure{2, std::string(what) + ": texture " + std::to_string(index) + " has no image"};
+        return index;
+    }
+
+    void build_images()
+    {
+        s.n_images = m.images.size();
+        if (!s.n_images) return;
+        s.images = static_cast<sy_gltf_image *>(std::calloc(s.n_images, sizeof(sy_gltf_image)));
+        if (!s.images) throw std::bad_alloc();
+        for (size_t i = 0; i < m.images.size(); i++) {
+            const tinygltf::Image &im = m.images[i];
+            if (im.width <= 0 || im.height <= 0 || im.image.empty())
+                throw Failure{2, "image " + std::to_string(i) + (im.uri.empty() ? "" : " (" + im.uri + ")") + " did not decode"};
+            if (im.width > 16384 || im.height > 16384) throw Failure{2, "image " + std::to_string(i) + " is larger than 16384 pixels"};
+            int bits = im.bits == 16 ? 16 : 8, bytes = bits / 8, comps = im.component;
+            if (comps < 1 || comps > 4 || (im.bits != 8 && im.bits != 16)) throw Failure{2, "image " + std::to_string(i) + " has an unsupported pixel format"};
+            size_t n = size_t(im.width) * size_t(im.height);
+            if (im.image.size() < n * size_t(comps * bytes)) throw Failure{2, "image " + std::to_string(i) + " is truncated"};
+            unsigned char *px = static_cast<unsigned char *>(std::malloc(n * 4 * size_t(bytes)));
+            if (!px) throw std::bad_alloc();
+            // Grey spreads to RGB; a missing alpha is opaque.
+            static const int kSource[5][4] = {{0, 0, 0, -1}, {0, 0, 0, -1}, {0, 0, 0, 1}, {0, 1, 2, -1}, {0, 1, 2, 3}};
+            for (size_t p = 0; p < n; p++)
+                for (int c = 0; c < 4; c++) {
+                    int src = kSource[comps][c];
+                    for (int b = 0; b < bytes; b++)
+                        px[(p * 4 + size_t(c)) * size_t(bytes) + size_t(b)] =
+                            src < 0 ? 255 : im.image[(p * size_t(comps) + size_t(src)) * size_t(bytes) + size_t(b)];
+                }
+            s.images[i].width = im.width;
+            s.images[i].height = im.height;
+            s.images[i].bits = bits;
+            s.images[i].pixels = px;
+        }
+    }
+
+    void build_textures()
+    {
+        s.n_textures = m.textures.size();
+        if (!s.n_textures) return;
+        s.textures = static_cast<sy_gltf_texture *>(std::calloc(s.n_textures, sizeof(sy_gltf_texture)));
+        if (!s.textures) throw std::bad_alloc();
+        for (size_t i = 0; i < m.textures.size(); i++) {
+            const tinygltf::Texture &t = m.textures[i];
+            sy_gltf_texture &o = s.textures[i];
+            o.image = t.source;
+            o.wrap_s = o.wrap_t = TINYGLTF_TEXTURE_WRAP_REPEAT;
+            o.min_filter = o.mag_filter = -1;
+            if (t.sampler >= 0) {
+                if (size_t(t.sampler) >= m.samplers.size()) throw Failure{2, "texture " + std::to_string(i) + " names a missing sampler"};
+                const tinygltf::Sampler &sm = m.samplers[size_t(t.sampler)];
+                o.wrap_s = sm.wrapS, o.wrap_t = sm.wrapT, o.min_filter = sm.minFilter, o.mag_filter = sm.magFilter;
+            }
+        }
+    }
+
+    static float number(const tinygltf::Value &v, const char *key, float dflt)
+    {
+        if (!v.IsObject() || !v.Has(key)) return dflt;
+        const tinygltf::Value &x = v.Get(key);
+        return x.IsNumber() ? float(x.GetNumberAsDouble()) : dflt;
+    }
+
+    int texture_in(const tinygltf::Value &v, const char *key, const char *what)
+    {
+        if (!v.IsObject() || !v.Has(key)) return -1;
+        const tinygltf::Value &t = v.Get(key);
+        // A textureInfo object ({"index": i}) or a bare index.
+        if (t.IsObject() && t.Has("index") && t.Get("index").IsNumber()) return texture_ref(t.Get("index").GetNumberAsInt(), what);
+        if (t.IsNumber()) return texture_ref(t.GetNumberAsInt(), what);
+        throw Failure{2, std::string(what) + "." + key + " is not a texture reference"};
+    }
+
+    void build_materials()
+    {
+        s.n_materials = m.materials.size();
+        if (!s.n_materials) return;
+        s.materials = static_cast<sy_gltf_material *>(std::calloc(s.n_materials, sizeof(sy_gltf_material)));
+        if (!s.materials) throw std::bad_alloc();
+        for (size_t i = 0; i < m.materials.size(); i++) {
+            const tinygltf::Material &mt = m.materials[i];
+            sy_gltf_material &o = s.materials[i];
+            std::string what = "material " + std::to_string(i);
+            copy_name(o.name, sizeof o.name, mt.name);
+            const auto &pbr = mt.pbrMetallicRoughness;
+            for (int c = 0; c < 4; c++) o.base_color[c] = pbr.baseColorFactor.size() == 4 ? float(pbr.baseColorFactor[size_t(c)]) : 1.0f;
+            o.metallic = float(pbr.metallicFactor);
+            o.roughness = float(pbr.roughnessFactor);
+            o.base_color_texture = texture_ref(pbr.baseColorTexture.index, what.c_str());
+            o.metallic_roughness_texture = texture_ref(pbr.metallicRoughnessTexture.index, what.c_str());
+            o.normal_texture = texture_ref(mt.normalTexture.index, what.c_str());
+            o.normal_scale = float(mt.normalTexture.scale);
+            for (int c = 0; c < 3; c++) o.emissive[c] = mt.emissiveFactor.size() == 3 ? float(mt.emissiveFactor[size_t(c)]) : 0.0f;
+            o.alpha_mode = mt.alphaMode == "MASK" ? SY_GLTF_MASK : mt.alphaMode == "BLEND" ? SY_GLTF_BLEND : SY_GLTF_OPAQUE;
+            o.alpha_cutoff = float(mt.alphaCutoff);
+            o.double_sided = mt.doubleSided;
+            o.diffuse_transmission_texture = o.diffuse_transmission_color_texture = -1;
+            o.hl2_adaxial_texture = o.hl2_abaxial_texture = -1;
+            o.hl2_min = -1, o.hl2_max = 3;
+            auto dt = mt.extensions.find("KHR_materials_diffuse_transmission");
+            if (dt != mt.extensions.end()) {
+                const tinygltf::Value &v = dt->second;
+                o.diffuse_transmission = number(v, "diffuseTransmissionFactor", 0);
+                for (int c = 0; c < 3; c++) o.diffuse_transmission_color[c] = 1;
+                if (v.IsObject() && v.Has("diffuseTransmissionColorFactor")) {
+                    const tinygltf::Value &col = v.Get("diffuseTransmissionColorFactor");
+                    if (col.IsArray() && col.ArrayLen() == 3)
+                        for (int c = 0; c < 3; c++) o.diffuse_transmission_color[c] = float(col.Get(c).GetNumberAsDouble());
+                }
+                o.diffuse_transmission_texture = texture_in(v, "diffuseTransmissionTexture", what.c_str());
+                o.diffuse_transmission_color_texture = texture_in(v, "diffuseTransmissionColorTexture", what.c_str());
+            }
+            auto lt = mt.extensions.find("SYLVA_leaf_translucency");
+            if (lt != mt.extensions.end()) {
+                const tinygltf::Value &h = lt->second;
+                if (!h.IsObject()) throw Failure{2, what + ": SYLVA_leaf_translucency is not an object"};
+                o.hl2_adaxial_texture = texture_in(h, "adaxialTexture", what.c_str());
+                o.hl2_abaxial_texture = texture_in(h, "abaxialTexture", what.c_str());
+                o.hl2_min = number(h, "decodeMin", -1);
+                o.hl2_max = number(h, "decodeMax", 3);
+                if (!(std::isfinite(o.hl2_min) && std::isfinite(o.hl2_max)))
+                    throw Failure{2, what + ": SYLVA_leaf_translucency decodeMin/decodeMax are not finite"};
+            }
+        }
+    }
+
+    void build_meshes()
+    {
+        for (size_t mi = 0; mi < m.meshes.size(); mi++) {
+            const tinygltf::Mesh &mesh = m.meshes[mi];
+            sy_gltf_mesh om{};
+            copy_name(om.name, sizeof om.name, mesh.name);
+            om.first_primitive = int(prims.size());
+            for (const tinygltf::Primitive &pr : mesh.primitives) {
+                int mode = pr.mode < 0 ? TINYGLTF_MODE_TRIANGLES : pr.mode;
+                if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP && mode != TINYGLTF_MODE_TRIANGLE_FAN) continue;
+                auto pit = pr.attributes.find("POSITION");
+                if (pit == pr.attributes.end()) continue;
+                if (pr.material >= 0 && size_t(pr.material) >= m.materials.size())
+                    throw Failure{2, "mesh " + std::to_string(mi) + " names a missing material"};
+                sy_gltf_primitive p{};
+                p.material = pr.material;
+                prims.push_back(p); // owned by the scene from here on (freed on failure)
+                sy_gltf_primitive &q = prims.back();
+                AccessorView pos(m, pit->second, "POSITION");
+                if (pos.components() != 3) throw Failure{2, "POSITION is not a VEC3 accessor"};
+                q.n_vertices = pos.count();
+                q.position = read_attribute(m, pr.attributes, "POSITION", 3, q.n_vertices);
+                q.normal = read_attribute(m, pr.attributes, "NORMAL", 3, q.n_vertices);
+                q.tangent = read_attribute(m, pr.attributes, "TANGENT", 4, q.n_vertices);
+                q.uv = read_attribute(m, pr.attributes, "TEXCOORD_0", 2, q.n_vertices);
+                q.color = read_attribute(m, pr.attributes, "COLOR_0", 4, q.n_vertices, true);
+                q.wind_w = read_attribute(m, pr.attributes, "_WIND_W", 4, q.n_vertices);
+                q.wind_branch = read_attribute(m, pr.attributes, "_WIND_BRANCH", 1, q.n_vertices);
+                q.wind_anchor = read_attribute(m, pr.attributes, "_WIND_ANCHOR", 3, q.n_vertices);
+                q.wind_level_stiffness = read_attribute(m, pr.attributes, "_WIND_LEVEL_STIFFNESS", 2, q.n_vertices);
+                std::vector<uint32_t> raw;
+                if (pr.indices >= 0) {
+                    AccessorView ind(m, pr.indices, "index");
+                    raw.resize(ind.count());
+                    for (size_t i = 0; i < ind.count(); i++) {
+                        double v = ind.get(i, 0);
+                        if (!(v >= 0 && v < double(q.n_vertices))) throw Failure{2, "index " + std::to_string(size_t(v)) + " beyond the vertex count"};
+                        raw[i] = uint32_t(v);
+                    }
+                } else {
+                    if (q.n_vertices > 0xffffffffu) throw Failure{2, "more than 2^32 vertices in a primitive"};
+                    raw.resize(q.n_vertices);
+                    for (size_t i = 0; i < raw.size(); i++) raw[i] = uint32_t(i);
+                }
+                std::vector<uint32_t> tri;
+                if (mode == TINYGLTF_MODE_TRIANGLES) {
+                    raw.resize(raw.size() / 3 * 3);
+                    tri.swap(raw);
+                } else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
+                    for (size_t i = 0; i + 2 < raw.size(); i++) {
+                        uint32_t a = raw[i], b = raw[i + 1], c = raw[i + 2];
+                        if (i % 2) std::swap(a, b);
+                        tri.insert(tri.end(), {a, b, c});
+                    }
+                } else {
+                    for (size_t i = 1; i + 1 < raw.size(); i++) tri.insert(tri.end(), {raw[0], raw[i], raw[i + 1]});
+                }
+                q.n_indices = tri.size();
+                q.indices = c_copy(tri);
+            }
+            om.n_primitives = int(prims.size()) - om.first_primitive;
+            meshes.push_back(om);
+        }
+    }
+
+    // EXT_mesh_gpu_instancing: TRS matrices and Sylva's per-instance wind.
+    void instances(const tinygltf::Node &n, sy_gltf_draw &d)
+    {
+        auto it = n.extensions.find("EXT_mesh_gpu_instancing");
+        if (it == n.extensions.end() || !it->second.IsObject() || !it->second.Has("attributes")) return;
+        const tinygltf::Value &attrs = it->second.Get("attributes");
+        if (!attrs.IsObject()) throw Failure{2, "EXT_mesh_gpu_instancing attributes is not an object"};
+        size_t count = 0;
+        bool any = false;
+        auto view = [&](const char *name, int width) -> std::unique_ptr<AccessorView> {
+            if (!attrs.Has(name)) return nullptr;
+            const tinygltf::Value &v = attrs.Get(name);
+            if (!v.IsNumber()) throw Failure{2, std::string("EXT_mesh_gpu_instancing ") + name + " is not an accessor index"};
+            std::unique_ptr<AccessorView> a(new AccessorView(m, v.GetNumberAsInt(), "EXT_mesh_gpu_instancing"));
+            if (a->components() != width) throw Failure{2, std::string("EXT_mesh_gpu_instancing ") + name + " has the wrong type"};
+            if (any && a->count() != count) throw Failure{2, "EXT_mesh_gpu_instancing attributes differ in count"};
+            count = a->count();
+            any = true;
+            return a;
+        };
+        auto t = view("TRANSLATION", 3), r = view("ROTATION", 4), sc = view("SCALE", 3);
+        auto ww = view("_WIND_W", 4), wb = view("_WIND_BRANCH", 1), wa = view("_WIND_ANCHOR", 3), wl = view("_WIND_LEVEL_STIFFNESS", 2);
+        if (!any) return;
+        std::vector<float> mat(count * 16);
+        for (size_t i = 0; i < count; i++) {
+            double tt[3] = {0, 0, 0}, q[4] = {0, 0, 0, 1}, ss[3] = {1, 1, 1};
+            for (int c = 0; c < 3; c++) {
+                if (t) tt[c] = t->get(i, c);
+                if (sc) ss[c] = sc->get(i, c);
+            }
+            if (r) for (int c = 0; c < 4; c++) q[c] = r->get(i, c);
+            Mat4 x = trs(tt, q, ss);
+            for (int k = 0; k < 16; k++) {
+                if (!std::isfinite(x[size_t(k)])) throw Failure{2, "EXT_mesh_gpu_instancing holds a NaN or infinite transform"};
+                mat[i * 16 + size_t(k)] = float(x[size_t(k)]);
+            }
+        }
+        d.n_instances = count;
+        d.instance_matrix = c_copy(mat);
+        auto grab = [&](const std::unique_ptr<AccessorView> &a, int width) -> float * {
+            if (!a) return nullptr;
+            std::vector<float> v(count * size_t(width));
+            for (size_t i = 0; i < count; i++)
+                for (int c = 0; c < width; c++) v[i * size_t(width) + size_t(c)] = float(a->get(i, c));
+            return c_copy(v);
+        };
+        d.inst_wind_w = grab(ww, 4);
+        d.inst_wind_branch = grab(wb, 1);
+        d.inst_wind_anchor = grab(wa, 3);
+        d.inst_wind_level_stiffness = grab(wl, 2);
+    }
+
+    void expand(sy_gltf_object &o, const Mat4 &w, const float *inst, size_t n_inst, const sy_gltf_mesh &mesh)
+    {
+        for (size_t k = 0; k < std::max<size_t>(n_inst, 1); k++) {
+            Mat4 x = w;
+            if (inst) {
+                Mat4 im;
+                for (int e = 0; e < 16; e++) im[size_t(e)] = inst[k * 16 + size_t(e)];
+                x = mul(w, im);
+            }
+            for (int pi = 0; pi < mesh.n_primitives; pi++) {
+                const sy_gltf_primitive &p = prims[size_t(mesh.first_primitive + pi)];
+                for (size_t v = 0; v < p.n_vertices; v++) {
+                    const float *q = p.position + 3 * v;
+                    for (int r = 0; r < 3; r++) {
+                        double c = x[size_t(r)] * q[0] + x[size_t(4 + r)] * q[1] + x[size_t(8 + r)] * q[2] + x[size_t(12 + r)];
+                        o.bounds_min[r] = std::min(o.bounds_min[r], c);
+                        o.bounds_max[r] = std::max(o.bounds_max[r], c);
+                    }
+                }
+            }
+        }
+    }
+
+    void node(int index, const Mat4 &parent, int depth, int object, int level)
+    {
+        if (index < 0 || size_t(index) >= m.nodes.size()) throw Failure{2, "node index out of range"};
+        if (depth > 256) throw Failure{2, "node hierarchy deeper than 256 (a cycle?)"};
+        if (++visits > 4 * m.nodes.size() + 1000000) throw Failure{2, "node hierarchy visits too many nodes"};
+        const tinygltf::Node &n = m.nodes[size_t(index)];
+        Mat4 world = mul(parent, local_transform(n));
+        for (double v : world)
+            if (!std::isfinite(v)) throw Failure{2, "node " + std::to_string(index) + " has a NaN or infinite transform"};
+        if (n.mesh >= 0) {
+            if (size_t(n.mesh) >= meshes.size()) throw Failure{2, "mesh index out of range"};
+            sy_gltf_draw d{};
+            d.mesh = n.mesh;
+            d.object = object;
+            d.level = level;
+            for (int k = 0; k < 16; k++) d.world[k] = world[size_t(k)];
+            draws.push_back(d);
+            instances(n, draws.back());
+            sy_gltf_draw &dd = draws.back();
+            const sy_gltf_mesh &mesh = meshes[size_t(n.mesh)];
+            size_t tris = 0;
+            for (int pi = 0; pi < mesh.n_primitives; pi++) tris += prims[size_t(mesh.first_primitive + pi)].n_indices / 3;
+            sy_gltf_object &o = objects[size_t(object)];
+            o.n_triangles[level] += tris * std::max<size_t>(dd.n_instances, 1);
+            if (level == 0) expand(o, world, dd.instance_matrix, dd.n_instances, mesh);
+        }
+        for (int c : n.children) node(c, world, depth + 1, object, level);
+    }
+
+    static std::vector<double> numbers(const tinygltf::Value &t, const char *key, size_t n)
+    {
+        if (!t.Has(key) || !t.Get(key).IsArray() || size_t(t.Get(key).ArrayLen()) != n)
+            throw Failure{2, std::string("extras.sylva_wind.") + key + " is missing or has the wrong length"};
+        const tinygltf::Value &a = t.Get(key);
+        std::vector<double> out(n);
+        for (size_t i = 0; i < n; i++) {
+            const tinygltf::Value &x = a.Get(int(i));
+            if (!x.IsNumber() || !std::isfinite(x.GetNumberAsDouble())) throw Failure{2, std::string("extras.sylva_wind.") + key + " holds a non-number"};
+            out[i] = x.GetNumberAsDouble();
+        }
+        return out;
+    }
+
+    void wind_table(const tinygltf::Node &n, sy_gltf_object &o)
+    {
+        if (!n.extras.IsObject() || !n.extras.Has("sylva_wind")) return;
+        const tinygltf::Value &t = n.extras.Get("sylva_wind");
+        if (!t.IsObject() || !t.Has("count") || !t.Get("count").IsNumber()) throw Failure{2, "extras.sylva_wind has no count"};
+        double cd = t.Get("count").GetNumberAsDouble();
+        if (!(cd >= 0 && cd <= 1e6)) throw Failure{2, "extras.sylva_wind.count is out of range"};
+        size_t cnt = size_t(cd);
+        auto parent = numbers(t, "parent", cnt), level = numbers(t, "level", cnt), anchor = numbers(t, "anchor", 3 * cnt),
+             axis = numbers(t, "axis", 3 * cnt), length = numbers(t, "length", cnt), c2 = numbers(t, "c2", cnt),
+             c4 = numbers(t, "c4", cnt), freq = numbers(t, "frequency", cnt), stiff = numbers(t, "stiffness", cnt);
+        std::vector<sy_gltf_wind_branch> w(cnt);
+        for (size_t i = 0; i < cnt; i++) {
+            if (parent[i] < -1 || parent[i] >= double(i) || parent[i] != std::floor(parent[i]))
+                throw Failure{2, "extras.sylva_wind.parent[" + std::to_string(i) + "] does not name an earlier branch"};
+            w[i].parent = int(parent[i]);
+            w[i].level = int(std::min(std::max(level[i], 0.0), 3.0));
+            for (int c = 0; c < 3; c++) w[i].anchor[c] = float(anchor[3 * i + size_t(c)]), w[i].axis[c] = float(axis[3 * i + size_t(c)]);
+            w[i].length = float(length[i]);
+            w[i].c2 = float(c2[i]);
+            w[i].c4 = float(c4[i]);
+            w[i].frequency = float(freq[i]);
+            w[i].stiffness = float(stiff[i]);
+        }
+        o.n_wind = cnt;
+        o.wind = c_copy(w);
+    }
+
+    void object(int root)
+    {
+        if (root < 0 || size_t(root) >= m.nodes.size()) throw Failure{2, "scene root node index out of range"};
+        const tinygltf::Node &n = m.nodes[size_t(root)];
+        sy_gltf_object o{};
+        copy_name(o.name, sizeof o.name, n.name.empty() ? "node " + std::to_string(root) : n.name);
+        for (int r = 0; r < 3; r++) o.bounds_min[r] = HUGE_VAL, o.bounds_max[r] = -HUGE_VAL;
+        std::vector<int> levels{root};
+        auto lod = n.extensions.find("MSFT_lod");
+        if (lod != n.extensions.end() && lod->second.IsObject() && lod->second.Has("ids")) {
+            const tinygltf::Value &ids = lod->second.Get("ids");
+            if (!ids.IsArray()) throw Failure{2, "MSFT_lod.ids is not an array"};
+            for (int i = 0; i < int(ids.ArrayLen()) && levels.size() < SY_GLTF_MAX_LODS; i++) {
+                if (!ids.Get(i).IsNumber()) throw Failure{2, "MSFT_lod.ids holds a non-number"};
+                int id = ids.Get(i).GetNumberAsInt();
+                if (id < 0 || size_t(id) >= m.nodes.size()) throw Failure{2, "MSFT_lod names node " + std::to_string(id) + ", which does not exist"};
+                levels.push_back(id);
+            }
+        }
+        o.n_levels = int(levels.size());
+        for (int l = 0; l < SY_GLTF_MAX_LODS; l++) o.coverage[l] = -1;
+        if (n.extras.IsObject() && n.extras.Has("MSFT_screencoverage")) {
+            const tinygltf::Value &c = n.extras.Get("MSFT_screencoverage");
+            if (c.IsArray())
+                for (int l = 0; l < int(c.ArrayLen()) && l < SY_GLTF_MAX_LODS; l++)
+                    if (c.Get(l).IsNumber()) o.coverage[l] = float(c.Get(l).GetNumberAsDouble());
+        }
+        wind_table(n, o);
+        objects.push_back(o);
+        int index = int(objects.size()) - 1;
+        // MSFT_lod: a coarser level's node takes the root's place, with its own transform.
+        for (int l = 0; l < int(levels.size()); l++) node(levels[size_t(l)], identity(), 0, index, l);
+    }
+};
+
+void free_scene(sy_gltf_scene *s)
+{
+    for (size_t i = 0; i < s->n_primitives; i++) {
+        sy_gltf_primitive &p = s->primitives[i];
+        for (float *f : {p.position, p.normal, p.tangent, p.uv, p.color, p.wind_w, p.wind_branch, p.wind_anchor, p.wind_level_stiffness})
+            std::free(f);
+        std::free(p.indices);
+    }
+    std::free(s->primitives);
+    std::free(s->meshes);
+    std::free(s->materials);
+    std::free(s->textures);
+    for (size_t i = 0; i < s->n_images; i++) std::free(s->images[i].pixels);
+    std::free(s->images);
+    for (size_t i = 0; i < s->n_draws; i++) {
+        sy_gltf_draw &d = s->draws[i];
+        for (float *f : {d.instance_matrix, d.inst_wind_w, d.inst_wind_branch, d.inst_wind_anchor, d.inst_wind_level_stiffness}) std::free(f);
+    }
+    std::free(s->draws);
+    for (size_t i = 0; i < s->n_objects; i++) std::free(s->objects[i].wind);
+    std::free(s->objects);
+    std::memset(s, 0, sizeof *s);
+}
+
+} // namespace
+
+extern "C" void sy_gltf_scene_free(sy_gltf_scene *s)
+{
+    if (s) free_scene(s);
+}
+
+static int read_scene(const char *path, sy_gltf_scene *out, char *msg, size_t msg_size)
+{
+    std::memset(out, 0, sizeof *out);
+    try {
+        tinygltf::Model model;
+        if (!load_model(path, model, true, msg, msg_size)) return 2;
+        SceneBuilder b{model, *out, {}, {}, {}, {}};
+        b.build_images();
+        b.build_textures();
+        b.build_materials();
+        b.build_meshes();
+        std::vector<int> roots = scene_roots(model);
+        for (int r : roots) b.object(r);
+        // Objects that draw nothing (cameras, lights, empty groups) are dropped.
+        std::vector<int> remap(b.objects.size(), -1);
+        std::vector<sy_gltf_object> kept;
+        for (size_t i = 0; i < b.objects.size(); i++)
+            if (b.objects[i].n_triangles[0] > 0) {
+                remap[i] = int(kept.size());
+                kept.push_back(b.objects[i]);
+            } else
+                std::free(b.objects[i].wind);
+        b.objects.swap(kept);
+        std::vector<sy_gltf_draw> dk;
+        for (sy_gltf_draw &d : b.draws)
+            if (remap[size_t(d.object)] >= 0) {
+                d.object = remap[size_t(d.object)];
+                dk.push_back(d);
+            } else
+                for (float *f : {d.instance_matrix, d.inst_wind_w, d.inst_wind_branch, d.inst_wind_anchor, d.inst_wind_level_stiffness}) std::free(f);
+        b.draws.swap(dk);
+        for (const sy_gltf_draw &d : b.draws) {
+            const sy_gltf_mesh &mesh = b.meshes[size_t(d.mesh)];
+            for (int pi = 0; pi < mesh.n_primitives; pi++) {
+                const sy_gltf_primitive &p = b.prims[size_t(mesh.first_primitive + pi)];
+                if (p.material >= 0) {
+                    const sy_gltf_material &mt = out->materials[p.material];
+                    if ((mt.base_color_texture >= 0 || mt.normal_texture >= 0) && !p.uv)
+                        throw Failure{2, "mesh " + std::string(mesh.name) + " has textures but no TEXCOORD_0"};
+                }
+            }
+        }
+        out->n_primitives = b.prims.size();
+        out->primitives = c_copy(b.prims);
+        b.prims.clear();
+        out->n_meshes = b.meshes.size();
+        out->meshes = c_copy(b.meshes);
+        out->n_draws = b.draws.size();
+        out->draws = c_copy(b.draws);
+        b.draws.clear();
+        out->n_objects = b.objects.size();
+        out->objects = c_copy(b.objects);
+        b.objects.clear();
+        if (out->n_objects == 0) {
+            free_scene(out);
+            set_msg(msg, msg_size, path, "no triangle mesh in the scene");
+            return 2;
+        }
+        out->has_origin = asset_origin(model, out->origin);
+        return 0;
+    } catch (const Failure &f) {
+        free_scene(out);
+        set_msg(msg, msg_size, path, f.what);
+        return f.code;
+    } catch (const std::bad_alloc &) {
+        free_scene(out);
+        set_msg(msg, msg_size, path, "out of memory");
+        return 3;
+    } catch (const std::exception &e) {
+        free_scene(out);
+        set_msg(msg, msg_size, path, std::string("invalid glTF: ") + e.what());
+        return 2;
+    }
+}
+
+extern "C" sy_code sy_gltf_read_scene(const char *path, sy_gltf_scene *out, sy_error *err)
+{
+    char msg[1024];
+    int rc = read_scene(path, out, msg, sizeof msg);
     if (rc == 0) return SY_OK;
     return sy_fail(err, rc == 3 ? SY_EINTERNAL : SY_EINPUT, "%s", msg);
 }

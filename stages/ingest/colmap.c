@@ -42,12 +42,16 @@ typedef struct {
     size_t ncams;
     uint32_t *images; /* sorted image ids */
     size_t nimages;
+    int keep_poses;         /* also collect each image's pose and name */
+    sy_colmap_pose *poses;  /* in file order */
+    size_t nposes, poses_cap;
 } colmap_model;
 
 static void model_free(colmap_model *m)
 {
     free(m->cams);
     free(m->images);
+    free(m->poses);
     memset(m, 0, sizeof *m);
 }
 
@@ -244,6 +248,24 @@ static sy_code cameras_txt(const char *path, const unsigned char *d, size_t size
 
 /* ---- images ------------------------------------------------------------ */
 
+/* Keeps one image's pose when the caller asked for poses. */
+static sy_code keep_pose(colmap_model *m, uint64_t id, const double qt[7], const char *name, size_t name_len,
+                         sy_error *err)
+{
+    if (!m->keep_poses) return SY_OK;
+    sy_colmap_pose *p = grow(m->poses, &m->poses_cap, m->nposes, sizeof *p, err);
+    if (!p) return SY_EINTERNAL;
+    m->poses = p;
+    sy_colmap_pose *q = &m->poses[m->nposes++];
+    memset(q, 0, sizeof *q);
+    q->id = (uint32_t)id;
+    memcpy(q->q, qt, 4 * sizeof(double));
+    memcpy(q->t, qt + 4, 3 * sizeof(double));
+    if (name_len >= sizeof q->name) name_len = sizeof q->name - 1;
+    memcpy(q->name, name, name_len);
+    return SY_OK;
+}
+
 static sy_code add_image(colmap_model *m, size_t *cap, uint64_t id, uint64_t camera, const char *path,
                          const char *unit, size_t where, sy_error *err)
 {
@@ -277,10 +299,13 @@ static sy_code images_bin(const char *path, const unsigned char *d, size_t size,
     for (size_t i = 0; i < n && !rc; i++) {
         if (!bin_has(&c, 64)) return bin_truncated(&c, "image", i, err);
         uint64_t id = bin_le(&c, 4);
-        c.pos += 7 * 8; /* the pose; any value is a pose */
+        double qt[7];
+        for (int k = 0; k < 7; k++) qt[k] = bin_f64(&c); /* the pose; any value is a pose */
         uint64_t camera = bin_le(&c, 4);
         const unsigned char *nul = memchr(c.d + c.pos, 0, c.size - c.pos);
         if (!nul) return bin_truncated(&c, "image name", i, err);
+        const char *name = (const char *)c.d + c.pos;
+        if ((rc = keep_pose(m, id, qt, name, (size_t)((const char *)nul - name), err))) return rc;
         c.pos = (size_t)(nul - c.d) + 1;
         if (!bin_has(&c, 8)) return bin_truncated(&c, "image", i, err);
         uint64_t npoints = bin_le(&c, 8);
@@ -312,15 +337,16 @@ static sy_code image_line(const char *path, size_t line, const char *p, const ch
 {
     sy_tok t;
     uint64_t id = 0, camera = 0;
+    double qt[7] = {0};
     for (int k = 0; k < 9; k++) {
-        double v;
         int ok = sy_tok_next(&p, e, &t) &&
-                 (k == 0 ? sy_tok_u64(&t, &id) : k == 8 ? sy_tok_u64(&t, &camera) : sy_tok_double(&t, &v));
+                 (k == 0 ? sy_tok_u64(&t, &id) : k == 8 ? sy_tok_u64(&t, &camera) : sy_tok_double(&t, &qt[k - 1]));
         if (!ok)
             return sy_fail(err, SY_EINPUT, "%s: line %zu: want IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME", path, line);
     }
     if (!sy_tok_next(&p, e, &t)) return sy_fail(err, SY_EINPUT, "%s: line %zu: image without a NAME", path, line);
-    return add_image(m, cap, id, camera, path, "line", line, err);
+    sy_code rc = keep_pose(m, id, qt, t.s, t.n, err);
+    return rc ? rc : add_image(m, cap, id, camera, path, "line", line, err);
 }
 
 static sy_code images_txt(const char *path, const unsigned char *d, size_t size, colmap_model *m, sy_error *err)
@@ -575,6 +601,32 @@ static sy_code read_model(const char *dir, sy_cloud *out, sy_error *err)
         rc = load_model_file(dir, stems[i], paths[i], sizeof paths[i], &bufs[i], &files[i], err);
     if (!rc) rc = sy_read_colmap_model_mem(&files[0], &files[1], &files[2], out, err);
     for (int i = 0; i < 3; i++) sy_buffer_free(&bufs[i]);
+    return rc;
+}
+
+sy_code sy_read_colmap_poses(const char *dir, sy_colmap_pose **poses, size_t *n, sy_error *err)
+{
+    *poses = NULL;
+    *n = 0;
+    char paths[2][4200];
+    sy_buffer bufs[2] = {{NULL, 0}, {NULL, 0}};
+    sy_colmap_file files[2];
+    static const char *stems[2] = {"cameras", "images"};
+    colmap_model m;
+    memset(&m, 0, sizeof m);
+    m.keep_poses = 1;
+    sy_code rc = SY_OK;
+    for (int i = 0; i < 2 && !rc; i++)
+        rc = load_model_file(dir, stems[i], paths[i], sizeof paths[i], &bufs[i], &files[i], err);
+    if (!rc) rc = (files[0].binary ? cameras_bin : cameras_txt)(files[0].path, files[0].data, files[0].size, &m, err);
+    if (!rc) rc = (files[1].binary ? images_bin : images_txt)(files[1].path, files[1].data, files[1].size, &m, err);
+    for (int i = 0; i < 2; i++) sy_buffer_free(&bufs[i]);
+    if (!rc) {
+        *poses = m.poses;
+        *n = m.nposes;
+        m.poses = NULL;
+    }
+    model_free(&m);
     return rc;
 }
 

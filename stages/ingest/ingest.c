@@ -102,8 +102,7 @@ sy_code sy_write_cloud(const char *path, const sy_cloud *c, sy_error *err)
     char ext[16];
     sy_extension(path, ext, sizeof ext);
     if (strcmp(ext, "ply") == 0) return sy_write_ply(path, c, err);
-    if (strcmp(ext, "las") == 0) return sy_write_las(path, c, err);
+    if (strcmp(ext, "las") == 0 || strcmp(ext, "laz") == 0) return sy_write_las(path, c, err);
     if (strcmp(ext, "xyz") == 0 || strcmp(ext, "txt") == 0) return sy_write_xyz(path, c, err);
-    if (strcmp(ext, "laz") == 0) return sy_fail(err, SY_EUSAGE, "%s: writing LAZ is not supported yet; use .las", path);
-    return sy_fail(err, SY_EUSAGE, "%s: unknown output format '.%s' (use .ply, .las, .xyz or .txt)", path, ext);
+    return sy_fail(err, SY_EUSAGE, "%s: unknown output format '.%s' (use .ply, .las, .laz, .xyz or .txt)", path, ext);
 }

@@ -7,20 +7,22 @@
 #define SYLVA_INGEST_H
 
 #include "../core/cloud.h"
+#include "../core/fileio.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
 /* Reads any supported format, chosen by magic bytes first, then extension:
- * LAS ("LASF"), LAZ (refused with a clear message), PLY ("ply\n"),
+ * LAS or LAZ ("LASF"; LAZ chunks decode on sy_threads() threads), PLY ("ply\n"),
  * PCD ("# .PCD" / "VERSION"), a COLMAP workspace or sparse-model directory,
  * else XYZ/TXT/CSV text. */
 sy_code sy_read_cloud(const char *path, sy_cloud *out, sy_error *err);
 
 /* Writes by extension: .ply (binary little endian), .las (LAS 1.4, point
  * format 6, 7 with RGB, 8 with NIR, or 0-3 when the CRS is GeoTIFF keys;
- * extra bytes for named attributes), .xyz/.txt (ASCII x y z [attributes]).
+ * extra bytes for named attributes), .laz (the same, LASzip-compressed),
+ * .xyz/.txt (ASCII x y z [attributes]).
  * Atomic: temp file + rename. */
 sy_code sy_write_cloud(const char *path, const sy_cloud *c, sy_error *err);
 
@@ -53,6 +55,27 @@ sy_code sy_read_colmap_model_mem(const sy_colmap_file *cameras, const sy_colmap_
 /* A COLMAP workspace (dir with sparse/0/, sparse/ or the model files, or
  * dense/fused.ply): cameras, images and points3D in .txt or .bin. */
 sy_code sy_read_colmap_dir(const char *dir, sy_cloud *out, sy_error *err);
+
+/* One registered image of a COLMAP model: world-to-camera rotation as a unit
+ * quaternion (w, x, y, z) and translation, so the camera centre is -R^T t
+ * and its up direction -R^T (0, 1, 0) (image y points down). */
+typedef struct {
+    uint32_t id;
+    double q[4], t[3];
+    char name[128];
+} sy_colmap_pose;
+/* The image poses of the sparse model in dir (cameras and images .bin or
+ * .txt, validated as sy_read_colmap_dir does); *poses is malloc'ed. */
+sy_code sy_read_colmap_poses(const char *dir, sy_colmap_pose **poses, size_t *n, sy_error *err);
+
+/* Lossless LAS <-> LAZ transcoding of a whole file in memory (header, VLRs,
+ * EVLRs and every record byte kept; only the LASzip VLR, the compression bit
+ * and the offsets they move change). out->data is malloc'ed; compressing and
+ * then decompressing returns the input byte for byte. LAZ point formats:
+ * 0-3 (LASzip's point-wise items) and 6-8 (its layered LAS 1.4 items). */
+sy_code sy_laz_compress_mem(const char *path, const unsigned char *las, size_t size, sy_buffer *out, sy_error *err);
+sy_code sy_laz_decompress_mem(const char *path, const unsigned char *laz, size_t size, sy_buffer *out,
+                              sy_error *err);
 
 sy_code sy_write_ply(const char *path, const sy_cloud *c, sy_error *err);
 sy_code sy_write_las(const char *path, const sy_cloud *c, sy_error *err);

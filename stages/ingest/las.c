@@ -1,6 +1,7 @@
 /* LAS 1.0-1.4 reader: point data record formats 0-10, extra bytes, VLRs and
- * EVLRs, CRS summary. Every header number is checked against the bytes
- * actually present before it sizes anything; LAZ is recognised and refused. */
+ * EVLRs, CRS summary; LAZ (LASzip-compressed LAS) decoded chunk by chunk on
+ * all cores. Every header number is checked against the bytes actually
+ * present before it sizes anything. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -9,6 +10,7 @@
 
 #include "ingest.h"
 #include "las_format.h"
+#include "laz.h"
 
 typedef struct {
     unsigned vmajor, vminor;
@@ -17,6 +19,7 @@ typedef struct {
     uint32_t point_offset;
     uint32_t n_vlrs;
     unsigned raw_format; /* as stored, LAZ bits included */
+    int compressed;      /* LASzip's bit 7 (or 6) of the format */
     int format;
     unsigned record_length;
     uint64_t count;
@@ -28,6 +31,8 @@ typedef struct {
 /* What the (E)VLR walk found: pointers into the file buffer. */
 typedef struct {
     int laszip;
+    const unsigned char *laszip_vlr; /* the "laszip encoded" payload */
+    size_t laszip_len;
     const unsigned char *extra_bytes;
     size_t extra_bytes_len;
     const unsigned char *geokeys;
@@ -43,11 +48,6 @@ typedef struct {
 } las_vlrs;
 
 enum { SUMMARY_MAX_LINES = 64, WKT_MAX_CHARS = 512 };
-
-static sy_code laz_error(const char *path, sy_error *err)
-{
-    return sy_fail(err, SY_EINPUT, "%s: LAZ is not supported yet (decompress with laszip/pdal first)", path);
-}
 
 /* Copies a fixed-width, maybe NUL-padded text field, replacing anything
  * unprintable so summaries stay one line per VLR. */
@@ -83,8 +83,8 @@ static sy_code parse_header(const char *path, const unsigned char *d, size_t siz
     h->raw_format = d[LAS_POINT_FORMAT];
     h->record_length = las_u16(d + LAS_RECORD_LENGTH);
     /* LASzip marks compressed files by setting bit 7 (and 6 for some writers). */
-    if (h->raw_format & 0xC0) return laz_error(path, err);
-    h->format = (int)h->raw_format;
+    h->compressed = (h->raw_format & 0xC0) != 0;
+    h->format = (int)(h->raw_format & 0x3F);
     if (h->format > LAS_MAX_FORMAT)
         return sy_fail(err, SY_EINPUT, "%s: unsupported point data record format %d", path, h->format);
     if (h->point_offset < h->header_size)
@@ -177,7 +177,11 @@ static sy_code note_vlr(const char *path, las_vlrs *v, const unsigned char *hdr,
     copy_text(desc, sizeof desc, hdr + desc_at, 32);
     if (summary_append(v, user, record_id, desc))
         return sy_fail(err, SY_EINTERNAL, "%s: out of memory for the VLR summary", path);
-    if (strcmp(user, "laszip encoded") == 0 && record_id == 22204) v->laszip = 1;
+    if (strcmp(user, "laszip encoded") == 0 && record_id == LAZ_VLR_RECORD_ID && !v->laszip) {
+        v->laszip = 1;
+        v->laszip_vlr = payload;
+        v->laszip_len = len;
+    }
     if (strcmp(user, "LASF_Spec") == 0 && record_id == 4 && !v->extra_bytes) {
         v->extra_bytes = payload;
         v->extra_bytes_len = len;
@@ -323,43 +327,59 @@ static sy_code add_format_arrays(sy_cloud *c, const las_layout *lay, sy_error *e
     return SY_OK;
 }
 
-/* The hot loop: one pass over the records, fixed byte offsets, no per-field
- * dispatch. Arrays that hold only zeros are dropped afterwards: LAS always has
- * the fields, but an all-zero field carries no information. */
-static sy_code decode_points(const char *path, const las_header *h, const unsigned char *pts, sy_cloud *c,
-                             sy_error *err)
+/* Which optional fields held a non-zero value, per block of points (ORed
+ * together at the end, so blocks decoded in any order agree). */
+typedef struct {
+    unsigned intensity, returns, classification, rgb, nir, gps;
+} nonzero_fields;
+
+/* One extra-bytes field read into a named attribute. */
+typedef struct {
+    unsigned type;
+    size_t at; /* byte offset in the record */
+    double *values;
+    int has_none;
+    double none, scale, offset;
+} extra_field;
+
+/* What decoding a block of records needs: shared, read-only while blocks
+ * decode (possibly on several threads), each block writing its own range. */
+typedef struct {
+    const char *path;
+    const las_header *h;
+    sy_cloud *c;
+    extra_field *fields;
+    size_t n_fields;
+    nonzero_fields *nonzero; /* per block */
+} point_sink;
+
+/* The hot loop: records [first, first + count) of the cloud from pts (count
+ * records), fixed byte offsets, no per-field dispatch. */
+static sy_code decode_points(const point_sink *k, const unsigned char *pts, size_t first, size_t count,
+                             nonzero_fields *nz, sy_error *err)
 {
+    const las_header *h = k->h;
+    sy_cloud *c = k->c;
     const las_layout *lay = &las_layouts[h->format];
-    sy_code rc = add_format_arrays(c, lay, err);
-    if (rc) return rc;
-    const size_t n = c->n, stride = h->record_length;
+    const size_t stride = h->record_length;
     const int legacy = h->format <= 5;
     const unsigned rn_mask = legacy ? 0x07 : 0x0F, nr_shift = legacy ? 3 : 4, nr_mask = legacy ? 0x07 : 0x0F;
     const unsigned class_at = legacy ? 15 : 16, class_mask = legacy ? 0x1F : 0xFF;
     const double sx = h->scale[0], sy = h->scale[1], sz = h->scale[2];
     const double ox = h->offset[0], oy = h->offset[1], oz = h->offset[2];
-    if (n) {
-        /* Origin at the metre floor of the first point keeps the floats small. */
-        double x = las_i32(pts) * sx + ox, y = las_i32(pts + 4) * sy + oy, z = las_i32(pts + 8) * sz + oz;
-        if ((rc = sy_check_finite(path, x, y, z, 0, err))) return rc;
-        c->origin[0] = floor(x);
-        c->origin[1] = floor(y);
-        c->origin[2] = floor(z);
-    } else {
-        memcpy(c->origin, h->offset, sizeof c->origin);
-    }
     const double o0 = c->origin[0], o1 = c->origin[1], o2 = c->origin[2];
     /* Local pointers: byte stores could alias *c and defeat hoisting. */
-    float *xyz = c->xyz;
-    uint16_t *inten = c->intensity, *rgb = c->rgb, *nir = c->nir;
-    uint8_t *rnum = c->return_number, *nret = c->num_returns, *cls = c->classification;
-    double *gps = c->gps_time;
+    float *xyz = c->xyz + 3 * first;
+    uint16_t *inten = c->intensity + first, *rgb = c->rgb ? c->rgb + 3 * first : NULL;
+    uint16_t *nir = c->nir ? c->nir + first : NULL;
+    uint8_t *rnum = c->return_number + first, *nret = c->num_returns + first, *cls = c->classification + first;
+    double *gps = c->gps_time ? c->gps_time + first : NULL;
     const int gps_at = lay->gps, rgb_at = lay->rgb, nir_at = lay->nir;
     unsigned any_intensity = 0, any_returns = 0, any_class = 0, any_rgb = 0, any_nir = 0, any_gps = 0;
-    for (size_t i = 0; i < n; i++) {
+    for (size_t i = 0; i < count; i++) {
         const unsigned char *p = pts + i * stride;
         double x = las_i32(p) * sx + ox, y = las_i32(p + 4) * sy + oy, z = las_i32(p + 8) * sz + oz;
-        if (!(isfinite(x) && isfinite(y) && isfinite(z))) return sy_check_finite(path, x, y, z, i, err);
+        if (!(isfinite(x) && isfinite(y) && isfinite(z))) return sy_check_finite(k->path, x, y, z, first + i, err);
         xyz[3 * i] = (float)(x - o0);
         xyz[3 * i + 1] = (float)(y - o1);
         xyz[3 * i + 2] = (float)(z - o2);
@@ -380,9 +400,9 @@ static sy_code decode_points(const char *path, const las_header *h, const unsign
             any_gps |= t != 0.0;
         }
         if (rgb) {
-            for (int k = 0; k < 3; k++) {
-                uint16_t v = las_u16(p + rgb_at + 2 * k);
-                rgb[3 * i + k] = v;
+            for (int q = 0; q < 3; q++) {
+                uint16_t v = las_u16(p + rgb_at + 2 * q);
+                rgb[3 * i + q] = v;
                 any_rgb |= v;
             }
         }
@@ -391,13 +411,52 @@ static sy_code decode_points(const char *path, const las_header *h, const unsign
             any_nir |= nir[i];
         }
     }
-    drop_if_zero((void **)&c->intensity, any_intensity != 0);
-    drop_if_zero((void **)&c->return_number, any_returns != 0);
-    drop_if_zero((void **)&c->num_returns, any_returns != 0);
-    drop_if_zero((void **)&c->classification, any_class != 0);
-    drop_if_zero((void **)&c->gps_time, any_gps != 0);
-    drop_if_zero((void **)&c->rgb, any_rgb != 0);
-    drop_if_zero((void **)&c->nir, any_nir != 0);
+    nz->intensity |= any_intensity;
+    nz->returns |= any_returns;
+    nz->classification |= any_class;
+    nz->gps |= any_gps;
+    nz->rgb |= any_rgb;
+    nz->nir |= any_nir;
+    return SY_OK;
+}
+
+/* Arrays that hold only zeros are dropped: LAS always has the fields, but an
+ * all-zero field carries no information. */
+static void drop_zero_fields(sy_cloud *c, const nonzero_fields *blocks, size_t n_blocks)
+{
+    nonzero_fields nz = {0, 0, 0, 0, 0, 0};
+    for (size_t b = 0; b < n_blocks; b++) {
+        nz.intensity |= blocks[b].intensity;
+        nz.returns |= blocks[b].returns;
+        nz.classification |= blocks[b].classification;
+        nz.gps |= blocks[b].gps;
+        nz.rgb |= blocks[b].rgb;
+        nz.nir |= blocks[b].nir;
+    }
+    drop_if_zero((void **)&c->intensity, nz.intensity != 0);
+    drop_if_zero((void **)&c->return_number, nz.returns != 0);
+    drop_if_zero((void **)&c->num_returns, nz.returns != 0);
+    drop_if_zero((void **)&c->classification, nz.classification != 0);
+    drop_if_zero((void **)&c->gps_time, nz.gps != 0);
+    drop_if_zero((void **)&c->rgb, nz.rgb != 0);
+    drop_if_zero((void **)&c->nir, nz.nir != 0);
+}
+
+/* Origin at the metre floor of the first point keeps the floats small. */
+static sy_code set_origin(const char *path, const las_header *h, const unsigned char *first, sy_cloud *c,
+                          sy_error *err)
+{
+    if (!first) {
+        memcpy(c->origin, h->offset, sizeof c->origin);
+        return SY_OK;
+    }
+    double x = las_i32(first) * h->scale[0] + h->offset[0], y = las_i32(first + 4) * h->scale[1] + h->offset[1];
+    double z = las_i32(first + 8) * h->scale[2] + h->offset[2];
+    sy_code rc = sy_check_finite(path, x, y, z, 0, err);
+    if (rc) return rc;
+    c->origin[0] = floor(x);
+    c->origin[1] = floor(y);
+    c->origin[2] = floor(z);
     return SY_OK;
 }
 
@@ -459,12 +518,19 @@ static void attr_name(const sy_cloud *c, const unsigned char *desc, unsigned ind
 
 /* Extra bytes (LAS 1.4 "LASF_Spec"/4): each sized field of type 1-10 becomes a
  * named attribute, with the descriptor's scale and offset applied and its
- * no_data value read as NaN. */
-static sy_code decode_extra_bytes(const las_header *h, const las_vlrs *v, const unsigned char *pts, sy_cloud *c,
-                                  sy_error *err)
+ * no_data value read as NaN. This creates the attributes; decode_extra_bytes
+ * fills them block by block. */
+static sy_code prepare_extra_bytes(const las_header *h, const las_vlrs *v, sy_cloud *c, extra_field **out,
+                                   size_t *n_out, sy_error *err)
 {
+    *out = NULL;
+    *n_out = 0;
+    if (!v->extra_bytes || h->record_length <= las_layouts[h->format].size) return SY_OK;
     size_t base = las_layouts[h->format].size, extra = h->record_length - base, at = 0;
     size_t n_desc = v->extra_bytes_len / LAS_EB_DESCRIPTOR;
+    extra_field *fields = sy_calloc(n_desc ? n_desc : 1, sizeof *fields, err, "extra-bytes fields");
+    if (!fields) return SY_EINTERNAL;
+    size_t n = 0;
     for (size_t i = 0; i < n_desc; i++) {
         const unsigned char *desc = v->extra_bytes + i * LAS_EB_DESCRIPTOR;
         unsigned type = desc[LAS_EB_TYPE], options = desc[LAS_EB_OPTIONS];
@@ -474,23 +540,48 @@ static sy_code decode_extra_bytes(const las_header *h, const las_vlrs *v, const 
         if (type >= 1 && type <= 10) {
             char name[32];
             attr_name(c, desc, (unsigned)i, name, sizeof name);
-            double *values = sy_cloud_add_attr(c, name, err);
-            if (!values) return SY_EINTERNAL;
-            decode_extra(type, pts + base + at, h->record_length, c->n, values);
-            /* no_data (e.g. treeID = DBL_MAX for points in no tree) becomes NaN. */
-            if (options & LAS_EB_OPT_NO_DATA) {
-                double none = extra_anyval(type, desc + LAS_EB_NO_DATA);
-                for (size_t p = 0; p < c->n; p++)
-                    if (values[p] == none) values[p] = NAN;
+            extra_field *f = &fields[n++];
+            if (!(f->values = sy_cloud_add_attr(c, name, err))) {
+                free(fields);
+                return SY_EINTERNAL;
             }
-            double scale = (options & LAS_EB_OPT_SCALE) ? las_f64(desc + LAS_EB_SCALE) : 1.0;
-            double offset = (options & LAS_EB_OPT_OFFSET) ? las_f64(desc + LAS_EB_OFFSET) : 0.0;
-            if (scale != 1.0 || offset != 0.0)
-                for (size_t p = 0; p < c->n; p++) values[p] = values[p] * scale + offset;
+            f->type = type;
+            f->at = base + at;
+            /* no_data (e.g. treeID = DBL_MAX for points in no tree) becomes NaN. */
+            f->has_none = (options & LAS_EB_OPT_NO_DATA) != 0;
+            if (f->has_none) f->none = extra_anyval(type, desc + LAS_EB_NO_DATA);
+            f->scale = (options & LAS_EB_OPT_SCALE) ? las_f64(desc + LAS_EB_SCALE) : 1.0;
+            f->offset = (options & LAS_EB_OPT_OFFSET) ? las_f64(desc + LAS_EB_OFFSET) : 0.0;
         }
         at += width;
     }
+    *out = fields;
+    *n_out = n;
     return SY_OK;
+}
+
+static void decode_extra_bytes(const point_sink *k, const unsigned char *pts, size_t first, size_t count)
+{
+    for (size_t f = 0; f < k->n_fields; f++) {
+        const extra_field *e = &k->fields[f];
+        double *values = e->values + first;
+        decode_extra(e->type, pts + e->at, k->h->record_length, count, values);
+        if (e->has_none)
+            for (size_t p = 0; p < count; p++)
+                if (values[p] == e->none) values[p] = NAN;
+        if (e->scale != 1.0 || e->offset != 0.0)
+            for (size_t p = 0; p < count; p++) values[p] = values[p] * e->scale + e->offset;
+    }
+}
+
+/* Receives one decoded LAZ chunk. */
+static sy_code laz_chunk_sink(void *user, size_t chunk, uint64_t first, uint32_t count, const unsigned char *records,
+                              sy_error *err)
+{
+    point_sink *k = user;
+    sy_code rc = decode_points(k, records, (size_t)first, count, &k->nonzero[chunk], err);
+    if (rc == SY_OK) decode_extra_bytes(k, records, (size_t)first, count);
+    return rc;
 }
 
 /* NormalX/NormalY/NormalZ extra bytes (PDAL's names, which the writer uses)
@@ -562,19 +653,52 @@ static sy_code read_las(const char *path, const unsigned char *data, size_t size
     if ((rc = walk_vlrs(path, data, size, &h, v, err))) return rc;
     size_t points_end;
     if ((rc = walk_evlrs(path, data, size, &h, v, &points_end, err))) return rc;
-    if (v->laszip) return laz_error(path, err);
-    /* The count is checked against the bytes present before it sizes anything. */
-    uint64_t held = (points_end - h.point_offset) / h.record_length;
-    if (h.count > held)
-        return sy_fail(err, SY_EINPUT, "%s: header promises %llu points, file holds %llu", path,
-                       (unsigned long long)h.count, (unsigned long long)held);
-    if ((rc = sy_cloud_init(out, (size_t)h.count, err))) return rc;
+    int laz = h.compressed || v->laszip;
+    if (laz && !v->laszip)
+        return sy_fail(err, SY_EINPUT, "%s: point format says LAZ but there is no LASzip VLR", path);
+    laz_chunk *chunks = NULL;
+    size_t n_chunks = 0;
+    laz_layout L;
     const unsigned char *pts = data + h.point_offset;
-    if ((rc = decode_points(path, &h, pts, out, err))) return rc;
-    if (v->extra_bytes && h.record_length > las_layouts[h.format].size &&
-        ((rc = decode_extra_bytes(&h, v, pts, out, err)) || (rc = adopt_normals(out, err))))
-        return rc;
-    return fill_meta(path, &h, v, out, err);
+    if (laz) {
+        /* The chunk table is checked against the bytes present before it sizes anything. */
+        if ((rc = laz_parse_vlr(path, v->laszip_vlr, v->laszip_len, h.format, h.record_length, &L, err)) ||
+            (rc = laz_read_chunks(path, data, size, h.point_offset, points_end, &L, h.count, &chunks, &n_chunks, err)))
+            return rc;
+    } else {
+        /* The count is checked against the bytes present before it sizes anything. */
+        uint64_t held = (points_end - h.point_offset) / h.record_length;
+        if (h.count > held)
+            return sy_fail(err, SY_EINPUT, "%s: header promises %llu points, file holds %llu", path,
+                           (unsigned long long)h.count, (unsigned long long)held);
+    }
+    point_sink k = {path, &h, out, NULL, 0, NULL};
+    size_t n_blocks = laz ? n_chunks : 1;
+    k.nonzero = sy_calloc(n_blocks ? n_blocks : 1, sizeof *k.nonzero, err, "field flags");
+    if (!k.nonzero || (rc = sy_cloud_init(out, (size_t)h.count, err)) ||
+        (rc = add_format_arrays(out, &las_layouts[h.format], err)) ||
+        (rc = set_origin(path, &h, h.count ? (laz ? data + chunks[0].offset : pts) : NULL, out, err)) ||
+        (rc = prepare_extra_bytes(&h, v, out, &k.fields, &k.n_fields, err))) {
+        free(chunks);
+        free(k.nonzero);
+        return rc ? rc : SY_EINTERNAL;
+    }
+    if (laz) {
+        /* chunk by chunk on all cores, each straight into its range of the cloud */
+        rc = laz_decode_chunks(path, data, &L, chunks, n_chunks, laz_chunk_sink, &k, err);
+    } else {
+        rc = decode_points(&k, pts, 0, out->n, &k.nonzero[0], err);
+        if (rc == SY_OK) decode_extra_bytes(&k, pts, 0, out->n);
+    }
+    if (rc == SY_OK) drop_zero_fields(out, k.nonzero, n_blocks);
+    free(chunks);
+    free(k.nonzero);
+    free(k.fields);
+    if (rc == SY_OK) rc = adopt_normals(out, err);
+    if (rc) return rc;
+    if ((rc = fill_meta(path, &h, v, out, err))) return rc;
+    if (laz) snprintf(out->meta.format, sizeof out->meta.format, "LAZ");
+    return SY_OK;
 }
 
 sy_code sy_read_las_mem(const char *path, const unsigned char *data, size_t size, sy_cloud *out, sy_error *err)

@@ -20,11 +20,13 @@
 #include "../core/fileio.h"
 #include "ingest.h"
 #include "las_format.h"
+#include "laz.h"
 
 enum { CHUNK_POINTS = 4096, MAX_DESCRIPTORS = 65535 / LAS_EB_DESCRIPTOR };
 
 typedef struct {
     int format;
+    int laz; /* a .laz path: the same file, its points LASzip-compressed */
     unsigned record_length;
     double scale;
     int32_t lo[3], hi[3]; /* quantised bounds */
@@ -329,15 +331,56 @@ static void encode_point(unsigned char *r, const sy_cloud *c, const las_plan *p,
     for (int k = 0; c->normal && k < 3; k++, e += 4) las_put_f32(e, c->normal[3 * i + k]);
 }
 
+typedef struct {
+    const sy_cloud *c;
+    const las_plan *p;
+} record_source;
+
+static void fill_records(void *user, uint64_t first, uint32_t count, unsigned char *records)
+{
+    const record_source *src = user;
+    for (uint32_t i = 0; i < count; i++)
+        encode_point(records + (size_t)i * src->p->record_length, src->c, src->p, (size_t)first + i);
+}
+
+/* LAZ: the LAS header with the compression bit on the point format, the
+ * LASzip VLR after the others, then the chunked compressed points. */
+static sy_code write_laz(FILE *fp, const char *path, const sy_cloud *c, const las_plan *p, sy_error *err)
+{
+    laz_layout L = {p->format, p->record_length, p->record_length - las_layouts[p->format].size, p->format >= 6,
+                    LAZ_DEFAULT_CHUNK};
+    unsigned char vlr[LAZ_VLR_MAX];
+    size_t vlr_len = laz_make_vlr(&L, vlr);
+    unsigned char *h = malloc(p->header_len);
+    if (!h) return sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
+    memcpy(h, p->header, p->header_len);
+    h[LAS_POINT_FORMAT] = (unsigned char)(p->format | 0x80);
+    las_put_u32(h + LAS_POINT_OFFSET, (uint32_t)(p->header_len + vlr_len));
+    las_put_u32(h + LAS_N_VLRS, las_u32(h + LAS_N_VLRS) + 1);
+    int ok = fwrite(h, 1, p->header_len, fp) == p->header_len && fwrite(vlr, 1, vlr_len, fp) == vlr_len;
+    free(h);
+    if (!ok) return sy_fail(err, SY_EINPUT, "%s: write failed", path);
+    record_source src = {c, p};
+    return laz_write_points(fp, path, &L, c->n, fill_records, &src, err);
+}
+
 static sy_code write_file(const char *path, const sy_cloud *c, const las_plan *p, sy_error *err)
 {
-    unsigned char *chunk = sy_calloc(CHUNK_POINTS, p->record_length, err, "LAS write buffer");
-    if (!chunk) return SY_EINTERNAL;
     sy_atomic_file f;
     sy_code rc = sy_atomic_open(&f, path, err);
-    if (rc) {
-        free(chunk);
-        return rc;
+    if (rc) return rc;
+    if (p->laz) {
+        rc = write_laz(f.fp, path, c, p, err);
+        if (rc) {
+            sy_atomic_abort(&f);
+            return rc;
+        }
+        return sy_atomic_commit(&f, err);
+    }
+    unsigned char *chunk = sy_calloc(CHUNK_POINTS, p->record_length, err, "LAS write buffer");
+    if (!chunk) {
+        sy_atomic_abort(&f);
+        return SY_EINTERNAL;
     }
     int ok = fwrite(p->header, 1, p->header_len, f.fp) == p->header_len;
     for (size_t start = 0; ok && start < c->n; start += CHUNK_POINTS) {
@@ -357,6 +400,8 @@ sy_code sy_write_las(const char *path, const sy_cloud *c, sy_error *err)
 {
     las_plan p;
     memset(&p, 0, sizeof p);
+    char ext[16];
+    p.laz = strcmp(sy_extension(path, ext, sizeof ext), "laz") == 0;
     choose_crs(c, &p);
     p.format = choose_format(c, &p);
     sy_code rc = choose_scale(path, c, &p, err);

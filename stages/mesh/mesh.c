@@ -197,7 +197,10 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
     }
     /* Level 0: everything; the leaf order is the seeded permutation, so
      * every coarser level's leaves are a filtered prefix of it. */
-    sy_permutation(all.list, lv->n, opt->seed);
+    if (opt->keep_leaf_order)
+        for (size_t i = 0; i < lv->n; i++) all.list[i] = (uint32_t)i;
+    else
+        sy_permutation(all.list, lv->n, opt->seed);
     memcpy(cur.list, all.list, lv->n * sizeof(uint32_t));
     cur.n = lv->n;
     sy_lod_params lp = {0, 1, keep, 1};

@@ -30,6 +30,8 @@ typedef struct {
     float leaf_aspect;         /* leaf card width / length (default 0.6) */
     int leaf_shape;            /* Weber-Penn leafShape, picks the card outline (default 0) */
     uint64_t seed;             /* leaf pruning order */
+    int keep_leaf_order;       /* 1: the leaves' own order is the pruning order (synthesised
+                                  patches store theirs); 0 (default): a seeded permutation */
     /* Materials to use (indices into the asset's materials, which the caller
      * adds first, e.g. with sy_materials_add); -1 gives plain defaults. */
     int bark_material;

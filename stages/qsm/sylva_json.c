@@ -3,6 +3,7 @@
  * cluster hulls. */
 #include "sylva_json.h"
 
+#include <ctype.h>
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -34,6 +35,18 @@ static void write_cluster(sy_json *j, FILE *fp, const sy_cluster *c, const doubl
     sy_json_array(j, "triangles");
     for (size_t i = 0; i < 3 * c->n_tris; i++) sy_json_int(j, NULL, c->tris[i]);
     sy_json_end(j);
+    size_t ob = sy_cluster_occupancy_bytes(c);
+    if (ob) {
+        sy_json_array(j, "occupancy_dims");
+        for (int k = 0; k < 3; k++) sy_json_int(j, NULL, c->occ_dims[k]);
+        sy_json_end(j);
+        char *hex = malloc(2 * ob + 1);
+        if (hex) {
+            for (size_t k = 0; k < ob; k++) snprintf(hex + 2 * k, 3, "%02x", c->occupancy[k]);
+            sy_json_string(j, "occupancy", hex);
+            free(hex);
+        }
+    }
     sy_json_end(j);
 }
 
@@ -162,6 +175,30 @@ static sy_code read_cluster(const char *path, const sy_jv *o, size_t index, cons
             return fail_at(err, path, &tris->items[i], where, "a triangle index is not a vertex of this hull");
         c->tris[i] = (uint32_t)v;
     }
+    const sy_jv *od = sy_jv_get(o, "occupancy_dims"), *occ = sy_jv_get(o, "occupancy");
+    if (!od && !occ) return SY_OK;
+    if (!od || od->type != SY_JV_ARRAY || od->len != 3)
+        return fail_at(err, path, od ? od : o, where, "'occupancy_dims' must be 3 cell counts 1..8 beside 'occupancy'");
+    uint8_t d[3];
+    for (int k = 0; k < 3; k++) {
+        if (!whole_in(&od->items[k], 1, 8, &v))
+            return fail_at(err, path, &od->items[k], where, "an occupancy side must be 1..8 cells");
+        d[k] = (uint8_t)v;
+    }
+    size_t ob = ((size_t)d[0] * d[1] * d[2] + 7) / 8;
+    const char *hex = sy_jv_string(occ);
+    if (!hex || strlen(hex) != 2 * ob)
+        return fail_at(err, path, occ ? occ : o, where, "'occupancy' must be a hex string of the grid's bits");
+    c->occupancy = sy_calloc(ob, 1, err, "occupancy");
+    if (!c->occupancy) return SY_EINTERNAL;
+    for (size_t k = 0; k < ob; k++) {
+        unsigned x;
+        char pair[3] = {hex[2 * k], hex[2 * k + 1], 0};
+        if (!isxdigit((unsigned char)pair[0]) || !isxdigit((unsigned char)pair[1]) || sscanf(pair, "%2x", &x) != 1)
+            return fail_at(err, path, occ, where, "'occupancy' must be a hex string of the grid's bits");
+        c->occupancy[k] = (uint8_t)x;
+    }
+    memcpy(c->occ_dims, d, 3);
     return SY_OK;
 }
 

@@ -46,6 +46,9 @@ typedef struct {
     int spread_around;    /* low-confidence spread from the skeleton around the node, not the
                              incoming edge (0; 1 recovers more limbs on leaf-off scans but cuts
                              less in leafy crowns and sparse scans: docs/skeleton.md) */
+    double lobe_size;     /* lobes: low-confidence regions split into parts no larger than this share of
+                             the tree's largest extent, each hanging off the skeleton node next to it
+                             (0.25; 0 = one cluster per cut, as Pirk 2013 §3.3.2 alone gives) */
     double wood_share;    /* wood/leaf separation: wood = shortest-path subtrees holding at least this
                              share of the points, plus their neighbours; 0 = off, all wood (default:
                              on leafy TLS scans it gained little and hurt leafless trees, docs/skeleton.md) */

@@ -33,6 +33,7 @@ sy_skeleton_options sy_skeleton_options_default(void)
     o->clusters = 1;
     o->wood_share = 0;
     o->spread_around = 0;
+    o->lobe_size = 0.25;
     return value_;
 }
 
@@ -56,6 +57,8 @@ sy_code sy_skeleton_options_check(const sy_skeleton_options *o, sy_error *err)
         return sy_fail(err, SY_EUSAGE, "skeleton: min_cluster_points %d must be >= 0", o->min_cluster_points);
     if (!(o->wood_share >= 0 && o->wood_share < 1))
         return sy_fail(err, SY_EUSAGE, "skeleton: wood_share %g outside [0, 1)", o->wood_share);
+    if (!(o->lobe_size >= 0 && o->lobe_size <= 1))
+        return sy_fail(err, SY_EUSAGE, "skeleton: lobe_size %g outside [0, 1]", o->lobe_size);
     return SY_OK;
 }
 
@@ -495,10 +498,12 @@ static sy_code extend_root_to_ground(sy_skeleton *s, sy_clusters *cl, double gro
     return SY_OK;
 }
 
-/* Splits the full skeleton into the main skeleton (out) and clusters. */
+/* Splits the full skeleton into the main skeleton (out) and clusters.
+ * point_lobe (may be NULL): per input point a cluster that takes it from its
+ * main-skeleton node (-1: it stays with its node). */
 static sy_code split_clusters(const sy_skeleton *full, const float *xyz, const int32_t *cluster_of,
-                              const int32_t *seed_of, size_t n_clusters, sy_skeleton *out, sy_clusters *cl,
-                              sy_error *err)
+                              const int32_t *seed_of, const int32_t *point_lobe, size_t n_clusters, sy_skeleton *out,
+                              sy_clusters *cl, sy_error *err)
 {
     size_t n = full->n;
     int32_t *newid = sy_calloc(n, sizeof *newid, err, "skeleton");
@@ -512,6 +517,7 @@ static sy_code split_clusters(const sy_skeleton *full, const float *xyz, const i
     memcpy(out->origin, full->origin, sizeof out->origin);
     size_t kept_points = 0;
     for (size_t i = 0; i < n && !rc; i++) {
+        const uint32_t *sp = full->support + full->support_start[i];
         size_t sc = full->support_start[i + 1] - full->support_start[i];
         if (cluster_of[i] >= 0) {
             cnt[cluster_of[i]] += sc;
@@ -521,7 +527,11 @@ static sy_code split_clusters(const sy_skeleton *full, const float *xyz, const i
         int32_t p = full->parent[i] >= 0 ? newid[full->parent[i]] : -1;
         newid[i] = sy_skeleton_add(out, full->pos + 3 * i, full->radius[i], p, full->order[i], full->branch[i], err);
         if (newid[i] < 0) rc = SY_EINTERNAL;
-        kept_points += sc;
+        for (size_t k = 0; k < sc; k++) {
+            int32_t l = point_lobe ? point_lobe[sp[k]] : -1;
+            if (l >= 0) cnt[l]++;
+            else kept_points++;
+        }
     }
     if (!rc) {
         out->support_start = sy_calloc(out->n + 1, sizeof *out->support_start, err, "skeleton");
@@ -548,8 +558,11 @@ static sy_code split_clusters(const sy_skeleton *full, const float *xyz, const i
                 c->n_points += sc;
             } else {
                 out->support_start[newid[i]] = w;
-                memcpy(out->support + w, sp, sc * sizeof *sp);
-                w += sc;
+                for (size_t k = 0; k < sc; k++) {
+                    int32_t l = point_lobe ? point_lobe[sp[k]] : -1;
+                    if (l >= 0) cl->items[l].points[cl->items[l].n_points++] = sp[k];
+                    else out->support[w++] = sp[k];
+                }
             }
         }
         out->support_start[out->n] = w;
@@ -786,7 +799,7 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     int32_t *point_node = sy_calloc(n, sizeof *point_node, err, "skeleton");
     nodes N = {0};
     sy_skeleton full = {0};
-    int32_t *order = NULL, *stack = NULL, *cluster_of = NULL, *seed_of = NULL;
+    int32_t *order = NULL, *stack = NULL, *cluster_of = NULL, *seed_of = NULL, *point_lobe = NULL;
     uint8_t *wood = NULL; /* NULL: every point is wood */
     uint32_t *by_dist = NULL;
     float *fit = NULL; /* measured radius per node of the full skeleton, 0 = none */
@@ -868,7 +881,7 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
 
     size_t n_clusters = 0;
     cluster_of = sy_calloc(full.n, sizeof *cluster_of, err, "clusters");
-    seed_of = sy_calloc(full.n, sizeof *seed_of, err, "clusters");
+    seed_of = sy_calloc(full.n + n, sizeof *seed_of, err, "clusters"); /* lobes: up to a chunk a point */
     if (!cluster_of || !seed_of) {
         rc = SY_EINTERNAL;
         goto done;
@@ -876,11 +889,28 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     if (o->clusters && clusters) {
         rc = sy_clusters_cut(&full, xyz, fit, o->spread_around, o->fs, o->min_cluster_points, cluster_of, seed_of, &n_clusters, err);
         if (rc) goto done;
+        if (o->lobe_size > 0) {
+            float lo[3], hi[3];
+            for (int k = 0; k < 3; k++) lo[k] = hi[k] = xyz[k];
+            for (size_t i = 1; i < n; i++)
+                for (int k = 0; k < 3; k++) {
+                    if (xyz[3 * i + k] < lo[k]) lo[k] = xyz[3 * i + k];
+                    if (xyz[3 * i + k] > hi[k]) hi[k] = xyz[3 * i + k];
+                }
+            double ext = 0;
+            for (int k = 0; k < 3; k++)
+                if (hi[k] - lo[k] > ext) ext = hi[k] - lo[k];
+            point_lobe = sy_calloc(n, sizeof *point_lobe, err, "lobes");
+            rc = point_lobe ? sy_clusters_split_lobes(&full, xyz, o->lobe_size * ext, o->min_cluster_points, cluster_of,
+                                                      seed_of, point_lobe, &n_clusters, err)
+                            : SY_EINTERNAL;
+            if (rc) goto done;
+        }
     } else {
         for (size_t i = 0; i < full.n; i++) cluster_of[i] = -1;
     }
     sy_clusters tmp = {0};
-    rc = split_clusters(&full, xyz, cluster_of, seed_of, n_clusters, out, clusters ? clusters : &tmp, err);
+    rc = split_clusters(&full, xyz, cluster_of, seed_of, point_lobe, n_clusters, out, clusters ? clusters : &tmp, err);
     if (rc) {
         sy_clusters_free(&tmp);
         goto done;
@@ -942,6 +972,7 @@ done:
     free(reach);
     free(cluster_of);
     free(seed_of);
+    free(point_lobe);
     free(fit);
     free(wood);
     free(by_dist);

@@ -1,0 +1,75 @@
+#include "pipeline/tree_synth.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "pipeline/tree_asset.h"
+#include "species/library.h"
+#include "stages/core/progress.h"
+
+void sy_decoded_tree_free(sy_decoded_tree *t)
+{
+    sy_skeleton_free(&t->skel);
+    sy_clusters_free(&t->lobes);
+    sy_skeleton_free(&t->grown);
+    sy_leaves_free(&t->leaves);
+    memset(t, 0, sizeof *t);
+}
+
+sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_t size, const sy_species_params *species,
+                              sy_decoded_tree *t, sy_error *err)
+{
+    memset(t, 0, sizeof *t);
+    double t0 = sy_now();
+    sy_code rc = sy_decode_mem(name, data, size, &t->skel, &t->lobes, &t->meta, err);
+    if (rc) return rc;
+    sy_tree_asset_root_to_origin(&t->skel, &t->lobes);
+    t->seconds_decode = sy_now() - t0;
+    t0 = sy_now();
+    char dir[4096];
+    if ((rc = sy_library_locate(dir, sizeof dir, err))) {
+        sy_decoded_tree_free(t);
+        return rc;
+    }
+    snprintf(t->lsys, sizeof t->lsys, "%.200s/default.lsys", dir);
+    if (species && species->name) {
+        char p[500];
+        snprintf(p, sizeof p, "%.200s/%.200s.lsys", dir, species->name);
+        if (access(p, R_OK) == 0) snprintf(t->lsys, sizeof t->lsys, "%s", p);
+    }
+    sy_lsystem ls;
+    sy_branchlets lib;
+    if ((rc = sy_lsystem_load(t->lsys, &ls, err)) || (rc = sy_branchlets_generate(&ls, t->meta.seed, &lib, err))) {
+        sy_decoded_tree_free(t);
+        return rc;
+    }
+    t->branchlets = lib.n_branchlets;
+    t->patches = lib.n_patches;
+    t->seconds_library = sy_now() - t0;
+    sy_synth_options so = sy_synth_options_default();
+    so.seed = t->meta.seed;
+    so.leaf_size = ls.leaf_size;
+    if (species && species->leaf_scale > 0)
+        so.leaf_size = (float)(species->leaf_scale / sqrt(species->leaf_quality > 0 ? species->leaf_quality : 1));
+    so.leaf_density = ls.leaf_density;
+    so.max_depth = ls.max_depth;
+    rc = sy_synthesize(&t->skel, &t->lobes, &lib, &so, &t->grown, &t->leaves, &t->synth, err);
+    sy_branchlets_free(&lib);
+    if (rc) sy_decoded_tree_free(t);
+    return rc;
+}
+
+void sy_decoded_tree_report_bare(const char *command, const sy_decoded_tree *t)
+{
+    const sy_synth_report *r = &t->synth;
+    for (size_t i = 0; i < r->lobes_bare && i < 8; i++) {
+        int32_t c = r->bare_lobe[i];
+        fprintf(stderr, "sylva %s: lobe %d (node %d): %s; left bare\n", command, (int)c,
+                c >= 0 && (size_t)c < t->lobes.n ? (int)t->lobes.items[c].seed : -1,
+                r->bare_reason[i] == 0 ? "no room inside its hull (flat, tiny or a single point)"
+                                       : "no branchlet patch fits inside its hull");
+    }
+    if (r->lobes_bare > 8) fprintf(stderr, "sylva %s: ... and %zu more bare lobes\n", command, r->lobes_bare - 8);
+}

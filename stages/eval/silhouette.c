@@ -1,0 +1,266 @@
+/* How an asset looks against its scan: silhouette IoU over six orthographic
+ * views, the vertical profile's correlation, height and crown-width errors
+ * (docs/eval.md). Both sets become points (the model's surface sampled
+ * finer than a pixel), each splatted as a disk of the scan's median
+ * spacing into 256 x 256 masks over the union's extent in that view. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stages/eval/eval.h"
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
+#define VIEWS 6
+#define RES 256
+#define BINS 40
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Median nearest-neighbour distance over up to 2000 evenly picked points, by
+ * brute force over a hashed grid of cell ~ the bounding box / 64. */
+static double median_spacing(const double *p, size_t n)
+{
+    if (n < 2) return 0.01;
+    double lo[3], hi[3];
+    for (int k = 0; k < 3; k++) lo[k] = hi[k] = p[k];
+    for (size_t i = 1; i < n; i++)
+        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], p[3 * i + k]), hi[k] = fmax(hi[k], p[3 * i + k]);
+    double ext = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
+    double cell = ext / 64 > 1e-6 ? ext / 64 : 1e-3;
+    size_t dims[3], nc = 1;
+    for (int k = 0; k < 3; k++) dims[k] = (size_t)((hi[k] - lo[k]) / cell) + 1, nc *= dims[k];
+    size_t *start = calloc(nc + 1, sizeof *start), *idx = malloc(n * sizeof *idx), *cellof = malloc(n * sizeof *cellof);
+    size_t m = n < 2000 ? n : 2000;
+    double *best = malloc(m * sizeof *best);
+    if (!start || !idx || !cellof || !best) {
+        free(start), free(idx), free(cellof), free(best);
+        return 0.01;
+    }
+    for (size_t i = 0; i < n; i++) {
+        size_t c[3];
+        for (int k = 0; k < 3; k++) {
+            c[k] = (size_t)((p[3 * i + k] - lo[k]) / cell);
+            if (c[k] >= dims[k]) c[k] = dims[k] - 1;
+        }
+        cellof[i] = c[0] + dims[0] * (c[1] + dims[1] * c[2]);
+        start[cellof[i] + 1]++;
+    }
+    for (size_t c = 0; c < nc; c++) start[c + 1] += start[c];
+    size_t *fill = calloc(nc, sizeof *fill);
+    if (!fill) {
+        free(start), free(idx), free(cellof), free(best);
+        return 0.01;
+    }
+    for (size_t i = 0; i < n; i++) idx[start[cellof[i]] + fill[cellof[i]]++] = i;
+    free(fill);
+    for (size_t s = 0; s < m; s++) {
+        size_t i = s * (n / m);
+        const double *q = p + 3 * i;
+        double bd = INFINITY;
+        long c[3];
+        for (int k = 0; k < 3; k++) c[k] = (long)((q[k] - lo[k]) / cell);
+        for (long r = 1; r <= 8 && !(bd <= (r - 1) * cell); r++) /* grow the shell until the best is settled */
+            for (long dz = -r; dz <= r; dz++)
+                for (long dy = -r; dy <= r; dy++)
+                    for (long dx = -r; dx <= r; dx++) {
+                        if (labs(dx) != r && labs(dy) != r && labs(dz) != r && r > 1) continue;
+                        long X = c[0] + dx, Y = c[1] + dy, Z = c[2] + dz;
+                        if (X < 0 || Y < 0 || Z < 0 || X >= (long)dims[0] || Y >= (long)dims[1] || Z >= (long)dims[2]) continue;
+                        size_t cc = (size_t)X + dims[0] * ((size_t)Y + dims[1] * (size_t)Z);
+                        for (size_t t = start[cc]; t < start[cc + 1]; t++) {
+                            size_t j = idx[t];
+                            if (j == i) continue;
+                            double a = p[3 * j] - q[0], b = p[3 * j + 1] - q[1], d = p[3 * j + 2] - q[2];
+                            double dd = sqrt(a * a + b * b + d * d);
+                            if (dd > 0 && dd < bd) bd = dd;
+                        }
+                    }
+        best[s] = isfinite(bd) ? bd : cell;
+    }
+    qsort(best, m, sizeof *best, cmp_double);
+    double med = best[m / 2];
+    free(start), free(idx), free(cellof), free(best);
+    return med > 0 ? med : 0.01;
+}
+
+/* Projection of view v: u, w (screen axes) of p. Views: azimuth 0, 45, 90,
+ * 135 degrees from the side, the top, and 30 degrees above the horizon at
+ * azimuth 0. */
+static void project(int v, const double *p, double *u, double *w)
+{
+    if (v < 4) {
+        double a = v * M_PI / 4;
+        *u = -sin(a) * p[0] + cos(a) * p[1];
+        *w = p[2];
+    } else if (v == 4) {
+        *u = p[0], *w = p[1];
+    } else {
+        double e = M_PI / 6; /* looking down along (-cos e, 0, -sin e) */
+        *u = p[1];
+        *w = -sin(e) * p[0] + cos(e) * p[2];
+    }
+}
+
+static void splat(unsigned char *mask, double u, double w, const double lo[2], double px, double rad)
+{
+    double cu = (u - lo[0]) / px, cw = (w - lo[1]) / px, r = rad / px;
+    long i0 = (long)floor(cu - r), i1 = (long)floor(cu + r), j0 = (long)floor(cw - r), j1 = (long)floor(cw + r);
+    for (long j = j0; j <= j1; j++)
+        for (long i = i0; i <= i1; i++) {
+            if (i < 0 || j < 0 || i >= RES || j >= RES) continue;
+            double du = (i + 0.5) - cu, dw = (j + 0.5) - cw;
+            /* The disk, or at least the pixel holding the point. */
+            if (du * du + dw * dw <= r * r + 0.5) mask[j * RES + i] = 1;
+        }
+}
+
+/* Points on the triangles about every `step` metres (vertices, then a
+ * barycentric grid), areas per sample for the profile. */
+static double *sample_triangles(const double *tri, size_t n_tri, double step, size_t *n_out, double **area_out)
+{
+    size_t cap = 4 * n_tri + 1024, n = 0;
+    double *s = malloc(3 * cap * sizeof *s), *ar = malloc(cap * sizeof *ar);
+    if (!s || !ar) {
+        free(s), free(ar);
+        return NULL;
+    }
+    for (size_t t = 0; t < n_tri; t++) {
+        const double *a = tri + 9 * t, *b = a + 3, *c = a + 6;
+        double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        double cr[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+        double area = 0.5 * sqrt(cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]);
+        double l = fmax(sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]), sqrt(e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2]));
+        long m = (long)ceil(l / step);
+        if (m < 1) m = 1;
+        if (m > 200) m = 200;
+        size_t need = 3 + (size_t)(m * (m + 1) / 2);
+        if (n + need > cap) {
+            while (n + need > cap) cap *= 2;
+            double *s2 = realloc(s, 3 * cap * sizeof *s), *a2 = realloc(ar, cap * sizeof *ar);
+            if (!s2 || !a2) {
+                free(s2 ? s2 : s), free(a2 ? a2 : ar);
+                return NULL;
+            }
+            s = s2, ar = a2;
+        }
+        size_t first = n;
+        for (int k = 0; k < 3; k++) memcpy(s + 3 * n++, a + 3 * k, 3 * sizeof *s);
+        for (long i = 0; i < m; i++)
+            for (long j = 0; i + j < m; j++) {
+                double x = (i + 1.0 / 3) / m, y = (j + 1.0 / 3) / m;
+                for (int k = 0; k < 3; k++) s[3 * n + k] = a[k] + x * e1[k] + y * e2[k];
+                n++;
+            }
+        for (size_t i = first; i < n; i++) ar[i] = area / (double)(n - first);
+    }
+    *n_out = n;
+    *area_out = ar;
+    return s;
+}
+
+static double percentile(double *v, size_t n, double q)
+{
+    if (!n) return NAN;
+    qsort(v, n, sizeof *v, cmp_double);
+    double x = q * (double)(n - 1);
+    size_t i = (size_t)x;
+    double f = x - (double)i;
+    return i + 1 < n ? v[i] * (1 - f) + v[i + 1] * f : v[i];
+}
+
+/* Crown width: the 5-95% extent along x and along y, averaged. */
+static double crown_width(const double *p, size_t n, double *tmp)
+{
+    double w = 0;
+    for (int k = 0; k < 2; k++) {
+        for (size_t i = 0; i < n; i++) tmp[i] = p[3 * i + k];
+        w += percentile(tmp, n, 0.95) - percentile(tmp, n, 0.05);
+    }
+    return w / 2;
+}
+
+sy_code sy_silhouette_metrics_compute(const double *tri, size_t n_tri, const double *pts, size_t n_pts,
+                                      sy_silhouette_metrics *out, sy_error *err)
+{
+    memset(out, 0, sizeof *out);
+    if (n_pts < 2) return sy_fail(err, SY_EINPUT, "silhouette: the scan has %zu points above the ground", n_pts);
+    if (n_tri == 0) return sy_fail(err, SY_EINPUT, "silhouette: the asset has no triangles outside its proxy");
+    double s = median_spacing(pts, n_pts);
+    out->splat_radius = s;
+    /* Extent of the union in 3-D sizes the sampling step. */
+    double lo[3], hi[3];
+    for (int k = 0; k < 3; k++) lo[k] = hi[k] = pts[k];
+    for (size_t i = 0; i < n_pts; i++)
+        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], pts[3 * i + k]), hi[k] = fmax(hi[k], pts[3 * i + k]);
+    for (size_t i = 0; i < 3 * n_tri; i++)
+        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], tri[3 * i + k]), hi[k] = fmax(hi[k], tri[3 * i + k]);
+    double ext = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
+    double step = fmin(ext / RES / 2, s);
+    if (!(step > 1e-5)) step = 1e-5;
+    size_t n_smp = 0;
+    double *area = NULL;
+    double *smp = sample_triangles(tri, n_tri, step, &n_smp, &area);
+    unsigned char *ma = malloc(RES * RES), *mb = malloc(RES * RES);
+    double *tmp = malloc((n_smp > n_pts ? n_smp : n_pts) * sizeof *tmp);
+    if (!smp || !ma || !mb || !tmp) {
+        free(smp), free(area), free(ma), free(mb), free(tmp);
+        return sy_fail(err, SY_EINTERNAL, "silhouette: out of memory");
+    }
+    out->iou_min = INFINITY;
+    for (int v = 0; v < VIEWS; v++) {
+        double plo[2] = {INFINITY, INFINITY}, phi[2] = {-INFINITY, -INFINITY}, u, w;
+        for (size_t i = 0; i < n_pts; i++) {
+            project(v, pts + 3 * i, &u, &w);
+            plo[0] = fmin(plo[0], u), plo[1] = fmin(plo[1], w), phi[0] = fmax(phi[0], u), phi[1] = fmax(phi[1], w);
+        }
+        for (size_t i = 0; i < n_smp; i++) {
+            project(v, smp + 3 * i, &u, &w);
+            plo[0] = fmin(plo[0], u), plo[1] = fmin(plo[1], w), phi[0] = fmax(phi[0], u), phi[1] = fmax(phi[1], w);
+        }
+        double px = fmax(phi[0] - plo[0], phi[1] - plo[1]) / (RES - 1);
+        if (!(px > 0)) px = 1e-3;
+        memset(ma, 0, RES * RES), memset(mb, 0, RES * RES);
+        for (size_t i = 0; i < n_pts; i++) project(v, pts + 3 * i, &u, &w), splat(ma, u, w, plo, px, s);
+        for (size_t i = 0; i < n_smp; i++) project(v, smp + 3 * i, &u, &w), splat(mb, u, w, plo, px, s);
+        size_t inter = 0, uni = 0;
+        for (size_t i = 0; i < RES * RES; i++) inter += ma[i] && mb[i], uni += ma[i] || mb[i];
+        out->iou[v] = uni ? (double)inter / (double)uni : 0;
+        out->iou_mean += out->iou[v] / VIEWS;
+        out->iou_min = fmin(out->iou_min, out->iou[v]);
+    }
+    /* Vertical profiles over the union's height. */
+    double hp[BINS] = {0}, hm[BINS] = {0}, z0 = lo[2], dz = (hi[2] - lo[2]) / BINS;
+    if (!(dz > 0)) dz = 1;
+    for (size_t i = 0; i < n_pts; i++) {
+        long b = (long)((pts[3 * i + 2] - z0) / dz);
+        hp[b < 0 ? 0 : b >= BINS ? BINS - 1 : b] += 1;
+    }
+    for (size_t i = 0; i < n_smp; i++) {
+        long b = (long)((smp[3 * i + 2] - z0) / dz);
+        hm[b < 0 ? 0 : b >= BINS ? BINS - 1 : b] += area[i];
+    }
+    double mp = 0, mm = 0, sxy = 0, sxx = 0, syy = 0;
+    for (int b = 0; b < BINS; b++) mp += hp[b] / BINS, mm += hm[b] / BINS;
+    for (int b = 0; b < BINS; b++)
+        sxy += (hp[b] - mp) * (hm[b] - mm), sxx += (hp[b] - mp) * (hp[b] - mp), syy += (hm[b] - mm) * (hm[b] - mm);
+    out->profile_correlation = sxx > 0 && syy > 0 ? sxy / sqrt(sxx * syy) : 0;
+    /* Height (base to top) and crown width of each. */
+    double pz0 = INFINITY, pz1 = -INFINITY, mz0 = INFINITY, mz1 = -INFINITY;
+    for (size_t i = 0; i < n_pts; i++) pz0 = fmin(pz0, pts[3 * i + 2]), pz1 = fmax(pz1, pts[3 * i + 2]);
+    for (size_t i = 0; i < n_smp; i++) mz0 = fmin(mz0, smp[3 * i + 2]), mz1 = fmax(mz1, smp[3 * i + 2]);
+    out->scan_height = pz1 - pz0;
+    out->model_height = mz1 - mz0;
+    out->height_error = out->scan_height > 0 ? (out->model_height - out->scan_height) / out->scan_height : NAN;
+    out->scan_width = crown_width(pts, n_pts, tmp);
+    out->model_width = crown_width(smp, n_smp, tmp);
+    out->width_error = out->scan_width > 0 ? (out->model_width - out->scan_width) / out->scan_width : NAN;
+    free(smp), free(area), free(ma), free(mb), free(tmp);
+    return SY_OK;
+}

@@ -1,0 +1,801 @@
+/* Cluster texturing with species patches (Pirk 2013 §3.4); see synthesize.h
+ * and docs/synthesize.md. */
+#include "stages/synthesize/synthesize.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stages/core/progress.h"
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
+sy_synth_options sy_synth_options_default(void)
+{
+    sy_synth_options o;
+    memset(&o, 0, sizeof o);
+    o.seed = 1;
+    o.leaf_size = 0.25f;
+    o.max_patches = 3000;
+    o.candidates = 12;
+    o.rolls = 4;
+    o.outside_max = 0.2f;
+    o.grid = 16;
+    return o;
+}
+
+sy_code sy_synth_options_check(const sy_synth_options *o, sy_error *err)
+{
+    if (!(o->leaf_size > 0 && o->leaf_size < 10)) return sy_fail(err, SY_EUSAGE, "synthesize: leaf_size must be in (0, 10) m");
+    if (!(o->leaf_density >= 0 && o->leaf_density <= 1000))
+        return sy_fail(err, SY_EUSAGE, "synthesize: leaf_density must be in [0, 1000]");
+    if (o->max_depth < 0 || o->max_depth > 32) return sy_fail(err, SY_EUSAGE, "synthesize: max_depth must be 0..32");
+    if (o->max_patches < 1 || o->candidates < 1 || o->candidates > 64 || o->rolls < 1 || o->rolls > 16)
+        return sy_fail(err, SY_EUSAGE, "synthesize: max_patches >= 1, candidates 1..64, rolls 1..16");
+    if (!(o->outside_max >= 0 && o->outside_max <= 1)) return sy_fail(err, SY_EUSAGE, "synthesize: outside_max must be in [0, 1]");
+    if (o->grid < 2 || o->grid > 64) return sy_fail(err, SY_EUSAGE, "synthesize: grid must be 2..64");
+    return SY_OK;
+}
+
+double sy_winding_number(const float *verts, const uint32_t *tris, size_t n_tris, const float p[3])
+{
+    double sum = 0;
+    for (size_t t = 0; t < n_tris; t++) {
+        double a[3], b[3], c[3];
+        for (int k = 0; k < 3; k++) {
+            a[k] = verts[3 * tris[3 * t] + k] - p[k];
+            b[k] = verts[3 * tris[3 * t + 1] + k] - p[k];
+            c[k] = verts[3 * tris[3 * t + 2] + k] - p[k];
+        }
+        double la = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]), lb = sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]),
+               lc = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        double det = a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0]);
+        double den = la * lb * lc + (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) * lc +
+                     (b[0] * c[0] + b[1] * c[1] + b[2] * c[2]) * la + (c[0] * a[0] + c[1] * a[1] + c[2] * a[2]) * lb;
+        sum += 2 * atan2(det, den);
+    }
+    return sum / (4 * M_PI);
+}
+
+/* ---- Small vector helpers ---- */
+static void rot_apply(const double R[9], const float v[3], double o[3])
+{
+    for (int i = 0; i < 3; i++) o[i] = R[3 * i] * v[0] + R[3 * i + 1] * v[1] + R[3 * i + 2] * v[2];
+}
+
+static void mat_mul(const double A[9], const double B[9], double C[9])
+{
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) C[3 * i + j] = A[3 * i] * B[j] + A[3 * i + 1] * B[3 + j] + A[3 * i + 2] * B[6 + j];
+}
+
+/* Rotation by ang about the unit axis (Rodrigues). */
+static void mat_axis(const double ax[3], double ang, double R[9])
+{
+    double c = cos(ang), s = sin(ang), t = 1 - c, x = ax[0], y = ax[1], z = ax[2];
+    double M[9] = {t * x * x + c, t * x * y - s * z, t * x * z + s * y, t * x * y + s * z, t * y * y + c,
+                   t * y * z - s * x, t * x * z - s * y, t * y * z + s * x, t * z * z + c};
+    memcpy(R, M, sizeof M);
+}
+
+/* The smallest rotation taking unit a onto unit b. */
+static void mat_align(const double a[3], const double b[3], double R[9])
+{
+    double ax[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+    double s = sqrt(ax[0] * ax[0] + ax[1] * ax[1] + ax[2] * ax[2]), c = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    if (s < 1e-9) {
+        if (c > 0) {
+            double I[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+            memcpy(R, I, sizeof I);
+        } else {
+            double perp[3] = {fabs(a[0]) < 0.9 ? 1 : 0, fabs(a[0]) < 0.9 ? 0 : 1, 0};
+            double q[3] = {a[1] * perp[2] - a[2] * perp[1], a[2] * perp[0] - a[0] * perp[2], a[0] * perp[1] - a[1] * perp[0]};
+            double l = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+            for (int k = 0; k < 3; k++) q[k] /= l;
+            mat_axis(q, M_PI, R);
+        }
+        return;
+    }
+    for (int k = 0; k < 3; k++) ax[k] /= s;
+    mat_axis(ax, atan2(s, c), R);
+}
+
+/* Unit quaternion (x, y, z, w) of the rotation with columns X, Y, Z. */
+static void quat_from_basis(const double X[3], const double Y[3], const double Z[3], float q[4])
+{
+    double m00 = X[0], m11 = Y[1], m22 = Z[2], tr = m00 + m11 + m22, x, y, z, w;
+    if (tr > 0) {
+        double s = sqrt(tr + 1) * 2;
+        w = 0.25 * s, x = (Y[2] - Z[1]) / s, y = (Z[0] - X[2]) / s, z = (X[1] - Y[0]) / s;
+    } else if (m00 > m11 && m00 > m22) {
+        double s = sqrt(1 + m00 - m11 - m22) * 2;
+        w = (Y[2] - Z[1]) / s, x = 0.25 * s, y = (Y[0] + X[1]) / s, z = (Z[0] + X[2]) / s;
+    } else if (m11 > m22) {
+        double s = sqrt(1 + m11 - m00 - m22) * 2;
+        w = (Z[0] - X[2]) / s, x = (Y[0] + X[1]) / s, y = 0.25 * s, z = (Z[1] + Y[2]) / s;
+    } else {
+        double s = sqrt(1 + m22 - m00 - m11) * 2;
+        w = (X[1] - Y[0]) / s, x = (Z[0] + X[2]) / s, y = (Z[1] + Y[2]) / s, z = 0.25 * s;
+    }
+    double l = sqrt(x * x + y * y + z * z + w * w);
+    q[0] = (float)(x / l), q[1] = (float)(y / l), q[2] = (float)(z / l), q[3] = (float)(w / l);
+}
+
+/* ---- The lobe's grid ---- */
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+typedef struct {
+    float lo[3], hi[3];  /* hull box */
+    double h;            /* cell size */
+    int d[3];
+    size_t n;
+    uint8_t *inside;     /* winding number >= 0.5 at the cell centre */
+    uint8_t *occupied;   /* inside and holding scan points */
+    float *dist;         /* distance (metres) to the nearest occupied cell */
+    uint16_t *leaves;    /* leaves placed per cell */
+    uint8_t *soft;       /* inside, or next to an inside cell: the hull as a soft constraint */
+    int bd[3];           /* blocks of 2 x 2 x 2 cells, where fullness is counted */
+    uint32_t *block;     /* leaves per block */
+    float *block_cap;    /* leaves a block holds: capacity x its occupied cells */
+    size_t n_occupied, n_blocks, n_filled; /* occupied cells; blocks with room; blocks holding a leaf */
+    double capacity;     /* leaves a cell holds before docking there stops */
+    float centroid[3];   /* of the occupied cells */
+} lobe_grid;
+
+static void grid_free(lobe_grid *g)
+{
+    free(g->inside), free(g->occupied), free(g->dist), free(g->leaves), free(g->soft), free(g->block), free(g->block_cap);
+}
+
+static size_t block_of(const lobe_grid *g, long c)
+{
+    size_t x = (size_t)c % (size_t)g->d[0], y = ((size_t)c / (size_t)g->d[0]) % (size_t)g->d[1],
+           z = (size_t)c / ((size_t)g->d[0] * (size_t)g->d[1]);
+    return x / 2 + (size_t)g->bd[0] * (y / 2 + (size_t)g->bd[1] * (z / 2));
+}
+
+static long grid_cell(const lobe_grid *g, const double p[3])
+{
+    int q[3];
+    for (int k = 0; k < 3; k++) {
+        double t = (p[k] - g->lo[k]) / g->h;
+        if (!(t >= 0) || t >= g->d[k]) return -1;
+        q[k] = (int)t;
+    }
+    return q[0] + (long)g->d[0] * (q[1] + (long)g->d[1] * q[2]);
+}
+
+static int occ_bit(const sy_cluster *c, const float lo[3], const float hi[3], const double p[3])
+{
+    if (!c->occupancy) return 1;
+    int q[3];
+    for (int k = 0; k < 3; k++) {
+        double e = hi[k] - lo[k], t = (p[k] - lo[k]) / (e > 0 ? e : 1) * c->occ_dims[k];
+        q[k] = t < 0 ? 0 : t >= c->occ_dims[k] ? c->occ_dims[k] - 1 : (int)t;
+    }
+    size_t bit = (size_t)q[0] + c->occ_dims[0] * ((size_t)q[1] + c->occ_dims[1] * (size_t)q[2]);
+    return (c->occupancy[bit >> 3] >> (bit & 7)) & 1;
+}
+
+static sy_code grid_build(const sy_cluster *c, int cells, double density, double leaf_area, lobe_grid *g, sy_error *err)
+{
+    memset(g, 0, sizeof *g);
+    for (int k = 0; k < 3; k++) g->lo[k] = g->hi[k] = c->verts[k];
+    for (size_t i = 1; i < c->n_verts; i++)
+        for (int k = 0; k < 3; k++) {
+            if (c->verts[3 * i + k] < g->lo[k]) g->lo[k] = c->verts[3 * i + k];
+            if (c->verts[3 * i + k] > g->hi[k]) g->hi[k] = c->verts[3 * i + k];
+        }
+    double ext = 0;
+    for (int k = 0; k < 3; k++)
+        if (g->hi[k] - g->lo[k] > ext) ext = g->hi[k] - g->lo[k];
+    g->h = ext / cells;
+    if (!(g->h > 1e-4)) return SY_OK; /* a point or a sliver: no room */
+    g->n = 1;
+    for (int k = 0; k < 3; k++) {
+        double d = ceil((g->hi[k] - g->lo[k]) / g->h - 1e-9);
+        g->d[k] = d < 1 ? 1 : (int)d;
+        g->n *= (size_t)g->d[k];
+    }
+    g->inside = sy_calloc(g->n, 1, err, "synthesis grid");
+    g->occupied = sy_calloc(g->n, 1, err, "synthesis grid");
+    g->dist = sy_calloc(g->n, sizeof *g->dist, err, "synthesis grid");
+    g->leaves = sy_calloc(g->n, sizeof *g->leaves, err, "synthesis grid");
+    g->soft = sy_calloc(g->n, 1, err, "synthesis grid");
+    for (int k = 0; k < 3; k++) g->bd[k] = (g->d[k] + 1) / 2;
+    g->block = sy_calloc((size_t)g->bd[0] * g->bd[1] * g->bd[2], sizeof *g->block, err, "synthesis grid");
+    g->block_cap = sy_calloc((size_t)g->bd[0] * g->bd[1] * g->bd[2], sizeof *g->block_cap, err, "synthesis grid");
+    if (!g->inside || !g->occupied || !g->dist || !g->leaves || !g->soft || !g->block || !g->block_cap)
+        return SY_EINTERNAL;
+    /* Inside by parity along vertical rays through the cell centres: one
+     * pass over the triangles per column instead of a winding number per
+     * cell (the hull is closed and outward, so parity and winding agree). The
+     * rays are nudged off the cell centres so they miss edges and vertices. */
+    double *hits = malloc((c->n_tris + 1) * sizeof *hits);
+    if (!hits) return sy_fail(err, SY_EINTERNAL, "synthesis grid: out of memory");
+    for (int y = 0; y < g->d[1]; y++)
+        for (int x = 0; x < g->d[0]; x++) {
+            double px = g->lo[0] + (x + 0.5) * g->h + 1.3e-7 * g->h, py = g->lo[1] + (y + 0.5) * g->h + 2.9e-7 * g->h;
+            size_t nh = 0;
+            for (size_t t = 0; t < c->n_tris; t++) {
+                const float *a = c->verts + 3 * c->tris[3 * t], *b = c->verts + 3 * c->tris[3 * t + 1],
+                            *e = c->verts + 3 * c->tris[3 * t + 2];
+                double d = (b[0] - a[0]) * (e[1] - a[1]) - (e[0] - a[0]) * (b[1] - a[1]);
+                if (fabs(d) < 1e-18) continue;
+                double u = ((px - a[0]) * (e[1] - a[1]) - (e[0] - a[0]) * (py - a[1])) / d;
+                double v = ((b[0] - a[0]) * (py - a[1]) - (px - a[0]) * (b[1] - a[1])) / d;
+                if (u < 0 || v < 0 || u + v > 1) continue;
+                hits[nh++] = a[2] + u * (b[2] - a[2]) + v * (e[2] - a[2]);
+            }
+            qsort(hits, nh, sizeof *hits, cmp_double);
+            for (int z = 0; z < g->d[2]; z++) {
+                double pz = g->lo[2] + (z + 0.5) * g->h;
+                size_t below = 0;
+                while (below < nh && hits[below] < pz) below++;
+                g->inside[(size_t)x + (size_t)g->d[0] * ((size_t)y + (size_t)g->d[1] * (size_t)z)] = (uint8_t)(below & 1);
+            }
+        }
+    free(hits);
+    double cs[3] = {0, 0, 0};
+    for (int z = 0; z < g->d[2]; z++)
+        for (int y = 0; y < g->d[1]; y++)
+            for (int x = 0; x < g->d[0]; x++) {
+                size_t i = (size_t)x + (size_t)g->d[0] * ((size_t)y + (size_t)g->d[1] * (size_t)z);
+                double p[3] = {g->lo[0] + (x + 0.5) * g->h, g->lo[1] + (y + 0.5) * g->h, g->lo[2] + (z + 0.5) * g->h};
+                g->occupied[i] = g->inside[i] && occ_bit(c, g->lo, g->hi, p);
+                if (g->occupied[i]) {
+                    g->n_occupied++;
+                    for (int k = 0; k < 3; k++) cs[k] += p[k];
+                }
+            }
+    if (g->n_occupied)
+        for (int k = 0; k < 3; k++) g->centroid[k] = (float)(cs[k] / (double)g->n_occupied);
+    /* Chamfer distance to the occupied cells (two passes, 26 neighbours). */
+    const float big = 1e9f;
+    for (size_t i = 0; i < g->n; i++) g->dist[i] = g->occupied[i] ? 0 : big;
+    for (int pass = 0; pass < 2; pass++) {
+        int s = pass ? -1 : 1;
+        for (int zz = 0; zz < g->d[2]; zz++)
+            for (int yy = 0; yy < g->d[1]; yy++)
+                for (int xx = 0; xx < g->d[0]; xx++) {
+                    int x = pass ? g->d[0] - 1 - xx : xx, y = pass ? g->d[1] - 1 - yy : yy, z = pass ? g->d[2] - 1 - zz : zz;
+                    size_t i = (size_t)x + (size_t)g->d[0] * ((size_t)y + (size_t)g->d[1] * (size_t)z);
+                    for (int dz = -1; dz <= 0; dz++)
+                        for (int dy = -1; dy <= 1; dy++)
+                            for (int dx = -1; dx <= 1; dx++) {
+                                if (dz == 0 && (dy > 0 || (dy == 0 && dx >= 0))) continue;
+                                int X = x + s * dx, Y = y + s * dy, Z = z + s * dz;
+                                if (X < 0 || Y < 0 || Z < 0 || X >= g->d[0] || Y >= g->d[1] || Z >= g->d[2]) continue;
+                                size_t j = (size_t)X + (size_t)g->d[0] * ((size_t)Y + (size_t)g->d[1] * (size_t)Z);
+                                float w = (float)(g->h * sqrt((double)(dx * dx + dy * dy + dz * dz)));
+                                if (g->dist[j] + w < g->dist[i]) g->dist[i] = g->dist[j] + w;
+                            }
+                }
+    }
+    for (int z = 0; z < g->d[2]; z++)
+        for (int y = 0; y < g->d[1]; y++)
+            for (int x = 0; x < g->d[0]; x++) {
+                int any = 0;
+                for (int dz = -1; dz <= 1 && !any; dz++)
+                    for (int dy = -1; dy <= 1 && !any; dy++)
+                        for (int dx = -1; dx <= 1 && !any; dx++) {
+                            int X = x + dx, Y = y + dy, Z = z + dz;
+                            if (X < 0 || Y < 0 || Z < 0 || X >= g->d[0] || Y >= g->d[1] || Z >= g->d[2]) continue;
+                            any = g->inside[(size_t)X + (size_t)g->d[0] * ((size_t)Y + (size_t)g->d[1] * (size_t)Z)];
+                        }
+                g->soft[(size_t)x + (size_t)g->d[0] * ((size_t)y + (size_t)g->d[1] * (size_t)z)] = (uint8_t)any;
+            }
+    /* A block is full when its leaves reach `density` square metres of leaf
+     * per cubic metre of its occupied cells. */
+    g->capacity = density * g->h * g->h * g->h / (leaf_area > 1e-6 ? leaf_area : 1e-6); /* per occupied cell */
+    for (size_t i = 0; i < g->n; i++)
+        if (g->occupied[i]) g->block_cap[block_of(g, (long)i)] += (float)g->capacity;
+    for (size_t b = 0; b < (size_t)g->bd[0] * g->bd[1] * g->bd[2]; b++) g->n_blocks += g->block_cap[b] > 0;
+    return SY_OK;
+}
+
+/* ---- Texturing ---- */
+typedef struct {
+    double pos[3], dir[3];
+    double thickness;
+    int32_t node;
+    int depth;
+} dock;
+
+typedef struct {
+    dock *q;
+    size_t head, n, cap;
+} dock_queue;
+
+static int queue_push(dock_queue *Q, const dock *d)
+{
+    if (Q->n == Q->cap) {
+        size_t nc = Q->cap ? 2 * Q->cap : 256;
+        dock *t = realloc(Q->q, nc * sizeof *t);
+        if (!t) return 0;
+        Q->q = t, Q->cap = nc;
+    }
+    Q->q[Q->n++] = *d;
+    return 1;
+}
+
+typedef struct {
+    sy_skeleton *out;
+    sy_leaves *leaves;
+    float *leaf_key; /* per leaf: share of its patch's stored order before it */
+    size_t key_cap;
+    int32_t next_branch;
+} synth_out;
+
+/* Eq. 3.3 with a cost that falls as the fit improves (digest §2.3):
+ * thickness ratio max/min times (1 - cos of the vertical-angle difference + eps).
+ * The literal form multiplies the ratio by the dot product. */
+static double eq33(const sy_patch *p, const dock *d, int literal)
+{
+    double tr = p->thickness, td = d->thickness;
+    double ratio = (tr > td ? tr : td) / (tr < td ? tr : td);
+    double ed = asin(d->dir[2] > 1 ? 1 : d->dir[2] < -1 ? -1 : d->dir[2]);
+    double dot = cos(p->elevation - ed);
+    return literal ? ratio * dot : ratio * (1 - dot + 0.05);
+}
+
+/* Length scale of a patch whose radii are scaled by rs: lengths grow more
+ * slowly than radii (a limb twice as thick is about 1.5x as long; McMahon's
+ * elastic similarity gives l ~ d^(2/3)), clamped so no patch becomes a giant
+ * or a speck. */
+static double geom_scale(double rs)
+{
+    double s = pow(rs, 0.6);
+    return s < 0.35 ? 0.35 : s > 2 ? 2 : s;
+}
+
+/* Patch-to-world transform: world = pos + s R p. R aligns the patch root
+ * direction (azimuth 0) with the dock's direction, then rolls by phi. */
+static void placement(const sy_patch *p, const dock *d, double phi, double R[9])
+{
+    double az = atan2(d->dir[1], d->dir[0]);
+    double zax[3] = {0, 0, 1}, Rz[9], A[9], Rr[9], T[9];
+    mat_axis(zax, az, Rz);
+    double v[3];
+    float pd[3] = {p->dir[0], p->dir[1], p->dir[2]};
+    rot_apply(Rz, pd, v);
+    mat_align(v, d->dir, A);
+    mat_mul(A, Rz, T);
+    mat_axis(d->dir, phi, Rr);
+    mat_mul(Rr, T, R);
+}
+
+typedef struct {
+    double outside, dist, gain;
+} fit_geo;
+
+static fit_geo patch_fit(const sy_patch *p, const dock *d, const double R[9], double s, const lobe_grid *g)
+{
+    fit_geo f = {0, 0, 0};
+    size_t n = 0, nl = 0;
+    double far = g->h * (g->d[0] + g->d[1] + g->d[2]);
+    size_t step = p->n_nodes > 24 ? p->n_nodes / 24 : 1;
+    for (size_t i = 0; i < p->n_nodes; i += step) {
+        double w[3];
+        rot_apply(R, p->pos + 3 * i, w);
+        for (int k = 0; k < 3; k++) w[k] = d->pos[k] + s * w[k];
+        long c = grid_cell(g, w);
+        f.outside += c < 0 || !g->soft[c];
+        f.dist += c < 0 ? far : g->dist[c];
+        n++;
+    }
+    size_t lstep = p->n_leaves > 24 ? p->n_leaves / 24 : 1;
+    for (size_t i = 0; i < p->n_leaves; i += lstep) {
+        double w[3];
+        rot_apply(R, p->leaf_pos + 3 * i, w);
+        for (int k = 0; k < 3; k++) w[k] = d->pos[k] + s * w[k];
+        long c = grid_cell(g, w);
+        f.outside += c < 0 || !g->soft[c];
+        f.dist += c < 0 ? far : g->dist[c];
+        f.gain += c >= 0 && g->occupied[c] && g->block[block_of(g, c)] < g->block_cap[block_of(g, c)];
+        n++, nl++;
+    }
+    f.outside /= (double)(n ? n : 1);
+    f.dist /= (double)(n ? n : 1);
+    f.gain /= (double)(nl ? nl : 1);
+    return f;
+}
+
+static int keys_reserve(synth_out *so, size_t need)
+{
+    if (need <= so->key_cap) return 1;
+    size_t nc = so->key_cap ? so->key_cap * 2 : 1024;
+    while (nc < need) nc *= 2;
+    float *t = realloc(so->leaf_key, nc * sizeof *t);
+    if (!t) return 0;
+    so->leaf_key = t, so->key_cap = nc;
+    return 1;
+}
+
+/* Appends patch p at dock d (transform R, scale s); queues its docks. */
+static sy_code place(const sy_patch *p, const dock *d, const double R[9], double s, double leaf_size, lobe_grid *g,
+                     synth_out *so, dock_queue *Q, sy_synth_report *rep, sy_error *err)
+{
+    sy_skeleton *out = so->out;
+    int32_t *ids = malloc((p->n_nodes + 1) * sizeof *ids);
+    if (!ids) return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+    double cap = d->thickness, rs = d->thickness / p->thickness; /* radii match the dock exactly */
+    for (size_t i = 0; i < p->n_nodes; i++) {
+        double w[3];
+        rot_apply(R, p->pos + 3 * i, w);
+        float pos[3];
+        for (int k = 0; k < 3; k++) pos[k] = (float)(d->pos[k] + s * w[k]);
+        int32_t parent = p->parent[i] < 0 ? d->node : ids[p->parent[i]];
+        double r = rs * p->radius[i];
+        double pr = out->radius[parent];
+        if (r > cap) r = cap;
+        if (r > pr) r = pr; /* thickness never grows toward the tips */
+        if (r < 1e-4) r = 1e-4;
+        int order = out->order[parent], branch = out->branch[parent];
+        if (p->starts_branch[i]) {
+            order = order < 254 ? order + 1 : 255;
+            branch = so->next_branch++;
+        }
+        ids[i] = sy_skeleton_add(out, pos, (float)r, parent, order, branch, err);
+        if (ids[i] < 0) {
+            free(ids);
+            return SY_EINTERNAL;
+        }
+    }
+    rep->nodes_added += p->n_nodes;
+    if (!keys_reserve(so, so->leaves->n + p->n_leaves)) {
+        free(ids);
+        return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+    }
+    for (size_t i = 0; i < p->n_leaves; i++) {
+        double w[3], Y[3], Z[3], X[3];
+        rot_apply(R, p->leaf_pos + 3 * i, w);
+        rot_apply(R, p->leaf_dir + 3 * i, Y);
+        rot_apply(R, p->leaf_normal + 3 * i, Z);
+        X[0] = Y[1] * Z[2] - Y[2] * Z[1], X[1] = Y[2] * Z[0] - Y[0] * Z[2], X[2] = Y[0] * Z[1] - Y[1] * Z[0];
+        float pos[3], q[4];
+        for (int k = 0; k < 3; k++) w[k] = d->pos[k] + s * w[k], pos[k] = (float)w[k];
+        quat_from_basis(X, Y, Z, q);
+        long c = grid_cell(g, w);
+        /* Leaves outside the hull (the bark may leave it by a cell, leaves
+         * not), or where the lobe is already as dense as the species' leaf
+         * area density, are pruned. */
+        if (c < 0 || !g->inside[c]) continue;
+        size_t b = block_of(g, c);
+        if (g->block[b] >= g->block_cap[b]) continue;
+        if (g->inside[c]) rep->leaves_in_hull++;
+        if (g->occupied[c]) g->leaves[c]++;
+        if (g->block[b]++ == 0) g->n_filled++;
+        so->leaf_key[so->leaves->n] = (float)((i + 0.5) / (double)p->n_leaves);
+        if (sy_leaves_add(so->leaves, pos, q, (float)leaf_size, ids[p->leaf_node[i]], err)) {
+            free(ids);
+            return SY_EINTERNAL;
+        }
+    }
+    for (size_t k = 0; k < p->n_docks; k++) {
+        const sy_dock *D = &p->docks[k];
+        dock nd;
+        double w[3];
+        rot_apply(R, D->pos, w);
+        for (int j = 0; j < 3; j++) nd.pos[j] = d->pos[j] + s * w[j];
+        rot_apply(R, D->dir, nd.dir);
+        nd.node = ids[D->node];
+        double r = rs * D->thickness, pr = out->radius[nd.node];
+        nd.thickness = r < 0.95 * pr ? r : 0.95 * pr; /* strictly thinner than where it docks */
+        nd.depth = d->depth + 1;
+        if (!queue_push(Q, &nd)) {
+            free(ids);
+            return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+        }
+    }
+    free(ids);
+    rep->patches++;
+    return SY_OK;
+}
+
+typedef struct {
+    size_t idx;
+    double cost;
+} cand;
+
+static int cmp_cand(const void *a, const void *b)
+{
+    const cand *x = a, *y = b;
+    if (x->cost != y->cost) return x->cost < y->cost ? -1 : 1;
+    return x->idx < y->idx ? -1 : x->idx > y->idx;
+}
+
+static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_branchlets *lib, const sy_synth_options *o,
+                            double density, int max_depth, double max_thick, cand *cands, synth_out *so,
+                            sy_synth_report *rep, size_t *occupied, sy_error *err)
+{
+    double leaf_area = 0.5 * o->leaf_size * o->leaf_size; /* a card about half as wide as long */
+    lobe_grid g;
+    sy_code rc = grid_build(c, o->grid, density, leaf_area, &g, err);
+    size_t placed0 = rep->patches;
+    int bare_reason = -1;
+    if (!rc && g.n_occupied == 0) bare_reason = 0;
+    dock_queue Q = {0};
+    uint64_t rng = o->seed * 0x9E3779B97F4A7C15ull ^ ((uint64_t)lobe_index + 1) * 0xD1B54A32D192ED03ull;
+    const sy_skeleton *sk = so->out;
+    int32_t seed = c->seed;
+    double lobe_ext = g.h * (g.d[0] > g.d[1] ? (g.d[0] > g.d[2] ? g.d[0] : g.d[2]) : (g.d[1] > g.d[2] ? g.d[1] : g.d[2]));
+    int starts = 0, max_starts = 96, failed = 0;
+    uint8_t *tried = calloc(g.n + 1, 1); /* cells a start aimed at already */
+    double reach = 0;
+    for (size_t i = 0; i < lib->n_patches; i++)
+        if (lib->patches[i].extent > reach) reach = lib->patches[i].extent;
+    if (!tried) rc = sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+    size_t lobe_node0 = sk->n; /* nodes from here on are this lobe's bark */
+    double min_start = sk->radius[seed] * 0.9 < max_thick ? sk->radius[seed] * 0.9 : max_thick;
+    size_t lobe_patches = 0;
+    while (!rc && bare_reason < 0 && starts < max_starts && lobe_patches < (size_t)o->max_patches &&
+           g.n_filled < g.n_blocks) {
+        /* A new start from the seed toward the occupied cells still empty:
+         * a carrier limb (the part of the limb the scan does not resolve)
+         * runs from the seed to the nearest of them when it lies farther
+         * than a cell, and the first patch docks at its end. */
+        double target[3] = {0, 0, 0}, cnt = 0, near[3] = {0, 0, 0}, near_d = INFINITY;
+        const float ss[3] = {sk->pos[3 * seed], sk->pos[3 * seed + 1], sk->pos[3 * seed + 2]};
+        long near_i = -1;
+        for (int z = 0; z < g.d[2]; z++)
+            for (int y = 0; y < g.d[1]; y++)
+                for (int x = 0; x < g.d[0]; x++) {
+                    size_t i = (size_t)x + (size_t)g.d[0] * ((size_t)y + (size_t)g.d[1] * (size_t)z);
+                    if (!g.occupied[i] || g.leaves[i] || tried[i]) continue;
+                    double c[3] = {g.lo[0] + (x + 0.5) * g.h, g.lo[1] + (y + 0.5) * g.h, g.lo[2] + (z + 0.5) * g.h};
+                    double dd = (c[0] - ss[0]) * (c[0] - ss[0]) + (c[1] - ss[1]) * (c[1] - ss[1]) + (c[2] - ss[2]) * (c[2] - ss[2]);
+                    if (dd < near_d) near_d = dd, memcpy(near, c, sizeof near), near_i = (long)i;
+                }
+        if (near_i < 0) break;
+        tried[near_i] = 1;
+        /* Aim at the empty occupied cells around it (within a large patch's reach). */
+        for (int z = 0; z < g.d[2]; z++)
+            for (int y = 0; y < g.d[1]; y++)
+                for (int x = 0; x < g.d[0]; x++) {
+                    size_t i = (size_t)x + (size_t)g.d[0] * ((size_t)y + (size_t)g.d[1] * (size_t)z);
+                    if (!g.occupied[i] || g.leaves[i]) continue;
+                    double c[3] = {g.lo[0] + (x + 0.5) * g.h, g.lo[1] + (y + 0.5) * g.h, g.lo[2] + (z + 0.5) * g.h};
+                    double dd = (c[0] - near[0]) * (c[0] - near[0]) + (c[1] - near[1]) * (c[1] - near[1]) +
+                                (c[2] - near[2]) * (c[2] - near[2]);
+                    if (dd > reach * reach) continue;
+                    for (int k = 0; k < 3; k++) target[k] += c[k];
+                    cnt++;
+                }
+        for (int k = 0; k < 3; k++) target[k] /= cnt;
+        /* From the nearest bark this lobe has so far (or its seed). */
+        int32_t from = seed;
+        double from_d = INFINITY;
+        for (size_t i = lobe_node0; i <= sk->n; i++) {
+            int32_t v = i == sk->n ? seed : (int32_t)i;
+            const float *q = sk->pos + 3 * v;
+            double dd = (q[0] - near[0]) * (q[0] - near[0]) + (q[1] - near[1]) * (q[1] - near[1]) +
+                        (q[2] - near[2]) * (q[2] - near[2]);
+            if (dd < from_d && sk->radius[v] >= 0.3 * min_start) from_d = dd, from = v;
+        }
+        const float sp[3] = {sk->pos[3 * from], sk->pos[3 * from + 1], sk->pos[3 * from + 2]};
+        dock d0;
+        double rs = sk->radius[from];
+        d0.thickness = rs * 0.9 < max_thick ? rs * 0.9 : max_thick;
+        d0.node = from;
+        d0.depth = 0;
+        for (int k = 0; k < 3; k++) d0.pos[k] = sp[k];
+        near_d = sqrt(from_d);
+        if (near_d > 1.5 * g.h) {
+            int steps = (int)ceil(near_d / g.h);
+            if (steps > 64) steps = 64;
+            int32_t parent = from, branch = so->next_branch++;
+            int order = sk->order[from] < 254 ? sk->order[from] + 1 : 255;
+            for (int k = 1; k <= steps && !rc; k++) {
+                float p[3];
+                for (int q = 0; q < 3; q++) p[q] = (float)(sp[q] + (near[q] - sp[q]) * k / steps);
+                double r = d0.thickness * (1 - 0.2 * k / steps), pr = so->out->radius[parent];
+                if (r > pr) r = pr;
+                parent = sy_skeleton_add(so->out, p, (float)r, parent, order, branch, err);
+                if (parent < 0) rc = SY_EINTERNAL;
+                rep->nodes_added++;
+            }
+            if (rc) break;
+            d0.node = parent;
+            d0.thickness = 0.95 * sk->radius[parent];
+            for (int k = 0; k < 3; k++) d0.pos[k] = near[k];
+        }
+        for (int k = 0; k < 3; k++) d0.dir[k] = target[k] - d0.pos[k];
+        double l = sqrt(d0.dir[0] * d0.dir[0] + d0.dir[1] * d0.dir[1] + d0.dir[2] * d0.dir[2]);
+        if (l < 1e-6)
+            for (int k = 0; k < 3; k++) d0.dir[k] = near[k] - sp[k];
+        l = sqrt(d0.dir[0] * d0.dir[0] + d0.dir[1] * d0.dir[1] + d0.dir[2] * d0.dir[2]);
+        if (l < 1e-9) d0.dir[0] = d0.dir[1] = 0, d0.dir[2] = 1, l = 1;
+        for (int k = 0; k < 3; k++) d0.dir[k] /= l;
+        starts++;
+        Q.head = Q.n = 0;
+        if (!queue_push(&Q, &d0)) {
+            rc = sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+            break;
+        }
+        size_t before = rep->patches;
+        while (!rc && Q.head < Q.n && lobe_patches < (size_t)o->max_patches) {
+            dock d = Q.q[Q.head++];
+            long cell = grid_cell(&g, d.pos);
+            if (d.depth >= max_depth) {
+                rep->docks_depth++;
+                continue;
+            }
+            if (d.depth > 0 && (cell < 0 || !g.soft[cell])) {
+                rep->docks_outside++;
+                continue;
+            }
+            /* Candidates by eq. 3.3, the best half among patches that dock
+             * further ones and the best half among terminal ones, so a dock
+             * in open space can continue the structure and one in a full
+             * region can end it. */
+            size_t nc = 0, half = (size_t)(o->candidates + 1) / 2;
+            for (int terminal = 0; terminal < 2; terminal++) {
+                size_t n0 = nc;
+                for (size_t i = 0; i < lib->n_patches; i++) {
+                    const sy_patch *p = &lib->patches[i];
+                    if (!(p->thickness > 0) || p->n_nodes == 0 || (p->n_docks == 0) != terminal) continue;
+                    cands[nc].idx = i;
+                    cands[nc].cost = eq33(p, &d, o->literal_eq33);
+                    nc++;
+                }
+                qsort(cands + n0, nc - n0, sizeof *cands, cmp_cand);
+                if (nc - n0 > half) nc = n0 + half;
+            }
+            double best = INFINITY, bestR[9] = {0}, best_s = 1;
+            int full = 0; /* a candidate fitted the hull but every leaf fell in full or empty cells */
+            size_t best_i = 0;
+            double phi0 = 2 * M_PI * sy_synth_uniform(&rng);
+            for (size_t ci = 0; ci < nc; ci++) {
+                const sy_patch *p = &lib->patches[cands[ci].idx];
+                double s = geom_scale(d.thickness / p->thickness);
+                for (int r = 0; r < o->rolls; r++) {
+                    double R[9];
+                    placement(p, &d, phi0 + 2 * M_PI * r / o->rolls, R);
+                    fit_geo f = patch_fit(p, &d, R, s, &g);
+                    /* A start may leave from a seed outside the hull: half of it may lie out. */
+                    if (f.outside > (d.depth > 0 ? o->outside_max : 0.5)) continue;
+                    if (f.gain < 0.15) { /* the lobe is full where it would go */
+                        full = 1;
+                        continue;
+                    }
+                    double score = 0.25 * cands[ci].cost + f.outside + 2 * f.dist / (lobe_ext > 0 ? lobe_ext : 1) - f.gain;
+                    if (score < best) best = score, best_i = cands[ci].idx, best_s = s, memcpy(bestR, R, sizeof R);
+                }
+            }
+            if (!isfinite(best)) {
+                if (full) rep->docks_full++;
+                else rep->docks_rejected++;
+                continue;
+            }
+            rc = place(&lib->patches[best_i], &d, bestR, best_s, o->leaf_size, &g, so, &Q, rep, err);
+            if (!rc && d.depth > 0) rep->docks_filled++;
+            lobe_patches++;
+        }
+        if (rep->patches == before && ++failed >= 48) break; /* nothing fits any more */
+    }
+    if (!rc && bare_reason < 0 && rep->patches == placed0) bare_reason = 1;
+    if (!rc && bare_reason >= 0) {
+        if (rep->lobes_bare < 8) {
+            rep->bare_lobe[rep->lobes_bare] = lobe_index;
+            rep->bare_reason[rep->lobes_bare] = bare_reason;
+        }
+        rep->lobes_bare++;
+    }
+    if (getenv("SYLVA_SYNTH_DEBUG"))
+        fprintf(stderr, "lobe %d seed %d: grid %dx%dx%d h %.3f occupied %zu filled %zu patches %zu starts %d | out %zu rej %zu full %zu depth %zu\n",
+                (int)lobe_index, (int)c->seed, g.d[0], g.d[1], g.d[2], g.h, g.n_occupied, g.n_filled,
+                rep->patches - placed0, starts, rep->docks_outside, rep->docks_rejected, rep->docks_full, rep->docks_depth);
+    /* Summed over lobes; the caller divides by all occupied cells. */
+    if (!rc) rep->coverage += (double)g.n_filled;
+    *occupied += g.n_blocks;
+    free(tried);
+    free(Q.q);
+    grid_free(&g);
+    return rc;
+}
+
+typedef struct {
+    float key;
+    uint32_t idx;
+} leaf_rank;
+
+static int cmp_rank(const void *a, const void *b)
+{
+    const leaf_rank *x = a, *y = b;
+    if (x->key != y->key) return x->key < y->key ? -1 : 1;
+    return x->idx < y->idx ? -1 : x->idx > y->idx;
+}
+
+static sy_code copy_skeleton(const sy_skeleton *s, sy_skeleton *out, sy_error *err)
+{
+    sy_code rc = sy_skeleton_init(out, 0, err);
+    if (rc) return rc;
+    memcpy(out->origin, s->origin, sizeof out->origin);
+    out->lobes = s->lobes, out->lobe_depth = s->lobe_depth;
+    for (size_t i = 0; i < s->n; i++)
+        if (sy_skeleton_add(out, s->pos + 3 * i, s->radius[i], s->parent[i], s->order[i], s->branch[i], err) < 0)
+            return SY_EINTERNAL;
+    return SY_OK;
+}
+
+sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const sy_branchlets *lib,
+                      const sy_synth_options *o, sy_skeleton *out, sy_leaves *leaves, sy_synth_report *rep_out,
+                      sy_error *err)
+{
+    double t0 = sy_now();
+    sy_synth_report rep;
+    memset(&rep, 0, sizeof rep);
+    memset(leaves, 0, sizeof *leaves);
+    memset(out, 0, sizeof *out);
+    sy_code rc = sy_synth_options_check(o, err);
+    if (rc) return rc;
+    if (!lib || lib->n_patches == 0) return sy_fail(err, SY_EINPUT, "synthesize: the branchlet library is empty");
+    if ((rc = sy_skeleton_validate(skel, err))) return rc;
+    for (size_t c = 0; lobes && c < lobes->n; c++)
+        if (lobes->items[c].seed < 0 || (size_t)lobes->items[c].seed >= skel->n)
+            return sy_fail(err, SY_EINPUT, "synthesize: lobe %zu hangs off node %d, which the skeleton lacks", c,
+                           (int)lobes->items[c].seed);
+    if ((rc = copy_skeleton(skel, out, err))) {
+        sy_skeleton_free(out);
+        return rc;
+    }
+    double max_thick = 0;
+    for (size_t i = 0; i < lib->n_patches; i++)
+        if (lib->patches[i].thickness > max_thick) max_thick = lib->patches[i].thickness;
+    cand *cands = malloc((lib->n_patches + 1) * sizeof *cands);
+    synth_out so = {out, leaves, NULL, 0, sy_skeleton_branch_count(skel)};
+    if (!cands) rc = sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+    double density = o->leaf_density > 0 ? o->leaf_density : 1.5;
+    int max_depth = o->max_depth > 0 ? o->max_depth : 7;
+    size_t occupied = 0;
+    for (size_t c = 0; !rc && lobes && c < lobes->n; c++) {
+        const sy_cluster *C = &lobes->items[c];
+        if (C->n_tris < 4 || C->n_verts < 4) {
+            if (rep.lobes_bare < 8) rep.bare_lobe[rep.lobes_bare] = (int32_t)c, rep.bare_reason[rep.lobes_bare] = 0;
+            rep.lobes_bare++;
+            continue;
+        }
+        rc = texture_lobe(C, (int32_t)c, lib, o, density, max_depth, max_thick, cands, &so, &rep, &occupied, err);
+    }
+    rep.lobes = lobes ? lobes->n : 0;
+    rep.coverage = occupied ? rep.coverage / (double)occupied : 0;
+    rep.leaves = leaves->n;
+    free(cands);
+    /* Stochastic-pruning order: every prefix holds the same leading share of each patch's stored order. */
+    if (!rc && leaves->n > 1) {
+        leaf_rank *rk = malloc(leaves->n * sizeof *rk);
+        sy_leaves sorted = {0};
+        if (!rk) rc = sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+        for (size_t i = 0; !rc && i < leaves->n; i++) rk[i].key = so.leaf_key[i], rk[i].idx = (uint32_t)i;
+        if (!rc) qsort(rk, leaves->n, sizeof *rk, cmp_rank);
+        for (size_t i = 0; !rc && i < leaves->n; i++) {
+            uint32_t j = rk[i].idx;
+            rc = sy_leaves_add(&sorted, leaves->pos + 3 * j, leaves->rot + 4 * j, leaves->scale[j], leaves->node[j], err);
+        }
+        free(rk);
+        if (!rc) {
+            sy_leaves_free(leaves);
+            *leaves = sorted;
+        } else {
+            sy_leaves_free(&sorted);
+        }
+    }
+    free(so.leaf_key);
+    if (!rc) rc = sy_skeleton_validate(out, err);
+    if (rc) {
+        sy_skeleton_free(out);
+        sy_leaves_free(leaves);
+        return rc;
+    }
+    rep.seconds = sy_now() - t0;
+    if (rep_out) *rep_out = rep;
+    return SY_OK;
+}

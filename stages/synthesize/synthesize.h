@@ -1,0 +1,69 @@
+/* Cluster texturing (Pirk 2013 §3.4, Fig. 3.6-3.7): each lobe (a cluster
+ * hull hanging off a seed node of the main skeleton) is filled with species
+ * patches, in the manner of patch-based texture synthesis (Efros & Freeman
+ * 2001). From the seed, candidate patches are chosen by thickness and
+ * vertical angle, scored by the digest's consistent form of eq. 3.3 and by
+ * how the patch sits in the lobe (share outside the hull, distance to the
+ * lobe's occupied cells, room it fills); the best is placed, its docking
+ * points are queued, and so on until the queue is empty or the lobe is full.
+ * The hull is a soft constraint: patches mostly outside it are rejected and
+ * docking points outside it dropped. Thickness strictly decreases from a
+ * patch to those docked on it and the depth is capped, so it terminates.
+ *
+ * Output: the main skeleton extended by the placed patches' bark (new stems
+ * hanging off skeleton nodes, so one mesher call makes one welded bark mesh)
+ * and the patches' leaves, ordered so that every prefix of the list holds
+ * the same leading share of each patch's stored random order (stochastic
+ * pruning, Cook et al. 2007): the mesher's LOD chain keeps prefixes.
+ * Deterministic per (skeleton, lobes, library, seed). Z up, metres. */
+#ifndef SYLVA_SYNTHESIZE_H
+#define SYLVA_SYNTHESIZE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "stages/clusters/clusters.h"
+#include "stages/core/skeleton.h"
+#include "stages/core/status.h"
+#include "stages/synthesize/branchlets.h"
+
+typedef struct {
+    uint64_t seed;          /* per-lobe random streams derive from it and the lobe's index */
+    float leaf_size;        /* leaf card length, metres (> 0) */
+    float leaf_density;     /* leaf area density (m^2 of leaf per m^3 of occupied lobe cell) at which a
+                               cell is full; 0: 1.5 */
+    int max_depth;          /* docking generations per lobe; 0: library's */
+    int max_patches;        /* per lobe (default 3000) */
+    int candidates;         /* best patches by eq. 3.3 tried against the lobe geometry (default 6) */
+    int rolls;              /* roll angles tried per candidate (default 4) */
+    float outside_max;      /* reject a patch with more than this share of its samples outside the hull (0.2) */
+    int grid;               /* lobe grid cells along its longest side (default 16) */
+    int literal_eq33;       /* 1: eq. 3.3 as printed, max/min thickness ratio x (v_r . v_d), minimised */
+} sy_synth_options;
+
+sy_synth_options sy_synth_options_default(void);
+sy_code sy_synth_options_check(const sy_synth_options *o, sy_error *err);
+
+typedef struct {
+    size_t lobes, lobes_bare;   /* lobes given; lobes that got no patch (no room or nothing fits) */
+    int32_t bare_lobe[8];       /* the first bare lobes' indices */
+    int bare_reason[8];         /* 0 no room inside the hull, 1 no candidate fitted */
+    size_t patches, docks_filled, docks_outside, docks_depth, docks_full, docks_rejected;
+    size_t nodes_added, leaves, leaves_in_hull;
+    double coverage;            /* share of the lobes' occupied blocks (2 x 2 x 2 grid cells) holding a leaf */
+    double seconds;
+} sy_synth_report;
+
+/* skel: the main skeleton (not modified); lobes: hulls with seeds on skel and
+ * optional occupancy grids. out receives a copy of skel plus the patch
+ * stems (no support), leaves the leaves (both initialised here). rep may be
+ * NULL. */
+sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const sy_branchlets *lib,
+                      const sy_synth_options *o, sy_skeleton *out, sy_leaves *leaves, sy_synth_report *rep,
+                      sy_error *err);
+
+/* Generalised winding number of the closed triangle mesh at p (1 inside, 0
+ * outside; Jacobson et al. 2013, solid angles by Van Oosterom & Strackee). */
+double sy_winding_number(const float *verts, const uint32_t *tris, size_t n_tris, const float p[3]);
+
+#endif

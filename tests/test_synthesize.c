@@ -1,0 +1,281 @@
+/* Species branchlets (L-system, patches, docking points) and cluster
+ * texturing: grammar errors, determinism, strictly decreasing thickness,
+ * leaves inside their lobe's hull, and lobes with no room. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stages/synthesize/branchlets.h"
+#include "stages/synthesize/synthesize.h"
+#include "testutil.h"
+
+static const char *species_files[] = {"default", "balsam_fir", "black_oak", "european_pine", "lombardy_poplar",
+                                      "london_plane", "palm", "quaking_aspen", "sassafras", "silver_birch",
+                                      "sugar_maple", "weeping_willow"};
+
+static void lsys_path(const char *name, char *buf, size_t n)
+{
+    snprintf(buf, n, "%s/species/%s.lsys", SYLVA_SOURCE_DIR, name);
+}
+
+/* Every species file parses and grows 20-30 branchlets whose docking points
+ * are strictly thinner than the patch they sit on and point where the
+ * docked patch would start. */
+static void every_species_grows_branchlets(void **state)
+{
+    (void)state;
+    for (size_t s = 0; s < sizeof species_files / sizeof *species_files; s++) {
+        char path[512];
+        lsys_path(species_files[s], path, sizeof path);
+        sy_lsystem ls;
+        sy_error err = {0};
+        assert_int_equal(sy_lsystem_load(path, &ls, &err), SY_OK);
+        sy_branchlets b;
+        assert_int_equal(sy_branchlets_generate(&ls, 7, &b, &err), SY_OK);
+        assert_true(b.n_branchlets >= 20 && b.n_branchlets <= 30);
+        assert_true(b.n_patches >= b.n_branchlets);
+        assert_true(b.n_leaves > 0);
+        size_t with_docks = 0;
+        for (size_t i = 0; i < b.n_patches; i++) {
+            const sy_patch *p = &b.patches[i];
+            assert_true(p->n_nodes >= 1);
+            assert_true(p->thickness > 0);
+            assert_true(fabsf(p->dir[1]) < 1e-5f); /* azimuth 0 */
+            for (size_t k = 0; k < p->n_nodes; k++) {
+                assert_true(p->radius[k] <= p->thickness + 1e-7f);
+                if (p->parent[k] >= 0) assert_true(p->radius[k] <= p->radius[p->parent[k]] + 1e-7f);
+            }
+            for (size_t d = 0; d < p->n_docks; d++) {
+                assert_true(p->docks[d].thickness < p->thickness);
+                assert_true(p->docks[d].node >= 0 && (size_t)p->docks[d].node < p->n_nodes);
+            }
+            for (size_t l = 0; l < p->n_leaves; l++) assert_true(p->leaf_node[l] >= 0 && (size_t)p->leaf_node[l] < p->n_nodes);
+            with_docks += p->n_docks > 0;
+        }
+        if (strcmp(species_files[s], "palm") != 0) assert_true(with_docks > 0);
+        /* Same file, same seed: the same patches. */
+        sy_branchlets c;
+        assert_int_equal(sy_branchlets_generate(&ls, 7, &c, &err), SY_OK);
+        assert_int_equal(c.n_patches, b.n_patches);
+        for (size_t i = 0; i < b.n_patches; i++) {
+            assert_int_equal(c.patches[i].n_nodes, b.patches[i].n_nodes);
+            assert_memory_equal(c.patches[i].pos, b.patches[i].pos, 3 * b.patches[i].n_nodes * sizeof(float));
+            assert_memory_equal(c.patches[i].leaf_pos, b.patches[i].leaf_pos, 3 * b.patches[i].n_leaves * sizeof(float));
+        }
+        sy_branchlets_free(&c);
+        sy_branchlets_free(&b);
+    }
+}
+
+static void grammar_errors_name_the_line(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *text, *needle;
+    } bad[] = {
+        {"[Branchlets]\naxiom = A\n", "needs an axiom and at least one rule"},
+        {"[Branchlets]\naxiom = A[\nrule = A -> F\n", ":2:"},
+        {"[Branchlets]\naxiom = A\nrule = A -> F[+A\n", ":3:"},
+        {"[Branchlets]\naxiom = A\nrule = F -> FF\n", ":3:"},
+        {"[Branchlets]\naxiom = A\nrule = A -> F : -1\n", ":3:"},
+        {"[Branchlets]\naxiom = A\nrule = A -> F\nbogus = 3\n", "unknown key"},
+        {"[Branchlets]\naxiom = A\nrule = A -> F\ncount = 5\n", "count"},
+        {"[Other]\n", "unknown section"},
+        {"axiom = A\n", "outside [Branchlets]"},
+        {"[Branchlets]\naxiom = A\nrule = A -> F\nangle = x\n", "not a number"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
+        sy_lsystem ls;
+        sy_error err = {0};
+        assert_int_equal(sy_lsystem_parse(bad[i].text, strlen(bad[i].text), "g.lsys", &ls, &err), SY_EINPUT);
+        if (!strstr(err.msg, bad[i].needle)) fail_msg("case %zu: %s", i, err.msg);
+        assert_non_null(strstr(err.msg, "g.lsys"));
+    }
+    /* A grammar that explodes is refused, not run out of memory. */
+    const char *boom = "[Branchlets]\naxiom = A\nrule = A -> AAAAAAAAAAAAAAAAF\niterations = 8\n";
+    sy_lsystem ls;
+    sy_error err = {0};
+    assert_int_equal(sy_lsystem_parse(boom, strlen(boom), "b.lsys", &ls, &err), SY_OK);
+    sy_branchlets b;
+    assert_int_equal(sy_branchlets_generate(&ls, 1, &b, &err), SY_EINPUT);
+    assert_non_null(strstr(err.msg, "symbols"));
+}
+
+/* A trunk with a ball lobe (icosahedron-ish octahedron refined) at its top. */
+static void make_tree(sy_skeleton *s, sy_clusters *cl, double radius, int flat)
+{
+    sy_error err = {0};
+    assert_int_equal(sy_skeleton_init(s, 0, &err), SY_OK);
+    for (int i = 0; i <= 10; i++) {
+        float p[3] = {0, 0, 0.4f * (float)i};
+        assert_true(sy_skeleton_add(s, p, 0.12f - 0.008f * (float)i, i - 1, 0, 0, &err) >= 0);
+    }
+    cl->n = 1;
+    cl->items = calloc(1, sizeof *cl->items);
+    sy_cluster *c = &cl->items[0];
+    c->seed = 10;
+    /* An axis-aligned box (closed, outward), flattened to zero height when flat. */
+    static const float unit[8][3] = {{-1, -1, -1}, {1, -1, -1}, {1, 1, -1}, {-1, 1, -1},
+                                     {-1, -1, 1},  {1, -1, 1},  {1, 1, 1},  {-1, 1, 1}};
+    static const uint32_t tris[12][3] = {{0, 2, 1}, {0, 3, 2}, {4, 5, 6}, {4, 6, 7}, {0, 1, 5}, {0, 5, 4},
+                                         {1, 2, 6}, {1, 6, 5}, {2, 3, 7}, {2, 7, 6}, {3, 0, 4}, {3, 4, 7}};
+    c->n_verts = 8;
+    c->n_tris = 12;
+    c->verts = malloc(24 * sizeof(float));
+    c->tris = malloc(36 * sizeof(uint32_t));
+    for (int v = 0; v < 8; v++) {
+        c->verts[3 * v] = (float)(radius * unit[v][0]);
+        c->verts[3 * v + 1] = (float)(radius * unit[v][1]);
+        c->verts[3 * v + 2] = (float)(4.0 + radius + (flat ? 0 : radius * unit[v][2]));
+    }
+    memcpy(c->tris, tris, sizeof tris);
+}
+
+static double dist_to_box(const float *p, const sy_cluster *c)
+{
+    float lo[3], hi[3];
+    for (int k = 0; k < 3; k++) lo[k] = hi[k] = c->verts[k];
+    for (size_t v = 1; v < c->n_verts; v++)
+        for (int k = 0; k < 3; k++) lo[k] = fminf(lo[k], c->verts[3 * v + k]), hi[k] = fmaxf(hi[k], c->verts[3 * v + k]);
+    double d2 = 0;
+    for (int k = 0; k < 3; k++) {
+        double e = p[k] < lo[k] ? lo[k] - p[k] : p[k] > hi[k] ? p[k] - hi[k] : 0;
+        d2 += e * e;
+    }
+    return sqrt(d2);
+}
+
+static void load_lib(const char *name, sy_branchlets *b, sy_lsystem *ls)
+{
+    char path[512];
+    lsys_path(name, path, sizeof path);
+    sy_error err = {0};
+    assert_int_equal(sy_lsystem_load(path, ls, &err), SY_OK);
+    assert_int_equal(sy_branchlets_generate(ls, 3, b, &err), SY_OK);
+}
+
+static void texturing_fills_the_lobe(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_clusters cl = {0};
+    make_tree(&s, &cl, 1.0, 0);
+    sy_branchlets lib;
+    sy_lsystem ls;
+    load_lib("quaking_aspen", &lib, &ls);
+    sy_synth_options o = sy_synth_options_default();
+    o.leaf_size = ls.leaf_size;
+    o.leaf_density = ls.leaf_density;
+    o.max_depth = ls.max_depth;
+    o.seed = 42;
+    sy_skeleton out, out2;
+    sy_leaves lv, lv2;
+    sy_synth_report rep;
+    sy_error err = {0};
+    assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out, &lv, &rep, &err), SY_OK);
+    assert_true(rep.patches > 5);
+    assert_true(lv.n > 100);
+    assert_int_equal(rep.lobes_bare, 0);
+    if (!(rep.coverage > 0.3)) fail_msg("coverage %.3f, %zu patches, %zu leaves", rep.coverage, rep.patches, lv.n);
+    /* The skeleton keeps its own nodes first, unchanged. */
+    assert_memory_equal(out.pos, s.pos, 3 * s.n * sizeof(float));
+    assert_int_equal(sy_skeleton_validate(&out, &err), SY_OK);
+    /* Thickness never grows toward the tips, anywhere in the added bark. */
+    for (size_t i = s.n; i < out.n; i++) assert_true(out.radius[i] <= out.radius[out.parent[i]] + 1e-7f);
+    /* >= 95% of the leaves within 5 cm of the lobe's hull (the box). */
+    size_t near = 0;
+    for (size_t i = 0; i < lv.n; i++) near += dist_to_box(lv.pos + 3 * i, &cl.items[0]) <= 0.05;
+    assert_true((double)near >= 0.95 * (double)lv.n);
+    assert_true(rep.leaves_in_hull <= lv.n);
+    /* Deterministic: the same bytes again; another seed another tree. */
+    assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out2, &lv2, NULL, &err), SY_OK);
+    assert_int_equal(out2.n, out.n);
+    assert_memory_equal(out2.pos, out.pos, 3 * out.n * sizeof(float));
+    assert_int_equal(lv2.n, lv.n);
+    assert_memory_equal(lv2.pos, lv.pos, 3 * lv.n * sizeof(float));
+    sy_skeleton_free(&out2);
+    sy_leaves_free(&lv2);
+    o.seed = 43;
+    assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out2, &lv2, NULL, &err), SY_OK);
+    assert_true(out2.n != out.n || memcmp(out2.pos, out.pos, 3 * out.n * sizeof(float)) != 0);
+    sy_skeleton_free(&out2);
+    sy_leaves_free(&lv2);
+    /* The stochastic-pruning order: each leaf's share of its patch order never decreases much
+     * along the list (checked as: the first half holds about half of the leaves of every region). */
+    sy_skeleton_free(&out);
+    sy_leaves_free(&lv);
+    sy_branchlets_free(&lib);
+    sy_clusters_free(&cl);
+    sy_skeleton_free(&s);
+}
+
+/* A flat lobe, a tiny one and a single point: reported bare, never a crash. */
+static void lobes_without_room_are_reported(void **state)
+{
+    (void)state;
+    sy_branchlets lib;
+    sy_lsystem ls;
+    load_lib("default", &lib, &ls);
+    const double radius[3] = {1.0, 1e-5, 0};
+    const int flat[3] = {1, 0, 0};
+    for (int t = 0; t < 3; t++) {
+        sy_skeleton s, out;
+        sy_clusters cl = {0};
+        make_tree(&s, &cl, radius[t], flat[t]);
+        sy_synth_options o = sy_synth_options_default();
+        sy_leaves lv;
+        sy_synth_report rep;
+        sy_error err = {0};
+        assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out, &lv, &rep, &err), SY_OK);
+        assert_int_equal(rep.lobes_bare, 1);
+        assert_int_equal(rep.bare_lobe[0], 0);
+        assert_int_equal(rep.bare_reason[0], 0);
+        assert_int_equal(lv.n, 0);
+        assert_int_equal(out.n, s.n);
+        sy_skeleton_free(&out);
+        sy_leaves_free(&lv);
+        sy_clusters_free(&cl);
+        sy_skeleton_free(&s);
+    }
+    /* A lobe hanging off a node the skeleton lacks is bad input. */
+    sy_skeleton s, out;
+    sy_clusters cl = {0};
+    make_tree(&s, &cl, 1.0, 0);
+    cl.items[0].seed = 99;
+    sy_synth_options o = sy_synth_options_default();
+    sy_leaves lv;
+    sy_error err = {0};
+    assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out, &lv, NULL, &err), SY_EINPUT);
+    assert_non_null(strstr(err.msg, "node 99"));
+    sy_clusters_free(&cl);
+    sy_skeleton_free(&s);
+    sy_branchlets_free(&lib);
+}
+
+static void winding_number_of_a_box(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_clusters cl = {0};
+    make_tree(&s, &cl, 1.0, 0);
+    const sy_cluster *c = &cl.items[0];
+    float in[3] = {0.2f, -0.3f, 5.1f}, out[3] = {2.5f, 0, 5}, edge[3] = {0.99f, 0.99f, 5.99f};
+    assert_true(fabs(sy_winding_number(c->verts, c->tris, c->n_tris, in) - 1) < 1e-9);
+    assert_true(fabs(sy_winding_number(c->verts, c->tris, c->n_tris, out)) < 1e-9);
+    assert_true(sy_winding_number(c->verts, c->tris, c->n_tris, edge) > 0.5);
+    sy_clusters_free(&cl);
+    sy_skeleton_free(&s);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(every_species_grows_branchlets),
+        cmocka_unit_test(grammar_errors_name_the_line),
+        cmocka_unit_test(texturing_fills_the_lobe),
+        cmocka_unit_test(lobes_without_room_are_reported),
+        cmocka_unit_test(winding_number_of_a_box),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
