@@ -1,0 +1,243 @@
+#include "pipeline/tree_species.h"
+
+#include <dirent.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stages/core/fileio.h"
+#include "stages/ingest/ingest.h"
+#include "stages/preprocess/preprocess.h"
+
+sy_code sy_classify_preprocess(sy_cloud *c, const char *path, sy_error *err)
+{
+    sy_preprocess_opts po;
+    sy_preprocess_defaults(&po);
+    po.voxel = 0.02;
+    po.sor = 0;
+    po.remove_ground = 1;
+    po.normals = 0;
+    sy_preprocess_result pr;
+    sy_code rc = sy_preprocess(c, &po, &pr, err);
+    if (rc) return rc;
+    if (c->n < 32) return sy_fail(err, SY_EINPUT, "%s: %zu points left after removing the ground, too few for a tree", path, c->n);
+    return SY_OK;
+}
+
+/* The most frequent non-negative speciesID. */
+static int majority_species(const sy_cloud *c)
+{
+    const double *sid = sy_cloud_attr(c, "speciesID");
+    if (!sid) return -1;
+    size_t count[256] = {0};
+    for (size_t i = 0; i < c->n; i++)
+        if (sid[i] >= 0 && sid[i] < 256) count[(int)sid[i]]++;
+    int best = -1;
+    for (int k = 0; k < 256; k++)
+        if (count[k] && (best < 0 || count[k] > count[best])) best = k;
+    return best;
+}
+
+sy_code sy_scan_features(const char *path, const sy_features_options *fo, float *f, sy_scan_features_result *r,
+                         sy_error *err)
+{
+    memset(r, 0, sizeof *r);
+    sy_cloud c;
+    sy_code rc = sy_read_cloud(path, &c, err);
+    if (rc) return rc;
+    int sid = majority_species(&c);
+    if (sid >= 0) sy_species_name_at(sid, r->label, sizeof r->label);
+    r->georeferenced = strcmp(c.meta.format, "LAS") == 0;
+    if ((rc = sy_classify_preprocess(&c, path, err))) {
+        sy_cloud_free(&c);
+        return rc;
+    }
+    r->points_clean = c.n;
+    rc = sy_features_compute(&c, fo, f, &r->info, err);
+    if (rc && !strstr(err->msg, path)) {
+        sy_error e2 = *err;
+        sy_fail(err, rc, "%s: %s", path, e2.msg);
+    }
+    sy_cloud_free(&c);
+    return rc;
+}
+
+static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
+
+const char *sy_species_name_at(int idx, char *buf, size_t size)
+{
+    DIR *d = opendir(SYLVA_SPECIES_DIR);
+    if (!d || idx < 0) {
+        if (d) closedir(d);
+        return NULL;
+    }
+    char *names[256];
+    int n = 0;
+    struct dirent *e;
+    while ((e = readdir(d)) && n < 256) {
+        size_t len = strlen(e->d_name);
+        if (len > 4 && strcmp(e->d_name + len - 4, ".ini") == 0 && e->d_name[0] != '.') {
+            names[n] = strndup(e->d_name, len - 4);
+            if (names[n]) n++;
+        }
+    }
+    closedir(d);
+    qsort(names, (size_t)n, sizeof *names, cmp_str);
+    const char *out = NULL;
+    if (idx < n) {
+        snprintf(buf, size, "%s", names[idx]);
+        out = buf;
+    }
+    for (int i = 0; i < n; i++) free(names[i]);
+    return out;
+}
+
+/* ------------------------------------------------------------ feature table */
+
+void sy_feature_table_free(sy_feature_table *t)
+{
+    for (size_t i = 0; i < t->n; i++) free(t->file[i]), free(t->label[i]);
+    free(t->file), free(t->label), free(t->spacing), free(t->points), free(t->x);
+    memset(t, 0, sizeof *t);
+}
+
+sy_code sy_feature_table_add(sy_feature_table *t, const char *file, const char *label, double spacing, size_t points,
+                             const float *x, size_t d, sy_error *err)
+{
+    if (t->n && d != t->d) return sy_fail(err, SY_EINPUT, "feature table: %zu features, the table has %zu", d, t->d);
+    t->d = d;
+    if (t->n == t->cap) {
+        size_t nc = t->cap ? 2 * t->cap : 64;
+        char **nf = realloc(t->file, nc * sizeof *nf);
+        if (nf) t->file = nf;
+        char **nl = realloc(t->label, nc * sizeof *nl);
+        if (nl) t->label = nl;
+        double *ns = realloc(t->spacing, nc * sizeof *ns);
+        if (ns) t->spacing = ns;
+        size_t *np = realloc(t->points, nc * sizeof *np);
+        if (np) t->points = np;
+        float *nx = realloc(t->x, nc * d * sizeof *nx);
+        if (nx) t->x = nx;
+        if (!nf || !nl || !ns || !np || !nx) return sy_fail(err, SY_EINTERNAL, "feature table: out of memory");
+        t->cap = nc;
+    }
+    t->file[t->n] = strdup(file);
+    t->label[t->n] = strdup(label ? label : "");
+    if (!t->file[t->n] || !t->label[t->n]) {
+        free(t->file[t->n]), free(t->label[t->n]);
+        return sy_fail(err, SY_EINTERNAL, "feature table: out of memory");
+    }
+    t->spacing[t->n] = spacing;
+    t->points[t->n] = points;
+    memcpy(t->x + t->n * d, x, d * sizeof *x);
+    t->n++;
+    return SY_OK;
+}
+
+sy_code sy_feature_table_write(const sy_feature_table *t, const char *path, sy_error *err)
+{
+    sy_atomic_file af;
+    sy_code rc = sy_atomic_open(&af, path, err);
+    if (rc) return rc;
+    fprintf(af.fp, "file\tlabel\tspacing\tpoints");
+    for (size_t j = 0; j < t->d; j++) fprintf(af.fp, "\t%s", sy_feature_name(j) ? sy_feature_name(j) : "feature");
+    fprintf(af.fp, "\n");
+    for (size_t i = 0; i < t->n; i++) {
+        fprintf(af.fp, "%s\t%s\t%.6g\t%zu", t->file[i], t->label[i][0] ? t->label[i] : "-", t->spacing[i], t->points[i]);
+        for (size_t j = 0; j < t->d; j++) fprintf(af.fp, "\t%.9g", t->x[i * t->d + j]);
+        fprintf(af.fp, "\n");
+    }
+    return sy_atomic_commit(&af, err);
+}
+
+sy_code sy_feature_table_read(const char *path, sy_feature_table *t, sy_error *err)
+{
+    memset(t, 0, sizeof *t);
+    sy_buffer b;
+    sy_code rc = sy_read_file(path, &b, err);
+    if (rc) return rc;
+    char *text = (char *)b.data, *save = NULL;
+    int line = 0;
+    size_t d = 0;
+    float *row = NULL;
+    for (char *ln = strtok_r(text, "\n", &save); ln; ln = strtok_r(NULL, "\n", &save)) {
+        line++;
+        size_t L = strlen(ln);
+        if (L && ln[L - 1] == '\r') ln[--L] = 0;
+        if (line == 1) {
+            if (strncmp(ln, "file\tlabel\tspacing\tpoints\t", 26) != 0) {
+                rc = sy_fail(err, SY_EINPUT, "%s:1: not a feature table (header \"file label spacing points ...\")", path);
+                break;
+            }
+            for (char *p = ln; *p; p++) d += *p == '\t';
+            d -= 3;
+            if (d != sy_feature_count()) {
+                rc = sy_fail(err, SY_EINPUT, "%s:1: %zu features, this build computes %zu", path, d, sy_feature_count());
+                break;
+            }
+            row = malloc(d * sizeof *row);
+            if (!row) {
+                rc = sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
+                break;
+            }
+            continue;
+        }
+        char *f[4], *p = ln;
+        int k;
+        for (k = 0; k < 4; k++) {
+            f[k] = p;
+            p = strchr(p, '\t');
+            if (!p) break;
+            *p++ = 0;
+        }
+        if (k < 4) {
+            rc = sy_fail(err, SY_EINPUT, "%s:%d: fewer than 4 + %zu columns", path, line, d);
+            break;
+        }
+        size_t j = 0;
+        for (; j < d && *p; j++) {
+            char *e;
+            double v = strtod(p, &e);
+            if (e == p || (*e != '\t' && *e) || !isfinite(v)) break;
+            row[j] = (float)v;
+            p = *e ? e + 1 : e;
+        }
+        char *e;
+        double sp = strtod(f[2], &e);
+        long long pts = strtoll(f[3], NULL, 10);
+        if (j != d || *p) {
+            rc = sy_fail(err, SY_EINPUT, "%s:%d: expected %zu finite feature values", path, line, d);
+            break;
+        }
+        if ((rc = sy_feature_table_add(t, f[0], strcmp(f[1], "-") ? f[1] : "", sp, pts > 0 ? (size_t)pts : 0, row, d, err)))
+            break;
+    }
+    if (!rc && line == 0) rc = sy_fail(err, SY_EINPUT, "%s: empty feature table", path);
+    free(row);
+    sy_buffer_free(&b);
+    if (rc) sy_feature_table_free(t);
+    return rc;
+}
+
+static int cmp_cstr(const void *a, const void *b) { return strcmp(*(const char *const *)a, *(const char *const *)b); }
+
+sy_code sy_feature_table_classes(const sy_feature_table *t, const char **names, size_t *n_classes, int *y, sy_error *err)
+{
+    size_t C = 0;
+    for (size_t i = 0; i < t->n; i++) {
+        if (!t->label[i][0]) return sy_fail(err, SY_EINPUT, "%s: no species label", t->file[i]);
+        size_t c = 0;
+        while (c < C && strcmp(names[c], t->label[i])) c++;
+        if (c == C) {
+            if (C == SY_JB_MAX_CLASSES) return sy_fail(err, SY_EINPUT, "more than %d species", SY_JB_MAX_CLASSES);
+            names[C++] = t->label[i];
+        }
+    }
+    qsort(names, C, sizeof *names, cmp_cstr);
+    for (size_t i = 0; i < t->n; i++)
+        for (size_t c = 0; c < C; c++)
+            if (strcmp(names[c], t->label[i]) == 0) y[i] = (int)c;
+    *n_classes = C;
+    return SY_OK;
+}
