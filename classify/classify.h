@@ -25,7 +25,7 @@
 
 /* Bumped whenever a feature's definition or the order changes: a model trained
  * on other features refuses to load against this code. */
-#define SY_FEATURES_VERSION 1
+#define SY_FEATURES_VERSION 2
 
 typedef struct {
     double voxel;      /* first subsampling voxel, metres (0.04); grown by 15% steps

@@ -717,12 +717,16 @@ sy_code sy_features_compute(const sy_cloud *tree, const sy_features_options *o, 
     int widest = 0;
     for (int k = 0; k < 40; k++)
         if (env[k] > env_max) env_max = env[k], widest = k;
-    double crown_base = 0;
-    for (int k = 0; k < 40; k++)
-        if (env[k] >= 0.25 * env_max) {
-            crown_base = k / 40.0 * H;
-            break;
-        }
+    /* The crown starts where the envelope leaves the trunk: a quarter of the
+     * widest slab, but for a narrow crown (a forest-grown pine) at least
+     * three trunk radii plus 20 cm, else the trunk itself counts as crown. */
+    double crown_thr = 0.25 * env_max;
+    if (trunk_r > 0) crown_thr = fmax(crown_thr, fmin(0.5 * env_max, 3 * trunk_r + 0.2));
+    /* Down from the widest slab while the envelope stays above the threshold:
+     * a flared base or shrubs at the foot do not pull the crown to the ground. */
+    int cb = widest;
+    while (cb > 0 && env[cb - 1] >= crown_thr) cb--;
+    double crown_base = cb / 40.0 * H;
     for (int k = 0; k < N_ENV; k++) area_max = fmax(area_max, area[k]);
     for (int k = 0; k < N_ENV; k++) f[F_ENV_AREA + k] = area_max > 0 ? (float)(area[k] / area_max) : 0;
     double crown_h = H - crown_base;

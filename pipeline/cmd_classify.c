@@ -114,6 +114,8 @@ int cmd_classify(int argc, char **argv, sy_cli *cli)
     sy_features_options fo = sy_features_options_default();
     sy_progress bar;
     sy_progress_begin(&bar, "classify", (size_t)n);
+    int quiet = sy_progress_quiet();
+    sy_progress_set_quiet(1); /* one bar for the set, not one per stage and scan */
     for (int i = 0; i < n; i++) {
         if ((rc = sy_scan_features(pos[i], &fo, x + (size_t)i * d, &res[i], &err))) break;
         sy_jb_predict(&m, x + (size_t)i * d, prob + (size_t)i * m.n_classes);
@@ -121,6 +123,7 @@ int cmd_classify(int argc, char **argv, sy_cli *cli)
         if (res[i].georeferenced) xy[2 * i] = res[i].info.base[0], xy[2 * i + 1] = res[i].info.base[1], have[i] = 1;
         sy_progress_update(&bar, (size_t)i + 1);
     }
+    sy_progress_set_quiet(quiet);
     sy_progress_end(&bar);
     if (rc) goto report;
     if (positions_path && (rc = read_positions(positions_path, pos, n, xy, have, &err))) goto report;

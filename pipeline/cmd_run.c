@@ -10,6 +10,7 @@
 
 #include "pipeline/commands.h"
 #include "pipeline/tree_asset.h"
+#include "pipeline/tree_species.h"
 #include "stages/core/fileio.h"
 #include "stages/core/json.h"
 #include "stages/core/progress.h"
@@ -19,13 +20,15 @@
 #include "stages/scan/scan.h"
 #include "stages/skeleton/skeleton_stage.h"
 
-static const char *out_path, *sylva_path, *species_name;
+static const char *out_path, *sylva_path, *species_name, *model_path;
 static double beta, gamma_, fs, voxel, wood_share;
 static int spread_around;
 static const sy_opt opts[] = {
     {"-o", OPT_STRING, &out_path, "OUT.glb", "output glTF binary"},
     {"--sylva", OPT_STRING, &sylva_path, "OUT.sylva", "also write the compact .sylva file of the reconstruction"},
-    {"--species", OPT_STRING, &species_name, "NAME", "library species: its beta/gamma, bark and leaf materials"},
+    {"--species", OPT_STRING, &species_name, "NAME",
+     "library species: its beta/gamma, bark and leaf materials (default: the classifier's answer)"},
+    {"--model", OPT_STRING, &model_path, "MODEL.sjb", "species classifier used without --species (default: the shipped one)"},
     {"--beta", OPT_DOUBLE, &beta, "B", "Dijkstra edge weight |u-v|^B (default: species, else 1)"},
     {"--gamma", OPT_DOUBLE, &gamma_, "G", "allometry exponent (default: species, else 2)"},
     {"--fs", OPT_DOUBLE, &fs, "F", "scan-density factor f_s in (0,1]; smaller gives larger clusters (default 1)"},
@@ -45,11 +48,15 @@ static const sy_cmd_spec spec = {
     "mesh (LOD chain, impostor), export. The hulls become one semi-transparent mesh with the\n"
     "material \"foliage_proxy\" in every level. The glb is centred at the tree's base, its world\n"
     "position in asset.extras.origin (as `sylva mesh` does). SCAN must hold one tree. The .sylva species id\n"
-    "is the species' index in the library plus one (0: unknown).",
+    "is the species' index in the library plus one (0: unknown). Without --species the tree is\n"
+    "classified first (docs/classify.md) and a confident answer's parameters and materials are used;\n"
+    "an unknown tree keeps the defaults.",
     opts, 1, 1};
 
 typedef struct {
     size_t points_in, points_clean;
+    sy_species_guess guess; /* filled when the species was classified */
+    int classified;
     double t_ingest, t_preprocess, t_skeleton, t_mesh, t_export;
     size_t sylva_bytes;
 } run_stats;
@@ -72,6 +79,15 @@ static void print_json(const char *in, const sy_skeleton_report *r, const sy_tre
         sy_json_int(&j, "sylva_bytes", (long long)st->sylva_bytes);
     }
     if (species_name) sy_json_string(&j, "species", species_name);
+    else if (st->classified) {
+        sy_json_string(&j, "species", st->guess.name);
+        sy_json_object(&j, "classification");
+        sy_json_string(&j, "best", st->guess.best);
+        sy_json_number(&j, "probability", st->guess.probability);
+        sy_json_bool(&j, "confident", st->guess.confident);
+        sy_json_number(&j, "novelty", st->guess.novelty);
+        sy_json_end(&j);
+    }
     sy_json_int(&j, "points_in", (long long)st->points_in);
     sy_json_int(&j, "points_preprocessed", (long long)st->points_clean);
     sy_json_int(&j, "nodes", (long long)r->nodes);
@@ -150,10 +166,10 @@ static sy_code load_clean(const char *in, const sy_cli *cli, sy_cloud *c, run_st
 }
 
 /* Encodes the .sylva image before anything is written, so a failure leaves no file. */
-static sy_code encode_sylva(const sy_skeleton *s, const sy_clusters *cl, const sy_cli *cli, unsigned char **buf,
-                            size_t *size, sy_error *err)
+static sy_code encode_sylva(const sy_skeleton *s, const sy_clusters *cl, const char *species, const sy_cli *cli,
+                            unsigned char **buf, size_t *size, sy_error *err)
 {
-    int idx = species_name ? sy_species_index(species_name) : -1;
+    int idx = species ? sy_species_index(species) : -1;
     uint16_t id = (uint16_t)(idx >= 0 && idx < 65535 ? idx + 1 : 0);
     return sy_encode_mem(s, cl, id, cli->seed, NULL, buf, size, err);
 }
@@ -164,6 +180,30 @@ static sy_code reconstruct_and_write(const char *in, const sy_cli *cli, const sy
     sy_cloud c;
     sy_code rc = load_clean(in, cli, &c, st, err);
     if (rc) return rc;
+    /* No species given: the classifier names one from the cleaned tree. */
+    sy_species guessed;
+    int have_guess = 0;
+    if (!sp) {
+        if ((rc = sy_classify_cloud(&c, model_path, &st->guess, err))) {
+            sy_cloud_free(&c);
+            return rc;
+        }
+        st->classified = 1;
+        char line[200];
+        snprintf(line, sizeof line, "%s (%s; best %s p %.2f)", st->guess.name,
+                 st->guess.confident ? "confident" : st->guess.novel ? "unlike the training trees" : "not confident",
+                 st->guess.best, st->guess.probability);
+        stage_line(cli, "species", st->guess.seconds, line);
+        if (strcmp(st->guess.name, "unknown") != 0) {
+            if ((rc = sy_species_find(st->guess.name, &guessed, err))) {
+                sy_cloud_free(&c);
+                return rc;
+            }
+            sp = &guessed;
+            have_guess = 1;
+        }
+    }
+    const char *sp_name = species_name ? species_name : have_guess ? st->guess.name : NULL;
     sy_skeleton_options so;
     sy_skeleton_options_default(&so);
     if (sp) so.beta = sp->beta, so.gamma = sp->gamma;
@@ -177,6 +217,7 @@ static sy_code reconstruct_and_write(const char *in, const sy_cli *cli, const sy
     rc = sy_reconstruct_skeleton(&c, &so, &s, &cl, r, err);
     sy_cloud_free(&c);
     if (rc) {
+        if (have_guess) sy_species_free(&guessed);
         if (rc == SY_EINPUT && !strstr(err->msg, in)) {
             sy_error e2 = *err;
             sy_fail(err, rc, "%s: %s", in, e2.msg);
@@ -193,7 +234,7 @@ static sy_code reconstruct_and_write(const char *in, const sy_cli *cli, const sy
 
     unsigned char *sylva = NULL;
     size_t sylva_size = 0;
-    if (sylva_path) rc = encode_sylva(&s, &cl, cli, &sylva, &sylva_size, err);
+    if (sylva_path) rc = encode_sylva(&s, &cl, sp_name, cli, &sylva, &sylva_size, err);
     if (!rc) {
         sy_tree_asset_options o = sy_tree_asset_options_default();
         sy_glb_cli_apply("run", &o); /* checked in check_options */
@@ -226,6 +267,7 @@ static sy_code reconstruct_and_write(const char *in, const sy_cli *cli, const sy
     free(sylva);
     sy_clusters_free(&cl);
     sy_skeleton_free(&s);
+    if (have_guess) sy_species_free(&guessed);
     return rc;
 }
 
@@ -233,7 +275,7 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
 {
     const char *in[1];
     int n;
-    out_path = sylva_path = species_name = NULL;
+    out_path = sylva_path = species_name = model_path = NULL;
     beta = gamma_ = NAN;
     fs = 1;
     wood_share = 0;

@@ -108,7 +108,11 @@ static sy_code scan_all(const char **paths, int n, const sy_label_table *lt, sy_
     sy_progress bar;
     sy_progress_begin(&bar, "features", (size_t)n);
     j.bar = &bar;
+    /* One bar for the set: the stages' own bars per scan stay silent. */
+    int quiet = sy_progress_quiet();
+    sy_progress_set_quiet(1);
     sy_parallel_for((size_t)n, 1, feat_chunk, &j);
+    sy_progress_set_quiet(quiet);
     sy_progress_end(&bar);
     pthread_mutex_destroy(&j.lock);
     (void)cli;

@@ -7,6 +7,8 @@
 #include <string.h>
 
 #include "stages/core/fileio.h"
+#include "stages/core/progress.h"
+#include "stages/scan/scan.h"
 #include "stages/ingest/ingest.h"
 #include "stages/preprocess/preprocess.h"
 
@@ -240,4 +242,46 @@ sy_code sy_feature_table_classes(const sy_feature_table *t, const char **names, 
             if (strcmp(names[c], t->label[i]) == 0) y[i] = (int)c;
     *n_classes = C;
     return SY_OK;
+}
+
+sy_code sy_classify_cloud(const sy_cloud *tree, const char *model_path, sy_species_guess *out, sy_error *err)
+{
+    double t0 = sy_now();
+    memset(out, 0, sizeof *out);
+    const char *mp = model_path ? model_path : SY_DEFAULT_MODEL;
+    sy_jb_model m;
+    sy_code rc = sy_jb_load(mp, &m, err);
+    if (rc) return rc;
+    size_t d = sy_feature_count();
+    if (m.n_features != d || m.features_version != SY_FEATURES_VERSION) {
+        sy_jb_model_free(&m);
+        return sy_fail(err, SY_EINPUT, "%s: trained on %zu features of version %u, this build computes %zu of version %d (retrain it)",
+                       mp, m.n_features, m.features_version, d, SY_FEATURES_VERSION);
+    }
+    float *x = sy_calloc(d, sizeof *x, err, "classify");
+    if (!x) {
+        sy_jb_model_free(&m);
+        return err->code;
+    }
+    sy_features_options fo = sy_features_options_default();
+    if (!(rc = sy_features_compute(tree, &fo, x, NULL, err))) {
+        double p[SY_JB_MAX_CLASSES];
+        sy_jb_predict(&m, x, p);
+        sy_vote_options vo = sy_vote_options_default();
+        out->novelty = sy_jb_novelty(&m, x, vo.novelty_margin);
+        sy_tree_decision dec;
+        if (!(rc = sy_vote(1, m.n_classes, p, &out->novelty, NULL, &vo, &dec, err))) {
+            snprintf(out->best, sizeof out->best, "%s", m.classes[dec.best]);
+            out->probability = dec.h1;
+            out->confident = dec.confident;
+            out->novel = dec.novel;
+            /* A class the library no longer has cannot give parameters. */
+            int known = dec.species >= 0 && sy_species_index(m.classes[dec.species]) >= 0;
+            snprintf(out->name, sizeof out->name, "%s", known ? m.classes[dec.species] : "unknown");
+        }
+    }
+    free(x);
+    sy_jb_model_free(&m);
+    out->seconds = sy_now() - t0;
+    return rc;
 }

@@ -56,4 +56,18 @@ void sy_feature_table_free(sy_feature_table *t);
 sy_code sy_feature_table_classes(const sy_feature_table *t, const char **names, size_t *n_classes, int *y,
                                  sy_error *err);
 
+/* One tree's species from its cleaned cloud: the model (NULL: the default)
+ * is loaded, the features computed and the single-tree decision taken (no
+ * neighbours, so no voting). name is a library species or "unknown". */
+typedef struct {
+    char name[64];
+    char best[64];     /* the argmax class, even when unknown */
+    double probability; /* of best */
+    double novelty;
+    int confident, novel;
+    double seconds;
+} sy_species_guess;
+
+sy_code sy_classify_cloud(const sy_cloud *tree, const char *model_path, sy_species_guess *out, sy_error *err);
+
 #endif

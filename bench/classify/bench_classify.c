@@ -412,6 +412,7 @@ static void real_scans(const char *model_path)
         return;
     }
     printf("\nreal scans, shipped model %s (%zu rounds):\n", model_path, m.n_rounds);
+    sy_progress_set_quiet(1);
     sy_vote_options vo = sy_vote_options_default();
     size_t d = sy_feature_count();
     float *x = malloc(d * sizeof *x);
@@ -440,6 +441,7 @@ static void speed(const char *model_path, const char *scan)
 {
     sy_cloud c;
     sy_error err = {0};
+    sy_progress_set_quiet(1);
     if (sy_read_cloud(scan, &c, &err) || sy_classify_preprocess(&c, scan, &err)) {
         printf("\nspeed: %s\n", err.msg);
         return;
