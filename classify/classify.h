@@ -68,6 +68,8 @@ typedef struct {
     int rounds;           /* most boosting rounds (600) */
     int max_thresholds;   /* candidate thresholds per feature: midpoints between sorted distinct
                              values, at most this many spread evenly by rank; 0 = all (64) */
+    int greedy_thresholds; /* per feature, the shared-set search runs on this many candidates: those
+                             whose best single-class split gains most; 0 = all (8) */
     double validation;    /* share of each class held out for early stopping and the
                              calibration, 0 = neither (0.2) */
     int patience;         /* stop when the held-out loss has not improved for this many rounds (60) */

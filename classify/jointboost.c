@@ -16,7 +16,9 @@
  *
  * Thresholds are midpoints between consecutive distinct values of the feature
  * sorted once before training; with max_thresholds set, at most that many of
- * them, spread evenly by rank. Features are searched in parallel, each
+ * them, spread evenly by rank. The set search costs C^2 per threshold, so it
+ * runs on the greedy_thresholds candidates of each feature whose best
+ * single-class split gains most (the sweep that finds them is O(C) each). Features are searched in parallel, each
  * feature's best split is kept, and the winner is taken in feature order (ties
  * to the lower feature): the model is the same for any thread count.
  *
@@ -43,6 +45,7 @@ sy_jb_options sy_jb_options_default(void)
     sy_jb_options o;
     o.rounds = 600;
     o.max_thresholds = 64;
+    o.greedy_thresholds = 8;
     o.validation = 0.2;
     o.patience = 60;
     o.shrinkage = 0.5;
@@ -56,6 +59,7 @@ sy_code sy_jb_options_check(const sy_jb_options *o, sy_error *err)
 {
     if (o->rounds < 1 || o->rounds > 100000) return sy_fail(err, SY_EUSAGE, "jointboost: rounds must be in [1, 100000]");
     if (o->max_thresholds < 0) return sy_fail(err, SY_EUSAGE, "jointboost: max_thresholds must be >= 0");
+    if (o->greedy_thresholds < 0) return sy_fail(err, SY_EUSAGE, "jointboost: greedy_thresholds must be >= 0");
     if (!(o->validation >= 0 && o->validation < 0.9))
         return sy_fail(err, SY_EUSAGE, "jointboost: validation must be in [0, 0.9)");
     if (o->patience < 1) return sy_fail(err, SY_EUSAGE, "jointboost: patience must be >= 1");
@@ -126,6 +130,7 @@ typedef struct {
     const double *w;        /* n x C current weights */
     const double *W, *Z;    /* per class totals sum w, sum w z */
     size_t n_train;
+    size_t greedy;          /* candidates per feature for the set search (0: all) */
     /* per feature results */
     double *gain;
     float *theta;
@@ -133,7 +138,42 @@ typedef struct {
     double *a, *b;
 } search_ctx;
 
-/* Best shared stump for features [begin, end). */
+/* Greedy forward selection of the shared set at one split (left sums WL, ZL
+ * per class); updates *best and the stump when it finds a better one. */
+static void greedy_sets(const search_ctx *s, const double *WL, const double *ZL, const double *base, double *best,
+                        uint64_t *best_mask, double *best_a, double *best_b, int *improved)
+{
+    size_t C = s->C;
+    uint64_t S = 0;
+    double sWL = 0, sZL = 0, sWR = 0, sZR = 0, sBase = 0;
+    for (size_t step = 0; step < C; step++) {
+        double step_best = -INFINITY;
+        size_t step_c = 0;
+        for (size_t c = 0; c < C; c++) {
+            if ((S >> c) & 1) continue;
+            double wl = sWL + WL[c], zl = sZL + ZL[c];
+            double wr = sWR + s->W[c] - WL[c], zr = sZR + s->Z[c] - ZL[c];
+            double g = (wl > 0 ? zl * zl / wl : 0) + (wr > 0 ? zr * zr / wr : 0) - (sBase + base[c]);
+            if (g > step_best) step_best = g, step_c = c;
+        }
+        S |= (uint64_t)1 << step_c;
+        sWL += WL[step_c], sZL += ZL[step_c];
+        sWR += s->W[step_c] - WL[step_c], sZR += s->Z[step_c] - ZL[step_c];
+        sBase += base[step_c];
+        if (step_best > *best * (1 + 1e-12) + 1e-15) {
+            *best = step_best;
+            *best_mask = S;
+            *best_a = sWR > 0 ? sZR / sWR : 0;
+            *best_b = sWL > 0 ? sZL / sWL : 0;
+            *improved = 1;
+        }
+    }
+}
+
+/* Best shared stump for features [begin, end). Pass 1 sweeps the sorted
+ * samples once, keeping each candidate split's per-class sums and its best
+ * single-class gain; pass 2 runs the greedy set search on the `greedy`
+ * candidates with the highest single-class gain (all when greedy is 0). */
 static void search_features(void *vctx, size_t begin, size_t end, size_t chunk)
 {
     (void)chunk;
@@ -141,14 +181,15 @@ static void search_features(void *vctx, size_t begin, size_t end, size_t chunk)
     size_t C = s->C;
     double WL[SY_JB_MAX_CLASSES], ZL[SY_JB_MAX_CLASSES], base[SY_JB_MAX_CLASSES];
     for (size_t c = 0; c < C; c++) base[c] = s->W[c] > 0 ? s->Z[c] * s->Z[c] / s->W[c] : 0;
+    double *sums = malloc((s->max_cand ? s->max_cand : 1) * 2 * C * sizeof *sums);
+    double *single = malloc((s->max_cand ? s->max_cand : 1) * sizeof *single);
+    uint32_t *pick = malloc((s->max_cand ? s->max_cand : 1) * sizeof *pick);
     for (size_t f = begin; f < end; f++) {
+        s->gain[f] = 0, s->theta[f] = 0, s->mask[f] = 0, s->a[f] = s->b[f] = 0;
+        if (!sums || !single || !pick) continue; /* out of memory: this feature offers nothing */
         const uint32_t *ord = s->order + f * s->n_train;
         const uint32_t *cand = s->cand + f * s->max_cand;
         size_t nc = s->n_cand[f];
-        double best = 0;
-        float best_theta = 0;
-        uint64_t best_mask = 0;
-        double best_a = 0, best_b = 0;
         for (size_t c = 0; c < C; c++) WL[c] = ZL[c] = 0;
         size_t at = 0; /* samples [0, at) of ord are on the left */
         for (size_t t = 0; t < nc; t++) {
@@ -161,33 +202,42 @@ static void search_features(void *vctx, size_t begin, size_t end, size_t chunk)
                     ZL[c] += (s->y[i] == (int)c) ? wi[c] : -wi[c];
                 }
             }
-            /* Greedy forward selection of the shared set. */
-            uint64_t S = 0;
-            double sWL = 0, sZL = 0, sWR = 0, sZR = 0, sBase = 0;
-            for (size_t step = 0; step < C; step++) {
-                double step_best = -INFINITY;
-                size_t step_c = 0;
-                for (size_t c = 0; c < C; c++) {
-                    if ((S >> c) & 1) continue;
-                    double wl = sWL + WL[c], zl = sZL + ZL[c];
-                    double wr = sWR + s->W[c] - WL[c], zr = sZR + s->Z[c] - ZL[c];
-                    double g = (wl > 0 ? zl * zl / wl : 0) + (wr > 0 ? zr * zr / wr : 0) - (sBase + base[c]);
-                    if (g > step_best) step_best = g, step_c = c;
-                }
-                S |= (uint64_t)1 << step_c;
-                sWL += WL[step_c], sZL += ZL[step_c];
-                sWR += s->W[step_c] - WL[step_c], sZR += s->Z[step_c] - ZL[step_c];
-                sBase += base[step_c];
-                if (step_best > best * (1 + 1e-12) + 1e-15) {
-                    best = step_best;
-                    best_mask = S;
-                    best_a = sWR > 0 ? sZR / sWR : 0;
-                    best_b = sWL > 0 ? sZL / sWL : 0;
-                    float lo = s->X[(size_t)ord[upto - 1] * s->d + f], hi = s->X[(size_t)ord[upto] * s->d + f];
-                    float th = (float)((double)lo + ((double)hi - lo) / 2);
-                    if (!(th < hi)) th = lo;
-                    best_theta = th;
-                }
+            double g1 = -INFINITY;
+            for (size_t c = 0; c < C; c++) {
+                double wr = s->W[c] - WL[c], zr = s->Z[c] - ZL[c];
+                double g = (WL[c] > 0 ? ZL[c] * ZL[c] / WL[c] : 0) + (wr > 0 ? zr * zr / wr : 0) - base[c];
+                if (g > g1) g1 = g;
+            }
+            memcpy(sums + t * 2 * C, WL, C * sizeof *WL);
+            memcpy(sums + t * 2 * C + C, ZL, C * sizeof *ZL);
+            single[t] = g1;
+        }
+        /* The candidates for the set search: the top `greedy` by single-class
+         * gain (ties to the lower rank), kept in rank order. */
+        size_t np = nc;
+        for (size_t t = 0; t < nc; t++) pick[t] = (uint32_t)t;
+        if (s->greedy > 0 && nc > s->greedy) {
+            np = 0;
+            for (size_t t = 0; t < nc; t++) {
+                size_t above = 0;
+                for (size_t u = 0; u < nc && above < s->greedy; u++)
+                    above += single[u] > single[t] || (single[u] == single[t] && u < t);
+                if (above < s->greedy) pick[np++] = (uint32_t)t;
+            }
+        }
+        double best = 0, best_a = 0, best_b = 0;
+        uint64_t best_mask = 0;
+        float best_theta = 0;
+        for (size_t k = 0; k < np; k++) {
+            size_t t = pick[k];
+            int improved = 0;
+            greedy_sets(s, sums + t * 2 * C, sums + t * 2 * C + C, base, &best, &best_mask, &best_a, &best_b, &improved);
+            if (improved) {
+                size_t upto = cand[t];
+                float lo = s->X[(size_t)ord[upto - 1] * s->d + f], hi = s->X[(size_t)ord[upto] * s->d + f];
+                float th = (float)((double)lo + ((double)hi - lo) / 2);
+                if (!(th < hi)) th = lo;
+                best_theta = th;
             }
         }
         s->gain[f] = best;
@@ -196,6 +246,7 @@ static void search_features(void *vctx, size_t begin, size_t end, size_t chunk)
         s->a[f] = best_a;
         s->b[f] = best_b;
     }
+    free(sums), free(single), free(pick);
 }
 
 /* qsort has no context argument: a feature is sorted as (value, index) pairs. */
@@ -314,7 +365,8 @@ static sy_code boost(const float *X, size_t d, const int *y, size_t C, const dou
                 Z[c] += z * wi;
             }
         }
-        search_ctx sc = {X, n_all, d, C, order, cand, n_cand, maxc, y, w, W, Z, n_train, gain, fth, fmask, fa, fb};
+        search_ctx sc = {X, n_all, d, C, order, cand, n_cand, maxc, y, w, W, Z, n_train,
+                         (size_t)o->greedy_thresholds, gain, fth, fmask, fa, fb};
         sy_parallel_for(d, 8, search_features, &sc);
         size_t bf = 0;
         for (size_t f = 1; f < d; f++)
@@ -380,7 +432,10 @@ static double fit_kappa(const sy_jb_model *m, const float *X, const int *y, cons
         idx[k] = (uint32_t)k;
         yy[k] = y[held[k]];
     }
-    double lo = log(0.05), hi = log(40), g = (sqrt(5) - 1) / 2;
+    /* Within a factor 4 of the GentleBoost link (kappa 2): a small held-out
+     * set that the model gets all right would otherwise drive kappa to the
+     * bound and the probabilities to 0 and 1. */
+    double lo = log(0.5), hi = log(8), g = (sqrt(5) - 1) / 2;
     double x1 = hi - g * (hi - lo), x2 = lo + g * (hi - lo);
     double f1 = logloss(H, yy, idx, n_held, C, exp(x1)), f2 = logloss(H, yy, idx, n_held, C, exp(x2));
     for (int it = 0; it < 60; it++) {

@@ -2,6 +2,7 @@
 # Rebuilds the shipped species classifier, species/classifier.sjb, from
 # simulated scans of every species in the library (docs/classify.md):
 #   species/train-classifier.sh [--trees N] [--work DIR] [--unseen] [--jobs J] [--sylva BIN] [--out MODEL]
+#                               [--reuse-features]
 # Every library species gets N trees (default 40), each grown from its own seed
 # and scanned with one of eight scanner settings in turn: terrestrial with 4, 3
 # and 2 stations (occlusion), coarse and fine steps, extra range noise, leaf-off;
@@ -11,10 +12,12 @@
 # stations, other steps, heights and noise, a fast high mobile pass, airborne at
 # 100 and 10 pulses/m^2 from other altitudes) into WORK/unseen.tsv for
 # bench_classify. Same sylva, same arguments: the same model, byte for byte.
+# --reuse-features trains on WORK/train.tsv as it is (after a change to the
+# classifier but not to the features: the same model as from the scans).
 # Add a species (a new species/*.ini) and rerun this: nothing else changes.
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
-trees=40 work="" unseen=0 jobs=2 sylva="" out="$here/classifier.sjb"
+trees=40 work="" unseen=0 jobs=2 sylva="" out="$here/classifier.sjb" reuse=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --trees) trees=$2; shift 2 ;;
@@ -23,6 +26,7 @@ while [ $# -gt 0 ]; do
     --jobs) jobs=$2; shift 2 ;;
     --sylva) sylva=$2; shift 2 ;;
     --out) out=$2; shift 2 ;;
+    --reuse-features) reuse=1; shift ;;
     *) echo "train-classifier.sh: unknown argument $1" >&2; exit 1 ;;
   esac
 done
@@ -30,6 +34,11 @@ done
 [ -x "$sylva" ] || { echo "train-classifier.sh: no sylva at $sylva (build it, or pass --sylva)" >&2; exit 1; }
 [ -n "$work" ] || work="$here/../build/classifier-data"
 mkdir -p "$work/train" "$work/unseen"
+if [ "$reuse" = 1 ]; then
+  "$sylva" train --features-in "$work/train.tsv" -o "$out" --seed 1
+  echo "train-classifier.sh: wrote $out" >&2
+  exit 0
+fi
 
 species=$(cd "$here" && ls *.ini | sed 's/\.ini$//' | sort)
 
