@@ -19,7 +19,7 @@
 #include "stages/eval/eval.h"
 
 static const char *out_path, *labels_path, *features_in, *features_out;
-static int rounds, thresholds, patience, folds;
+static int rounds, thresholds, patience, folds, skip_bad;
 static double validation, shrinkage;
 
 static const sy_opt opts[] = {
@@ -27,6 +27,7 @@ static const sy_opt opts[] = {
     {"--labels", OPT_STRING, &labels_path, "CSV", "file,species lines (default: the scans' speciesID extra bytes)"},
     {"--features-in", OPT_STRING, &features_in, "TSV", "train on a feature table written by --features-out"},
     {"--features-out", OPT_STRING, &features_out, "TSV", "also write the trees' features (file, label, features)"},
+    {"--skip-bad", OPT_FLAG, &skip_bad, NULL, "skip scans too small or odd for a tree (each one reported), instead of failing"},
     {"--folds", OPT_INT, &folds, "K", "cross-validation folds, 0 = none (default 5)"},
     {"--rounds", OPT_INT, &rounds, "N", "most boosting rounds (default 600)"},
     {"--thresholds", OPT_INT, &thresholds, "N", "candidate thresholds per feature, 0 = every distinct value (default 64)"},
@@ -115,8 +116,11 @@ static sy_code scan_all(const char **paths, int n, const sy_label_table *lt, sy_
     sy_progress_set_quiet(quiet);
     sy_progress_end(&bar);
     pthread_mutex_destroy(&j.lock);
-    (void)cli;
     for (int i = 0; i < n && !rc; i++) {
+        if (j.rcs[i] == SY_EINPUT && skip_bad) {
+            if (!cli->quiet) fprintf(stderr, "sylva train: skipped %s\n", j.errs[i].msg);
+            continue;
+        }
         if (j.rcs[i]) {
             *err = j.errs[i];
             rc = j.rcs[i];
@@ -210,6 +214,7 @@ done:
 int cmd_train(int argc, char **argv, sy_cli *cli)
 {
     out_path = labels_path = features_in = features_out = NULL;
+    skip_bad = 0;
     sy_jb_options jo = sy_jb_options_default();
     rounds = jo.rounds, thresholds = jo.max_thresholds, patience = jo.patience, folds = 5;
     validation = jo.validation, shrinkage = jo.shrinkage;

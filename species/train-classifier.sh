@@ -85,8 +85,9 @@ xargs -P "$jobs" -L 1 bash -c 'out=$0 sp=$1 seed=$2; shift 2; [ -s "$out" ] || "
 
 # Scans no longer in the job list (a removed species, fewer trees) are not trained on.
 list=$(cut -d' ' -f1 "$jobs_file" | grep "/train/")
-"$sylva" train $list --features-out "$work/train.tsv" -o "$out" --seed 1
+"$sylva" train $list --skip-bad --features-out "$work/train.tsv" -o "$out" --seed 1
 if [ "$unseen" = 1 ]; then
-  "$sylva" train $(cut -d' ' -f1 "$jobs_file" | grep "/unseen/") --features-out "$work/unseen.tsv" --quiet
+  # A leaf-off palm seen from the air at 10 pulses/m^2 is a handful of points: skipped.
+  "$sylva" train $(cut -d' ' -f1 "$jobs_file" | grep "/unseen/") --skip-bad --features-out "$work/unseen.tsv"
 fi
 echo "train-classifier.sh: wrote $out" >&2
