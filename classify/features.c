@@ -20,7 +20,7 @@
 
 #include "classify/classify.h"
 #include "stages/core/progress.h"
-#include "stages/skeleton/skeleton_stage.h"
+#include "stages/skeleton/skeleton.h"
 
 #define N_ELEV 18     /* normal-elevation bins over 0..90 degrees */
 #define N_QUART 4     /* height slabs (quarters of the height) */
@@ -467,8 +467,7 @@ static void skeleton_features(const float *P, size_t m, double z0, double H, dou
     memset(&c, 0, sizeof c);
     c.n = m;
     c.xyz = (float *)P; /* read only: the stage takes a const cloud */
-    sy_skeleton_options so;
-    sy_skeleton_options_default(&so);
+    sy_skeleton_options so = sy_skeleton_options_default();
     so.clusters = 0;
     sy_skeleton s;
     sy_skeleton_report r;

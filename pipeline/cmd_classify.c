@@ -13,28 +13,6 @@
 #include "stages/core/progress.h"
 #include "stages/eval/eval.h"
 
-static const char *model_path, *positions_path;
-static double radius, ratio;
-static int no_voting;
-
-static const sy_opt opts[] = {
-    {"--model", OPT_STRING, &model_path, "MODEL.sjb", "classifier (default: the species library's classifier.sjb)"},
-    {"--positions", OPT_STRING, &positions_path, "CSV", "file,x,y lines: tree positions for voting (default: LAS coordinates)"},
-    {"--radius", OPT_DOUBLE, &radius, "M", "voting radius (default 25)"},
-    {"--ratio", OPT_DOUBLE, &ratio, "R", "confident iff h1 > R * h2 (default 1.5)"},
-    {"--no-voting", OPT_FLAG, &no_voting, NULL, "no spatial voting: unconfident trees stay unknown"},
-    {NULL, 0, NULL, NULL, NULL},
-};
-
-static const sy_cmd_spec spec = {
-    "classify", "[--model MODEL.sjb] SCANS...",
-    "Classify the species of scanned trees (one tree per file).",
-    "Per tree: the species (a library name, or unknown), the probability vector, whether the\n"
-    "answer is confident (h1 > 1.5 h2) and whether it came from spatial voting. Positions for\n"
-    "voting come from LAS coordinates (the trunk base) or --positions. Trees whose features lie\n"
-    "outside the model's training range are never confident. See docs/classify.md.",
-    opts, 1, -1};
-
 /* file,x,y table (the sy_label_table CSV reader with "x y" in the label column is not
  * enough: parse the three columns ourselves). */
 static sy_code read_positions(const char *path, const char **files, int n, double *xy, int *have, sy_error *err)
@@ -79,9 +57,25 @@ static sy_code read_positions(const char *path, const char **files, int n, doubl
 
 int cmd_classify(int argc, char **argv, sy_cli *cli)
 {
-    model_path = positions_path = NULL;
+    const char *model_path = NULL, *positions_path = NULL;
     sy_vote_options vo = sy_vote_options_default();
-    radius = vo.radius, ratio = vo.ratio, no_voting = 0;
+    int no_voting = 0;
+    const sy_opt opts[] = {
+        {"--model", OPT_STRING, &model_path, "MODEL.sjb", "classifier (default: the species library's classifier.sjb)"},
+        {"--positions", OPT_STRING, &positions_path, "CSV", "file,x,y lines: tree positions for voting (default: LAS coordinates)"},
+        {"--radius", OPT_DOUBLE, &vo.radius, "M", "voting radius (default 25)"},
+        {"--ratio", OPT_DOUBLE, &vo.ratio, "R", "confident iff h1 > R * h2 (default 1.5)"},
+        {"--no-voting", OPT_FLAG, &no_voting, NULL, "no spatial voting: unconfident trees stay unknown"},
+        {NULL, 0, NULL, NULL, NULL},
+    };
+    const sy_cmd_spec spec = {
+        "classify", "[--model MODEL.sjb] SCANS...",
+        "Classify the species of scanned trees (one tree per file).",
+        "Per tree: the species (a library name, or unknown), the probability vector, whether the\n"
+        "answer is confident (h1 > 1.5 h2) and whether it came from spatial voting. Positions for\n"
+        "voting come from LAS coordinates (the trunk base) or --positions. Trees whose features lie\n"
+        "outside the model's training range are never confident. See docs/classify.md.",
+        opts, 1, -1};
     const char **pos = calloc((size_t)argc + 1, sizeof *pos);
     if (!pos) return SY_EINTERNAL;
     int n = 0, rc = sy_cli_parse(&spec, argc, argv, cli, pos, argc, &n);
@@ -89,7 +83,8 @@ int cmd_classify(int argc, char **argv, sy_cli *cli)
         free(pos);
         return rc < 0 ? 0 : rc;
     }
-    vo.radius = radius, vo.ratio = ratio, vo.voting = !no_voting;
+    sy_cli_apply_settings(cli);
+    vo.voting = !no_voting;
     sy_error err = {0};
     sy_jb_model m = {0};
     size_t d = sy_feature_count();
@@ -104,7 +99,12 @@ int cmd_classify(int argc, char **argv, sy_cli *cli)
         goto report;
     }
     if ((rc = sy_vote_options_check(&vo, &err))) goto report;
-    const char *mp = model_path ? model_path : SY_DEFAULT_MODEL;
+    char def[4200];
+    const char *mp = model_path;
+    if (!mp) {
+        if ((rc = sy_default_model_path(def, sizeof def, &err))) goto report;
+        mp = def;
+    }
     if ((rc = sy_jb_load(mp, &m, &err))) goto report;
     if (m.n_features != d || m.features_version != SY_FEATURES_VERSION) {
         rc = sy_fail(&err, SY_EINPUT, "%s: trained on %zu features of version %u, this build computes %zu of version %d (retrain it)",

@@ -18,34 +18,6 @@
 #include "stages/core/progress.h"
 #include "stages/eval/eval.h"
 
-static const char *out_path, *labels_path, *features_in, *features_out;
-static int rounds, thresholds, patience, folds, skip_bad;
-static double validation, shrinkage;
-
-static const sy_opt opts[] = {
-    {"-o", OPT_STRING, &out_path, "MODEL.sjb", "model file to write"},
-    {"--labels", OPT_STRING, &labels_path, "CSV", "file,species lines (default: the scans' speciesID extra bytes)"},
-    {"--features-in", OPT_STRING, &features_in, "TSV", "train on a feature table written by --features-out"},
-    {"--features-out", OPT_STRING, &features_out, "TSV", "also write the trees' features (file, label, features)"},
-    {"--skip-bad", OPT_FLAG, &skip_bad, NULL, "skip scans too small or odd for a tree (each one reported), instead of failing"},
-    {"--folds", OPT_INT, &folds, "K", "cross-validation folds, 0 = none (default 5)"},
-    {"--rounds", OPT_INT, &rounds, "N", "most boosting rounds (default 600)"},
-    {"--thresholds", OPT_INT, &thresholds, "N", "candidate thresholds per feature, 0 = every distinct value (default 64)"},
-    {"--validation", OPT_DOUBLE, &validation, "F", "share held out for early stopping and calibration (default 0.2)"},
-    {"--patience", OPT_INT, &patience, "N", "early stopping patience in rounds (default 60)"},
-    {"--shrinkage", OPT_DOUBLE, &shrinkage, "F", "stump output scale (default 0.5)"},
-    {NULL, 0, NULL, NULL, NULL},
-};
-
-static const sy_cmd_spec spec = {
-    "train", "[--labels labels.csv] SCANS... -o MODEL.sjb",
-    "Train the JointBoost species classifier on labelled tree scans (one tree per file).",
-    "Labels: --labels CSV (id,species; the id is the path as given, its file name, or the\n"
-    "file name without extension), else the majority speciesID of the points (`sylva scan`).\n"
-    "Species are stored by name. The shipped model is rebuilt by species/train-classifier.sh.\n"
-    "See docs/classify.md.",
-    opts, 0, -1};
-
 typedef struct {
     const char **paths;
     float *x;
@@ -88,8 +60,8 @@ static const char *label_for(const sy_label_table *lt, const char *path)
 }
 
 /* Features of every scan, in argument order; a failing scan stops training. */
-static sy_code scan_all(const char **paths, int n, const sy_label_table *lt, sy_feature_table *t, const sy_cli *cli,
-                        sy_error *err)
+static sy_code scan_all(const char **paths, int n, const sy_label_table *lt, const char *labels_path, int skip_bad,
+                        sy_feature_table *t, const sy_cli *cli, sy_error *err)
 {
     size_t d = sy_feature_count();
     feat_job j;
@@ -213,11 +185,32 @@ done:
 
 int cmd_train(int argc, char **argv, sy_cli *cli)
 {
-    out_path = labels_path = features_in = features_out = NULL;
-    skip_bad = 0;
+    const char *out_path = NULL, *labels_path = NULL, *features_in = NULL, *features_out = NULL;
     sy_jb_options jo = sy_jb_options_default();
-    rounds = jo.rounds, thresholds = jo.max_thresholds, patience = jo.patience, folds = 5;
-    validation = jo.validation, shrinkage = jo.shrinkage;
+    int rounds = jo.rounds, thresholds = jo.max_thresholds, patience = jo.patience, folds = 5, skip_bad = 0;
+    double validation = jo.validation, shrinkage = jo.shrinkage;
+    const sy_opt opts[] = {
+        {"-o", OPT_STRING, &out_path, "MODEL.sjb", "model file to write"},
+        {"--labels", OPT_STRING, &labels_path, "CSV", "file,species lines (default: the scans' speciesID extra bytes)"},
+        {"--features-in", OPT_STRING, &features_in, "TSV", "train on a feature table written by --features-out"},
+        {"--features-out", OPT_STRING, &features_out, "TSV", "also write the trees' features (file, label, features)"},
+        {"--skip-bad", OPT_FLAG, &skip_bad, NULL, "skip scans too small or odd for a tree (each one reported), instead of failing"},
+        {"--folds", OPT_INT, &folds, "K", "cross-validation folds, 0 = none (default 5)"},
+        {"--rounds", OPT_INT, &rounds, "N", "most boosting rounds (default 600)"},
+        {"--thresholds", OPT_INT, &thresholds, "N", "candidate thresholds per feature, 0 = every distinct value (default 64)"},
+        {"--validation", OPT_DOUBLE, &validation, "F", "share held out for early stopping and calibration (default 0.2)"},
+        {"--patience", OPT_INT, &patience, "N", "early stopping patience in rounds (default 60)"},
+        {"--shrinkage", OPT_DOUBLE, &shrinkage, "F", "stump output scale (default 0.5)"},
+        {NULL, 0, NULL, NULL, NULL},
+    };
+    const sy_cmd_spec spec = {
+        "train", "[--labels labels.csv] SCANS... -o MODEL.sjb",
+        "Train the JointBoost species classifier on labelled tree scans (one tree per file).",
+        "Labels: --labels CSV (id,species; the id is the path as given, its file name, or the\n"
+        "file name without extension), else the majority speciesID of the points (`sylva scan`).\n"
+        "Species are stored by name. The shipped model is rebuilt by species/train-classifier.sh.\n"
+        "See docs/classify.md.",
+        opts, 0, -1};
     const char **pos = calloc((size_t)argc + 1, sizeof *pos);
     if (!pos) return SY_EINTERNAL;
     int n = 0, rc = sy_cli_parse(&spec, argc, argv, cli, pos, argc, &n);
@@ -225,6 +218,7 @@ int cmd_train(int argc, char **argv, sy_cli *cli)
         free(pos);
         return rc < 0 ? 0 : rc;
     }
+    sy_cli_apply_settings(cli);
     sy_error err = {0};
     sy_feature_table t = {0};
     sy_label_table lt = {0};
@@ -252,7 +246,7 @@ int cmd_train(int argc, char **argv, sy_cli *cli)
         goto report;
     if (labels_path && (rc = sy_label_table_read_csv(labels_path, &lt, &err))) goto report;
     if (features_in && (rc = sy_feature_table_read(features_in, &t, &err))) goto report;
-    if (n && (rc = scan_all(pos, n, labels_path ? &lt : NULL, &t, cli, &err))) goto report;
+    if (n && (rc = scan_all(pos, n, labels_path ? &lt : NULL, labels_path, skip_bad, &t, cli, &err))) goto report;
     if (features_out && (rc = sy_feature_table_write(&t, features_out, &err))) goto report;
     if (!out_path) goto summary;
     const char *names[SY_JB_MAX_CLASSES];

@@ -4,6 +4,10 @@
 
 #include "pipeline/cli.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 int cmd_info(int argc, char **argv, sy_cli *cli);
 int cmd_convert(int argc, char **argv, sy_cli *cli);
 int cmd_preprocess(int argc, char **argv, sy_cli *cli);
@@ -17,5 +21,10 @@ int cmd_train(int argc, char **argv, sy_cli *cli);
 int cmd_classify(int argc, char **argv, sy_cli *cli);
 int cmd_encode(int argc, char **argv, sy_cli *cli);
 int cmd_decode(int argc, char **argv, sy_cli *cli);
+int cmd_library(int argc, char **argv, sy_cli *cli);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

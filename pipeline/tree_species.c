@@ -6,16 +6,15 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "species/library.h"
 #include "stages/core/fileio.h"
 #include "stages/core/progress.h"
-#include "stages/scan/scan.h"
 #include "stages/ingest/ingest.h"
 #include "stages/preprocess/preprocess.h"
 
 sy_code sy_classify_preprocess(sy_cloud *c, const char *path, sy_error *err)
 {
-    sy_preprocess_opts po;
-    sy_preprocess_defaults(&po);
+    sy_preprocess_options po = sy_preprocess_options_default();
     po.voxel = 0.02;
     po.sor = 0;
     po.remove_ground = 1;
@@ -65,34 +64,29 @@ sy_code sy_scan_features(const char *path, const sy_features_options *fo, float 
     return rc;
 }
 
-static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
-
 const char *sy_species_name_at(int idx, char *buf, size_t size)
 {
-    DIR *d = opendir(SYLVA_SPECIES_DIR);
-    if (!d || idx < 0) {
-        if (d) closedir(d);
-        return NULL;
-    }
-    char *names[256];
-    int n = 0;
-    struct dirent *e;
-    while ((e = readdir(d)) && n < 256) {
-        size_t len = strlen(e->d_name);
-        if (len > 4 && strcmp(e->d_name + len - 4, ".ini") == 0 && e->d_name[0] != '.') {
-            names[n] = strndup(e->d_name, len - 4);
-            if (names[n]) n++;
-        }
-    }
-    closedir(d);
-    qsort(names, (size_t)n, sizeof *names, cmp_str);
+    sy_library lib;
+    sy_error err = {0};
+    if (idx < 0 || sy_library_load(NULL, &lib, &err)) return NULL;
+    const sy_library_entry *e = sy_library_by_id(&lib, idx);
     const char *out = NULL;
-    if (idx < n) {
-        snprintf(buf, size, "%s", names[idx]);
+    if (e) {
+        snprintf(buf, size, "%s", e->name);
         out = buf;
     }
-    for (int i = 0; i < n; i++) free(names[i]);
+    sy_library_free(&lib);
     return out;
+}
+
+sy_code sy_default_model_path(char *path, size_t size, sy_error *err)
+{
+    char dir[4096];
+    sy_code rc = sy_library_locate(dir, sizeof dir, err);
+    if (rc) return rc;
+    if ((size_t)snprintf(path, size, "%s/classifier.sjb", dir) >= size)
+        return sy_fail(err, SY_EINTERNAL, "%s: path too long", dir);
+    return SY_OK;
 }
 
 /* ------------------------------------------------------------ feature table */
@@ -248,9 +242,15 @@ sy_code sy_classify_cloud(const sy_cloud *tree, const char *model_path, sy_speci
 {
     double t0 = sy_now();
     memset(out, 0, sizeof *out);
-    const char *mp = model_path ? model_path : SY_DEFAULT_MODEL;
+    char def[4200];
+    const char *mp = model_path;
+    sy_code rc;
+    if (!mp) {
+        if ((rc = sy_default_model_path(def, sizeof def, err))) return rc;
+        mp = def;
+    }
     sy_jb_model m;
-    sy_code rc = sy_jb_load(mp, &m, err);
+    rc = sy_jb_load(mp, &m, err);
     if (rc) return rc;
     size_t d = sy_feature_count();
     if (m.n_features != d || m.features_version != SY_FEATURES_VERSION) {
@@ -276,12 +276,30 @@ sy_code sy_classify_cloud(const sy_cloud *tree, const char *model_path, sy_speci
             out->confident = dec.confident;
             out->novel = dec.novel;
             /* A class the library no longer has cannot give parameters. */
-            int known = dec.species >= 0 && sy_species_index(m.classes[dec.species]) >= 0;
-            snprintf(out->name, sizeof out->name, "%s", known ? m.classes[dec.species] : "unknown");
+            int id = dec.species >= 0 ? sy_library_id(m.classes[dec.species]) : -1;
+            snprintf(out->name, sizeof out->name, "%s", id >= 0 ? m.classes[dec.species] : "unknown");
+            /* The answer in library ids: classes bound by name. */
+            int max_id = -1;
+            for (size_t c = 0; c < m.n_classes; c++) {
+                int k = sy_library_id(m.classes[c]);
+                if (k > max_id) max_id = k;
+            }
+            if (!(rc = sy_species_init(&out->species, max_id >= 0 ? (size_t)max_id + 1 : 0, err))) {
+                for (size_t c = 0; c < m.n_classes; c++) {
+                    int k = sy_library_id(m.classes[c]);
+                    if (k >= 0) out->species.probabilities[k] = (float)p[c];
+                }
+                out->species.id = id;
+                if (id >= 0) snprintf(out->species.name, sizeof out->species.name, "%s", out->name);
+                out->species.confident = dec.confident && id >= 0;
+            }
         }
     }
     free(x);
     sy_jb_model_free(&m);
     out->seconds = sy_now() - t0;
+    if (rc) sy_species_guess_free(out);
     return rc;
 }
+
+void sy_species_guess_free(sy_species_guess *g) { sy_species_free(&g->species); }

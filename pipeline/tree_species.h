@@ -8,10 +8,12 @@
 #include <stddef.h>
 
 #include "classify/classify.h"
+#include "species/species.h"
 #include "stages/core/cloud.h"
 
-/* The shipped default model (built by species/train-classifier.sh). */
-#define SY_DEFAULT_MODEL SYLVA_SPECIES_DIR "/classifier.sjb"
+/* The shipped default model, classifier.sjb in the species library folder
+ * (species/library.h locates it; built by species/train-classifier.sh). */
+sy_code sy_default_model_path(char *path, size_t size, sy_error *err);
 
 typedef struct {
     char label[64];       /* species name from the speciesID extra bytes ("" when none) */
@@ -30,8 +32,8 @@ sy_code sy_classify_preprocess(sy_cloud *c, const char *path, sy_error *err);
 sy_code sy_scan_features(const char *path, const sy_features_options *fo, float *f, sy_scan_features_result *r,
                          sy_error *err);
 
-/* Name of the species with library index idx (the scanner's speciesID), or
- * NULL when there is none; buf holds it. */
+/* Name of the library species with id idx (the scanner's speciesID), or NULL
+ * when there is none; buf holds it. */
 const char *sy_species_name_at(int idx, char *buf, size_t size);
 
 /* Feature table: a TSV with a header "file<TAB>label<TAB>spacing<TAB>points<TAB>
@@ -60,6 +62,7 @@ sy_code sy_feature_table_classes(const sy_feature_table *t, const char **names, 
  * is loaded, the features computed and the single-tree decision taken (no
  * neighbours, so no voting). name is a library species or "unknown". */
 typedef struct {
+    sy_species species; /* the answer in library ids: id -1 when unknown; owned (sy_species_guess_free) */
     char name[64];
     char best[64];     /* the argmax class, even when unknown */
     double probability; /* of best */
@@ -69,5 +72,6 @@ typedef struct {
 } sy_species_guess;
 
 sy_code sy_classify_cloud(const sy_cloud *tree, const char *model_path, sy_species_guess *out, sy_error *err);
+void sy_species_guess_free(sy_species_guess *g);
 
 #endif
