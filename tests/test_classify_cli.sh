@@ -43,7 +43,7 @@ echo "$out" | grep -q '"file":"[^"]*lombardy_poplar_t2.las","species":"lombardy_
 for f in "$TMP"/*.las; do b=$(basename "$f" .las); echo "$b,${b%_*}" >> "$TMP/labels.csv"; done
 "$SYLVA" train --labels "$TMP/labels.csv" "$TMP"/*.las -o "$TMP/m4.sjb" --folds 0 --rounds 30 --quiet || fail "train --labels"
 head -n -1 "$TMP/labels.csv" > "$TMP/short.csv"
-"$SYLVA" train --labels "$TMP/short.csv" "$TMP"/*.las -o "$TMP/m5.sjb" --folds 0 2>"$TMP/err"
+"$SYLVA" train --labels "$TMP/short.csv" "$TMP"/*.las -o "$TMP/m5.sjb" --folds 0 --quiet 2>"$TMP/err"
 rc=$?
 [ "$rc" -eq 2 ] || fail "missing label exited $rc, want 2"
 [ "$(wc -l <"$TMP/err")" -eq 1 ] && grep -q "no line for this file" "$TMP/err" || fail "missing label message: $(cat "$TMP/err")"

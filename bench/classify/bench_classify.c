@@ -516,7 +516,10 @@ int main(int argc, char **argv)
 {
     const char *train = SYLVA_SPECIES_DIR "/../build/classifier-data/train.tsv";
     const char *unseen = SYLVA_SPECIES_DIR "/../build/classifier-data/unseen.tsv";
-    const char *model = SY_DEFAULT_MODEL, *png = "confusion.png";
+    char def_model[4200] = "";
+    sy_error merr = {0};
+    if (sy_default_model_path(def_model, sizeof def_model, &merr)) fprintf(stderr, "bench_classify: %s\n", merr.msg);
+    const char *model = def_model, *png = "confusion.png";
     const char *speed_scan = NULL;
     int reps = 100, skip_xgb = 0;
     for (int i = 1; i < argc; i++) {
