@@ -39,6 +39,7 @@
 #include "stages/core/fileio.h"
 #include "stages/core/parallel.h"
 #include "stages/core/progress.h"
+#include "stages/core/rng.h"
 
 sy_jb_options sy_jb_options_default(void)
 {
@@ -262,13 +263,6 @@ static int cmp_vi(const void *a, const void *b)
     return (x->i > y->i) - (x->i < y->i);
 }
 
-static uint64_t splitmix(uint64_t *s)
-{
-    uint64_t z = (*s += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
 
 static double logloss(const double *H, const int *y, const uint32_t *idx, size_t n, size_t C, double kappa)
 {
@@ -507,7 +501,7 @@ sy_code sy_jb_train(const float *X, size_t n, size_t d, const int *y, size_t C, 
     uint64_t rs = o->seed ^ 0x4A6F696E74426F6Full;
     for (size_t i = 0; i < n; i++) perm[i] = (uint32_t)i;
     for (size_t i = n; i > 1; i--) {
-        size_t j = (size_t)(splitmix(&rs) % i);
+        size_t j = (size_t)(sy_splitmix64(&rs) % i);
         uint32_t t = perm[i - 1];
         perm[i - 1] = perm[j];
         perm[j] = t;

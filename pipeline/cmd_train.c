@@ -16,6 +16,7 @@
 #include "stages/core/json.h"
 #include "stages/core/parallel.h"
 #include "stages/core/progress.h"
+#include "stages/core/rng.h"
 #include "stages/eval/eval.h"
 
 typedef struct {
@@ -113,13 +114,6 @@ done:
     return rc;
 }
 
-static uint64_t mix(uint64_t *s)
-{
-    uint64_t z = (*s += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
 
 /* Stratified k-fold cross-validation: per class a seeded shuffle dealt round-robin to the folds. */
 static sy_code cross_validate(const sy_feature_table *t, const int *y, size_t C, const char *const *names,
@@ -142,7 +136,7 @@ static sy_code cross_validate(const sy_feature_table *t, const int *y, size_t C,
         for (size_t i = 0; i < n; i++)
             if (y[i] == (int)c) idx[m++] = i;
         for (size_t i = m; i > 1; i--) {
-            size_t r = (size_t)(mix(&s) % i), tmp = idx[i - 1];
+            size_t r = (size_t)(sy_splitmix64(&s) % i), tmp = idx[i - 1];
             idx[i - 1] = idx[r];
             idx[r] = tmp;
         }
