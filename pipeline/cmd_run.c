@@ -31,6 +31,16 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
         sy_json_int(&j, "sylva_bytes", (long long)res->sylva_size);
     }
     if (a->run.species) sy_json_string(&j, "species", a->run.species);
+    else if (res->classified) {
+        const sy_species_guess *g = &res->guess;
+        sy_json_string(&j, "species", g->name);
+        sy_json_object(&j, "classification");
+        sy_json_string(&j, "best", g->best);
+        sy_json_number(&j, "probability", g->probability);
+        sy_json_bool(&j, "confident", g->confident);
+        sy_json_number(&j, "novelty", g->novelty);
+        sy_json_end(&j);
+    }
     sy_json_int(&j, "points_in", (long long)res->points_in);
     sy_json_int(&j, "points_preprocessed", (long long)res->points_clean);
     sy_json_int(&j, "nodes", (long long)r->nodes);
@@ -75,14 +85,18 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
     run_args a = {NULL, NULL, sy_run_tree_options_default(), sy_glb_args_default()};
     sy_photo_cli photo;
     memset(&photo, 0, sizeof photo);
+    int no_classify = 0;
     const sy_opt opts[] = {
         {"-o", OPT_STRING, &a.out_path, "OUT.glb", "output glTF binary"},
         {"--sylva", OPT_STRING, &a.sylva_path, "OUT.sylva", "also write the compact .sylva file of the reconstruction"},
         {"--species", OPT_STRING, &a.run.species, "NAME",
-         "library species: its beta/gamma, branchlets, bark and leaf materials (default: default.lsys, plain materials)"},
+         "library species: its beta/gamma, branchlets, bark and leaf materials (default: the classifier's answer,\n"
+         "else default.lsys and plain materials)"},
         {"--proxy", OPT_FLAG, &a.run.proxy, NULL, "also draw the lobe hulls as a semi-transparent foliage_proxy mesh"},
         {"--lobe-size", OPT_DOUBLE, &a.run.lobe_size, "F",
          "largest lobe as a share of the tree's extent, in [0,1]; 0: one cluster per cut (default 0.25)"},
+        {"--model", OPT_STRING, &a.run.model, "MODEL.sjb", "species classifier used without --species (default: the shipped one)"},
+        {"--no-classify", OPT_FLAG, &no_classify, NULL, "without --species, keep the default parameters and materials"},
         {"--beta", OPT_DOUBLE, &a.run.beta, "B", "Dijkstra edge weight |u-v|^B (default: species, else 1)"},
         {"--gamma", OPT_DOUBLE, &a.run.gamma, "G", "allometry exponent (default: species, else 2)"},
         {"--fs", OPT_DOUBLE, &a.run.fs, "F", "scan-density factor f_s in (0,1]; smaller gives larger clusters (default 1)"},
@@ -105,8 +119,10 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
     "(one bark mesh, leaf instances whose stored order drives the LOD chain, impostor), export.\n"
     "--proxy adds the hulls as one semi-transparent \"foliage_proxy\" mesh. The glb is centred at the tree's base, its world\n"
     "position in asset.extras.origin (as `sylva mesh` does). SCAN must hold one tree. The .sylva species id\n"
-    "is the species' index in the library plus one (0: unknown). A folder of photos is turned into\n"
-    "points first, as `sylva photogrammetry` does (give --scale-ref or --camera-spacing for metres).",
+    "is the species' library id plus one (0: unknown). Without --species the tree is classified\n"
+    "first (docs/classify.md): a confident answer's parameters, branchlets and materials are used, an\n"
+    "unknown tree keeps the defaults. A folder of photos is turned into points first, as\n"
+    "`sylva photogrammetry` does (give --scale-ref or --camera-spacing for metres).",
         opts, 1, 1};
     const char *in[1];
     int n;
@@ -123,6 +139,7 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
     }
     sy_glb_args_apply(&a.glb, &a.run.asset);
     a.run.sylva = a.sylva_path != NULL;
+    a.run.classify = !no_classify;
     a.run.seed = cli->seed;
     if (!cli->quiet && !cli->json) a.run.on_step = step_line;
     sy_error err = {0};

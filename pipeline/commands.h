@@ -18,6 +18,8 @@ int cmd_eval(int argc, char **argv, sy_cli *cli);
 int cmd_skeleton(int argc, char **argv, sy_cli *cli);
 int cmd_mesh(int argc, char **argv, sy_cli *cli);
 int cmd_run(int argc, char **argv, sy_cli *cli);
+int cmd_train(int argc, char **argv, sy_cli *cli);
+int cmd_classify(int argc, char **argv, sy_cli *cli);
 int cmd_encode(int argc, char **argv, sy_cli *cli);
 int cmd_decode(int argc, char **argv, sy_cli *cli);
 int cmd_leaf(int argc, char **argv, sy_cli *cli);

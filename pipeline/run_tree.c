@@ -24,6 +24,7 @@ sy_run_tree_options sy_run_tree_options_default(void)
     o.fs = 1;
     o.seed = 1;
     o.lobe_size = 0.25;
+    o.classify = 1;
     o.asset = sy_tree_asset_options_default();
     return o;
 }
@@ -48,6 +49,8 @@ void sy_run_tree_result_free(sy_run_tree_result *r)
 {
     free(r->glb);
     free(r->sylva);
+    if (r->classified) sy_species_guess_free(&r->guess);
+    r->classified = 0;
     r->glb = r->sylva = NULL;
     r->glb_size = r->sylva_size = 0;
 }
@@ -106,11 +109,42 @@ static sy_code clean(sy_cloud *c, const char *name, const sy_run_tree_options *o
     return SY_OK;
 }
 
+static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree_options *o,
+                                const sy_species_params *sp, sy_run_tree_result *r, sy_error *err);
+
 static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_options *o,
                            const sy_species_params *sp, sy_run_tree_result *r, sy_error *err)
 {
     sy_code rc = clean(c, name, o, r, err);
     if (rc) return rc;
+    /* No species given: the classifier names one from the cleaned tree, and a
+     * confident answer brings its parameters and materials. */
+    sy_species_params guessed;
+    int have_guess = 0;
+    if (!sp && !o->species && o->classify) {
+        if ((rc = sy_classify_cloud(c, o->model, &r->guess, err))) return rc;
+        r->classified = 1;
+        char line[200];
+        snprintf(line, sizeof line, "%s (%s; best %s p %.2f)", r->guess.name,
+                 r->guess.confident ? "confident" : r->guess.novel ? "unlike the training trees" : "not confident",
+                 r->guess.best, r->guess.probability);
+        step(o, "species", r->guess.seconds, line);
+        if (r->guess.species.id >= 0) {
+            if ((rc = sy_species_params_find(r->guess.name, &guessed, err))) return rc;
+            sp = &guessed;
+            have_guess = 1;
+            r->species_id = r->guess.species.id;
+        }
+    }
+    rc = reconstruct_with(c, name, o, sp, r, err);
+    if (have_guess) sy_species_params_free(&guessed);
+    return rc;
+}
+
+static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree_options *o,
+                                const sy_species_params *sp, sy_run_tree_result *r, sy_error *err)
+{
+    sy_code rc;
     sy_skeleton_options so = sy_skeleton_options_default();
     if (sp) so.beta = sp->beta, so.gamma = sp->gamma;
     if (!isnan(o->beta)) so.beta = o->beta;

@@ -18,6 +18,7 @@
 
 #include "pipeline/tree_asset.h"
 #include "stages/synthesize/synthesize.h"
+#include "pipeline/tree_species.h"
 #include "stages/core/cloud.h"
 #include "stages/core/status.h"
 #include "stages/skeleton/skeleton.h"
@@ -37,6 +38,10 @@ typedef struct {
     int sylva;           /* 1: also keep the .sylva file (result->sylva); the asset is always made from it */
     int proxy;           /* 1: also draw the lobe hulls as the semi-transparent foliage_proxy mesh (0) */
     double lobe_size;    /* largest lobe as a share of the tree's extent, [0, 1] (0.25; 0: one cluster a cut) */
+    int sylva;           /* 1: also encode the .sylva file (result->sylva) */
+    int classify;        /* 1: without a species, the classifier names one from the cleaned cloud and a
+                            confident answer's parameters and materials are used (1) */
+    const char *model;   /* classifier model; NULL: the library's classifier.sjb */
     uint64_t seed;       /* every random choice (1) */
     sy_tree_asset_options asset; /* LODs, impostor, meshopt, instancing; seed, hulls and source are set
                                     by the driver */
@@ -55,7 +60,9 @@ typedef struct {
     size_t glb_size;
     unsigned char *sylva; /* the .sylva file's bytes when options.sylva (malloc'd), else NULL */
     size_t sylva_size;
-    int species_id;       /* library id of options.species, -1 when none or not in the library */
+    int species_id;       /* library id of options.species (or of the classified species), -1 when none */
+    int classified;       /* 1: the species came from the classifier (guess holds its answer) */
+    sy_species_guess guess;
     size_t points_in, points_clean; /* after ingest, after preprocessing */
     sy_skeleton_report skeleton;
     sy_hull_report hulls;

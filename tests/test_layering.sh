@@ -27,16 +27,17 @@ declare -A allowed=(
   [eval]="core encode qsm gltf"
   [photogrammetry]="core ingest"
   [viewer]="core gltf ingest"
+  [classify]="core clusters skeleton"
 )
-main_path="core leafmaps species ingest preprocess clusters skeleton synthesize encode grow mesh gltf export photogrammetry"
+main_path="core leafmaps species ingest preprocess clusters skeleton synthesize encode grow mesh gltf export photogrammetry classify"
 reconstruction="skeleton clusters encode"
 
-folder_of() { case $1 in species|viewer) echo "$root/$1" ;; *) echo "$root/stages/$1" ;; esac; }
+folder_of() { case $1 in species|viewer|classify) echo "$root/$1" ;; *) echo "$root/stages/$1" ;; esac; }
 
 check() {
   local src=$1 fail=0
   for stage in "${!allowed[@]}"; do
-    local dir; dir=$(case $stage in species|viewer) echo "$src/$stage" ;; *) echo "$src/stages/$stage" ;; esac)
+    local dir; dir=$(case $stage in species|viewer|classify) echo "$src/$stage" ;; *) echo "$src/stages/$stage" ;; esac)
     [ -d "$dir" ] || continue
     # Every "stages/X/..." or "species/..." or "pipeline/..." include of the folder.
     while IFS= read -r line; do

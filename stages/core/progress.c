@@ -7,6 +7,7 @@
 static int g_quiet;
 
 void sy_progress_set_quiet(int quiet) { g_quiet = quiet; }
+int sy_progress_quiet(void) { return g_quiet; }
 
 double sy_now(void)
 {

@@ -20,6 +20,7 @@ typedef struct {
 
 /* Global switch set by the CLI (--quiet, --json). */
 void sy_progress_set_quiet(int quiet);
+int sy_progress_quiet(void);
 
 void sy_progress_begin(sy_progress *p, const char *label, size_t total);
 void sy_progress_update(sy_progress *p, size_t done);
