@@ -18,11 +18,29 @@ namespace {
 using Mat4 = std::array<double, 16>; // column-major, as glTF stores matrices
 
 constexpr size_t kMaxTriangles = size_t(1) << 28; // 2.7e8 triangles, ~19 GB of doubles
+constexpr double kMaxCoordinate = 1e9;            // SY_WORLD_MAX (stages/core/cloud.h)
 
 struct Failure {
     int code;
     std::string what;
 };
+
+std::string number(double v)
+{
+    char b[32];
+    std::snprintf(b, sizeof b, "%g", v);
+    return b;
+}
+
+// An accessor index from an extension's JSON: a whole number in int range
+// (tinygltf's GetNumberAsInt casts any double, which is undefined past it).
+int index_value(const tinygltf::Value &v, const char *what)
+{
+    double d = v.GetNumberAsDouble();
+    if (!(d >= 0 && d <= 2147483647.0) || d != std::floor(d))
+        throw Failure{2, std::string(what) + " is not an accessor index"};
+    return int(d);
+}
 
 Mat4 identity()
 {
@@ -176,7 +194,7 @@ struct Reader {
             if (!attrs.Has(names[k])) continue;
             const tinygltf::Value &v = attrs.Get(names[k]);
             if (!v.IsNumber()) throw Failure{2, std::string("EXT_mesh_gpu_instancing ") + names[k] + " is not an accessor index"};
-            views.emplace_back(m, v.GetNumberAsInt(), "EXT_mesh_gpu_instancing");
+            views.emplace_back(m, index_value(v, (std::string("EXT_mesh_gpu_instancing ") + names[k]).c_str()), "EXT_mesh_gpu_instancing");
             if (views.back().components() != widths[k]) throw Failure{2, std::string("EXT_mesh_gpu_instancing ") + names[k] + " has the wrong type"};
             if (views.size() > 1 && views.back().count() != count) throw Failure{2, "EXT_mesh_gpu_instancing attributes differ in count"};
             count = views.back().count();
@@ -202,7 +220,14 @@ struct Reader {
         hull.push_back(hull_id);
         for (size_t v : {a, b, c}) {
             double p[3] = {pos.get(v, 0), pos.get(v, 1), pos.get(v, 2)}, w[3];
-            for (int r = 0; r < 3; r++) w[r] = xf[r] * p[0] + xf[4 + r] * p[1] + xf[8 + r] * p[2] + xf[12 + r];
+            for (int r = 0; r < 3; r++) {
+                w[r] = xf[r] * p[0] + xf[4 + r] * p[1] + xf[8 + r] * p[2] + xf[12 + r];
+                // A matrix of 1e308 or a NaN vertex: no tree lies there, and
+                // every later sample count would follow the number.
+                if (!(std::fabs(w[r]) <= kMaxCoordinate))
+                    throw Failure{2, "vertex " + std::to_string(v) + " lies at " + number(w[r]) +
+                                         " m after its node transforms (beyond 1e9 m or not finite)"};
+            }
             // glTF Y-up to Sylva Z-up.
             out.push_back(w[0]);
             out.push_back(-w[2]);
@@ -224,7 +249,7 @@ struct Reader {
             idx.resize(ind.count());
             for (size_t i = 0; i < ind.count(); i++) {
                 double v = ind.get(i, 0);
-                if (!(v >= 0 && v < double(pos.count()))) throw Failure{2, "index " + std::to_string(size_t(v)) + " beyond the vertex count"};
+                if (!(v >= 0 && v < double(pos.count()))) throw Failure{2, "index " + number(v) + " beyond the vertex count"};
                 idx[i] = size_t(v);
             }
         } else {
@@ -332,7 +357,11 @@ extern "C" int sy_gltf_read_triangles(const char *path, double **tri, size_t *n_
         const tinygltf::Value &origin = model.asset.extras.Get("origin");
         if (origin.IsArray() && origin.ArrayLen() == 3 && origin.Get(0).IsNumber() && origin.Get(1).IsNumber() &&
             origin.Get(2).IsNumber())
-            for (size_t i = 0; i < r.out.size(); i++) r.out[i] += origin.Get(int(i % 3)).GetNumberAsDouble();
+            for (size_t i = 0; i < r.out.size(); i++) {
+                r.out[i] += origin.Get(int(i % 3)).GetNumberAsDouble();
+                if (!(std::fabs(r.out[i]) <= kMaxCoordinate))
+                    throw Failure{2, "asset.extras.origin puts a vertex at " + number(r.out[i]) + " m (beyond 1e9 m)"};
+            }
         *n_tri = r.out.size() / 9;
         *tri = static_cast<double *>(std::malloc(r.out.size() ? r.out.size() * sizeof(double) : sizeof(double)));
         *hull = static_cast<size_t *>(std::malloc(r.hull.size() ? r.hull.size() * sizeof(size_t) : sizeof(size_t)));

@@ -177,9 +177,9 @@ static sy_code parse_tree(const ctx *c, const sy_jv *obj, const double *origin, 
             return bad(c, pos, "%s: 'position' must be [x, y, z]%s", where, NULL);
         }
         for (int k = 0; k < 3; k++)
-            if (!sy_jv_number(&pos->items[k], &t->position[k])) {
+            if (!sy_jv_number(&pos->items[k], &t->position[k]) || !(fabs(t->position[k]) <= SY_WORLD_MAX)) {
                 sy_skeleton_free(&t->skel);
-                return bad(c, &pos->items[k], "%s: 'position' must hold numbers%s", where, NULL);
+                return bad(c, &pos->items[k], "%s: 'position' must hold numbers within 1e9 m%s", where, NULL);
             }
     }
     if (isnan(t->dbh)) t->dbh = sy_skeleton_dbh(&t->skel);
