@@ -460,17 +460,28 @@ static void attr_name(const sy_cloud *c, const unsigned char *desc, unsigned ind
 /* Extra bytes (LAS 1.4 "LASF_Spec"/4): each sized field of type 1-10 becomes a
  * named attribute, with the descriptor's scale and offset applied and its
  * no_data value read as NaN. */
-static sy_code decode_extra_bytes(const las_header *h, const las_vlrs *v, const unsigned char *pts, sy_cloud *c,
-                                  sy_error *err)
+static sy_code decode_extra_bytes(const char *path, const las_header *h, const las_vlrs *v, const unsigned char *pts,
+                                  sy_cloud *c, sy_error *err)
 {
     size_t base = las_layouts[h->format].size, extra = h->record_length - base, at = 0;
     size_t n_desc = v->extra_bytes_len / LAS_EB_DESCRIPTOR;
+    /* A descriptor table that cannot be read whole is refused: dropping the
+     * fields behind a bad one would silently lose treeID or speciesID. */
+    if (v->extra_bytes_len % LAS_EB_DESCRIPTOR)
+        return sy_fail(err, SY_EINPUT, "%s: extra-bytes VLR of %zu bytes is not a whole number of %d-byte descriptors",
+                       path, v->extra_bytes_len, LAS_EB_DESCRIPTOR);
     for (size_t i = 0; i < n_desc; i++) {
         const unsigned char *desc = v->extra_bytes + i * LAS_EB_DESCRIPTOR;
         unsigned type = desc[LAS_EB_TYPE], options = desc[LAS_EB_OPTIONS];
         int known;
         size_t width = extra_field_size(type, options, &known);
-        if (!known || width > extra - at) break;
+        if (!known)
+            return sy_fail(err, SY_EINPUT, "%s: extra-bytes descriptor %zu has unknown data type %u", path, i, type);
+        if (width > extra - at)
+            return sy_fail(err, SY_EINPUT,
+                           "%s: extra-bytes descriptors need more than the %zu bytes each point record holds past "
+                           "its format's fields (descriptor %zu)",
+                           path, extra, i);
         if (type >= 1 && type <= 10) {
             char name[32];
             attr_name(c, desc, (unsigned)i, name, sizeof name);
@@ -571,8 +582,7 @@ static sy_code read_las(const char *path, const unsigned char *data, size_t size
     if ((rc = sy_cloud_init(out, (size_t)h.count, err))) return rc;
     const unsigned char *pts = data + h.point_offset;
     if ((rc = decode_points(path, &h, pts, out, err))) return rc;
-    if (v->extra_bytes && h.record_length > las_layouts[h.format].size &&
-        ((rc = decode_extra_bytes(&h, v, pts, out, err)) || (rc = adopt_normals(out, err))))
+    if (v->extra_bytes && ((rc = decode_extra_bytes(path, &h, v, pts, out, err)) || (rc = adopt_normals(out, err))))
         return rc;
     return fill_meta(path, &h, v, out, err);
 }
