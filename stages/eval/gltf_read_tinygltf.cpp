@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include <sys/stat.h>
+
 namespace {
 
 using Mat4 = std::array<double, 16>; // column-major, as glTF stores matrices
@@ -293,6 +295,59 @@ struct Reader {
     }
 };
 
+// External buffers (a .gltf's "uri"): regular files only, of a bounded size.
+// tinygltf's own reader would open a FIFO named there and wait forever, or
+// read a device; an accessor can never need more than 2 GiB of one buffer.
+constexpr long long kMaxExternalBuffer = 1LL << 31;
+
+bool regular_file(const std::string &path, long long *size)
+{
+    struct stat st;
+    if (stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return false;
+    *size = (long long)st.st_size;
+    return true;
+}
+
+bool fs_exists(const std::string &path, void *)
+{
+    long long size;
+    return regular_file(path, &size);
+}
+
+std::string fs_expand(const std::string &path, void *) { return path; }
+
+bool fs_read(std::vector<unsigned char> *out, std::string *err, const std::string &path, void *)
+{
+    long long size;
+    if (!regular_file(path, &size)) {
+        if (err) *err += "not a regular file: " + path + "\n";
+        return false;
+    }
+    if (size > kMaxExternalBuffer) {
+        if (err) *err += "file larger than 2 GiB: " + path + "\n";
+        return false;
+    }
+    FILE *fp = std::fopen(path.c_str(), "rb");
+    if (!fp) {
+        if (err) *err += "cannot open " + path + "\n";
+        return false;
+    }
+    out->resize(size_t(size));
+    size_t got = size ? std::fread(out->data(), 1, size_t(size), fp) : 0;
+    std::fclose(fp);
+    if (got != size_t(size)) {
+        if (err) *err += "short read: " + path + "\n";
+        return false;
+    }
+    return true;
+}
+
+bool fs_write(std::string *err, const std::string &, const std::vector<unsigned char> &, void *)
+{
+    if (err) *err += "writing is not allowed here\n";
+    return false;
+}
+
 // Evaluation needs geometry only: skip decoding textures.
 bool skip_image(tinygltf::Image *, const int, std::string *, std::string *, int, int, const unsigned char *, int, void *)
 {
@@ -319,6 +374,7 @@ extern "C" int sy_gltf_read_triangles(const char *path, double **tri, size_t *n_
     try {
         tinygltf::TinyGLTF loader;
         loader.SetImageLoader(skip_image, nullptr);
+        loader.SetFsCallbacks(tinygltf::FsCallbacks{fs_exists, fs_expand, fs_read, fs_write, nullptr});
         tinygltf::Model model;
         std::string err, warn;
         FILE *fp = std::fopen(path, "rb");
