@@ -10,6 +10,10 @@
 
 #include "status.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     unsigned char *data; /* NUL-terminated for convenience (data[size] == 0) */
     size_t size;
@@ -107,5 +111,9 @@ sy_code sy_stage_output(sy_staged_output *s, const char *path, sy_error *err);
 sy_code sy_stage_commit(sy_staged_output *s, size_t n, sy_error *err);
 /* Removes the staged files. */
 void sy_stage_abort(sy_staged_output *s, size_t n);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

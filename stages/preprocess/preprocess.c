@@ -11,8 +11,9 @@
 
 /* ---------------------------------------------------------------- options */
 
-void sy_preprocess_defaults(sy_preprocess_opts *o)
+sy_preprocess_options sy_preprocess_options_default(void)
 {
+    sy_preprocess_options value_, *o = &value_;
     memset(o, 0, sizeof *o);
     o->up = SY_UP_AUTO;
     o->sor = 1;
@@ -25,9 +26,10 @@ void sy_preprocess_defaults(sy_preprocess_opts *o)
     o->ground_threshold = 0.15;
     o->normals = 1;
     o->normal_k = 16;
+    return value_;
 }
 
-sy_code sy_preprocess_check(const sy_preprocess_opts *o, sy_error *err)
+sy_code sy_preprocess_options_check(const sy_preprocess_options *o, sy_error *err)
 {
     if (o->up < -3 || o->up > 3) return sy_fail(err, SY_EUSAGE, "--up: unknown axis code %d", o->up);
     if (o->crop)
@@ -649,7 +651,7 @@ static sy_code heights_above(const sy_cloud *c, const ground_grid *g, const cell
 
 /* The lowest point of every occupied cell, run through PMF; the surviving
  * cells get their lowest point's height. */
-static sy_code pmf_surface(const sy_cloud *c, const sy_preprocess_opts *o, const ground_grid *g, cell_heights *h,
+static sy_code pmf_surface(const sy_cloud *c, const sy_preprocess_options *o, const ground_grid *g, cell_heights *h,
                            sy_error *err)
 {
     memset(h, 0, sizeof *h);
@@ -701,7 +703,7 @@ static sy_code refine_surface(const sy_cloud *c, const ground_grid *g, const dou
     return SY_OK;
 }
 
-sy_code sy_classify_ground(sy_cloud *c, const sy_preprocess_opts *o, size_t *n_ground, sy_error *err)
+sy_code sy_classify_ground(sy_cloud *c, const sy_preprocess_options *o, size_t *n_ground, sy_error *err)
 {
     *n_ground = 0;
     double *hag = sy_cloud_add_attr(c, "height_above_ground", err);
@@ -809,7 +811,7 @@ static void step_end(sy_preprocess_step *s, size_t n)
     s->seconds = s->ran ? sy_now() - s->seconds : 0;
 }
 
-static sy_code step_up(sy_cloud *c, const sy_preprocess_opts *o, sy_preprocess_result *r, sy_preprocess_step *s,
+static sy_code step_up(sy_cloud *c, const sy_preprocess_options *o, sy_preprocess_result *r, sy_preprocess_step *s,
                        sy_error *err)
 {
     int up = o->up;
@@ -832,11 +834,11 @@ static sy_code step_up(sy_cloud *c, const sy_preprocess_opts *o, sy_preprocess_r
     return SY_OK;
 }
 
-sy_code sy_preprocess(sy_cloud *c, const sy_preprocess_opts *o, sy_preprocess_result *r, sy_error *err)
+sy_code sy_preprocess(sy_cloud *c, const sy_preprocess_options *o, sy_preprocess_result *r, sy_error *err)
 {
     memset(r, 0, sizeof *r);
     r->point_count_in = c->n;
-    sy_code rc = sy_preprocess_check(o, err);
+    sy_code rc = sy_preprocess_options_check(o, err);
     if (rc) return rc;
     sy_progress p;
 

@@ -18,7 +18,7 @@
 #include "stages/core/cloud.h"
 #include "stages/core/progress.h"
 #include "stages/preprocess/preprocess.h"
-#include "stages/skeleton/skeleton_stage.h"
+#include "stages/skeleton/skeleton.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
@@ -42,19 +42,17 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         }
     /* What every reader's caller gets: the range check of sy_read_cloud. */
     if (sy_cloud_check_range(&c, "fuzz", &err) == SY_OK) {
-        sy_preprocess_opts o;
-        sy_preprocess_defaults(&o);
+        sy_preprocess_options o = sy_preprocess_options_default();
         o.voxel = flags & 1 ? 0.05 : 0;
         o.sor = (flags >> 1) & 1;
         o.ground = (flags >> 2) & 1;
         o.normals = (flags >> 3) & 1;
         o.sor_k = o.normal_k = 8;
         sy_preprocess_result r;
-        sy_code rc = sy_preprocess_check(&o, &err);
+        sy_code rc = sy_preprocess_options_check(&o, &err);
         if (rc == SY_OK) rc = sy_preprocess(&c, &o, &r, &err);
         if (rc == SY_OK && (flags & 16) && c.n >= 2) {
-            sy_skeleton_options so;
-            sy_skeleton_options_default(&so);
+            sy_skeleton_options so = sy_skeleton_options_default();
             so.clusters = (flags >> 5) & 1;
             sy_skeleton s;
             sy_clusters cl;

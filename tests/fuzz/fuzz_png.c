@@ -1,6 +1,6 @@
 /* libFuzzer target: arbitrary bytes as a species' bark and leaf texture
  * (decode, size checks, resize, normal map, alpha, PNG re-encode) through
- * sy_species_materials, small textures so each input stays quick. */
+ * sy_materials_add, small textures so each input stays quick. */
 #include <stddef.h>
 #include <stdint.h>
 #include <string.h>
@@ -18,7 +18,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     sy_asset a = {0};
     int bark, leaf;
     sy_error err = {0};
-    sy_species_materials(&spec, &a, &bark, &leaf, &err);
+    sy_materials_add(&spec, &a, &bark, &leaf, &err);
     sy_asset_free(&a);
     return 0;
 }

@@ -5,7 +5,7 @@
 #include <stdlib.h>
 
 #include "stages/core/skeleton.h"
-#include "stages/qsm/qsm_io.h"
+#include "stages/qsm/qsm.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

@@ -21,7 +21,7 @@
 #include "stages/core/progress.h"
 #include "stages/eval/eval.h"
 #include "stages/qsm/leaf_placement.h"
-#include "stages/qsm/qsm_io.h"
+#include "stages/qsm/qsm.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
