@@ -27,6 +27,7 @@ int cmd_convert(int argc, char **argv, sy_cli *cli)
         fprintf(stderr, "sylva convert: -o OUT is required\n");
         return SY_EUSAGE;
     }
+    if ((rc = sy_cli_check_outputs(&out_path, 1, in, 1))) return rc;
     sy_cloud c;
     sy_error err = {0};
     if (sy_read_cloud(in[0], &c, &err)) return sy_cli_report(&err);

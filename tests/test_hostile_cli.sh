@@ -150,7 +150,7 @@ no_temps "inputs"
 # Devices are written through and stay devices.
 run ok x "mesh -o /dev/null" -- mesh --quiet skel.ply --lods 1 --no-impostor -o /dev/null
 run ok x "grow -o /dev/null" -- grow --quiet --species palm --lods 1 --no-impostor -o /dev/null
-run ok x "encode -o /dev/null" -- encode --quiet tree.ply -o /dev/null
+run ok x "run -o /dev/null" -- run --quiet tree.xyz --lods 1 --no-impostor -o /dev/null
 [[ -c /dev/null ]] || note FAIL "/dev/null is no longer a character device"
 run ok x "mesh -o /dev/stdout" -- mesh --quiet skel.ply --lods 1 --no-impostor -o /dev/stdout
 is_glb "$tmp/so" || note FAIL "mesh -o /dev/stdout: no glb on stdout"
@@ -178,7 +178,9 @@ run bad scan.ply "run --sylva its input" -- run --quiet scan.ply -o scan.glb --s
 [[ $(cksum <scan.ply) == "$sum" && ! -e scan.glb ]] || note FAIL "scan.ply changed or scan.glb written"
 cp tree.sylva t2.sylva
 run bad t2.sylva "encode -o its input" -- encode --quiet t2.sylva -o t2.sylva
-run bad t2.sylva "decode -o its input" -- decode --quiet t2.sylva -o t2.sylva
+ln -s t2.sylva t2_as.json
+run bad t2_as.json "decode -o a link to its input" -- decode --quiet t2.sylva -o t2_as.json
+cmp -s t2.sylva tree.sylva || note FAIL "t2.sylva changed"
 # A legal 250-byte name (the temp name must stay within NAME_MAX).
 long=$(printf 'n%.0s' $(seq 246)).glb
 run ok x "mesh -o 250-byte name" -- mesh --quiet skel.ply --lods 1 --no-impostor -o "$long"
