@@ -1,10 +1,13 @@
 #include "cli.h"
 
 #include <errno.h>
+#include <limits.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "stages/core/fileio.h"
 #include "stages/core/parallel.h"
 #include "stages/core/progress.h"
 
@@ -43,7 +46,9 @@ static int parse_number(const char *cmd, const char *name, const char *text, int
     char *end;
     errno = 0;
     double v = is_int ? (double)strtoll(text, &end, 10) : strtod(text, &end);
-    if (errno || end == text || *end) {
+    /* NaN is never a setting (it would read as "unset" downstream); whole
+     * numbers must fit an int, as every integer option is one. */
+    if (errno || end == text || *end || isnan(v) || (is_int && !(v >= INT_MIN && v <= INT_MAX))) {
         fprintf(stderr, "sylva %s: %s expects a %s, got '%s'\n", cmd, name, is_int ? "whole number" : "number",
                 text);
         return SY_EUSAGE;
@@ -60,7 +65,7 @@ static int parse_list(const char *cmd, const char *name, const char *text, int n
         char *end;
         errno = 0;
         out[i] = strtod(p, &end);
-        if (errno || end == p || (i + 1 < n ? *end != ',' : *end != '\0')) {
+        if (errno || end == p || isnan(out[i]) || (i + 1 < n ? *end != ',' : *end != '\0')) {
             fprintf(stderr, "sylva %s: %s expects %d comma-separated numbers, got '%s'\n", cmd, name, n, text);
             return SY_EUSAGE;
         }
@@ -69,12 +74,29 @@ static int parse_list(const char *cmd, const char *name, const char *text, int n
     return SY_OK;
 }
 
+static int is_file_option(const char *name)
+{
+    static const char *files[] = {"-o", "--sylva", "--png", "--truth", "--points"};
+    for (size_t i = 0; i < sizeof files / sizeof files[0]; i++)
+        if (strcmp(name, files[i]) == 0) return 1;
+    return 0;
+}
+
 static int apply(const char *cmd, const sy_opt *o, const char *value)
 {
     double v;
     switch (o->kind) {
     case OPT_FLAG: *(int *)o->target = 1; return SY_OK;
-    case OPT_STRING: *(const char **)o->target = value; return SY_OK;
+    case OPT_STRING:
+        /* A second -o would silently win over the first: refused for the
+         * file options (the others may carry a default). */
+        if (*(const char **)o->target && is_file_option(o->name)) {
+            fprintf(stderr, "sylva %s: %s given twice ('%s' and '%s')\n", cmd, o->name, *(const char **)o->target,
+                    value);
+            return SY_EUSAGE;
+        }
+        *(const char **)o->target = value;
+        return SY_OK;
     case OPT_INT:
         if (parse_number(cmd, o->name, value, 1, &v)) return SY_EUSAGE;
         *(int *)o->target = (int)v;
@@ -170,4 +192,19 @@ int sy_cli_report(const sy_error *err)
         fputc((unsigned char)*s < 0x20 || *s == 0x7f ? '?' : *s, stderr);
     fputc('\n', stderr);
     return err->code ? (int)err->code : SY_EINTERNAL;
+}
+
+int sy_cli_check_outputs(const char *const *outs, size_t n_out, const char *const *ins, size_t n_in)
+{
+    sy_error err = {0};
+    for (size_t i = 0; i < n_out; i++) {
+        if (!outs[i]) continue;
+        if (sy_output_check(outs[i], ins, n_in, &err)) return sy_cli_report(&err);
+        /* Two outputs naming one file: the second would replace the first. */
+        if (sy_output_check(outs[i], outs, i, &err)) {
+            sy_fail(&err, SY_EUSAGE, "%s: named for two outputs", outs[i]);
+            return sy_cli_report(&err);
+        }
+    }
+    return 0;
 }

@@ -49,6 +49,12 @@ int sy_cli_parse(const sy_cmd_spec *spec, int argc, char **argv, sy_cli *cli, co
  * They change speed and stderr, never output bytes. */
 void sy_cli_apply_settings(const sy_cli *cli);
 
+/* The output rule for a verb, before any work (stages/core/fileio.h): each
+ * of the n_out outputs (NULL entries skipped) must be writable, no device or
+ * directory it must not replace, no input (n_in paths) and no other output.
+ * Prints one line and returns its exit code (2), or 0. */
+int sy_cli_check_outputs(const char *const *outs, size_t n_out, const char *const *ins, size_t n_in);
+
 /* Prints "sylva: <msg>" on stderr and returns err->code (the exit status). */
 int sy_cli_report(const sy_error *err);
 

@@ -84,6 +84,7 @@ int cmd_convert(int argc, char **argv, sy_cli *cli)
         fprintf(stderr, "sylva convert: -o OUT is required\n");
         return SY_EUSAGE;
     }
+    if ((rc = sy_cli_check_outputs(&out_path, 1, in, 1))) return rc;
     sy_error err = {0};
     int transcoded = 0;
     if ((rc = transcode_las(in[0], out_path, cli, &transcoded, &err))) return sy_cli_report(&err);

@@ -37,6 +37,7 @@ int cmd_decode(int argc, char **argv, sy_cli *cli)
         fprintf(stderr, "sylva decode: %s: unknown output extension (use .json, .ply, .csv or .obj)\n", out_path);
         return SY_EUSAGE;
     }
+    if (out_path && (rc = sy_cli_check_outputs(&out_path, 1, in, 1))) return rc;
     sy_skeleton s;
     sy_clusters cl;
     sy_sylva_meta meta;

@@ -62,6 +62,7 @@ int cmd_encode(int argc, char **argv, sy_cli *cli)
         fprintf(stderr, "sylva encode: -o OUT.sylva is required; --species in 0..65535\n");
         return SY_EUSAGE;
     }
+    if ((rc = sy_cli_check_outputs(&out_path, 1, in, 1))) return rc;
     sy_skeleton s;
     sy_clusters cl;
     sy_sylva_meta meta;

@@ -407,6 +407,8 @@ int cmd_eval(int argc, char **argv, sy_cli *cli)
         fprintf(stderr, "sylva eval: --png applies to --species only\n");
         return SY_EUSAGE;
     }
+    const char *ins[4] = {pos[0], n > 1 ? pos[1] : NULL, a->truth_path, a->points_path};
+    if (a->png_path && (rc = sy_cli_check_outputs(&a->png_path, 1, ins, 4))) return rc;
     if (a->truth_path) return run_truth(a, pos[0], cli);
     if (a->points_path) return run_points(a, pos[0], cli);
     if (a->segmentation_mode) return run_segmentation(a, pos[0], pos[1], cli);

@@ -34,6 +34,7 @@ int cmd_grow(int argc, char **argv, sy_cli *cli)
         fprintf(stderr, "sylva grow: give one species (a file or --species NAME) and -o OUT.glb\n");
         return SY_EUSAGE;
     }
+    if ((rc = sy_cli_check_outputs(&out_path, 1, pos, (size_t)n))) return rc;
     sy_tree_asset_options o = sy_tree_asset_options_default();
     sy_glb_args_apply(&glb, &o);
     sy_error err = {0};

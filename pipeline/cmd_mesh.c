@@ -155,6 +155,7 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
         fprintf(stderr, "sylva mesh: -o OUT.glb is required\n");
         return SY_EUSAGE;
     }
+    if ((rc = sy_cli_check_outputs(&out_path, 1, pos, 1))) return rc;
     if (tree_index < -1 || (leaf_density != -1 && !(leaf_density >= 0 && leaf_density <= 1e4))) {
         fprintf(stderr, "sylva mesh: --tree must be >= 0 and --leaf-density 0..10000\n");
         return SY_EUSAGE;
@@ -170,6 +171,12 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
     sy_skeleton_read_info info;
     double t0 = sy_now();
     if (sy_skeleton_read_model(pos[0], tree_index, &skel, &hulls, &info, &err)) return sy_cli_report(&err);
+    if (skel.n < 2) {
+        sy_clusters_free(&hulls);
+        sy_skeleton_free(&skel);
+        sy_fail(&err, SY_EINPUT, "%s: a skeleton of one node has no branch to mesh", pos[0]);
+        return sy_cli_report(&err);
+    }
     f.seconds_read = sy_now() - t0;
     f.format = sy_skel_format_name(info.format);
     if (info.format == SY_SKEL_SYLVA && hulls.n > 0) {
@@ -199,7 +206,12 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
         t0 = sy_now();
         rc = sy_place_leaves(&skel, &lp, &leaves, &f.twig_length, &err);
         f.seconds_leaves = sy_now() - t0;
-        if (rc) goto done;
+        if (rc) { /* the stage names no file: the model's twigs it is */
+            char msg[sizeof err.msg];
+            snprintf(msg, sizeof msg, "%s", err.msg);
+            sy_fail(&err, rc, "%s: %s", pos[0], msg);
+            goto done;
+        }
     }
     sy_tree_asset_report rep;
     rc = sy_tree_asset_write(out_path, &skel, &leaves, have_species ? &sp : NULL, &o, &rep, &err);

@@ -107,6 +107,7 @@ int cmd_preprocess(int argc, char **argv, sy_cli *cli)
         fprintf(stderr, "sylva preprocess: -o OUT is required\n");
         return SY_EUSAGE;
     }
+    if ((rc = sy_cli_check_outputs(&a.out_path, 1, in, 1))) return rc;
     if (build_opts(&a, &err)) {
         fprintf(stderr, "sylva preprocess: %s\n", err.msg);
         return SY_EUSAGE;

@@ -137,6 +137,8 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
         fprintf(stderr, "sylva run: -o and --sylva name the same file\n");
         return SY_EUSAGE;
     }
+    const char *outs[2] = {a.out_path, a.sylva_path};
+    if ((rc = sy_cli_check_outputs(outs, 2, in, 1))) return rc;
     sy_glb_args_apply(&a.glb, &a.run.asset);
     a.run.sylva = a.sylva_path != NULL;
     a.run.classify = !no_classify;

@@ -163,31 +163,32 @@ static sy_code render_truth(const scan_args *a, const sy_scene *scene, const sy_
     return SY_OK;
 }
 
+/* The cloud and its truth, staged and committed together, the truth (which
+ * describes the cloud) last: a kill never leaves a truth beside another
+ * scan's points. */
 static sy_code write_outputs(const scan_args *a, const sy_cloud *cloud, const sy_scene *scene, const sy_scan_options *sc, int stations,
                              sy_error *err)
 {
-    char *truth = NULL;
-    size_t truth_len = 0;
-    sy_atomic_file tf;
-    if (a->truth_path) {
-        if (render_truth(a, scene, sc, stations, &truth, &truth_len, err)) return err->code;
-        sy_code rc = sy_atomic_open(&tf, a->truth_path, err);
-        if (!rc && fwrite(truth, 1, truth_len, tf.fp) != truth_len) {
-            sy_atomic_abort(&tf);
-            rc = sy_fail(err, SY_EINPUT, "%s: write failed", a->truth_path);
+    sy_staged_output out[2];
+    size_t n = 0;
+    sy_code rc = sy_stage_output(&out[0], a->out_path, err);
+    if (!rc) {
+        n++;
+        rc = sy_write_cloud(out[0].staged, cloud, err);
+    }
+    if (!rc && a->truth_path) {
+        char *truth = NULL;
+        size_t truth_len = 0;
+        rc = render_truth(a, scene, sc, stations, &truth, &truth_len, err);
+        if (!rc && !(rc = sy_stage_output(&out[1], a->truth_path, err))) {
+            n++;
+            rc = sy_write_file_atomic(out[1].staged, truth, truth_len, err);
         }
         free(truth);
-        if (rc) return rc;
     }
-    if (sy_write_cloud(a->out_path, cloud, err)) {
-        if (a->truth_path) sy_atomic_abort(&tf);
-        return err->code;
-    }
-    if (a->truth_path && sy_atomic_commit(&tf, err)) {
-        unlink(a->out_path);
-        return err->code;
-    }
-    return SY_OK;
+    if (!rc) return sy_stage_commit(out, n, err);
+    sy_stage_abort(out, n);
+    return rc;
 }
 
 int cmd_scan(int argc, char **argv, sy_cli *cli)
@@ -257,9 +258,8 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
         return SY_EUSAGE;
     }
     /* A scan can take a while: a bad output path must fail before it. */
-    sy_error werr = {0};
-    if (sy_check_writable(a->out_path, &werr) || (a->truth_path && sy_check_writable(a->truth_path, &werr)))
-        return sy_cli_report(&werr);
+    const char *outs[2] = {a->out_path, a->truth_path};
+    if ((rc = sy_cli_check_outputs(outs, 2, pos, (size_t)n_pos))) return rc;
     double t0 = sy_now();
     sy_scan_options sc;
     sc = sy_scan_options_for(kind);

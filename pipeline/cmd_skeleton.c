@@ -118,6 +118,7 @@ int cmd_skeleton(int argc, char **argv, sy_cli *cli)
         fprintf(stderr, "sylva skeleton: -o OUT is required\n");
         return SY_EUSAGE;
     }
+    if ((rc = sy_cli_check_outputs(&a.out_path, 1, in, 1))) return rc;
     char ext[16];
     sy_extension(a.out_path, ext, sizeof ext);
     int sylva_file = strcmp(ext, "sylva") == 0;

@@ -280,10 +280,20 @@ sy_code sy_run_tree(const char *path, const sy_run_tree_options *o, sy_run_tree_
 sy_code sy_run_tree_write(const sy_run_tree_result *r, const char *glb_path, const char *sylva_path, sy_error *err)
 {
     if (sylva_path && !r->sylva) return sy_fail(err, SY_EINTERNAL, "%s: the run made no .sylva file", sylva_path);
-    sy_code rc = sy_write_file_atomic(glb_path, r->glb, r->glb_size, err);
-    if (!rc && sylva_path) {
-        rc = sy_write_file_atomic(sylva_path, r->sylva, r->sylva_size, err);
-        if (rc) unlink(glb_path); /* both outputs or none */
+    /* Staged and committed together, the glb (what a batch checks for) last:
+     * a kill never leaves a glb beside another run's .sylva. */
+    sy_staged_output out[2];
+    size_t n = 0;
+    sy_code rc = SY_OK;
+    if (sylva_path && !(rc = sy_stage_output(&out[n], sylva_path, err))) {
+        n++;
+        rc = sy_write_file_atomic(out[0].staged, r->sylva, r->sylva_size, err);
     }
+    if (!rc && !(rc = sy_stage_output(&out[n], glb_path, err))) {
+        n++;
+        rc = sy_write_file_atomic(out[n - 1].staged, r->glb, r->glb_size, err);
+    }
+    if (!rc) return sy_stage_commit(out, n, err);
+    sy_stage_abort(out, n);
     return rc;
 }

@@ -4,6 +4,7 @@
  * silhouette stand in. */
 #include "species/materials.h"
 
+#include <limits.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -18,11 +19,13 @@
 #include "stages/core/color.h"
 #include "stages/leafmaps/leaf_material.h"
 #include "stages/leafmaps/leafmaps_cv.h"
+#include "stages/core/fileio.h"
 
 #define BARK_NORMAL_STRENGTH 6.0f /* bark photos have shallow luminance relief */
 #define LEAF_NORMAL_STRENGTH 2.0f
 #define ALPHA_THRESHOLD 40.0f     /* RGB distance from the background, 0..255 */
 #define MAX_DECODE_SIDE 16384
+#define MAX_INFLATE 1032.0 /* deflate's largest expansion (RFC 1951: 258-byte matches in ~2 bits) */
 
 typedef struct {
     int w, h;
@@ -107,12 +110,31 @@ static void target_size(int w, int h, int max_size, int *tw, int *th)
 /* Loads path as RGBA; *had_alpha tells whether the file carried alpha. */
 static sy_code load_rgba(const char *path, image *im, int *had_alpha, sy_error *err)
 {
+    sy_buffer b;
+    sy_code rc = sy_read_file(path, &b, err);
+    if (rc) return rc;
+    if (b.size > INT_MAX) {
+        sy_buffer_free(&b);
+        return sy_fail(err, SY_EINPUT, "%s: image file of %zu bytes is too large", path, b.size);
+    }
     int w, h, comp;
-    if (!stbi_info(path, &w, &h, &comp))
+    if (!stbi_info_from_memory(b.data, (int)b.size, &w, &h, &comp)) {
+        sy_buffer_free(&b);
         return sy_fail(err, SY_EINPUT, "%s: cannot read image (%s)", path, stbi_failure_reason());
-    if (w <= 0 || h <= 0 || w > MAX_DECODE_SIDE || h > MAX_DECODE_SIDE)
+    }
+    if (w <= 0 || h <= 0 || w > MAX_DECODE_SIDE || h > MAX_DECODE_SIDE) {
+        sy_buffer_free(&b);
         return sy_fail(err, SY_EINPUT, "%s: image size %dx%d is outside 1..%d", path, w, h, MAX_DECODE_SIDE);
-    im->rgba = stbi_load(path, &im->w, &im->h, &comp, 4);
+    }
+    /* Deflate expands at most ~1032:1, so a header naming more pixels than
+     * the bytes can hold lies: refuse it before the decoder allocates them. */
+    if ((double)w * h * (comp > 0 ? comp : 4) > MAX_INFLATE * (double)b.size + (1 << 20)) {
+        sy_buffer_free(&b);
+        return sy_fail(err, SY_EINPUT, "%s: %dx%d pixels cannot come from %zu bytes (a corrupt header)", path, w, h,
+                       b.size);
+    }
+    im->rgba = stbi_load_from_memory(b.data, (int)b.size, &im->w, &im->h, &comp, 4);
+    sy_buffer_free(&b);
     if (!im->rgba) return sy_fail(err, SY_EINPUT, "%s: cannot decode image (%s)", path, stbi_failure_reason());
     *had_alpha = comp == 2 || comp == 4;
     return SY_OK;

@@ -93,8 +93,10 @@ typedef struct {
 /* scale in double: BINS over a tiny float extent can overflow float. */
 static int bin_of(const builder *b, uint32_t p, int axis, float lo, double scale)
 {
-    int bin = (int)((double)(b->centroid[3 * p + axis] - lo) * scale);
-    return bin >= BINS ? BINS - 1 : bin < 0 ? 0 : bin;
+    /* Clamped before the cast: a flat extent makes scale infinite and 0 * inf
+     * NaN, and converting NaN or a value past int is undefined. */
+    double v = (double)(b->centroid[3 * p + axis] - lo) * scale;
+    return v >= BINS ? BINS - 1 : v >= 0 ? (int)v : 0;
 }
 
 /* Best SAH split of [begin, end) along axis; returns the split position in
@@ -242,7 +244,17 @@ sy_code sy_bvh_build(sy_bvh *bvh, const sy_box *boxes, size_t n, sy_error *err)
     }
     sy_box all;
     sy_box_empty(&all);
-    for (size_t i = 0; i < n; i++) box_grow(&all, &boxes[i]);
+    for (size_t i = 0; i < n; i++) {
+        for (int k = 0; k < 3; k++)
+            if (!isfinite(boxes[i].lo[k]) || !isfinite(boxes[i].hi[k])) {
+                free(b.boxes);
+                free(b.centroid);
+                free(b.idx);
+                free(b.nodes);
+                return sy_fail(err, SY_EINPUT, "spatial index: primitive %zu has a non-finite bound", i);
+            }
+        box_grow(&all, &boxes[i]);
+    }
     double reach = 0;
     for (int k = 0; k < 3 && n; k++) {
         bvh->origin[k] = 0.5 * (all.lo[k] + all.hi[k]);

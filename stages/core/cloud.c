@@ -266,3 +266,34 @@ void sy_cloud_attribute_names(const sy_cloud *c, char *buf, size_t size)
     for (size_t a = 0; a < c->n_attrs && used < size; a++)
         used += snprintf(buf + used, size - used, "%s%s", used ? "," : "", c->attrs[a].name);
 }
+
+sy_code sy_cloud_check_range(const sy_cloud *c, const char *path, sy_error *err)
+{
+    for (int k = 0; k < 3; k++)
+        if (!(fabs(c->origin[k]) <= SY_WORLD_MAX))
+            return sy_fail(err, SY_EINPUT, "%s: origin %g on axis %c lies beyond %g m (a corrupt offset?)", path,
+                           c->origin[k], 'x' + k, SY_WORLD_MAX);
+    /* Chunks OR-reduce "outside the span" (NaN included) without an exit per
+     * value, so the compiler vectorises the scan; only a chunk that has one
+     * is searched for it. */
+    enum { CHUNK = 4096 };
+    const float span = (float)SY_CLOUD_MAX_SPAN;
+    const size_t total = 3 * c->n;
+    for (size_t start = 0; start < total; start += CHUNK) {
+        size_t end = total - start < CHUNK ? total : start + CHUNK;
+        int bad = 0;
+        for (size_t i = start; i < end; i++) bad |= !(fabsf(c->xyz[i]) <= span);
+        for (size_t i = start; bad && i < end; i++) {
+            float v = c->xyz[i];
+            size_t p = i / 3;
+            if (!isfinite(v))
+                return sy_fail(err, SY_EINPUT, "%s: point %zu lies too far from the first point (beyond single precision)",
+                               path, p);
+            if (!(fabsf(v) <= span))
+                return sy_fail(err, SY_EINPUT,
+                               "%s: point %zu lies %.3g m from the first point on axis %c (a scene spans at most %g km)",
+                               path, p, (double)v, 'x' + (int)(i % 3), SY_CLOUD_MAX_SPAN / 1000);
+        }
+    }
+    return SY_OK;
+}

@@ -60,6 +60,17 @@ typedef struct {
     sy_cloud_meta meta;
 } sy_cloud;
 
+/* Bounds on coordinates. A world coordinate beyond SY_WORLD_MAX metres (far
+ * past any terrestrial CRS) or a point farther than SY_CLOUD_MAX_SPAN from the
+ * cloud's origin is a corrupt value, not a scene: rejecting it where the file
+ * is read keeps every later step bounded by the data, never by one number. */
+#define SY_WORLD_MAX 1e9
+#define SY_CLOUD_MAX_SPAN 1e6
+
+/* SY_EINPUT naming path and the first point that breaks those bounds (or is
+ * not finite); SY_OK otherwise. Vectorised: it runs after every reader. */
+sy_code sy_cloud_check_range(const sy_cloud *c, const char *path, sy_error *err);
+
 /* Allocates xyz for n points (other arrays stay NULL). */
 sy_code sy_cloud_init(sy_cloud *c, size_t n, sy_error *err);
 void sy_cloud_free(sy_cloud *c);

@@ -1,7 +1,11 @@
 #include "fileio.h"
 
 #include <ctype.h>
+#include <dirent.h>
 #include <errno.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -78,55 +82,265 @@ const char *sy_extension(const char *path, char *buf, size_t size)
     return buf;
 }
 
+/* ------------------------------------------------------------ the output rule */
+
+static int same_file(const struct stat *a, const struct stat *b)
+{
+    return a->st_dev == b->st_dev && a->st_ino == b->st_ino;
+}
+
+/* 1 when the regular file st is already open as this process's fd. */
+static int is_our_fd(const struct stat *st, int fd)
+{
+    struct stat o;
+    return fstat(fd, &o) == 0 && same_file(st, &o);
+}
+
+sy_code sy_output_resolve(const char *path, sy_output_target *t, sy_error *err)
+{
+    memset(t, 0, sizeof *t);
+    if (strcmp(path, "-") == 0) {
+        strcpy(t->path, "-");
+        t->direct = t->is_stdout = 1;
+        return SY_OK;
+    }
+    if (!*path) return sy_fail(err, SY_EUSAGE, "empty output path");
+    if (strlen(path) >= sizeof t->path) return sy_fail(err, SY_EUSAGE, "%.64s...: path too long", path);
+    struct stat st;
+    if (stat(path, &st) == 0) { /* follows links */
+        if (S_ISDIR(st.st_mode)) return sy_fail(err, SY_EINPUT, "%s: is a directory, not a file", path);
+        if (S_ISCHR(st.st_mode) || S_ISFIFO(st.st_mode)) {
+            strcpy(t->path, path);
+            t->direct = 1;
+            return SY_OK;
+        }
+        if (!S_ISREG(st.st_mode))
+            return sy_fail(err, SY_EINPUT, "%s: is a block device or socket; refusing to write to it", path);
+        /* /dev/stdout redirected to a file: replacing that file would detach it
+         * from the shell's redirection; write through standard output. */
+        if (is_our_fd(&st, STDOUT_FILENO) || is_our_fd(&st, STDERR_FILENO)) {
+            strcpy(t->path, path);
+            t->direct = 1;
+            t->is_stdout = is_our_fd(&st, STDOUT_FILENO) ? 1 : 2;
+            return SY_OK;
+        }
+    } else if (errno != ENOENT)
+        return sy_fail(err, SY_EINPUT, "%s: cannot write: %s", path, strerror(errno));
+    /* Follow links by hand to the final target's name (it may not exist yet):
+     * the temp file goes beside the target and the rename replaces it, so the
+     * link stays a link. */
+    char cur[4096], link[4096];
+    strcpy(cur, path);
+    for (int hop = 0;; hop++) {
+        struct stat ls;
+        if (lstat(cur, &ls) != 0 || !S_ISLNK(ls.st_mode)) break;
+        if (hop == 40) return sy_fail(err, SY_EINPUT, "%s: too many levels of symbolic links", path);
+        ssize_t k = readlink(cur, link, sizeof link - 1);
+        if (k < 0) return sy_fail(err, SY_EINPUT, "%s: cannot read link: %s", path, strerror(errno));
+        link[k] = '\0';
+        const char *slash = strrchr(cur, '/');
+        if (link[0] == '/' || !slash) {
+            memcpy(cur, link, (size_t)k + 1);
+        } else {
+            size_t dirlen = (size_t)(slash - cur + 1);
+            if (dirlen + (size_t)k >= sizeof cur) return sy_fail(err, SY_EUSAGE, "%s: link target path too long", path);
+            memcpy(cur + dirlen, link, (size_t)k + 1);
+        }
+    }
+    strcpy(t->path, cur);
+    return SY_OK;
+}
+
+/* The name part of a temp name: the target's name, or when the whole would
+ * pass NAME_MAX, an 8-digit hash of it, '~' and its tail (the extension
+ * survives, and writers choose formats by extension). Independent of the pid
+ * (room is kept for 10 digits), so stale temps of any pid match. */
+static int temp_part(const char *target, char *part, size_t size, size_t *dirlen)
+{
+    const char *slash = strrchr(target, '/');
+    *dirlen = slash ? (size_t)(slash - target + 1) : 0;
+    const char *name = target + *dirlen;
+    if (!*name) return -1;
+    char dir[4096];
+    snprintf(dir, sizeof dir, "%.*s", *dirlen ? (int)*dirlen : 1, *dirlen ? target : ".");
+    long name_max = pathconf(dir, _PC_NAME_MAX);
+    if (name_max <= 0 || name_max > 4096) name_max = 255;
+    const size_t prefix = 16; /* ".tmp." + 10 digits + "." */
+    if ((size_t)name_max <= prefix + 16) return -1;
+    size_t budget = (size_t)name_max - prefix, len = strlen(name);
+    if (len <= budget) return snprintf(part, size, "%s", name) < (int)size ? 0 : -1;
+    uint32_t h = 2166136261u; /* FNV-1a */
+    for (const char *c = name; *c; c++) h = (h ^ (unsigned char)*c) * 16777619u;
+    const char *tail = name + len - (budget - 9);
+    while (*tail && ((unsigned char)*tail & 0xC0) == 0x80) tail++; /* not inside a UTF-8 sequence */
+    return snprintf(part, size, "%08x~%s", (unsigned)h, tail) < (int)size ? 0 : -1;
+}
+
+int sy_output_temp_name(const char *target, long pid, char *buf, size_t size)
+{
+    char part[4096];
+    size_t dirlen;
+    if (temp_part(target, part, sizeof part, &dirlen)) return -1;
+    int k = snprintf(buf, size, "%.*s.tmp.%ld.%s", (int)dirlen, target, pid, part);
+    return k > 0 && (size_t)k < size ? 0 : -1;
+}
+
+/* 1 when name is ".tmp.<digits>.<part>"; *pid gets the digits. */
+static int temp_match(const char *name, const char *part, long *pid)
+{
+    if (strncmp(name, ".tmp.", 5) != 0) return 0;
+    const char *p = name + 5;
+    long v = 0;
+    int digits = 0;
+    while (*p >= '0' && *p <= '9' && digits < 10) v = v * 10 + (*p++ - '0'), digits++;
+    if (!digits || *p != '.' || strcmp(p + 1, part) != 0) return 0;
+    *pid = v;
+    return 1;
+}
+
+size_t sy_output_remove_stale(const char *target)
+{
+    char part[4096], dir[4096], victim[8192];
+    size_t dirlen, removed = 0;
+    if (temp_part(target, part, sizeof part, &dirlen)) return 0;
+    snprintf(dir, sizeof dir, "%.*s", dirlen ? (int)dirlen : 1, dirlen ? target : ".");
+    DIR *d = opendir(dir);
+    if (!d) return 0;
+    long self = (long)getpid();
+    for (struct dirent *e; (e = readdir(d));) {
+        long pid;
+        if (!temp_match(e->d_name, part, &pid) || pid == self || pid <= 0) continue;
+        /* Only a process that no longer exists leaves its temp for good. */
+        if (kill((pid_t)pid, 0) == 0 || errno != ESRCH) continue;
+        snprintf(victim, sizeof victim, "%s%s%s", dir, dirlen ? "" : "/", e->d_name);
+        if (unlink(victim) == 0) removed++;
+    }
+    closedir(d);
+    return removed;
+}
+
+/* 1 when path's name is one of this process's temp names (a staged output):
+ * already private, so written straight through. */
+static int is_own_temp(const char *path)
+{
+    const char *slash = strrchr(path, '/');
+    const char *name = slash ? slash + 1 : path;
+    char prefix[32];
+    int k = snprintf(prefix, sizeof prefix, ".tmp.%ld.", (long)getpid());
+    return strncmp(name, prefix, (size_t)k) == 0 && name[k];
+}
+
+/* A new file for writing, refusing to follow a link planted at its name; a
+ * leftover of the same name (an earlier process with this pid) is replaced. */
+static FILE *create_exclusive(const char *path)
+{
+    int fd = open(path, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    if (fd < 0 && errno == EEXIST && unlink(path) == 0) fd = open(path, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    if (fd < 0) return NULL;
+    FILE *fp = fdopen(fd, "wb");
+    if (!fp) close(fd);
+    return fp;
+}
+
 sy_code sy_atomic_open(sy_atomic_file *f, const char *path, sy_error *err)
 {
     memset(f, 0, sizeof *f);
-    if (strlen(path) >= sizeof f->final_path)
-        return sy_fail(err, SY_EUSAGE, "%s: path too long", path);
-    if (sy_is_directory(path)) return sy_fail(err, SY_EINPUT, "%s: is a directory, not a file", path);
-    strcpy(f->final_path, path);
-    const char *slash = strrchr(path, '/');
-    int dirlen = slash ? (int)(slash - path + 1) : 0;
-    snprintf(f->tmp_path, sizeof f->tmp_path, "%.*s.%s.tmp.%ld", dirlen, path,
-             slash ? slash + 1 : path, (long)getpid());
-    f->fp = fopen(f->tmp_path, "wb");
+    sy_output_target t;
+    sy_code rc = sy_output_resolve(path, &t, err);
+    if (rc) return rc;
+    snprintf(f->shown, sizeof f->shown, "%s", path);
+    strcpy(f->final_path, t.path);
+    f->direct = t.direct;
+    if (t.is_stdout) {
+        f->is_stdout = t.is_stdout;
+        f->fp = t.is_stdout == 2 ? stderr : stdout;
+        return SY_OK;
+    }
+    if (t.direct) {
+        f->fp = fopen(t.path, "wb");
+        if (!f->fp) return sy_fail(err, SY_EINPUT, "%s: cannot write: %s", path, strerror(errno));
+        return SY_OK;
+    }
+    if (is_own_temp(t.path)) {
+        f->direct = 1;
+        strcpy(f->tmp_path, t.path); /* removed on abort */
+        f->fp = create_exclusive(t.path);
+        if (!f->fp) return sy_fail(err, SY_EINPUT, "%s: cannot write: %s", path, strerror(errno));
+        return SY_OK;
+    }
+    sy_output_remove_stale(t.path);
+    if (sy_output_temp_name(t.path, (long)getpid(), f->tmp_path, sizeof f->tmp_path))
+        return sy_fail(err, SY_EINPUT, "%s: cannot form a temp name beside it", path);
+    f->fp = create_exclusive(f->tmp_path);
     if (!f->fp) return sy_fail(err, SY_EINPUT, "%s: cannot write: %s", path, strerror(errno));
+    /* Replacing a file keeps its permission bits. */
+    struct stat st;
+    if (stat(t.path, &st) == 0 && S_ISREG(st.st_mode)) (void)fchmod(fileno(f->fp), st.st_mode & 07777);
     return SY_OK;
 }
 
 sy_code sy_atomic_commit(sy_atomic_file *f, sy_error *err)
 {
-    if (!f->fp) return sy_fail(err, SY_EINTERNAL, "%s: not open", f->final_path);
+    if (!f->fp) return sy_fail(err, SY_EINTERNAL, "%s: not open", f->shown);
+    if (f->is_stdout) {
+        int bad = fflush(f->fp) | ferror(f->fp);
+        f->fp = NULL;
+        return bad ? sy_fail(err, SY_EINPUT, "%s: write failed", f->shown) : SY_OK;
+    }
     int bad = ferror(f->fp) | fflush(f->fp);
     bad |= fclose(f->fp);
     f->fp = NULL;
     if (bad) {
-        remove(f->tmp_path);
-        return sy_fail(err, SY_EINPUT, "%s: write failed (disk full?)", f->final_path);
+        if (f->tmp_path[0]) remove(f->tmp_path);
+        return sy_fail(err, SY_EINPUT, "%s: write failed (disk full?)", f->shown);
     }
+    if (f->direct) return SY_OK;
     if (rename(f->tmp_path, f->final_path) != 0) {
         int e = errno;
         remove(f->tmp_path);
-        return sy_fail(err, SY_EINPUT, "%s: cannot rename into place: %s", f->final_path, strerror(e));
+        return sy_fail(err, SY_EINPUT, "%s: cannot rename into place: %s", f->shown, strerror(e));
     }
     return SY_OK;
 }
 
 void sy_atomic_abort(sy_atomic_file *f)
 {
-    if (f->fp) {
-        fclose(f->fp);
+    if (!f->fp) return;
+    if (f->is_stdout) {
+        fflush(f->fp); /* what went out is out */
         f->fp = NULL;
-        remove(f->tmp_path);
+        return;
     }
+    fclose(f->fp);
+    f->fp = NULL;
+    if (f->tmp_path[0]) remove(f->tmp_path);
+}
+
+sy_code sy_output_check(const char *path, const char *const *inputs, size_t n_inputs, sy_error *err)
+{
+    sy_output_target t;
+    sy_code rc = sy_output_resolve(path, &t, err);
+    if (rc) return rc;
+    struct stat out;
+    if (!t.is_stdout && stat(t.path, &out) == 0)
+        for (size_t i = 0; i < n_inputs; i++) {
+            struct stat in;
+            if (inputs[i] && stat(inputs[i], &in) == 0 && same_file(&in, &out))
+                return sy_fail(err, SY_EINPUT, "%s: is the input %s itself; refusing to overwrite it", path,
+                               inputs[i]);
+        }
+    if (t.is_stdout) return SY_OK;
+    if (t.direct) return access(t.path, W_OK) == 0 ? SY_OK
+                                                   : sy_fail(err, SY_EINPUT, "%s: cannot write: %s", path, strerror(errno));
+    sy_atomic_file f;
+    rc = sy_atomic_open(&f, path, err);
+    if (rc == SY_OK) sy_atomic_abort(&f);
+    return rc;
 }
 
 sy_code sy_check_writable(const char *path, sy_error *err)
 {
-    sy_atomic_file f;
-    sy_code rc = sy_atomic_open(&f, path, err);
-    if (rc == SY_OK) sy_atomic_abort(&f);
-    return rc;
+    return sy_output_check(path, NULL, 0, err);
 }
 
 sy_code sy_write_file_atomic(const char *path, const void *data, size_t size, sy_error *err)
@@ -139,4 +353,54 @@ sy_code sy_write_file_atomic(const char *path, const void *data, size_t size, sy
         return sy_fail(err, SY_EINPUT, "%s: write failed", path);
     }
     return sy_atomic_commit(&f, err);
+}
+
+/* ------------------------------------------------------------ paired outputs */
+
+sy_code sy_stage_output(sy_staged_output *s, const char *path, sy_error *err)
+{
+    memset(s, 0, sizeof *s);
+    sy_output_target t;
+    sy_code rc = sy_output_resolve(path, &t, err);
+    if (rc) return rc;
+    snprintf(s->shown, sizeof s->shown, "%s", path);
+    strcpy(s->final_path, t.path);
+    if (t.direct) {
+        s->direct = 1;
+        strcpy(s->staged, path);
+        return SY_OK;
+    }
+    sy_output_remove_stale(t.path);
+    if (sy_output_temp_name(t.path, (long)getpid(), s->staged, sizeof s->staged))
+        return sy_fail(err, SY_EINPUT, "%s: cannot form a temp name beside it", path);
+    unlink(s->staged); /* an earlier process with this pid */
+    return SY_OK;
+}
+
+void sy_stage_abort(sy_staged_output *s, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        if (!s[i].direct && s[i].staged[0]) unlink(s[i].staged);
+}
+
+sy_code sy_stage_commit(sy_staged_output *s, size_t n, sy_error *err)
+{
+    if (n == 0) return SY_OK;
+    /* The manifest goes first, so no old one ever stands beside new outputs. */
+    sy_staged_output *manifest = &s[n - 1];
+    if (!manifest->direct && unlink(manifest->final_path) != 0 && errno != ENOENT) {
+        int e = errno;
+        sy_stage_abort(s, n);
+        return sy_fail(err, SY_EINPUT, "%s: cannot replace: %s", manifest->shown, strerror(e));
+    }
+    for (size_t i = 0; i < n; i++) {
+        if (s[i].direct) continue;
+        if (rename(s[i].staged, s[i].final_path) != 0) {
+            int e = errno;
+            sy_stage_abort(s + i, n - i);
+            return sy_fail(err, SY_EINPUT, "%s: cannot rename into place: %s", s[i].shown, strerror(e));
+        }
+        s[i].staged[0] = '\0';
+    }
+    return SY_OK;
 }

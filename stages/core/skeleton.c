@@ -4,6 +4,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "cloud.h"
+
 sy_code sy_skeleton_init(sy_skeleton *s, size_t n, sy_error *err)
 {
     memset(s, 0, sizeof *s);
@@ -86,8 +88,27 @@ sy_code sy_skeleton_validate(const sy_skeleton *s, sy_error *err)
             if (!isfinite(s->pos[3 * i + k])) return sy_fail(err, SY_EINPUT, "skeleton: node %zu position is not finite", i);
         if (!(s->radius[i] > 0) || !isfinite(s->radius[i]))
             return sy_fail(err, SY_EINPUT, "skeleton: node %zu radius %g is not positive", i, s->radius[i]);
+        if (s->radius[i] > SY_SKELETON_MAX_RADIUS)
+            return sy_fail(err, SY_EINPUT, "skeleton: node %zu radius %g m exceeds %g m (a corrupt value?)", i,
+                           s->radius[i], SY_SKELETON_MAX_RADIUS);
     }
     if (s->n && roots != 1) return sy_fail(err, SY_EINPUT, "skeleton: %zu roots, expected exactly one", roots);
+    for (int k = 0; k < 3; k++)
+        if (!(fabs(s->origin[k]) <= SY_WORLD_MAX))
+            return sy_fail(err, SY_EINPUT, "skeleton: origin %g on axis %c lies beyond %g m", s->origin[k], 'x' + k,
+                           SY_WORLD_MAX);
+    size_t root = 0;
+    while (root < s->n && s->parent[root] != -1) root++;
+    for (size_t i = 0; i < s->n; i++) {
+        double d2 = 0;
+        for (int k = 0; k < 3; k++) {
+            double d = (double)s->pos[3 * i + k] - s->pos[3 * root + k];
+            d2 += d * d;
+        }
+        if (!(d2 <= SY_SKELETON_MAX_SPAN * SY_SKELETON_MAX_SPAN))
+            return sy_fail(err, SY_EINPUT, "skeleton: node %zu lies %.3g m from the root (a tree spans at most %g m)", i,
+                           sqrt(d2), SY_SKELETON_MAX_SPAN);
+    }
     /* Cycle check: walking up from any node must reach the root within n steps. */
     uint8_t *state = calloc(s->n ? s->n : 1, 1); /* 0 unknown, 1 on path, 2 reaches root */
     if (!state) return sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");

@@ -42,9 +42,17 @@ void sy_skeleton_free(sy_skeleton *s);
 /* Appends a node, growing arrays; returns its index or -1 (err set). */
 int32_t sy_skeleton_add(sy_skeleton *s, const float pos[3], float radius, int32_t parent, int order,
                         int32_t branch, sy_error *err);
+/* A tree is at most this wide: the tallest stand ~116 m, the widest crowns
+ * ~150 m. A node farther from the root, or a radius over SY_SKELETON_MAX_RADIUS,
+ * is a corrupt coordinate (1e30), and every step that samples a skeleton
+ * (leaves, meshing, evaluation) scales with its extent. */
+#define SY_SKELETON_MAX_SPAN 1000.0  /* metres from the root */
+#define SY_SKELETON_MAX_RADIUS 100.0 /* metres */
+
 /* Checks the invariants (one root, no cycles, parents in range, finite
- * positions, radius > 0, lobes >= 0 with depth in [0, 1)); the message names
- * the first violation. */
+ * positions within SY_SKELETON_MAX_SPAN of the root, |origin| <= SY_WORLD_MAX,
+ * radius in (0, SY_SKELETON_MAX_RADIUS], lobes >= 0 with depth in [0, 1));
+ * the message names the first violation. */
 sy_code sy_skeleton_validate(const sy_skeleton *s, sy_error *err);
 /* Number of branches (max branch id + 1). */
 int32_t sy_skeleton_branch_count(const sy_skeleton *s);

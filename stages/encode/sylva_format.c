@@ -560,6 +560,20 @@ sy_code sy_decode_mem(const char *path, const unsigned char *data, size_t size, 
         rc = sy_fail(err, SY_EINPUT, "%s: %zu unexpected bytes after the clusters", path, left(&r));
         goto fail;
     }
+    /* Quantised positions reach 2^46 m and the origin any double: the same
+     * bounds as every skeleton reader, hulls held to the skeleton's reach. */
+    sy_error invalid;
+    if (sy_skeleton_validate(s, &invalid)) {
+        rc = sy_fail(err, SY_EINPUT, "%s: %s", path, invalid.msg);
+        goto fail;
+    }
+    for (size_t c = 0; c < cl->n; c++)
+        for (size_t v = 0; v < 3 * cl->items[c].n_verts; v++)
+            if (!(fabs((double)cl->items[c].verts[v] - s->pos[v % 3]) <= 2 * SY_SKELETON_MAX_SPAN)) {
+                rc = sy_fail(err, SY_EINPUT, "%s: cluster %zu vertex %zu lies more than %g m from the root", path, c,
+                             v / 3, 2 * SY_SKELETON_MAX_SPAN);
+                goto fail;
+            }
     return SY_OK;
 fail:
     sy_skeleton_free(s);

@@ -98,7 +98,8 @@ sy_code sy_surface_metrics_compute(const sy_eval_model *m, const double *pts, si
                                    double spacing, sy_surface_metrics *out, sy_error *err);
 /* Samples of the model surface about every spacing metres (triangle
  * vertices plus area-proportional samples; rings along each cone), 3 *n
- * doubles (caller frees), deterministic. */
+ * doubles (caller frees), deterministic. The spacing widens so that the
+ * area-proportional part stays within ~4 million samples. */
 double *sy_model_surface_samples(const sy_eval_model *m, double spacing, size_t *n, sy_error *err);
 /* How an asset looks against its scan (docs/eval.md): silhouette IoU of six
  * orthographic views (azimuth 0, 45, 90, 135 degrees, top, 30 degrees

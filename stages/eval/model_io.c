@@ -8,7 +8,9 @@
 #include "eval.h"
 #include "stages/gltf/gltf_read.h"
 #include "stages/core/fileio.h"
+#include "stages/core/json_read.h"
 #include "stages/encode/encode.h"
+#include "stages/qsm/sylva_json.h"
 
 void sy_eval_model_free(sy_eval_model *m)
 {
@@ -81,18 +83,19 @@ static sy_code add_hull(sy_eval_model *m, const sy_cluster *h, const double orig
     return rc;
 }
 
-/* A .sylva file: its skeleton as a skeleton model (cones) and every cluster
- * hull as a closed mesh, so points inside a hull are at distance 0. */
-static sy_code load_sylva(const char *path, sy_eval_model *out, sy_error *err)
+/* A decoded reconstruction (skel, cl, meta: taken over): its skeleton as a
+ * skeleton model (cones) and every cluster hull as a closed mesh, so points
+ * inside a hull are at distance 0. */
+static sy_code add_reconstruction(sy_skeleton *skel, sy_clusters *cl_in, const sy_sylva_meta *meta,
+                                  sy_eval_model *out, sy_error *err)
 {
     sy_eval_tree t;
     memset(&t, 0, sizeof t);
-    sy_clusters cl;
-    sy_sylva_meta meta;
-    sy_code rc = sy_decode_read(path, &t.skel, &cl, &meta, err);
-    if (rc) return rc;
+    t.skel = *skel;
+    sy_clusters cl = *cl_in;
+    sy_code rc = SY_OK;
     t.tree_id = -1;
-    t.species_id = meta.species_id ? (int)meta.species_id - 1 : -1;
+    t.species_id = meta->species_id ? (int)meta->species_id - 1 : -1;
     for (int a = 0; a < 3; a++) t.position[a] = t.skel.origin[a] + (t.skel.n ? t.skel.pos[a] : 0);
     t.dbh = sy_skeleton_dbh(&t.skel);
     /* The model's height is its highest part: crowns end in hulls. */
@@ -111,6 +114,40 @@ static sy_code load_sylva(const char *path, sy_eval_model *out, sy_error *err)
     return rc;
 }
 
+static sy_code load_sylva(const char *path, sy_eval_model *out, sy_error *err)
+{
+    sy_skeleton skel;
+    sy_clusters cl;
+    sy_sylva_meta meta;
+    sy_code rc = sy_decode_read(path, &skel, &cl, &meta, err);
+    return rc ? rc : add_reconstruction(&skel, &cl, &meta, out, err);
+}
+
+/* A JSON model: `sylva decode -o tree.json` output is the .sylva file in
+ * full (hulls included) and scores like it; any other JSON is a truth or
+ * skeleton file. */
+static sy_code load_json(const char *path, sy_eval_model *out, sy_error *err)
+{
+    sy_buffer b;
+    sy_code rc = sy_read_file(path, &b, err);
+    if (rc) return rc;
+    sy_jv *doc;
+    rc = sy_jv_parse(path, (const char *)b.data, b.size, NULL, &doc, err);
+    sy_buffer_free(&b);
+    if (rc) return rc;
+    int tree = sy_sylva_json_is_tree(doc);
+    if (tree) {
+        sy_skeleton skel;
+        sy_clusters cl;
+        sy_sylva_meta meta;
+        int has_quant;
+        rc = sy_sylva_json_from_doc(path, doc, &skel, &cl, &meta, &has_quant, err);
+        if (!rc) rc = add_reconstruction(&skel, &cl, &meta, out, err);
+    }
+    sy_jv_free(doc);
+    return tree ? rc : sy_forest_read(path, &out->skeletons, err);
+}
+
 sy_code sy_eval_load_model(const char *path, int closed, sy_eval_model *out, sy_error *err)
 {
     memset(out, 0, sizeof *out);
@@ -118,7 +155,8 @@ sy_code sy_eval_load_model(const char *path, int closed, sy_eval_model *out, sy_
     sy_extension(path, ext, sizeof ext);
     if (strcmp(ext, "glb") == 0 || strcmp(ext, "gltf") == 0) return load_gltf(path, closed, out, err);
     if (strcmp(ext, "sylva") == 0) return load_sylva(path, out, err);
-    static const char *skeleton_exts[] = {"json", "ply", "csv", "txt", "obj"};
+    if (strcmp(ext, "json") == 0) return load_json(path, out, err);
+    static const char *skeleton_exts[] = {"ply", "csv", "txt", "obj"};
     for (size_t i = 0; i < sizeof skeleton_exts / sizeof skeleton_exts[0]; i++)
         if (strcmp(ext, skeleton_exts[i]) == 0) return sy_forest_read(path, &out->skeletons, err);
     return sy_fail(err, SY_EINPUT,

@@ -103,11 +103,46 @@ static int ieq(const char *a, const char *b)
     return *a == *b;
 }
 
+typedef struct {
+    const char *id;
+    size_t row;
+} id_row;
+
+static int cmp_id_then_row(const void *a, const void *b)
+{
+    const id_row *x = a, *y = b;
+    int c = strcmp(x->id, y->id);
+    return c ? c : (x->row > y->row) - (x->row < y->row);
+}
+
+/* An id that appears twice would be scored twice: refused, naming both rows
+ * (their lines when lines is not NULL). */
+static sy_code check_unique_ids(const sy_label_table *t, const char *name, const int *lines, sy_error *err)
+{
+    if (t->n < 2) return SY_OK;
+    id_row *r = sy_calloc(t->n, sizeof *r, err, "labels");
+    if (!r) return SY_EINTERNAL;
+    for (size_t i = 0; i < t->n; i++) r[i] = (id_row){t->id[i], i};
+    qsort(r, t->n, sizeof *r, cmp_id_then_row);
+    sy_code rc = SY_OK;
+    for (size_t i = 1; i < t->n && !rc; i++)
+        if (strcmp(r[i].id, r[i - 1].id) == 0) {
+            if (lines)
+                rc = sy_fail(err, SY_EINPUT, "%s:%d: id '%.64s' appears again (first on line %d)", name,
+                             lines[r[i].row], r[i].id, lines[r[i - 1].row]);
+            else
+                rc = sy_fail(err, SY_EINPUT, "%s: tree_id %.64s appears twice (trees %zu and %zu)", name, r[i].id,
+                             r[i - 1].row, r[i].row);
+        }
+    free(r);
+    return rc;
+}
+
 sy_code sy_label_table_parse_csv(const char *name, const char *text, size_t len, sy_label_table *out, sy_error *err)
 {
     memset(out, 0, sizeof *out);
-    size_t pos = 0;
-    int line = 0;
+    size_t pos = 0, lines_cap = 0;
+    int line = 0, *lines = NULL; /* the line of each row, for messages */
     while (pos < len) {
         size_t end = pos;
         while (end < len && text[end] != '\n') end++;
@@ -132,18 +167,28 @@ sy_code sy_label_table_parse_csv(const char *name, const char *text, size_t len,
         } else if (!*id || !*label) {
             rc = sy_fail(err, SY_EINPUT, "%s:%d: expected 'id,species' with both fields non-empty", name, line);
         } else if (!(out->n == 0 && ieq(id, "id") && (ieq(label, "species") || ieq(label, "label")))) {
-            rc = sy_label_table_add(out, id, label, err);
+            if (out->n == lines_cap) {
+                size_t cap = lines_cap ? 2 * lines_cap : 64;
+                int *grown = realloc(lines, cap * sizeof *grown);
+                if (grown) lines = grown, lines_cap = cap;
+                else rc = sy_fail(err, SY_EINTERNAL, "%s: out of memory", name);
+            }
+            if (!rc) lines[out->n] = line;
+            if (!rc) rc = sy_label_table_add(out, id, label, err);
         }
         free(id);
         free(label);
         if (rc) {
+            free(lines);
             sy_label_table_free(out);
             return rc;
         }
         pos = next;
     }
-    if (!out->n) return sy_fail(err, SY_EINPUT, "%s: no 'id,species' rows", name);
-    return SY_OK;
+    sy_code rc = out->n ? check_unique_ids(out, name, lines, err) : sy_fail(err, SY_EINPUT, "%s: no 'id,species' rows", name);
+    free(lines);
+    if (rc) sy_label_table_free(out);
+    return rc;
 }
 
 sy_code sy_label_table_read_csv(const char *path, sy_label_table *out, sy_error *err)
@@ -175,7 +220,9 @@ sy_code sy_label_table_from_forest(const sy_forest *f, const char *path, sy_labe
         }
     }
     if (!out->n) return sy_fail(err, SY_EINPUT, "%s: no trees", path);
-    return SY_OK;
+    sy_code rc = check_unique_ids(out, path, NULL, err);
+    if (rc) sy_label_table_free(out);
+    return rc;
 }
 
 /* ---- confusion ---- */
@@ -196,12 +243,7 @@ static long find_label(char **labels, size_t n, const char *s)
     return -1;
 }
 
-/* Sorted (id, row) pairs of the prediction for lookups by id. */
-typedef struct {
-    const char *id;
-    size_t row;
-} id_row;
-
+/* Sorted (id, row) pairs of the prediction for lookups by id: id_row. */
 static int cmp_id_row(const void *a, const void *b) { return strcmp(((const id_row *)a)->id, ((const id_row *)b)->id); }
 
 void sy_confusion_free(sy_confusion *c)

@@ -249,7 +249,8 @@ static int sample_model(const prims *P, double spacing, sample_buf *s)
         for (int c = 0; c < 3; c++)
             if (!put_sample(s, v[3 * c], v[3 * c + 1], v[3 * c + 2])) return 0;
         double k = ceil(tri_area(v) / (spacing * spacing));
-        for (size_t j = 0; j < (size_t)fmin(k, 1e6); j++) {
+        size_t nk = k > 0 ? (size_t)fmin(k, 1e6) : 0; /* NaN: no samples inside */
+        for (size_t j = 0; j < nk; j++) {
             double a = next_unit(&rng), b = next_unit(&rng);
             if (a + b > 1) a = 1 - a, b = 1 - b;
             double x[3];
@@ -283,12 +284,33 @@ static int sample_model(const prims *P, double spacing, sample_buf *s)
     return 1;
 }
 
+/* Surface area of the triangles and cones. */
+static double prims_area(const prims *P)
+{
+    double area = 0;
+    for (size_t t = 0; t < P->n_tri; t++) area += tri_area(P->tri + 9 * t);
+    for (size_t i = 0; i < P->n_cone; i++) {
+        const double *c = P->cone + 8 * i;
+        double len = sqrt((c[3] - c[0]) * (c[3] - c[0]) + (c[4] - c[1]) * (c[4] - c[1]) + (c[5] - c[2]) * (c[5] - c[2]));
+        area += PI * (c[6] + c[7]) * len;
+    }
+    return area;
+}
+
+/* The spacing, widened so that the surface takes at most max_samples
+ * samples: memory and time then follow the budget, never the model's size. */
+static double budget_spacing(double area, double spacing, double max_samples)
+{
+    return area / (spacing * spacing) > max_samples ? sqrt(area / max_samples) : spacing;
+}
+
 double *sy_model_surface_samples(const sy_eval_model *m, double spacing, size_t *n, sy_error *err)
 {
     prims P;
     *n = 0;
     if (!(spacing > 0)) spacing = 0.01;
     if (prims_build(m, &P, err)) return NULL;
+    spacing = budget_spacing(prims_area(&P), spacing, 4e6);
     sample_buf s = {0};
     int ok = sample_model(&P, spacing, &s);
     prims_free(&P);
@@ -388,15 +410,8 @@ sy_code sy_surface_metrics_compute(const sy_eval_model *m, const double *pts, si
     /* Model -> points: samples need not be much denser than the points
      * themselves; four per point of mean point spacing, and never more than
      * ~20 million. */
-    double area = 0;
-    for (size_t t = 0; t < P.n_tri; t++) area += tri_area(P.tri + 9 * t);
-    for (size_t i = 0; i < P.n_cone; i++) {
-        const double *c = P.cone + 8 * i;
-        double len = sqrt((c[3] - c[0]) * (c[3] - c[0]) + (c[4] - c[1]) * (c[4] - c[1]) + (c[5] - c[2]) * (c[5] - c[2]));
-        area += PI * (c[6] + c[7]) * len;
-    }
-    spacing = fmax(spacing, 0.5 * sqrt(area / (double)n));
-    if (area / (spacing * spacing) > 2e7) spacing = sqrt(area / 2e7);
+    double area = prims_area(&P);
+    spacing = budget_spacing(area, fmax(spacing, 0.5 * sqrt(area / (double)n)), 2e7);
     double *dist = sy_calloc(n, sizeof *dist, err, "distances");
     if (!dist) {
         prims_free(&P);

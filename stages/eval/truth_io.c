@@ -177,9 +177,9 @@ static sy_code parse_tree(const ctx *c, const sy_jv *obj, const double *origin, 
             return bad(c, pos, "%s: 'position' must be [x, y, z]%s", where, NULL);
         }
         for (int k = 0; k < 3; k++)
-            if (!sy_jv_number(&pos->items[k], &t->position[k])) {
+            if (!sy_jv_number(&pos->items[k], &t->position[k]) || !(fabs(t->position[k]) <= SY_WORLD_MAX)) {
                 sy_skeleton_free(&t->skel);
-                return bad(c, &pos->items[k], "%s: 'position' must hold numbers%s", where, NULL);
+                return bad(c, &pos->items[k], "%s: 'position' must hold numbers within 1e9 m%s", where, NULL);
             }
     }
     if (isnan(t->dbh)) t->dbh = sy_skeleton_dbh(&t->skel);
@@ -191,8 +191,10 @@ static sy_code parse_doc(const ctx *c, const sy_jv *root, sy_forest *out)
 {
     if (root->type != SY_JV_OBJECT) return bad(c, root, "expected a JSON object at the top%s%s", NULL, NULL);
     const sy_jv *format = sy_jv_get(root, "format");
-    if (format && (!sy_jv_string(format) || (strcmp(format->str, "sylva-truth") && strcmp(format->str, "sylva-skeleton"))))
-        return bad(c, format, "'format' is '%s', expected 'sylva-truth' or 'sylva-skeleton'%s",
+    /* "sylva-tree" (sylva decode -o tree.json) is a skeleton file plus hulls. */
+    if (format && (!sy_jv_string(format) || (strcmp(format->str, "sylva-truth") && strcmp(format->str, "sylva-skeleton") &&
+                                             strcmp(format->str, "sylva-tree"))))
+        return bad(c, format, "'format' is '%s', expected 'sylva-truth', 'sylva-skeleton' or 'sylva-tree'%s",
                    sy_jv_string(format) ? format->str : sy_jv_type_name(format->type), NULL);
     double version = 1;
     if (opt_number(c, root, "version", "file", &version) < 0) return SY_EINPUT;

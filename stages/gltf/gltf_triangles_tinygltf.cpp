@@ -18,16 +18,36 @@
 #include <string>
 #include <vector>
 
+#include <sys/stat.h>
+
 namespace {
 
 using Mat4 = std::array<double, 16>; // column-major, as glTF stores matrices
 
 constexpr size_t kMaxTriangles = size_t(1) << 28; // 2.7e8 triangles, ~19 GB of doubles
+constexpr double kMaxCoordinate = 1e9;            // SY_WORLD_MAX (stages/core/cloud.h)
 
 struct Failure {
     int code;
     std::string what;
 };
+
+std::string number(double v)
+{
+    char b[32];
+    std::snprintf(b, sizeof b, "%g", v);
+    return b;
+}
+
+// An accessor index from an extension's JSON: a whole number in int range
+// (tinygltf's GetNumberAsInt casts any double, which is undefined past it).
+int index_value(const tinygltf::Value &v, const char *what)
+{
+    double d = v.GetNumberAsDouble();
+    if (!(d >= 0 && d <= 2147483647.0) || d != std::floor(d))
+        throw Failure{2, std::string(what) + " is not an accessor index"};
+    return int(d);
+}
 
 Mat4 identity()
 {
@@ -181,7 +201,7 @@ struct Reader {
             if (!attrs.Has(names[k])) continue;
             const tinygltf::Value &v = attrs.Get(names[k]);
             if (!v.IsNumber()) throw Failure{2, std::string("EXT_mesh_gpu_instancing ") + names[k] + " is not an accessor index"};
-            views.emplace_back(m, v.GetNumberAsInt(), "EXT_mesh_gpu_instancing");
+            views.emplace_back(m, index_value(v, (std::string("EXT_mesh_gpu_instancing ") + names[k]).c_str()), "EXT_mesh_gpu_instancing");
             if (views.back().components() != widths[k]) throw Failure{2, std::string("EXT_mesh_gpu_instancing ") + names[k] + " has the wrong type"};
             if (views.size() > 1 && views.back().count() != count) throw Failure{2, "EXT_mesh_gpu_instancing attributes differ in count"};
             count = views.back().count();
@@ -207,7 +227,14 @@ struct Reader {
         hull.push_back(hull_id);
         for (size_t v : {a, b, c}) {
             double p[3] = {pos.get(v, 0), pos.get(v, 1), pos.get(v, 2)}, w[3];
-            for (int r = 0; r < 3; r++) w[r] = xf[r] * p[0] + xf[4 + r] * p[1] + xf[8 + r] * p[2] + xf[12 + r];
+            for (int r = 0; r < 3; r++) {
+                w[r] = xf[r] * p[0] + xf[4 + r] * p[1] + xf[8 + r] * p[2] + xf[12 + r];
+                // A matrix of 1e308 or a NaN vertex: no tree lies there, and
+                // every later sample count would follow the number.
+                if (!(std::fabs(w[r]) <= kMaxCoordinate))
+                    throw Failure{2, "vertex " + std::to_string(v) + " lies at " + number(w[r]) +
+                                         " m after its node transforms (beyond 1e9 m or not finite)"};
+            }
             // glTF Y-up to Sylva Z-up.
             out.push_back(w[0]);
             out.push_back(-w[2]);
@@ -229,7 +256,7 @@ struct Reader {
             idx.resize(ind.count());
             for (size_t i = 0; i < ind.count(); i++) {
                 double v = ind.get(i, 0);
-                if (!(v >= 0 && v < double(pos.count()))) throw Failure{2, "index " + std::to_string(size_t(v)) + " beyond the vertex count"};
+                if (!(v >= 0 && v < double(pos.count()))) throw Failure{2, "index " + number(v) + " beyond the vertex count"};
                 idx[i] = size_t(v);
             }
         } else {
@@ -272,6 +299,59 @@ struct Reader {
         for (int c : n.children) node(c, world, depth + 1);
     }
 };
+
+// External buffers (a .gltf's "uri"): regular files only, of a bounded size.
+// tinygltf's own reader would open a FIFO named there and wait forever, or
+// read a device; an accessor can never need more than 2 GiB of one buffer.
+constexpr long long kMaxExternalBuffer = 1LL << 31;
+
+bool regular_file(const std::string &path, long long *size)
+{
+    struct stat st;
+    if (stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return false;
+    *size = (long long)st.st_size;
+    return true;
+}
+
+bool fs_exists(const std::string &path, void *)
+{
+    long long size;
+    return regular_file(path, &size);
+}
+
+std::string fs_expand(const std::string &path, void *) { return path; }
+
+bool fs_read(std::vector<unsigned char> *out, std::string *err, const std::string &path, void *)
+{
+    long long size;
+    if (!regular_file(path, &size)) {
+        if (err) *err += "not a regular file: " + path + "\n";
+        return false;
+    }
+    if (size > kMaxExternalBuffer) {
+        if (err) *err += "file larger than 2 GiB: " + path + "\n";
+        return false;
+    }
+    FILE *fp = std::fopen(path.c_str(), "rb");
+    if (!fp) {
+        if (err) *err += "cannot open " + path + "\n";
+        return false;
+    }
+    out->resize(size_t(size));
+    size_t got = size ? std::fread(out->data(), 1, size_t(size), fp) : 0;
+    std::fclose(fp);
+    if (got != size_t(size)) {
+        if (err) *err += "short read: " + path + "\n";
+        return false;
+    }
+    return true;
+}
+
+bool fs_write(std::string *err, const std::string &, const std::vector<unsigned char> &, void *)
+{
+    if (err) *err += "writing is not allowed here\n";
+    return false;
+}
 
 // Evaluation needs geometry only: skip decoding textures.
 bool skip_image(tinygltf::Image *, const int, std::string *, std::string *, int, int, const unsigned char *, int, void *)
@@ -348,6 +428,8 @@ bool load_model(const char *path, tinygltf::Model &model, bool images, char *msg
 {
     tinygltf::TinyGLTF loader;
     if (!images) loader.SetImageLoader(skip_image, nullptr);
+    // External buffers and images: regular files of a bounded size only (a FIFO would hang the read).
+    loader.SetFsCallbacks(tinygltf::FsCallbacks{fs_exists, fs_expand, fs_read, fs_write, nullptr});
     std::string err, warn;
     FILE *fp = std::fopen(path, "rb");
     if (!fp) {
@@ -410,7 +492,11 @@ static int read_triangles(const char *path, double **tri, size_t *n_tri, size_t 
         // of that point in asset.extras.origin (Z up): put the tree back there.
         double origin[3];
         if (asset_origin(model, origin))
-            for (size_t i = 0; i < r.out.size(); i++) r.out[i] += origin[i % 3];
+            for (size_t i = 0; i < r.out.size(); i++) {
+                r.out[i] += origin[i % 3];
+                if (!(std::fabs(r.out[i]) <= kMaxCoordinate))
+                    throw Failure{2, "asset.extras.origin puts a vertex at " + number(r.out[i]) + " m (beyond 1e9 m)"};
+            }
         *n_tri = r.out.size() / 9;
         *tri = static_cast<double *>(std::malloc(r.out.size() ? r.out.size() * sizeof(double) : sizeof(double)));
         *hull = static_cast<size_t *>(std::malloc(r.hull.size() ? r.hull.size() * sizeof(size_t) : sizeof(size_t)));

@@ -64,36 +64,10 @@ static sy_code read_any(const char *path, sy_cloud *out, sy_error *err)
     return rc;
 }
 
-/* Positions are stored as floats relative to an origin near the first point:
- * a finite coordinate far from it (1e300 beside 0) would become infinite and
- * leave the cloud without usable bounds. */
-static sy_code check_float_range(const char *path, const sy_cloud *c, sy_error *err)
-{
-    /* Chunks OR-reduce "exponent bits all ones" (inf or NaN) without an exit
-     * per value, so the compiler vectorises the scan; only a chunk that has
-     * one is searched for it. This pass runs after every reader. */
-    enum { CHUNK = 4096 };
-    const size_t total = 3 * c->n;
-    for (size_t start = 0; start < total; start += CHUNK) {
-        size_t end = total - start < CHUNK ? total : start + CHUNK;
-        uint32_t bad = 0;
-        for (size_t i = start; i < end; i++) {
-            uint32_t u;
-            memcpy(&u, &c->xyz[i], sizeof u);
-            bad |= (u & 0x7f800000u) == 0x7f800000u;
-        }
-        for (size_t i = start; bad && i < end; i++)
-            if (!isfinite(c->xyz[i]))
-                return sy_fail(err, SY_EINPUT,
-                               "%s: point %zu lies too far from the first point (beyond single precision)", path, i / 3);
-    }
-    return SY_OK;
-}
-
 sy_code sy_read_cloud(const char *path, sy_cloud *out, sy_error *err)
 {
     sy_code rc = read_any(path, out, err);
-    if (rc == SY_OK && (rc = check_float_range(path, out, err))) sy_cloud_free(out);
+    if (rc == SY_OK && (rc = sy_cloud_check_range(out, path, err))) sy_cloud_free(out);
     return rc;
 }
 

@@ -520,14 +520,20 @@ static void attr_name(const sy_cloud *c, const unsigned char *desc, unsigned ind
  * named attribute, with the descriptor's scale and offset applied and its
  * no_data value read as NaN. This creates the attributes; decode_extra_bytes
  * fills them block by block. */
-static sy_code prepare_extra_bytes(const las_header *h, const las_vlrs *v, sy_cloud *c, extra_field **out,
+static sy_code prepare_extra_bytes(const char *path, const las_header *h, const las_vlrs *v, sy_cloud *c, extra_field **out,
                                    size_t *n_out, sy_error *err)
 {
     *out = NULL;
     *n_out = 0;
-    if (!v->extra_bytes || h->record_length <= las_layouts[h->format].size) return SY_OK;
-    size_t base = las_layouts[h->format].size, extra = h->record_length - base, at = 0;
+    if (!v->extra_bytes) return SY_OK;
+    size_t base = las_layouts[h->format].size, at = 0;
+    size_t extra = h->record_length > base ? h->record_length - base : 0;
     size_t n_desc = v->extra_bytes_len / LAS_EB_DESCRIPTOR;
+    /* A descriptor table that cannot be read whole is refused: dropping the
+     * fields behind a bad one would silently lose treeID or speciesID. */
+    if (v->extra_bytes_len % LAS_EB_DESCRIPTOR)
+        return sy_fail(err, SY_EINPUT, "%s: extra-bytes VLR of %zu bytes is not a whole number of %d-byte descriptors",
+                       path, v->extra_bytes_len, LAS_EB_DESCRIPTOR);
     extra_field *fields = sy_calloc(n_desc ? n_desc : 1, sizeof *fields, err, "extra-bytes fields");
     if (!fields) return SY_EINTERNAL;
     size_t n = 0;
@@ -536,7 +542,17 @@ static sy_code prepare_extra_bytes(const las_header *h, const las_vlrs *v, sy_cl
         unsigned type = desc[LAS_EB_TYPE], options = desc[LAS_EB_OPTIONS];
         int known;
         size_t width = extra_field_size(type, options, &known);
-        if (!known || width > extra - at) break;
+        if (!known) {
+            free(fields);
+            return sy_fail(err, SY_EINPUT, "%s: extra-bytes descriptor %zu has unknown data type %u", path, i, type);
+        }
+        if (width > extra - at) {
+            free(fields);
+            return sy_fail(err, SY_EINPUT,
+                           "%s: extra-bytes descriptors need more than the %zu bytes each point record holds past "
+                           "its format's fields (descriptor %zu)",
+                           path, extra, i);
+        }
         if (type >= 1 && type <= 10) {
             char name[32];
             attr_name(c, desc, (unsigned)i, name, sizeof name);
@@ -678,7 +694,7 @@ static sy_code read_las(const char *path, const unsigned char *data, size_t size
     if (!k.nonzero || (rc = sy_cloud_init(out, (size_t)h.count, err)) ||
         (rc = add_format_arrays(out, &las_layouts[h.format], err)) ||
         (rc = set_origin(path, &h, h.count ? (laz ? data + chunks[0].offset : pts) : NULL, out, err)) ||
-        (rc = prepare_extra_bytes(&h, v, out, &k.fields, &k.n_fields, err))) {
+        (rc = prepare_extra_bytes(path, &h, v, out, &k.fields, &k.n_fields, err))) {
         free(chunks);
         free(k.nonzero);
         return rc ? rc : SY_EINTERNAL;

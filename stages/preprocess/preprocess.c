@@ -347,17 +347,81 @@ sy_code sy_remove_outliers(sy_cloud *c, int k, double std_mul, sy_error *err)
 
 /* ------------------------------------------------------------------ ground */
 
-/* A raster over the cloud's xy bounds; cells hold a surface height or NaN. */
+/* The ground surface lives on the occupied cells only, never on a raster over
+ * the bounds: two trees 100 km apart have the cells of two trees, and every
+ * step below is bounded by the point count, not by the extent. A cell is
+ * (column, row) packed into 64 bits; the bounds in cells are kept only to
+ * clamp bilinear sampling at the edges. */
 typedef struct {
     double x0, y0, cell;
-    size_t nx, ny;
+    uint32_t nx, ny;    /* cells spanned by the bounds (never allocated) */
+    size_t n_occupied;
+    uint64_t *occupied; /* sorted keys of the cells holding points */
+    uint32_t *cell_of;  /* per point: its cell's index in occupied */
+    uint32_t *lowest;   /* per occupied cell: its lowest point (ties: lowest index) */
+} ground_grid;
+
+/* Heights on a sorted subset of cells. */
+typedef struct {
+    size_t n;
+    uint64_t *key;
     double *z;
-} grid;
+} cell_heights;
 
-#define GRID_MAX_CELLS ((size_t)1 << 25)
+#define CELL_KEY(ix, iy) ((uint64_t)(iy) << 32 | (uint64_t)(ix))
+#define CELL_X(k) ((uint32_t)((k) & 0xffffffffu))
+#define CELL_Y(k) ((uint32_t)((k) >> 32))
 
-static sy_code grid_init(grid *g, const sy_cloud *c, double cell, sy_error *err)
+static void grid_free(ground_grid *g)
 {
+    free(g->occupied);
+    free(g->cell_of);
+    free(g->lowest);
+    memset(g, 0, sizeof *g);
+}
+
+static uint32_t cell_coord(double v, double lo, double cell, uint32_t n)
+{
+    double f = floor((v - lo) / cell);
+    return f < 0 ? 0 : f >= n ? n - 1 : (uint32_t)f;
+}
+
+typedef struct {
+    uint64_t key;
+    float z;
+    uint32_t index;
+} point_cell;
+
+static int cmp_point_cell(const void *a, const void *b)
+{
+    const point_cell *x = a, *y = b;
+    if (x->key != y->key) return x->key < y->key ? -1 : 1;
+    if (x->z != y->z) return x->z < y->z ? -1 : 1;
+    return (x->index > y->index) - (x->index < y->index);
+}
+
+static int cmp_u64(const void *a, const void *b)
+{
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return (x > y) - (x < y);
+}
+
+/* Finds key in the sorted keys; -1 when absent. */
+static long find_key(const uint64_t *keys, size_t n, uint64_t key)
+{
+    size_t lo = 0, hi = n;
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (keys[mid] < key) lo = mid + 1;
+        else hi = mid;
+    }
+    return lo < n && keys[lo] == key ? (long)lo : -1;
+}
+
+static sy_code grid_init(ground_grid *g, const sy_cloud *c, double cell, sy_error *err)
+{
+    memset(g, 0, sizeof *g);
+    if (c->n >= UINT32_MAX) return sy_fail(err, SY_EINPUT, "ground: %zu points exceed the 2^32 a cloud may hold", c->n);
     float lo[2] = {c->xyz[0], c->xyz[1]}, hi[2] = {lo[0], lo[1]};
     for (size_t i = 1; i < c->n; i++)
         for (int k = 0; k < 2; k++) {
@@ -366,130 +430,261 @@ static sy_code grid_init(grid *g, const sy_cloud *c, double cell, sy_error *err)
             if (v > hi[k]) hi[k] = v;
         }
     g->x0 = lo[0], g->y0 = lo[1], g->cell = cell;
-    double nx = floor((hi[0] - lo[0]) / cell) + 1, ny = floor((hi[1] - lo[1]) / cell) + 1;
-    if (nx * ny > (double)GRID_MAX_CELLS)
-        return sy_fail(err, SY_EUSAGE, "--ground-cell: %g m gives %.0f x %.0f cells over this cloud; use a larger cell",
-                       cell, nx, ny);
-    g->nx = (size_t)nx, g->ny = (size_t)ny;
-    g->z = sy_calloc(g->nx * g->ny, sizeof(double), err, "ground grid");
-    if (!g->z) return SY_EINTERNAL;
-    for (size_t i = 0; i < g->nx * g->ny; i++) g->z[i] = NAN;
+    double nx = floor(((double)hi[0] - lo[0]) / cell) + 1, ny = floor(((double)hi[1] - lo[1]) / cell) + 1;
+    /* Only the key width limits the span; no memory depends on it. */
+    if (!(nx < 4e9 && ny < 4e9))
+        return sy_fail(err, SY_EUSAGE, "--ground-cell: %g m is too small for a cloud %.0f m wide (at most 4e9 cells a side)",
+                       cell, fmax((double)hi[0] - lo[0], (double)hi[1] - lo[1]));
+    g->nx = (uint32_t)nx, g->ny = (uint32_t)ny;
+    point_cell *e = sy_calloc(c->n, sizeof *e, err, "ground cells");
+    g->cell_of = sy_calloc(c->n, sizeof *g->cell_of, err, "ground cells");
+    if (!e || !g->cell_of) {
+        free(e);
+        grid_free(g);
+        return SY_EINTERNAL;
+    }
+    for (size_t i = 0; i < c->n; i++) {
+        const float *p = c->xyz + 3 * i;
+        e[i].key = CELL_KEY(cell_coord(p[0], g->x0, cell, g->nx), cell_coord(p[1], g->y0, cell, g->ny));
+        e[i].z = p[2];
+        e[i].index = (uint32_t)i;
+    }
+    qsort(e, c->n, sizeof *e, cmp_point_cell);
+    size_t m = 0;
+    for (size_t i = 0; i < c->n; i++) m += i == 0 || e[i].key != e[i - 1].key;
+    g->occupied = sy_calloc(m, sizeof *g->occupied, err, "ground cells");
+    g->lowest = sy_calloc(m, sizeof *g->lowest, err, "ground cells");
+    if (!g->occupied || !g->lowest) {
+        free(e);
+        grid_free(g);
+        return SY_EINTERNAL;
+    }
+    size_t j = 0;
+    for (size_t i = 0; i < c->n; i++) {
+        if (i == 0 || e[i].key != e[i - 1].key) {
+            g->occupied[j] = e[i].key;
+            g->lowest[j++] = e[i].index; /* sorted by z then index within the cell */
+        }
+        g->cell_of[e[i].index] = (uint32_t)(j - 1);
+    }
+    g->n_occupied = m;
+    free(e);
     return SY_OK;
 }
 
-static size_t grid_index(const grid *g, const float *p)
+/* ---- gap filling: Shepard's inverse-distance weighting ----
+ * A cell without ground takes the inverse-square-distance weighted mean of
+ * the FILL_K nearest ground cells (Shepard 1968, "A two-dimensional
+ * interpolation function for irregularly-spaced data"), found in a 2-d tree;
+ * next to ground this is the mean of the filled neighbours, and across any
+ * gap the cost stays a tree query. */
+
+enum { FILL_K = 8 };
+
+typedef struct {
+    double x, y, z; /* cell centre in cell units, height */
+} kd_item;
+
+static int cmp_kd_x(const void *a, const void *b)
 {
-    size_t ix = (size_t)((p[0] - g->x0) / g->cell), iy = (size_t)((p[1] - g->y0) / g->cell);
-    if (ix >= g->nx) ix = g->nx - 1;
-    if (iy >= g->ny) iy = g->ny - 1;
-    return iy * g->nx + ix;
+    const kd_item *p = a, *q = b;
+    if (p->x != q->x) return p->x < q->x ? -1 : 1;
+    return (p->y > q->y) - (p->y < q->y);
 }
 
-/* Fills empty cells ring by ring from the filled ones, each with the mean of
- * its already-filled 8-neighbours; returns 0 when no cell was filled. */
-static int grid_fill(grid *g, sy_error *err)
+static int cmp_kd_y(const void *a, const void *b)
 {
-    size_t total = g->nx * g->ny, filled = 0;
-    for (size_t i = 0; i < total; i++) filled += !isnan(g->z[i]);
-    if (filled == 0) return 0;
-    double *next = sy_calloc(total, sizeof(double), err, "ground grid");
-    if (!next) return -1;
-    while (filled < total) {
-        memcpy(next, g->z, total * sizeof(double));
-        for (size_t iy = 0; iy < g->ny; iy++)
-            for (size_t ix = 0; ix < g->nx; ix++) {
-                if (!isnan(g->z[iy * g->nx + ix])) continue;
-                double sum = 0;
-                int m = 0;
-                for (int dy = -1; dy <= 1; dy++)
-                    for (int dx = -1; dx <= 1; dx++) {
-                        long x = (long)ix + dx, y = (long)iy + dy;
-                        if (x < 0 || y < 0 || x >= (long)g->nx || y >= (long)g->ny) continue;
-                        double v = g->z[(size_t)y * g->nx + (size_t)x];
-                        if (!isnan(v)) sum += v, m++;
-                    }
-                if (m) next[iy * g->nx + ix] = sum / m, filled++;
-            }
-        memcpy(g->z, next, total * sizeof(double));
+    const kd_item *p = a, *q = b;
+    if (p->y != q->y) return p->y < q->y ? -1 : 1;
+    return (p->x > q->x) - (p->x < q->x);
+}
+
+/* Balanced implicit tree: the median of each range splits it on x, then y. */
+static void kd_build(kd_item *a, size_t n, int axis)
+{
+    if (n < 2) return;
+    qsort(a, n, sizeof *a, axis ? cmp_kd_y : cmp_kd_x);
+    size_t mid = n / 2;
+    kd_build(a, mid, !axis);
+    kd_build(a + mid + 1, n - mid - 1, !axis);
+}
+
+typedef struct {
+    double d2;
+    const kd_item *item;
+} kd_hit;
+
+/* Keeps the k nearest sorted by distance, ties by position (so the answer
+ * does not depend on the tree's visiting order). */
+static void kd_offer(kd_hit *best, int *len, int k, double d2, const kd_item *it)
+{
+    int i = *len;
+    if (i == k) {
+        const kd_hit *w = &best[k - 1];
+        if (d2 > w->d2 || (d2 == w->d2 && cmp_kd_x(it, w->item) >= 0)) return;
+        i = k - 1;
+    } else
+        (*len)++;
+    while (i > 0 && (best[i - 1].d2 > d2 || (best[i - 1].d2 == d2 && cmp_kd_x(best[i - 1].item, it) > 0))) {
+        best[i] = best[i - 1];
+        i--;
     }
-    free(next);
-    return 1;
+    best[i].d2 = d2;
+    best[i].item = it;
 }
 
-/* Surface height at p, bilinear between cell centres. */
-static double grid_sample(const grid *g, const float *p)
+static void kd_nearest(const kd_item *a, size_t n, int axis, double qx, double qy, kd_hit *best, int *len, int k)
 {
-    double fx = (p[0] - g->x0) / g->cell - 0.5, fy = (p[1] - g->y0) / g->cell - 0.5;
-    double bx = floor(fx), by = floor(fy);
-    double tx = fx - bx, ty = fy - by;
-    long x0 = (long)bx, y0 = (long)by;
-    long x1 = x0 + 1, y1 = y0 + 1;
+    while (n > 0) {
+        size_t mid = n / 2;
+        const kd_item *p = a + mid;
+        double dx = p->x - qx, dy = p->y - qy;
+        kd_offer(best, len, k, dx * dx + dy * dy, p);
+        double diff = axis ? qy - p->y : qx - p->x;
+        const kd_item *near = diff < 0 ? a : p + 1, *far = diff < 0 ? p + 1 : a;
+        size_t n_near = diff < 0 ? mid : n - mid - 1, n_far = diff < 0 ? n - mid - 1 : mid;
+        kd_nearest(near, n_near, !axis, qx, qy, best, len, k);
+        if (*len == k && diff * diff > best[k - 1].d2) return;
+        a = far, n = n_far, axis = !axis; /* the far side, iteratively */
+    }
+}
+
+/* Heights at every cell a point's bilinear sample touches: the occupied
+ * cells and their 8 neighbours, each from h or filled. */
+static sy_code fill_cells(const ground_grid *g, const cell_heights *h, cell_heights *out, sy_error *err)
+{
+    memset(out, 0, sizeof *out);
+    size_t cap = 9 * g->n_occupied;
+    out->key = sy_calloc(cap, sizeof *out->key, err, "ground surface");
+    kd_item *tree = sy_calloc(h->n ? h->n : 1, sizeof *tree, err, "ground surface");
+    if (!out->key || !tree) {
+        free(out->key);
+        free(tree);
+        out->key = NULL;
+        return SY_EINTERNAL;
+    }
+    size_t n = 0;
+    for (size_t j = 0; j < g->n_occupied; j++) {
+        uint32_t cx = CELL_X(g->occupied[j]), cy = CELL_Y(g->occupied[j]);
+        for (int dy = -1; dy <= 1; dy++)
+            for (int dx = -1; dx <= 1; dx++) {
+                int64_t x = (int64_t)cx + dx, y = (int64_t)cy + dy;
+                if (x < 0 || y < 0 || x >= g->nx || y >= g->ny) continue;
+                out->key[n++] = CELL_KEY(x, y);
+            }
+    }
+    qsort(out->key, n, sizeof *out->key, cmp_u64);
+    size_t u = 0;
+    for (size_t i = 0; i < n; i++)
+        if (u == 0 || out->key[i] != out->key[u - 1]) out->key[u++] = out->key[i];
+    out->n = u;
+    out->z = sy_calloc(u, sizeof *out->z, err, "ground surface");
+    if (!out->z) {
+        free(tree);
+        free(out->key);
+        out->key = NULL;
+        return SY_EINTERNAL;
+    }
+    for (size_t i = 0; i < h->n; i++) {
+        tree[i].x = CELL_X(h->key[i]) + 0.5;
+        tree[i].y = CELL_Y(h->key[i]) + 0.5;
+        tree[i].z = h->z[i];
+    }
+    kd_build(tree, h->n, 0);
+    for (size_t i = 0; i < u; i++) {
+        long at = find_key(h->key, h->n, out->key[i]);
+        if (at >= 0) {
+            out->z[i] = h->z[at];
+            continue;
+        }
+        kd_hit best[FILL_K];
+        int len = 0;
+        kd_nearest(tree, h->n, 0, CELL_X(out->key[i]) + 0.5, CELL_Y(out->key[i]) + 0.5, best, &len, FILL_K);
+        double sw = 0, sz = 0;
+        for (int k = 0; k < len; k++) {
+            double w = 1 / best[k].d2; /* d2 >= 1: the cell itself has no height */
+            sw += w, sz += w * best[k].item->z;
+        }
+        out->z[i] = sz / sw;
+    }
+    free(tree);
+    return SY_OK;
+}
+
+static void heights_free(cell_heights *h)
+{
+    free(h->key);
+    free(h->z);
+    memset(h, 0, sizeof *h);
+}
+
+/* hag[i] = height of point i above the surface through h's cells, bilinear
+ * between cell centres (clamped at the bounds). */
+static sy_code heights_above(const sy_cloud *c, const ground_grid *g, const cell_heights *h, double *hag,
+                             sy_error *err)
+{
+    cell_heights s;
+    if (fill_cells(g, h, &s, err)) return SY_EINTERNAL;
     long mx = (long)g->nx - 1, my = (long)g->ny - 1;
-    if (x0 < 0) x0 = 0, tx = 0;
-    if (y0 < 0) y0 = 0, ty = 0;
-    if (x1 > mx) x1 = mx;
-    if (y1 > my) y1 = my;
-    if (x0 > mx) x0 = mx;
-    if (y0 > my) y0 = my;
-    double z00 = g->z[y0 * g->nx + x0], z10 = g->z[y0 * g->nx + x1];
-    double z01 = g->z[y1 * g->nx + x0], z11 = g->z[y1 * g->nx + x1];
-    return (1 - ty) * ((1 - tx) * z00 + tx * z10) + ty * ((1 - tx) * z01 + tx * z11);
+    for (size_t i = 0; i < c->n; i++) {
+        const float *p = c->xyz + 3 * i;
+        double fx = (p[0] - g->x0) / g->cell - 0.5, fy = (p[1] - g->y0) / g->cell - 0.5;
+        double bx = floor(fx), by = floor(fy);
+        double tx = fx - bx, ty = fy - by;
+        long x0 = bx < 0 ? -1 : bx > mx ? mx : (long)bx, y0 = by < 0 ? -1 : by > my ? my : (long)by;
+        long x1 = x0 + 1, y1 = y0 + 1;
+        if (x0 < 0) x0 = 0, tx = 0;
+        if (y0 < 0) y0 = 0, ty = 0;
+        if (x1 > mx) x1 = mx;
+        if (y1 > my) y1 = my;
+        double z[4];
+        long xs[2] = {x0, x1}, ys[2] = {y0, y1};
+        for (int k = 0; k < 4; k++) {
+            long at = find_key(s.key, s.n, CELL_KEY(xs[k & 1], ys[k >> 1]));
+            z[k] = at >= 0 ? s.z[at] : p[2]; /* unreachable: every corner neighbours the point's cell */
+        }
+        hag[i] = p[2] - ((1 - ty) * ((1 - tx) * z[0] + tx * z[1]) + ty * ((1 - tx) * z[2] + tx * z[3]));
+    }
+    heights_free(&s);
+    return SY_OK;
 }
 
 /* The lowest point of every occupied cell, run through PMF; the surviving
- * cells get their lowest point's height. Returns the ground cell count. */
-static sy_code pmf_surface(const sy_cloud *c, const sy_preprocess_options *o, grid *g, size_t *n_cells, sy_error *err)
+ * cells get their lowest point's height. */
+static sy_code pmf_surface(const sy_cloud *c, const sy_preprocess_options *o, const ground_grid *g, cell_heights *h,
+                           sy_error *err)
 {
-    size_t total = g->nx * g->ny;
-    size_t *lowest = sy_calloc(total, sizeof(size_t), err, "ground grid");
-    if (!lowest) return SY_EINTERNAL;
-    for (size_t i = 0; i < total; i++) lowest[i] = SIZE_MAX;
-    for (size_t i = 0; i < c->n; i++) {
-        size_t k = grid_index(g, c->xyz + 3 * i);
-        if (lowest[k] == SIZE_MAX || c->xyz[3 * i + 2] < c->xyz[3 * lowest[k] + 2]) lowest[k] = i;
-    }
-    size_t m = 0;
-    for (size_t k = 0; k < total; k++) m += lowest[k] != SIZE_MAX;
+    memset(h, 0, sizeof *h);
+    size_t m = g->n_occupied;
     float *copy = sy_calloc(m, 3 * sizeof(float), err, "ground candidates");
-    size_t *cell_of = sy_calloc(m, sizeof(size_t), err, "ground candidates");
     uint8_t *is_ground = sy_calloc(m, 1, err, "ground candidates");
+    h->key = sy_calloc(m, sizeof *h->key, err, "ground candidates");
+    h->z = sy_calloc(m, sizeof *h->z, err, "ground candidates");
     sy_code rc = SY_OK;
-    if (!copy || !cell_of || !is_ground) rc = SY_EINTERNAL;
+    if (!copy || !is_ground || !h->key || !h->z) rc = SY_EINTERNAL;
     char msg[256];
     if (rc == SY_OK) {
-        size_t j = 0;
-        for (size_t k = 0; k < total; k++)
-            if (lowest[k] != SIZE_MAX) {
-                memcpy(copy + 3 * j, c->xyz + 3 * lowest[k], 3 * sizeof(float));
-                cell_of[j++] = k;
-            }
+        for (size_t j = 0; j < m; j++) memcpy(copy + 3 * j, c->xyz + 3 * (size_t)g->lowest[j], 3 * sizeof(float));
         if (sy_pcl_ground_pmf(copy, m, o->ground_cell, o->ground_slope, o->ground_max_window, o->ground_threshold,
                               3.0 + o->ground_slope * o->ground_max_window, is_ground, msg, sizeof msg))
             rc = sy_fail(err, SY_EINTERNAL, "%s", msg);
     }
-    *n_cells = 0;
     for (size_t j = 0; rc == SY_OK && j < m; j++)
-        if (is_ground[j]) g->z[cell_of[j]] = copy[3 * j + 2], (*n_cells)++;
-    free(lowest);
+        if (is_ground[j]) h->key[h->n] = g->occupied[j], h->z[h->n++] = copy[3 * j + 2];
     free(copy);
-    free(cell_of);
     free(is_ground);
+    if (rc) heights_free(h);
     return rc;
-}
-
-/* hag[i] = height of point i above the surface in g. */
-static void heights_above(const sy_cloud *c, const grid *g, double *hag)
-{
-    for (size_t i = 0; i < c->n; i++) hag[i] = c->xyz[3 * i + 2] - grid_sample(g, c->xyz + 3 * i);
 }
 
 /* Replaces each cell's height by the mean height of the ground points in it,
  * which centres the surface in the ground's noise band instead of under it. */
-static sy_code refine_surface(const sy_cloud *c, grid *g, const double *hag, double threshold, sy_error *err)
+static sy_code refine_surface(const sy_cloud *c, const ground_grid *g, const double *hag, double threshold,
+                              cell_heights *h, sy_error *err)
 {
-    size_t total = g->nx * g->ny;
-    double *sum = sy_calloc(total, sizeof(double), err, "ground grid");
-    size_t *count = sy_calloc(total, sizeof(size_t), err, "ground grid");
+    size_t m = g->n_occupied;
+    double *sum = sy_calloc(m, sizeof(double), err, "ground surface");
+    size_t *count = sy_calloc(m, sizeof(size_t), err, "ground surface");
     if (!sum || !count) {
         free(sum);
         free(count);
@@ -497,14 +692,15 @@ static sy_code refine_surface(const sy_cloud *c, grid *g, const double *hag, dou
     }
     for (size_t i = 0; i < c->n; i++)
         if (hag[i] < threshold) {
-            size_t k = grid_index(g, c->xyz + 3 * i);
-            sum[k] += c->xyz[3 * i + 2];
-            count[k]++;
+            sum[g->cell_of[i]] += c->xyz[3 * i + 2];
+            count[g->cell_of[i]]++;
         }
-    for (size_t k = 0; k < total; k++) g->z[k] = count[k] ? sum[k] / count[k] : NAN;
+    h->n = 0;
+    for (size_t j = 0; j < m; j++)
+        if (count[j]) h->key[h->n] = g->occupied[j], h->z[h->n++] = sum[j] / count[j];
     free(sum);
     free(count);
-    return grid_fill(g, err) < 0 ? SY_EINTERNAL : SY_OK;
+    return SY_OK;
 }
 
 sy_code sy_classify_ground(sy_cloud *c, const sy_preprocess_options *o, size_t *n_ground, sy_error *err)
@@ -515,19 +711,16 @@ sy_code sy_classify_ground(sy_cloud *c, const sy_preprocess_options *o, size_t *
     int had_classes = c->classification != NULL;
     if (sy_cloud_add_classification(c, err)) return SY_EINTERNAL;
     if (c->n == 0) return SY_OK;
-    grid g = {0};
-    size_t cells = 0;
+    ground_grid g;
+    cell_heights h = {0};
     sy_code rc = grid_init(&g, c, o->ground_cell, err);
-    if (rc == SY_OK) rc = pmf_surface(c, o, &g, &cells, err);
-    int filled = 0;
-    if (rc == SY_OK) {
-        filled = grid_fill(&g, err);
-        if (filled < 0) rc = SY_EINTERNAL;
-    }
-    if (rc == SY_OK && filled) {
-        heights_above(c, &g, hag);
-        rc = refine_surface(c, &g, hag, o->ground_threshold, err);
-        if (rc == SY_OK) heights_above(c, &g, hag);
+    if (rc == SY_OK) rc = pmf_surface(c, o, &g, &h, err);
+    int filled = rc == SY_OK && h.n > 0;
+    if (filled) {
+        rc = heights_above(c, &g, &h, hag, err);
+        /* refine keeps a subset of the occupied cells: h's arrays suffice */
+        if (rc == SY_OK) rc = refine_surface(c, &g, hag, o->ground_threshold, &h, err);
+        if (rc == SY_OK && h.n > 0) rc = heights_above(c, &g, &h, hag, err);
     } else if (rc == SY_OK) { /* PMF kept nothing: heights from the lowest point */
         float zmin = c->xyz[2];
         for (size_t i = 1; i < c->n; i++)
@@ -539,7 +732,8 @@ sy_code sy_classify_ground(sy_cloud *c, const sy_preprocess_options *o, size_t *
         if (ground) c->classification[i] = 2, (*n_ground)++;
         else if (!had_classes || c->classification[i] == 2) c->classification[i] = 1; /* unclassified */
     }
-    free(g.z);
+    heights_free(&h);
+    grid_free(&g);
     return rc;
 }
 

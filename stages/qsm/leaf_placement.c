@@ -118,12 +118,17 @@ sy_code sy_place_leaves(const sy_skeleton *s, const sy_leaf_placement *p, sy_lea
         for (int k = 0; k < 3; k++) d[k] /= len;
         twigs += len;
         carry += p->per_metre * len;
-        int count = (int)floor(carry);
-        carry -= count;
-        if (leaves->n + (size_t)count > MAX_PLACED_LEAVES) {
-            rc = sy_fail(err, SY_EUSAGE, "leaves: more than %d leaves; lower the leaf density", MAX_PLACED_LEAVES);
+        /* Compared as a double first: a long twig times the density may pass
+         * any int (the cast would be undefined). */
+        if ((double)leaves->n + floor(carry) > MAX_PLACED_LEAVES) {
+            rc = sy_fail(err, SY_EINPUT,
+                         "leaves: %.4g leaves per metre of twig make more than %d leaves (%.4g m of twigs so far); "
+                         "lower the leaf density",
+                         p->per_metre, MAX_PLACED_LEAVES, twigs);
             break;
         }
+        int count = (int)floor(carry);
+        carry -= count;
         for (int j = 0; j < count && !rc; j++) {
             double t = ((double)j + unit(&rng)) / count; /* stratified along the edge */
             rc = leaf_on_edge(a, b, s->radius[par], s->radius[i], d, t, &rng, p->size, (int32_t)i, leaves, err);

@@ -130,7 +130,8 @@ typedef struct {
 static sy_code read_comment(obj_ctx *c, int nt, const char **tb, const char **te)
 {
     double v[3];
-    if (nt >= 5 && tok_is(tb[1], te[1], "sylva") && tok_is(tb[2], te[2], "origin")) {
+    if (nt >= 3 && tok_is(tb[1], te[1], "sylva") && tok_is(tb[2], te[2], "origin")) { /* "# sylva origin X Y Z" */
+        if (nt != 6) return sy_fail(c->err, SY_EINPUT, "%s:%zu: malformed sylva origin comment", c->path, c->line);
         for (int k = 0; k < 3; k++)
             if (!sy_qsm_parse_number(tb[3 + k], te[3 + k], &c->origin[k]) || !isfinite(c->origin[k]))
                 return sy_fail(c->err, SY_EINPUT, "%s:%zu: malformed sylva origin comment", c->path, c->line);

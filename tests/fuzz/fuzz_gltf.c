@@ -1,0 +1,29 @@
+/* libFuzzer target: arbitrary bytes as the glb/glTF model of `sylva eval`
+ * (tinygltf, then Sylva's accessor, index, node, instancing and coordinate
+ * checks). The first byte picks the container: even as a .glb, odd as a
+ * .gltf (JSON). Every triangle returned must be finite. */
+#include <math.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdlib.h>
+
+#include "fuzz_util.h"
+#include "stages/eval/gltf_read_tinygltf.h"
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    if (size < 1) return 0;
+    const char *path = fuzz_file(data[0] & 1 ? "gltf" : "glb", data + 1, size - 1);
+    double *tri;
+    size_t n, *hull;
+    char msg[512];
+    if (sy_gltf_read_triangles(path, &tri, &n, &hull, msg, sizeof msg) == 0) {
+        for (size_t i = 0; i < 9 * n; i++)
+            if (!isfinite(tri[i])) abort();
+        free(tri);
+        free(hull);
+    }
+    return 0;
+}

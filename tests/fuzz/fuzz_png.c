@@ -1,0 +1,24 @@
+/* libFuzzer target: arbitrary bytes as a species' bark and leaf texture
+ * (decode, size checks, resize, normal map, alpha, PNG re-encode) through
+ * sy_materials_add, small textures so each input stays quick. */
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+
+#include "fuzz_util.h"
+#include "species/materials.h"
+#include "stages/core/asset.h"
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    const char *path = fuzz_file("png", data, size);
+    sy_material_spec spec = {path, size & 1 ? path : NULL, 0.4f, 32};
+    sy_asset a = {0};
+    int bark, leaf;
+    sy_error err = {0};
+    sy_materials_add(&spec, &a, &bark, &leaf, &err);
+    sy_asset_free(&a);
+    return 0;
+}
