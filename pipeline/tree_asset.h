@@ -11,6 +11,7 @@
 #include "stages/core/asset.h"
 #include "stages/core/json.h"
 #include "stages/core/skeleton.h"
+#include "stages/eval/eval.h"
 #include "stages/grow/grow.h"
 
 typedef struct {
@@ -31,6 +32,9 @@ typedef struct {
      * "source" (source's file name; directories stay private) and
      * "source_format". NULL (the default): none of them (grown trees). */
     const char *source, *source_format;
+    /* 1: measure the asset (sy_mesh_check: sails, slivers, welding, leaf
+     * gaps, ground, LOD ratios) into the report (--check). */
+    int check;
 } sy_tree_asset_options;
 
 sy_tree_asset_options sy_tree_asset_options_default(void);
@@ -45,7 +49,7 @@ void sy_tree_asset_root_to_origin(sy_skeleton *s, sy_clusters *hulls);
  * sy_glb_cli_apply() after it (checks the ranges, copies them into o; on a
  * bad value prints "sylva COMMAND: ..." and returns SY_EUSAGE). */
 typedef struct {
-    int lods, impostor_size, meshopt, no_instancing, no_impostor;
+    int lods, impostor_size, meshopt, no_instancing, no_impostor, check;
 } sy_glb_cli_options;
 extern sy_glb_cli_options sy_glb_cli;
 #define SY_GLB_OPTIONS                                                                                         \
@@ -54,7 +58,9 @@ extern sy_glb_cli_options sy_glb_cli;
     {"--no-impostor", OPT_FLAG, &sy_glb_cli.no_impostor, NULL, "no billboard level"},                           \
     {"--meshopt", OPT_FLAG, &sy_glb_cli.meshopt, NULL, "compress with EXT_meshopt_compression"},               \
     {"--no-instancing", OPT_FLAG, &sy_glb_cli.no_instancing, NULL,                                             \
-     "bake leaf instances into meshes (engines without EXT_mesh_gpu_instancing)"}
+     "bake leaf instances into meshes (engines without EXT_mesh_gpu_instancing)"},                           \
+    {"--check", OPT_FLAG, &sy_glb_cli.check, NULL,                                                             \
+     "measure the mesh (sails, slivers, welding, leaf gaps, ground, LOD ratios; docs/mesh.md) into the report"}
 void sy_glb_cli_reset(void);
 int sy_glb_cli_apply(const char *command, sy_tree_asset_options *o);
 
@@ -67,6 +73,8 @@ typedef struct {
     size_t leaf_cards[16];
     size_t bytes;
     double seconds_mesh, seconds_export;
+    int checked;                /* opt->check was set: check holds the figures */
+    sy_mesh_check_report check;
 } sy_tree_asset_report;
 
 /* species may be NULL: default materials and leaf cards. extras_json (may be
@@ -82,7 +90,8 @@ sy_code sy_tree_asset_write(const char *path, const sy_skeleton *skel, const sy_
 
 /* Prints the report as text (stderr). */
 void sy_tree_asset_report_text(const sy_tree_asset_report *rep, const char *path);
-/* The "lod_triangles" array (one count per level) into an open JSON object. */
+/* The "lod_triangles" array (one count per level) into an open JSON object,
+ * and "mesh_check" (one object per checked level) when the report has it. */
 void sy_tree_asset_report_lods_json(sy_json *j, const sy_tree_asset_report *rep);
 
 #endif

@@ -15,9 +15,10 @@ sy_mesh_options sy_mesh_options_default(void)
     o.radial_segments = 16;
     o.segment_length = 0;
     o.n_lods = 4;
-    o.lod0_max_triangles = 50000;
+    o.lod0_max_triangles = 60000;
     o.impostor = 1;
     o.impostor_size = 512;
+    o.min_radius = 0.0015f;
     o.leaf_aspect = 0.6f;
     o.leaf_shape = 0;
     o.seed = 1;
@@ -36,6 +37,8 @@ static sy_code check_options(const sy_mesh_options *o, const sy_asset *a, sy_err
         return sy_fail(err, SY_EUSAGE, "mesh: %d LOD levels outside [1, 7]", o->n_lods);
     if (o->impostor && (o->impostor_size < 16 || o->impostor_size > 4096))
         return sy_fail(err, SY_EUSAGE, "mesh: impostor size %d outside [16, 4096]", o->impostor_size);
+    if (!(o->min_radius >= 0) || !isfinite(o->min_radius))
+        return sy_fail(err, SY_EUSAGE, "mesh: min_radius %g is not >= 0", o->min_radius);
     if (!(o->leaf_aspect > 0) || !isfinite(o->leaf_aspect))
         return sy_fail(err, SY_EUSAGE, "mesh: leaf aspect %g is not positive", o->leaf_aspect);
     if (o->bark_material >= (int)a->n_materials || o->leaf_material >= (int)a->n_materials)
@@ -131,7 +134,7 @@ static sy_code add_level(sy_asset *a, const sy_stems *st, const sy_leaves *lv, s
         sy_mesh_free(&m);
     }
     if (card >= 0 && leaves->n > 0) {
-        rc = sy_leaf_instances(lv, st, leaves->list, leaves->n, grow, card, &lod.instances[0], err);
+        rc = sy_leaf_instances(lv, st, lp->level == 0 ? lp->keep : NULL, leaves->list, leaves->n, grow, card, &lod.instances[0], err);
         if (rc != SY_OK) return rc;
         lod.n_instances = 1;
     }

@@ -16,13 +16,15 @@ typedef struct {
                                   branches use fewer, never below 3 */
     float segment_length;      /* target metres between rings along a branch at LOD0
                                   (default: adaptive to curvature and radius) */
-    int lod0_max_triangles;    /* bark triangle budget of LOD0 (default 50,000; 0 = none):
+    int lod0_max_triangles;    /* bark triangle budget of LOD0 (default 60,000; 0 = none):
                                   the least important twigs (r^2 L) go first, as the
                                   twig leaf cards depict them */
     int n_lods;                /* mesh levels before the impostor (default 4); each halves
                                   rings and segments and drops thin branches */
     int impostor;              /* add the final cross-card impostor level (default 1) */
     int impostor_size;         /* impostor texture size in pixels (default 512) */
+    float min_radius;          /* bark is drawn at least this thick, metres (default 1.5 mm):
+                                  thinner twig tips would be sub-pixel slivers */
     float leaf_aspect;         /* leaf card width / length (default 0.6) */
     int leaf_shape;            /* Weber-Penn leafShape, picks the card outline (default 0) */
     uint64_t seed;             /* leaf pruning order */

@@ -104,6 +104,8 @@ typedef struct {
 } sy_lod_params;
 
 int sy_stem_radial(const sy_stem *s, const sy_lod_params *lp);
+/* Intermediate rings of the stem's tip hemisphere at this level. */
+int sy_stem_cap_rings(const sy_stem *s, const sy_lod_params *lp);
 /* Ring selection of stem s at this level: writes up to s->n_samp indices and
  * returns the count. */
 size_t sy_stem_rings(const sy_stem *s, const sy_lod_params *lp, int32_t *idx);
@@ -121,6 +123,10 @@ void sy_tube_emit(const sy_stems *st, size_t stem, const sy_lod_params *lp, sy_m
  * of lp's level has at most budget triangles, starting from count; returns
  * the new count, or (size_t)-1 when out of memory. */
 size_t sy_lod_fit_budget(const sy_stems *st, sy_lod_params *lp, size_t count, size_t budget);
+/* Brings back stems of prev_keep that lp drops, most important first and
+ * parents before children, while the bark stays within target triangles;
+ * returns the new count, or (size_t)-1 when out of memory. */
+size_t sy_lod_restore(const sy_stems *st, const uint8_t *prev_keep, sy_lod_params *lp, size_t count, size_t target);
 int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris, sy_lod_params *lp,
                   size_t *tris);
 /* Bark triangles of the kept stems at a level. */
@@ -144,9 +150,11 @@ sy_code sy_leaf_card(int shape, float aspect, int material, sy_mesh *out, sy_err
 /* Deterministic Fisher-Yates permutation of 0..n-1 from seed. */
 void sy_permutation(uint32_t *perm, size_t n, uint64_t seed);
 /* Instances of the leaves list[0..n) (indices into lv) in glTF's frame, their
- * size multiplied by grow, with the wind data of the stem each hangs on. */
-sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint32_t *list, size_t n, float grow,
-                          int mesh, sy_instances *out, sy_error *err);
+ * size multiplied by grow, with the wind data of the stem each hangs on.
+ * keep (per stem, may be NULL): a leaf whose stem is not drawn moves to the
+ * nearest ring centre of its closest drawn ancestor. */
+sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint8_t *keep, const uint32_t *list,
+                          size_t n, float grow, int mesh, sy_instances *out, sy_error *err);
 
 /* ---- impostor (impostor.c) ---- */
 /* Renders the LOD0 meshes and instances of lod0 from two orthogonal

@@ -16,6 +16,7 @@
 #define MAX_TURN (10.0f * SY_PI / 180.0f)
 #define MAX_RADIUS_STEP 0.15f
 #define RINGS_PER_STEM 6
+#define TWIG_RINGS 2
 #define MAX_SUBDIV 64
 /* Ring vertices of a lobed trunk at most (Lobes goes up to 64). */
 #define LOBED_MAX_RADIAL 64
@@ -146,7 +147,7 @@ static sy_code order_by_depth(sy_stems *st, sy_error *err)
 
 /* Polyline through the attachment node and the chain; records for each
  * chain node the polyline point it collapsed into (node_pt). */
-static int build_polyline(const sy_skeleton *sk, sy_stem *s, int32_t *node_pt)
+static int build_polyline(const sy_skeleton *sk, sy_stem *s, int32_t *node_pt, float min_radius)
 {
     size_t cap = s->n_nodes + 1;
     s->pts = malloc(cap * 3 * sizeof(float));
@@ -157,7 +158,7 @@ static int build_polyline(const sy_skeleton *sk, sy_stem *s, int32_t *node_pt)
     if (s->attach_node >= 0) {
         memcpy(s->pts, sk->pos + 3 * s->attach_node, 3 * sizeof(float));
         /* The tube starts with the child's own radius, not the parent's. */
-        s->rad[0] = sk->radius[s->nodes[0]];
+        s->rad[0] = fmaxf(sk->radius[s->nodes[0]], min_radius);
         m = 1;
     }
     for (size_t i = 0; i < s->n_nodes; i++) {
@@ -171,7 +172,7 @@ static int build_polyline(const sy_skeleton *sk, sy_stem *s, int32_t *node_pt)
             }
         }
         memcpy(s->pts + 3 * m, p, 3 * sizeof(float));
-        s->rad[m] = sk->radius[s->nodes[i]];
+        s->rad[m] = fmaxf(sk->radius[s->nodes[i]], min_radius);
         node_pt[i] = (int32_t)m;
         m++;
     }
@@ -265,7 +266,10 @@ static int sample_curve(sy_stem *s, const sy_mesh_options *opt)
     }
     for (size_t i = 0; i < n; i++) bessel_tangent(s, i, tan + 3 * i);
     radius_slopes(s, chord, slope);
-    float spacing = opt->segment_length > 0 ? opt->segment_length : total / RINGS_PER_STEM;
+    /* A leaf-bearing twig bends as one piece: two steps give wind its joint
+     * and keep the thousands of twigs of a crown inside the LOD0 budget. */
+    int rings = s->has_children || s->parent < 0 ? RINGS_PER_STEM : TWIG_RINGS;
+    float spacing = opt->segment_length > 0 ? opt->segment_length : total / (float)rings;
     size_t count = 1;
     for (size_t i = 0; i + 1 < n; i++) {
         float c = sy_dot3(tan + 3 * i, tan + 3 * i + 3);
@@ -465,7 +469,7 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
     for (size_t o = 0; o < st->n; o++) {
         sy_stem *s = &st->s[st->by_depth[o]];
         int32_t *node_pt = malloc(s->n_nodes * sizeof *node_pt);
-        if (!node_pt || !build_polyline(sk, s, node_pt)) {
+        if (!node_pt || !build_polyline(sk, s, node_pt, opt->min_radius)) {
             free(node_pt);
             sy_stems_free(st);
             return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");

@@ -20,6 +20,13 @@ int sy_stem_radial(const sy_stem *s, const sy_lod_params *lp)
     return p < lo ? lo : p;
 }
 
+/* Twigs end in a cone: their hemisphere would cost a ring for a tip a few
+ * millimetres across. */
+int sy_stem_cap_rings(const sy_stem *s, const sy_lod_params *lp)
+{
+    return s->has_children || s->parent < 0 ? lp->cap_rings : 0;
+}
+
 size_t sy_stem_rings(const sy_stem *s, const sy_lod_params *lp, int32_t *idx)
 {
     size_t n = 0, last = s->n_samp - 1, stride = (size_t)lp->stride;
@@ -39,7 +46,7 @@ void sy_tube_counts(const sy_stems *st, size_t stem, const sy_lod_params *lp, si
     if (!s->has_geometry || !lp->keep[stem]) return;
     size_t P = (size_t)sy_stem_radial(s, lp);
     size_t rings = (s->n_samp - 1 + (size_t)lp->stride - 1) / (size_t)lp->stride + 1;
-    size_t cap = (size_t)lp->cap_rings;
+    size_t cap = (size_t)sy_stem_cap_rings(s, lp);
     size_t tris = (rings - 1 + cap) * P * 2 + P;
     *nv = (rings + cap) * (P + 1) + P;
     if (has_base_cap(s)) {
@@ -232,7 +239,10 @@ void sy_tube_emit(const sy_stems *st, size_t stem, const sy_lod_params *lp, sy_m
             sy_normalize3(nrm);
             if (df != 0) sy_normalize3(tan);
             if (r == 0 && par && j < P) {
-                float limit = 4 * (s->r_base + st->s[s->parent].r_base) + 0.5f * s->length, out[3];
+                /* Far enough to cross the parent at any angle, never so far
+                 * that a child running along its parent drags its base ring
+                 * metres down the stem (a sail). */
+                float limit = 2 * (s->r_base + st->s[s->parent].r_base), out[3];
                 arc += project_to_parent(par, pidx, npr, Pp, pos, T, s->attach_s, limit, out);
                 memcpy(pos, out, sizeof pos);
             }
@@ -248,8 +258,9 @@ void sy_tube_emit(const sy_stems *st, size_t stem, const sy_lod_params *lp, sy_m
     float B[3], rad = s->sr[kl], h = fminf(rad, 0.5f * s->length);
     sy_cross3(T, N, B);
     float arc = s->ss[kl], prev_r = rad, prev_h = 0;
-    for (int cr = 1; cr <= lp->cap_rings; cr++) {
-        float ph = 0.5f * SY_PI * (float)cr / (float)(lp->cap_rings + 1), rr = rad * cosf(ph), hh = h * sinf(ph);
+    int cap_rings = sy_stem_cap_rings(s, lp);
+    for (int cr = 1; cr <= cap_rings; cr++) {
+        float ph = 0.5f * SY_PI * (float)cr / (float)(cap_rings + 1), rr = rad * cosf(ph), hh = h * sinf(ph);
         arc += hypotf(prev_r - rr, hh - prev_h);
         prev_r = rr, prev_h = hh;
         for (int j = 0; j <= P; j++) {
@@ -273,7 +284,7 @@ void sy_tube_emit(const sy_stems *st, size_t stem, const sy_lod_params *lp, sy_m
     }
     /* Quad strips between consecutive rings (tube rings then cap rings),
      * wound counter-clockwise seen from outside: (u, u+1, v+1). */
-    size_t total_rings = nr + (size_t)lp->cap_rings, row = (size_t)P + 1;
+    size_t total_rings = nr + (size_t)cap_rings, row = (size_t)P + 1;
     for (size_t r = 0; r + 1 < total_rings; r++) {
         uint32_t a0 = (uint32_t)(v0 + r * row), b0 = (uint32_t)(a0 + row);
         for (uint32_t j = 0; j < (uint32_t)P; j++) {
