@@ -508,11 +508,6 @@ static size_t weld_one(const sy_stems *st, const weld_rect *w, const sy_lod_para
         if (ai[k] < ai[si]) si = (size_t)k;
     }
     if (!climb_once(ao, n, so, uo) || !climb_once(ai, (size_t)Pc, si, ui)) return 0;
-    for (long r = w->q0; r <= w->q1; r++)
-        for (int j = w->c0; j <= w->c1; j++) {
-            size_t t = quad_tri(io, p, P, r, j, w->jc);
-            cut[t] = cut[t + 1] = 1;
-        }
     /* Zip: state (outer i, inner k); advance whichever comes next by angle.
      * Outer edges keep the removed quads' direction, ring edges run against
      * the child tube's, so the strip is oriented with both. The ring's
@@ -531,6 +526,20 @@ static size_t weld_one(const sy_stems *st, const weld_rect *w, const sy_lod_para
             k++;
         }
     }
+    /* No folds: every strip triangle faces the way the parent's surface does
+     * at its outer corner (the first of its three). */
+    for (size_t f = 0; f < t; f += 3) {
+        const float *a = m->position + 3 * extra[f], *b = m->position + 3 * extra[f + 1];
+        const float *c = m->position + 3 * extra[f + 2];
+        float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]}, g[3];
+        sy_cross3(e1, e2, g);
+        if (!(sy_dot3(g, m->normal + 3 * extra[f]) > 0)) return 0;
+    }
+    for (long r = w->q0; r <= w->q1; r++)
+        for (int j = w->c0; j <= w->c1; j++) {
+            size_t q = quad_tri(io, p, P, r, j, w->jc);
+            cut[q] = cut[q + 1] = 1;
+        }
     return t / 3;
 }
 
