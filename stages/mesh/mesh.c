@@ -15,7 +15,7 @@ sy_mesh_options sy_mesh_options_default(void)
     o.radial_segments = 16;
     o.segment_length = 0;
     o.n_lods = 4;
-    o.lod0_max_triangles = 60000;
+    o.lod0_max_triangles = 56000;
     o.impostor = 1;
     o.impostor_size = 512;
     o.min_radius = 0.0015f;
@@ -89,6 +89,20 @@ static sy_code add_materials(sy_asset *a, const sy_mesh_options *o, int want_lea
     return SY_OK;
 }
 
+/* Whether leaf l's card (the box |x| <= aspect/2, 0 <= y <= 1 of its local
+ * frame, scaled) reaches below z = ground. */
+static int card_below(const sy_leaves *lv, uint32_t l, float aspect, float grow, float ground)
+{
+    const float *q = lv->rot + 4 * l, *p = lv->pos + 3 * l;
+    float n = sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    if (!(n > 0)) return p[2] < ground;
+    float x = q[0] / n, y = q[1] / n, z = q[2] / n, w = q[3] / n, s = lv->scale[l] * grow;
+    /* Z row of the rotation matrix: the z of local +X and +Y. */
+    float zx = 2 * (x * z - w * y), zy = 2 * (y * z + w * x);
+    float lowest = p[2] + s * (fminf(0, zy) - 0.5f * aspect * fabsf(zx));
+    return lowest < ground;
+}
+
 typedef struct {
     uint32_t *list; /* leaves this level keeps, a subsequence of the previous level's */
     size_t n;
@@ -102,7 +116,8 @@ typedef struct {
  * at a distance they stand in for the twig's foliage, and they keep swaying
  * with it because every wind entry survives. Dropping them instead left the
  * coarse levels bare (LOD3 of a 20k-leaf tree kept none). */
-static float next_leaf_level(const sy_leaves *lv, const leaf_level *prev, const leaf_level *all, leaf_level *next)
+static float next_leaf_level(const sy_leaves *lv, const leaf_level *prev, const leaf_level *all, float aspect,
+                             float ground, leaf_level *next)
 {
     next->n = 0;
     for (size_t i = 0; i < prev->n / 2; i++) next->list[next->n++] = prev->list[i];
@@ -110,7 +125,13 @@ static float next_leaf_level(const sy_leaves *lv, const leaf_level *prev, const 
     for (size_t i = 0; i < all->n; i++) ref += (double)lv->scale[all->list[i]] * lv->scale[all->list[i]];
     for (size_t i = 0; i < next->n; i++) kept += (double)lv->scale[next->list[i]] * lv->scale[next->list[i]];
     double g = kept > 0 ? sqrt(ref / kept) : 1;
-    return (float)(g < 1 ? 1 : g > 4 ? 4 : g);
+    float grow = (float)(g < 1 ? 1 : g > 4 ? 4 : g);
+    /* Enlarged cards near the ground would reach under it. */
+    size_t n = 0;
+    for (size_t i = 0; i < next->n; i++)
+        if (!card_below(lv, next->list[i], aspect, grow, ground)) next->list[n++] = next->list[i];
+    next->n = n;
+    return grow;
 }
 
 static sy_code add_level(sy_asset *a, const sy_stems *st, const sy_leaves *lv, sy_lod_params *lp, int bark,
@@ -195,8 +216,13 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
     /* Level 0: everything; the leaf order is the seeded permutation, so
      * every coarser level's leaves are a filtered prefix of it. */
     sy_permutation(all.list, lv->n, opt->seed);
-    memcpy(cur.list, all.list, lv->n * sizeof(uint32_t));
-    cur.n = lv->n;
+    /* Nothing below the ground: a card that would dip under it is left out. */
+    size_t kept = 0;
+    for (size_t i = 0; i < lv->n; i++)
+        if (!card_below(lv, all.list[i], opt->leaf_aspect, 1, st.ground)) all.list[kept++] = all.list[i];
+    all.n = kept;
+    memcpy(cur.list, all.list, kept * sizeof(uint32_t));
+    cur.n = kept;
     sy_lod_params lp = {0, 1, keep, 1};
     memset(keep, 1, st.n);
     size_t tris = sy_lod_bark_triangles(&st, &lp);
@@ -216,7 +242,7 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
             memcpy(keep, keep_prev, st.n);
             break; /* no coarser level can halve the triangles: the chain ends */
         }
-        float grow = next_leaf_level(lv, &cur, &all, &nxt);
+        float grow = next_leaf_level(lv, &cur, &all, opt->leaf_aspect, st.ground, &nxt);
         coverage *= 0.5f;
         if ((rc = add_level(out, &st, lv, &next, bark, card, &nxt, grow, coverage, err)) != SY_OK) goto done;
         leaf_level t = cur;

@@ -84,6 +84,7 @@ typedef struct {
     int32_t root;       /* the stem holding the root node */
     float trunk_radius; /* base radius of the root stem */
     float height;       /* extent of the skeleton along Z */
+    float ground;       /* Z of the root node: nothing is drawn below it */
 } sy_stems;
 
 sy_code sy_stems_build(const sy_skeleton *skel, const sy_mesh_options *opt, sy_stems *out, sy_error *err);

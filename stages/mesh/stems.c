@@ -247,7 +247,7 @@ static int alloc_samples(sy_stem *s, size_t n)
  * than MAX_TURN, changes the radius by more than MAX_RADIUS_STEP of itself, or
  * exceeds the target spacing (segment_length, or a sixth of the stem so that
  * wind bending has joints to bend at). */
-static int sample_curve(sy_stem *s, const sy_mesh_options *opt)
+static int sample_curve(sy_stem *s, const sy_mesh_options *opt, float ground)
 {
     size_t n = s->n_pts;
     float *chord = malloc(n * sizeof(float)), *tan = malloc(n * 3 * sizeof(float));
@@ -309,6 +309,9 @@ static int sample_curve(sy_stem *s, const sy_mesh_options *opt)
             float r = (2 * t3 - 3 * t2 + 1) * ra + (t3 - 2 * t2 + t) * ma + (-2 * t3 + 3 * t2) * rb + (t3 - t2) * mb;
             float drdt = (6 * t2 - 6 * t) * ra + (3 * t2 - 4 * t + 1) * ma + (-6 * t2 + 6 * t) * rb + (3 * t2 - 2 * t) * mb;
             s->sr[j] = fmaxf(r, 1e-5f);
+            /* A branch that droops to the ground rests on it instead of
+             * passing below (the trunk's base ring sits on it already). */
+            if (s->parent >= 0 && s->sp[3 * j + 2] < ground + s->sr[j]) s->sp[3 * j + 2] = ground + s->sr[j];
             s->sdr[j] = drdt / speed;
             if (j == 0) {
                 s->ss[j] = 0;
@@ -466,6 +469,7 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
     }
     st->height = zmax - zmin;
     st->trunk_radius = sk->radius[st->s[st->root].nodes[0]];
+    st->ground = sk->pos[3 * st->s[st->root].nodes[0] + 2];
     for (size_t o = 0; o < st->n; o++) {
         sy_stem *s = &st->s[st->by_depth[o]];
         int32_t *node_pt = malloc(s->n_nodes * sizeof *node_pt);
@@ -478,7 +482,7 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
         s->r_tip = s->rad[s->n_pts - 1];
         if (s->parent >= 0) s->attach_s = st->node_s[s->attach_node];
         if (s->n_pts >= 2) {
-            if (!sample_curve(s, opt)) {
+            if (!sample_curve(s, opt, st->ground)) {
                 free(node_pt);
                 sy_stems_free(st);
                 return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
