@@ -48,6 +48,9 @@ typedef struct {
     float diffuse_transmission;
     float diffuse_transmission_color[3];
     int diffuse_transmission_image; /* -1 none */
+    /* emissiveFactor (linear RGB, 0 = omitted): a leaf's fallback for the
+     * light it would pass in engines without diffuse transmission. */
+    float emissive[3];
 } sy_material;
 
 /* Copies of one mesh (leaf cards): TRS per instance, rotation as (x,y,z,w). */
