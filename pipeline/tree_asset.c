@@ -62,6 +62,7 @@ void sy_tree_asset_report_lods_json(sy_json *j, const sy_tree_asset_report *rep)
         sy_json_int(j, "triangles", (long long)c->triangles);
         sy_json_int(j, "bark_triangles", (long long)c->bark_triangles);
         sy_json_number(j, "ratio", c->ratio);
+        sy_json_number(j, "silhouette_iou", c->silhouette_iou);
         sy_json_int(j, "sails", (long long)c->sails);
         sy_json_number(j, "max_off_surface", c->max_off_surface);
         sy_json_number(j, "max_across", c->max_across);

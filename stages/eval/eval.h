@@ -212,6 +212,8 @@ typedef struct {
     size_t triangles;        /* bark + leaf instances x card triangles */
     size_t bark_triangles;
     double ratio;            /* triangles / the previous checked level's (0 at the first) */
+    double silhouette_iou;   /* coverage vs the first level's, intersection over union, front and
+                                side views averaged (256 px over the first level's box) */
     size_t sails;            /* triangles with an edge off the surface or too wide (options) */
     double max_off_surface;  /* largest edge-midpoint distance outside the surface, in local radii */
     double max_across;       /* largest edge extent across its nearest axis, in local radii */

@@ -12,6 +12,7 @@
 #include "eval.h"
 #include "geometry.h"
 #include "stages/core/bvh.h"
+#include "stages/mesh/mesh.h"
 
 /* Glitches below this area are invisible and waste rasteriser work
  * (0.005 mm^2). */
@@ -21,6 +22,9 @@
 #define SLIVER_ASPECT 1e-3
 /* Off-surface allowance per metre of skeleton segment (spline vs polyline). */
 #define SPLINE_SLACK 0.05
+/* Silhouette masks: pixels on a side (the LOD test of a tree, like a 256 px
+ * impostor view). */
+#define SILHOUETTE_PX 256
 
 typedef struct {
     double a[3], b[3];
@@ -282,7 +286,7 @@ static sy_code check_level(const sy_asset *a, size_t level, const sy_bvh *cap_bv
                 /* The mesh follows a smooth curve through the nodes, the
                  * capsules the polyline: allow 5 % of the segment's length. */
                 double across = sqrt(fmax(0, len * len - along * along)) / rloc;
-                double off = gap / fmax(rloc, SPLINE_SLACK * al / o->sail_radii);
+                double off = gap / fmax(rloc, SPLINE_SLACK * al);
                 if (across > out->max_across) out->max_across = across;
                 if (len / rloc > out->max_edge_radii) out->max_edge_radii = len / rloc;
                 if (off > out->max_off_surface) out->max_off_surface = off;
@@ -359,12 +363,40 @@ sy_code sy_mesh_check(const sy_asset *a, const sy_skeleton *sk, const sy_mesh_ch
         free(caps), free(boxes);
         return sy_fail(err, SY_EINTERNAL, "mesh check: out of memory");
     }
+    /* The same-branch continuation of every node, to find where a child
+     * really leaves its parent. */
+    int32_t *cont = malloc((sk->n + 1) * sizeof *cont);
+    if (!cont) {
+        free(caps), free(boxes);
+        return sy_fail(err, SY_EINTERNAL, "mesh check: out of memory");
+    }
+    for (size_t i = 0; i < sk->n; i++) cont[i] = -1;
+    for (size_t i = 0; i < sk->n; i++) {
+        int32_t p = sk->parent[i];
+        if (p >= 0 && sk->branch[p] == sk->branch[i] && cont[p] < 0) cont[p] = (int32_t)i;
+    }
     nc = 0;
     for (size_t i = 0; i < sk->n; i++) {
         int32_t p = sk->parent[i];
         if (p < 0) continue;
         capsule *c = &caps[nc];
         for (int k = 0; k < 3; k++) c->a[k] = sk->pos[3 * p + k], c->b[k] = sk->pos[3 * i + k];
+        if (sk->branch[p] != sk->branch[i]) {
+            /* A child starts where its parent's axis passes nearest its first
+             * node (the mesher attaches it there too), not at the node before. */
+            const double q[3] = {c->b[0], c->b[1], c->b[2]};
+            double best = INFINITY, near[3] = {c->a[0], c->a[1], c->a[2]};
+            int32_t ends[2][2] = {{sk->parent[p], p}, {p, cont[p]}};
+            for (int e = 0; e < 2; e++) {
+                if (ends[e][0] < 0 || ends[e][1] < 0) continue;
+                double a0[3], b0[3], t;
+                for (int k = 0; k < 3; k++) a0[k] = sk->pos[3 * ends[e][0] + k], b0[k] = sk->pos[3 * ends[e][1] + k];
+                double dd = sy_point_segment_distance(q, a0, b0, &t);
+                if (dd < best)
+                    for (int k = 0; k < 3; k++) best = dd, near[k] = a0[k] + t * (b0[k] - a0[k]);
+            }
+            memcpy(c->a, near, sizeof near);
+        }
         /* A stem's first segment carries its own radius at the attachment. */
         c->ra = fmax(sk->branch[p] == sk->branch[i] ? sk->radius[p] : sk->radius[i], o->min_radius);
         c->rb = fmax(sk->radius[i], o->min_radius);
@@ -379,6 +411,7 @@ sy_code sy_mesh_check(const sy_asset *a, const sy_skeleton *sk, const sy_mesh_ch
         sy_box_add_point(&boxes[nc], hi);
         nc++;
     }
+    free(cont);
     sy_bvh cb;
     rc = sy_bvh_build(&cb, boxes, nc, err);
     free(boxes);
@@ -398,6 +431,32 @@ sy_code sy_mesh_check(const sy_asset *a, const sy_skeleton *sk, const sy_mesh_ch
         levels++;
     }
     out->n_levels = levels;
+    /* Silhouettes: intersection over union of each level's coverage with
+     * LOD0's, front and side averaged, on LOD0's box. */
+    if (rc == SY_OK && levels > 0) {
+        int S = SILHOUETTE_PX;
+        uint8_t *m0 = malloc(2 * (size_t)S * (size_t)S), *mk = malloc(2 * (size_t)S * (size_t)S);
+        float lo[3], hi[3];
+        if (!m0 || !mk) rc = sy_fail(err, SY_EINTERNAL, "mesh check: out of memory");
+        if (rc == SY_OK) {
+            sy_mesh_lod_bounds(a, out->level[0].lod, lo, hi);
+            rc = sy_mesh_silhouettes(a, out->level[0].lod, lo, hi, S, m0, m0 + (size_t)S * (size_t)S, err);
+        }
+        for (size_t l = 0; l < levels && rc == SY_OK; l++) {
+            rc = sy_mesh_silhouettes(a, out->level[l].lod, lo, hi, S, mk, mk + (size_t)S * (size_t)S, err);
+            double iou = 0;
+            for (int v = 0; v < 2 && rc == SY_OK; v++) {
+                size_t in = 0, un = 0;
+                for (size_t i = 0; i < (size_t)S * (size_t)S; i++) {
+                    uint8_t a0 = m0[(size_t)v * (size_t)S * (size_t)S + i], ak = mk[(size_t)v * (size_t)S * (size_t)S + i];
+                    in += a0 & ak, un += a0 | ak;
+                }
+                iou += 0.5 * (un ? (double)in / (double)un : 1);
+            }
+            out->level[l].silhouette_iou = iou;
+        }
+        free(m0), free(mk);
+    }
     for (size_t l = 1; l < levels; l++) {
         double r = (double)out->level[l].triangles / (double)(out->level[l - 1].triangles ? out->level[l - 1].triangles : 1);
         out->level[l].ratio = r;

@@ -47,4 +47,14 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
  * impostor = 0) and want them in the billboard too. */
 sy_code sy_mesh_add_impostor(sy_asset *a, size_t lod0, int size, sy_error *err);
 
+/* Bounds (glTF frame) of everything level lod draws: meshes and instances. */
+void sy_mesh_lod_bounds(const sy_asset *a, size_t lod, float lo[3], float hi[3]);
+
+/* Coverage of level lod by the impostor's rasteriser (conservative: a pixel
+ * a triangle touches counts; alpha-masked cards use their texture): seen
+ * along -Z (front: x right) and along -X (side: -z right), y up, each over
+ * the box lo..hi as size x size pixels, row 0 at the top; 1 = covered. */
+sy_code sy_mesh_silhouettes(const sy_asset *a, size_t lod, const float lo[3], const float hi[3], int size,
+                            uint8_t *front, uint8_t *side, sy_error *err);
+
 #endif

@@ -331,6 +331,45 @@ static int sample_curve(sy_stem *s, const sy_mesh_options *opt, float ground)
     return 1;
 }
 
+/* A grown child leaves its parent between two parent nodes, while its chain
+ * starts from the node before: the first segment would run inside the
+ * parent and come out as a flap. The attachment moves to the point of the
+ * parent's curve nearest the child's first own point (ring samples, within
+ * the parent segments next to the attachment node). */
+static int attach_on_parent(const sy_stem *p, sy_stem *s)
+{
+    const float *q = s->pts + 3;
+    float best = INFINITY, at[3] = {s->pts[0], s->pts[1], s->pts[2]}, as = s->attach_s;
+    /* It cannot leave the parent farther along than its first point lies
+     * from the attachment node. */
+    float d0[3] = {q[0] - at[0], q[1] - at[1], q[2] - at[2]}, reach = sqrtf(sy_dot3(d0, d0));
+    for (size_t k = 0; k + 1 < p->n_samp; k++) {
+        if (p->ss[k + 1] < s->attach_s - reach || p->ss[k] > s->attach_s + reach) continue;
+        const float *a = p->sp + 3 * k, *b = a + 3;
+        float ab[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, aq[3] = {q[0] - a[0], q[1] - a[1], q[2] - a[2]};
+        float l2 = sy_dot3(ab, ab), t = l2 > 0 ? sy_dot3(aq, ab) / l2 : 0;
+        t = t < 0 ? 0 : t > 1 ? 1 : t;
+        float c[3] = {a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]};
+        float d[3] = {q[0] - c[0], q[1] - c[1], q[2] - c[2]}, dd = sy_dot3(d, d);
+        if (dd < best) best = dd, memcpy(at, c, sizeof at), as = p->ss[k] + t * (p->ss[k + 1] - p->ss[k]);
+    }
+    /* Keep the attachment node when the nearest point would collapse onto
+     * the child's first point (a child starting on the parent's axis). */
+    if (best < DEDUPE_EPS * DEDUPE_EPS) return 0;
+    s->attach_s = as;
+    if (best < s->rad[0] * s->rad[0] && s->n_pts > 2) {
+        /* The child starts on its parent's axis: that first point is the
+         * attachment, and a millimetre-long first segment would only give
+         * its base a random direction. */
+        memmove(s->pts, s->pts + 3, 3 * (s->n_pts - 1) * sizeof(float));
+        memmove(s->rad + 1, s->rad + 2, (s->n_pts - 2) * sizeof(float));
+        s->n_pts--;
+        return 1;
+    }
+    memcpy(s->pts, at, sizeof at);
+    return 0;
+}
+
 /* Seam placement: u = 0 faces down on branches (under the branch) and away
  * from a glTF viewer's default camera on a vertical trunk. */
 static void initial_normal(const sy_stem *s, float r0[3])
@@ -481,6 +520,8 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
         s->r_base = s->rad[0];
         s->r_tip = s->rad[s->n_pts - 1];
         if (s->parent >= 0) s->attach_s = st->node_s[s->attach_node];
+        if (s->parent >= 0 && st->s[s->parent].has_geometry && s->n_pts >= 2 && attach_on_parent(&st->s[s->parent], s))
+            for (size_t i = 0; i < s->n_nodes; i++) node_pt[i] = node_pt[i] > 0 ? node_pt[i] - 1 : 0;
         if (s->n_pts >= 2) {
             if (!sample_curve(s, opt, st->ground)) {
                 free(node_pt);

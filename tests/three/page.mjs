@@ -60,6 +60,7 @@ async function main() {
   sun.position.set(0.4, 1.0, 0.6);
   scene.add(sun);
   scene.add(lod);
+  if (q.get('bark') === '1') lod.traverse(o => { if (o.isInstancedMesh) o.visible = false; });
   // Framing: the impostor card's box (the tree's bounds plus 3 %), as the atlas was drawn.
   const box = new THREE.Box3();
   if (impMesh) { impMesh.geometry.computeBoundingBox(); box.copy(impMesh.geometry.boundingBox); }

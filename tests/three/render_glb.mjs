@@ -5,7 +5,7 @@
 //   --lod N|all  level to draw (all: every level of each file; default 0)
 //   --view front|side|persp|close   front/side: orthographic, framed like the impostor atlas
 //   --size PX    image height (default 256)   --png PREFIX  write PREFIX<name>_lod<N>_<view>.png
-//   --at X,Y,Z,R close-up centre and radius (glTF frame)
+//   --at X,Y,Z,R close-up centre and radius (glTF frame)   --bark-only 1  hide the leaf cards
 // Prints one JSON line per render: {file, lod, view, errors, warnings, triangles, coverage,
 // impostor_iou, ...}. Exit 0 when every page finished, 3 when the browser failed.
 import { spawn } from 'node:child_process';
@@ -66,6 +66,7 @@ async function render(file, lod, view) {
   await send('Emulation.setDeviceMetricsOverride', { width: w, height: size, deviceScaleFactor: 1, mobile: false });
   events.length = 0;
   let url = `http://127.0.0.1:${port}/tests/three/render.html?glb=/file${encodeURI(file)}&lod=${lod}&view=${view}&size=${size}`;
+  if (opt['bark-only']) url += '&bark=1';
   if (opt.at) { const [x, y, z, r] = opt.at.split(','); url += `&x=${x}&y=${y}&z=${z}&r=${r}`; }
   await send('Page.navigate', { url });
   let verdict = null;
