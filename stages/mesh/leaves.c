@@ -257,8 +257,8 @@ static void nearest_centre(const sy_stem *s, const float p[3], float out[3])
     }
 }
 
-sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint8_t *keep, const uint32_t *list,
-                          size_t n, float grow, int mesh, sy_instances *out, sy_error *err)
+sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint8_t *keep, float aspect,
+                          const uint32_t *list, size_t n, float grow, int mesh, sy_instances *out, sy_error *err)
 {
     memset(out, 0, sizeof *out);
     out->mesh = mesh;
@@ -282,7 +282,18 @@ sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint8_t
         if (keep) {
             int32_t k = st->node_stem[lv->node[l]];
             while (k >= 0 && !(keep[k] && st->s[k].has_geometry)) k = st->s[k].parent;
-            if (k >= 0 && k != st->node_stem[lv->node[l]]) nearest_centre(&st->s[k], lv->pos + 3 * l, at);
+            if (k >= 0 && k != st->node_stem[lv->node[l]]) {
+                nearest_centre(&st->s[k], lv->pos + 3 * l, at);
+                /* Moved near the ground, the card may not reach under it. */
+                const float *q = lv->rot + 4 * l;
+                float qn = sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+                if (qn > 0) {
+                    float x = q[0] / qn, y = q[1] / qn, z = q[2] / qn, w = q[3] / qn, sc = lv->scale[l] * grow;
+                    float zx = 2 * (x * z - w * y), zy = 2 * (y * z + w * x);
+                    float low = at[2] + sc * (fminf(0, zy) - 0.5f * aspect * fabsf(zx));
+                    if (low < st->ground) at[2] += st->ground - low;
+                }
+            }
         }
         sy_to_yup(at, out->translation + 3 * i);
         float q[4];

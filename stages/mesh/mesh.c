@@ -135,7 +135,8 @@ static float next_leaf_level(const sy_leaves *lv, const leaf_level *prev, const 
 }
 
 static sy_code add_level(sy_asset *a, const sy_stems *st, const sy_leaves *lv, sy_lod_params *lp, int bark,
-                         int card, const leaf_level *leaves, float grow, float coverage, sy_error *err)
+                         int card, float aspect, const leaf_level *leaves, float grow, float coverage,
+                         sy_error *err)
 {
     sy_lod lod;
     memset(&lod, 0, sizeof lod);
@@ -155,7 +156,7 @@ static sy_code add_level(sy_asset *a, const sy_stems *st, const sy_leaves *lv, s
         sy_mesh_free(&m);
     }
     if (card >= 0 && leaves->n > 0) {
-        rc = sy_leaf_instances(lv, st, lp->level == 0 ? lp->keep : NULL, leaves->list, leaves->n, grow, card, &lod.instances[0], err);
+        rc = sy_leaf_instances(lv, st, lp->level == 0 ? lp->keep : NULL, aspect, leaves->list, leaves->n, grow, card, &lod.instances[0], err);
         if (rc != SY_OK) return rc;
         lod.n_instances = 1;
     }
@@ -233,7 +234,7 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
     }
     size_t first_lod = out->n_lods;
     float coverage = 0.5f;
-    if ((rc = add_level(out, &st, lv, &lp, bark, card, &cur, 1.0f, coverage, err)) != SY_OK) goto done;
+    if ((rc = add_level(out, &st, lv, &lp, bark, card, opt->leaf_aspect, &cur, 1.0f, coverage, err)) != SY_OK) goto done;
     for (int level = 1; level < opt->n_lods; level++) {
         memcpy(keep_prev, keep, st.n);
         sy_lod_params next = {level, 1 << level, keep, 0};
@@ -244,7 +245,7 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
         }
         float grow = next_leaf_level(lv, &cur, &all, opt->leaf_aspect, st.ground, &nxt);
         coverage *= 0.5f;
-        if ((rc = add_level(out, &st, lv, &next, bark, card, &nxt, grow, coverage, err)) != SY_OK) goto done;
+        if ((rc = add_level(out, &st, lv, &next, bark, card, opt->leaf_aspect, &nxt, grow, coverage, err)) != SY_OK) goto done;
         leaf_level t = cur;
         cur = nxt, nxt = t;
         tris = next_tris;

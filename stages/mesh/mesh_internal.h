@@ -153,9 +153,10 @@ void sy_permutation(uint32_t *perm, size_t n, uint64_t seed);
 /* Instances of the leaves list[0..n) (indices into lv) in glTF's frame, their
  * size multiplied by grow, with the wind data of the stem each hangs on.
  * keep (per stem, may be NULL): a leaf whose stem is not drawn moves to the
- * nearest ring centre of its closest drawn ancestor. */
-sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint8_t *keep, const uint32_t *list,
-                          size_t n, float grow, int mesh, sy_instances *out, sy_error *err);
+ * nearest ring centre of its closest drawn ancestor (raised, if its card of
+ * width aspect would reach below the ground there). */
+sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint8_t *keep, float aspect,
+                          const uint32_t *list, size_t n, float grow, int mesh, sy_instances *out, sy_error *err);
 
 /* ---- impostor (impostor.c) ---- */
 /* Renders the LOD0 meshes and instances of lod0 from two orthogonal
