@@ -153,9 +153,13 @@ int sy_cli_parse(const sy_cmd_spec *spec, int argc, char **argv, sy_cli *cli, co
         fprintf(stderr, "sylva %s: missing argument (usage: sylva %s %s)\n", spec->name, spec->name, spec->usage);
         return SY_EUSAGE;
     }
+    return SY_OK;
+}
+
+void sy_cli_apply_settings(const sy_cli *cli)
+{
     sy_progress_set_quiet(cli->quiet || cli->json);
     sy_set_threads(cli->threads);
-    return SY_OK;
 }
 
 int sy_cli_report(const sy_error *err)

@@ -5,6 +5,10 @@
 
 #include "stages/core/status.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Options every subcommand accepts. */
 typedef struct {
     int json;     /* --json: machine-readable stdout */
@@ -32,11 +36,18 @@ typedef struct {
     int min_pos, max_pos; /* positional argument counts (-1: unbounded) */
 } sy_cmd_spec;
 
-/* Parses argv (argv[0] is the subcommand name). Positional arguments land in
- * pos (capacity max). Returns SY_OK, SY_EUSAGE (message already printed), or
+/* Parses argv (argv[0] is the subcommand name) into cli and the option
+ * targets of spec (which point into the command's per-call argument struct:
+ * no option lives in file-scope storage). Positional arguments land in
+ * pos (capacity max). Sets no global state. Returns SY_OK, SY_EUSAGE (message already printed), or
  * -1 when --help was printed (exit 0). */
 int sy_cli_parse(const sy_cmd_spec *spec, int argc, char **argv, sy_cli *cli, const char **pos,
                  int max, int *n_pos);
+
+/* The two process-wide settings a command makes once, after parsing:
+ * sy_set_threads(--threads) and sy_progress_set_quiet(--quiet or --json).
+ * They change speed and stderr, never output bytes. */
+void sy_cli_apply_settings(const sy_cli *cli);
 
 /* Prints "sylva: <msg>" on stderr and returns err->code (the exit status). */
 int sy_cli_report(const sy_error *err);
@@ -50,5 +61,9 @@ typedef struct {
 
 /* The registry, defined in pipeline/commands.c. */
 extern const sy_command sy_commands[];
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

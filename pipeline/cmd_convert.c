@@ -5,24 +5,24 @@
 #include "stages/core/json.h"
 #include "stages/ingest/ingest.h"
 
-static const char *out_path;
-static const sy_opt opts[] = {
-    {"-o", OPT_STRING, &out_path, "OUT", "output file; format from extension (.ply .las .xyz .txt)"},
-    {NULL, 0, NULL, NULL, NULL},
-};
-static const sy_cmd_spec spec = {
-    "convert", "IN -o OUT", "Convert a point cloud between formats, keeping every attribute the target can hold.",
-    "Reads anything `sylva info` reads; writes binary PLY, LAS 1.4 (point format 6/7 with\n"
-    "extra bytes for named attributes such as treeID) or ASCII XYZ.",
-    opts, 1, 1};
 
 int cmd_convert(int argc, char **argv, sy_cli *cli)
 {
+    const char *out_path = NULL;
+    const sy_opt opts[] = {
+        {"-o", OPT_STRING, &out_path, "OUT", "output file; format from extension (.ply .las .xyz .txt)"},
+        {NULL, 0, NULL, NULL, NULL},
+    };
+    const sy_cmd_spec spec = {
+        "convert", "IN -o OUT", "Convert a point cloud between formats, keeping every attribute the target can hold.",
+        "Reads anything `sylva info` reads; writes binary PLY, LAS 1.4 (point format 6/7 with\n"
+        "extra bytes for named attributes such as treeID) or ASCII XYZ.",
+        opts, 1, 1};
     const char *in[1];
     int n;
-    out_path = NULL;
     int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
     if (rc) return rc < 0 ? 0 : rc;
+    sy_cli_apply_settings(cli);
     if (!out_path) {
         fprintf(stderr, "sylva convert: -o OUT is required\n");
         return SY_EUSAGE;

@@ -8,29 +8,29 @@
 #include "pipeline/commands.h"
 #include "stages/core/json.h"
 #include "stages/core/fileio.h"
-#include "stages/encode/sylva_json.h"
-#include "stages/qsm/qsm_io.h"
+#include "stages/qsm/sylva_json.h"
+#include "stages/qsm/qsm.h"
 
-static const char *out_path;
-static const sy_opt opts[] = {
-    {"-o", OPT_STRING, &out_path, "OUT", "also write it out: .json (everything), or the skeleton as .ply .csv .obj"},
-    {NULL, 0, NULL, NULL, NULL},
-};
-static const sy_cmd_spec spec = {
-    "decode", "FILE.sylva [-o OUT]", "Read a .sylva tree file and summarise what it holds.",
-    "Prints species, seed, skeleton and cluster counts, hull sizes and the quantisation grid\n"
-    "(see docs/sylva-format.md). -o OUT.json writes the whole file as a \"sylva-tree\" JSON\n"
-    "(world coordinates; `sylva encode OUT.json -o X.sylva` gives the same file back byte for\n"
-    "byte); -o OUT.ply/.csv/.obj writes the skeleton alone (docs/qsm-formats.md).",
-    opts, 1, 1};
 
 int cmd_decode(int argc, char **argv, sy_cli *cli)
 {
+    const char *out_path = NULL;
+    const sy_opt opts[] = {
+        {"-o", OPT_STRING, &out_path, "OUT", "also write it out: .json (everything), or the skeleton as .ply .csv .obj"},
+        {NULL, 0, NULL, NULL, NULL},
+    };
+    const sy_cmd_spec spec = {
+        "decode", "FILE.sylva [-o OUT]", "Read a .sylva tree file and summarise what it holds.",
+        "Prints species, seed, skeleton and cluster counts, hull sizes and the quantisation grid\n"
+        "(see docs/sylva-format.md). -o OUT.json writes the whole file as a \"sylva-tree\" JSON\n"
+        "(world coordinates; `sylva encode OUT.json -o X.sylva` gives the same file back byte for\n"
+        "byte); -o OUT.ply/.csv/.obj writes the skeleton alone (docs/qsm-formats.md).",
+        opts, 1, 1};
     const char *in[1];
     int n;
-    out_path = NULL;
     int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
     if (rc) return rc < 0 ? 0 : rc;
+    sy_cli_apply_settings(cli);
     char ext[16] = "";
     if (out_path) sy_extension(out_path, ext, sizeof ext);
     if (out_path && strcmp(ext, "json") && strcmp(ext, "ply") && strcmp(ext, "csv") && strcmp(ext, "obj")) {

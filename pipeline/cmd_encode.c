@@ -8,23 +8,9 @@
 #include "pipeline/commands.h"
 #include "stages/core/fileio.h"
 #include "stages/core/json.h"
-#include "stages/encode/sylva_json.h"
-#include "stages/qsm/qsm_io.h"
+#include "stages/qsm/sylva_json.h"
+#include "stages/qsm/qsm.h"
 
-static const char *out_path;
-static int species;
-static const sy_opt opts[] = {
-    {"-o", OPT_STRING, &out_path, "OUT.sylva", "the compact tree file to write"},
-    {"--species", OPT_INT, &species, "ID", "species id to store (default: the JSON's, else 0: unknown)"},
-    {NULL, 0, NULL, NULL, NULL},
-};
-static const sy_cmd_spec spec = {
-    "encode", "MODEL -o OUT.sylva", "Write a compact .sylva tree file from its JSON form or from a skeleton/QSM file.",
-    "MODEL is a \"sylva-tree\" JSON (sylva decode -o tree.json: skeleton, cluster hulls, species,\n"
-    "seed and quantisation grid; re-encoding it reproduces the original file byte for byte), or any\n"
-    "skeleton file sylva reads (.json .ply .csv .obj, TreeQSM .txt; docs/qsm-formats.md), stored\n"
-    "without clusters. The seed of a skeleton file is --seed. See docs/sylva-format.md.",
-    opts, 1, 1};
 
 /* Reads MODEL: the JSON form when it is one, else any skeleton file. */
 static sy_code read_model(const char *path, sy_skeleton *s, sy_clusters *cl, sy_sylva_meta *meta, int *has_quant,
@@ -51,12 +37,25 @@ static sy_code read_model(const char *path, sy_skeleton *s, sy_clusters *cl, sy_
 
 int cmd_encode(int argc, char **argv, sy_cli *cli)
 {
+    const char *out_path = NULL;
+    int species = -1;
+    const sy_opt opts[] = {
+        {"-o", OPT_STRING, &out_path, "OUT.sylva", "the compact tree file to write"},
+        {"--species", OPT_INT, &species, "ID", "species id to store (default: the JSON's, else 0: unknown)"},
+        {NULL, 0, NULL, NULL, NULL},
+    };
+    const sy_cmd_spec spec = {
+        "encode", "MODEL -o OUT.sylva", "Write a compact .sylva tree file from its JSON form or from a skeleton/QSM file.",
+        "MODEL is a \"sylva-tree\" JSON (sylva decode -o tree.json: skeleton, cluster hulls, species,\n"
+        "seed and quantisation grid; re-encoding it reproduces the original file byte for byte), or any\n"
+        "skeleton file sylva reads (.json .ply .csv .obj, TreeQSM .txt; docs/qsm-formats.md), stored\n"
+        "without clusters. The seed of a skeleton file is --seed. See docs/sylva-format.md.",
+        opts, 1, 1};
     const char *in[1];
     int n;
-    out_path = NULL;
-    species = -1;
     int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
     if (rc) return rc < 0 ? 0 : rc;
+    sy_cli_apply_settings(cli);
     char ext[16];
     sy_extension(out_path ? out_path : "", ext, sizeof ext);
     if (!out_path || strcmp(ext, "sylva") != 0 || species < -1 || species > 65535) {

@@ -10,38 +10,12 @@
 #include "stages/eval/eval.h"
 #include "stages/ingest/ingest.h"
 
-static const char *truth_path, *points_path, *truth_attr, *pred_attr, *png_path;
-static int segmentation_mode, species_mode, closed_flag;
-static double coverage_eps, match_distance;
-
-static const sy_opt opts[] = {
-    {"--truth", OPT_STRING, &truth_path, "TRUTH.json", "score MODEL against a truth (or skeleton) JSON"},
-    {"--points", OPT_STRING, &points_path, "SCAN", "score MODEL against the scan it was built from"},
-    {"--segmentation", OPT_FLAG, &segmentation_mode, NULL, "score PRED_CLOUD's tree labels against TRUTH_CLOUD's"},
-    {"--species", OPT_FLAG, &species_mode, NULL, "score species predictions (CSV id,species or truth JSON)"},
-    {"--truth-attr", OPT_STRING, &truth_attr, "NAME", "truth labels: extra-bytes attribute or LAS field, e.g. classification (default treeID)"},
-    {"--pred-attr", OPT_STRING, &pred_attr, "NAME", "predicted labels: extra-bytes attribute or LAS field (default treeID)"},
-    {"--png", OPT_STRING, &png_path, "FILE", "species: write the confusion matrix as a PNG heatmap"},
-    {"--closed", OPT_FLAG, &closed_flag, NULL, "treat the model's meshes as closed hulls (inside = distance 0)"},
-    {"--coverage", OPT_DOUBLE, &coverage_eps, "METRES", "coverage distance (default 0.02)"},
-    {"--match-distance", OPT_DOUBLE, &match_distance, "METRES", "segmentation: nearest-point match radius when the clouds differ (default 0.01)"},
-    {NULL, 0, NULL, NULL, NULL},
-};
-
-static const sy_cmd_spec spec = {
-    "eval", "(--truth T MODEL | --points SCAN MODEL | --segmentation TRUTH PRED | --species TRUTH PRED)",
-    "Score reconstructions the same way for synthetic and real data.",
-    "  --truth T MODEL        skeleton recall/precision (by order, thick branches), radius,\n"
-    "                         bifurcation, DBH and height errors; MODEL is a truth or skeleton\n"
-    "                         JSON or a .sylva file. A .glb MODEL is scored by distances to the\n"
-    "                         truth wood surface.\n"
-    "  --points SCAN MODEL    point->model mean/RMS/95th percentile, coverage, Hausdorff both ways\n"
-    "                         (MODEL: .glb/.gltf triangles, a skeleton JSON as truncated cones,\n"
-    "                         or a .sylva file: cones plus its cluster hulls, inside = distance 0).\n"
-    "  --segmentation T P     instance precision/recall/F1 at IoU > 0.5 (labels 0/NaN: no tree).\n"
-    "  --species T P          accuracy, macro-F1 and the confusion matrix.\n"
-    "--json prints flat keys (only those that apply); exit 2 on bad input.",
-    opts, 1, 2};
+/* One call's arguments. */
+typedef struct {
+    const char *truth_path, *points_path, *truth_attr, *pred_attr, *png_path;
+    int segmentation_mode, species_mode, closed_flag;
+    double coverage_eps, match_distance;
+} eval_args;
 
 /* Output: a JSON object of flat keys or aligned "name  value" lines. */
 typedef struct {
@@ -121,14 +95,14 @@ static void print_surface(report *r, const sy_surface_metrics *s)
     put(r, "rms_distance", "RMS distance", s->rms_distance, " m");
     put(r, "p95_distance", "95th percentile distance", s->p95_distance, " m");
     put(r, "coverage", "coverage (share within eps)", s->coverage, "");
-    put(r, "coverage_eps", "coverage eps", s->coverage_eps, " m");
+    put(r, "a->coverage_eps", "coverage eps", s->coverage_eps, " m");
     put(r, "hausdorff", "Hausdorff point->model", s->hausdorff, " m");
     put(r, "hausdorff_model_to_points", "Hausdorff model->points", s->hausdorff_model_to_points, " m");
 }
 
 /* Truth vs a mesh: the truth's wood surface, sampled, stands in for the
  * points; height from the mesh top when the truth holds one tree. */
-static int truth_vs_mesh(const sy_forest *truth, const sy_eval_model *model, sy_cli *cli)
+static int truth_vs_mesh(const eval_args *a, const sy_forest *truth, const sy_eval_model *model, sy_cli *cli)
 {
     sy_error err = {0};
     sy_eval_model wood = {0, NULL, *truth};
@@ -136,7 +110,7 @@ static int truth_vs_mesh(const sy_forest *truth, const sy_eval_model *model, sy_
     double *pts = sy_model_surface_samples(&wood, 0.01, &n, &err);
     if (!pts) return sy_cli_report(&err);
     sy_surface_metrics s;
-    sy_code rc = sy_surface_metrics_compute(model, pts, n, coverage_eps, 0.01, &s, &err);
+    sy_code rc = sy_surface_metrics_compute(model, pts, n, a->coverage_eps, 0.01, &s, &err);
     free(pts);
     if (rc) return sy_cli_report(&err);
     double height_error = NAN;
@@ -154,20 +128,20 @@ static int truth_vs_mesh(const sy_forest *truth, const sy_eval_model *model, sy_
     return 0;
 }
 
-static int run_truth(const char *model_path, sy_cli *cli)
+static int run_truth(const eval_args *a, const char *model_path, sy_cli *cli)
 {
     sy_error err = {0};
     sy_forest truth;
     sy_eval_model model;
-    if (sy_forest_read(truth_path, &truth, &err)) return sy_cli_report(&err);
-    if (sy_eval_load_model(model_path, closed_flag, &model, &err)) {
+    if (sy_forest_read(a->truth_path, &truth, &err)) return sy_cli_report(&err);
+    if (sy_eval_load_model(model_path, a->closed_flag, &model, &err)) {
         sy_forest_free(&truth);
         return sy_cli_report(&err);
     }
     int status = 0;
     /* A .sylva model holds a skeleton and hulls: its skeleton is scored. */
     if (model.n_meshes && !model.skeletons.n_trees) {
-        status = truth_vs_mesh(&truth, &model, cli);
+        status = truth_vs_mesh(a, &truth, &model, cli);
     } else {
         sy_skeleton_metrics m;
         if (sy_skeleton_metrics_compute(&truth, &model.skeletons, NULL, &m, &err)) {
@@ -184,19 +158,19 @@ static int run_truth(const char *model_path, sy_cli *cli)
     return status;
 }
 
-static int run_points(const char *model_path, sy_cli *cli)
+static int run_points(const eval_args *a, const char *model_path, sy_cli *cli)
 {
     sy_error err = {0};
     sy_cloud c;
     sy_eval_model model;
-    if (sy_read_cloud(points_path, &c, &err)) return sy_cli_report(&err);
-    if (sy_eval_load_model(model_path, closed_flag, &model, &err)) {
+    if (sy_read_cloud(a->points_path, &c, &err)) return sy_cli_report(&err);
+    if (sy_eval_load_model(model_path, a->closed_flag, &model, &err)) {
         sy_cloud_free(&c);
         return sy_cli_report(&err);
     }
     double *pts = sy_cloud_world_points(&c, &err);
     sy_surface_metrics s;
-    sy_code rc = pts ? sy_surface_metrics_compute(&model, pts, c.n, coverage_eps, 0.01, &s, &err) : SY_EINTERNAL;
+    sy_code rc = pts ? sy_surface_metrics_compute(&model, pts, c.n, a->coverage_eps, 0.01, &s, &err) : SY_EINTERNAL;
     free(pts);
     sy_cloud_free(&c);
     sy_eval_model_free(&model);
@@ -208,7 +182,7 @@ static int run_points(const char *model_path, sy_cli *cli)
     return 0;
 }
 
-static int run_segmentation(const char *t_path, const char *p_path, sy_cli *cli)
+static int run_segmentation(const eval_args *a, const char *t_path, const char *p_path, sy_cli *cli)
 {
     sy_error err = {0};
     sy_cloud t, p;
@@ -218,7 +192,7 @@ static int run_segmentation(const char *t_path, const char *p_path, sy_cli *cli)
         return sy_cli_report(&err);
     }
     sy_segmentation_metrics m;
-    sy_code rc = sy_segmentation_metrics_clouds(&t, t_path, truth_attr, &p, p_path, pred_attr, match_distance, &m, &err);
+    sy_code rc = sy_segmentation_metrics_clouds(&t, t_path, a->truth_attr, &p, p_path, a->pred_attr, a->match_distance, &m, &err);
     sy_cloud_free(&t);
     sy_cloud_free(&p);
     if (rc) return sy_cli_report(&err);
@@ -251,7 +225,7 @@ static sy_code read_labels(const char *path, sy_label_table *t, sy_error *err)
     return rc;
 }
 
-static int run_species(const char *t_path, const char *p_path, sy_cli *cli)
+static int run_species(const eval_args *a, const char *t_path, const char *p_path, sy_cli *cli)
 {
     sy_error err = {0};
     sy_label_table t, p;
@@ -265,7 +239,7 @@ static int run_species(const char *t_path, const char *p_path, sy_cli *cli)
     sy_label_table_free(&t);
     sy_label_table_free(&p);
     if (rc) return sy_cli_report(&err);
-    if (png_path && (rc = sy_confusion_png(&c, png_path, &err))) {
+    if (a->png_path && (rc = sy_confusion_png(&c, a->png_path, &err))) {
         sy_confusion_free(&c);
         return sy_cli_report(&err);
     }
@@ -284,35 +258,60 @@ static int run_species(const char *t_path, const char *p_path, sy_cli *cli)
 
 int cmd_eval(int argc, char **argv, sy_cli *cli)
 {
+    eval_args args = {NULL, NULL, "treeID", "treeID", NULL, 0, 0, 0, 0.02, 0.01}, *a = &args;
+    const sy_opt opts[] = {
+        {"--truth", OPT_STRING, &args.truth_path, "TRUTH.json", "score MODEL against a truth (or skeleton) JSON"},
+        {"--points", OPT_STRING, &args.points_path, "SCAN", "score MODEL against the scan it was built from"},
+        {"--segmentation", OPT_FLAG, &args.segmentation_mode, NULL, "score PRED_CLOUD's tree labels against TRUTH_CLOUD's"},
+        {"--species", OPT_FLAG, &args.species_mode, NULL, "score species predictions (CSV id,species or truth JSON)"},
+        {"--truth-attr", OPT_STRING, &args.truth_attr, "NAME", "truth labels: extra-bytes attribute or LAS field, e.g. classification (default treeID)"},
+        {"--pred-attr", OPT_STRING, &args.pred_attr, "NAME", "predicted labels: extra-bytes attribute or LAS field (default treeID)"},
+        {"--png", OPT_STRING, &args.png_path, "FILE", "species: write the confusion matrix as a PNG heatmap"},
+        {"--closed", OPT_FLAG, &args.closed_flag, NULL, "treat the model's meshes as closed hulls (inside = distance 0)"},
+        {"--coverage", OPT_DOUBLE, &args.coverage_eps, "METRES", "coverage distance (default 0.02)"},
+        {"--match-distance", OPT_DOUBLE, &args.match_distance, "METRES", "segmentation: nearest-point match radius when the clouds differ (default 0.01)"},
+        {NULL, 0, NULL, NULL, NULL},
+    };
+
+    const sy_cmd_spec spec = {
+        "eval", "(--truth T MODEL | --points SCAN MODEL | --segmentation TRUTH PRED | --species TRUTH PRED)",
+        "Score reconstructions the same way for synthetic and real data.",
+        "  --truth T MODEL        skeleton recall/precision (by order, thick branches), radius,\n"
+        "                         bifurcation, DBH and height errors; MODEL is a truth or skeleton\n"
+        "                         JSON or a .sylva file. A .glb MODEL is scored by distances to the\n"
+        "                         truth wood surface.\n"
+        "  --points SCAN MODEL    point->model mean/RMS/95th percentile, coverage, Hausdorff both ways\n"
+        "                         (MODEL: .glb/.gltf triangles, a skeleton JSON as truncated cones,\n"
+        "                         or a .sylva file: cones plus its cluster hulls, inside = distance 0).\n"
+        "  --segmentation T P     instance precision/recall/F1 at IoU > 0.5 (labels 0/NaN: no tree).\n"
+        "  --species T P          accuracy, macro-F1 and the confusion matrix.\n"
+        "--json prints flat keys (only those that apply); exit 2 on bad input.",
+        opts, 1, 2};
     const char *pos[2];
     int n;
-    truth_path = points_path = png_path = NULL;
-    truth_attr = pred_attr = "treeID";
-    segmentation_mode = species_mode = closed_flag = 0;
-    coverage_eps = 0.02;
-    match_distance = 0.01;
     int rc = sy_cli_parse(&spec, argc, argv, cli, pos, 2, &n);
     if (rc) return rc < 0 ? 0 : rc;
-    int modes = (truth_path != NULL) + (points_path != NULL) + segmentation_mode + species_mode;
+    sy_cli_apply_settings(cli);
+    int modes = (a->truth_path != NULL) + (a->points_path != NULL) + a->segmentation_mode + a->species_mode;
     if (modes != 1) {
         fprintf(stderr, "sylva eval: choose exactly one of --truth, --points, --segmentation, --species\n");
         return SY_EUSAGE;
     }
-    int want = segmentation_mode || species_mode ? 2 : 1;
+    int want = a->segmentation_mode || a->species_mode ? 2 : 1;
     if (n != want) {
         fprintf(stderr, "sylva eval: expected %d file argument%s, got %d (see --help)\n", want, want == 1 ? "" : "s", n);
         return SY_EUSAGE;
     }
-    if (!(coverage_eps >= 0) || !(match_distance >= 0)) {
+    if (!(a->coverage_eps >= 0) || !(a->match_distance >= 0)) {
         fprintf(stderr, "sylva eval: --coverage and --match-distance must be >= 0\n");
         return SY_EUSAGE;
     }
-    if (png_path && !species_mode) {
+    if (a->png_path && !a->species_mode) {
         fprintf(stderr, "sylva eval: --png applies to --species only\n");
         return SY_EUSAGE;
     }
-    if (truth_path) return run_truth(pos[0], cli);
-    if (points_path) return run_points(pos[0], cli);
-    if (segmentation_mode) return run_segmentation(pos[0], pos[1], cli);
-    return run_species(pos[0], pos[1], cli);
+    if (a->truth_path) return run_truth(a, pos[0], cli);
+    if (a->points_path) return run_points(a, pos[0], cli);
+    if (a->segmentation_mode) return run_segmentation(a, pos[0], pos[1], cli);
+    return run_species(a, pos[0], pos[1], cli);
 }

@@ -9,37 +9,37 @@
 #include "stages/core/json.h"
 #include "stages/core/progress.h"
 
-static const char *out_path, *species_name;
-static const sy_opt opts[] = {
-    {"-o", OPT_STRING, &out_path, "OUT.glb", "output glTF binary"},
-    {"--species", OPT_STRING, &species_name, "NAME", "a species of the library (species/NAME.ini) instead of a file"},
-    SY_GLB_OPTIONS,
-    {NULL, 0, NULL, NULL, NULL},
-};
-static const sy_cmd_spec spec = {
-    "grow", "[SPECIES_FILE] -o OUT.glb",
-    "Grow a procedural tree (Weber & Penn) from a species parameter file and write it as glTF.",
-    "SPECIES_FILE is a tree-type .ini (docs/species.md); --species NAME picks one of the\n"
-    "library's species instead. The same species and --seed give a byte-identical file.",
-    opts, 0, 1};
-
 int cmd_grow(int argc, char **argv, sy_cli *cli)
 {
+    const char *out_path = NULL, *species_name = NULL;
+    sy_glb_args glb = sy_glb_args_default();
+    const sy_opt opts[] = {
+        {"-o", OPT_STRING, &out_path, "OUT.glb", "output glTF binary"},
+        {"--species", OPT_STRING, &species_name, "NAME", "a species of the library (species/library.tsv) instead of a file"},
+        SY_GLB_OPTIONS(glb),
+        {NULL, 0, NULL, NULL, NULL},
+    };
+    const sy_cmd_spec spec = {
+        "grow", "[SPECIES_FILE] -o OUT.glb",
+        "Grow a procedural tree (Weber & Penn) from a species parameter file and write it as glTF.",
+        "SPECIES_FILE is a tree-type .ini (docs/species.md); --species NAME picks one of the\n"
+        "library's species instead. The same species and --seed give a byte-identical file.",
+        opts, 0, 1};
     const char *pos[1];
     int n;
-    out_path = species_name = NULL;
-    sy_glb_cli_reset();
     int rc = sy_cli_parse(&spec, argc, argv, cli, pos, 1, &n);
     if (rc) return rc < 0 ? 0 : rc;
+    sy_cli_apply_settings(cli);
     if (!out_path || (n == 0) == (species_name == NULL)) {
         fprintf(stderr, "sylva grow: give one species (a file or --species NAME) and -o OUT.glb\n");
         return SY_EUSAGE;
     }
     sy_tree_asset_options o = sy_tree_asset_options_default();
-    if ((rc = sy_glb_cli_apply("grow", &o))) return rc;
+    sy_glb_args_apply(&glb, &o);
     sy_error err = {0};
-    sy_species sp;
-    rc = n ? sy_species_load(pos[0], &sp, &err) : sy_species_find(species_name, &sp, &err);
+    if (sy_tree_asset_options_check(&o, &err)) return sy_cli_report(&err);
+    sy_species_params sp;
+    rc = n ? sy_species_params_load(pos[0], &sp, &err) : sy_species_params_find(species_name, &sp, &err);
     if (rc) return sy_cli_report(&err);
     sy_skeleton skel;
     sy_leaves leaves = {0};
@@ -82,6 +82,6 @@ int cmd_grow(int argc, char **argv, sy_cli *cli)
     }
     sy_skeleton_free(&skel);
     sy_leaves_free(&leaves);
-    sy_species_free(&sp);
+    sy_species_params_free(&sp);
     return rc ? sy_cli_report(&err) : 0;
 }

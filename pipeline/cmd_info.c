@@ -79,6 +79,7 @@ int cmd_info(int argc, char **argv, sy_cli *cli)
     int n;
     int rc = sy_cli_parse(&spec, argc, argv, cli, files, 1024, &n);
     if (rc) return rc < 0 ? 0 : rc;
+    sy_cli_apply_settings(cli);
     sy_json j;
     if (cli->json) {
         sy_json_begin(&j, stdout, 0);

@@ -13,7 +13,7 @@
 #include "stages/core/progress.h"
 #include "stages/export/export.h"
 #include "stages/qsm/leaf_placement.h"
-#include "stages/qsm/qsm_io.h"
+#include "stages/qsm/qsm.h"
 
 /* Leaf density and size for models that name no species: a common
  * broadleaf (4.3 leaf cards a metre of twig, 0.3 m long), the species of
@@ -21,37 +21,14 @@
  * defaults, so the asset claims no species. */
 #define DEFAULT_LEAVES "quaking_aspen"
 
-static const char *out_path, *species_name;
-static int no_leaves, tree_index;
-static double leaf_density;
-static const sy_opt opts[] = {
-    {"-o", OPT_STRING, &out_path, "OUT.glb", "output glTF binary"},
-    {"--species", OPT_STRING, &species_name, "NAME", "bark, leaf material and leaves of a library species (or an .ini)"},
-    {"--no-leaves", OPT_FLAG, &no_leaves, NULL, "no leaf cards (with --species: its materials only)"},
-    {"--leaf-density", OPT_DOUBLE, &leaf_density, "N", "leaves per metre of twig (default: from the species, else " DEFAULT_LEAVES "'s)"},
-    {"--tree", OPT_INT, &tree_index, "I", "which tree of a truth file with several (0-based)"},
-    SY_GLB_OPTIONS,
-    {NULL, 0, NULL, NULL, NULL},
-};
-static const sy_cmd_spec spec = {
-    "mesh", "MODEL -o OUT.glb",
-    "Mesh a skeleton or QSM (.sylva, .ply, .csv, .json, .obj, TreeQSM .txt) into a glTF tree asset.",
-    "Meshing, LODs, impostor and export are those of `sylva grow`. The root is moved to the\n"
-    "origin of the glb; its world position is kept in asset.extras.origin. The cluster hulls of\n"
-    "a .sylva become the semi-transparent \"foliage_proxy\" mesh `sylva run` draws. Leaf cards go\n"
-    "along the finest branches: --species gives its bark, leaf material and leaf density and size;\n"
-    "without it the default bark and plain green cards at " DEFAULT_LEAVES "'s density and size\n"
-    "(a model with hulls has its foliage already and gets none). See docs/qsm-formats.md.",
-    opts, 1, 1};
-
 typedef struct {
     const char *model, *format;
     double height, twig_length, seconds_read, seconds_leaves;
     double origin[3];
 } mesh_facts;
 
-static void print_report(const sy_cli *cli, const sy_tree_asset_report *rep, const mesh_facts *f,
-                         const sy_species *sp)
+static void print_report(const sy_cli *cli, const char *out_path, const sy_tree_asset_report *rep, const mesh_facts *f,
+                         const sy_species_params *sp)
 {
     if (cli->json) {
         sy_json j;
@@ -89,15 +66,34 @@ static void print_report(const sy_cli *cli, const sy_tree_asset_report *rep, con
 
 int cmd_mesh(int argc, char **argv, sy_cli *cli)
 {
+    const char *out_path = NULL, *species_name = NULL;
+    int no_leaves = 0, tree_index = -1;
+    double leaf_density = -1;
+    sy_glb_args glb = sy_glb_args_default();
+    const sy_opt opts[] = {
+        {"-o", OPT_STRING, &out_path, "OUT.glb", "output glTF binary"},
+        {"--species", OPT_STRING, &species_name, "NAME", "bark, leaf material and leaves of a library species (or an .ini)"},
+        {"--no-leaves", OPT_FLAG, &no_leaves, NULL, "no leaf cards (with --species: its materials only)"},
+        {"--leaf-density", OPT_DOUBLE, &leaf_density, "N", "leaves per metre of twig (default: from the species, else " DEFAULT_LEAVES "'s)"},
+        {"--tree", OPT_INT, &tree_index, "I", "which tree of a truth file with several (0-based)"},
+        SY_GLB_OPTIONS(glb),
+        {NULL, 0, NULL, NULL, NULL},
+    };
+    const sy_cmd_spec spec = {
+        "mesh", "MODEL -o OUT.glb",
+        "Mesh a skeleton or QSM (.sylva, .ply, .csv, .json, .obj, TreeQSM .txt) into a glTF tree asset.",
+        "Meshing, LODs, impostor and export are those of `sylva grow`. The root is moved to the\n"
+        "origin of the glb; its world position is kept in asset.extras.origin. The cluster hulls of\n"
+        "a .sylva become the semi-transparent \"foliage_proxy\" mesh `sylva run` draws. Leaf cards go\n"
+        "along the finest branches: --species gives its bark, leaf material and leaf density and size;\n"
+        "without it the default bark and plain green cards at " DEFAULT_LEAVES "'s density and size\n"
+        "(a model with hulls has its foliage already and gets none). See docs/qsm-formats.md.",
+        opts, 1, 1};
     const char *pos[1];
     int n;
-    out_path = species_name = NULL;
-    sy_glb_cli_reset();
-    no_leaves = 0;
-    tree_index = -1;
-    leaf_density = -1;
     int rc = sy_cli_parse(&spec, argc, argv, cli, pos, 1, &n);
     if (rc) return rc < 0 ? 0 : rc;
+    sy_cli_apply_settings(cli);
     if (!out_path) {
         fprintf(stderr, "sylva mesh: -o OUT.glb is required\n");
         return SY_EUSAGE;
@@ -107,9 +103,10 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
         return SY_EUSAGE;
     }
     sy_tree_asset_options o = sy_tree_asset_options_default();
-    if ((rc = sy_glb_cli_apply("mesh", &o))) return rc;
+    sy_glb_args_apply(&glb, &o);
     o.seed = cli->seed;
     sy_error err = {0};
+    if (sy_tree_asset_options_check(&o, &err)) return sy_cli_report(&err);
     mesh_facts f = {pos[0], "", 0, 0, 0, 0, {0, 0, 0}};
     sy_skeleton skel;
     sy_clusters hulls; /* a .sylva's: the same foliage proxy `sylva run` draws */
@@ -124,18 +121,18 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
     o.source_format = f.format;
     memcpy(f.origin, skel.origin, sizeof f.origin);
     f.height = sy_skeleton_height(&skel);
-    sy_species sp;
+    sy_species_params sp;
     int have_species = 0;
     sy_leaves leaves = {0};
     if (species_name) {
-        if ((rc = sy_species_find(species_name, &sp, &err))) goto done;
+        if ((rc = sy_species_params_find(species_name, &sp, &err))) goto done;
         have_species = 1;
     }
     if (!no_leaves && (have_species || !hulls.n)) {
-        sy_species leaf_sp;
-        if (!have_species && (rc = sy_species_find(DEFAULT_LEAVES, &leaf_sp, &err))) goto done;
+        sy_species_params leaf_sp;
+        if (!have_species && (rc = sy_species_params_find(DEFAULT_LEAVES, &leaf_sp, &err))) goto done;
         sy_leaf_placement lp = sy_leaf_placement_from_species(have_species ? &sp : &leaf_sp, cli->seed);
-        if (!have_species) sy_species_free(&leaf_sp);
+        if (!have_species) sy_species_params_free(&leaf_sp);
         if (leaf_density >= 0) lp.per_metre = leaf_density;
         t0 = sy_now();
         rc = sy_place_leaves(&skel, &lp, &leaves, &f.twig_length, &err);
@@ -144,10 +141,10 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
     }
     sy_tree_asset_report rep;
     rc = sy_tree_asset_write(out_path, &skel, &leaves, have_species ? &sp : NULL, &o, &rep, &err);
-    if (!rc) print_report(cli, &rep, &f, have_species ? &sp : NULL);
+    if (!rc) print_report(cli, out_path, &rep, &f, have_species ? &sp : NULL);
 done:
     sy_leaves_free(&leaves);
-    if (have_species) sy_species_free(&sp);
+    if (have_species) sy_species_params_free(&sp);
     sy_clusters_free(&hulls);
     sy_skeleton_free(&skel);
     return rc ? sy_cli_report(&err) : 0;

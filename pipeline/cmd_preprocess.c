@@ -7,64 +7,25 @@
 #include "stages/ingest/ingest.h"
 #include "stages/preprocess/preprocess.h"
 
-static const char *out_path, *up_text;
-static double crop_box[6], voxel, sor_std, ground_cell, ground_slope, ground_window, ground_threshold;
-static int sor_k, normal_k, no_sor, no_ground, no_normals, remove_ground;
+/* One call's arguments: the stage's options plus what only the CLI has. */
+typedef struct {
+    const char *out_path, *up_text;
+    double crop_box[6];
+    int no_sor, no_ground, no_normals;
+    sy_preprocess_options o;
+} preprocess_args;
 
-static const sy_opt opts[] = {
-    {"-o", OPT_STRING, &out_path, "OUT", "output file; format from extension (.ply .las .xyz .txt)"},
-    {"--up", OPT_STRING, &up_text, "AXIS", "input up axis: auto (default), z, y, x, -z, -y, -x"},
-    {"--crop", OPT_DOUBLE6, crop_box, "BOX", "keep xmin,ymin,zmin,xmax,ymax,zmax (world, after up)"},
-    {"--voxel", OPT_DOUBLE, &voxel, "SIZE", "keep one real point per SIZE m voxel (default 0: off)"},
-    {"--sor-k", OPT_INT, &sor_k, "K", "outlier removal neighbours (default 16)"},
-    {"--sor-std", OPT_DOUBLE, &sor_std, "S", "outlier threshold in standard deviations (default 2.0)"},
-    {"--no-sor", OPT_FLAG, &no_sor, NULL, "skip outlier removal"},
-    {"--ground-cell", OPT_DOUBLE, &ground_cell, "M", "ground filter cell size (default 0.5 m)"},
-    {"--ground-slope", OPT_DOUBLE, &ground_slope, "S", "terrain slope tolerated, rise/run (default 0.3)"},
-    {"--ground-max-window", OPT_DOUBLE, &ground_window, "M", "largest object flattened (default 16 m)"},
-    {"--ground-threshold", OPT_DOUBLE, &ground_threshold, "M", "height still counted as ground (default 0.15 m)"},
-    {"--remove-ground", OPT_FLAG, &remove_ground, NULL, "drop ground points instead of only classifying them"},
-    {"--no-ground", OPT_FLAG, &no_ground, NULL, "skip ground classification"},
-    {"--normal-k", OPT_INT, &normal_k, "K", "normal estimation neighbours (default 16)"},
-    {"--no-normals", OPT_FLAG, &no_normals, NULL, "skip normal estimation"},
-    {NULL, 0, NULL, NULL, NULL},
-};
-static const sy_cmd_spec spec = {
-    "preprocess", "IN -o OUT", "Clean a scan: up-axis, crop, voxel, outliers, ground, normals.",
-    "Steps run in that order, each optional. Ground points get class 2 and every point a\n"
-    "height_above_ground attribute. The report has one line per step (--json: an object with\n"
-    "a \"steps\" array). Exit codes: 0 ok, 1 usage, 2 bad input.",
-    opts, 1, 1};
-
-static void set_defaults(void)
+/* The CLI-only arguments into a->o, then the stage's check. */
+static int build_opts(preprocess_args *a, sy_error *err)
 {
-    sy_preprocess_opts d;
-    sy_preprocess_defaults(&d);
-    out_path = NULL;
-    up_text = "auto";
-    for (int i = 0; i < 6; i++) crop_box[i] = NAN;
-    voxel = d.voxel;
-    sor_k = d.sor_k, sor_std = d.sor_std;
-    ground_cell = d.ground_cell, ground_slope = d.ground_slope;
-    ground_window = d.ground_max_window, ground_threshold = d.ground_threshold;
-    normal_k = d.normal_k;
-    no_sor = no_ground = no_normals = remove_ground = 0;
-}
-
-static int build_opts(sy_preprocess_opts *o, sy_error *err)
-{
-    sy_preprocess_defaults(o);
-    if (sy_up_parse(up_text, &o->up))
-        return sy_fail(err, SY_EUSAGE, "--up: expected auto, z, y, x, -z, -y or -x, got '%s'", up_text);
-    o->crop = !isnan(crop_box[0]);
-    for (int i = 0; i < 6; i++) o->crop_box[i] = crop_box[i];
-    o->voxel = voxel;
-    o->sor = !no_sor, o->sor_k = sor_k, o->sor_std = sor_std;
-    o->ground = !no_ground, o->remove_ground = remove_ground;
-    o->ground_cell = ground_cell, o->ground_slope = ground_slope;
-    o->ground_max_window = ground_window, o->ground_threshold = ground_threshold;
-    o->normals = !no_normals, o->normal_k = normal_k;
-    return sy_preprocess_check(o, err);
+    if (sy_up_parse(a->up_text, &a->o.up))
+        return sy_fail(err, SY_EUSAGE, "--up: expected auto, z, y, x, -z, -y or -x, got '%s'", a->up_text);
+    a->o.crop = !isnan(a->crop_box[0]);
+    for (int i = 0; i < 6; i++) a->o.crop_box[i] = a->crop_box[i];
+    a->o.sor = !a->no_sor;
+    a->o.ground = !a->no_ground;
+    a->o.normals = !a->no_normals;
+    return sy_preprocess_options_check(&a->o, err);
 }
 
 static void print_report(const sy_preprocess_result *r, const char *in, const char *out, int json)
@@ -111,28 +72,52 @@ static void print_report(const sy_preprocess_result *r, const char *in, const ch
 
 int cmd_preprocess(int argc, char **argv, sy_cli *cli)
 {
+    preprocess_args a = {NULL, "auto", {NAN, NAN, NAN, NAN, NAN, NAN}, 0, 0, 0, sy_preprocess_options_default()};
+    const sy_opt opts[] = {
+        {"-o", OPT_STRING, &a.out_path, "OUT", "output file; format from extension (.ply .las .xyz .txt)"},
+        {"--up", OPT_STRING, &a.up_text, "AXIS", "input up axis: auto (default), z, y, x, -z, -y, -x"},
+        {"--crop", OPT_DOUBLE6, a.crop_box, "BOX", "keep xmin,ymin,zmin,xmax,ymax,zmax (world, after up)"},
+        {"--voxel", OPT_DOUBLE, &a.o.voxel, "SIZE", "keep one real point per SIZE m voxel (default 0: off)"},
+        {"--sor-k", OPT_INT, &a.o.sor_k, "K", "outlier removal neighbours (default 16)"},
+        {"--sor-std", OPT_DOUBLE, &a.o.sor_std, "S", "outlier threshold in standard deviations (default 2.0)"},
+        {"--no-sor", OPT_FLAG, &a.no_sor, NULL, "skip outlier removal"},
+        {"--ground-cell", OPT_DOUBLE, &a.o.ground_cell, "M", "ground filter cell size (default 0.5 m)"},
+        {"--ground-slope", OPT_DOUBLE, &a.o.ground_slope, "S", "terrain slope tolerated, rise/run (default 0.3)"},
+        {"--ground-max-window", OPT_DOUBLE, &a.o.ground_max_window, "M", "largest object flattened (default 16 m)"},
+        {"--ground-threshold", OPT_DOUBLE, &a.o.ground_threshold, "M", "height still counted as ground (default 0.15 m)"},
+        {"--remove-ground", OPT_FLAG, &a.o.remove_ground, NULL, "drop ground points instead of only classifying them"},
+        {"--no-ground", OPT_FLAG, &a.no_ground, NULL, "skip ground classification"},
+        {"--normal-k", OPT_INT, &a.o.normal_k, "K", "normal estimation neighbours (default 16)"},
+        {"--no-normals", OPT_FLAG, &a.no_normals, NULL, "skip normal estimation"},
+        {NULL, 0, NULL, NULL, NULL},
+    };
+    const sy_cmd_spec spec = {
+        "preprocess", "IN -o OUT", "Clean a scan: up-axis, crop, voxel, outliers, ground, normals.",
+        "Steps run in that order, each optional. Ground points get class 2 and every point a\n"
+        "height_above_ground attribute. The report has one line per step (--json: an object with\n"
+        "a \"steps\" array). Exit codes: 0 ok, 1 usage, 2 bad input.",
+        opts, 1, 1};
     const char *in[1];
     int n;
-    set_defaults();
     int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
     if (rc) return rc < 0 ? 0 : rc;
+    sy_cli_apply_settings(cli);
     sy_error err = {0};
-    if (!out_path) {
+    if (!a.out_path) {
         fprintf(stderr, "sylva preprocess: -o OUT is required\n");
         return SY_EUSAGE;
     }
-    sy_preprocess_opts o;
-    if (build_opts(&o, &err)) {
+    if (build_opts(&a, &err)) {
         fprintf(stderr, "sylva preprocess: %s\n", err.msg);
         return SY_EUSAGE;
     }
     sy_cloud c;
     if (sy_read_cloud(in[0], &c, &err)) return sy_cli_report(&err);
     sy_preprocess_result r;
-    rc = sy_preprocess(&c, &o, &r, &err);
+    rc = sy_preprocess(&c, &a.o, &r, &err);
     if (rc == SY_OK && c.n == 0) rc = sy_fail(&err, SY_EINPUT, "%s: no points left after preprocessing", in[0]);
-    if (rc == SY_OK) rc = sy_write_cloud(out_path, &c, &err);
-    if (rc == SY_OK) print_report(&r, in[0], out_path, cli->json);
+    if (rc == SY_OK) rc = sy_write_cloud(a.out_path, &c, &err);
+    if (rc == SY_OK) print_report(&r, in[0], a.out_path, cli->json);
     sy_cloud_free(&c);
     return rc ? sy_cli_report(&err) : 0;
 }

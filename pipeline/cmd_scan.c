@@ -17,66 +17,26 @@
 #include "stages/ingest/ingest.h"
 #include "stages/scan/scan.h"
 
-static const char *out_path, *truth_path, *kind_name, *species_list, *path_text;
-static int positions, max_points, returns, trees, subrays, no_leaves, no_terrain, rect_leaves, lawn;
-static double step, vstep, density, noise, divergence, plot_size, radius, height, altitude, swath, overlap, speed,
-    rotation, line_spacing, separation, max_range, understory, slope, aspect, roughness;
+/* One call's arguments: NAN and -1 mean "the scanner kind's default". */
+typedef struct {
+    const char *out_path, *truth_path, *kind_name, *species_list, *path_text;
+    int positions, max_points, returns, trees, subrays, no_leaves, no_terrain, rect_leaves, lawn;
+    double step, vstep, density, noise, divergence, plot_size, radius, height, altitude, swath, overlap, speed,
+        rotation, line_spacing, separation, max_range, understory, slope, aspect, roughness;
+} scan_args;
 
-static const sy_opt opts[] = {
-    {"-o", OPT_STRING, &out_path, "OUT", "point cloud to write (.las: LAS 1.4 with extra bytes; .ply, .xyz)"},
-    {"--truth", OPT_STRING, &truth_path, "FILE", "truth JSON (docs/truth-format.md)"},
-    {"--scanner", OPT_STRING, &kind_name, "KIND", "terrestrial (default), mobile or airborne"},
-    {"--positions", OPT_INT, &positions, "N", "terrestrial stations on a circle (default 4)"},
-    {"--radius", OPT_DOUBLE, &radius, "M", "station circle / mobile circle radius (default: scene + 5 m, >= 10)"},
-    {"--height", OPT_DOUBLE, &height, "M", "instrument height over ground (1.5 terrestrial, 1.8 mobile)"},
-    {"--step", OPT_DOUBLE, &step, "DEG", "angular step (0.04 terrestrial, 0.25 mobile profiler)"},
-    {"--vstep", OPT_DOUBLE, &vstep, "DEG", "terrestrial vertical step (default: --step)"},
-    {"--speed", OPT_DOUBLE, &speed, "M/S", "platform speed (1.2 mobile, 50 airborne)"},
-    {"--rotation", OPT_DOUBLE, &rotation, "HZ", "mobile profiler rotation rate (default 20)"},
-    {"--path", OPT_STRING, &path_text, "X,Y,...", "mobile path polyline (default: a circle, or lawnmower in plots)"},
-    {"--line-spacing", OPT_DOUBLE, &line_spacing, "M", "mobile lawnmower line spacing (default 10)"},
-    {"--lawnmower", OPT_FLAG, &lawn, NULL, "mobile: lawnmower lines over the area (default in plots)"},
-    {"--density", OPT_DOUBLE, &density, "PTS_PER_M2", "airborne pulses per m^2 over the area (default 20)"},
-    {"--altitude", OPT_DOUBLE, &altitude, "M", "airborne flying height above ground (default 80)"},
-    {"--swath", OPT_DOUBLE, &swath, "DEG", "airborne full scan angle (default 40)"},
-    {"--overlap", OPT_DOUBLE, &overlap, "F", "airborne strip side overlap 0..0.9 (default 0.2)"},
-    {"--noise", OPT_DOUBLE, &noise, "M", "range noise sigma (0.005 terrestrial, 0.015 mobile, 0.025 airborne)"},
-    {"--divergence", OPT_DOUBLE, &divergence, "MRAD", "full beam divergence (0.3; 0.5 airborne; 0: one ray)"},
-    {"--subrays", OPT_INT, &subrays, "N", "rays per pulse inside the beam, 1..16 (default 5)"},
-    {"--returns", OPT_INT, &returns, "N", "most returns per pulse, 1..15 (default 4)"},
-    {"--separation", OPT_DOUBLE, &separation, "M", "least range gap between returns (0.1; 0.5 airborne)"},
-    {"--max-range", OPT_DOUBLE, &max_range, "M", "maximum range (150; 1500 airborne)"},
-    {"--max-points", OPT_INT, &max_points, "N", "keep at most N points (in pulse order)"},
-    {"--plot", OPT_DOUBLE, &plot_size, "SIZE", "scan a SIZE x SIZE m plot of trees instead of one tree"},
-    {"--trees", OPT_INT, &trees, "N", "trees in the plot (default 5)"},
-    {"--species", OPT_STRING, &species_list, "LIST", "plot species, comma-separated (default quaking_aspen,black_oak,european_pine)"},
-    {"--understory", OPT_DOUBLE, &understory, "PER_M2", "shrubs per m^2 (default 0.05 in plots, 0 otherwise)"},
-    {"--slope", OPT_DOUBLE, &slope, "DEG", "terrain slope (default 0)"},
-    {"--aspect", OPT_DOUBLE, &aspect, "DEG", "direction the terrain rises towards (default 0: +X)"},
-    {"--roughness", OPT_DOUBLE, &roughness, "M", "terrain noise amplitude (default 0.05)"},
-    {"--no-leaves", OPT_FLAG, &no_leaves, NULL, "wood only"},
-    {"--no-terrain", OPT_FLAG, &no_terrain, NULL, "no ground (and no understory)"},
-    {"--rect-leaves", OPT_FLAG, &rect_leaves, NULL, "full rectangular leaf cards (default: the inscribed ellipse)"},
-    {NULL, 0, NULL, NULL, NULL},
-};
-
-static const sy_cmd_spec spec = {
-    "scan", "[SPECIES_FILE_OR_NAME]",
-    "Virtual LiDAR: grow a species tree (or a plot) and scan it, writing labelled points and the exact truth.",
-    "Each point carries treeID, speciesID, isWood and branchID extra bytes, classification\n"
-    "(2 ground, 4 understory, 5 trees), return numbers, intensity and gps_time. The same\n"
-    "seed gives the same bytes for any --threads. See docs/scan.md.",
-    opts, 0, 1};
-
-static void reset_options(void)
+static scan_args scan_args_default(void)
 {
-    out_path = truth_path = kind_name = species_list = path_text = NULL;
-    positions = max_points = returns = trees = subrays = -1;
-    no_leaves = no_terrain = rect_leaves = lawn = 0;
-    step = vstep = density = noise = divergence = radius = height = altitude = swath = overlap = speed = rotation =
-        line_spacing = separation = max_range = understory = NAN;
-    plot_size = slope = aspect = 0;
-    roughness = NAN;
+    scan_args v, *a = &v;
+    memset(a, 0, sizeof *a);
+    a->out_path = a->truth_path = a->kind_name = a->species_list = a->path_text = NULL;
+    a->positions = a->max_points = a->returns = a->trees = a->subrays = -1;
+    a->no_leaves = a->no_terrain = a->rect_leaves = a->lawn = 0;
+    a->step = a->vstep = a->density = a->noise = a->divergence = a->radius = a->height = a->altitude = a->swath =
+        a->overlap = a->speed = a->rotation = a->line_spacing = a->separation = a->max_range = a->understory = NAN;
+    a->plot_size = a->slope = a->aspect = 0;
+    a->roughness = NAN;
+    return v;
 }
 
 #define SET_D(field, v) \
@@ -121,33 +81,33 @@ static int parse_path(const char *text, double **out, size_t *n)
     return 0;
 }
 
-static void configure(sy_scanner *sc, const sy_cli *cli)
+static void configure(const scan_args *a, sy_scan_options *sc, const sy_cli *cli)
 {
     sc->seed = cli->seed;
-    SET_I(positions, positions);
-    SET_D(radius, radius);
-    SET_D(height, height);
-    SET_D(step_deg, step);
-    SET_D(vstep_deg, vstep);
-    SET_D(speed, speed);
-    SET_D(rotation_hz, rotation);
-    SET_D(line_spacing, line_spacing);
-    SET_D(density, density);
-    SET_D(altitude, altitude);
-    SET_D(swath_deg, swath);
-    SET_D(overlap, overlap);
-    SET_D(noise, noise);
-    SET_D(divergence_mrad, divergence);
-    SET_I(subrays, subrays);
-    SET_I(max_returns, returns);
-    SET_D(separation, separation);
-    SET_D(max_range, max_range);
-    if (max_points >= 0) sc->max_points = (size_t)max_points;
-    sc->lawnmower = lawn || plot_size > 0;
+    SET_I(positions, a->positions);
+    SET_D(radius, a->radius);
+    SET_D(height, a->height);
+    SET_D(step_deg, a->step);
+    SET_D(vstep_deg, a->vstep);
+    SET_D(speed, a->speed);
+    SET_D(rotation_hz, a->rotation);
+    SET_D(line_spacing, a->line_spacing);
+    SET_D(density, a->density);
+    SET_D(altitude, a->altitude);
+    SET_D(swath_deg, a->swath);
+    SET_D(overlap, a->overlap);
+    SET_D(noise, a->noise);
+    SET_D(divergence_mrad, a->divergence);
+    SET_I(subrays, a->subrays);
+    SET_I(max_returns, a->returns);
+    SET_D(separation, a->separation);
+    SET_D(max_range, a->max_range);
+    if (a->max_points >= 0) sc->max_points = (size_t)a->max_points;
+    sc->lawnmower = a->lawn || a->plot_size > 0;
 }
 
 /* Splits the comma list in place into o->species. */
-static int split_species(char *list, sy_scene_opts *o)
+static int split_species(char *list, sy_scene_options *o)
 {
     for (char *s = list, *e; s && *s; s = e) {
         e = strchr(s, ',');
@@ -159,7 +119,7 @@ static int split_species(char *list, sy_scene_opts *o)
     return o->n_species > 0;
 }
 
-static void print_report(const sy_cli *cli, const sy_scene *scene, const sy_scanner *sc, const sy_scan_stats *st,
+static void print_report(const scan_args *a, const sy_cli *cli, const sy_scene *scene, const sy_scan_options *sc, const sy_scan_stats *st,
                          double seconds)
 {
     size_t tree_pts = st->wood + st->leaf;
@@ -168,14 +128,14 @@ static void print_report(const sy_cli *cli, const sy_scene *scene, const sy_scan
         sy_json j;
         sy_json_begin(&j, stdout, 0);
         sy_json_object(&j, NULL);
-        sy_json_string(&j, "output", out_path);
-        sy_json_string(&j, "truth", truth_path);
+        sy_json_string(&j, "output", a->out_path);
+        sy_json_string(&j, "truth", a->truth_path);
         sy_json_string(&j, "scanner", sy_scanner_kind_name(sc->kind));
         sy_json_int(&j, "seed", (long long)sc->seed);
         sy_json_int(&j, "point_count", (long long)st->points);
         sy_json_int(&j, "pulses", (long long)st->pulses);
         sy_json_int(&j, "stations", st->stations);
-        sy_json_int(&j, "trees", (long long)scene->n_trees);
+        sy_json_int(&j, "a->trees", (long long)scene->n_trees);
         sy_json_int(&j, "primitives", (long long)scene->prims.n);
         sy_json_int(&j, "wood_points", (long long)st->wood);
         sy_json_int(&j, "leaf_points", (long long)st->leaf);
@@ -187,44 +147,44 @@ static void print_report(const sy_cli *cli, const sy_scene *scene, const sy_scan
         sy_json_end(&j);
         sy_json_finish(&j);
     } else if (!cli->quiet) {
-        fprintf(stderr, "wrote %zu points (%zu pulses, %zu trees, wood fraction %.3f) to %s in %.2f s\n", st->points,
-                st->pulses, scene->n_trees, wood_fraction, out_path, seconds);
+        fprintf(stderr, "wrote %zu points (%zu pulses, %zu a->trees, wood fraction %.3f) to %s in %.2f s\n", st->points,
+                st->pulses, scene->n_trees, wood_fraction, a->out_path, seconds);
     }
 }
 
 /* Truth into memory first, so a failure after the scan leaves nothing. */
-static sy_code render_truth(const sy_scene *scene, const sy_scanner *sc, int stations, char **buf, size_t *len,
+static sy_code render_truth(const scan_args *a, const sy_scene *scene, const sy_scan_options *sc, int stations, char **buf, size_t *len,
                             sy_error *err)
 {
     FILE *fp = open_memstream(buf, len);
-    if (!fp) return sy_fail(err, SY_EINTERNAL, "%s: cannot buffer the truth file", truth_path);
+    if (!fp) return sy_fail(err, SY_EINTERNAL, "%s: cannot buffer the truth file", a->truth_path);
     sy_write_truth(fp, scene, sc, stations);
-    if (fclose(fp)) return sy_fail(err, SY_EINTERNAL, "%s: cannot buffer the truth file", truth_path);
+    if (fclose(fp)) return sy_fail(err, SY_EINTERNAL, "%s: cannot buffer the truth file", a->truth_path);
     return SY_OK;
 }
 
-static sy_code write_outputs(const sy_cloud *cloud, const sy_scene *scene, const sy_scanner *sc, int stations,
+static sy_code write_outputs(const scan_args *a, const sy_cloud *cloud, const sy_scene *scene, const sy_scan_options *sc, int stations,
                              sy_error *err)
 {
     char *truth = NULL;
     size_t truth_len = 0;
     sy_atomic_file tf;
-    if (truth_path) {
-        if (render_truth(scene, sc, stations, &truth, &truth_len, err)) return err->code;
-        sy_code rc = sy_atomic_open(&tf, truth_path, err);
+    if (a->truth_path) {
+        if (render_truth(a, scene, sc, stations, &truth, &truth_len, err)) return err->code;
+        sy_code rc = sy_atomic_open(&tf, a->truth_path, err);
         if (!rc && fwrite(truth, 1, truth_len, tf.fp) != truth_len) {
             sy_atomic_abort(&tf);
-            rc = sy_fail(err, SY_EINPUT, "%s: write failed", truth_path);
+            rc = sy_fail(err, SY_EINPUT, "%s: write failed", a->truth_path);
         }
         free(truth);
         if (rc) return rc;
     }
-    if (sy_write_cloud(out_path, cloud, err)) {
-        if (truth_path) sy_atomic_abort(&tf);
+    if (sy_write_cloud(a->out_path, cloud, err)) {
+        if (a->truth_path) sy_atomic_abort(&tf);
         return err->code;
     }
-    if (truth_path && sy_atomic_commit(&tf, err)) {
-        unlink(out_path);
+    if (a->truth_path && sy_atomic_commit(&tf, err)) {
+        unlink(a->out_path);
         return err->code;
     }
     return SY_OK;
@@ -232,53 +192,99 @@ static sy_code write_outputs(const sy_cloud *cloud, const sy_scene *scene, const
 
 int cmd_scan(int argc, char **argv, sy_cli *cli)
 {
+    scan_args args = scan_args_default(), *a = &args;
+    const sy_opt opts[] = {
+        {"-o", OPT_STRING, &args.out_path, "OUT", "point cloud to write (.las: LAS 1.4 with extra bytes; .ply, .xyz)"},
+        {"--truth", OPT_STRING, &args.truth_path, "FILE", "truth JSON (docs/truth-format.md)"},
+        {"--scanner", OPT_STRING, &args.kind_name, "KIND", "terrestrial (default), mobile or airborne"},
+        {"--positions", OPT_INT, &args.positions, "N", "terrestrial stations on a circle (default 4)"},
+        {"--radius", OPT_DOUBLE, &args.radius, "M", "station circle / mobile circle radius (default: scene + 5 m, >= 10)"},
+        {"--height", OPT_DOUBLE, &args.height, "M", "instrument height over ground (1.5 terrestrial, 1.8 mobile)"},
+        {"--step", OPT_DOUBLE, &args.step, "DEG", "angular step (0.04 terrestrial, 0.25 mobile profiler)"},
+        {"--vstep", OPT_DOUBLE, &args.vstep, "DEG", "terrestrial vertical step (default: --step)"},
+        {"--speed", OPT_DOUBLE, &args.speed, "M/S", "platform speed (1.2 mobile, 50 airborne)"},
+        {"--rotation", OPT_DOUBLE, &args.rotation, "HZ", "mobile profiler rotation rate (default 20)"},
+        {"--path", OPT_STRING, &args.path_text, "X,Y,...", "mobile path polyline (default: a circle, or lawnmower in plots)"},
+        {"--line-spacing", OPT_DOUBLE, &args.line_spacing, "M", "mobile lawnmower line spacing (default 10)"},
+        {"--lawnmower", OPT_FLAG, &args.lawn, NULL, "mobile: lawnmower lines over the area (default in plots)"},
+        {"--density", OPT_DOUBLE, &args.density, "PTS_PER_M2", "airborne pulses per m^2 over the area (default 20)"},
+        {"--altitude", OPT_DOUBLE, &args.altitude, "M", "airborne flying height above ground (default 80)"},
+        {"--swath", OPT_DOUBLE, &args.swath, "DEG", "airborne full scan angle (default 40)"},
+        {"--overlap", OPT_DOUBLE, &args.overlap, "F", "airborne strip side overlap 0..0.9 (default 0.2)"},
+        {"--noise", OPT_DOUBLE, &args.noise, "M", "range noise sigma (0.005 terrestrial, 0.015 mobile, 0.025 airborne)"},
+        {"--divergence", OPT_DOUBLE, &args.divergence, "MRAD", "full beam divergence (0.3; 0.5 airborne; 0: one ray)"},
+        {"--subrays", OPT_INT, &args.subrays, "N", "rays per pulse inside the beam, 1..16 (default 5)"},
+        {"--returns", OPT_INT, &args.returns, "N", "most returns per pulse, 1..15 (default 4)"},
+        {"--separation", OPT_DOUBLE, &args.separation, "M", "least range gap between returns (0.1; 0.5 airborne)"},
+        {"--max-range", OPT_DOUBLE, &args.max_range, "M", "maximum range (150; 1500 airborne)"},
+        {"--max-points", OPT_INT, &args.max_points, "N", "keep at most N points (in pulse order)"},
+        {"--plot", OPT_DOUBLE, &args.plot_size, "SIZE", "scan a SIZE x SIZE m plot of trees instead of one tree"},
+        {"--trees", OPT_INT, &args.trees, "N", "trees in the plot (default 5)"},
+        {"--species", OPT_STRING, &args.species_list, "LIST", "plot species, comma-separated (default quaking_aspen,black_oak,european_pine)"},
+        {"--understory", OPT_DOUBLE, &args.understory, "PER_M2", "shrubs per m^2 (default 0.05 in plots, 0 otherwise)"},
+        {"--slope", OPT_DOUBLE, &args.slope, "DEG", "terrain slope (default 0)"},
+        {"--aspect", OPT_DOUBLE, &args.aspect, "DEG", "direction the terrain rises towards (default 0: +X)"},
+        {"--roughness", OPT_DOUBLE, &args.roughness, "M", "terrain noise amplitude (default 0.05)"},
+        {"--no-leaves", OPT_FLAG, &args.no_leaves, NULL, "wood only"},
+        {"--no-terrain", OPT_FLAG, &args.no_terrain, NULL, "no ground (and no understory)"},
+        {"--rect-leaves", OPT_FLAG, &args.rect_leaves, NULL, "full rectangular leaf cards (default: the inscribed ellipse)"},
+        {NULL, 0, NULL, NULL, NULL},
+    };
+
+    const sy_cmd_spec spec = {
+        "scan", "[SPECIES_FILE_OR_NAME]",
+        "Virtual LiDAR: grow a species tree (or a plot) and scan it, writing labelled points and the exact truth.",
+        "Each point carries treeID, speciesID, isWood and branchID extra bytes, classification\n"
+        "(2 ground, 4 understory, 5 trees), return numbers, intensity and gps_time. The same\n"
+        "seed gives the same bytes for any --threads. See docs/scan.md.",
+        opts, 0, 1};
     const char *pos[1];
     int n_pos;
-    reset_options();
     int rc = sy_cli_parse(&spec, argc, argv, cli, pos, 1, &n_pos);
     if (rc) return rc < 0 ? 0 : rc;
+    sy_cli_apply_settings(cli);
     sy_scanner_kind kind;
-    if (!out_path) {
+    if (!a->out_path) {
         fprintf(stderr, "sylva scan: -o OUT is required\n");
         return SY_EUSAGE;
     }
-    if (!parse_kind(kind_name, &kind)) {
-        fprintf(stderr, "sylva scan: --scanner must be terrestrial, mobile or airborne, got '%s'\n", kind_name);
+    if (!parse_kind(a->kind_name, &kind)) {
+        fprintf(stderr, "sylva scan: --scanner must be terrestrial, mobile or airborne, got '%s'\n", a->kind_name);
         return SY_EUSAGE;
     }
-    if (plot_size < 0 || (plot_size == 0 && n_pos == 0)) {
+    if (a->plot_size < 0 || (a->plot_size == 0 && n_pos == 0)) {
         fprintf(stderr, "sylva scan: give a species, or --plot SIZE (see --help)\n");
         return SY_EUSAGE;
     }
     /* A scan can take a while: a bad output path must fail before it. */
     sy_error werr = {0};
-    if (sy_check_writable(out_path, &werr) || (truth_path && sy_check_writable(truth_path, &werr)))
+    if (sy_check_writable(a->out_path, &werr) || (a->truth_path && sy_check_writable(a->truth_path, &werr)))
         return sy_cli_report(&werr);
     double t0 = sy_now();
-    sy_scanner sc;
-    sy_scanner_defaults(&sc, kind);
-    configure(&sc, cli);
+    sy_scan_options sc;
+    sc = sy_scan_options_for(kind);
+    configure(a, &sc, cli);
     double *path = NULL;
-    if (path_text) {
-        if (!parse_path(path_text, &path, &sc.path_points)) {
-            fprintf(stderr, "sylva scan: --path expects at least two x,y pairs, got '%s'\n", path_text);
+    if (a->path_text) {
+        if (!parse_path(a->path_text, &path, &sc.path_points)) {
+            fprintf(stderr, "sylva scan: --path expects at least two x,y pairs, got '%s'\n", a->path_text);
             return SY_EUSAGE;
         }
         sc.path = path;
     }
-    sy_scene_opts so;
-    sy_scene_opts_defaults(&so);
+    sy_scene_options so;
+    so = sy_scene_options_default();
     so.seed = cli->seed;
-    so.plot_size = plot_size;
-    if (trees >= 0) so.trees = trees;
-    if (!isnan(understory)) so.understory = understory;
-    so.slope_deg = slope;
-    so.aspect_deg = aspect;
-    if (!isnan(roughness)) so.roughness = roughness;
-    so.terrain = !no_terrain;
-    so.leaves = !no_leaves;
-    so.elliptic = !rect_leaves;
-    char *list = strdup(species_list ? species_list : n_pos ? pos[0] : "quaking_aspen,black_oak,european_pine");
+    so.plot_size = a->plot_size;
+    if (a->trees >= 0) so.trees = a->trees;
+    if (!isnan(a->understory)) so.understory = a->understory;
+    so.slope_deg = a->slope;
+    so.aspect_deg = a->aspect;
+    if (!isnan(a->roughness)) so.roughness = a->roughness;
+    so.terrain = !a->no_terrain;
+    so.leaves = !a->no_leaves;
+    so.elliptic = !a->rect_leaves;
+    char *list = strdup(a->species_list ? a->species_list : n_pos ? pos[0] : "quaking_aspen,black_oak,european_pine");
     if (!list || !split_species(list, &so)) {
         fprintf(stderr, "sylva scan: --species needs 1..32 comma-separated names\n");
         free(list);
@@ -289,16 +295,16 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
     /* Every species must load before any progress is printed: a bad name
      * makes exactly one line of output. */
     for (int i = 0; i < so.n_species; i++) {
-        sy_species sp;
-        if (sy_species_find(so.species[i], &sp, &err)) {
+        sy_species_params sp;
+        if (sy_species_params_find(so.species[i], &sp, &err)) {
             free(list);
             free(path);
             return sy_cli_report(&err);
         }
-        sy_species_free(&sp);
+        sy_species_params_free(&sp);
     }
     sy_scene scene;
-    if (!cli->quiet && !cli->json) fprintf(stderr, "growing %d tree(s)\n", plot_size > 0 ? so.trees : 1);
+    if (!cli->quiet && !cli->json) fprintf(stderr, "growing %d tree(s)\n", a->plot_size > 0 ? so.trees : 1);
     double reach = (sc.radius > 0 ? sc.radius : 0) + 5;
     rc = sy_scene_build(&scene, &so, reach, &err);
     free(list);
@@ -309,8 +315,8 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
         fprintf(stderr, "scene: %zu primitives, %zu tree(s); scanning (%s)\n", scene.prims.n, scene.n_trees,
                 sy_scanner_kind_name(kind));
     if (!rc) rc = sy_scan(&scene, &sc, &cloud, &st, &err);
-    if (!rc) rc = write_outputs(&cloud, &scene, &sc, st.stations, &err);
-    if (!rc) print_report(cli, &scene, &sc, &st, sy_now() - t0);
+    if (!rc) rc = write_outputs(a, &cloud, &scene, &sc, st.stations, &err);
+    if (!rc) print_report(a, cli, &scene, &sc, &st, sy_now() - t0);
     sy_cloud_free(&cloud);
     sy_scene_free(&scene);
     free(path);

@@ -1,94 +1,24 @@
 /* sylva skeleton SCAN -o tree.sylva: one segmented tree scan to its skeleton,
  * clusters and hulls, written as a compact .sylva file, or the skeleton alone
- * in an interchange format (.ply .csv .json .obj, stages/qsm/qsm_io.h). */
+ * in an interchange format (.ply .csv .json .obj, stages/qsm/qsm.h). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "pipeline/commands.h"
+#include "pipeline/run_tree.h"
 #include "stages/core/fileio.h"
 #include "stages/core/json.h"
-#include "stages/encode/sylva_format.h"
+#include "stages/encode/encode.h"
 #include "stages/ingest/ingest.h"
-#include "stages/qsm/qsm_io.h"
-#include "stages/skeleton/skeleton_stage.h"
-
-static const char *out_path;
-static double voxel;
-static int species, no_clusters;
-static sy_skeleton_options o;
-static const sy_opt opts[] = {
-    {"-o", OPT_STRING, &out_path, "OUT", "output: .sylva (skeleton + hulls), or the skeleton as .ply .csv .json .obj"},
-    {"--beta", OPT_DOUBLE, &o.beta, "B", "Dijkstra edge weight |u-v|^B (default 1)"},
-    {"--gamma", OPT_DOUBLE, &o.gamma, "G", "allometry: d^G additive over children (default 2)"},
-    {"--fs", OPT_DOUBLE, &o.fs, "F", "scan-density factor f_s in (0,1]; smaller gives larger clusters (default 1)"},
-    {"--wood-share", OPT_DOUBLE, &o.wood_share, "W",
-     "wood/leaf separation: wood = shortest-path subtrees of >= W of the points (e.g. 0.005; default 0 = off)"},
-    {"--voxel", OPT_DOUBLE, &voxel, "SIZE", "thin the scan to one point per SIZE-metre voxel first (default off)"},
-    {"--spacing", OPT_DOUBLE, &o.spacing, "S", "point spacing in metres (default: median nearest-neighbour distance)"},
-    {"--k", OPT_INT, &o.k, "K", "neighbours per point in the graph (default 12)"},
-    {"--bin", OPT_DOUBLE, &o.bin_factor, "F", "level-set width in point spacings (default 4)"},
-    {"--alpha-scale", OPT_DOUBLE, &o.alpha_scale, "A", "alpha = A * alpha_min, CGAL squared radii (default 5)"},
-    {"--min-cluster", OPT_INT, &o.min_cluster_points, "N", "smallest cluster in points (default 24)"},
-    {"--species", OPT_INT, &species, "ID", "species id stored in the file (default 0: unknown)"},
-    {"--spread-around", OPT_FLAG, &o.spread_around, NULL,
-     "judge a level set's spread from the skeleton around its node, not its edge (leaf-off scans)"},
-    {"--no-clusters", OPT_FLAG, &no_clusters, NULL, "keep every point on the skeleton"},
-    {NULL, 0, NULL, NULL, NULL},
-};
-static const sy_cmd_spec spec = {
-    "skeleton", "SCAN -o OUT.{sylva,ply,csv,json,obj}",
-    "Reconstruct one tree: skeleton, clusters and alpha-shape hulls, stored as a compact .sylva file.",
-    "SCAN must hold one segmented tree, Z up, in metres (see `sylva preprocess`). The report\n"
-    "gives nodes, branches, clusters, DBH, height and the time of each step. See docs/skeleton.md.\n"
-    "OUT's extension picks the format: .sylva keeps the cluster hulls; .ply (AdTree), .csv\n"
-    "(SimpleForest/rTwig cylinders), .json (sylva-skeleton), .obj hold the whole skeleton (no\n"
-    "clusters: every point stays on it) in the scan's own world coordinates (docs/qsm-formats.md).",
-    opts, 1, 1};
-
-typedef struct {
-    uint64_t key;
-    uint32_t idx;
-} keyed;
-
-static int cmp_keyed(const void *a, const void *b)
-{
-    const keyed *x = a, *y = b;
-    if (x->key != y->key) return x->key < y->key ? -1 : 1;
-    return x->idx < y->idx ? -1 : x->idx > y->idx;
-}
-
-/* Keeps the first point (by index) of every voxel of edge h. */
-static sy_code voxel_thin(sy_cloud *c, double h, sy_error *err)
-{
-    double lo[3] = {INFINITY, INFINITY, INFINITY};
-    for (size_t i = 0; i < c->n; i++)
-        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], c->xyz[3 * i + k]);
-    keyed *v = sy_calloc(c->n, sizeof *v, err, "voxel");
-    uint8_t *keep = sy_calloc(c->n, 1, err, "voxel");
-    if (!v || !keep) {
-        free(v);
-        free(keep);
-        return SY_EINTERNAL;
-    }
-    for (size_t i = 0; i < c->n; i++) {
-        uint64_t q[3];
-        for (int k = 0; k < 3; k++) q[k] = (uint64_t)((c->xyz[3 * i + k] - lo[k]) / h) & 0x1fffff;
-        v[i].key = (q[0] << 42) | (q[1] << 21) | q[2];
-        v[i].idx = (uint32_t)i;
-    }
-    qsort(v, c->n, sizeof *v, cmp_keyed);
-    for (size_t i = 0; i < c->n; i++)
-        if (i == 0 || v[i].key != v[i - 1].key) keep[v[i].idx] = 1;
-    sy_code rc = sy_cloud_filter(c, keep, err);
-    free(v);
-    free(keep);
-    return rc;
-}
+#include "stages/preprocess/preprocess.h"
+#include "stages/qsm/qsm.h"
+#include "stages/skeleton/skeleton.h"
 
 static void print_report(const sy_cli *cli, const char *in, const char *out, const sy_skeleton_report *r,
-                         size_t bytes)
+                         const sy_hull_report *h, size_t bytes)
 {
     if (cli->json) {
         sy_json j;
@@ -108,9 +38,9 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
         sy_json_int(&j, "skeleton_points", (long long)r->skeleton_points);
         sy_json_int(&j, "cluster_points", (long long)r->cluster_points);
         sy_json_object(&j, "hulls");
-        sy_json_int(&j, "alpha", (long long)r->hulls_alpha);
-        sy_json_int(&j, "convex", (long long)r->hulls_convex);
-        sy_json_int(&j, "box", (long long)r->hulls_box);
+        sy_json_int(&j, "alpha", (long long)h->alpha);
+        sy_json_int(&j, "convex", (long long)h->convex);
+        sy_json_int(&j, "box", (long long)h->box);
         sy_json_end(&j);
         sy_json_number(&j, "dbh", r->dbh);
         sy_json_bool(&j, "dbh_fitted", r->dbh_fitted);
@@ -121,8 +51,8 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
         sy_json_number(&j, "level_sets", r->t_levels);
         sy_json_number(&j, "radii", r->t_radii);
         sy_json_number(&j, "clusters", r->t_clusters);
-        sy_json_number(&j, "hulls", r->t_hulls);
-        sy_json_number(&j, "total", r->t_total);
+        sy_json_number(&j, "hulls", h->seconds);
+        sy_json_number(&j, "total", r->t_total + h->seconds);
         sy_json_end(&j);
         sy_json_end(&j);
         sy_json_finish(&j);
@@ -132,54 +62,88 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
     printf("  points     %zu (spacing %.4f m, level sets %.4f m, %zu graph components bridged)\n", r->points,
            r->spacing, r->bin_width, r->components);
     printf("  skeleton   %zu nodes, %zu branches, %zu points\n", r->nodes, r->branches, r->skeleton_points);
-    printf("  clusters   %zu (%zu alpha shapes, %zu convex, %zu boxes), %zu points\n", r->clusters, r->hulls_alpha,
-           r->hulls_convex, r->hulls_box, r->cluster_points);
+    printf("  clusters   %zu (%zu alpha shapes, %zu convex, %zu boxes), %zu points\n", r->clusters, h->alpha,
+           h->convex, h->box, r->cluster_points);
     printf("  DBH        %.3f m (%s), height %.2f m\n", r->dbh, r->dbh_fitted ? "circle fit" : "fallback estimate",
            r->height);
     printf("  time       %.3f s (graph %.3f, dijkstra %.3f, level sets %.3f, radii %.3f, clusters %.3f, hulls %.3f)\n",
-           r->t_total, r->t_graph, r->t_dijkstra, r->t_levels, r->t_radii, r->t_clusters, r->t_hulls);
+           r->t_total + h->seconds, r->t_graph, r->t_dijkstra, r->t_levels, r->t_radii, r->t_clusters, h->seconds);
 }
+
+typedef struct {
+    const char *out_path;
+    double voxel;
+    int species, no_clusters;
+    sy_skeleton_options o;
+    sy_hull_options hull;
+} skeleton_args;
 
 int cmd_skeleton(int argc, char **argv, sy_cli *cli)
 {
+    skeleton_args a = {NULL, 0, 0, 0, sy_skeleton_options_default(), sy_hull_options_default()};
+    const sy_opt opts[] = {
+        {"-o", OPT_STRING, &a.out_path, "OUT", "output: .sylva (skeleton + hulls), or the skeleton as .ply .csv .json .obj"},
+        {"--beta", OPT_DOUBLE, &a.o.beta, "B", "Dijkstra edge weight |u-v|^B (default 1)"},
+        {"--gamma", OPT_DOUBLE, &a.o.gamma, "G", "allometry: d^G additive over children (default 2)"},
+        {"--fs", OPT_DOUBLE, &a.o.fs, "F", "scan-density factor f_s in (0,1]; smaller gives larger clusters (default 1)"},
+        {"--wood-share", OPT_DOUBLE, &a.o.wood_share, "W",
+         "wood/leaf separation: wood = shortest-path subtrees of >= W of the points (e.g. 0.005; default 0 = off)"},
+        {"--voxel", OPT_DOUBLE, &a.voxel, "SIZE", "thin the scan to one point per SIZE-metre voxel first (default off)"},
+        {"--spacing", OPT_DOUBLE, &a.o.spacing, "S", "point spacing in metres (default: median nearest-neighbour distance)"},
+        {"--k", OPT_INT, &a.o.k, "K", "neighbours per point in the graph (default 12)"},
+        {"--bin", OPT_DOUBLE, &a.o.bin_factor, "F", "level-set width in point spacings (default 4)"},
+        {"--alpha-scale", OPT_DOUBLE, &a.hull.alpha_scale, "A", "alpha = A * alpha_min, CGAL squared radii (default 5)"},
+        {"--min-cluster", OPT_INT, &a.o.min_cluster_points, "N", "smallest cluster in points (default 24)"},
+        {"--species", OPT_INT, &a.species, "ID", "species id stored in the file (default 0: unknown)"},
+        {"--spread-around", OPT_FLAG, &a.o.spread_around, NULL,
+         "judge a level set's spread from the skeleton around its node, not its edge (leaf-off scans)"},
+        {"--no-clusters", OPT_FLAG, &a.no_clusters, NULL, "keep every point on the skeleton"},
+        {NULL, 0, NULL, NULL, NULL},
+    };
+    const sy_cmd_spec spec = {
+        "skeleton", "SCAN -o OUT.{sylva,ply,csv,json,obj}",
+        "Reconstruct one tree: skeleton, clusters and alpha-shape hulls, stored as a compact .sylva file.",
+        "SCAN must hold one segmented tree, Z up, in metres (see `sylva preprocess`). The report\n"
+        "gives nodes, branches, clusters, DBH, height and the time of each step. See docs/skeleton.md.\n"
+        "OUT's extension picks the format: .sylva keeps the cluster hulls; .ply (AdTree), .csv\n"
+        "(SimpleForest/rTwig cylinders), .json (sylva-skeleton), .obj hold the whole skeleton (no\n"
+        "clusters: every point stays on it) in the scan's own world coordinates (docs/qsm-formats.md).",
+        opts, 1, 1};
     const char *in[1];
     int n;
-    out_path = NULL;
-    voxel = 0;
-    species = 0;
-    no_clusters = 0;
-    sy_skeleton_options_default(&o);
     int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
     if (rc) return rc < 0 ? 0 : rc;
-    if (!out_path) {
+    sy_cli_apply_settings(cli);
+    if (!a.out_path) {
         fprintf(stderr, "sylva skeleton: -o OUT is required\n");
         return SY_EUSAGE;
     }
     char ext[16];
-    sy_extension(out_path, ext, sizeof ext);
+    sy_extension(a.out_path, ext, sizeof ext);
     int sylva_file = strcmp(ext, "sylva") == 0;
     if (!sylva_file && strcmp(ext, "ply") && strcmp(ext, "csv") && strcmp(ext, "json") && strcmp(ext, "obj")) {
         fprintf(stderr, "sylva skeleton: %s: unknown output extension (use .sylva, .ply, .csv, .json or .obj)\n",
-                out_path);
+                a.out_path);
         return SY_EUSAGE;
     }
-    if (!(o.beta > 0) || !(o.gamma > 0) || !(o.fs > 0 && o.fs <= 1) || !(o.wood_share >= 0 && o.wood_share < 1) || voxel < 0 || o.spacing < 0 || o.k < 1 ||
-        !(o.bin_factor > 0) || !(o.alpha_scale > 0) || o.min_cluster_points < 0 || species < 0 || species > 65535) {
-        fprintf(stderr, "sylva skeleton: --beta, --gamma, --bin, --alpha-scale must be > 0, --fs in (0,1], "
-                        "--k >= 1, --species in 0..65535\n");
+    if (a.species < 0 || a.species > 65535 || !(a.voxel >= 0) || !isfinite(a.voxel)) {
+        fprintf(stderr, "sylva skeleton: --species must be in 0..65535 and --voxel >= 0\n");
         return SY_EUSAGE;
     }
     /* Interchange formats hold no hulls: clustering would drop the fine
      * branches the hulls stand for (rTwig: recall 0.16 instead of 0.97). */
-    o.clusters = !no_clusters && sylva_file;
-    sy_cloud c;
+    a.o.clusters = !a.no_clusters && sylva_file;
     sy_error err = {0};
+    if (sy_skeleton_options_check(&a.o, &err) || sy_hull_options_check(&a.hull, &err)) return sy_cli_report(&err);
+    sy_cloud c;
     if (sy_read_cloud(in[0], &c, &err)) return sy_cli_report(&err);
     sy_skeleton s;
     sy_clusters cl;
     sy_skeleton_report r;
-    rc = voxel > 0 ? voxel_thin(&c, voxel, &err) : SY_OK;
-    if (!rc) rc = sy_reconstruct_skeleton(&c, &o, &s, &cl, &r, &err);
+    /* The preprocess stage's voxel filter, as `sylva run --voxel` uses. */
+    rc = a.voxel > 0 ? sy_voxel_downsample(&c, a.voxel, &err) : SY_OK;
+    sy_hull_report h = {0};
+    if (!rc) rc = sy_reconstruct_tree(&c, &a.o, a.hull.alpha_scale, &s, &cl, &r, &h, &err);
     if (rc) {
         sy_cloud_free(&c);
         /* Name the scan: the stage's messages name only the step. */
@@ -189,17 +153,18 @@ int cmd_skeleton(int argc, char **argv, sy_cli *cli)
         }
         return sy_cli_report(&err);
     }
-    rc = sylva_file ? sy_encode_write(out_path, &s, &cl, (uint16_t)species, cli->seed, &err)
-                    : sy_skeleton_write(out_path, &s, &err);
-    if (!rc) {
-        sy_buffer b;
-        size_t bytes = 0;
-        if (sy_read_file(out_path, &b, &err) == SY_OK) {
-            bytes = b.size;
-            sy_buffer_free(&b);
-        }
-        print_report(cli, in[0], out_path, &r, bytes);
+    unsigned char *bytes = NULL;
+    size_t size = 0;
+    if (sylva_file) {
+        rc = sy_encode_mem(&s, &cl, (uint16_t)a.species, cli->seed, NULL, &bytes, &size, &err);
+        if (!rc) rc = sy_write_file_atomic(a.out_path, bytes, size, &err);
+    } else {
+        rc = sy_skeleton_write(a.out_path, &s, &err);
+        struct stat st;
+        if (!rc && stat(a.out_path, &st) == 0) size = (size_t)st.st_size;
     }
+    if (!rc) print_report(cli, in[0], a.out_path, &r, &h, size);
+    free(bytes);
     sy_clusters_free(&cl);
     sy_skeleton_free(&s);
     sy_cloud_free(&c);

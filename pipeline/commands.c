@@ -11,10 +11,11 @@ const sy_command sy_commands[] = {
     {"eval", "score a reconstruction: skeleton vs truth, model vs points, segmentation, species", cmd_eval},
     {"skeleton", "reconstruct one tree: skeleton, clusters, hulls -> .sylva", cmd_skeleton},
     {"mesh", "mesh a skeleton or QSM (.sylva, .ply, .csv, .json, .obj, TreeQSM) into a glTF tree", cmd_mesh},
-    /* The export stage's own name (issue 3): meshing and glTF export are one command. */
+    /* The export stage's own name: meshing and glTF export are one command. */
     {"export", "same as mesh: a skeleton, QSM or .sylva file to a game-ready .glb", cmd_mesh},
     {"run", "reconstruct one scanned tree end to end: skeleton, clusters, mesh -> .glb", cmd_run},
     {"encode", "write a .sylva tree file from its JSON form or a skeleton/QSM file", cmd_encode},
     {"decode", "summarise a .sylva tree file, or write it out as JSON", cmd_decode},
+    {"library", "list the species library or show one species (stable ids, names, kinds, files)", cmd_library},
     {NULL, NULL, NULL},
 };

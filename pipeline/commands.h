@@ -4,6 +4,10 @@
 
 #include "pipeline/cli.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 int cmd_info(int argc, char **argv, sy_cli *cli);
 int cmd_convert(int argc, char **argv, sy_cli *cli);
 int cmd_preprocess(int argc, char **argv, sy_cli *cli);
@@ -15,5 +19,10 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli);
 int cmd_run(int argc, char **argv, sy_cli *cli);
 int cmd_encode(int argc, char **argv, sy_cli *cli);
 int cmd_decode(int argc, char **argv, sy_cli *cli);
+int cmd_library(int argc, char **argv, sy_cli *cli);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

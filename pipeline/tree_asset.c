@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "species/materials.h"
+#include "stages/core/fileio.h"
 #include "stages/core/json.h"
 #include "stages/core/progress.h"
 #include "stages/export/export.h"
@@ -24,28 +25,37 @@ sy_tree_asset_options sy_tree_asset_options_default(void)
     return o;
 }
 
-sy_glb_cli_options sy_glb_cli;
-
-void sy_glb_cli_reset(void)
+sy_code sy_tree_asset_options_check(const sy_tree_asset_options *o, sy_error *err)
 {
-    sy_tree_asset_options d = sy_tree_asset_options_default();
-    sy_glb_cli = (sy_glb_cli_options){d.lods, d.impostor_size, d.meshopt, !d.instancing, !d.impostor, d.check};
+    sy_mesh_options mo = sy_mesh_options_default();
+    mo.n_lods = o->lods;
+    mo.impostor = o->impostor;
+    mo.impostor_size = o->impostor_size;
+    sy_code rc = sy_mesh_options_check(&mo, err);
+    if (rc) return rc;
+    sy_export_options eo = sy_export_options_default();
+    eo.meshopt = o->meshopt;
+    eo.instancing = o->instancing;
+    if ((rc = sy_export_options_check(&eo, err))) return rc;
+    if (o->texture_size < 1 || o->texture_size > 8192)
+        return sy_fail(err, SY_EUSAGE, "tree asset: texture_size %d outside [1, 8192]", o->texture_size);
+    return SY_OK;
 }
 
-int sy_glb_cli_apply(const char *command, sy_tree_asset_options *o)
+sy_glb_args sy_glb_args_default(void)
 {
-    const sy_glb_cli_options *c = &sy_glb_cli;
-    if (c->lods < 1 || c->lods > 8 || c->impostor_size < 16 || c->impostor_size > 4096) {
-        fprintf(stderr, "sylva %s: --lods must be 1..8 and --impostor-size 16..4096\n", command);
-        return SY_EUSAGE;
-    }
-    o->lods = c->lods;
-    o->impostor = !c->no_impostor;
-    o->impostor_size = c->impostor_size;
-    o->meshopt = c->meshopt;
-    o->instancing = !c->no_instancing;
-    o->check = c->check;
-    return SY_OK;
+    sy_tree_asset_options d = sy_tree_asset_options_default();
+    return (sy_glb_args){d.lods, d.impostor_size, d.meshopt, !d.instancing, !d.impostor, d.check};
+}
+
+void sy_glb_args_apply(const sy_glb_args *g, sy_tree_asset_options *o)
+{
+    o->lods = g->lods;
+    o->impostor = !g->no_impostor;
+    o->impostor_size = g->impostor_size;
+    o->meshopt = g->meshopt;
+    o->instancing = !g->no_instancing;
+    o->check = g->check;
 }
 
 void sy_tree_asset_report_lods_json(sy_json *j, const sy_tree_asset_report *rep)
@@ -106,7 +116,7 @@ void sy_tree_asset_root_to_origin(sy_skeleton *s, sy_clusters *hulls)
 /* asset.extras: which species, every one of its parameters and the seed
  * (enough to grow the same tree again), and where a model from a file stands
  * in the world (docs/gltf.md). */
-static char *asset_extras(const sy_species *sp, const sy_skeleton *skel, const sy_tree_asset_options *opt)
+static char *asset_extras(const sy_species_params *sp, const sy_skeleton *skel, const sy_tree_asset_options *opt)
 {
     char *buf = NULL;
     size_t len = 0;
@@ -120,7 +130,7 @@ static char *asset_extras(const sy_species *sp, const sy_skeleton *skel, const s
         sy_json_string(&j, "species", sp->name ? sp->name : "");
         sy_json_uint(&j, "seed", (unsigned long long)opt->seed);
         sy_json_object(&j, "parameters");
-        sy_species_write_json(sp, &j);
+        sy_species_params_write_json(sp, &j);
         sy_json_end(&j);
     }
     if (opt->source) {
@@ -226,7 +236,7 @@ static int has_hull_triangles(const sy_clusters *cl)
     return 0;
 }
 
-sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, const sy_species *species,
+sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, const sy_species_params *species,
                             const sy_tree_asset_options *opt, sy_asset *out, sy_tree_asset_report *rep,
                             sy_error *err)
 {
@@ -235,7 +245,7 @@ sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, co
     sy_material_spec ms = {species ? species->bark_texture : NULL, species ? species->leaf_texture : NULL,
                            species ? species->leaf_translucency : -1.0f, opt->texture_size};
     int bark = -1, leaf = -1;
-    sy_code rc = sy_species_materials(&ms, out, &bark, &leaf, err);
+    sy_code rc = sy_materials_add(&ms, out, &bark, &leaf, err);
     if (rc) goto fail;
     sy_mesh_options mo = sy_mesh_options_default();
     mo.n_lods = opt->lods;
@@ -296,10 +306,12 @@ fail:
     return rc;
 }
 
-sy_code sy_tree_asset_write(const char *path, const sy_skeleton *skel, const sy_leaves *leaves,
-                            const sy_species *species, const sy_tree_asset_options *opt, sy_tree_asset_report *rep,
-                            sy_error *err)
+sy_code sy_tree_asset_glb(const sy_skeleton *skel, const sy_leaves *leaves, const sy_species_params *species,
+                          const sy_tree_asset_options *opt, const char *name, unsigned char **glb, size_t *size,
+                          sy_tree_asset_report *rep, sy_error *err)
 {
+    *glb = NULL;
+    *size = 0;
     sy_asset asset;
     sy_code rc = sy_tree_asset_build(skel, leaves, species, opt, &asset, rep, err);
     if (rc) return rc;
@@ -307,12 +319,24 @@ sy_code sy_tree_asset_write(const char *path, const sy_skeleton *skel, const sy_
     sy_export_options eo = sy_export_options_default();
     eo.meshopt = opt->meshopt;
     eo.instancing = opt->instancing;
-    rc = sy_export_glb(path, &asset, &eo, err);
+    rc = sy_export_glb(&asset, &eo, name, glb, size, err);
     if (rep && rc == SY_OK) {
         rep->seconds_export = sy_now() - t0;
-        rep->bytes = sy_export_last_size(path);
+        rep->bytes = *size;
     }
     sy_asset_free(&asset);
+    return rc;
+}
+
+sy_code sy_tree_asset_write(const char *path, const sy_skeleton *skel, const sy_leaves *leaves,
+                            const sy_species_params *species, const sy_tree_asset_options *opt, sy_tree_asset_report *rep,
+                            sy_error *err)
+{
+    unsigned char *glb;
+    size_t size;
+    sy_code rc = sy_tree_asset_glb(skel, leaves, species, opt, path, &glb, &size, rep, err);
+    if (!rc) rc = sy_write_file_atomic(path, glb, size, err);
+    free(glb);
     return rc;
 }
 

@@ -14,6 +14,10 @@
 #include "stages/eval/eval.h"
 #include "stages/grow/grow.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     int lods;          /* mesh levels before the impostor (default 4) */
     int impostor;      /* 1: add the impostor level */
@@ -44,25 +48,27 @@ sy_tree_asset_options sy_tree_asset_options_default(void);
  * standing at the glb's origin, and world = origin + pos keeps holding. */
 void sy_tree_asset_root_to_origin(sy_skeleton *s, sy_clusters *hulls);
 
-/* The .glb output options grow, mesh and run share: SY_GLB_OPTIONS goes into
- * their option tables, sy_glb_cli_reset() runs before parsing and
- * sy_glb_cli_apply() after it (checks the ranges, copies them into o; on a
- * bad value prints "sylva COMMAND: ..." and returns SY_EUSAGE). */
+sy_code sy_tree_asset_options_check(const sy_tree_asset_options *o, sy_error *err);
+
+/* The .glb output flags grow, mesh and run share: a sy_glb_args member of a
+ * command's per-call argument struct, SY_GLB_OPTIONS(that member) in its
+ * option table, sy_glb_args_default() before parsing and sy_glb_args_apply()
+ * after it (copies them into o, which the command then checks with
+ * sy_tree_asset_options_check). */
 typedef struct {
     int lods, impostor_size, meshopt, no_instancing, no_impostor, check;
-} sy_glb_cli_options;
-extern sy_glb_cli_options sy_glb_cli;
-#define SY_GLB_OPTIONS                                                                                         \
-    {"--lods", OPT_INT, &sy_glb_cli.lods, "N", "mesh levels of detail before the impostor (default 4)"},       \
-    {"--impostor-size", OPT_INT, &sy_glb_cli.impostor_size, "PX", "impostor texture size (default 512)"},      \
-    {"--no-impostor", OPT_FLAG, &sy_glb_cli.no_impostor, NULL, "no billboard level"},                           \
-    {"--meshopt", OPT_FLAG, &sy_glb_cli.meshopt, NULL, "compress with EXT_meshopt_compression"},               \
-    {"--no-instancing", OPT_FLAG, &sy_glb_cli.no_instancing, NULL,                                             \
-     "bake leaf instances into meshes (engines without EXT_mesh_gpu_instancing)"},                           \
-    {"--check", OPT_FLAG, &sy_glb_cli.check, NULL,                                                             \
+} sy_glb_args;
+#define SY_GLB_OPTIONS(g)                                                                                      \
+    {"--lods", OPT_INT, &(g).lods, "N", "mesh levels of detail before the impostor (default 4)"},              \
+    {"--impostor-size", OPT_INT, &(g).impostor_size, "PX", "impostor texture size (default 512)"},             \
+    {"--no-impostor", OPT_FLAG, &(g).no_impostor, NULL, "no billboard level"},                                  \
+    {"--meshopt", OPT_FLAG, &(g).meshopt, NULL, "compress with EXT_meshopt_compression"},                      \
+    {"--no-instancing", OPT_FLAG, &(g).no_instancing, NULL,                                                    \
+     "bake leaf instances into meshes (engines without EXT_mesh_gpu_instancing)"},                            \
+    {"--check", OPT_FLAG, &(g).check, NULL,                                                                    \
      "measure the mesh (sails, slivers, welding, leaf gaps, ground, LOD ratios; docs/mesh.md) into the report"}
-void sy_glb_cli_reset(void);
-int sy_glb_cli_apply(const char *command, sy_tree_asset_options *o);
+sy_glb_args sy_glb_args_default(void);
+void sy_glb_args_apply(const sy_glb_args *g, sy_tree_asset_options *o);
 
 /* What was written, for reports. */
 typedef struct {
@@ -79,13 +85,19 @@ typedef struct {
 
 /* species may be NULL: default materials and leaf cards. extras_json (may be
  * NULL) is merged into asset.extras next to the species name. */
-sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, const sy_species *species,
+sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, const sy_species_params *species,
                             const sy_tree_asset_options *opt, sy_asset *out, sy_tree_asset_report *rep,
                             sy_error *err);
 
-/* Builds and writes path (.glb) atomically. */
+/* Builds and exports: *glb (malloc'd, the caller frees) and *size; name
+ * names the output in messages. rep->bytes gets the size. */
+sy_code sy_tree_asset_glb(const sy_skeleton *skel, const sy_leaves *leaves, const sy_species_params *species,
+                          const sy_tree_asset_options *opt, const char *name, unsigned char **glb, size_t *size,
+                          sy_tree_asset_report *rep, sy_error *err);
+
+/* sy_tree_asset_glb, then writes path (.glb) atomically. */
 sy_code sy_tree_asset_write(const char *path, const sy_skeleton *skel, const sy_leaves *leaves,
-                            const sy_species *species, const sy_tree_asset_options *opt, sy_tree_asset_report *rep,
+                            const sy_species_params *species, const sy_tree_asset_options *opt, sy_tree_asset_report *rep,
                             sy_error *err);
 
 /* Prints the report as text (stderr). */
@@ -93,5 +105,9 @@ void sy_tree_asset_report_text(const sy_tree_asset_report *rep, const char *path
 /* The "lod_triangles" array (one count per level) into an open JSON object,
  * and "mesh_check" (one object per checked level) when the report has it. */
 void sy_tree_asset_report_lods_json(sy_json *j, const sy_tree_asset_report *rep);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -323,7 +323,7 @@ static sy_code make_leaf(const sy_material_spec *spec, int max_size, float trans
     return *out < 0 ? SY_EINTERNAL : SY_OK;
 }
 
-sy_code sy_species_materials(const sy_material_spec *spec, sy_asset *asset, int *bark_material, int *leaf_material,
+sy_code sy_materials_add(const sy_material_spec *spec, sy_asset *asset, int *bark_material, int *leaf_material,
                              sy_error *err)
 {
     int max_size = spec->max_size > 0 ? spec->max_size : 512;

@@ -7,6 +7,10 @@
 
 #include "stages/core/asset.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     const char *bark_image;  /* path or NULL for a neutral procedural bark */
     const char *leaf_image;  /* RGBA leaf/twig card or NULL for a plain green card */
@@ -15,7 +19,11 @@ typedef struct {
 } sy_material_spec;
 
 /* Adds the bark and leaf materials (and their images) to the asset. */
-sy_code sy_species_materials(const sy_material_spec *spec, sy_asset *asset, int *bark_material,
+sy_code sy_materials_add(const sy_material_spec *spec, sy_asset *asset, int *bark_material,
                              int *leaf_material, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -7,7 +7,7 @@
 #include <stdarg.h>
 #include <stdio.h>
 
-#include "stages/export/gltf_tinygltf.h"
+#include "stages/gltf/gltf_read.h"
 #include "testutil.h"
 
 /* Formats the pointer of a variadic fmt into the char array p. */

@@ -437,7 +437,7 @@ mkdir -p "$tmp/outdir.glb"
 expect "grow -o an existing directory" 2 "$tmp/outdir.glb" --watch "$tmp/outdir.glb" -- \
     grow "$tiny" --lods 1 --no-impostor -o "$tmp/outdir.glb"
 expect "grow without a species is a usage error" 1 "grow" -- grow -o "$out/t.glb"
-expect "grow --lods 0 is a usage error" 1 "--lods" -- grow "$tiny" --lods 0 -o "$out/t.glb"
+expect "grow --lods 0 is a usage error naming the field" 1 "n_lods" -- grow "$tiny" --lods 0 -o "$out/t.glb"
 
 # The tiny species itself must grow, or the cases above test nothing.
 if "$SYLVA" grow "$tiny" --lods 1 --no-impostor --quiet -o "$out/t.glb" 2>"$tmp/stderr" && [ -s "$out/t.glb" ]; then

@@ -9,7 +9,8 @@
 
 #include "stages/clusters/alpha_shape_cgal.h"
 #include "stages/clusters/clusters.h"
-#include "stages/skeleton/skeleton_stage.h"
+#include "pipeline/run_tree.h"
+#include "stages/skeleton/skeleton.h"
 #include "synthetic_tree.h"
 
 static void assert_good_hull(const sy_cluster *c, const float *xyz)
@@ -176,13 +177,14 @@ static void foliage_becomes_clusters(void **state)
     sy_error err = {0};
     assert_int_equal(syn_sample(&t, 40000, 0.4, 0.002, 21, &cloud, &err), SY_OK);
     sy_skeleton_options o;
-    sy_skeleton_options_default(&o);
+    o = sy_skeleton_options_default();
     sy_skeleton s;
     sy_clusters cl;
     sy_skeleton_report r;
-    assert_int_equal(sy_reconstruct_skeleton(&cloud, &o, &s, &cl, &r, &err), SY_OK);
+    sy_hull_report h;
+    assert_int_equal(sy_reconstruct_tree(&cloud, &o, 0, &s, &cl, &r, &h, &err), SY_OK);
     printf("foliage tree: %zu nodes, %zu clusters (%zu alpha, %zu convex, %zu box), %zu of %zu points in clusters\n",
-           r.nodes, r.clusters, r.hulls_alpha, r.hulls_convex, r.hulls_box, r.cluster_points, cloud.n);
+           r.nodes, r.clusters, h.alpha, h.convex, h.box, r.cluster_points, cloud.n);
     /* Most blob points (40% of the cloud) end in clusters. */
     assert_true(cl.n >= 4);
     assert_true(r.cluster_points >= 0.3 * (double)cloud.n);
@@ -199,7 +201,7 @@ static void foliage_becomes_clusters(void **state)
 
     /* Monotone in f_s: a smaller f_s never keeps more on the main skeleton. */
     o.clusters = 0;
-    assert_int_equal(sy_reconstruct_skeleton(&cloud, &o, &s, NULL, NULL, &err), SY_OK);
+    assert_int_equal(sy_reconstruct_tree(&cloud, &o, 0, &s, NULL, NULL, NULL, &err), SY_OK);
     int32_t *prev = malloc(s.n * sizeof *prev), *cur = malloc(s.n * sizeof *cur), *seeds = malloc(s.n * sizeof *seeds);
     double fs[4] = {0.3, 0.6, 0.9, 1.0};
     size_t last_main = 0;

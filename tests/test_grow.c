@@ -10,11 +10,11 @@
 
 #include "stages/grow/grow.h"
 
-static sy_species parse_ok(const char *text)
+static sy_species_params parse_ok(const char *text)
 {
-    sy_species sp;
+    sy_species_params sp;
     sy_error err = {0};
-    sy_code rc = sy_species_parse(text, strlen(text), "test.ini", NULL, &sp, &err);
+    sy_code rc = sy_species_params_parse(text, strlen(text), "test.ini", NULL, &sp, &err);
     if (rc) fprintf(stderr, "%s\n", err.msg);
     assert_int_equal(rc, SY_OK);
     return sp;
@@ -22,9 +22,9 @@ static sy_species parse_ok(const char *text)
 
 static void parse_fails_at(const char *text, int line, const char *needle)
 {
-    sy_species sp;
+    sy_species_params sp;
     sy_error err = {0};
-    assert_int_equal(sy_species_parse(text, strlen(text), "bad.ini", NULL, &sp, &err), SY_EINPUT);
+    assert_int_equal(sy_species_params_parse(text, strlen(text), "bad.ini", NULL, &sp, &err), SY_EINPUT);
     char where[32];
     snprintf(where, sizeof where, "bad.ini:%d: ", line);
     if (!strstr(err.msg, where) || !strstr(err.msg, needle)) fprintf(stderr, "message: %s\n", err.msg);
@@ -54,8 +54,8 @@ static void shape_ratio_known_values(void **state)
     /* Out-of-range ratios are clamped. */
     assert_float_equal(sy_shape_ratio(NULL, 0, 2.0f), 1.0f, eps);
     /* Envelope: peak at 1 - PruneWidthPeak, linear with powers 1, continuous. */
-    sy_species sp;
-    sy_species_defaults(&sp);
+    sy_species_params sp;
+    sp = sy_species_params_default();
     sp.prune_width_peak = 0.5f;
     sp.prune_power_low = sp.prune_power_high = 1;
     assert_float_equal(sy_shape_ratio(&sp, 8, 0.25f), 0.5f, eps);
@@ -97,7 +97,7 @@ static void radius_profiles(void **state)
 
 /* --------------------------------------------------------------- parser */
 
-/* Appendix C of seed 004 as reconstructed in the digest, author typo included. */
+/* Appendix C of the Weber & Penn GPU-trees thesis as reconstructed in the digest, author typo included. */
 static const char appendix_c[] =
     "[General]\nshape=4\nbaseSize=0.1\nscale=23\nscaleV=2\nratio=0.015\nratioPower=0.13\nlobes=3\n"
     "lobeDepth=0.3\nflare=1\nrecLevels=3\nmaterial=../materials/LondonPlaneBark.dds\n"
@@ -119,9 +119,9 @@ static void appendix_c_typo_is_reported_then_parses(void **state)
     char *typo = strstr(fixed, "2BranchesV=0\n3Rotate");
     assert_non_null(typo);
     typo[0] = '3';
-    sy_species sp;
+    sy_species_params sp;
     sy_error err = {0};
-    assert_int_equal(sy_species_parse(fixed, strlen(fixed), "plane.tsp", "/trees/treetypes", &sp, &err), SY_OK);
+    assert_int_equal(sy_species_params_parse(fixed, strlen(fixed), "plane.tsp", "/trees/treetypes", &sp, &err), SY_OK);
     assert_int_equal(sp.shape, 4);
     assert_int_equal(sp.levels, 3);
     assert_float_equal(sp.scale, 23, 0);
@@ -152,7 +152,7 @@ static void appendix_c_typo_is_reported_then_parses(void **state)
         if (sk.order[i] == 1 && sk.branch[i] != sk.branch[sk.parent[i]]) level1++;
     assert_true(level1 >= 9 && level1 <= 11);
     sy_skeleton_free(&sk);
-    sy_species_free(&sp);
+    sy_species_params_free(&sp);
 }
 
 static void parser_errors_name_file_and_line(void **state)
@@ -171,37 +171,39 @@ static void parser_errors_name_file_and_line(void **state)
     parse_fails_at("[General]\nShape 4\n", 2, "expected key = value");
     parse_fails_at("[Sylva]\ntranslucency=1.5\n", 2, "outside");
     parse_fails_at("[ParamLevel7]\n", 1, "unknown section");
-    sy_species ok = parse_ok("[ParamLevel0]\n0Scale=1.5\n");
+    sy_species_params ok = parse_ok("[ParamLevel0]\n0Scale=1.5\n");
     assert_float_equal(ok.scale0, 1.5f, 0);
-    sy_species_free(&ok);
+    sy_species_params_free(&ok);
     parse_fails_at("[ParamLevel1]\n0Scale=1.5\n", 2, "misplaced key 0Scale");
     /* Whole-file consistency has no line. */
-    sy_species sp;
+    sy_species_params sp;
     sy_error err = {0};
     const char *t = "[General]\nScale=5\nScaleV=6\n";
-    assert_int_equal(sy_species_parse(t, strlen(t), "x.ini", NULL, &sp, &err), SY_EINPUT);
+    assert_int_equal(sy_species_params_parse(t, strlen(t), "x.ini", NULL, &sp, &err), SY_EINPUT);
     assert_non_null(strstr(err.msg, "x.ini: ScaleV"));
     /* A missing file names its path. */
-    assert_int_equal(sy_species_load("/nonexistent/oak.ini", &sp, &err), SY_EINPUT);
+    assert_int_equal(sy_species_params_load("/nonexistent/oak.ini", &sp, &err), SY_EINPUT);
     assert_non_null(strstr(err.msg, "/nonexistent/oak.ini"));
-    assert_int_equal(sy_species_find("no_such_tree", &sp, &err), SY_EINPUT);
-    assert_non_null(strstr(err.msg, "no_such_tree.ini"));
-    assert_int_equal(sy_species_find("../etc", &sp, &err), SY_EINPUT);
+    assert_int_equal(sy_species_params_find("no_such_tree", &sp, &err), SY_EINPUT);
+    /* A name the manifest lacks names itself and the manifest. */
+    assert_non_null(strstr(err.msg, "\"no_such_tree\""));
+    assert_non_null(strstr(err.msg, "library.tsv"));
+    assert_int_equal(sy_species_params_find("../etc", &sp, &err), SY_EINPUT);
 }
 
 static void find_resolves_library_names(void **state)
 {
     (void)state;
-    sy_species sp;
+    sy_species_params sp;
     sy_error err = {0};
-    assert_int_equal(sy_species_find("quaking_aspen", &sp, &err), SY_OK);
+    assert_int_equal(sy_species_params_find("quaking_aspen", &sp, &err), SY_OK);
     assert_string_equal(sp.name, "quaking_aspen");
     assert_non_null(sp.bark_texture);
     assert_non_null(sp.leaf_texture);
     assert_true(file_exists(sp.bark_texture));
     assert_true(file_exists(sp.leaf_texture));
     assert_non_null(strstr(sp.leaf_texture, SYLVA_SPECIES_DIR));
-    sy_species_free(&sp);
+    sy_species_params_free(&sp);
 }
 
 /* ----------------------------------------------------------- structure */
@@ -267,7 +269,7 @@ static float tree_height(const sy_skeleton *sk)
 static void straight_trunk_height_is_scale_times_length(void **state)
 {
     (void)state;
-    sy_species sp = parse_ok("[General]\nScale=10\nScaleV=0\nLevels=1\nFlare=0\nLeaves=0\n"
+    sy_species_params sp = parse_ok("[General]\nScale=10\nScaleV=0\nLevels=1\nFlare=0\nLeaves=0\n"
                              "[ParamLevel0]\n0Length=0.8\n0Curve=0\n0CurveV=0\n0CurveRes=6\n");
     sy_skeleton sk;
     sy_error err = {0};
@@ -285,7 +287,7 @@ static void straight_trunk_height_is_scale_times_length(void **state)
     assert_int_equal(sy_grow_tree(&sp, 3, &sk, NULL, &err), SY_OK);
     assert_float_equal(tree_height(&sk), 12.0f, 1e-4f);
     sy_skeleton_free(&sk);
-    sy_species_free(&sp);
+    sy_species_params_free(&sp);
 }
 
 static float branch_length(const sy_skeleton *sk, int32_t b)
@@ -300,7 +302,7 @@ static float branch_length(const sy_skeleton *sk, int32_t b)
 static void branch_counts_follow_the_formula(void **state)
 {
     (void)state;
-    sy_species sp = parse_ok("[General]\nShape=4\nBaseSize=0.2\nScale=12\nScaleV=0\nLevels=3\nLeaves=0\n"
+    sy_species_params sp = parse_ok("[General]\nShape=4\nBaseSize=0.2\nScale=12\nScaleV=0\nLevels=3\nLeaves=0\n"
                              "[ParamLevel0]\n0CurveV=0\n"
                              "[ParamLevel1]\n1Branches=12\n1Length=0.4\n1LengthV=0\n1DownAngle=60\n1DownAngleV=0\n"
                              "1Curve=0\n1CurveV=0\n1CurveRes=4\n"
@@ -339,13 +341,13 @@ static void branch_counts_follow_the_formula(void **state)
     assert_int_equal(checked, 12);
     free(children);
     sy_skeleton_free(&sk);
-    sy_species_free(&sp);
+    sy_species_params_free(&sp);
 }
 
 static void leaf_count_matches_the_formula(void **state)
 {
     (void)state;
-    sy_species sp = parse_ok("[General]\nShape=0\nBaseSize=0.2\nScale=10\nScaleV=0\nLevels=2\nLeaves=20\n"
+    sy_species_params sp = parse_ok("[General]\nShape=0\nBaseSize=0.2\nScale=10\nScaleV=0\nLevels=2\nLeaves=20\n"
                              "LeafQuality=1\nLeafScale=0.2\n"
                              "[ParamLevel1]\n1Branches=8\n1Length=0.3\n1LengthV=0\n1CurveRes=3\n");
     sy_skeleton sk;
@@ -369,15 +371,15 @@ static void leaf_count_matches_the_formula(void **state)
     }
     sy_leaves_free(&lv);
     sy_skeleton_free(&sk);
-    sy_species_free(&sp);
+    sy_species_params_free(&sp);
 }
 
 static void seeds_are_deterministic_and_distinct(void **state)
 {
     (void)state;
-    sy_species sp;
+    sy_species_params sp;
     sy_error err = {0};
-    assert_int_equal(sy_species_find("black_oak", &sp, &err), SY_OK);
+    assert_int_equal(sy_species_params_find("black_oak", &sp, &err), SY_OK);
     sy_skeleton a, b, c;
     sy_leaves la, lb, lc;
     assert_int_equal(sy_grow_tree(&sp, 42, &a, &la, &err), SY_OK);
@@ -401,13 +403,13 @@ static void seeds_are_deterministic_and_distinct(void **state)
     sy_leaves_free(&la);
     sy_leaves_free(&lb);
     sy_leaves_free(&lc);
-    sy_species_free(&sp);
+    sy_species_params_free(&sp);
 }
 
 static void base_splits_make_clone_trunks(void **state)
 {
     (void)state;
-    sy_species sp = parse_ok("[General]\nScale=10\nScaleV=0\nLevels=2\nLeaves=0\n"
+    sy_species_params sp = parse_ok("[General]\nScale=10\nScaleV=0\nLevels=2\nLeaves=0\n"
                              "[ParamLevel0]\n0BaseSplits=2\n0SplitAngle=25\n0CurveRes=5\n"
                              "[ParamLevel1]\n1Branches=10\n");
     sy_skeleton sk;
@@ -419,7 +421,7 @@ static void base_splits_make_clone_trunks(void **state)
         if (sk.order[i] == 0 && (sk.parent[i] < 0 || is_branch_start(&sk, i))) trunks++;
     assert_int_equal(trunks, 3);
     sy_skeleton_free(&sk);
-    sy_species_free(&sp);
+    sy_species_params_free(&sp);
 }
 
 static float crown_radius(const sy_skeleton *sk)
@@ -435,7 +437,7 @@ static void pruning_pulls_branches_into_the_envelope(void **state)
     const char *base = "[General]\nShape=3\nBaseSize=0.2\nScale=10\nScaleV=0\nLevels=2\nLeaves=0\n"
                        "PruneWidth=0.2\nPruneWidthPeak=0.5\nPrunePowerLow=0.5\nPrunePowerHigh=0.5\n"
                        "[ParamLevel1]\n1Branches=20\n1Length=0.6\n1DownAngle=80\n1DownAngleV=0\n";
-    sy_species sp = parse_ok(base);
+    sy_species_params sp = parse_ok(base);
     sy_skeleton free_tree, pruned;
     sy_error err = {0};
     assert_int_equal(sy_grow_tree(&sp, 9, &free_tree, NULL, &err), SY_OK);
@@ -446,25 +448,25 @@ static void pruning_pulls_branches_into_the_envelope(void **state)
     assert_true(crown_radius(&pruned) < 0.2f * 10 * 1.05f);
     sy_skeleton_free(&free_tree);
     sy_skeleton_free(&pruned);
-    sy_species_free(&sp);
+    sy_species_params_free(&sp);
 }
 
 static void runaway_files_fail_cleanly(void **state)
 {
     (void)state;
-    sy_species sp = parse_ok("[General]\nLevels=4\nLeaves=0\n[ParamLevel1]\n1Branches=1000\n"
+    sy_species_params sp = parse_ok("[General]\nLevels=4\nLeaves=0\n[ParamLevel1]\n1Branches=1000\n"
                              "[ParamLevel2]\n2Branches=1000\n[ParamLevel3]\n3Branches=1000\n");
     sy_skeleton sk;
     sy_error err = {0};
     assert_int_equal(sy_grow_tree(&sp, 1, &sk, NULL, &err), SY_EINPUT);
     assert_non_null(strstr(err.msg, "exceeds"));
     assert_int_equal(sk.n, 0);
-    sy_species_free(&sp);
+    sy_species_params_free(&sp);
 }
 
 /* ------------------------------------------------------------- library */
 
-static int species_with_taper_at_most_2(const sy_species *sp)
+static int species_with_taper_at_most_2(const sy_species_params *sp)
 {
     for (int k = 0; k < SY_WP_LEVELS; k++)
         if (sp->level[k].taper > 2) return 0;
@@ -483,9 +485,9 @@ static void every_library_species_grows(void **state)
         if (len < 5 || strcmp(e->d_name + len - 4, ".ini") != 0) continue;
         char name[256];
         snprintf(name, sizeof name, "%.*s", (int)(len - 4), e->d_name);
-        sy_species sp;
+        sy_species_params sp;
         sy_error err = {0};
-        if (sy_species_find(name, &sp, &err)) fprintf(stderr, "%s\n", err.msg);
+        if (sy_species_params_find(name, &sp, &err)) fprintf(stderr, "%s\n", err.msg);
         assert_int_equal(err.code, SY_OK);
         assert_string_equal(sp.name, name);
         assert_true(sp.scale >= 8 && sp.scale <= 30);
@@ -503,7 +505,7 @@ static void every_library_species_grows(void **state)
             sy_skeleton_free(&sk);
             sy_leaves_free(&lv);
         }
-        sy_species_free(&sp);
+        sy_species_params_free(&sp);
         count++;
     }
     closedir(d);

@@ -9,7 +9,7 @@
 #include <string.h>
 
 #include "stages/qsm/leaf_placement.h"
-#include "stages/qsm/qsm_io.h"
+#include "stages/qsm/qsm.h"
 
 static void rotate(const float q[4], const double v[3], double out[3])
 {
@@ -35,15 +35,15 @@ static void read_qsm(sy_skeleton *s)
 static void density_from_species(void **state)
 {
     (void)state;
-    sy_species sp;
+    sy_species_params sp;
     sy_error err = {0};
-    assert_int_equal(sy_species_find("quaking_aspen", &sp, &err), SY_OK);
+    assert_int_equal(sy_species_params_find("quaking_aspen", &sp, &err), SY_OK);
     sy_leaf_placement p = sy_leaf_placement_from_species(&sp, 3);
     /* Leaves 9 on a last-level stem of 13 * 0.9 * 0.3 * 0.6 m. */
     assert_true(fabs(p.per_metre - 9.0 / (13 * 0.9 * 0.3 * 0.6)) < 1e-4);
     assert_true(fabs(p.size - 0.3f) < 1e-6);
     assert_int_equal(p.max_reverse_order, 2);
-    sy_species_free(&sp);
+    sy_species_params_free(&sp);
 }
 
 static void leaves_sit_on_their_twigs(void **state)

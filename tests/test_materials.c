@@ -120,7 +120,7 @@ static void library_textures_become_materials(void **state)
     memset(&asset, 0, sizeof asset);
     sy_error err = {0};
     int bark = -1, leaf = -1;
-    assert_int_equal(sy_species_materials(&spec, &asset, &bark, &leaf, &err), SY_OK);
+    assert_int_equal(sy_materials_add(&spec, &asset, &bark, &leaf, &err), SY_OK);
     assert_int_equal(asset.n_materials, 2);
     assert_int_equal(asset.n_images, 4);
     int w, h, comp;
@@ -179,7 +179,7 @@ static void cards_keep_a_power_of_two_aspect(void **state)
     memset(&asset, 0, sizeof asset);
     sy_error err = {0};
     int bark, leaf;
-    assert_int_equal(sy_species_materials(&spec, &asset, &bark, &leaf, &err), SY_OK);
+    assert_int_equal(sy_materials_add(&spec, &asset, &bark, &leaf, &err), SY_OK);
     int w, h, comp;
     unsigned char *px = decode(image_named(&asset, "leaf_normal"), &w, &h, &comp);
     assert_int_equal(w, 64);
@@ -197,8 +197,8 @@ static void procedural_fallbacks_are_deterministic(void **state)
     memset(&b, 0, sizeof b);
     sy_error err = {0};
     int bark, leaf;
-    assert_int_equal(sy_species_materials(&spec, &a, &bark, &leaf, &err), SY_OK);
-    assert_int_equal(sy_species_materials(&spec, &b, &bark, &leaf, &err), SY_OK);
+    assert_int_equal(sy_materials_add(&spec, &a, &bark, &leaf, &err), SY_OK);
+    assert_int_equal(sy_materials_add(&spec, &b, &bark, &leaf, &err), SY_OK);
     assert_int_equal(a.n_images, 4);
     for (size_t i = 0; i < a.n_images; i++) {
         assert_int_equal(a.images[i].size, b.images[i].size);
@@ -248,7 +248,7 @@ static void leaf_without_alpha_is_cut_from_its_background(void **state)
     memset(&asset, 0, sizeof asset);
     sy_error err = {0};
     int bark, leaf;
-    assert_int_equal(sy_species_materials(&spec, &asset, &bark, &leaf, &err), SY_OK);
+    assert_int_equal(sy_materials_add(&spec, &asset, &bark, &leaf, &err), SY_OK);
     int w, h, comp;
     unsigned char *px = decode(image_named(&asset, "leaf_color"), &w, &h, &comp);
     assert_int_equal(comp, 4);
@@ -267,17 +267,17 @@ static void unreadable_images_are_input_errors(void **state)
     memset(&asset, 0, sizeof asset);
     sy_error err = {0};
     int bark, leaf;
-    assert_int_equal(sy_species_materials(&spec, &asset, &bark, &leaf, &err), SY_EINPUT);
+    assert_int_equal(sy_materials_add(&spec, &asset, &bark, &leaf, &err), SY_EINPUT);
     assert_non_null(strstr(err.msg, "/nonexistent/bark.png"));
     const char *junk = tmp_path("junk.png");
     assert_int_equal(write_bytes(junk, "\x89PNG\r\n\x1a\nnot really", 18), 0);
     spec.bark_image = NULL;
     spec.leaf_image = junk;
-    assert_int_equal(sy_species_materials(&spec, &asset, &bark, &leaf, &err), SY_EINPUT);
+    assert_int_equal(sy_materials_add(&spec, &asset, &bark, &leaf, &err), SY_EINPUT);
     assert_non_null(strstr(err.msg, "junk.png"));
     spec.leaf_image = NULL;
     spec.leaf_translucency = 2;
-    assert_int_equal(sy_species_materials(&spec, &asset, &bark, &leaf, &err), SY_EINPUT);
+    assert_int_equal(sy_materials_add(&spec, &asset, &bark, &leaf, &err), SY_EINPUT);
     sy_asset_free(&asset);
 }
 

@@ -5,13 +5,13 @@
  * a LOD chain without cliffs whose silhouettes stay close to LOD0's. */
 #include "testutil.h"
 
-#include <dirent.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "pipeline/tree_asset.h"
+#include "species/library.h"
 #include "stages/eval/eval.h"
 #include "stages/grow/grow.h"
 
@@ -72,9 +72,9 @@ static void check_asset(const char *name, const sy_tree_asset_report *rep)
 static void species_assets_survive_a_close_look(void **state)
 {
     const char *name = *state;
-    sy_species sp;
+    sy_species_params sp;
     sy_error err = {0};
-    assert_int_equal(sy_species_find(name, &sp, &err), SY_OK);
+    assert_int_equal(sy_species_params_find(name, &sp, &err), SY_OK);
     for (uint64_t seed = 1; seed <= 2; seed++) {
         sy_skeleton sk;
         sy_leaves lv;
@@ -92,32 +92,21 @@ static void species_assets_survive_a_close_look(void **state)
         sy_skeleton_free(&sk);
         sy_leaves_free(&lv);
     }
-    sy_species_free(&sp);
+    sy_species_params_free(&sp);
 }
-
-static int cmp_name(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
 
 int main(void)
 {
-    /* Every species file of the library. */
-    static char names[64][64];
-    static char *sorted[64];
-    size_t n = 0;
-    DIR *d = opendir(SYLVA_SOURCE_DIR "/species");
-    if (!d) return fprintf(stderr, "no species folder\n"), 1;
-    for (struct dirent *e; (e = readdir(d)) && n < 64;) {
-        size_t len = strlen(e->d_name);
-        if (len > 4 && len < 64 && !strcmp(e->d_name + len - 4, ".ini")) {
-            memcpy(names[n], e->d_name, len - 4);
-            names[n][len - 4] = 0;
-            sorted[n] = names[n];
-            n++;
-        }
-    }
-    closedir(d);
-    qsort(sorted, n, sizeof *sorted, cmp_name);
+    /* Every species of the library manifest. */
+    static sy_library lib;
+    sy_error err = {0};
+    if (sy_library_load(NULL, &lib, &err) != SY_OK) return fprintf(stderr, "%s\n", err.msg), 1;
+    size_t n = lib.n < 64 ? lib.n : 64;
     struct CMUnitTest tests[64];
     for (size_t i = 0; i < n; i++)
-        tests[i] = (struct CMUnitTest){sorted[i], species_assets_survive_a_close_look, NULL, NULL, sorted[i]};
-    return _cmocka_run_group_tests("mesh_quality", tests, n, NULL, NULL);
+        tests[i] = (struct CMUnitTest){lib.entries[i].name, species_assets_survive_a_close_look, NULL, NULL,
+                                       (void *)lib.entries[i].name};
+    int rc = _cmocka_run_group_tests("mesh_quality", tests, n, NULL, NULL);
+    sy_library_free(&lib);
+    return rc;
 }

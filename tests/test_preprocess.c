@@ -130,21 +130,21 @@ static void test_up_parse(void **state)
     assert_int_equal(sy_up_parse("", &up), -1);
     assert_string_equal(sy_up_name(-SY_UP_Y), "-y");
 
-    sy_preprocess_opts o;
+    sy_preprocess_options o;
     sy_error err;
-    sy_preprocess_defaults(&o);
-    assert_int_equal(sy_preprocess_check(&o, &err), SY_OK);
+    o = sy_preprocess_options_default();
+    assert_int_equal(sy_preprocess_options_check(&o, &err), SY_OK);
     o.voxel = -1;
-    assert_int_equal(sy_preprocess_check(&o, &err), SY_EUSAGE);
+    assert_int_equal(sy_preprocess_options_check(&o, &err), SY_EUSAGE);
     assert_non_null(strstr(err.msg, "--voxel"));
-    sy_preprocess_defaults(&o);
+    o = sy_preprocess_options_default();
     o.crop = 1;
     double box[6] = {0, 0, 0, -1, 1, 1};
     memcpy(o.crop_box, box, sizeof box);
-    assert_int_equal(sy_preprocess_check(&o, &err), SY_EUSAGE);
-    sy_preprocess_defaults(&o);
+    assert_int_equal(sy_preprocess_options_check(&o, &err), SY_EUSAGE);
+    o = sy_preprocess_options_default();
     o.ground_cell = 0;
-    assert_int_equal(sy_preprocess_check(&o, &err), SY_EUSAGE);
+    assert_int_equal(sy_preprocess_options_check(&o, &err), SY_EUSAGE);
 }
 
 /* ------------------------------------------------------------------- steps */
@@ -174,8 +174,8 @@ static void test_ground(void **state)
     make_scene(&s, 12, 1);
     sy_error err;
     assert_int_equal(sy_remove_outliers(&s.c, 16, 2.0, &err), SY_OK);
-    sy_preprocess_opts o;
-    sy_preprocess_defaults(&o);
+    sy_preprocess_options o;
+    o = sy_preprocess_options_default();
     size_t n_ground = 0;
     assert_int_equal(sy_classify_ground(&s.c, &o, &n_ground, &err), SY_OK);
     const double *label = sy_cloud_attr(&s.c, "label"), *hag = sy_cloud_attr(&s.c, "height_above_ground");
@@ -493,8 +493,8 @@ static void test_pipeline(void **state)
     scene s;
     make_scene(&s, 17, 1);
     rotate_from_z_up(&s.c, 2); /* a Y-up scan */
-    sy_preprocess_opts o;
-    sy_preprocess_defaults(&o);
+    sy_preprocess_options o;
+    o = sy_preprocess_options_default();
     o.voxel = 0.05;
     sy_preprocess_result r;
     sy_error err;

@@ -9,7 +9,7 @@
 #include <string.h>
 
 #include "stages/grow/grow.h"
-#include "stages/qsm/qsm_io.h"
+#include "stages/qsm/qsm.h"
 
 /* ------------------------------------------------------------ a plain CSV table */
 
@@ -111,11 +111,11 @@ static double assert_same_skeleton(const sy_skeleton *a, const sy_skeleton *b)
 
 static void grow_aspen(sy_skeleton *s)
 {
-    sy_species sp;
+    sy_species_params sp;
     sy_error err = {0};
-    assert_int_equal(sy_species_find("quaking_aspen", &sp, &err), SY_OK);
+    assert_int_equal(sy_species_params_find("quaking_aspen", &sp, &err), SY_OK);
     assert_int_equal(sy_grow_tree(&sp, 7, s, NULL, &err), SY_OK);
-    sy_species_free(&sp);
+    sy_species_params_free(&sp);
 }
 
 static size_t zero_length_edges(const sy_skeleton *s)

@@ -215,7 +215,7 @@ static void cylinder_scene(sy_scene *s)
     sy_skeleton_free(&sk);
 }
 
-static void scan_ok(const sy_scene *s, const sy_scanner *sc, sy_cloud *c)
+static void scan_ok(const sy_scene *s, const sy_scan_options *sc, sy_cloud *c)
 {
     sy_error err = {0};
     sy_code rc = sy_scan(s, sc, c, NULL, &err);
@@ -223,9 +223,9 @@ static void scan_ok(const sy_scene *s, const sy_scanner *sc, sy_cloud *c)
     assert_int_equal(rc, SY_OK);
 }
 
-static void tls(sy_scanner *sc, double step, double noise, double divergence)
+static void tls(sy_scan_options *sc, double step, double noise, double divergence)
 {
-    sy_scanner_defaults(sc, SY_SCANNER_TERRESTRIAL);
+    *sc = sy_scan_options_for(SY_SCANNER_TERRESTRIAL);
     sc->positions = 4;
     sc->radius = 5;
     sc->step_deg = step;
@@ -238,7 +238,7 @@ static void cylinder_surface_and_coverage(void **state)
     (void)state;
     sy_scene s;
     cylinder_scene(&s);
-    sy_scanner sc;
+    sy_scan_options sc;
     tls(&sc, 0.05, 0, 0.3);
     sy_cloud c;
     scan_ok(&s, &sc, &c);
@@ -270,7 +270,7 @@ static void cylinder_range_noise(void **state)
     sy_scene s;
     cylinder_scene(&s);
     const double sigma = 0.005;
-    sy_scanner sc;
+    sy_scan_options sc;
     tls(&sc, 0.1, 0, 0);
     sy_cloud clean, noisy;
     scan_ok(&s, &sc, &clean);
@@ -311,9 +311,9 @@ static size_t count_wood(const sy_cloud *c)
 static void leaves_occlude_wood(void **state)
 {
     (void)state;
-    sy_species sp;
+    sy_species_params sp;
     sy_error err = {0};
-    assert_int_equal(sy_species_find("quaking_aspen", &sp, &err), SY_OK);
+    assert_int_equal(sy_species_params_find("quaking_aspen", &sp, &err), SY_OK);
     sy_skeleton sk;
     sy_leaves lv;
     assert_int_equal(sy_grow_tree(&sp, 1, &sk, &lv, &err), SY_OK);
@@ -325,7 +325,7 @@ static void leaves_occlude_wood(void **state)
         assert_int_equal(sy_scene_add_tree(&s, &sk, with ? &lv : NULL, sp.leaf_scale_x, 1, sp.name, 6, 1, pos, 0, &err),
                          SY_OK);
         assert_int_equal(sy_scene_finish(&s, &err), SY_OK);
-        sy_scanner sc;
+        sy_scan_options sc;
         tls(&sc, 0.4, 0.005, 0.3);
         sc.radius = 10;
         sy_cloud c;
@@ -338,13 +338,13 @@ static void leaves_occlude_wood(void **state)
     assert_true(wood[1] < wood[0] * 0.9);
     sy_skeleton_free(&sk);
     sy_leaves_free(&lv);
-    sy_species_free(&sp);
+    sy_species_params_free(&sp);
 }
 
 static void small_plot(sy_scene *s, uint64_t seed)
 {
-    sy_scene_opts o;
-    sy_scene_opts_defaults(&o);
+    sy_scene_options o;
+    o = sy_scene_options_default();
     o.species[0] = "quaking_aspen";
     o.species[1] = "european_pine";
     o.n_species = 2;
@@ -359,9 +359,9 @@ static void small_plot(sy_scene *s, uint64_t seed)
     assert_int_equal(rc, SY_OK);
 }
 
-static void plot_scanner(sy_scanner *sc, uint64_t seed)
+static void plot_scanner(sy_scan_options *sc, uint64_t seed)
 {
-    sy_scanner_defaults(sc, SY_SCANNER_TERRESTRIAL);
+    *sc = sy_scan_options_for(SY_SCANNER_TERRESTRIAL);
     sc->step_deg = 0.5;
     sc->seed = seed;
 }
@@ -383,7 +383,7 @@ static void deterministic_across_threads_and_runs(void **state)
     setenv("SOURCE_DATE_EPOCH", "1700000000", 1);
     sy_scene s;
     small_plot(&s, 4);
-    sy_scanner sc;
+    sy_scan_options sc;
     plot_scanner(&sc, 4);
     sy_cloud one, two, again;
     sy_set_threads(1);
@@ -421,7 +421,7 @@ static void deterministic_across_threads_and_runs(void **state)
     sy_scene_free(&s2);
 }
 
-static char *truth_text(const sy_scene *s, const sy_scanner *sc)
+static char *truth_text(const sy_scene *s, const sy_scan_options *sc)
 {
     const char *path = tmp_path("truth.json");
     FILE *fp = fopen(path, "w");
@@ -481,7 +481,7 @@ static void truth_dbh_and_tree_ids(void **state)
     sy_scene_init(&s);
     double pos[3] = {2, 3, 1};
     assert_int_equal(sy_scene_add_tree(&s, &sk, NULL, 0.5f, 1, "cone", -1, 9, pos, 30, &err), SY_OK);
-    sy_scanner sc;
+    sy_scan_options sc;
     plot_scanner(&sc, 1);
     char *text = truth_text(&s, &sc);
     assert_float_equal(json_number(text, "dbh", 0), 2 * (0.3 - 0.04 * 1.3), 1e-3);
@@ -535,8 +535,8 @@ static void airborne_density_on_flat_ground(void **state)
     assert_int_equal(sy_scene_finish(&s, &err), SY_OK);
     const double density[2] = {4, 15};
     for (int k = 0; k < 2; k++) {
-        sy_scanner sc;
-        sy_scanner_defaults(&sc, SY_SCANNER_AIRBORNE);
+        sy_scan_options sc;
+        sc = sy_scan_options_for(SY_SCANNER_AIRBORNE);
         sc.altitude = 30;
         sc.density = density[k];
         sy_cloud c;

@@ -8,7 +8,8 @@
 #include <string.h>
 
 #include "stages/core/fileio.h"
-#include "stages/skeleton/skeleton_stage.h"
+#include "pipeline/run_tree.h"
+#include "stages/skeleton/skeleton.h"
 #include "synthetic_tree.h"
 #include "xyz_text.h"
 
@@ -75,8 +76,8 @@ static void sample_and_reconstruct(const syn_tree *t, size_t n, uint64_t seed, s
     sy_error err = {0};
     assert_int_equal(syn_sample(t, n, 0, 0.002, seed, c, &err), SY_OK);
     sy_skeleton_options o;
-    sy_skeleton_options_default(&o);
-    assert_int_equal(sy_reconstruct_skeleton(c, &o, s, cl, r, &err), SY_OK);
+    o = sy_skeleton_options_default();
+    assert_int_equal(sy_reconstruct_tree(c, &o, 0, s, cl, r, NULL, &err), SY_OK);
 }
 
 static void synthetic_tree_is_recovered(void **state)
@@ -182,17 +183,17 @@ static void dbh_is_measured_from_the_ground(void **state)
         }
     c.n = m;
     sy_skeleton_options o;
-    sy_skeleton_options_default(&o);
+    o = sy_skeleton_options_default();
     sy_skeleton s;
     sy_clusters cl;
     sy_skeleton_report from_base, from_ground;
-    assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, &from_base, &err), SY_OK);
+    assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, &from_base, NULL, &err), SY_OK);
     sy_skeleton_free(&s);
     sy_clusters_free(&cl);
     double *hag = sy_cloud_add_attr(&c, "height_above_ground", &err);
     assert_non_null(hag);
     for (size_t i = 0; i < c.n; i++) hag[i] = c.origin[2] + c.xyz[3 * i + 2]; /* flat ground at z = 0 */
-    assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, &from_ground, &err), SY_OK);
+    assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, &from_ground, NULL, &err), SY_OK);
     double truth = 2 * syn_trunk_radius(1.3);
     printf("DBH without ground %.4f, with %.4f, truth %.4f; height %.2f / %.2f\n", from_base.dbh, from_ground.dbh,
            truth, from_base.height, from_ground.height);
@@ -335,15 +336,16 @@ static void real_trees_reconstruct(void **state)
         assert_int_equal(load_xyz(data_path(files[f]), &c), 0);
         assert_true(c.n > 1000);
         sy_skeleton_options o;
-        sy_skeleton_options_default(&o);
+        o = sy_skeleton_options_default();
         sy_skeleton s;
         sy_clusters cl;
         sy_skeleton_report r;
         sy_error err = {0};
-        assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, &r, &err), SY_OK);
+        sy_hull_report h;
+        assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, &r, &h, &err), SY_OK);
         printf("%s: %zu points, %zu nodes, %zu branches, %zu clusters (%zu alpha, %zu convex, %zu box), "
                "DBH %.3f m (%s), height %.2f m, %.2f s\n",
-               files[f], c.n, r.nodes, r.branches, r.clusters, r.hulls_alpha, r.hulls_convex, r.hulls_box, r.dbh,
+               files[f], c.n, r.nodes, r.branches, r.clusters, h.alpha, h.convex, h.box, r.dbh,
                r.dbh_fitted ? "fit" : "fallback", r.height, r.t_total);
         assert_int_equal(sy_skeleton_validate(&s, &err), SY_OK);
         assert_radii_taper(&s);
@@ -362,17 +364,22 @@ static void rejects_tiny_and_bad_options(void **state)
     sy_error err = {0};
     assert_int_equal(sy_cloud_init(&c, 5, &err), SY_OK);
     sy_skeleton_options o;
-    sy_skeleton_options_default(&o);
+    o = sy_skeleton_options_default();
     sy_skeleton s;
     sy_clusters cl;
-    assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, NULL, &err), SY_EINPUT);
+    assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, NULL, NULL, &err), SY_EINPUT);
     assert_non_null(strstr(err.msg, "too few"));
     sy_cloud_free(&c);
     syn_tree t;
     syn_tree_make(&t, 0, 0);
     assert_int_equal(syn_sample(&t, 2000, 0, 0.002, 1, &c, &err), SY_OK);
-    o.fs = 1.5;
-    assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, NULL, &err), SY_EINPUT);
+    o.fs = 1.5; /* a bad option is the stage's usage error, naming the field */
+    assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, NULL, NULL, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "fs"));
+    o = sy_skeleton_options_default();
+    o.k = 40; /* was clamped to 32 without a word */
+    assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, NULL, NULL, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "k 40"));
     sy_cloud_free(&c);
 }
 

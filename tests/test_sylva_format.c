@@ -10,9 +10,10 @@
 #include <string.h>
 
 #include "stages/core/fileio.h"
-#include "stages/encode/sylva_format.h"
-#include "stages/qsm/qsm_io.h"
-#include "stages/skeleton/skeleton_stage.h"
+#include "stages/encode/encode.h"
+#include "stages/qsm/qsm.h"
+#include "pipeline/run_tree.h"
+#include "stages/skeleton/skeleton.h"
 #include "synthetic_tree.h"
 #include "xyz_text.h"
 
@@ -138,11 +139,11 @@ static void real_trees_round_trip_under_40kB(void **state)
         sy_cloud c;
         assert_int_equal(load_xyz(data_path(files[f]), &c), 0);
         sy_skeleton_options o;
-        sy_skeleton_options_default(&o);
+        o = sy_skeleton_options_default();
         sy_skeleton s;
         sy_clusters cl;
         sy_error err = {0};
-        assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, NULL, &err), SY_OK);
+        assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, NULL, NULL, &err), SY_OK);
         round_trip(names[f], &s, &cl);
         sy_clusters_free(&cl);
         sy_skeleton_free(&s);
@@ -161,10 +162,10 @@ static void synthetic_tree_round_trips(void **state)
     c.origin[0] = 1.17e6; /* survey coordinates survive in the double origin */
     c.origin[1] = -4.2e5;
     sy_skeleton_options o;
-    sy_skeleton_options_default(&o);
+    o = sy_skeleton_options_default();
     sy_skeleton s;
     sy_clusters cl;
-    assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, NULL, &err), SY_OK);
+    assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, NULL, NULL, &err), SY_OK);
     round_trip("synthetic.sylva", &s, &cl);
     /* Same input, same bytes, whatever ran before in the process (CGAL's
      * facet order follows heap addresses; the hull builder must not). */
@@ -173,7 +174,7 @@ static void synthetic_tree_round_trips(void **state)
     assert_int_equal(sy_encode_mem(&s, &cl, 0, 1, NULL, &a, &na, &err), SY_OK);
     sy_clusters_free(&cl);
     sy_skeleton_free(&s);
-    assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, NULL, &err), SY_OK);
+    assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, NULL, NULL, &err), SY_OK);
     assert_int_equal(sy_encode_mem(&s, &cl, 0, 1, NULL, &b, &nb, &err), SY_OK);
     assert_int_equal(na, nb);
     assert_memory_equal(a, b, na);

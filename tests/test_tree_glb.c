@@ -17,7 +17,7 @@
 enum { INSTANCED, BAKED };
 
 typedef struct {
-    sy_species sp;
+    sy_species_params sp;
     sy_skeleton sk;
     sy_leaves lv;
     uint64_t seed;
@@ -35,7 +35,7 @@ static void grow_and_write(const char *species, uint64_t seed, grown *g)
 {
     memset(g, 0, sizeof *g);
     sy_error err = {0};
-    assert_int_equal(sy_species_find(species, &g->sp, &err), SY_OK);
+    assert_int_equal(sy_species_params_find(species, &g->sp, &err), SY_OK);
     g->seed = seed;
     sy_code rc = sy_grow_tree(&g->sp, seed, &g->sk, &g->lv, &err);
     if (rc) fprintf(stderr, "%s\n", err.msg);
@@ -95,7 +95,7 @@ static void grow_and_write(const char *species, uint64_t seed, grown *g)
 
 static void grown_free(grown *g)
 {
-    sy_species_free(&g->sp);
+    sy_species_params_free(&g->sp);
     sy_skeleton_free(&g->sk);
     sy_leaves_free(&g->lv);
     free(g->first), free(g->rank), free(g->ride), free(g->order), free(g->depth);
@@ -314,8 +314,8 @@ static void extras_regrow_the_same_tree(void **state)
     assert_string_equal(sy_gltf_string(f, "/asset/extras/parameters/Sylva/bark", tex, sizeof tex), "textures/bark.png");
     sy_gltf_close(f);
 
-    sy_species sp;
-    sy_code rc = sy_species_parse(ini, len, "extras.ini", SYLVA_SPECIES_DIR, &sp, &err);
+    sy_species_params sp;
+    sy_code rc = sy_species_params_parse(ini, len, "extras.ini", SYLVA_SPECIES_DIR, &sp, &err);
     if (rc) fprintf(stderr, "%s\n%s", err.msg, ini);
     assert_int_equal(rc, SY_OK);
     free(ini);
@@ -323,8 +323,8 @@ static void extras_regrow_the_same_tree(void **state)
     assert_string_equal(sp.bark_texture, g->sp.bark_texture);
     assert_string_equal(sp.leaf_texture, g->sp.leaf_texture);
     /* Numbers: the structs match byte for byte once the strings are set
-     * aside (both start from sy_species_defaults' zeroed struct). */
-    sy_species a = g->sp, b = sp;
+     * aside (both start from sy_species_params_default' zeroed struct). */
+    sy_species_params a = g->sp, b = sp;
     a.name = a.bark_texture = a.leaf_texture = a.material = a.material_normal = NULL;
     b.name = b.bark_texture = b.leaf_texture = b.material = b.material_normal = NULL;
     assert_memory_equal(&a, &b, sizeof a);
@@ -336,7 +336,7 @@ static void extras_regrow_the_same_tree(void **state)
     assert_memory_equal(sk.radius, g->sk.radius, sk.n * sizeof(float));
     assert_memory_equal(sk.parent, g->sk.parent, sk.n * sizeof(int32_t));
     sy_skeleton_free(&sk);
-    sy_species_free(&sp);
+    sy_species_params_free(&sp);
 }
 
 /* Significant digits of the number text [from, to): no sign, no leading or

@@ -11,6 +11,7 @@
 
 #include <cmocka.h>
 
+#include "pipeline/run_tree.h"
 #include "stages/skeleton/skeleton_internal.h"
 #include "tests/synthetic_tree.h"
 
@@ -80,13 +81,13 @@ static void reconstruction_with_separation_keeps_every_point_once(void **state)
     sy_error err = {0};
     assert_int_equal(syn_sample(&t, N_POINTS, BLOB_FRAC, 0.002, 7, &c, &err), SY_OK);
     sy_skeleton_options o;
-    sy_skeleton_options_default(&o);
+    o = sy_skeleton_options_default();
     assert_true(o.wood_share == 0); /* opt-in */
     o.wood_share = 0.005;
     sy_skeleton s;
     sy_clusters cl;
     sy_skeleton_report r;
-    assert_int_equal(sy_reconstruct_skeleton(&c, &o, &s, &cl, &r, &err), SY_OK);
+    assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, &r, NULL, &err), SY_OK);
     printf("with separation: %zu wood points, %zu nodes, %zu clusters, DBH %.3f\n", r.wood_points, r.nodes, r.clusters,
            r.dbh);
     assert_true(r.wood_points > 0 && r.wood_points < c.n);

@@ -38,7 +38,10 @@ const char *test_tmpdir(void)
 const char *tmp_path(const char *name)
 {
     char *b = rotating();
-    snprintf(b, 4096, "%s/%s", test_tmpdir(), name);
+    if (snprintf(b, 4096, "%s/%s", test_tmpdir(), name) >= 4096) {
+        fprintf(stderr, "tmp_path: %s too long\n", name);
+        exit(1);
+    }
     return b;
 }
 

@@ -10,9 +10,9 @@
 
 static int grow_one(const char *name, uint64_t seed)
 {
-    sy_species sp;
+    sy_species_params sp;
     sy_error err = {0};
-    if (sy_species_find(name, &sp, &err)) {
+    if (sy_species_params_find(name, &sp, &err)) {
         fprintf(stderr, "%s\n", err.msg);
         return 1;
     }
@@ -23,7 +23,7 @@ static int grow_one(const char *name, uint64_t seed)
     double dt = sy_now() - t0;
     if (rc) {
         fprintf(stderr, "%s\n", err.msg);
-        sy_species_free(&sp);
+        sy_species_params_free(&sp);
         return 1;
     }
     float top = 0, lo[2] = {0, 0}, hi[2] = {0, 0};
@@ -44,7 +44,7 @@ static int grow_one(const char *name, uint64_t seed)
            levels[3], lv.n, top, sp.scale, (hi[0] - lo[0] + hi[1] - lo[1]) / 2, sk.radius[0], dt * 1e3);
     sy_skeleton_free(&sk);
     sy_leaves_free(&lv);
-    sy_species_free(&sp);
+    sy_species_params_free(&sp);
     return 0;
 }
 

@@ -82,8 +82,8 @@ static void bench_plot(double voxel)
 {
     sy_cloud c;
     make_plot(&c, 520000, 60000);
-    sy_preprocess_opts o;
-    sy_preprocess_defaults(&o);
+    sy_preprocess_options o;
+    o = sy_preprocess_options_default();
     sy_error err;
     printf("synthetic plot, %zu points, voxel %g:\n", c.n, voxel);
     const char *names[] = {"up", "voxel", "outliers", "ground", "normals"};
@@ -249,8 +249,8 @@ static void bench_trees(const char *dir)
         snprintf(path, sizeof path, "%s/%s", dir, files[f]);
         sy_cloud c;
         if (!load_text(path, &c)) continue;
-        sy_preprocess_opts o;
-        sy_preprocess_defaults(&o);
+        sy_preprocess_options o;
+        o = sy_preprocess_options_default();
         sy_preprocess_result r;
         sy_error err;
         if (sy_preprocess(&c, &o, &r, &err)) printf("failed: %s\n", err.msg);

@@ -12,8 +12,8 @@
 static int run(const char *label, const char *species, double plot, sy_scanner_kind kind, double step,
                double density, int subrays)
 {
-    sy_scene_opts o;
-    sy_scene_opts_defaults(&o);
+    sy_scene_options o;
+    o = sy_scene_options_default();
     o.species[0] = species;
     o.n_species = 1;
     if (plot > 0) {
@@ -31,8 +31,8 @@ static int run(const char *label, const char *species, double plot, sy_scanner_k
         return 1;
     }
     double t_build = sy_now() - t0;
-    sy_scanner sc;
-    sy_scanner_defaults(&sc, kind);
+    sy_scan_options sc;
+    sc = sy_scan_options_for(kind);
     if (step > 0) sc.step_deg = step;
     if (density > 0) sc.density = density;
     sc.subrays = subrays;

@@ -8,8 +8,9 @@
 #include <sys/resource.h>
 
 #include "stages/core/parallel.h"
-#include "stages/encode/sylva_format.h"
-#include "stages/skeleton/skeleton_stage.h"
+#include "stages/encode/encode.h"
+#include "pipeline/run_tree.h"
+#include "stages/skeleton/skeleton.h"
 #include "tests/synthetic_tree.h"
 
 static double peak_rss_mb(void)
@@ -27,11 +28,12 @@ static int run(size_t n)
     sy_error err = {0};
     if (syn_sample(&t, n, 0.4, 0.002, 42, &c, &err)) return 1;
     sy_skeleton_options o;
-    sy_skeleton_options_default(&o);
+    o = sy_skeleton_options_default();
     sy_skeleton s;
     sy_clusters cl;
     sy_skeleton_report r;
-    if (sy_reconstruct_skeleton(&c, &o, &s, &cl, &r, &err)) {
+    sy_hull_report h;
+    if (sy_reconstruct_tree(&c, &o, 0, &s, &cl, &r, &h, &err)) {
         fprintf(stderr, "bench_skeleton: %s\n", err.msg);
         return 1;
     }
@@ -41,8 +43,8 @@ static int run(size_t n)
     printf("%8zu points: total %6.3f s | graph %.3f  dijkstra %.3f  level sets %.3f  radii %.3f  clusters %.3f  "
            "hulls %.3f | %zu nodes, %zu branches, %zu clusters (%zu alpha, %zu convex, %zu box), "
            "graph %zu edges, %zu components, spacing %.4f m, DBH %.3f m | peak RSS %.0f MB | .sylva %zu bytes\n",
-           n, r.t_total, r.t_graph, r.t_dijkstra, r.t_levels, r.t_radii, r.t_clusters, r.t_hulls, r.nodes, r.branches,
-           r.clusters, r.hulls_alpha, r.hulls_convex, r.hulls_box, r.graph_edges, r.components, r.spacing, r.dbh,
+           n, r.t_total, r.t_graph, r.t_dijkstra, r.t_levels, r.t_radii, r.t_clusters, h.seconds, r.nodes, r.branches,
+           r.clusters, h.alpha, h.convex, h.box, r.graph_edges, r.components, r.spacing, r.dbh,
            peak_rss_mb(), bytes);
     sy_clusters_free(&cl);
     sy_skeleton_free(&s);

@@ -84,8 +84,8 @@ int main(int argc, char **argv)
     sy_error err = {0};
     sy_cloud c;
     if (argc < 2 || sy_read_cloud(argv[1], &c, &err)) { fprintf(stderr, "%s\n", err.msg); return 1; }
-    sy_preprocess_opts po;
-    sy_preprocess_defaults(&po);
+    sy_preprocess_options po;
+    po = sy_preprocess_options_default();
     po.remove_ground = 1;
     po.normals = 0;
     sy_preprocess_result pr;

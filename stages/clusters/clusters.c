@@ -2,6 +2,7 @@
  * cluster (alpha shape -> coarse closed mesh), with the mesh checks that make
  * every hull closed, outward and holding its points. */
 #include "clusters.h"
+#include "stages/core/progress.h"
 
 #include <math.h>
 #include <meshoptimizer.h>
@@ -600,4 +601,42 @@ sy_code sy_cluster_build_hull(sy_cluster *c, const float *xyz, double alpha_scal
         free(p);
     }
     return box_hull(c, xyz, fmax(tol, 1e-3), err);
+}
+
+sy_hull_options sy_hull_options_default(void)
+{
+    sy_hull_options o;
+    memset(&o, 0, sizeof o);
+    o.alpha_scale = 5.0;
+    o.triangles = 160;
+    o.tol = 0.01;
+    return o;
+}
+
+sy_code sy_hull_options_check(const sy_hull_options *o, sy_error *err)
+{
+    if (!(o->alpha_scale > 0) || !isfinite(o->alpha_scale))
+        return sy_fail(err, SY_EUSAGE, "clusters: alpha_scale %g must be > 0", o->alpha_scale);
+    if (o->triangles < 12) return sy_fail(err, SY_EUSAGE, "clusters: triangles %d must be >= 12", o->triangles);
+    if (!(o->tol >= 0) || !isfinite(o->tol)) return sy_fail(err, SY_EUSAGE, "clusters: tol %g must be >= 0", o->tol);
+    return SY_OK;
+}
+
+sy_code sy_clusters_build_hulls(sy_clusters *cl, const float *xyz, const sy_hull_options *o, sy_hull_report *report,
+                                sy_error *err)
+{
+    sy_hull_report local;
+    if (!report) report = &local;
+    memset(report, 0, sizeof *report);
+    sy_code rc = sy_hull_options_check(o, err);
+    double t = sy_now();
+    for (size_t c = 0; c < cl->n && !rc; c++) {
+        sy_cluster *C = &cl->items[c];
+        rc = sy_cluster_build_hull(C, xyz, o->alpha_scale, o->triangles, o->tol, err);
+        if (C->hull == SY_HULL_ALPHA) report->alpha++;
+        else if (C->hull == SY_HULL_CONVEX) report->convex++;
+        else report->box++;
+    }
+    report->seconds = sy_now() - t;
+    return rc;
 }

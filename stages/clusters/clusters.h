@@ -12,6 +12,10 @@
 #include "stages/core/skeleton.h"
 #include "stages/core/status.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef enum {
     SY_HULL_ALPHA = 0,  /* alpha shape (alpha_scale * alpha_min), possibly simplified */
     SY_HULL_CONVEX = 1, /* convex hull: the alpha shape was not a closed manifold or lost points */
@@ -73,6 +77,30 @@ sy_code sy_clusters_cut(const sy_skeleton *full, const float *xyz, const float *
 sy_code sy_cluster_build_hull(sy_cluster *c, const float *xyz, double alpha_scale, int target_tris, double tol,
                               sy_error *err);
 
+/* Options of the hull step: the alpha shape's scale (alpha = alpha_scale *
+ * alpha_min, both CGAL squared radii), the triangle budget per hull (the
+ * encode stage's sy_sylva_hull_budget keeps a .sylva under 40 kB) and the
+ * containment tolerance in metres. */
+typedef struct {
+    double alpha_scale; /* 5 */
+    int triangles;      /* per hull, >= 12 (160) */
+    double tol;         /* metres (0.01) */
+} sy_hull_options;
+
+sy_hull_options sy_hull_options_default(void);
+/* SY_EUSAGE naming the field when a value is out of range. */
+sy_code sy_hull_options_check(const sy_hull_options *o, sy_error *err);
+
+typedef struct {
+    size_t alpha, convex, box; /* which hull each cluster got */
+    double seconds;
+} sy_hull_report;
+
+/* Builds every cluster's hull (sy_cluster_build_hull) from xyz, the cloud
+ * the clusters' point indices refer to. report may be NULL. */
+sy_code sy_clusters_build_hulls(sy_clusters *cl, const float *xyz, const sy_hull_options *o, sy_hull_report *report,
+                                sy_error *err);
+
 /* ---- Mesh checks (used by the hull builder and the tests). ---- */
 
 /* Edges not shared by exactly two triangles traversing them in opposite
@@ -83,5 +111,9 @@ double sy_mesh_signed_volume(const float *verts, const uint32_t *tris, size_t n_
 /* Fraction of the points inside the closed mesh or within tol of it. */
 double sy_mesh_containment(const float *verts, const uint32_t *tris, size_t n_tris, const float *xyz,
                            const uint32_t *points, size_t n_points, double tol);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -9,6 +9,10 @@
 
 #include "status.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     char name[48];
     size_t n_vertices;
@@ -16,7 +20,7 @@ typedef struct {
     float *normal;      /* 3n, unit */
     float *tangent;     /* 4n (xyz unit, w = ±1 handedness) or NULL */
     float *uv;          /* 2n or NULL */
-    /* Wind (seed 000 ch. 4, docs/wind.md): per vertex the index of its branch
+    /* Wind (Habel 2009 ch. 4, docs/wind.md): per vertex the index of its branch
      * in sy_asset.wind and w = normalized positions x in [0,1] along its own
      * branch (w[level]) and the attachment positions on each ancestor
      * (w[0..level-1]); unused levels are 0. NULL when the mesh does not sway. */
@@ -78,7 +82,7 @@ typedef struct {
     sy_instances instances[SY_LOD_MAX_PARTS];
 } sy_lod;
 
-/* Per-branch wind data (seed 000 Table 4.2): the branch's anchor on its
+/* Per-branch wind data (Habel 2009 Table 4.2): the branch's anchor on its
  * parent, its axis frame, length, beam polynomial u(x) = c2 x^2 + c4 x^4, its
  * natural frequency f_h = 2.55 L^-0.59 Hz, and stiffness in [0,1]. */
 typedef struct {
@@ -120,5 +124,9 @@ int sy_asset_add_lod(sy_asset *a, const sy_lod *lod, sy_error *err);
 
 /* A material with sensible defaults: white, roughness 0.8, no textures, opaque. */
 sy_material sy_material_default(const char *name);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

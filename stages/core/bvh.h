@@ -15,6 +15,10 @@
 
 #include "stages/core/status.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     double lo[3], hi[3];
 } sy_box;
@@ -111,5 +115,9 @@ uint32_t sy_bvh_nearest(const sy_bvh *b, const double q[3], double max_dist, sy_
                         uint32_t hint, double *dist);
 /* 1 when some primitive lies within r of q (stops at the first found). */
 int sy_bvh_any_within(const sy_bvh *b, const double q[3], double r, sy_bvh_distance_fn fn, const void *ctx);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -10,6 +10,10 @@
 
 #include "status.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* A named per-point scalar (LAS extra bytes such as treeID, PLY scalar fields,
  * extra XYZ columns). Values are kept as double so integer ids stay exact. */
 typedef struct {
@@ -94,5 +98,9 @@ void sy_cloud_attribute_names(const sy_cloud *c, char *buf, size_t size);
  * green, blue of rgb), so labels can live in either. *out: n doubles
  * (malloc'd), NULL when the cloud has no such field (SY_OK all the same). */
 sy_code sy_cloud_scalar(const sy_cloud *c, const char *name, double **out, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -9,6 +9,10 @@
 
 #include "status.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     unsigned char *data; /* NUL-terminated for convenience (data[size] == 0) */
     size_t size;
@@ -45,5 +49,9 @@ sy_code sy_check_writable(const char *path, sy_error *err);
 
 /* Writes size bytes to path atomically. */
 sy_code sy_write_file_atomic(const char *path, const void *data, size_t size, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

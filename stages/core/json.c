@@ -127,6 +127,12 @@ void sy_json_bool(sy_json *j, const char *key, int value)
     fputs(value ? "true" : "false", j->fp);
 }
 
+void sy_json_null(sy_json *j, const char *key)
+{
+    prefix(j, key);
+    fputs("null", j->fp);
+}
+
 void sy_json_numbers(sy_json *j, const char *key, const double *v, int n)
 {
     prefix(j, key);

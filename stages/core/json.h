@@ -5,6 +5,10 @@
 
 #include <stdio.h>
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     FILE *fp;
     int depth;
@@ -25,7 +29,12 @@ void sy_json_float(sy_json *j, const char *key, float value);
 void sy_json_int(sy_json *j, const char *key, long long value);
 void sy_json_uint(sy_json *j, const char *key, unsigned long long value);
 void sy_json_bool(sy_json *j, const char *key, int value);
+void sy_json_null(sy_json *j, const char *key);
 void sy_json_numbers(sy_json *j, const char *key, const double *v, int n);
 void sy_json_finish(sy_json *j); /* trailing newline */
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -11,6 +11,10 @@
 
 #include "status.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef enum { SY_JV_NULL, SY_JV_BOOL, SY_JV_NUMBER, SY_JV_STRING, SY_JV_ARRAY, SY_JV_OBJECT } sy_jv_type;
 
 typedef struct sy_jv sy_jv;
@@ -52,5 +56,9 @@ int sy_jv_number(const sy_jv *v, double *out);
 const char *sy_jv_string(const sy_jv *v);
 /* "object", "array", ... for messages. */
 const char *sy_jv_type_name(sy_jv_type t);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

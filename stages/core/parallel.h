@@ -6,6 +6,10 @@
 
 #include <stddef.h>
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 void sy_set_threads(int n);
 int sy_threads(void); /* resolved count, >= 1 */
 
@@ -13,5 +17,9 @@ int sy_threads(void); /* resolved count, >= 1 */
  * sy_threads() threads. Chunk boundaries depend only on n and chunk_size. */
 void sy_parallel_for(size_t n, size_t chunk_size, void (*fn)(void *ctx, size_t begin, size_t end, size_t chunk),
                      void *ctx);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -5,6 +5,10 @@
 
 #include <stddef.h>
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     const char *label;
     size_t total;
@@ -23,5 +27,9 @@ void sy_progress_end(sy_progress *p);
 
 /* Monotonic seconds. */
 double sy_now(void);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -11,6 +11,10 @@
 
 #include "status.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     size_t n;
     double origin[3];
@@ -67,5 +71,9 @@ typedef struct {
 void sy_leaves_free(sy_leaves *l);
 sy_code sy_leaves_add(sy_leaves *l, const float pos[3], const float rot[4], float scale, int32_t node,
                       sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

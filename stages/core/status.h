@@ -5,6 +5,10 @@
 
 #include <stddef.h>
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* These are also the process exit codes of `sylva`. */
 typedef enum {
     SY_OK = 0,
@@ -28,5 +32,9 @@ void sy_error_clear(sy_error *err);
 /* Allocation that reports failure through err instead of returning silently;
  * rejects n*size overflow. */
 void *sy_calloc(size_t n, size_t size, sy_error *err, const char *what);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

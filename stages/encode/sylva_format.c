@@ -2,7 +2,7 @@
  * treats every byte as hostile: the checksum is verified first, every count
  * is checked against the bytes left before anything is allocated, every
  * index against what it indexes. */
-#include "sylva_format.h"
+#include "stages/encode/encode.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -552,4 +552,15 @@ sy_code sy_decode_read(const char *path, sy_skeleton *skel, sy_clusters *cluster
     rc = sy_decode_mem(path, b.data, b.size, skel, clusters, meta, err);
     sy_buffer_free(&b);
     return rc;
+}
+
+/* 36 kB minus the skeleton (about 10 bytes a node) shared by the clusters at
+ * about 6.5 bytes a triangle (half a 6-byte vertex plus ~3.5 index bytes):
+ * what the layout in docs/sylva-format.md costs, measured on the samples. */
+int sy_sylva_hull_budget(size_t n_clusters, size_t n_nodes)
+{
+    if (n_clusters == 0) return 160;
+    double bytes = 36000.0 - 64 - 10.0 * (double)n_nodes;
+    double t = bytes / (6.5 * (double)n_clusters);
+    return t < 16 ? 16 : t > 160 ? 160 : (int)t;
 }

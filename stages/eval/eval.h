@@ -18,6 +18,10 @@
 #include "stages/core/json.h"
 #include "stages/core/skeleton.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* ---- Trees: a truth file, a skeleton file, or a decoded reconstruction ---- */
 
 typedef struct {
@@ -110,9 +114,9 @@ typedef struct {
     double radius_factor;      /* tolerance = max(radius_factor * r, min_tolerance) (2) */
     double thick_radius;       /* "thick" branches: base radius >= this (0.02) */
     double bifurcation_radius; /* branch points further apart do not match (0.25) */
-} sy_skeleton_metrics_opts;
+} sy_skeleton_metrics_options;
 
-sy_skeleton_metrics_opts sy_skeleton_metrics_defaults(void);
+sy_skeleton_metrics_options sy_skeleton_metrics_options_default(void);
 
 typedef struct {
     double truth_length, model_length;
@@ -126,7 +130,7 @@ typedef struct {
     double dbh_error, height_error; /* mean |model - truth| over matched trees */
 } sy_skeleton_metrics;
 
-sy_code sy_skeleton_metrics_compute(const sy_forest *truth, const sy_forest *model, const sy_skeleton_metrics_opts *opts,
+sy_code sy_skeleton_metrics_compute(const sy_forest *truth, const sy_forest *model, const sy_skeleton_metrics_options *opts,
                                     sy_skeleton_metrics *out, sy_error *err);
 
 /* ---- Segmentation ---- */
@@ -240,5 +244,8 @@ typedef struct {
  * rotated). */
 sy_code sy_mesh_check(const sy_asset *a, const sy_skeleton *sk, const sy_mesh_check_options *o,
                       sy_mesh_check_report *out, sy_error *err);
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -1,15 +1,11 @@
 #include "geometry.h"
+#include "stages/core/vec3.h"
 
 #include <math.h>
 #include <string.h>
 
-static double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-static void sub3(double r[3], const double a[3], const double b[3])
-{
-    r[0] = a[0] - b[0];
-    r[1] = a[1] - b[1];
-    r[2] = a[2] - b[2];
-}
+#define dot3 sy_v3_dot
+#define sub3 sy_v3_sub
 static double dist3(const double a[3], const double b[3])
 {
     double d[3];

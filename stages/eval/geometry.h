@@ -6,6 +6,10 @@
 
 #include "stages/core/bvh.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Distance from p to segment ab; *t (if not NULL) the parameter in [0,1] of
  * the closest point a + t (b - a). */
 double sy_point_segment_distance(const double p[3], const double a[3], const double b[3], double *t);
@@ -18,5 +22,9 @@ double sy_point_triangle_distance(const double p[3], const double a[3], const do
  * radii ra at a, rb at b: lateral surface and both end discs. A point inside
  * gets its (positive) distance to that surface. */
 double sy_point_cone_distance(const double p[3], const double a[3], double ra, const double b[3], double rb);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -6,9 +6,9 @@
 #include <string.h>
 
 #include "eval.h"
-#include "gltf_read_tinygltf.h"
+#include "stages/gltf/gltf_read.h"
 #include "stages/core/fileio.h"
-#include "stages/encode/sylva_format.h"
+#include "stages/encode/encode.h"
 
 void sy_eval_model_free(sy_eval_model *m)
 {
@@ -37,9 +37,9 @@ static sy_code load_gltf(const char *path, int closed, sy_eval_model *out, sy_er
 {
     double *tri;
     size_t n, *hull;
-    char msg[900];
-    int rc = sy_gltf_read_triangles(path, &tri, &n, &hull, msg, sizeof msg);
-    if (rc) return sy_fail(err, rc == 3 ? SY_EINTERNAL : SY_EINPUT, "%s", msg);
+
+    sy_code rc = sy_gltf_read_triangles(path, &tri, &n, &hull, err);
+    if (rc) return rc;
     sy_code code = SY_OK;
     size_t n_groups = 1;
     for (size_t t = 0; t < n; t++) n_groups = hull[t] + 1 > n_groups ? hull[t] + 1 : n_groups;

@@ -11,9 +11,9 @@
 #include "geometry.h"
 #include "stages/core/parallel.h"
 
-sy_skeleton_metrics_opts sy_skeleton_metrics_defaults(void)
+sy_skeleton_metrics_options sy_skeleton_metrics_options_default(void)
 {
-    sy_skeleton_metrics_opts o = {0.01, 0.05, 2.0, 0.02, 0.25};
+    sy_skeleton_metrics_options o = {0.01, 0.05, 2.0, 0.02, 0.25};
     return o;
 }
 
@@ -138,7 +138,7 @@ static double edge_length(const segments *s, size_t i)
 /* Per-sample result of matching one skeleton's samples against the other. */
 typedef struct {
     const segments *from, *to;
-    const sy_skeleton_metrics_opts *o;
+    const sy_skeleton_metrics_options *o;
     const size_t *first; /* first sample index per edge of from */
     int tolerance_from_target; /* precision: tolerance uses the target's radius */
     uint8_t *hit;
@@ -232,7 +232,7 @@ static void sample_set_free(sample_set *s)
 }
 
 /* Samples `from` against `to`. */
-static sy_code match_samples(const segments *from, const segments *to, const sy_skeleton_metrics_opts *o,
+static sy_code match_samples(const segments *from, const segments *to, const sy_skeleton_metrics_options *o,
                              int tolerance_from_target, sample_set *out, sy_error *err)
 {
     memset(out, 0, sizeof *out);
@@ -391,10 +391,10 @@ static void tree_errors(const sy_forest *truth, const sy_forest *model, sy_skele
     m->height_error = h_n ? h_sum / (double)h_n : NAN;
 }
 
-sy_code sy_skeleton_metrics_compute(const sy_forest *truth, const sy_forest *model, const sy_skeleton_metrics_opts *opts,
+sy_code sy_skeleton_metrics_compute(const sy_forest *truth, const sy_forest *model, const sy_skeleton_metrics_options *opts,
                                     sy_skeleton_metrics *out, sy_error *err)
 {
-    sy_skeleton_metrics_opts o = opts ? *opts : sy_skeleton_metrics_defaults();
+    sy_skeleton_metrics_options o = opts ? *opts : sy_skeleton_metrics_options_default();
     if (!(o.sample_step > 0)) o.sample_step = 0.01;
     memset(out, 0, sizeof *out);
     segments T, M;

@@ -8,6 +8,7 @@
 #include "eval.h"
 #include "geometry.h"
 #include "stages/core/parallel.h"
+#include "stages/core/rng.h"
 
 #define PI 3.14159265358979323846
 
@@ -233,14 +234,7 @@ static int put_sample(sample_buf *s, double x, double y, double z)
 }
 
 /* Deterministic uniform numbers in [0,1): splitmix64. */
-static double next_unit(uint64_t *state)
-{
-    uint64_t z = (*state += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    z ^= z >> 31;
-    return (double)(z >> 11) * (1.0 / 9007199254740992.0);
-}
+static double next_unit(uint64_t *state) { return sy_unit53(sy_splitmix64(state)); }
 
 static double tri_area(const double *t)
 {

@@ -7,7 +7,7 @@
 #include "eval.h"
 #include "stages/core/fileio.h"
 #include "stages/core/json_read.h"
-#include "stages/qsm/qsm_io.h"
+#include "stages/qsm/qsm.h"
 
 void sy_forest_free(sy_forest *f)
 {

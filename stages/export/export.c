@@ -14,6 +14,7 @@
 #include "gltf_tinygltf.h"
 #include "meshopt_codec.h"
 #include "stages/core/fileio.h"
+#include "stages/core/vec3.h"
 
 #define SY_MAX_LODS 65 /* sy_gltf_node holds 64 lower-level ids */
 
@@ -27,12 +28,14 @@ sy_export_options sy_export_options_default(void)
     return o;
 }
 
-static char last_path[4096];
-static size_t last_size;
-
-size_t sy_export_last_size(const char *path)
+sy_code sy_export_options_check(const sy_export_options *o, sy_error *err)
 {
-    return path && strcmp(path, last_path) == 0 ? last_size : 0;
+    if ((o->meshopt != 0 && o->meshopt != 1) || (o->instancing != 0 && o->instancing != 1))
+        return sy_fail(err, SY_EUSAGE, "export: meshopt and instancing must be 0 or 1 (got %d, %d)", o->meshopt,
+                       o->instancing);
+    if (o->generator && strlen(o->generator) > 256)
+        return sy_fail(err, SY_EUSAGE, "export: generator must be at most 256 characters");
+    return SY_OK;
 }
 
 /* ------------------------------------------------------------------ checks */
@@ -487,12 +490,7 @@ static void quat_rotate(const float *q, const double *v, double *out)
     out[2] = v[2] + 2 * (q[0] * t[1] - q[1] * t[0]);
 }
 
-static void normalize3(double *v)
-{
-    double len = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-    if (len > 0)
-        for (int c = 0; c < 3; c++) v[c] /= len;
-}
+static void normalize3(double *v) { sy_v3_normalize(v); }
 
 /* The instancing fallback: one mesh holding every copy, transformed by its
  * TRS. Normals use the inverse-transpose (1/scale); a mirroring scale flips
@@ -729,12 +727,18 @@ static void builder_free(builder *b)
     free(b->image_map);
 }
 
-sy_code sy_export_glb(const char *path, const sy_asset *asset, const sy_export_options *opt, sy_error *err)
+sy_code sy_export_glb(const sy_asset *asset, const sy_export_options *opt, const char *name, unsigned char **glb,
+                      size_t *glb_size, sy_error *err)
 {
+    *glb = NULL;
+    *glb_size = 0;
+    const char *path = name ? name : "glb";
     sy_export_options o = opt ? *opt : sy_export_options_default();
+    sy_code rc = sy_export_options_check(&o, err);
+    if (rc) return rc;
     char generator[64];
     snprintf(generator, sizeof generator, "Sylva %s", SYLVA_VERSION);
-    sy_code rc = check_asset(path, asset, err);
+    rc = check_asset(path, asset, err);
     if (rc) return rc;
     builder b;
     memset(&b, 0, sizeof b);
@@ -744,15 +748,7 @@ sy_code sy_export_glb(const char *path, const sy_asset *asset, const sy_export_o
     b.err = err;
     b.doc.generator = o.generator ? o.generator : generator;
     rc = build(&b, &o);
-    unsigned char *glb = NULL;
-    size_t glb_size = 0;
-    if (!rc) rc = sy_gltf_write_glb(&b.doc, path, &glb, &glb_size, err);
+    if (!rc) rc = sy_gltf_write_glb(&b.doc, path, glb, glb_size, err);
     builder_free(&b);
-    if (!rc) rc = sy_write_file_atomic(path, glb, glb_size, err);
-    free(glb);
-    if (!rc) {
-        snprintf(last_path, sizeof last_path, "%s", path);
-        last_size = glb_size;
-    }
     return rc;
 }

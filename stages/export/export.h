@@ -1,8 +1,19 @@
-/* Export: Asset -> glTF 2.0 binary (.glb), written atomically. */
+/* Export: Asset -> glTF 2.0 binary (.glb) bytes; the caller writes them
+ * (atomically: sy_write_file_atomic). */
 #ifndef SYLVA_EXPORT_H
 #define SYLVA_EXPORT_H
 
+#include <stddef.h>
+
 #include "stages/core/asset.h"
+
+#ifdef __cplusplus
+extern "C" {
+#ifdef __cplusplus
+}
+#endif
+
+#endif
 
 typedef struct {
     int meshopt;         /* EXT_meshopt_compression with meshoptimizer's codec */
@@ -12,9 +23,18 @@ typedef struct {
 
 sy_export_options sy_export_options_default(void);
 
-sy_code sy_export_glb(const char *path, const sy_asset *asset, const sy_export_options *opt, sy_error *err);
+/* SY_EUSAGE naming the field when a flag is not 0/1 or generator too long. */
+sy_code sy_export_options_check(const sy_export_options *o, sy_error *err);
 
-/* Size in bytes of the last successful export to path (for reports), or 0. */
-size_t sy_export_last_size(const char *path);
+/* Checks the asset and serialises it: *glb (malloc'd, the caller frees) and
+ * *size. name names the output in messages ("tree.glb"; NULL: "glb").
+ * opt NULL: the defaults. A malformed asset fails with SY_EINPUT naming the
+ * mesh, material or level; on failure *glb is NULL. */
+sy_code sy_export_glb(const sy_asset *asset, const sy_export_options *opt, const char *name, unsigned char **glb,
+                      size_t *size, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -1,8 +1,9 @@
-// Thin tinygltf shim: sy_gltf_doc -> tinygltf::Model -> GLB bytes, plus GLB
-// read-back for tests. tinygltf 2.7 serialises neither buffer nor bufferView
+// Thin tinygltf shim: sy_gltf_doc -> tinygltf::Model -> GLB bytes. tinygltf 2.7 serialises neither buffer nor bufferView
 // extensions, so EXT_meshopt_compression's JSON is added to the GLB's JSON
 // chunk afterwards with nlohmann::json (the JSON library tinygltf itself uses).
 #include "gltf_tinygltf.h"
+
+#include "stages/gltf/glb_chunks.hpp"
 
 #include <tiny_gltf.h>
 
@@ -263,54 +264,6 @@ void add_images_textures(tinygltf::Model &model, const sy_gltf_doc &doc)
     }
 }
 
-// Splits GLB bytes into its JSON and BIN chunks; false on any inconsistency.
-bool split_glb(const unsigned char *p, size_t size, std::string &json_text, std::vector<unsigned char> &bin)
-{
-    auto u32 = [p](size_t at) {
-        return (uint32_t)p[at] | (uint32_t)p[at + 1] << 8 | (uint32_t)p[at + 2] << 16 | (uint32_t)p[at + 3] << 24;
-    };
-    if (size < 20 || memcmp(p, "glTF", 4) != 0 || u32(4) != 2 || u32(8) != size) return false;
-    size_t at = 12;
-    uint32_t len = u32(at), type = u32(at + 4);
-    if (type != 0x4E4F534Au || len > size - at - 8) return false;
-    json_text.assign((const char *)p + at + 8, len);
-    at += 8 + (size_t)len;
-    bin.clear();
-    if (at + 8 <= size) {
-        len = u32(at);
-        type = u32(at + 4);
-        if (type != 0x004E4942u || len > size - at - 8) return false;
-        bin.assign(p + at + 8, p + at + 8 + len);
-    }
-    return true;
-}
-
-void put_u32(std::string &out, uint32_t v)
-{
-    for (int i = 0; i < 4; i++) out.push_back((char)((v >> (8 * i)) & 0xff));
-}
-
-std::string join_glb(const std::string &json_text, const std::vector<unsigned char> &bin)
-{
-    std::string js = json_text;
-    while (js.size() % 4) js.push_back(' ');
-    size_t bin_padded = (bin.size() + 3) & ~(size_t)3;
-    std::string out;
-    put_u32(out, 0x46546C67u);
-    put_u32(out, 2);
-    put_u32(out, (uint32_t)(12 + 8 + js.size() + (bin.empty() ? 0 : 8 + bin_padded)));
-    put_u32(out, (uint32_t)js.size());
-    put_u32(out, 0x4E4F534Au);
-    out += js;
-    if (!bin.empty()) {
-        put_u32(out, (uint32_t)bin_padded);
-        put_u32(out, 0x004E4942u);
-        out.append((const char *)bin.data(), bin.size());
-        out.append(bin_padded - bin.size(), '\0');
-    }
-    return out;
-}
-
 // The EXT_meshopt_compression JSON tinygltf cannot write: the placeholder
 // fallback buffer and each compressed view's source range.
 void add_meshopt_json(json &j, const sy_gltf_doc &doc)
@@ -331,11 +284,6 @@ void add_meshopt_json(json &j, const sy_gltf_doc &doc)
 }
 
 } // namespace
-
-struct sy_gltf_file {
-    json doc;
-    std::vector<unsigned char> bin;
-};
 
 extern "C" sy_code sy_gltf_write_glb(const sy_gltf_doc *doc, const char *path, unsigned char **out,
                                      size_t *out_size, sy_error *err)
@@ -384,11 +332,11 @@ extern "C" sy_code sy_gltf_write_glb(const sy_gltf_doc *doc, const char *path, u
         if (doc->uses_meshopt) {
             std::string json_text;
             std::vector<unsigned char> bin;
-            if (!split_glb((const unsigned char *)glb.data(), glb.size(), json_text, bin))
+            if (!sy_glb::split((const unsigned char *)glb.data(), glb.size(), json_text, bin))
                 return sy_fail(err, SY_EINTERNAL, "%s: tinygltf wrote a malformed GLB", path);
             json j = json::parse(json_text);
             add_meshopt_json(j, *doc);
-            glb = join_glb(j.dump(), bin);
+            glb = sy_glb::join(j.dump(), bin);
         }
         unsigned char *bytes = (unsigned char *)malloc(glb.size());
         if (!bytes) return sy_fail(err, SY_EINTERNAL, "%s: out of memory (%zu bytes)", path, glb.size());
@@ -399,97 +347,4 @@ extern "C" sy_code sy_gltf_write_glb(const sy_gltf_doc *doc, const char *path, u
     } catch (const std::exception &e) {
         return sy_fail(err, SY_EINTERNAL, "%s: glTF serialisation failed: %s", path, e.what());
     }
-}
-
-extern "C" sy_code sy_gltf_open(const char *path, sy_gltf_file **out, sy_error *err)
-{
-    *out = nullptr;
-    sy_buffer buf;
-    sy_code rc = sy_read_file(path, &buf, err);
-    if (rc) return rc;
-    try {
-        auto *f = new sy_gltf_file;
-        std::string json_text;
-        if (!split_glb(buf.data, buf.size, json_text, f->bin)) {
-            delete f;
-            sy_buffer_free(&buf);
-            return sy_fail(err, SY_EINPUT, "%s: not a well-formed GLB file", path);
-        }
-        sy_buffer_free(&buf);
-        f->doc = json::parse(json_text, nullptr, false);
-        if (f->doc.is_discarded() || !f->doc.is_object()) {
-            delete f;
-            return sy_fail(err, SY_EINPUT, "%s: GLB JSON chunk is not a JSON object", path);
-        }
-        *out = f;
-        return SY_OK;
-    } catch (const std::exception &e) {
-        sy_buffer_free(&buf);
-        return sy_fail(err, SY_EINTERNAL, "%s: %s", path, e.what());
-    }
-}
-
-extern "C" void sy_gltf_close(sy_gltf_file *f) { delete f; }
-
-static const json *lookup(const sy_gltf_file *f, const char *pointer)
-{
-    try {
-        json::json_pointer p(pointer);
-        return f->doc.contains(p) ? &f->doc.at(p) : nullptr;
-    } catch (const std::exception &) {
-        return nullptr;
-    }
-}
-
-extern "C" int sy_gltf_has(const sy_gltf_file *f, const char *pointer) { return lookup(f, pointer) != nullptr; }
-
-extern "C" double sy_gltf_number(const sy_gltf_file *f, const char *pointer, double fallback)
-{
-    const json *v = lookup(f, pointer);
-    return v && v->is_number() ? v->get<double>() : fallback;
-}
-
-extern "C" const char *sy_gltf_string(const sy_gltf_file *f, const char *pointer, char *buf, size_t size)
-{
-    const json *v = lookup(f, pointer);
-    snprintf(buf, size, "%s", v && v->is_string() ? v->get_ref<const std::string &>().c_str() : "");
-    return buf;
-}
-
-extern "C" int sy_gltf_size(const sy_gltf_file *f, const char *pointer)
-{
-    const json *v = lookup(f, pointer);
-    return v && (v->is_array() || v->is_object()) ? (int)v->size() : -1;
-}
-
-extern "C" const char *sy_gltf_key(const sy_gltf_file *f, const char *pointer, int index, char *buf, size_t size)
-{
-    const json *v = lookup(f, pointer);
-    buf[0] = 0;
-    if (!v || !v->is_object() || index < 0 || (size_t)index >= v->size()) return buf;
-    auto it = v->begin();
-    std::advance(it, index);
-    snprintf(buf, size, "%s", it.key().c_str());
-    return buf;
-}
-
-extern "C" const unsigned char *sy_gltf_bin(const sy_gltf_file *f, size_t *size)
-{
-    *size = f->bin.size();
-    return f->bin.data();
-}
-
-extern "C" int sy_gltf_tinygltf_loads(const char *path, char *msg, size_t msg_size)
-{
-    tinygltf::TinyGLTF loader;
-    tinygltf::Model model;
-    std::string error, warning;
-    bool ok = false;
-    try {
-        ok = loader.LoadBinaryFromFile(&model, &error, &warning, path);
-    } catch (const std::exception &e) {
-        error = e.what();
-    }
-    snprintf(msg, msg_size, "%s%s", error.c_str(), warning.c_str());
-    return ok && error.empty();
 }

@@ -118,26 +118,6 @@ typedef struct {
 sy_code sy_gltf_write_glb(const sy_gltf_doc *doc, const char *path, unsigned char **out,
                           size_t *out_size, sy_error *err);
 
-/* Read-back for tests and reports: the GLB's JSON and BIN chunk. */
-typedef struct sy_gltf_file sy_gltf_file;
-sy_code sy_gltf_open(const char *path, sy_gltf_file **out, sy_error *err);
-void sy_gltf_close(sy_gltf_file *f);
-/* Values at an RFC 6901 JSON pointer ("/materials/1/alphaMode"). */
-int sy_gltf_has(const sy_gltf_file *f, const char *pointer);
-double sy_gltf_number(const sy_gltf_file *f, const char *pointer, double fallback);
-/* Copies the string into buf ("" when absent or not a string); returns buf. */
-const char *sy_gltf_string(const sy_gltf_file *f, const char *pointer, char *buf, size_t size);
-/* Length of the array or object at pointer, -1 when absent or a scalar. */
-int sy_gltf_size(const sy_gltf_file *f, const char *pointer);
-/* The index-th key of the object at pointer (in the JSON's key order), ""
- * when absent; returns buf. */
-const char *sy_gltf_key(const sy_gltf_file *f, const char *pointer, int index, char *buf, size_t size);
-/* The BIN chunk (buffer 0). */
-const unsigned char *sy_gltf_bin(const sy_gltf_file *f, size_t *size);
-/* 1 if tinygltf itself loads the file without errors (files whose only
- * buffer is the BIN chunk; a meshopt fallback buffer has no data to load). */
-int sy_gltf_tinygltf_loads(const char *path, char *msg, size_t msg_size);
-
 #ifdef __cplusplus
 }
 #endif

@@ -9,6 +9,10 @@
 
 #include "stages/core/status.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Encodes count elements of stride bytes (stride % 4 == 0, <= 256) into a
  * malloc'd buffer. */
 sy_code sy_meshopt_encode_attributes(const void *data, size_t count, size_t stride,
@@ -16,5 +20,9 @@ sy_code sy_meshopt_encode_attributes(const void *data, size_t count, size_t stri
 /* Encodes a triangle list (count % 3 == 0) whose indices are < n_vertices. */
 sy_code sy_meshopt_encode_triangles(const uint32_t *indices, size_t count, size_t n_vertices,
                                     unsigned char **out, size_t *out_size, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

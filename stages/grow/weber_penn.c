@@ -1,9 +1,10 @@
-/* Weber & Penn (1995) tree generation, following the seed 004 digest
+/* Weber & Penn (1995) tree generation, following the GPU-trees thesis digest
  * (docs/species.md says where we depart from it). Each stem is a polyline
  * of CurveRes straight segments whose frames turn by Curve/CurveBack/CurveV
  * at the joints; split clones continue the remaining segments as stems of
  * their own; children and leaves are spread along every stem piece. */
 #include "grow.h"
+#include "stages/core/rng.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -21,7 +22,7 @@
 
 /* ---------------------------------------------------------------- shapes */
 
-float sy_shape_ratio(const sy_species *sp, int shape, float ratio)
+float sy_shape_ratio(const sy_species_params *sp, int shape, float ratio)
 {
     float r = ratio < 0 ? 0 : ratio > 1 ? 1 : ratio;
     switch (shape) {
@@ -73,13 +74,7 @@ typedef struct {
     uint64_t s;
 } rng;
 
-static uint64_t rng_next(rng *r) /* splitmix64 */
-{
-    uint64_t z = (r->s += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
+static uint64_t rng_next(rng *r) { return sy_splitmix64(&r->s); }
 
 static float rng_unit(rng *r) { return (float)(rng_next(r) >> 40) * (1.0f / 16777216.0f); }
 
@@ -155,7 +150,7 @@ static void attract(frame *f, float strength)
 /* ------------------------------------------------------------- grower */
 
 typedef struct {
-    const sy_species *sp;
+    const sy_species_params *sp;
     rng r;
     sy_skeleton *sk;
     sy_leaves *lv;
@@ -293,7 +288,7 @@ static void trace(grower *g, const stem *st, int k0, const float p0[3], const fr
 /* Weber-Penn's pruning envelope test for a point (tree base at the origin). */
 static int inside_envelope(const grower *g, const float p[3])
 {
-    const sy_species *sp = g->sp;
+    const sy_species_params *sp = g->sp;
     float r = sqrtf(p[0] * p[0] + p[1] * p[1]);
     float ratio = (g->scale_tree - p[2]) / (g->scale_tree * (1 - sp->base_size));
     if (ratio < 0 || ratio > 1) return 0;
@@ -547,7 +542,7 @@ static sy_code add_leaf(grower *g, const float p[3], const frame *f, int32_t nod
 
 static sy_code grow_leaves(grower *g, const stem *st, const piece *pc)
 {
-    const sy_species *sp = g->sp;
+    const sy_species_params *sp = g->sp;
     float ratio = st->parent_length > 0 ? st->offset / st->parent_length : 0;
     float count = fabsf(sp->leaves) * sy_shape_ratio(sp, 4, ratio) * sp->leaf_quality;
     float start = (float)pc->k0 * pc->seg_len;
@@ -605,7 +600,7 @@ static sy_code grow_stem(grower *g, stem *st, const float p0[3], const frame *f0
     return rc;
 }
 
-sy_code sy_grow_tree(const sy_species *sp, uint64_t seed, sy_skeleton *out, sy_leaves *leaves_out, sy_error *err)
+sy_code sy_grow_tree(const sy_species_params *sp, uint64_t seed, sy_skeleton *out, sy_leaves *leaves_out, sy_error *err)
 {
     sy_leaves scratch;
     memset(&scratch, 0, sizeof scratch);

@@ -8,6 +8,10 @@
 
 #include "../core/cloud.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Reads any supported format, chosen by magic bytes first, then extension:
  * LAS ("LASF"), LAZ (refused with a clear message), PLY ("ply\n"),
  * PCD ("# .PCD" / "VERSION"), a COLMAP workspace or sparse-model directory,
@@ -57,5 +61,9 @@ sy_code sy_write_xyz(const char *path, const sy_cloud *c, sy_error *err);
 /* Shared by the readers: rejects non-finite coordinates with a message naming
  * path and the point index; returns SY_OK when all are finite. */
 sy_code sy_check_finite(const char *path, double x, double y, double z, size_t index, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -8,6 +8,10 @@
 #include <stdint.h>
 #include <string.h>
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Header field offsets (LAS 1.0-1.4). */
 enum {
     LAS_HDR_MIN = 227,        /* LAS 1.0-1.2 header size */
@@ -125,5 +129,9 @@ static inline void las_put_f64(unsigned char *p, double d)
     memcpy(&u, &d, sizeof u);
     las_put_u64(p, u);
 }
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -7,6 +7,10 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     const char *s;
     size_t n;
@@ -31,5 +35,9 @@ typedef struct {
 
 /* Next line [*s, *e) without its '\n'; 0 at the end of the data. */
 int sy_line_next(sy_lines *l, const char **s, const char **e);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -5,6 +5,10 @@
 #ifndef SYLVA_TEXTNUM_H
 #define SYLVA_TEXTNUM_H
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Parses a number at [p, end): optional sign, digits with an optional '.',
  * optional exponent (e/E, sign, digits); also "nan", "inf" and "infinity"
  * (any case) so callers can report non-finite values as such. Returns the
@@ -14,5 +18,9 @@
  * and the decimal exponent is within 1e±22 (all real scan data), and within
  * a couple of double ulps otherwise. */
 const char *sy_parse_number(const char *p, const char *end, double *out);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "mesh_internal.h"
+#include "stages/core/rng.h"
 
 #define SY_PI 3.14159265358979323846f
 #define OUTLINE_STEPS 5
@@ -215,14 +216,7 @@ sy_code sy_leaf_card(int shape, float aspect, int material, sy_mesh *out, sy_err
     return SY_OK;
 }
 
-/* splitmix64: tiny, seedable, and identical on every platform. */
-static uint64_t next_random(uint64_t *state)
-{
-    uint64_t z = (*state += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-}
+static uint64_t next_random(uint64_t *state) { return sy_splitmix64(state); }
 
 void sy_permutation(uint32_t *perm, size_t n, uint64_t seed)
 {

@@ -39,15 +39,16 @@ static int cmp_ranked(const void *a, const void *b)
     return (x->index > y->index) - (x->index < y->index);
 }
 
-size_t sy_lod_fit_budget(const sy_stems *st, sy_lod_params *lp, size_t count, size_t budget)
+int sy_lod_fit_budget(const sy_stems *st, sy_lod_params *lp, size_t *count_io, size_t budget)
 {
+    size_t count = *count_io;
     /* Importance: a volume proxy r^2 L, never above the parent's, so
      * dropping in reverse rank order removes children before parents. */
     ranked *rk = malloc((st->n ? st->n : 1) * sizeof *rk);
     float *imp = malloc((st->n ? st->n : 1) * sizeof *imp);
     if (!rk || !imp) {
         free(rk), free(imp);
-        return (size_t)-1;
+        return 0;
     }
     for (size_t o = 0; o < st->n; o++) {
         int32_t i = st->by_depth[o];
@@ -66,7 +67,8 @@ size_t sy_lod_fit_budget(const sy_stems *st, sy_lod_params *lp, size_t count, si
         count -= ni / 3;
     }
     free(rk), free(imp);
-    return count;
+    *count_io = count;
+    return 1;
 }
 
 size_t sy_lod_restore(const sy_stems *st, const uint8_t *prev_keep, sy_lod_params *lp, size_t count, size_t target)
@@ -114,7 +116,7 @@ int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris
         lp->keep[i] = prev_keep[i] && big && (s->parent < 0 || lp->keep[s->parent]);
     }
     size_t count = sy_lod_bark_triangles(st, lp), budget = prev_tris / 2;
-    if (count > budget && (count = sy_lod_fit_budget(st, lp, count, budget)) == (size_t)-1) return 0;
+    if (count > budget && !sy_lod_fit_budget(st, lp, &count, budget)) return 0;
     /* No cliffs: when the thresholds dropped so much that the level has under
      * a quarter of the previous one's triangles, the most important dropped
      * stems come back (parents before children) up to FLOOR_SHARE of it. */

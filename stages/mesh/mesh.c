@@ -27,20 +27,27 @@ sy_mesh_options sy_mesh_options_default(void)
     return o;
 }
 
-static sy_code check_options(const sy_mesh_options *o, const sy_asset *a, sy_error *err)
+sy_code sy_mesh_options_check(const sy_mesh_options *o, sy_error *err)
 {
     if (o->radial_segments < 3 || o->radial_segments > 256)
-        return sy_fail(err, SY_EUSAGE, "mesh: radial segments %d outside [3, 256]", o->radial_segments);
+        return sy_fail(err, SY_EUSAGE, "mesh: radial_segments %d outside [3, 256]", o->radial_segments);
     if (!(o->segment_length >= 0) || !isfinite(o->segment_length))
-        return sy_fail(err, SY_EUSAGE, "mesh: segment length %g is not >= 0", o->segment_length);
+        return sy_fail(err, SY_EUSAGE, "mesh: segment_length %g is not >= 0", o->segment_length);
     if (o->n_lods < 1 || o->n_lods > 7)
-        return sy_fail(err, SY_EUSAGE, "mesh: %d LOD levels outside [1, 7]", o->n_lods);
+        return sy_fail(err, SY_EUSAGE, "mesh: n_lods %d outside [1, 7]", o->n_lods);
     if (o->impostor && (o->impostor_size < 16 || o->impostor_size > 4096))
-        return sy_fail(err, SY_EUSAGE, "mesh: impostor size %d outside [16, 4096]", o->impostor_size);
+        return sy_fail(err, SY_EUSAGE, "mesh: impostor_size %d outside [16, 4096]", o->impostor_size);
     if (!(o->min_radius >= 0) || !isfinite(o->min_radius))
         return sy_fail(err, SY_EUSAGE, "mesh: min_radius %g is not >= 0", o->min_radius);
     if (!(o->leaf_aspect > 0) || !isfinite(o->leaf_aspect))
-        return sy_fail(err, SY_EUSAGE, "mesh: leaf aspect %g is not positive", o->leaf_aspect);
+        return sy_fail(err, SY_EUSAGE, "mesh: leaf_aspect %g is not positive", o->leaf_aspect);
+    return SY_OK;
+}
+
+static sy_code check_options(const sy_mesh_options *o, const sy_asset *a, sy_error *err)
+{
+    sy_code rc = sy_mesh_options_check(o, err);
+    if (rc) return rc;
     if (o->bark_material >= (int)a->n_materials || o->leaf_material >= (int)a->n_materials)
         return sy_fail(err, SY_EUSAGE, "mesh: material index beyond the asset's %zu materials", a->n_materials);
     return SY_OK;
@@ -108,14 +115,14 @@ typedef struct {
     size_t n;
 } leaf_level;
 
-/* Level k keeps the first half of level k-1's list, less the leaves on stems
- * dropped at k; its cards grow (at most 4x) so their total area matches all
- * level-0 leaves, keeping the crown's coverage roughly constant. */
 /* The next level keeps the first half of the previous level's leaves (a
  * prefix of the stored seeded order). Leaves of twigs the level drops stay:
  * at a distance they stand in for the twig's foliage, and they keep swaying
  * with it because every wind entry survives. Dropping them instead left the
- * coarse levels bare (LOD3 of a 20k-leaf tree kept none). */
+ * coarse levels bare (LOD3 of a 20k-leaf tree kept none). Returns how much the
+ * kept cards grow (at most 4x) so their total area matches all level-0
+ * leaves, keeping the crown's coverage roughly constant; cards that would
+ * then reach below the ground are left out. */
 static float next_leaf_level(const sy_leaves *lv, const leaf_level *prev, const leaf_level *all, float aspect,
                              float ground, leaf_level *next)
 {
@@ -228,7 +235,7 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
     memset(keep, 1, st.n);
     size_t tris = sy_lod_bark_triangles(&st, &lp);
     if (opt->lod0_max_triangles > 0 && tris > (size_t)opt->lod0_max_triangles &&
-        (tris = sy_lod_fit_budget(&st, &lp, tris, (size_t)opt->lod0_max_triangles)) == (size_t)-1) {
+        !sy_lod_fit_budget(&st, &lp, &tris, (size_t)opt->lod0_max_triangles)) {
         rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
         goto done;
     }

@@ -11,6 +11,10 @@
 #include "stages/core/asset.h"
 #include "stages/core/skeleton.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     int radial_segments;       /* ring vertices at LOD0 on the trunk (default 16); thinner
                                   branches use fewer, never below 3 */
@@ -30,12 +34,14 @@ typedef struct {
     int leaf_shape;            /* Weber-Penn leafShape, picks the card outline (default 0) */
     uint64_t seed;             /* leaf pruning order */
     /* Materials to use (indices into the asset's materials, which the caller
-     * adds first, e.g. with sy_species_materials); -1 gives plain defaults. */
+     * adds first, e.g. with sy_materials_add); -1 gives plain defaults. */
     int bark_material;
     int leaf_material;
 } sy_mesh_options;
 
 sy_mesh_options sy_mesh_options_default(void);
+/* SY_EUSAGE naming the field when a value is out of range. */
+sy_code sy_mesh_options_check(const sy_mesh_options *o, sy_error *err);
 
 /* Builds the asset. leaves may be NULL or empty (leafless tree). */
 sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_mesh_options *opt, sy_asset *out,
@@ -56,5 +62,9 @@ void sy_mesh_lod_bounds(const sy_asset *a, size_t lod, float lo[3], float hi[3])
  * the box lo..hi as size x size pixels, row 0 at the top; 1 = covered. */
 sy_code sy_mesh_silhouettes(const sy_asset *a, size_t lod, const float lo[3], const float hi[3], int size,
                             uint8_t *front, uint8_t *side, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -9,6 +9,10 @@
 
 #include "mesh.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* ---- small vector helpers ---- */
 static inline float sy_dot3(const float a[3], const float b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 static inline void sy_cross3(const float a[3], const float b[3], float out[3])
@@ -116,14 +120,14 @@ void sy_tube_counts(const sy_stems *st, size_t stem, const sy_lod_params *lp, si
  * from sy_tube_counts). idx is scratch of 2 * (max n_samp) entries. */
 void sy_tube_emit(const sy_stems *st, size_t stem, const sy_lod_params *lp, sy_mesh *m, size_t v0, size_t i0,
                   int32_t *idx);
+/* Drops the least important stems (children before parents) until the bark
+ * of lp's level has at most budget triangles; *count holds the level's
+ * triangles on entry and after. Returns 1, or 0 when out of memory. */
+int sy_lod_fit_budget(const sy_stems *st, sy_lod_params *lp, size_t *count, size_t budget);
 /* Chooses the stems level lp->level keeps (lp->keep), a subset of prev_keep:
  * thin and short stems go first (thresholds double per level), children with
  * their parents, then the least important until the bark has at most half of
  * prev_tris triangles. Returns 0 when even the trunk alone is too many. */
-/* Drops the least important stems (children before parents) until the bark
- * of lp's level has at most budget triangles, starting from count; returns
- * the new count, or (size_t)-1 when out of memory. */
-size_t sy_lod_fit_budget(const sy_stems *st, sy_lod_params *lp, size_t count, size_t budget);
 /* Brings back stems of prev_keep that lp drops, most important first and
  * parents before children, while the bark stays within target triangles;
  * returns the new count, or (size_t)-1 when out of memory. */
@@ -136,7 +140,7 @@ size_t sy_lod_bark_triangles(const sy_stems *st, const sy_lod_params *lp);
 sy_code sy_bark_mesh(const sy_stems *st, const sy_lod_params *lp, int material, sy_mesh *out, sy_error *err);
 
 /* ---- wind (wind.c) ---- */
-/* Tapered-beam deflection (seed 000 eq. 4.7, unit prefactor) at x in [0,1]
+/* Tapered-beam deflection (Habel 2009 eq. 4.7, unit prefactor) at x in [0,1]
  * for taper ratio alpha = r_tip / r_base. */
 double sy_beam_deflection(double alpha, double x);
 /* Least-squares fit u(x) ~ c2 x^2 + c4 x^4 on the 101 samples x = i/100. */
@@ -163,5 +167,9 @@ sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint8_t
  * horizontal directions, adds the atlas image, its material and the crossed
  * card mesh; returns the mesh index or -1. */
 int sy_impostor_build(sy_asset *asset, const sy_lod *lod0, int size, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

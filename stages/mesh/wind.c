@@ -1,4 +1,4 @@
-/* Per-branch wind data (seed 000 ch. 4, docs/wind.md): the tapered-beam
+/* Per-branch wind data (Habel 2009 ch. 4, docs/wind.md): the tapered-beam
  * polynomial, natural frequency and stiffness of every stem, and the per-vertex
  * hierarchy vector w each stem's vertices carry. */
 #include <math.h>

@@ -11,8 +11,9 @@
 
 /* ---------------------------------------------------------------- options */
 
-void sy_preprocess_defaults(sy_preprocess_opts *o)
+sy_preprocess_options sy_preprocess_options_default(void)
 {
+    sy_preprocess_options value_, *o = &value_;
     memset(o, 0, sizeof *o);
     o->up = SY_UP_AUTO;
     o->sor = 1;
@@ -25,9 +26,10 @@ void sy_preprocess_defaults(sy_preprocess_opts *o)
     o->ground_threshold = 0.15;
     o->normals = 1;
     o->normal_k = 16;
+    return value_;
 }
 
-sy_code sy_preprocess_check(const sy_preprocess_opts *o, sy_error *err)
+sy_code sy_preprocess_options_check(const sy_preprocess_options *o, sy_error *err)
 {
     if (o->up < -3 || o->up > 3) return sy_fail(err, SY_EUSAGE, "--up: unknown axis code %d", o->up);
     if (o->crop)
@@ -436,7 +438,7 @@ static double grid_sample(const grid *g, const float *p)
 
 /* The lowest point of every occupied cell, run through PMF; the surviving
  * cells get their lowest point's height. Returns the ground cell count. */
-static sy_code pmf_surface(const sy_cloud *c, const sy_preprocess_opts *o, grid *g, size_t *n_cells, sy_error *err)
+static sy_code pmf_surface(const sy_cloud *c, const sy_preprocess_options *o, grid *g, size_t *n_cells, sy_error *err)
 {
     size_t total = g->nx * g->ny;
     size_t *lowest = sy_calloc(total, sizeof(size_t), err, "ground grid");
@@ -505,7 +507,7 @@ static sy_code refine_surface(const sy_cloud *c, grid *g, const double *hag, dou
     return grid_fill(g, err) < 0 ? SY_EINTERNAL : SY_OK;
 }
 
-sy_code sy_classify_ground(sy_cloud *c, const sy_preprocess_opts *o, size_t *n_ground, sy_error *err)
+sy_code sy_classify_ground(sy_cloud *c, const sy_preprocess_options *o, size_t *n_ground, sy_error *err)
 {
     *n_ground = 0;
     double *hag = sy_cloud_add_attr(c, "height_above_ground", err);
@@ -615,7 +617,7 @@ static void step_end(sy_preprocess_step *s, size_t n)
     s->seconds = s->ran ? sy_now() - s->seconds : 0;
 }
 
-static sy_code step_up(sy_cloud *c, const sy_preprocess_opts *o, sy_preprocess_result *r, sy_preprocess_step *s,
+static sy_code step_up(sy_cloud *c, const sy_preprocess_options *o, sy_preprocess_result *r, sy_preprocess_step *s,
                        sy_error *err)
 {
     int up = o->up;
@@ -638,11 +640,11 @@ static sy_code step_up(sy_cloud *c, const sy_preprocess_opts *o, sy_preprocess_r
     return SY_OK;
 }
 
-sy_code sy_preprocess(sy_cloud *c, const sy_preprocess_opts *o, sy_preprocess_result *r, sy_error *err)
+sy_code sy_preprocess(sy_cloud *c, const sy_preprocess_options *o, sy_preprocess_result *r, sy_error *err)
 {
     memset(r, 0, sizeof *r);
     r->point_count_in = c->n;
-    sy_code rc = sy_preprocess_check(o, err);
+    sy_code rc = sy_preprocess_options_check(o, err);
     if (rc) return rc;
     sy_progress p;
 

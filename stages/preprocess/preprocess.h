@@ -10,6 +10,10 @@
 
 #include "../core/cloud.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Up axes as signed axis codes: +-1 = +-x, +-2 = +-y, +-3 = +-z; 0 = detect. */
 enum { SY_UP_AUTO = 0, SY_UP_X = 1, SY_UP_Y = 2, SY_UP_Z = 3 };
 
@@ -34,11 +38,11 @@ typedef struct {
     int remove_ground;       /* drop ground points after classifying */
     int normals;             /* normal estimation on/off */
     int normal_k;
-} sy_preprocess_opts;
+} sy_preprocess_options;
 
-void sy_preprocess_defaults(sy_preprocess_opts *o);
+sy_preprocess_options sy_preprocess_options_default(void);
 /* Checks ranges; SY_EUSAGE with a message naming the option otherwise. */
-sy_code sy_preprocess_check(const sy_preprocess_opts *o, sy_error *err);
+sy_code sy_preprocess_options_check(const sy_preprocess_options *o, sy_error *err);
 
 typedef struct {
     const char *name;  /* "up", "crop", "voxel", "outliers", "ground", "normals" */
@@ -59,7 +63,7 @@ typedef struct {
 } sy_preprocess_result;
 
 /* Runs the enabled steps on c in place. */
-sy_code sy_preprocess(sy_cloud *c, const sy_preprocess_opts *o, sy_preprocess_result *r, sy_error *err);
+sy_code sy_preprocess(sy_cloud *c, const sy_preprocess_options *o, sy_preprocess_result *r, sy_error *err);
 
 /* --- the steps, also usable alone --- */
 
@@ -89,12 +93,16 @@ sy_code sy_remove_outliers(sy_cloud *c, int k, double std_mul, sy_error *err);
 /* Classifies ground (class 2, other points keep their class or get 1 =
  * unclassified when the cloud had none) and fills the attribute
  * "height_above_ground"; *n_ground gets the ground count. */
-sy_code sy_classify_ground(sy_cloud *c, const sy_preprocess_opts *o, size_t *n_ground, sy_error *err);
+sy_code sy_classify_ground(sy_cloud *c, const sy_preprocess_options *o, size_t *n_ground, sy_error *err);
 
 /* Estimates unit normals from k neighbours on sy_threads() threads, oriented
  * along up plus the horizontal direction away from the vertical line through
  * the cloud's median point: ground normals point up, the normals of a stem
  * on that line point outwards. */
 sy_code sy_estimate_normals(sy_cloud *c, int k, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -5,13 +5,15 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "qsm_io.h"
+#include "stages/qsm/qsm.h"
+#include "stages/core/rng.h"
+#include "stages/core/vec3.h"
 
 /* Beyond this the asset is no longer a game asset; the caller lowers the density. */
 #define MAX_PLACED_LEAVES 2000000
 #define PI 3.14159265358979323846
 
-sy_leaf_placement sy_leaf_placement_from_species(const sy_species *sp, uint64_t seed)
+sy_leaf_placement sy_leaf_placement_from_species(const sy_species_params *sp, uint64_t seed)
 {
     sy_leaf_placement p;
     memset(&p, 0, sizeof p);
@@ -27,15 +29,7 @@ sy_leaf_placement sy_leaf_placement_from_species(const sy_species *sp, uint64_t 
     return p;
 }
 
-/* splitmix64: small, seedable, the same on every platform. */
-static double unit(uint64_t *state)
-{
-    uint64_t z = (*state += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    z ^= z >> 31;
-    return (double)(z >> 11) * (1.0 / 9007199254740992.0);
-}
+static double unit(uint64_t *state) { return sy_unit53(sy_splitmix64(state)); }
 
 static void normalize(double v[3])
 {
@@ -43,12 +37,7 @@ static void normalize(double v[3])
     for (int k = 0; k < 3; k++) v[k] /= n;
 }
 
-static void cross(const double a[3], const double b[3], double out[3])
-{
-    out[0] = a[1] * b[2] - a[2] * b[1];
-    out[1] = a[2] * b[0] - a[0] * b[2];
-    out[2] = a[0] * b[1] - a[1] * b[0];
-}
+static void cross(const double a[3], const double b[3], double out[3]) { sy_v3_cross(out, a, b); }
 
 /* Unit quaternion (x, y, z, w) of the rotation whose matrix columns are x, y, z. */
 static void quat_from_columns(const double x[3], const double y[3], const double z[3], float q[4])

@@ -11,6 +11,10 @@
 #include "stages/core/skeleton.h"
 #include "stages/grow/grow.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     double per_metre;      /* leaves per metre of twig */
     float size;            /* leaf length, metres */
@@ -21,7 +25,7 @@ typedef struct {
 /* From the species: size = LeafScale / sqrt(LeafQuality) (as sy_grow_tree);
  * per_metre = |Leaves| * LeafQuality spread over the nominal length of a
  * last-level Weber-Penn stem, Scale * 0Length * ... * (Levels-1)Length. */
-sy_leaf_placement sy_leaf_placement_from_species(const sy_species *sp, uint64_t seed);
+sy_leaf_placement sy_leaf_placement_from_species(const sy_species_params *sp, uint64_t seed);
 
 /* Twigs are the edges parent -> child whose reverse branch order
  * (sy_skeleton_reverse_order: 1 from a tip down to the first fork, +1 per
@@ -32,5 +36,9 @@ sy_leaf_placement sy_leaf_placement_from_species(const sy_species *sp, uint64_t 
  * initialised here; twig_length (may be NULL) gets the metres of twig. */
 sy_code sy_place_leaves(const sy_skeleton *s, const sy_leaf_placement *p, sy_leaves *leaves, double *twig_length,
                         sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -7,7 +7,11 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "qsm_io.h"
+#include "stages/qsm/qsm.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
 
 /* ------------------------------------------------------------ topology */
 
@@ -89,5 +93,9 @@ typedef struct {
 
 sy_code sy_graph_to_skeleton(const char *path, const sy_graph_in *g, sy_skeleton *out,
                              sy_skeleton_read_info *info, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

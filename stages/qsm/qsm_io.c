@@ -6,7 +6,7 @@
 
 #include "qsm_internal.h"
 #include "stages/core/fileio.h"
-#include "stages/encode/sylva_format.h"
+#include "stages/encode/encode.h"
 
 const char *sy_skel_format_name(sy_skel_format f)
 {

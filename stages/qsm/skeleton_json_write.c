@@ -3,7 +3,7 @@
  * "branch"}...]} with x y z in world coordinates (origin + pos). */
 #include <stdio.h>
 
-#include "qsm_io.h"
+#include "stages/qsm/qsm.h"
 #include "stages/core/fileio.h"
 #include "stages/core/json.h"
 

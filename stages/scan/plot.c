@@ -1,24 +1,19 @@
 /* Scenes: generated trees turned into labelled primitives (a truncated cone per
  * skeleton edge, a card per leaf), terrain, understory shrubs, Poisson-disk
  * plots, and the truth file describing what was placed. */
-#include <dirent.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "scan.h"
+#include "species/library.h"
 #include "stages/core/json.h"
 #include "stages/grow/grow.h"
+#include "stages/core/rng.h"
 
 #define PI 3.14159265358979323846
 
-static uint64_t mix64(uint64_t z)
-{
-    z += 0x9E3779B97F4A7C15ull;
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
+static uint64_t mix64(uint64_t z) { return sy_mix64(z); }
 
 /* A small sequential generator for scene layout (placement is serial). */
 typedef struct {
@@ -26,8 +21,8 @@ typedef struct {
 } rng;
 static double rng_u01(rng *r)
 {
-    r->s += 0x9E3779B97F4A7C15ull;
-    return (double)(mix64(r->s) >> 11) * (1.0 / 9007199254740992.0);
+    r->s += SY_GOLDEN_GAMMA;
+    return sy_unit53(mix64(r->s));
 }
 static double rng_range(rng *r, double lo, double hi) { return lo + (hi - lo) * rng_u01(r); }
 
@@ -314,34 +309,9 @@ sy_code sy_scene_finish(sy_scene *s, sy_error *err)
     return sy_prims_index(&s->prims, &s->bvh, err);
 }
 
-static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
-
-int sy_species_index(const char *name)
+sy_scene_options sy_scene_options_default(void)
 {
-    DIR *d = opendir(SYLVA_SPECIES_DIR);
-    if (!d) return -1;
-    char *names[256];
-    int n = 0;
-    struct dirent *e;
-    while ((e = readdir(d)) && n < 256) {
-        size_t len = strlen(e->d_name);
-        if (len > 4 && strcmp(e->d_name + len - 4, ".ini") == 0 && e->d_name[0] != '.') {
-            names[n] = strndup(e->d_name, len - 4);
-            if (names[n]) n++;
-        }
-    }
-    closedir(d);
-    qsort(names, (size_t)n, sizeof *names, cmp_str);
-    int found = -1;
-    for (int i = 0; i < n; i++) {
-        if (found < 0 && strcmp(names[i], name) == 0) found = i;
-        free(names[i]);
-    }
-    return found;
-}
-
-void sy_scene_opts_defaults(sy_scene_opts *o)
-{
+    sy_scene_options value_, *o = &value_;
     memset(o, 0, sizeof *o);
     o->trees = 5;
     o->understory = -1; /* resolved by sy_scene_build */
@@ -350,6 +320,7 @@ void sy_scene_opts_defaults(sy_scene_opts *o)
     o->leaves = 1;
     o->elliptic = 1;
     o->seed = 1;
+    return value_;
 }
 
 typedef struct {
@@ -373,14 +344,14 @@ static void free_grown(grown_tree *g, size_t n)
 
 static sy_code grow_one(grown_tree *g, const char *species, uint64_t seed, int leaves, sy_error *err)
 {
-    sy_species sp;
-    if (sy_species_find(species, &sp, err)) return err->code;
+    sy_species_params sp;
+    if (sy_species_params_find(species, &sp, err)) return err->code;
     sy_code rc = sy_grow_tree(&sp, seed, &g->skel, leaves ? &g->leaves : NULL, err);
     g->leaf_width = sp.leaf_scale_x;
     snprintf(g->name, sizeof g->name, "%s", sp.name ? sp.name : species);
-    g->species_id = sy_species_index(g->name);
+    g->species_id = sy_library_id(g->name);
     g->seed = seed;
-    sy_species_free(&sp);
+    sy_species_params_free(&sp);
     if (rc) return rc;
     for (size_t i = 0; i < g->skel.n; i++) {
         double r = hypot(g->skel.pos[3 * i] - g->skel.pos[0], g->skel.pos[3 * i + 1] - g->skel.pos[1]);
@@ -412,7 +383,7 @@ static void poisson_disk(grown_tree *g, int n, double size, rng *r)
     }
 }
 
-sy_code sy_scene_build(sy_scene *s, const sy_scene_opts *o, double reach, sy_error *err)
+sy_code sy_scene_build(sy_scene *s, const sy_scene_options *o, double reach, sy_error *err)
 {
     sy_scene_init(s);
     int plot = o->plot_size > 0;
@@ -479,7 +450,7 @@ static double short_float(float f)
     return strtod(buf, NULL);
 }
 
-void sy_write_truth(FILE *fp, const sy_scene *s, const sy_scanner *sc, int stations)
+void sy_write_truth(FILE *fp, const sy_scene *s, const sy_scan_options *sc, int stations)
 {
     sy_json j;
     sy_json_begin(&j, fp, 0);

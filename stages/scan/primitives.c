@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "scan.h"
+#include "stages/core/vec3.h"
 
 sy_code sy_prims_push(sy_prims *list, const sy_prim *p, sy_error *err)
 {
@@ -76,7 +77,7 @@ sy_prim sy_prim_tri(const float a[3], const float b[3], const float c[3])
     return p;
 }
 
-static double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+#define dot3 sy_v3_dot
 
 static void load3(const float *f, double d[3])
 {
@@ -191,12 +192,7 @@ int sy_prim_ray_hit(const void *prims, uint32_t i, const double o[3], const doub
     return sy_prim_intersect((const sy_prim *)prims + i, o, d, SY_SCAN_TMIN, tmax, t);
 }
 
-static void normalize3(double v[3])
-{
-    double l = sqrt(dot3(v, v));
-    if (l > 0)
-        for (int i = 0; i < 3; i++) v[i] /= l;
-}
+static void normalize3(double v[3]) { sy_v3_normalize(v); }
 
 void sy_prim_normal(const sy_prim *p, const double x[3], double n[3])
 {

@@ -16,6 +16,10 @@
 #include "stages/core/skeleton.h"
 #include "stages/core/status.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* ------------------------------------------------------------ primitives */
 
 enum { SY_PRIM_CONE, SY_PRIM_QUAD, SY_PRIM_TRI };
@@ -134,8 +138,6 @@ sy_code sy_scene_add_understory(sy_scene *s, double density, uint64_t seed, sy_e
 /* Builds the BVH; call once after adding everything. */
 sy_code sy_scene_finish(sy_scene *s, sy_error *err);
 
-/* Index of `name` in the sorted list of the species library (*.ini) names, -1 if absent. */
-int sy_species_index(const char *name);
 /* Trunk radius at `above` metres over the root along the trunk stem
  * (linear between nodes, as the cones are); NaN if the trunk is shorter. */
 double sy_trunk_radius_at(const sy_skeleton *s, double above);
@@ -152,13 +154,13 @@ typedef struct {
     int leaves;        /* 0: wood only */
     int elliptic;      /* leaf cards masked to their inscribed ellipse */
     uint64_t seed;
-} sy_scene_opts;
+} sy_scene_options;
 
-void sy_scene_opts_defaults(sy_scene_opts *o);
+sy_scene_options sy_scene_options_default(void);
 /* Grows the trees, lays the terrain (sized to cover `reach` metres around the
  * plot, so scanners standing out there are on ground) and the understory, and
  * finishes the scene. */
-sy_code sy_scene_build(sy_scene *s, const sy_scene_opts *o, double reach, sy_error *err);
+sy_code sy_scene_build(sy_scene *s, const sy_scene_options *o, double reach, sy_error *err);
 
 /* ---------------------------------------------------------------- scanner */
 
@@ -194,10 +196,12 @@ typedef struct {
     double max_range;
     double pulse_rate;      /* pulses per second (terrestrial and airborne timing) */
     size_t max_points;      /* 0: no cap */
-} sy_scanner;
+} sy_scan_options;
 
 /* Sensible defaults per kind (documented in docs/scan.md). */
-void sy_scanner_defaults(sy_scanner *sc, sy_scanner_kind kind);
+sy_scan_options sy_scan_options_for(sy_scanner_kind kind);
+/* The terrestrial defaults. */
+sy_scan_options sy_scan_options_default(void);
 const char *sy_scanner_kind_name(sy_scanner_kind kind);
 
 typedef struct {
@@ -210,9 +214,13 @@ typedef struct {
  * gps_time and the treeID/speciesID/isWood/branchID attributes). The result
  * depends only on the scene, the scanner and its seed, never on the thread
  * count. */
-sy_code sy_scan(const sy_scene *s, const sy_scanner *sc, sy_cloud *out, sy_scan_stats *stats, sy_error *err);
+sy_code sy_scan(const sy_scene *s, const sy_scan_options *sc, sy_cloud *out, sy_scan_stats *stats, sy_error *err);
 
 /* The truth file (docs/truth-format.md) of a scene. */
-void sy_write_truth(FILE *fp, const sy_scene *s, const sy_scanner *sc, int stations);
+void sy_write_truth(FILE *fp, const sy_scene *s, const sy_scan_options *sc, int stations);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -10,14 +10,16 @@
 #include "scan.h"
 #include "stages/core/parallel.h"
 #include "stages/core/progress.h"
+#include "stages/core/rng.h"
 
 #define PI 3.14159265358979323846
 #define DEG (PI / 180)
 #define MAX_SUBRAYS 16
 #define CHUNK 2048
 
-void sy_scanner_defaults(sy_scanner *sc, sy_scanner_kind kind)
+sy_scan_options sy_scan_options_for(sy_scanner_kind kind)
 {
+    sy_scan_options value_, *sc = &value_;
     memset(sc, 0, sizeof *sc);
     sc->kind = kind;
     sc->seed = 1;
@@ -38,7 +40,10 @@ void sy_scanner_defaults(sy_scanner *sc, sy_scanner_kind kind)
     sc->separation = kind == SY_SCANNER_AIRBORNE ? 0.5 : 0.1;
     sc->max_range = kind == SY_SCANNER_AIRBORNE ? 1500 : 150;
     sc->pulse_rate = kind == SY_SCANNER_AIRBORNE ? 400e3 : 500e3;
+    return value_;
 }
+
+sy_scan_options sy_scan_options_default(void) { return sy_scan_options_for(SY_SCANNER_TERRESTRIAL); }
 
 const char *sy_scanner_kind_name(sy_scanner_kind kind)
 {
@@ -47,13 +52,7 @@ const char *sy_scanner_kind_name(sy_scanner_kind kind)
 
 /* ------------------------------------------------------------------ RNG */
 
-static uint64_t mix64(uint64_t z)
-{
-    z += 0x9E3779B97F4A7C15ull;
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
+static uint64_t mix64(uint64_t z) { return sy_mix64(z); }
 
 /* Uniform in (0, 1]: draw number `stream` of pulse `pulse`. */
 static double pulse_u01(uint64_t key, uint64_t pulse, uint64_t stream)
@@ -86,7 +85,7 @@ typedef struct {
 
 typedef struct {
     const sy_scene *scene;
-    const sy_scanner *sc;
+    const sy_scan_options *sc;
     uint64_t key;
     double origin[3];
     size_t n_pulses;
@@ -179,7 +178,7 @@ static void station_window(const sy_scene *s, const double p[3], double *az0, do
 
 static sy_code plan_terrestrial(scan_job *j, int *stations, sy_error *err)
 {
-    const sy_scanner *sc = j->sc;
+    const sy_scan_options *sc = j->sc;
     if (sc->positions < 1 || sc->positions > 1000)
         return sy_fail(err, SY_EUSAGE, "scan: --positions %d is out of range 1..1000", sc->positions);
     if (!(sc->step_deg > 0)) return sy_fail(err, SY_EUSAGE, "scan: --step must be positive");
@@ -245,7 +244,7 @@ static sy_code path_push(scan_job *j, size_t *cap, double x, double y, sy_error 
 
 static sy_code plan_mobile(scan_job *j, int *passes, sy_error *err)
 {
-    const sy_scanner *sc = j->sc;
+    const sy_scan_options *sc = j->sc;
     if (!(sc->step_deg > 0) || !(sc->rotation_hz > 0) || !(sc->speed > 0))
         return sy_fail(err, SY_EUSAGE, "scan: mobile --step, --rotation and --speed must be positive");
     size_t cap = 0;
@@ -288,7 +287,7 @@ static sy_code plan_mobile(scan_job *j, int *passes, sy_error *err)
 
 static void pulse_mobile(const scan_job *j, size_t i, double o[3], double d[3], double *time)
 {
-    const sy_scanner *sc = j->sc;
+    const sy_scan_options *sc = j->sc;
     size_t prof = i / j->per_profile, k = i % j->per_profile;
     double t = (prof + (double)k / j->per_profile) / sc->rotation_hz, s = t * sc->speed;
     size_t lo = 0, hi = j->path_n - 1;
@@ -313,7 +312,7 @@ static void pulse_mobile(const scan_job *j, size_t i, double o[3], double d[3], 
 
 static sy_code plan_airborne(scan_job *j, int *strips, sy_error *err)
 {
-    const sy_scanner *sc = j->sc;
+    const sy_scan_options *sc = j->sc;
     const sy_scene *s = j->scene;
     if (!(sc->density > 0) || !(sc->altitude > 0) || !(sc->swath_deg > 0 && sc->swath_deg < 170) ||
         !(sc->overlap >= 0 && sc->overlap <= 0.9) || !(sc->speed > 0))
@@ -388,7 +387,7 @@ static int push_return(chunk_out *out, const scan_return *r)
 
 static void trace_pulse(const scan_job *j, size_t i, chunk_out *out)
 {
-    const sy_scanner *sc = j->sc;
+    const sy_scan_options *sc = j->sc;
     const sy_bvh *bvh = &j->scene->bvh;
     const sy_prim *prims = j->scene->prims.p;
     double o[3], d[3], time;
@@ -541,7 +540,7 @@ static void free_job(scan_job *j, size_t n_chunks)
     pthread_mutex_destroy(&j->lock);
 }
 
-sy_code sy_scan(const sy_scene *s, const sy_scanner *sc, sy_cloud *out, sy_scan_stats *stats, sy_error *err)
+sy_code sy_scan(const sy_scene *s, const sy_scan_options *sc, sy_cloud *out, sy_scan_stats *stats, sy_error *err)
 {
     memset(out, 0, sizeof *out);
     sy_scan_stats st = {0};

@@ -4,16 +4,11 @@
 #include <math.h>
 
 #include "scan.h"
+#include "stages/core/rng.h"
 
 #define PI 3.14159265358979323846
 
-static uint64_t mix64(uint64_t z)
-{
-    z += 0x9E3779B97F4A7C15ull;
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
+static uint64_t mix64(uint64_t z) { return sy_mix64(z); }
 
 /* Lattice value in [-1, 1]. */
 static double lattice(uint64_t seed, int64_t ix, int64_t iy, int octave)

@@ -5,17 +5,12 @@
 #include <string.h>
 
 #include "skeleton_internal.h"
+#include "stages/core/rng.h"
 
 /* ---- Circle fit ---- */
 
-static uint64_t rng_next(uint64_t *s)
-{
-    /* splitmix64: tiny, seedable, good enough to pick RANSAC triples. */
-    uint64_t z = (*s += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-}
+/* splitmix64: good enough to pick RANSAC triples. */
+static uint64_t rng_next(uint64_t *s) { return sy_splitmix64(s); }
 
 /* Circle through three points; 0 when they are (nearly) collinear. */
 static int circle3(const double *a, const double *b, const double *c, double ctr[2], double *r)
@@ -346,11 +341,13 @@ static int32_t continuation(const sy_skeleton *s, const int32_t *first_child, co
     return -1;
 }
 
-size_t sy_measure_node_radii(const sy_skeleton *s, const float *xyz, double spacing, float *fit, sy_error *err)
+sy_code sy_measure_node_radii(const sy_skeleton *s, const float *xyz, double spacing, float *fit, size_t *fitted_out,
+                              sy_error *err)
 {
+    *fitted_out = 0;
     size_t m = s->n, fitted = 0;
     for (size_t i = 0; i < m; i++) fit[i] = 0;
-    if (!s->support_start || m < 2) return 0;
+    if (!s->support_start || m < 2) return SY_OK;
     size_t most = 0;
     for (size_t i = 0; i < m; i++)
         if (s->support_start[i + 1] - s->support_start[i] > most) most = s->support_start[i + 1] - s->support_start[i];
@@ -363,7 +360,7 @@ size_t sy_measure_node_radii(const sy_skeleton *s, const float *xyz, double spac
         free(next_sibling);
         free(xy);
         free(ang);
-        return (size_t)-1;
+        return SY_EINTERNAL;
     }
     sy_skeleton_children(s, first_child, next_sibling);
     /* The inlier band: the scan's own roughness, a few millimetres at least. */
@@ -429,7 +426,8 @@ size_t sy_measure_node_radii(const sy_skeleton *s, const float *xyz, double spac
     free(next_sibling);
     free(xy);
     free(ang);
-    return fitted;
+    *fitted_out = fitted;
+    return SY_OK;
 }
 
 sy_code sy_calibrate_radii(sy_skeleton *s, const float *fit, sy_error *err)

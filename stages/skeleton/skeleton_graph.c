@@ -5,7 +5,7 @@
  * to the join radius (about two point spacings) a query almost always ends
  * after the 27 cells around the point, which is faster than a kd-tree for the
  * near-uniform spacing of voxel-thinned scans and keeps the code in C. */
-#include "skeleton_stage.h"
+#include "stages/skeleton/skeleton.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -555,8 +555,7 @@ sy_code sy_graph_build(const float *xyz, size_t n, int k, double radius, uint32_
 {
     memset(G, 0, sizeof *G);
     if (n == 0 || anchor >= n) return sy_fail(err, SY_EINPUT, "graph: no points");
-    if (k < 1) k = 1;
-    if (k > 32) k = 32;
+    if (k < 1 || k > 32) return sy_fail(err, SY_EUSAGE, "graph: k %d outside [1, 32]", k);
     int cap = 2 * k;
     /* Two grids: cells of one join radius, and 4x coarser ones for the
      * sparse parts (foliage, the far side of a crown) the fine one leaves. */

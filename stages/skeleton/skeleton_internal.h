@@ -2,7 +2,11 @@
 #ifndef SYLVA_SKELETON_INTERNAL_H
 #define SYLVA_SKELETON_INTERNAL_H
 
-#include "skeleton_stage.h"
+#include "stages/skeleton/skeleton.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
 
 /* l[i] = length of all edges below node i plus its incoming edge (so leaves
  * get their own edge length, never 0). Needs parent[i] < i (breadth-first
@@ -30,9 +34,10 @@ sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of
 /* Measured radii: for each node a circle fitted across its local branch axis
  * to its own points and its neighbours' on the branch. fit[i] is the radius
  * where the points lie on a circle (most within the band, round at least half
- * of it, the circle no wider than the points), else 0. Returns how many nodes
- * got one, or (size_t)-1 when memory ran out (err set). */
-size_t sy_measure_node_radii(const sy_skeleton *s, const float *xyz, double spacing, float *fit, sy_error *err);
+ * of it, the circle no wider than the points), else 0. *fitted gets how many
+ * nodes got one; SY_EINTERNAL when memory ran out (err set). */
+sy_code sy_measure_node_radii(const sy_skeleton *s, const float *xyz, double spacing, float *fit, size_t *fitted,
+                              sy_error *err);
 
 /* Scales the allometric radii of each branch (trunk excepted) by the median
  * ratio of its measured radii (fit, 0 = none) to the allometric ones;
@@ -51,5 +56,9 @@ size_t sy_base_sources(const float *xyz, size_t n, const sy_graph *g, uint32_t r
  * the points by ascending dist (parents before children). */
 sy_code sy_classify_wood(const sy_graph *g, const int32_t *spt, const double *dist, double min_share, uint8_t *wood,
                          uint32_t *order, size_t *n_wood, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

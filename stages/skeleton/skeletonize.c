@@ -12,8 +12,10 @@
 #include "skeleton_internal.h"
 #include "stages/core/progress.h"
 
-void sy_skeleton_options_default(sy_skeleton_options *o)
+sy_skeleton_options sy_skeleton_options_default(void)
 {
+    sy_skeleton_options value_, *o = &value_;
+    memset(o, 0, sizeof *o);
     o->beta = 1.0;
     o->gamma = 2.0;
     o->fs = 1.0;
@@ -27,12 +29,34 @@ void sy_skeleton_options_default(sy_skeleton_options *o)
     o->smooth_iters = 3;
     o->dbh_height = 1.3;
     o->dbh_slab = 0.10;
-    o->alpha_scale = 5.0;
     o->min_cluster_points = 24;
-    o->hull_triangles = 0;
     o->clusters = 1;
     o->wood_share = 0;
     o->spread_around = 0;
+    return value_;
+}
+
+sy_code sy_skeleton_options_check(const sy_skeleton_options *o, sy_error *err)
+{
+    if (!(o->beta > 0) || !isfinite(o->beta)) return sy_fail(err, SY_EUSAGE, "skeleton: beta %g must be > 0", o->beta);
+    if (!(o->gamma > 0) || !isfinite(o->gamma))
+        return sy_fail(err, SY_EUSAGE, "skeleton: gamma %g must be > 0", o->gamma);
+    if (!(o->fs > 0 && o->fs <= 1)) return sy_fail(err, SY_EUSAGE, "skeleton: fs %g outside (0, 1]", o->fs);
+    if (!(o->spacing >= 0) || !isfinite(o->spacing))
+        return sy_fail(err, SY_EUSAGE, "skeleton: spacing %g must be >= 0", o->spacing);
+    if (o->k < 1 || o->k > 32) return sy_fail(err, SY_EUSAGE, "skeleton: k %d outside [1, 32]", o->k);
+    if (!(o->radius_factor > 0) || !(o->bin_factor > 0) || !(o->min_bin >= 0) || !isfinite(o->radius_factor) ||
+        !isfinite(o->bin_factor) || !isfinite(o->min_bin))
+        return sy_fail(err, SY_EUSAGE, "skeleton: radius_factor and bin_factor must be > 0, min_bin >= 0");
+    if (!(o->prune_factor >= 0) || !(o->merge_cos >= -1 && o->merge_cos <= 1) || o->smooth_iters < 0)
+        return sy_fail(err, SY_EUSAGE, "skeleton: prune_factor >= 0, merge_cos in [-1, 1], smooth_iters >= 0");
+    if (!(o->dbh_height > 0) || !(o->dbh_slab > 0))
+        return sy_fail(err, SY_EUSAGE, "skeleton: dbh_height and dbh_slab must be > 0");
+    if (o->min_cluster_points < 0)
+        return sy_fail(err, SY_EUSAGE, "skeleton: min_cluster_points %d must be >= 0", o->min_cluster_points);
+    if (!(o->wood_share >= 0 && o->wood_share < 1))
+        return sy_fail(err, SY_EUSAGE, "skeleton: wood_share %g outside [0, 1)", o->wood_share);
+    return SY_OK;
 }
 
 /* The node graph while it is being edited: nodes are merged by aliasing. */
@@ -683,16 +707,11 @@ size_t sy_base_sources(const float *xyz, size_t n, const sy_graph *g, uint32_t r
     return n_src;
 }
 
-/* Triangles per hull so that the .sylva file stays under its 40 kB target:
- * 36 kB minus the skeleton (about 10 bytes a node) shared by the clusters at
- * about 6.5 bytes a triangle (half a 6-byte vertex plus ~3.5 index bytes),
- * never fewer than 16 or more than 160 triangles. */
-static int hull_budget(size_t n_clusters, size_t n_nodes)
+/* Ascending doubles, for qsort. */
+static int cmp_double_asc(const void *a, const void *b)
 {
-    if (n_clusters == 0) return 160;
-    double bytes = 36000.0 - 64 - 10.0 * (double)n_nodes;
-    double t = bytes / (6.5 * (double)n_clusters);
-    return t < 16 ? 16 : t > 160 ? 160 : (int)t;
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
 }
 
 /* The ground under the tree's base when preprocessing classified it (the
@@ -702,12 +721,6 @@ static int hull_budget(size_t n_clusters, size_t n_nodes)
  * left sits 10-30 cm up, and breast height measured from it lands on a
  * thinner part of the trunk (DBH 1.5 cm low on simulated aspen and fir).
  * NaN without the attribute or when the answer is implausible. */
-static int cmp_double_asc(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 static double ground_under_base(const sy_cloud *c, double zbase)
 {
     const double *hag = sy_cloud_attr(c, "height_above_ground");
@@ -738,9 +751,8 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     size_t n = cloud->n;
     const float *xyz = cloud->xyz;
     if (n < 16) return sy_fail(err, SY_EINPUT, "skeleton: %zu points are too few for a tree", n);
-    if (!(o->beta > 0) || !(o->gamma > 0) || !(o->fs > 0 && o->fs <= 1) || !(o->bin_factor > 0) ||
-        !(o->radius_factor > 0) || !(o->spacing >= 0) || !(o->wood_share >= 0 && o->wood_share < 1) || !isfinite(o->beta + o->gamma + o->spacing))
-        return sy_fail(err, SY_EINPUT, "skeleton: beta, gamma, bin and radius factors must be > 0 f_s in (0, 1], wood share in [0, 1)");
+    sy_code rc = sy_skeleton_options_check(o, err);
+    if (rc) return rc;
     double t0 = sy_now(), t = t0;
     rep->points = n;
 
@@ -759,7 +771,7 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     double ground = ground_under_base(cloud, z0);
 
     sy_graph g;
-    sy_code rc = sy_graph_build(xyz, n, o->k, o->radius_factor * s, root, &g, err);
+    rc = sy_graph_build(xyz, n, o->k, o->radius_factor * s, root, &g, err);
     if (rc) return rc;
     rep->graph_edges = g.start[n] / 2;
     rep->components = g.components;
@@ -843,8 +855,8 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
         rc = SY_EINTERNAL;
         goto done;
     }
-    rep->radii_measured = sy_measure_node_radii(&full, xyz, s, fit, err);
-    rc = rep->radii_measured == (size_t)-1 ? SY_EINTERNAL : sy_calibrate_radii(&full, fit, err);
+    rc = sy_measure_node_radii(&full, xyz, s, fit, &rep->radii_measured, err);
+    if (!rc) rc = sy_calibrate_radii(&full, fit, err);
     if (rc) goto done;
     rep->dbh = ri.dbh;
     rep->dbh_rms = ri.rms;
@@ -896,22 +908,17 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
         if (rc) goto done;
     }
     rep->t_clusters = sy_now() - t;
-    t = sy_now();
 
     if (clusters) {
-        int budget = o->hull_triangles > 0 ? o->hull_triangles : hull_budget(clusters->n, out->n);
-        for (size_t c = 0; c < clusters->n && !rc; c++) {
+        /* Ascending point lists: the hull step (stages/clusters) and the
+         * encoder see the same order whatever the split did. */
+        for (size_t c = 0; c < clusters->n; c++) {
             sy_cluster *C = &clusters->items[c];
             qsort(C->points, C->n_points, sizeof *C->points, cmp_u32);
-            rc = sy_cluster_build_hull(C, xyz, o->alpha_scale, budget, 0.01, err);
             rep->cluster_points += C->n_points;
-            if (C->hull == SY_HULL_ALPHA) rep->hulls_alpha++;
-            else if (C->hull == SY_HULL_CONVEX) rep->hulls_convex++;
-            else rep->hulls_box++;
         }
         rep->clusters = clusters->n;
     }
-    rep->t_hulls = sy_now() - t;
     rep->nodes = out->n;
     rep->branches = (size_t)sy_skeleton_branch_count(out);
     rep->skeleton_points = out->support_start ? out->support_start[out->n] : 0;

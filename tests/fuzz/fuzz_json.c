@@ -6,9 +6,9 @@
 #include <stdint.h>
 
 #include "stages/core/json_read.h"
-#include "stages/encode/sylva_json.h"
+#include "stages/qsm/sylva_json.h"
 #include "stages/eval/eval.h"
-#include "stages/qsm/qsm_io.h"
+#include "stages/qsm/qsm.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

@@ -6,7 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "stages/encode/sylva_format.h"
+#include "stages/encode/encode.h"
 
 static uint32_t crc32_ref(const unsigned char *p, size_t n)
 {

@@ -1,10 +1,15 @@
 /* Species parameter files: a strict INI reader for the Weber-Penn tree-type
- * layout of seed 004's Appendix C ([General], [ParamLevelN]) plus [Sylva].
+ * layout of the Weber & Penn GPU-trees thesis's Appendix C ([General],
+ * [ParamLevelN]) plus [Sylva].
  * Keys are case-insensitive; per-level keys may carry their level digit
  * ("1Branches"), which must then match the section. */
-#include "grow.h"
+/* realpath() is XSI. */
+#define _XOPEN_SOURCE 700
+
+#include "species/params.h"
 
 #include <ctype.h>
+#include <limits.h>
 #include <errno.h>
 #include <math.h>
 #include <stddef.h>
@@ -13,6 +18,7 @@
 #include <string.h>
 #include <strings.h>
 
+#include "species/library.h"
 #include "stages/core/fileio.h"
 
 typedef enum { K_FLOAT, K_INT, K_STRING, K_VEC3 } key_type;
@@ -21,11 +27,11 @@ typedef enum { S_NONE, S_GENERAL, S_LEVEL, S_SYLVA } section_kind;
 typedef struct {
     const char *name;
     key_type type;
-    size_t offset; /* in sy_species (general, sylva) or sy_wp_level (level) */
+    size_t offset; /* in sy_species_params (general, sylva) or sy_wp_level (level) */
     double lo, hi; /* accepted range, inclusive */
 } key_def;
 
-#define GEN(n, t, f, lo, hi) {n, t, offsetof(sy_species, f), lo, hi}
+#define GEN(n, t, f, lo, hi) {n, t, offsetof(sy_species_params, f), lo, hi}
 #define LVL(n, t, f, lo, hi) {n, t, offsetof(sy_wp_level, f), lo, hi}
 #define ANGLE 3600.0
 
@@ -84,7 +90,7 @@ static const key_def level_keys[] = {
     LVL("CurveV", K_FLOAT, curve_v, -ANGLE, ANGLE),
 };
 
-/* [Sylva] keys; offsets into sy_species. */
+/* [Sylva] keys; offsets into sy_species_params. */
 static const key_def sylva_keys[] = {
     GEN("name", K_STRING, name, 0, 0),
     GEN("bark", K_STRING, bark_texture, 0, 0),
@@ -98,8 +104,9 @@ static const key_def sylva_keys[] = {
 #define N_LEVEL (sizeof level_keys / sizeof level_keys[0])
 #define N_SYLVA (sizeof sylva_keys / sizeof sylva_keys[0])
 
-void sy_species_defaults(sy_species *sp)
+sy_species_params sy_species_params_default(void)
 {
+    sy_species_params s, *sp = &s;
     /* Weber & Penn's generic values (their quaking aspen where the paper has
      * no neutral choice); docs/species.md lists them. */
     static const sy_wp_level lv[SY_WP_LEVELS] = {
@@ -130,9 +137,10 @@ void sy_species_defaults(sy_species *sp)
     sp->leaf_translucency = 0.4f;
     sp->beta = 1;
     sp->gamma = 2;
+    return s;
 }
 
-void sy_species_free(sy_species *sp)
+void sy_species_params_free(sy_species_params *sp)
 {
     free(sp->material);
     free(sp->material_normal);
@@ -142,10 +150,27 @@ void sy_species_free(sy_species *sp)
     sp->material = sp->material_normal = sp->name = sp->bark_texture = sp->leaf_texture = NULL;
 }
 
-/* One table's keys of base (sy_species or sy_wp_level) as a JSON object.
+/* One table's keys of base (sy_species_params or sy_wp_level) as a JSON object.
  * Aliases (recLevels = Levels) share an offset and are written once;
  * BaseSplits only on the trunk, where the parser accepts it. */
-static void write_keys(sy_json *j, const char *section, const key_def *keys, size_t n, const void *base, int level)
+/* A texture path as asset extras keep it: relative to the library folder
+ * lib (canonical; "" when there is none) when it lies in it, else the file
+ * name only (the absolute path belongs to the machine that grew the tree). */
+static const char *library_relative(const char *v, const char *lib, char *buf, size_t size)
+{
+    size_t n = strlen(lib);
+    char canon[PATH_MAX];
+    const char *c = realpath(v, canon) ? canon : v;
+    if (n && strncmp(c, lib, n) == 0 && c[n] == '/') {
+        snprintf(buf, size, "%s", c + n + 1);
+        return buf;
+    }
+    const char *slash = strrchr(v, '/');
+    return slash ? slash + 1 : v;
+}
+
+static void write_keys(sy_json *j, const char *section, const key_def *keys, size_t n, const void *base, int level,
+                       const char *lib)
 {
     sy_json_object(j, section);
     for (size_t i = 0; i < n; i++) {
@@ -164,15 +189,12 @@ static void write_keys(sy_json *j, const char *section, const key_def *keys, siz
             break;
         case K_STRING: {
             const char *v = *(char *const *)field;
+            char rel[4096];
             if (!v) break;
             /* Textures: relative to the library folder when they are in it
              * (as its .ini files write them), else the file name only. */
-            if (keys == sylva_keys && k->offset != offsetof(sy_species, name)) {
-                size_t lib = strlen(SYLVA_SPECIES_DIR);
-                const char *slash = strrchr(v, '/');
-                if (strncmp(v, SYLVA_SPECIES_DIR, lib) == 0 && v[lib] == '/') v += lib + 1;
-                else if (slash) v = slash + 1;
-            }
+            if (keys == sylva_keys && k->offset != offsetof(sy_species_params, name))
+                v = library_relative(v, lib, rel, sizeof rel);
             sy_json_string(j, k->name, v);
             break;
         }
@@ -181,15 +203,17 @@ static void write_keys(sy_json *j, const char *section, const key_def *keys, siz
     sy_json_end(j);
 }
 
-void sy_species_write_json(const sy_species *sp, sy_json *j)
+void sy_species_params_write_json(const sy_species_params *sp, sy_json *j)
 {
-    write_keys(j, "General", general_keys, N_GENERAL, sp, 0);
+    char lib[4096];
+    if (sy_library_locate(lib, sizeof lib, NULL)) lib[0] = '\0';
+    write_keys(j, "General", general_keys, N_GENERAL, sp, 0, lib);
     for (int l = 0; l < SY_WP_LEVELS; l++) {
         char section[16];
         snprintf(section, sizeof section, "ParamLevel%d", l);
-        write_keys(j, section, level_keys, N_LEVEL, &sp->level[l], l);
+        write_keys(j, section, level_keys, N_LEVEL, &sp->level[l], l, lib);
     }
-    write_keys(j, "Sylva", sylva_keys, N_SYLVA, sp, 0);
+    write_keys(j, "Sylva", sylva_keys, N_SYLVA, sp, 0, lib);
 }
 
 /* Parser state: where we are, for messages and the duplicate check. */
@@ -359,7 +383,7 @@ static sy_code handle_section(parser *p, char *s)
     return SY_OK;
 }
 
-static sy_code handle_level_key(parser *p, sy_species *sp, const char *key, char *value, int level)
+static sy_code handle_level_key(parser *p, sy_species_params *sp, const char *key, char *value, int level)
 {
     size_t idx;
     const key_def *k = lookup(level_keys, N_LEVEL, key, &idx);
@@ -371,7 +395,7 @@ static sy_code handle_level_key(parser *p, sy_species *sp, const char *key, char
     return set_value(p, k, &sp->level[level], value, 0);
 }
 
-static sy_code handle_key(parser *p, sy_species *sp, char *key, char *value)
+static sy_code handle_key(parser *p, sy_species_params *sp, char *key, char *value)
 {
     size_t idx;
     const key_def *k;
@@ -380,7 +404,7 @@ static sy_code handle_key(parser *p, sy_species *sp, char *key, char *value)
         if (!(k = lookup(sylva_keys, N_SYLVA, key, &idx))) return perr(p, "unknown key ", key);
         sy_code rc = mark_seen(p, 5, idx, key);
         if (rc) return rc;
-        return set_value(p, k, sp, value, k->offset != offsetof(sy_species, name));
+        return set_value(p, k, sp, value, k->offset != offsetof(sy_species_params, name));
     }
     /* 0Scale/0ScaleV are trunk keys too: accept them in [ParamLevel0]. */
     int general_ok = p->section == S_GENERAL || (p->section == S_LEVEL && p->level == 0 && key[0] == '0');
@@ -409,7 +433,7 @@ static sy_code handle_key(parser *p, sy_species *sp, char *key, char *value)
 }
 
 /* Cross-key checks that no single range can express. */
-static sy_code check_consistency(parser *p, sy_species *sp)
+static sy_code check_consistency(parser *p, sy_species_params *sp)
 {
     p->line = 0;
     /* An empty file would silently grow the default tree. */
@@ -422,10 +446,10 @@ static sy_code check_consistency(parser *p, sy_species *sp)
     return SY_OK;
 }
 
-sy_code sy_species_parse(const char *text, size_t size, const char *path, const char *base_dir,
-                         sy_species *sp, sy_error *err)
+sy_code sy_species_params_parse(const char *text, size_t size, const char *path, const char *base_dir,
+                         sy_species_params *sp, sy_error *err)
 {
-    sy_species_defaults(sp);
+    *sp = sy_species_params_default();
     parser *p = calloc(1, sizeof *p);
     if (!p) return sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
     p->path = path;
@@ -475,7 +499,7 @@ sy_code sy_species_parse(const char *text, size_t size, const char *path, const 
     }
     if (rc == SY_OK) rc = check_consistency(p, sp);
     free(p);
-    if (rc) sy_species_free(sp);
+    if (rc) sy_species_params_free(sp);
     return rc;
 }
 
@@ -494,36 +518,38 @@ static void split_path(const char *path, char *dir, size_t dsz, char *stem, size
     snprintf(stem, ssz, "%.*s", (int)n, base);
 }
 
-sy_code sy_species_load(const char *path, sy_species *sp, sy_error *err)
+sy_code sy_species_params_load(const char *path, sy_species_params *sp, sy_error *err)
 {
     sy_buffer buf;
     sy_code rc = sy_read_file(path, &buf, err);
     if (rc) {
-        sy_species_defaults(sp);
+        *sp = sy_species_params_default();
         return rc;
     }
     char dir[4096], stem[256];
     split_path(path, dir, sizeof dir, stem, sizeof stem);
-    rc = sy_species_parse((const char *)buf.data, buf.size, path, dir, sp, err);
+    rc = sy_species_params_parse((const char *)buf.data, buf.size, path, dir, sp, err);
     sy_buffer_free(&buf);
     if (rc == SY_OK && !sp->name && !(sp->name = strdup(stem))) {
-        sy_species_free(sp);
+        sy_species_params_free(sp);
         return sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
     }
     return rc;
 }
 
-sy_code sy_species_find(const char *name, sy_species *sp, sy_error *err)
+sy_code sy_species_params_find(const char *name, sy_species_params *sp, sy_error *err)
 {
     size_t n = strlen(name);
     if (strchr(name, '/') || (n > 4 && strcasecmp(name + n - 4, ".ini") == 0))
-        return sy_species_load(name, sp, err);
-    for (size_t i = 0; i < n; i++)
-        if (!(isalnum((unsigned char)name[i]) || name[i] == '_' || name[i] == '-')) {
-            sy_species_defaults(sp);
-            return sy_fail(err, SY_EINPUT, "species \"%s\": names use letters, digits, '_' and '-'", name);
-        }
-    char path[4096];
-    snprintf(path, sizeof path, "%s/%s.ini", SYLVA_SPECIES_DIR, name);
-    return sy_species_load(path, sp, err);
+        return sy_species_params_load(name, sp, err);
+    *sp = sy_species_params_default();
+    sy_library lib;
+    sy_code rc = sy_library_load(NULL, &lib, err);
+    if (rc) return rc;
+    const sy_library_entry *e = sy_library_find(&lib, name);
+    if (e) rc = sy_library_params(&lib, e, sp, err);
+    else rc = sy_fail(err, SY_EINPUT, "species \"%s\": not in the library %s/library.tsv (`sylva library list`)",
+                      name, lib.dir);
+    sy_library_free(&lib);
+    return rc;
 }

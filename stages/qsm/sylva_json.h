@@ -12,7 +12,11 @@
 #define SYLVA_SYLVA_JSON_H
 
 #include "stages/core/json_read.h"
-#include "sylva_format.h"
+#include "stages/encode/encode.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
 
 /* Writes the document atomically; s must validate. */
 sy_code sy_sylva_json_write(const char *path, const sy_skeleton *s, const sy_clusters *cl, const sy_sylva_meta *meta,
@@ -26,5 +30,9 @@ sy_code sy_sylva_json_from_doc(const char *path, const sy_jv *doc, sy_skeleton *
 
 /* 1 when doc is a JSON object whose "format" is "sylva-tree". */
 int sy_sylva_json_is_tree(const sy_jv *doc);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

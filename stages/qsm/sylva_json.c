@@ -11,7 +11,7 @@
 
 #include "stages/core/fileio.h"
 #include "stages/core/json.h"
-#include "stages/qsm/qsm_io.h"
+#include "stages/qsm/qsm.h"
 
 static const char *hull_names[3] = {"alpha", "convex", "box"};
 

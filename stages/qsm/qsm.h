@@ -12,8 +12,8 @@
  *         and drops the cluster hulls, writes the skeleton alone
  * Writes are atomic. Reads choose the format by content (magic bytes, header
  * names), the extension breaking ties, and end with sy_skeleton_validate. */
-#ifndef SYLVA_QSM_IO_H
-#define SYLVA_QSM_IO_H
+#ifndef SYLVA_QSM_H
+#define SYLVA_QSM_H
 
 #include <stddef.h>
 #include <stdio.h>
@@ -24,6 +24,10 @@
 #include "stages/core/json_read.h"
 #include "stages/core/skeleton.h"
 #include "stages/core/status.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
 
 typedef enum {
     SY_SKEL_UNKNOWN = 0,
@@ -120,5 +124,9 @@ sy_code sy_skeleton_from_json_nodes(const char *path, const char *where, const s
  * Arrays hold s->n entries. */
 sy_code sy_skeleton_growth_length(const sy_skeleton *s, double *growth, sy_error *err);
 sy_code sy_skeleton_reverse_order(const sy_skeleton *s, int32_t *rbo, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

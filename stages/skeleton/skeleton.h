@@ -13,8 +13,8 @@
  *
  * Every input point ends up in exactly one place: the support of one skeleton
  * node (skel->support) or the point list of one cluster. */
-#ifndef SYLVA_SKELETON_STAGE_H
-#define SYLVA_SKELETON_STAGE_H
+#ifndef SYLVA_STAGE_SKELETON_H
+#define SYLVA_STAGE_SKELETON_H
 
 #include <stddef.h>
 
@@ -22,6 +22,10 @@
 #include "stages/core/cloud.h"
 #include "stages/core/skeleton.h"
 #include "stages/core/status.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
 
 typedef struct {
     double beta;          /* Dijkstra edge weight |u-v|^beta (1) */
@@ -37,9 +41,7 @@ typedef struct {
     int smooth_iters;     /* Laplacian passes along chains (3) */
     double dbh_height;    /* breast height above the base in metres (1.3) */
     double dbh_slab;      /* slab thickness for the DBH circle fit in metres (0.10) */
-    double alpha_scale;   /* alpha = alpha_scale * alpha_min, both CGAL squared radii (5) */
     int min_cluster_points; /* smaller low-confidence groups stay on the skeleton (24) */
-    int hull_triangles;   /* hull triangle budget per cluster; 0 = from the 40 kB file budget */
     int clusters;         /* 0: skeleton only, every point stays on the skeleton */
     int spread_around;    /* low-confidence spread from the skeleton around the node, not the
                              incoming edge (0; 1 recovers more limbs on leaf-off scans but cuts
@@ -49,7 +51,9 @@ typedef struct {
                              on leafy TLS scans it gained little and hurt leafless trees, docs/skeleton.md) */
 } sy_skeleton_options;
 
-void sy_skeleton_options_default(sy_skeleton_options *o);
+sy_skeleton_options sy_skeleton_options_default(void);
+/* SY_EUSAGE naming the field when a value is out of range. */
+sy_code sy_skeleton_options_check(const sy_skeleton_options *o, sy_error *err);
 
 typedef struct {
     size_t points, graph_edges, components, bridges;
@@ -58,18 +62,18 @@ typedef struct {
     size_t raw_nodes, pruned_nodes, merged_nodes;
     size_t nodes, branches;
     size_t clusters, cluster_points, skeleton_points;
-    size_t hulls_alpha, hulls_convex, hulls_box; /* which hull each cluster got */
     double dbh, dbh_rms, height;
     int dbh_fitted;       /* 1: circle fit at breast height, 0: fallback estimate */
     double d_root;        /* root diameter from which the allometry runs */
     size_t radii_measured; /* nodes whose radius a circle fit measured (they rescale their branch) */
-    double t_graph, t_dijkstra, t_levels, t_radii, t_clusters, t_hulls, t_total; /* seconds */
+    double t_graph, t_dijkstra, t_levels, t_radii, t_clusters, t_total; /* seconds */
 } sy_skeleton_report;
 
 /* Reconstructs cloud into out (positions relative to cloud->origin, nodes in
  * breadth-first order from the root, support filled) and clusters (may be
- * NULL when o->clusters is 0). report may be NULL. Fails with SY_EINPUT for
- * clouds too small to hold a tree (< 16 points) or with non-finite options. */
+ * NULL when o->clusters is 0). report may be NULL. Fails with SY_EUSAGE for
+ * options sy_skeleton_options_check rejects, SY_EINPUT for clouds too small to
+ * hold a tree (< 16 points). */
 sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options *o, sy_skeleton *out,
                                 sy_clusters *clusters, sy_skeleton_report *report, sy_error *err);
 
@@ -87,8 +91,9 @@ typedef struct {
 
 /* Median nearest-neighbour distance over a deterministic sample of points. */
 double sy_estimate_spacing(const float *xyz, size_t n);
-/* kNN (k) joined with all neighbours within radius; components bridged to the
- * one holding `anchor` by their shortest gap edges. */
+/* kNN (k in [1, 32], else SY_EUSAGE) joined with all neighbours within
+ * radius; components bridged to the one holding `anchor` by their shortest
+ * gap edges. */
 sy_code sy_graph_build(const float *xyz, size_t n, int k, double radius, uint32_t anchor, sy_graph *g,
                        sy_error *err);
 void sy_graph_free(sy_graph *g);
@@ -108,5 +113,9 @@ int sy_fit_circle(const double *xy, size_t n, double inlier_tol, unsigned long l
  * The slab starts at the 0.5th percentile of z (stray points below ignored);
  * *z0 (may be NULL) receives that height. */
 uint32_t sy_find_root(const float *xyz, size_t n, double slab, double *z0);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -10,8 +10,8 @@
  * (relative error below (log2(rmax / rmin) / 65535) * ln 2 / 2, 5e-5 for a
  * 1000:1 range). Decoding then re-encoding with the file's own quantisation
  * reproduces the file byte for byte. */
-#ifndef SYLVA_SYLVA_FORMAT_H
-#define SYLVA_SYLVA_FORMAT_H
+#ifndef SYLVA_ENCODE_H
+#define SYLVA_ENCODE_H
 
 #include <stddef.h>
 #include <stdint.h>
@@ -19,6 +19,10 @@
 #include "stages/clusters/clusters.h"
 #include "stages/core/skeleton.h"
 #include "stages/core/status.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
 
 /* Written version; the decoder reads 1 (orders derived from branch starts)
  * and 2 (orders stored per branch). */
@@ -49,6 +53,11 @@ sy_code sy_encode_mem(const sy_skeleton *skel, const sy_clusters *clusters, uint
 sy_code sy_encode_write(const char *path, const sy_skeleton *skel, const sy_clusters *clusters, uint16_t species_id,
                         uint64_t seed, sy_error *err);
 
+/* Triangles per cluster hull that keep a .sylva file of n_nodes skeleton
+ * nodes and n_clusters hulls under its 40 kB target (Pirk 2013 Table 3.2),
+ * in [16, 160]; the hull step (sy_hull_options.triangles) takes it. */
+int sy_sylva_hull_budget(size_t n_clusters, size_t n_nodes);
+
 /* Decodes a file image; path names it in messages. Every malformed,
  * truncated or corrupted input fails with one SY_EINPUT line naming path. */
 sy_code sy_decode_mem(const char *path, const unsigned char *data, size_t size, sy_skeleton *skel,
@@ -56,5 +65,9 @@ sy_code sy_decode_mem(const char *path, const unsigned char *data, size_t size, 
 
 sy_code sy_decode_read(const char *path, sy_skeleton *skel, sy_clusters *clusters, sy_sylva_meta *meta,
                        sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -1,5 +1,6 @@
-// tinygltf shim: triangle soup of a glTF scene in world space (Z up).
-#include "gltf_read_tinygltf.h"
+// The glTF reader's geometry side (tinygltf shim): the triangle soup of a
+// glTF scene in Sylva's world frame (Z up).
+#include "stages/gltf/gltf_read.h"
 
 #include <tiny_gltf.h>
 
@@ -285,8 +286,7 @@ void set_msg(char *msg, size_t size, const char *path, const std::string &what)
 
 } // namespace
 
-extern "C" int sy_gltf_read_triangles(const char *path, double **tri, size_t *n_tri, size_t **hull, char *msg,
-                                      size_t msg_size)
+static int read_triangles(const char *path, double **tri, size_t *n_tri, size_t **hull, char *msg, size_t msg_size)
 {
     *tri = nullptr;
     *hull = nullptr;
@@ -358,4 +358,12 @@ extern "C" int sy_gltf_read_triangles(const char *path, double **tri, size_t *n_
         set_msg(msg, msg_size, path, std::string("invalid glTF: ") + e.what());
         return 2;
     }
+}
+
+extern "C" sy_code sy_gltf_read_triangles(const char *path, double **tri, size_t *n_tri, size_t **hull, sy_error *err)
+{
+    char msg[1024];
+    int rc = read_triangles(path, tri, n_tri, hull, msg, sizeof msg);
+    if (rc == 0) return SY_OK;
+    return sy_fail(err, rc == 3 ? SY_EINTERNAL : SY_EINPUT, "%s", msg);
 }

@@ -1,0 +1,223 @@
+/* The run driver (pipeline/run_tree.h): the order of the steps and the
+ * hand-over between them; every step is a stage call. */
+#include "pipeline/run_tree.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "species/library.h"
+#include "stages/core/fileio.h"
+#include "stages/core/progress.h"
+#include "stages/encode/encode.h"
+#include "stages/ingest/ingest.h"
+#include "stages/preprocess/preprocess.h"
+
+sy_run_tree_options sy_run_tree_options_default(void)
+{
+    sy_run_tree_options o;
+    memset(&o, 0, sizeof o);
+    o.beta = o.gamma = NAN;
+    o.fs = 1;
+    o.seed = 1;
+    o.asset = sy_tree_asset_options_default();
+    return o;
+}
+
+sy_code sy_run_tree_options_check(const sy_run_tree_options *o, sy_error *err)
+{
+    if (!isnan(o->beta) && !(o->beta > 0 && isfinite(o->beta)))
+        return sy_fail(err, SY_EUSAGE, "run: beta %g must be > 0", o->beta);
+    if (!isnan(o->gamma) && !(o->gamma > 0 && isfinite(o->gamma)))
+        return sy_fail(err, SY_EUSAGE, "run: gamma %g must be > 0", o->gamma);
+    if (!(o->fs > 0 && o->fs <= 1)) return sy_fail(err, SY_EUSAGE, "run: fs %g outside (0, 1]", o->fs);
+    if (!(o->wood_share >= 0 && o->wood_share < 1))
+        return sy_fail(err, SY_EUSAGE, "run: wood_share %g outside [0, 1)", o->wood_share);
+    if (!(o->voxel >= 0) || !isfinite(o->voxel))
+        return sy_fail(err, SY_EUSAGE, "run: voxel %g must be >= 0 metres", o->voxel);
+    return sy_tree_asset_options_check(&o->asset, err);
+}
+
+void sy_run_tree_result_free(sy_run_tree_result *r)
+{
+    free(r->glb);
+    free(r->sylva);
+    r->glb = r->sylva = NULL;
+    r->glb_size = r->sylva_size = 0;
+}
+
+static void step(const sy_run_tree_options *o, const char *what, double seconds, const char *detail)
+{
+    if (o->on_step) o->on_step(o->step_ctx, what, seconds, detail);
+}
+
+/* The stage's message with the input's name in front when it lacks it. */
+static sy_code name_input(sy_code rc, const char *name, sy_error *err)
+{
+    if (rc == SY_EINPUT && err && !strstr(err->msg, name)) {
+        sy_error e2 = *err;
+        sy_fail(err, rc, "%s: %s", name, e2.msg);
+    }
+    return rc;
+}
+
+sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, double alpha_scale, sy_skeleton *out,
+                            sy_clusters *clusters, sy_skeleton_report *report, sy_hull_report *hulls, sy_error *err)
+{
+    sy_hull_options ho = sy_hull_options_default();
+    if (alpha_scale > 0) ho.alpha_scale = alpha_scale;
+    sy_code rc = sy_hull_options_check(&ho, err);
+    if (rc) return rc;
+    if ((rc = sy_reconstruct_skeleton(c, o, out, clusters, report, err))) return rc;
+    if (!clusters) return SY_OK;
+    ho.triangles = sy_sylva_hull_budget(clusters->n, out->n);
+    if ((rc = sy_clusters_build_hulls(clusters, c->xyz, &ho, hulls, err))) {
+        sy_clusters_free(clusters);
+        sy_skeleton_free(out);
+    }
+    return rc;
+}
+
+/* Preprocess: a clean, Z-up cloud of the tree alone. */
+static sy_code clean(sy_cloud *c, const char *name, const sy_run_tree_options *o, sy_run_tree_result *r,
+                     sy_error *err)
+{
+    double t = sy_now();
+    sy_preprocess_options po = sy_preprocess_options_default();
+    po.voxel = o->voxel;
+    po.remove_ground = 1; /* one tree: the ground would become a skeleton of its own */
+    po.normals = 0;       /* the skeleton does not use them */
+    sy_preprocess_result pr;
+    sy_code rc = sy_preprocess(c, &po, &pr, err);
+    if (rc) return rc;
+    r->t_preprocess = sy_now() - t;
+    r->points_clean = c->n;
+    char line[160];
+    snprintf(line, sizeof line, "%zu points left (up %s, %zu ground removed)", c->n, sy_up_name(pr.up_axis),
+             pr.ground_points);
+    step(o, "preprocess", r->t_preprocess, line);
+    if (c->n == 0) return sy_fail(err, SY_EINPUT, "%s: no points left after preprocessing", name);
+    return SY_OK;
+}
+
+static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_options *o,
+                           const sy_species_params *sp, sy_run_tree_result *r, sy_error *err)
+{
+    sy_code rc = clean(c, name, o, r, err);
+    if (rc) return rc;
+    sy_skeleton_options so = sy_skeleton_options_default();
+    if (sp) so.beta = sp->beta, so.gamma = sp->gamma;
+    if (!isnan(o->beta)) so.beta = o->beta;
+    if (!isnan(o->gamma)) so.gamma = o->gamma;
+    so.fs = o->fs;
+    so.wood_share = o->wood_share;
+    so.spread_around = o->spread_around;
+    sy_skeleton s;
+    sy_clusters cl;
+    sy_skeleton_report *sr = &r->skeleton;
+    rc = sy_reconstruct_tree(c, &so, 0, &s, &cl, sr, &r->hulls, err);
+    sy_cloud_free(c);
+    if (rc) return name_input(rc, name, err);
+    char line[200];
+    snprintf(line, sizeof line, "%zu nodes, %zu branches, DBH %.3f m, height %.2f m", sr->nodes, sr->branches,
+             sr->dbh, sr->height);
+    step(o, "skeleton", sr->t_total - sr->t_clusters, line);
+    snprintf(line, sizeof line, "%zu clusters (%zu alpha, %zu convex, %zu box), %zu points", sr->clusters,
+             r->hulls.alpha, r->hulls.convex, r->hulls.box, sr->cluster_points);
+    step(o, "clusters", sr->t_clusters + r->hulls.seconds, line);
+
+    /* The .sylva keeps the scan's own frame: encode before the root moves. */
+    if (o->sylva) {
+        int id = r->species_id;
+        uint16_t sid = (uint16_t)(id >= 0 && id < 65535 ? id + 1 : 0);
+        rc = sy_encode_mem(&s, &cl, sid, o->seed, NULL, &r->sylva, &r->sylva_size, err);
+    }
+    if (!rc) {
+        sy_tree_asset_options ao = o->asset;
+        ao.seed = o->seed;
+        ao.hulls = &cl;
+        ao.source = name;
+        ao.source_format = "scan";
+        sy_tree_asset_root_to_origin(&s, &cl);
+        rc = sy_tree_asset_glb(&s, NULL, sp, &ao, name, &r->glb, &r->glb_size, &r->asset, err);
+    }
+    if (!rc) {
+        const sy_tree_asset_report *a = &r->asset;
+        snprintf(line, sizeof line, "%zu levels, LOD0 %zu triangles (%zu of them hulls)", a->lods, a->triangles[0],
+                 a->hull_triangles);
+        step(o, "mesh", a->seconds_mesh, line);
+        snprintf(line, sizeof line, "%zu bytes", a->bytes);
+        step(o, "export", a->seconds_export, line);
+    }
+    sy_clusters_free(&cl);
+    sy_skeleton_free(&s);
+    return rc;
+}
+
+/* Checks the options and loads the species (before any input is read, so
+ * a bad option or species fails fast). *spp is NULL without a species. */
+static sy_code prepare(const sy_run_tree_options *o, sy_species_params *sp, const sy_species_params **spp,
+                       sy_run_tree_result *r, sy_error *err)
+{
+    *spp = NULL;
+    r->species_id = -1;
+    sy_code rc = sy_run_tree_options_check(o, err);
+    if (rc || !o->species) return rc;
+    if ((rc = sy_species_params_find(o->species, sp, err))) return rc;
+    *spp = sp;
+    r->species_id = sy_library_id(o->species);
+    return SY_OK;
+}
+
+static sy_code finish(sy_code rc, sy_cloud *c, sy_species_params *sp, const sy_species_params *spp,
+                      sy_run_tree_result *r)
+{
+    sy_cloud_free(c); /* reconstruct frees it early on success; freeing twice is safe */
+    if (spp) sy_species_params_free(sp);
+    if (rc) sy_run_tree_result_free(r);
+    return rc;
+}
+
+sy_code sy_run_tree_cloud(sy_cloud *c, const char *name, const sy_run_tree_options *o, sy_run_tree_result *r,
+                          sy_error *err)
+{
+    memset(r, 0, sizeof *r);
+    r->points_in = c->n;
+    sy_species_params sp;
+    const sy_species_params *spp;
+    sy_code rc = prepare(o, &sp, &spp, r, err);
+    if (!rc) rc = reconstruct(c, name, o, spp, r, err);
+    return finish(rc, c, &sp, spp, r);
+}
+
+sy_code sy_run_tree(const char *path, const sy_run_tree_options *o, sy_run_tree_result *r, sy_error *err)
+{
+    memset(r, 0, sizeof *r);
+    sy_species_params sp;
+    const sy_species_params *spp;
+    sy_code rc = prepare(o, &sp, &spp, r, err);
+    if (rc) return rc;
+    double t = sy_now();
+    sy_cloud c;
+    if ((rc = sy_read_cloud(path, &c, err))) return finish(rc, NULL, &sp, spp, r);
+    r->t_ingest = sy_now() - t;
+    r->points_in = c.n;
+    char line[64];
+    snprintf(line, sizeof line, "%zu points", c.n);
+    step(o, "ingest", r->t_ingest, line);
+    rc = reconstruct(&c, path, o, spp, r, err);
+    return finish(rc, &c, &sp, spp, r);
+}
+
+sy_code sy_run_tree_write(const sy_run_tree_result *r, const char *glb_path, const char *sylva_path, sy_error *err)
+{
+    if (sylva_path && !r->sylva) return sy_fail(err, SY_EINTERNAL, "%s: the run made no .sylva file", sylva_path);
+    sy_code rc = sy_write_file_atomic(glb_path, r->glb, r->glb_size, err);
+    if (!rc && sylva_path) {
+        rc = sy_write_file_atomic(sylva_path, r->sylva, r->sylva_size, err);
+        if (rc) unlink(glb_path); /* both outputs or none */
+    }
+    return rc;
+}

@@ -1,0 +1,92 @@
+/* The run driver: one scanned tree end to end (ingest -> preprocess ->
+ * skeleton -> clusters -> mesh -> export, and the compact .sylva of the same
+ * reconstruction), from options to bytes. `sylva run` and the batch runner
+ * share it.
+ *
+ * Re-entrant: no globals, no file-scope state, nothing cached between calls;
+ * a batch may call it thousands of times in one process and from several
+ * threads at once, and the same scan and options give the same bytes every
+ * time. The only process-wide settings it reads are the explicit setters
+ * sy_set_threads() and sy_progress_set_quiet() (stages/core), which change
+ * speed and stderr, never output bytes. Nothing is written to disk here:
+ * sy_run_tree_write() writes a result atomically. */
+#ifndef SYLVA_RUN_TREE_H
+#define SYLVA_RUN_TREE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "pipeline/tree_asset.h"
+#include "stages/core/cloud.h"
+#include "stages/core/status.h"
+#include "stages/skeleton/skeleton.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct {
+    const char *species; /* library name or .ini path: its beta/gamma, bark and leaf materials and .sylva
+                            species id; NULL: none (default materials, species id 0) */
+    double beta, gamma;  /* skeleton edge weight / allometry exponents; NAN: the species', else 1 and 2 */
+    double fs;           /* scan-density factor f_s in (0, 1] (1) */
+    double wood_share;   /* wood/leaf separation share in [0, 1) (0: off) */
+    double voxel;        /* thin the scan to one point per voxel of this edge in metres first (0: off) */
+    int spread_around;   /* skeleton: spread around the node, not the edge (0) */
+    int sylva;           /* 1: also encode the .sylva file (result->sylva) */
+    uint64_t seed;       /* every random choice (1) */
+    sy_tree_asset_options asset; /* LODs, impostor, meshopt, instancing; seed, hulls and source are set
+                                    by the driver */
+    /* Step lines ("skeleton", seconds, "412 nodes, ..."), called on the calling
+     * thread as each step ends; NULL: silent. */
+    void (*on_step)(void *ctx, const char *step, double seconds, const char *detail);
+    void *step_ctx;
+} sy_run_tree_options;
+
+sy_run_tree_options sy_run_tree_options_default(void);
+/* SY_EUSAGE naming the field for out-of-range values (fs, wood_share, ...). */
+sy_code sy_run_tree_options_check(const sy_run_tree_options *o, sy_error *err);
+
+typedef struct {
+    unsigned char *glb;   /* the .glb file's bytes (malloc'd) */
+    size_t glb_size;
+    unsigned char *sylva; /* the .sylva file's bytes when options.sylva (malloc'd), else NULL */
+    size_t sylva_size;
+    int species_id;       /* library id of options.species, -1 when none or not in the library */
+    size_t points_in, points_clean; /* after ingest, after preprocessing */
+    sy_skeleton_report skeleton;
+    sy_hull_report hulls;
+    sy_tree_asset_report asset;
+    double t_ingest, t_preprocess; /* seconds; skeleton and mesh times are in the reports */
+} sy_run_tree_result;
+
+void sy_run_tree_result_free(sy_run_tree_result *r);
+
+/* Reconstructs the one tree in the scan file at path (any format ingest
+ * reads). Bad input fails with SY_EINPUT and a message naming path; on
+ * failure r holds nothing to free. */
+sy_code sy_run_tree(const char *path, const sy_run_tree_options *o, sy_run_tree_result *r, sy_error *err);
+
+/* As sy_run_tree from a cloud in memory (Z up not required: preprocessing
+ * finds up). c is consumed (freed) whatever the outcome; name names it in
+ * messages and becomes asset.extras.source. */
+sy_code sy_run_tree_cloud(sy_cloud *c, const char *name, const sy_run_tree_options *o, sy_run_tree_result *r,
+                          sy_error *err);
+
+/* The reconstruction steps alone: the skeleton stage, then the clusters
+ * stage's hulls with the encode stage's .sylva triangle budget. clusters
+ * NULL: skeleton only (o->clusters is then ignored). hulls may be NULL; the
+ * hull options are the defaults except alpha_scale (0: the default). On
+ * failure out and clusters hold nothing to free. */
+sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, double alpha_scale, sy_skeleton *out,
+                            sy_clusters *clusters, sy_skeleton_report *report, sy_hull_report *hulls, sy_error *err);
+
+/* Writes r->glb to glb_path and, when sylva_path is not NULL, r->sylva there:
+ * each atomically, both or neither. */
+sy_code sy_run_tree_write(const sy_run_tree_result *r, const char *glb_path, const char *sylva_path, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

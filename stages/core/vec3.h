@@ -1,0 +1,37 @@
+/* 3-vectors of doubles as plain arrays: the handful of operations every
+ * geometric stage needs, header-only so they inline. Results may alias
+ * inputs. */
+#ifndef SYLVA_VEC3_H
+#define SYLVA_VEC3_H
+
+#include <math.h>
+
+static inline double sy_v3_dot(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+static inline void sy_v3_sub(double r[3], const double a[3], const double b[3])
+{
+    r[0] = a[0] - b[0];
+    r[1] = a[1] - b[1];
+    r[2] = a[2] - b[2];
+}
+
+/* r = a x b (r must not alias a or b). */
+static inline void sy_v3_cross(double r[3], const double a[3], const double b[3])
+{
+    r[0] = a[1] * b[2] - a[2] * b[1];
+    r[1] = a[2] * b[0] - a[0] * b[2];
+    r[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static inline double sy_v3_len(const double v[3]) { return sqrt(sy_v3_dot(v, v)); }
+
+/* Scales v to unit length; a zero vector stays zero. Returns the old length. */
+static inline double sy_v3_normalize(double v[3])
+{
+    double l = sy_v3_len(v);
+    if (l > 0)
+        for (int i = 0; i < 3; i++) v[i] /= l;
+    return l;
+}
+
+#endif
