@@ -143,7 +143,10 @@ static void check_element(const grown *g, const sy_gltf_file *f, int root, unsig
         seg += (base[c] - par[c]) * (base[c] - par[c]);
         off += (zup[c] - base[c]) * (zup[c] - base[c]);
     }
-    assert_true(sqrtf(off) <= sqrtf(seg) + 1e-4f);
+    /* The mesher attaches a child where the parent's drawn axis passes
+     * nearest its first node (docs/mesh.md), which can lie off the parent's
+     * polyline by up to the parent's radius. */
+    assert_true(sqrtf(off) <= sqrtf(seg) + sk->radius[p] + 1e-4f);
 }
 
 /* Every mesh with _WIND_BRANCH: the two table-free attributes beside it,
