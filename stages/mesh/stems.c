@@ -520,7 +520,10 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
         s->r_base = s->rad[0];
         s->r_tip = s->rad[s->n_pts - 1];
         if (s->parent >= 0) s->attach_s = st->node_s[s->attach_node];
-        if (s->parent >= 0 && st->s[s->parent].has_geometry && s->n_pts >= 2 && attach_on_parent(&st->s[s->parent], s))
+        /* (Only when the first node is a point of its own: a child whose first
+         * node sits on the attachment node starts exactly there.) */
+        if (s->parent >= 0 && st->s[s->parent].has_geometry && s->n_pts >= 2 && node_pt[0] == 1 &&
+            attach_on_parent(&st->s[s->parent], s))
             for (size_t i = 0; i < s->n_nodes; i++) node_pt[i] = node_pt[i] > 0 ? node_pt[i] - 1 : 0;
         if (s->n_pts >= 2) {
             if (!sample_curve(s, opt, st->ground)) {
