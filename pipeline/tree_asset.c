@@ -293,7 +293,8 @@ sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, co
             co.min_radius = mo.min_radius;
             for (size_t i = 0; i < skel->n; i++)
                 if (skel->parent[i] < 0) {
-                    co.ground = skel->pos[3 * i + 2];
+                    /* The trunk's base disc tilts with a leaning trunk. */
+                    co.ground = skel->pos[3 * i + 2] - fmax(skel->radius[i], mo.min_radius);
                     break;
                 }
             if ((rc = sy_mesh_check(out, skel, &co, &rep->check, err))) goto fail;

@@ -80,7 +80,7 @@ static void species_assets_survive_a_close_look(void **state)
         sy_leaves lv;
         assert_int_equal(sy_grow_tree(&sp, seed, &sk, &lv, &err), SY_OK);
         sy_tree_asset_options o = sy_tree_asset_options_default();
-        o.impostor_size = 64;
+        o.impostor = 0; /* not checked; its CPU render is a third of the build */
         o.texture_size = 64;
         o.seed = seed;
         o.check = 1;
