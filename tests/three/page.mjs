@@ -19,6 +19,13 @@ function mask(pixels, w, h, threshold) {
   for (let i = 0; i < w * h; i++) m[i] = pixels[4 * i + 3] >= threshold ? 1 : 0;
   return m;
 }
+// Covered where anything was drawn over the magenta clear colour.
+function drawn(pixels, w, h) {
+  const m = new Uint8Array(w * h);
+  for (let i = 0; i < w * h; i++)
+    m[i] = Math.abs(pixels[4 * i] - 255) + pixels[4 * i + 1] + Math.abs(pixels[4 * i + 2] - 255) > 24 ? 1 : 0;
+  return m;
+}
 function iou(a, b) {
   let i = 0, u = 0;
   for (let k = 0; k < a.length; k++) { i += a[k] & b[k]; u += a[k] | b[k]; }
@@ -92,14 +99,15 @@ async function main() {
   }
   renderer.setSize(w, h);
   document.body.appendChild(renderer.domElement);
-  renderer.setClearColor(0x000000, 0);
+  // The mask render clears to pure magenta, a colour no bark or leaf has.
+  renderer.setClearColor(0xff00ff, 1);
   renderer.render(scene, cam);
   const gl = renderer.getContext(), px = new Uint8Array(4 * w * h);
   gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, px);
   // readPixels is bottom-up; flip to image rows.
   const flip = new Uint8Array(px.length);
   for (let y = 0; y < h; y++) flip.set(px.subarray(4 * w * (h - 1 - y), 4 * w * (h - y)), 4 * w * y);
-  const m3 = mask(flip, w, h, 128);
+  const m3 = drawn(flip, w, h);
   verdict.coverage = m3.reduce((a, b) => a + b, 0) / (w * h);
   verdict.mean_colour = meanColour(flip, m3);
   if (impMesh && (view === 'front' || view === 'side')) {

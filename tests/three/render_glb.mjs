@@ -28,7 +28,7 @@ const server = createServer((req, res) => {
   let path = url.pathname.startsWith('/file/') ? decodeURIComponent(url.pathname.slice(5)) : join(repo, decodeURIComponent(url.pathname));
   try {
     const body = readFileSync(path);
-    res.writeHead(200, { 'content-type': types[path.slice(path.lastIndexOf('.'))] || 'application/octet-stream' });
+    res.writeHead(200, { 'content-type': types[path.slice(path.lastIndexOf('.'))] || 'application/octet-stream', 'cache-control': 'no-store' });
     res.end(body);
   } catch { res.writeHead(404); res.end(); }
 });
