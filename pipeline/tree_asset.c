@@ -45,7 +45,7 @@ sy_code sy_tree_asset_options_check(const sy_tree_asset_options *o, sy_error *er
 sy_glb_args sy_glb_args_default(void)
 {
     sy_tree_asset_options d = sy_tree_asset_options_default();
-    return (sy_glb_args){d.lods, d.impostor_size, d.meshopt, !d.instancing, !d.impostor};
+    return (sy_glb_args){d.lods, d.impostor_size, d.meshopt, !d.instancing, !d.impostor, d.check};
 }
 
 void sy_glb_args_apply(const sy_glb_args *g, sy_tree_asset_options *o)
@@ -55,12 +55,45 @@ void sy_glb_args_apply(const sy_glb_args *g, sy_tree_asset_options *o)
     o->impostor_size = g->impostor_size;
     o->meshopt = g->meshopt;
     o->instancing = !g->no_instancing;
+    o->check = g->check;
 }
 
 void sy_tree_asset_report_lods_json(sy_json *j, const sy_tree_asset_report *rep)
 {
     sy_json_array(j, "lod_triangles");
     for (size_t l = 0; l < rep->lods && l < 16; l++) sy_json_int(j, NULL, (long long)rep->triangles[l]);
+    sy_json_end(j);
+    if (!rep->checked) return;
+    sy_json_array(j, "mesh_check");
+    for (size_t l = 0; l < rep->check.n_levels; l++) {
+        const sy_mesh_check_level *c = &rep->check.level[l];
+        sy_json_object(j, NULL);
+        sy_json_int(j, "lod", (long long)c->lod);
+        sy_json_int(j, "triangles", (long long)c->triangles);
+        sy_json_int(j, "bark_triangles", (long long)c->bark_triangles);
+        sy_json_number(j, "ratio", c->ratio);
+        sy_json_number(j, "silhouette_iou", c->silhouette_iou);
+        sy_json_int(j, "sails", (long long)c->sails);
+        sy_json_number(j, "max_off_surface", c->max_off_surface);
+        sy_json_number(j, "max_across", c->max_across);
+        sy_json_number(j, "max_edge_radii", c->max_edge_radii);
+        sy_json_number(j, "max_edge", c->max_edge);
+        sy_json_int(j, "slivers", (long long)c->slivers);
+        sy_json_int(j, "collapsed", (long long)c->collapsed);
+        sy_json_int(j, "boundary_edges", (long long)c->boundary_edges);
+        sy_json_int(j, "nonmanifold_edges", (long long)c->nonmanifold_edges);
+        sy_json_int(j, "misoriented_edges", (long long)c->misoriented_edges);
+        sy_json_int(j, "components", (long long)c->components);
+        sy_json_int(j, "below_ground", (long long)c->below_ground);
+        sy_json_int(j, "leaves", (long long)c->leaves);
+        sy_json_int(j, "leaves_far", (long long)c->leaves_far);
+        sy_json_int(j, "leaves_below_ground", (long long)c->leaves_below_ground);
+        sy_json_number(j, "max_leaf_gap", c->max_leaf_gap);
+        sy_json_number(j, "mean_leaf_gap", c->mean_leaf_gap);
+        sy_json_number(j, "bark_top", c->bark_top);
+        sy_json_number(j, "leaf_top", c->leaf_top);
+        sy_json_end(j);
+    }
     sy_json_end(j);
 }
 
@@ -263,6 +296,18 @@ sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, co
             }
         }
         rep->seconds_mesh = sy_now() - t0;
+        if (opt->check) {
+            sy_mesh_check_options co = sy_mesh_check_options_default();
+            co.min_radius = mo.min_radius;
+            for (size_t i = 0; i < skel->n; i++)
+                if (skel->parent[i] < 0) {
+                    /* The trunk's base disc tilts with a leaning trunk. */
+                    co.ground = skel->pos[3 * i + 2] - fmax(skel->radius[i], mo.min_radius);
+                    break;
+                }
+            if ((rc = sy_mesh_check(out, skel, &co, &rep->check, err))) goto fail;
+            rep->checked = 1;
+        }
     }
     return SY_OK;
 fail:

@@ -11,6 +11,7 @@
 #include "stages/core/asset.h"
 #include "stages/core/json.h"
 #include "stages/core/skeleton.h"
+#include "stages/eval/eval.h"
 #include "stages/grow/grow.h"
 
 #ifdef __cplusplus
@@ -36,6 +37,9 @@ typedef struct {
      * "source" (source's file name; directories stay private) and
      * "source_format". NULL (the default): none of them (grown trees). */
     const char *source, *source_format;
+    /* 1: measure the asset (sy_mesh_check: sails, slivers, welding, leaf
+     * gaps, ground, LOD ratios) into the report (--check). */
+    int check;
 } sy_tree_asset_options;
 
 sy_tree_asset_options sy_tree_asset_options_default(void);
@@ -53,7 +57,7 @@ sy_code sy_tree_asset_options_check(const sy_tree_asset_options *o, sy_error *er
  * after it (copies them into o, which the command then checks with
  * sy_tree_asset_options_check). */
 typedef struct {
-    int lods, impostor_size, meshopt, no_instancing, no_impostor;
+    int lods, impostor_size, meshopt, no_instancing, no_impostor, check;
 } sy_glb_args;
 #define SY_GLB_OPTIONS(g)                                                                                      \
     {"--lods", OPT_INT, &(g).lods, "N", "mesh levels of detail before the impostor (default 4)"},              \
@@ -61,7 +65,9 @@ typedef struct {
     {"--no-impostor", OPT_FLAG, &(g).no_impostor, NULL, "no billboard level"},                                  \
     {"--meshopt", OPT_FLAG, &(g).meshopt, NULL, "compress with EXT_meshopt_compression"},                      \
     {"--no-instancing", OPT_FLAG, &(g).no_instancing, NULL,                                                    \
-     "bake leaf instances into meshes (engines without EXT_mesh_gpu_instancing)"}
+     "bake leaf instances into meshes (engines without EXT_mesh_gpu_instancing)"},                            \
+    {"--check", OPT_FLAG, &(g).check, NULL,                                                                    \
+     "measure the mesh (sails, slivers, welding, leaf gaps, ground, LOD ratios; docs/mesh.md) into the report"}
 sy_glb_args sy_glb_args_default(void);
 void sy_glb_args_apply(const sy_glb_args *g, sy_tree_asset_options *o);
 
@@ -75,6 +81,8 @@ typedef struct {
     size_t leaf_cards[16];
     size_t bytes;
     double seconds_mesh, seconds_export;
+    int checked;                /* opt->check was set: check holds the figures */
+    sy_mesh_check_report check;
 } sy_tree_asset_report;
 
 /* species may be NULL: default materials and leaf cards. extras_json (may be
@@ -96,7 +104,8 @@ sy_code sy_tree_asset_write(const char *path, const sy_skeleton *skel, const sy_
 
 /* Prints the report as text (stderr). */
 void sy_tree_asset_report_text(const sy_tree_asset_report *rep, const char *path);
-/* The "lod_triangles" array (one count per level) into an open JSON object. */
+/* The "lod_triangles" array (one count per level) into an open JSON object,
+ * and "mesh_check" (one object per checked level) when the report has it. */
 void sy_tree_asset_report_lods_json(sy_json *j, const sy_tree_asset_report *rep);
 
 #ifdef __cplusplus

@@ -16,7 +16,7 @@ APT_PACKAGES=(
   # classification baseline (xgboost C API) and photogrammetry (COLMAP CLI as a subprocess)
   libxgboost-dev colmap
   # tests: a second glTF client (three.js in headless Chromium), image tools
-  libcmocka-dev nodejs npm chromium imagemagick
+  libcmocka-dev nodejs npm chromium imagemagick jq
 )
 
 missing=()

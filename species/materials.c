@@ -23,6 +23,7 @@
 
 #define BARK_NORMAL_STRENGTH 6.0f /* bark photos have shallow luminance relief */
 #define LEAF_NORMAL_STRENGTH 2.0f
+#define EMISSIVE_SHARE 0.3f       /* leaf glow per unit of translucency (no-transmission engines) */
 #define ALPHA_THRESHOLD 40.0f     /* RGB distance from the background, 0..255 */
 #define MAX_DECODE_SIDE 16384
 #define MAX_INFLATE 1032.0 /* deflate's largest expansion (RFC 1951: 258-byte matches in ~2 bits) */
@@ -338,6 +339,12 @@ static sy_code make_leaf(const sy_material_spec *spec, int max_size, float trans
     m.alpha_cutoff = 0.5f;
     m.double_sided = 1;
     m.diffuse_transmission = translucency;
+    /* Engines without KHR_materials_diffuse_transmission (three.js, most game
+     * engines) light a card's side away from the sun with ambient light only,
+     * near black under a low sky. A faint glow in the leaf's own colours
+     * stands in for the transmitted light there: EMISSIVE_SHARE of the
+     * translucency (a fraction that barely brightens a sunlit face). */
+    for (int c = 0; c < 3; c++) m.emissive[c] = EMISSIVE_SHARE * translucency;
     *out = sy_asset_add_material(asset, &m, err);
     return *out < 0 ? SY_EINTERNAL : SY_OK;
 }

@@ -71,6 +71,10 @@ static void check_mesh_basics_share(const sy_mesh *m, double max_inward)
     assert_true((double)wrong <= max_inward * (double)faces);
 }
 static void check_mesh_basics(const sy_mesh *m) { check_mesh_basics_share(m, 0); }
+/* Welded junctions: a strip triangle whose corners sit on both tubes can face
+ * against their averaged normals where a child leaves steeply (measured
+ * 0.1-0.7 % of faces on these trees). */
+#define WELD_FOLD_SHARE 0.01
 
 /* Welds vertices with bit-identical positions: id[i] is the smallest index
  * with the same position. */
@@ -114,7 +118,7 @@ static edge *branch_edges(const sy_mesh *m, const uint32_t *id, uint16_t b, size
     size_t k = 0;
     for (size_t t = 0; t < m->n_indices; t += 3) {
         const uint32_t *ix = m->indices + t;
-        if (m->wind_branch[ix[0]] != b) continue;
+        if (m->wind_branch[ix[0]] != b || m->wind_branch[ix[1]] != b || m->wind_branch[ix[2]] != b) continue;
         for (int c = 0; c < 3; c++) {
             uint32_t u = id[ix[c]], v = id[ix[(c + 1) % 3]];
             e[k++] = (edge){u < v ? u : v, u < v ? v : u};
@@ -166,16 +170,45 @@ static float distance_to_branch(const sy_mesh *m, uint16_t b, const float p[3])
     return best;
 }
 
+/* Faces of welded edge e in the whole mesh (all sorted in all[0..n)). */
+static size_t edge_uses(const edge *all, size_t n, edge e)
+{
+    const edge *hit = bsearch(&e, all, n, sizeof e, cmp_edge);
+    if (!hit) return 0;
+    const edge *lo = hit, *hi = hit;
+    while (lo > all && !cmp_edge(lo - 1, &e)) lo--;
+    while (hi + 1 < all + n && !cmp_edge(hi + 1, &e)) hi++;
+    return (size_t)(hi - lo) + 1;
+}
+
 /* Topology and junction of every branch of the LOD0 bark (branch ids are
- * stem indices in these test trees): the tube is closed except for one open
- * boundary, the base ring, whose vertices all lie on the parent's surface
- * within 2 mm + 5% of the parent radius. The root stem is fully closed.
- * Returns the number of junctions checked. */
-static size_t check_branches(const sy_skeleton *s, const sy_asset *a)
+ * stem indices in these test trees). Every welded edge of the bark has one
+ * or two faces. A branch's own triangles are closed except for its base
+ * ring; each ring edge is either welded into the parent (the junction strip
+ * gives it its second face) or open, and then both its vertices lie on the
+ * parent's surface within 2 mm + 5% of the parent radius. The root stem's
+ * own boundary (the holes its children are welded into) is all welded.
+ * Returns the number of junctions checked; *welded (may be NULL) the
+ * number whose rings are fully welded. */
+static size_t check_branches_welded(const sy_skeleton *s, const sy_asset *a, size_t *welded)
 {
     const sy_mesh *m = bark0(a);
     uint32_t *id = weld(m);
-    size_t junctions = 0;
+    size_t junctions = 0, n_all = 0;
+    if (welded) *welded = 0;
+    edge *all = malloc((m->n_indices + 1) * sizeof *all);
+    for (size_t t = 0; t < m->n_indices; t += 3)
+        for (int c = 0; c < 3; c++) {
+            uint32_t u = id[m->indices[t + (size_t)c]], v = id[m->indices[t + (size_t)(c + 1) % 3]];
+            all[n_all++] = (edge){u < v ? u : v, u < v ? v : u};
+        }
+    qsort(all, n_all, sizeof *all, cmp_edge);
+    for (size_t i = 0; i < n_all;) {
+        size_t j = i;
+        while (j < n_all && !cmp_edge(&all[i], &all[j])) j++;
+        assert_true(j - i == 1 || j - i == 2);
+        i = j;
+    }
     for (size_t b = 0; b < a->n_wind; b++) {
         size_t n;
         edge *e = branch_edges(m, id, (uint16_t)b, &n);
@@ -183,7 +216,7 @@ static size_t check_branches(const sy_skeleton *s, const sy_asset *a)
             free(e);
             continue;
         }
-        size_t boundary = 0;
+        size_t boundary = 0, open = 0;
         float worst = 0, tol = 0;
         for (size_t i = 0; i < n;) {
             size_t j = i;
@@ -193,6 +226,11 @@ static size_t check_branches(const sy_skeleton *s, const sy_asset *a)
             if (uses == 1) {
                 boundary++;
                 int32_t parent = a->wind[b].parent;
+                if (edge_uses(all, n_all, e[i]) == 2) {
+                    i = j;
+                    continue; /* welded */
+                }
+                open++;
                 assert_true(parent >= 0); /* only junction rings may be open */
                 /* radius of the parent at the attachment node */
                 int32_t first = -1;
@@ -209,18 +247,21 @@ static size_t check_branches(const sy_skeleton *s, const sy_asset *a)
             i = j;
         }
         if (a->wind[b].parent < 0) {
-            assert_int_equal(boundary, 0);
+            assert_int_equal(open, 0);
         } else {
             assert_true(boundary >= 3);
             if (worst > tol) fprintf(stderr, "branch %zu: base ring %g m off its parent (tolerance %g)\n", b, worst, tol);
             assert_true(worst <= tol);
             junctions++;
+            if (welded && open == 0) (*welded)++;
         }
         free(e);
     }
+    free(all);
     free(id);
     return junctions;
 }
+static size_t check_branches(const sy_skeleton *s, const sy_asset *a) { return check_branches_welded(s, a, NULL); }
 
 static size_t lod_triangles(const sy_asset *a, const sy_lod *l)
 {
@@ -462,7 +503,7 @@ static void branches_sit_on_a_lobed_trunk(void **state)
     o.impostor_size = 64;
     sy_asset a;
     mesh_tree(&s, &lv, &o, &a);
-    check_mesh_basics(bark0(&a));
+    check_mesh_basics_share(bark0(&a), WELD_FOLD_SHARE);
     assert_true(check_branches(&s, &a) > 5);
     sy_asset_free(&a);
     sy_skeleton_free(&s);
@@ -497,7 +538,7 @@ static void bent_trunk_branches_sit_on_the_parent(void **state)
     o.impostor_size = 64;
     sy_asset a;
     mesh_tree(&s, NULL, &o, &a);
-    check_mesh_basics(bark0(&a));
+    check_mesh_basics_share(bark0(&a), WELD_FOLD_SHARE);
     assert_int_equal(check_branches(&s, &a), 2);
     /* Branch 1 grows towards input +Y, which is glTF -Z. */
     const sy_mesh *m = bark0(&a);
@@ -548,7 +589,7 @@ static void random_tree_meets_every_property(void **state)
 
     sy_asset a;
     mesh_tree(&s, &lv, &o, &a);
-    check_mesh_basics(bark0(&a));
+    check_mesh_basics_share(bark0(&a), WELD_FOLD_SHARE);
     assert_int_equal(check_branches(&s, &a), (size_t)nb - 1);
     assert_int_equal(a.n_wind, (size_t)nb);
 
@@ -580,7 +621,8 @@ static void random_tree_meets_every_property(void **state)
         size_t t0 = lod_triangles(&a, &a.lods[k - 1]), t1 = lod_triangles(&a, &a.lods[k]);
         assert_true(t1 > 0);
         assert_true(2 * t1 <= t0);
-        check_mesh_basics_share(&a.meshes[a.lods[k].meshes[0]], 0.005);
+        assert_true(4 * t1 >= t0); /* no cliff: at least a quarter */
+        check_mesh_basics_share(&a.meshes[a.lods[k].meshes[0]], WELD_FOLD_SHARE);
     }
     for (size_t k = 1; k < a.n_lods; k++) assert_true(a.lods[k].screen_coverage < a.lods[k - 1].screen_coverage);
 

@@ -62,6 +62,9 @@ typedef struct {
     int hl2_image[2];
     float hl2_min, hl2_max;
     float hl2_transmit[2]; /* mean L_t^D at normal incidence per lit side */
+    /* emissiveFactor (linear RGB, 0 = omitted): a leaf's fallback for the
+     * light it would pass in engines without diffuse transmission. */
+    float emissive[3];
 } sy_material;
 
 /* Copies of one mesh (leaf cards): TRS per instance, rotation as (x,y,z,w). */

@@ -13,6 +13,7 @@
 #include <stdint.h>
 #include <stdio.h>
 
+#include "stages/core/asset.h"
 #include "stages/core/cloud.h"
 #include "stages/core/json.h"
 #include "stages/core/skeleton.h"
@@ -211,6 +212,57 @@ void sy_confusion_json(const sy_confusion *c, sy_json *j);
 sy_code sy_confusion_png(const sy_confusion *c, const char *path, sy_error *err);
 void sy_confusion_png_size(const sy_confusion *c, int *width, int *height);
 
+
+/* ---- Mesh quality of a tree asset (mesh_check.c; docs/mesh.md) ---- */
+
+typedef struct {
+    double min_radius;       /* the mesher's drawn radius floor, metres (sy_mesh_options.min_radius) */
+    double ground;           /* ground height (Sylva Z, metres): 0 for trees rooted at the origin */
+    double ground_tolerance; /* metres below the ground still counted as on it (default 5 mm) */
+    double sail_radii;       /* an edge midpoint farther than this many local radii (or 5 % of
+                                the nearest skeleton segment's length, the room a smooth curve
+                                through the nodes takes) outside the skeleton's surface makes
+                                its triangle a sail (default 3; a junction flank, whose base sits on
+                                the parent, reaches about 2) */
+    double across_radii;     /* reported only: max_across is measured against it (default 4) */
+} sy_mesh_check_options;
+
+sy_mesh_check_options sy_mesh_check_options_default(void);
+sy_code sy_mesh_check_options_check(const sy_mesh_check_options *o, sy_error *err);
+
+typedef struct {
+    size_t lod;              /* index into asset.lods */
+    size_t triangles;        /* bark + leaf instances x card triangles */
+    size_t bark_triangles;
+    double ratio;            /* triangles / the previous checked level's (0 at the first) */
+    double silhouette_iou;   /* coverage vs the first level's, intersection over union, front and
+                                side views averaged (256 px over the first level's box) */
+    size_t sails;            /* triangles with an edge off the surface or too wide (options) */
+    double max_off_surface;  /* largest edge-midpoint distance outside the surface, in local radii */
+    double max_across;       /* largest edge extent across its nearest axis, in local radii */
+    double max_edge_radii;   /* longest edge / its triangle's local radius */
+    double max_edge;         /* longest edge, metres */
+    size_t slivers;          /* area < 0.005 mm^2 or height < 1/1000 of the longest edge */
+    size_t collapsed;        /* triangles with two welded corners equal */
+    size_t boundary_edges, nonmanifold_edges, misoriented_edges; /* after welding by position */
+    size_t components;       /* connected parts of the welded bark */
+    size_t below_ground;     /* bark vertices below ground - tolerance */
+    size_t leaves, leaves_far, leaves_below_ground; /* far: petiole more than a leaf length from bark */
+    double max_leaf_gap, mean_leaf_gap;             /* petiole to bark, in leaf lengths */
+    double bark_top, leaf_top;                      /* highest bark vertex / petiole (Z, metres) */
+} sy_mesh_check_level;
+
+#define SY_MESH_CHECK_MAX_LEVELS 16
+typedef struct {
+    size_t n_levels; /* levels with bark (the impostor is not checked) */
+    sy_mesh_check_level level[SY_MESH_CHECK_MAX_LEVELS];
+} sy_mesh_check_report;
+
+/* Checks every level of a mesh-stage asset against the skeleton it was built
+ * from (same frame: the asset's Y-up positions are the skeleton's Z-up ones
+ * rotated). */
+sy_code sy_mesh_check(const sy_asset *a, const sy_skeleton *sk, const sy_mesh_check_options *o,
+                      sy_mesh_check_report *out, sy_error *err);
 #ifdef __cplusplus
 }
 #endif

@@ -122,7 +122,7 @@ static sy_code check_materials_images(const char *path, const sy_asset *a, sy_er
         if (m->alpha_mode != SY_ALPHA_OPAQUE && m->alpha_mode != SY_ALPHA_MASK && m->alpha_mode != SY_ALPHA_BLEND)
             return sy_fail(err, SY_EINPUT, "%s: material '%s' has unknown alpha mode %d", path, m->name,
                            (int)m->alpha_mode);
-        if (!all_finite(m->base_color, 4) || !isfinite(m->metallic) || !isfinite(m->roughness) ||
+        if (!all_finite(m->base_color, 4) || !all_finite(m->emissive, 3) || !isfinite(m->metallic) || !isfinite(m->roughness) ||
             !isfinite(m->alpha_cutoff) || !isfinite(m->diffuse_transmission) ||
             !all_finite(m->diffuse_transmission_color, 3) || m->diffuse_transmission < 0 || m->diffuse_transmission > 1)
             return sy_fail(err, SY_EINPUT, "%s: material '%s' has a factor that is NaN or out of range", path, m->name);

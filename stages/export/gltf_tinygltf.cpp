@@ -127,6 +127,12 @@ void add_material(tinygltf::Model &model, const sy_gltf_material &gm)
     // alphaCutoff is only meaningful (and only valid) in MASK mode.
     mat.alphaCutoff = m.alpha_mode == SY_ALPHA_MASK ? tidy(m.alpha_cutoff) : 0.5;
     mat.doubleSided = m.double_sided != 0;
+    if (m.emissive[0] > 0 || m.emissive[1] > 0 || m.emissive[2] > 0) {
+        mat.emissiveFactor.clear();
+        for (int c = 0; c < 3; c++) mat.emissiveFactor.push_back(tidy(m.emissive[c]));
+        // The glow takes the leaf's own colours: the base colour texture.
+        mat.emissiveTexture.index = gm.base_color_texture;
+    }
     if (m.diffuse_transmission > 0) {
         tinygltf::Value::Object ext;
         ext["diffuseTransmissionFactor"] = number(m.diffuse_transmission);

@@ -361,3 +361,55 @@ int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
     if (idx < 0) sy_mesh_free(&m);
     return idx;
 }
+
+void sy_mesh_lod_bounds(const sy_asset *a, size_t lod, float lo[3], float hi[3])
+{
+    for (int k = 0; k < 3; k++) lo[k] = INFINITY, hi[k] = -INFINITY;
+    const sy_lod *l = &a->lods[lod];
+    for (int k = 0; k < l->n_meshes; k++) {
+        const sy_mesh *m = &a->meshes[l->meshes[k]];
+        for (size_t i = 0; i < m->n_vertices; i++) grow_box(lo, hi, m->position + 3 * i);
+    }
+    for (int k = 0; k < l->n_instances; k++) {
+        const sy_instances *in = &l->instances[k];
+        const sy_mesh *m = &a->meshes[in->mesh];
+        for (size_t i = 0; i < in->n; i++)
+            for (size_t j = 0; j < m->n_vertices; j++) {
+                float p[3];
+                instance_point(in, i, m->position + 3 * j, p);
+                grow_box(lo, hi, p);
+            }
+    }
+}
+
+sy_code sy_mesh_silhouettes(const sy_asset *a, size_t lod, const float lo[3], const float hi[3], int size,
+                            uint8_t *front, uint8_t *side, sy_error *err)
+{
+    if (lod >= a->n_lods || size < 1) return sy_fail(err, SY_EINTERNAL, "mesh: silhouette of a missing level %zu", lod);
+    int W = 2 * size, H = size;
+    unsigned char *rgba = calloc((size_t)W * (size_t)H, 4);
+    float *depth = malloc((size_t)W * (size_t)H * sizeof(float));
+    if (!rgba || !depth) {
+        free(rgba), free(depth);
+        return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
+    }
+    for (size_t i = 0; i < (size_t)W * (size_t)H; i++) depth[i] = -INFINITY;
+    const sy_lod *l = &a->lods[lod];
+    shade_src src[2 * SY_LOD_MAX_PARTS];
+    memset(src, 0, sizeof src);
+    for (int k = 0; k < l->n_meshes; k++) material_source(a, a->meshes[l->meshes[k]].material, 0, &src[k]);
+    for (int k = 0; k < l->n_instances; k++)
+        material_source(a, a->meshes[l->instances[k].mesh].material, 1, &src[SY_LOD_MAX_PARTS + k]);
+    view f = {rgba, depth, W, H, 0, size, {1, 0, 0}, {0, 0, 1}, lo[0], hi[0], lo[1], hi[1]};
+    view s = {rgba, depth, W, H, size, size, {0, 0, -1}, {1, 0, 0}, -hi[2], -lo[2], lo[1], hi[1]};
+    render_view(a, l, &f, src);
+    render_view(a, l, &s, src);
+    for (int k = 0; k < 2 * SY_LOD_MAX_PARTS; k++) stbi_image_free(src[k].px);
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < size; x++) {
+            front[(size_t)y * (size_t)size + (size_t)x] = rgba[4 * ((size_t)y * (size_t)W + (size_t)x) + 3] > 0;
+            side[(size_t)y * (size_t)size + (size_t)x] = rgba[4 * ((size_t)y * (size_t)W + (size_t)(x + size)) + 3] > 0;
+        }
+    free(rgba), free(depth);
+    return SY_OK;
+}

@@ -239,8 +239,20 @@ static void quat_mul(const float a[4], const float b[4], float out[4])
     out[3] = a[3] * b[3] - a[0] * b[0] - a[1] * b[1] - a[2] * b[2];
 }
 
-sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint32_t *list, size_t n, float grow,
-                          int mesh, sy_instances *out, sy_error *err)
+/* The ring centre of stem s nearest p: where a leaf of a dropped twig moves
+ * so that it still hangs on drawn bark. */
+static void nearest_centre(const sy_stem *s, const float p[3], float out[3])
+{
+    float best = INFINITY;
+    for (size_t k = 0; k < s->n_samp; k++) {
+        const float *c = s->sp + 3 * k;
+        float d[3] = {p[0] - c[0], p[1] - c[1], p[2] - c[2]}, dd = sy_dot3(d, d);
+        if (dd < best) best = dd, memcpy(out, c, 3 * sizeof(float));
+    }
+}
+
+sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint8_t *keep, float aspect,
+                          const uint32_t *list, size_t n, float grow, int mesh, sy_instances *out, sy_error *err)
 {
     memset(out, 0, sizeof *out);
     out->mesh = mesh;
@@ -259,7 +271,25 @@ sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint32_
     const float h = 0.70710678118654752f, to_yup[4] = {-h, 0, 0, h};
     for (size_t i = 0; i < n; i++) {
         uint32_t l = list[i];
-        sy_to_yup(lv->pos + 3 * l, out->translation + 3 * i);
+        float at[3];
+        memcpy(at, lv->pos + 3 * l, sizeof at);
+        if (keep) {
+            int32_t k = st->node_stem[lv->node[l]];
+            while (k >= 0 && !(keep[k] && st->s[k].has_geometry)) k = st->s[k].parent;
+            if (k >= 0 && k != st->node_stem[lv->node[l]]) {
+                nearest_centre(&st->s[k], lv->pos + 3 * l, at);
+                /* Moved near the ground, the card may not reach under it. */
+                const float *q = lv->rot + 4 * l;
+                float qn = sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+                if (qn > 0) {
+                    float x = q[0] / qn, y = q[1] / qn, z = q[2] / qn, w = q[3] / qn, sc = lv->scale[l] * grow;
+                    float zx = 2 * (x * z - w * y), zy = 2 * (y * z + w * x);
+                    float low = at[2] + sc * (fminf(0, zy) - 0.5f * aspect * fabsf(zx));
+                    if (low < st->ground) at[2] += st->ground - low;
+                }
+            }
+        }
+        sy_to_yup(at, out->translation + 3 * i);
         float q[4];
         memcpy(q, lv->rot + 4 * l, sizeof q);
         float len = sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);

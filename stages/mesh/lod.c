@@ -9,6 +9,8 @@
  * than this share of the tree height; both double per further level. */
 #define DROP_RADIUS 0.03f
 #define DROP_LENGTH 0.03f
+/* A level restored from a cliff aims at this share of the previous level. */
+#define FLOOR_SHARE 0.3
 
 size_t sy_lod_bark_triangles(const sy_stems *st, const sy_lod_params *lp)
 {
@@ -69,6 +71,40 @@ int sy_lod_fit_budget(const sy_stems *st, sy_lod_params *lp, size_t *count_io, s
     return 1;
 }
 
+size_t sy_lod_restore(const sy_stems *st, const uint8_t *prev_keep, sy_lod_params *lp, size_t count, size_t target)
+{
+    ranked *rk = malloc((st->n ? st->n : 1) * sizeof *rk);
+    float *imp = malloc((st->n ? st->n : 1) * sizeof *imp);
+    if (!rk || !imp) {
+        free(rk), free(imp);
+        return (size_t)-1;
+    }
+    for (size_t o = 0; o < st->n; o++) {
+        int32_t i = st->by_depth[o];
+        const sy_stem *s = &st->s[i];
+        float v = s->r_base * s->r_base * s->length;
+        imp[i] = s->parent >= 0 && imp[s->parent] < v ? imp[s->parent] : v;
+        rk[o] = (ranked){imp[i], s->depth, i};
+    }
+    qsort(rk, st->n, sizeof *rk, cmp_ranked);
+    /* Ranked parents-first, so a stem's parent has had its turn before it. */
+    for (size_t o = 0; o < st->n && count < target; o++) {
+        int32_t i = rk[o].index;
+        const sy_stem *s = &st->s[i];
+        if (lp->keep[i] || !prev_keep[i] || (s->parent >= 0 && !lp->keep[s->parent])) continue;
+        lp->keep[i] = 1;
+        size_t nv, ni;
+        sy_tube_counts(st, (size_t)i, lp, &nv, &ni);
+        if (count + ni / 3 > target) {
+            lp->keep[i] = 0;
+            continue;
+        }
+        count += ni / 3;
+    }
+    free(rk), free(imp);
+    return count;
+}
+
 int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris, sy_lod_params *lp, size_t *tris)
 {
     float grow = ldexpf(1.0f, lp->level - 1);
@@ -81,6 +117,15 @@ int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris
     }
     size_t count = sy_lod_bark_triangles(st, lp), budget = prev_tris / 2;
     if (count > budget && !sy_lod_fit_budget(st, lp, &count, budget)) return 0;
+    /* No cliffs: when the thresholds dropped so much that the level has under
+     * a quarter of the previous one's triangles, the most important dropped
+     * stems come back (parents before children) up to FLOOR_SHARE of it. */
+    size_t floor = (size_t)(FLOOR_SHARE * (double)prev_tris);
+    if (count < prev_tris / 4 && count <= budget) {
+        size_t back = sy_lod_restore(st, prev_keep, lp, count, floor < budget ? floor : budget);
+        if (back == (size_t)-1) return 0;
+        count = back;
+    }
     *tris = count;
     return count <= budget;
 }

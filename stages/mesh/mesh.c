@@ -15,9 +15,10 @@ sy_mesh_options sy_mesh_options_default(void)
     o.radial_segments = 16;
     o.segment_length = 0;
     o.n_lods = 4;
-    o.lod0_max_triangles = 50000;
+    o.lod0_max_triangles = 56000;
     o.impostor = 1;
     o.impostor_size = 512;
+    o.min_radius = 0.0015f;
     o.leaf_aspect = 0.6f;
     o.leaf_shape = 0;
     o.seed = 1;
@@ -36,6 +37,8 @@ sy_code sy_mesh_options_check(const sy_mesh_options *o, sy_error *err)
         return sy_fail(err, SY_EUSAGE, "mesh: n_lods %d outside [1, 7]", o->n_lods);
     if (o->impostor && (o->impostor_size < 16 || o->impostor_size > 4096))
         return sy_fail(err, SY_EUSAGE, "mesh: impostor_size %d outside [16, 4096]", o->impostor_size);
+    if (!(o->min_radius >= 0) || !isfinite(o->min_radius))
+        return sy_fail(err, SY_EUSAGE, "mesh: min_radius %g is not >= 0", o->min_radius);
     if (!(o->leaf_aspect > 0) || !isfinite(o->leaf_aspect))
         return sy_fail(err, SY_EUSAGE, "mesh: leaf_aspect %g is not positive", o->leaf_aspect);
     return SY_OK;
@@ -93,6 +96,20 @@ static sy_code add_materials(sy_asset *a, const sy_mesh_options *o, int want_lea
     return SY_OK;
 }
 
+/* Whether leaf l's card (the box |x| <= aspect/2, 0 <= y <= 1 of its local
+ * frame, scaled) reaches below z = ground. */
+static int card_below(const sy_leaves *lv, uint32_t l, float aspect, float grow, float ground)
+{
+    const float *q = lv->rot + 4 * l, *p = lv->pos + 3 * l;
+    float n = sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    if (!(n > 0)) return p[2] < ground;
+    float x = q[0] / n, y = q[1] / n, z = q[2] / n, w = q[3] / n, s = lv->scale[l] * grow;
+    /* Z row of the rotation matrix: the z of local +X and +Y. */
+    float zx = 2 * (x * z - w * y), zy = 2 * (y * z + w * x);
+    float lowest = p[2] + s * (fminf(0, zy) - 0.5f * aspect * fabsf(zx));
+    return lowest < ground;
+}
+
 typedef struct {
     uint32_t *list; /* leaves this level keeps, a subsequence of the previous level's */
     size_t n;
@@ -104,8 +121,10 @@ typedef struct {
  * with it because every wind entry survives. Dropping them instead left the
  * coarse levels bare (LOD3 of a 20k-leaf tree kept none). Returns how much the
  * kept cards grow (at most 4x) so their total area matches all level-0
- * leaves, keeping the crown's coverage roughly constant. */
-static float next_leaf_level(const sy_leaves *lv, const leaf_level *prev, const leaf_level *all, leaf_level *next)
+ * leaves, keeping the crown's coverage roughly constant; cards that would
+ * then reach below the ground are left out. */
+static float next_leaf_level(const sy_leaves *lv, const leaf_level *prev, const leaf_level *all, float aspect,
+                             float ground, leaf_level *next)
 {
     next->n = 0;
     for (size_t i = 0; i < prev->n / 2; i++) next->list[next->n++] = prev->list[i];
@@ -113,11 +132,18 @@ static float next_leaf_level(const sy_leaves *lv, const leaf_level *prev, const 
     for (size_t i = 0; i < all->n; i++) ref += (double)lv->scale[all->list[i]] * lv->scale[all->list[i]];
     for (size_t i = 0; i < next->n; i++) kept += (double)lv->scale[next->list[i]] * lv->scale[next->list[i]];
     double g = kept > 0 ? sqrt(ref / kept) : 1;
-    return (float)(g < 1 ? 1 : g > 4 ? 4 : g);
+    float grow = (float)(g < 1 ? 1 : g > 4 ? 4 : g);
+    /* Enlarged cards near the ground would reach under it. */
+    size_t n = 0;
+    for (size_t i = 0; i < next->n; i++)
+        if (!card_below(lv, next->list[i], aspect, grow, ground)) next->list[n++] = next->list[i];
+    next->n = n;
+    return grow;
 }
 
 static sy_code add_level(sy_asset *a, const sy_stems *st, const sy_leaves *lv, sy_lod_params *lp, int bark,
-                         int card, const leaf_level *leaves, float grow, float coverage, sy_error *err)
+                         int card, float aspect, const leaf_level *leaves, float grow, float coverage,
+                         sy_error *err)
 {
     sy_lod lod;
     memset(&lod, 0, sizeof lod);
@@ -137,7 +163,7 @@ static sy_code add_level(sy_asset *a, const sy_stems *st, const sy_leaves *lv, s
         sy_mesh_free(&m);
     }
     if (card >= 0 && leaves->n > 0) {
-        rc = sy_leaf_instances(lv, st, leaves->list, leaves->n, grow, card, &lod.instances[0], err);
+        rc = sy_leaf_instances(lv, st, lp->level == 0 ? lp->keep : NULL, aspect, leaves->list, leaves->n, grow, card, &lod.instances[0], err);
         if (rc != SY_OK) return rc;
         lod.n_instances = 1;
     }
@@ -201,8 +227,13 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
         for (size_t i = 0; i < lv->n; i++) all.list[i] = (uint32_t)i;
     else
         sy_permutation(all.list, lv->n, opt->seed);
-    memcpy(cur.list, all.list, lv->n * sizeof(uint32_t));
-    cur.n = lv->n;
+    /* Nothing below the ground: a card that would dip under it is left out. */
+    size_t kept = 0;
+    for (size_t i = 0; i < lv->n; i++)
+        if (!card_below(lv, all.list[i], opt->leaf_aspect, 1, st.ground)) all.list[kept++] = all.list[i];
+    all.n = kept;
+    memcpy(cur.list, all.list, kept * sizeof(uint32_t));
+    cur.n = kept;
     sy_lod_params lp = {0, 1, keep, 1};
     memset(keep, 1, st.n);
     size_t tris = sy_lod_bark_triangles(&st, &lp);
@@ -213,7 +244,7 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
     }
     size_t first_lod = out->n_lods;
     float coverage = 0.5f;
-    if ((rc = add_level(out, &st, lv, &lp, bark, card, &cur, 1.0f, coverage, err)) != SY_OK) goto done;
+    if ((rc = add_level(out, &st, lv, &lp, bark, card, opt->leaf_aspect, &cur, 1.0f, coverage, err)) != SY_OK) goto done;
     for (int level = 1; level < opt->n_lods; level++) {
         memcpy(keep_prev, keep, st.n);
         sy_lod_params next = {level, 1 << level, keep, 0};
@@ -222,9 +253,9 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
             memcpy(keep, keep_prev, st.n);
             break; /* no coarser level can halve the triangles: the chain ends */
         }
-        float grow = next_leaf_level(lv, &cur, &all, &nxt);
+        float grow = next_leaf_level(lv, &cur, &all, opt->leaf_aspect, st.ground, &nxt);
         coverage *= 0.5f;
-        if ((rc = add_level(out, &st, lv, &next, bark, card, &nxt, grow, coverage, err)) != SY_OK) goto done;
+        if ((rc = add_level(out, &st, lv, &next, bark, card, opt->leaf_aspect, &nxt, grow, coverage, err)) != SY_OK) goto done;
         leaf_level t = cur;
         cur = nxt, nxt = t;
         tris = next_tris;

@@ -20,13 +20,16 @@ typedef struct {
                                   branches use fewer, never below 3 */
     float segment_length;      /* target metres between rings along a branch at LOD0
                                   (default: adaptive to curvature and radius) */
-    int lod0_max_triangles;    /* bark triangle budget of LOD0 (default 50,000; 0 = none):
+    int lod0_max_triangles;    /* bark triangle budget of LOD0 (default 56,000 before welding, which adds
+                                  its strips: LOD0 bark stays under 60k; 0 = none):
                                   the least important twigs (r^2 L) go first, as the
                                   twig leaf cards depict them */
     int n_lods;                /* mesh levels before the impostor (default 4); each halves
                                   rings and segments and drops thin branches */
     int impostor;              /* add the final cross-card impostor level (default 1) */
     int impostor_size;         /* impostor texture size in pixels (default 512) */
+    float min_radius;          /* bark is drawn at least this thick, metres (default 1.5 mm):
+                                  thinner twig tips would be sub-pixel slivers */
     float leaf_aspect;         /* leaf card width / length (default 0.6) */
     int leaf_shape;            /* Weber-Penn leafShape, picks the card outline (default 0) */
     uint64_t seed;             /* leaf pruning order */
@@ -51,6 +54,16 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
  * callers that add parts to the mesh levels after sy_mesh_tree (run with
  * impostor = 0) and want them in the billboard too. */
 sy_code sy_mesh_add_impostor(sy_asset *a, size_t lod0, int size, sy_error *err);
+
+/* Bounds (glTF frame) of everything level lod draws: meshes and instances. */
+void sy_mesh_lod_bounds(const sy_asset *a, size_t lod, float lo[3], float hi[3]);
+
+/* Coverage of level lod by the impostor's rasteriser (conservative: a pixel
+ * a triangle touches counts; alpha-masked cards use their texture): seen
+ * along -Z (front: x right) and along -X (side: -z right), y up, each over
+ * the box lo..hi as size x size pixels, row 0 at the top; 1 = covered. */
+sy_code sy_mesh_silhouettes(const sy_asset *a, size_t lod, const float lo[3], const float hi[3], int size,
+                            uint8_t *front, uint8_t *side, sy_error *err);
 
 #ifdef __cplusplus
 }

@@ -88,6 +88,7 @@ typedef struct {
     int32_t root;       /* the stem holding the root node */
     float trunk_radius; /* base radius of the root stem */
     float height;       /* extent of the skeleton along Z */
+    float ground;       /* Z of the root node: nothing is drawn below it */
 } sy_stems;
 
 sy_code sy_stems_build(const sy_skeleton *skel, const sy_mesh_options *opt, sy_stems *out, sy_error *err);
@@ -108,6 +109,8 @@ typedef struct {
 } sy_lod_params;
 
 int sy_stem_radial(const sy_stem *s, const sy_lod_params *lp);
+/* Intermediate rings of the stem's tip hemisphere at this level. */
+int sy_stem_cap_rings(const sy_stem *s, const sy_lod_params *lp);
 /* Ring selection of stem s at this level: writes up to s->n_samp indices and
  * returns the count. */
 size_t sy_stem_rings(const sy_stem *s, const sy_lod_params *lp, int32_t *idx);
@@ -125,6 +128,10 @@ int sy_lod_fit_budget(const sy_stems *st, sy_lod_params *lp, size_t *count, size
  * thin and short stems go first (thresholds double per level), children with
  * their parents, then the least important until the bark has at most half of
  * prev_tris triangles. Returns 0 when even the trunk alone is too many. */
+/* Brings back stems of prev_keep that lp drops, most important first and
+ * parents before children, while the bark stays within target triangles;
+ * returns the new count, or (size_t)-1 when out of memory. */
+size_t sy_lod_restore(const sy_stems *st, const uint8_t *prev_keep, sy_lod_params *lp, size_t count, size_t target);
 int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris, sy_lod_params *lp,
                   size_t *tris);
 /* Bark triangles of the kept stems at a level. */
@@ -148,9 +155,12 @@ sy_code sy_leaf_card(int shape, float aspect, int material, sy_mesh *out, sy_err
 /* Deterministic Fisher-Yates permutation of 0..n-1 from seed. */
 void sy_permutation(uint32_t *perm, size_t n, uint64_t seed);
 /* Instances of the leaves list[0..n) (indices into lv) in glTF's frame, their
- * size multiplied by grow, with the wind data of the stem each hangs on. */
-sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint32_t *list, size_t n, float grow,
-                          int mesh, sy_instances *out, sy_error *err);
+ * size multiplied by grow, with the wind data of the stem each hangs on.
+ * keep (per stem, may be NULL): a leaf whose stem is not drawn moves to the
+ * nearest ring centre of its closest drawn ancestor (raised, if its card of
+ * width aspect would reach below the ground there). */
+sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint8_t *keep, float aspect,
+                          const uint32_t *list, size_t n, float grow, int mesh, sy_instances *out, sy_error *err);
 
 /* ---- impostor (impostor.c) ---- */
 /* Renders the LOD0 meshes and instances of lod0 from two orthogonal

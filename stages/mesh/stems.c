@@ -16,6 +16,7 @@
 #define MAX_TURN (10.0f * SY_PI / 180.0f)
 #define MAX_RADIUS_STEP 0.15f
 #define RINGS_PER_STEM 6
+#define TWIG_RINGS 2
 #define MAX_SUBDIV 64
 /* Ring vertices of a lobed trunk at most (Lobes goes up to 64). */
 #define LOBED_MAX_RADIAL 64
@@ -146,7 +147,7 @@ static sy_code order_by_depth(sy_stems *st, sy_error *err)
 
 /* Polyline through the attachment node and the chain; records for each
  * chain node the polyline point it collapsed into (node_pt). */
-static int build_polyline(const sy_skeleton *sk, sy_stem *s, int32_t *node_pt)
+static int build_polyline(const sy_skeleton *sk, sy_stem *s, int32_t *node_pt, float min_radius)
 {
     size_t cap = s->n_nodes + 1;
     s->pts = malloc(cap * 3 * sizeof(float));
@@ -157,7 +158,7 @@ static int build_polyline(const sy_skeleton *sk, sy_stem *s, int32_t *node_pt)
     if (s->attach_node >= 0) {
         memcpy(s->pts, sk->pos + 3 * s->attach_node, 3 * sizeof(float));
         /* The tube starts with the child's own radius, not the parent's. */
-        s->rad[0] = sk->radius[s->nodes[0]];
+        s->rad[0] = fmaxf(sk->radius[s->nodes[0]], min_radius);
         m = 1;
     }
     for (size_t i = 0; i < s->n_nodes; i++) {
@@ -171,7 +172,7 @@ static int build_polyline(const sy_skeleton *sk, sy_stem *s, int32_t *node_pt)
             }
         }
         memcpy(s->pts + 3 * m, p, 3 * sizeof(float));
-        s->rad[m] = sk->radius[s->nodes[i]];
+        s->rad[m] = fmaxf(sk->radius[s->nodes[i]], min_radius);
         node_pt[i] = (int32_t)m;
         m++;
     }
@@ -246,7 +247,7 @@ static int alloc_samples(sy_stem *s, size_t n)
  * than MAX_TURN, changes the radius by more than MAX_RADIUS_STEP of itself, or
  * exceeds the target spacing (segment_length, or a sixth of the stem so that
  * wind bending has joints to bend at). */
-static int sample_curve(sy_stem *s, const sy_mesh_options *opt)
+static int sample_curve(sy_stem *s, const sy_mesh_options *opt, float ground)
 {
     size_t n = s->n_pts;
     float *chord = malloc(n * sizeof(float)), *tan = malloc(n * 3 * sizeof(float));
@@ -265,7 +266,10 @@ static int sample_curve(sy_stem *s, const sy_mesh_options *opt)
     }
     for (size_t i = 0; i < n; i++) bessel_tangent(s, i, tan + 3 * i);
     radius_slopes(s, chord, slope);
-    float spacing = opt->segment_length > 0 ? opt->segment_length : total / RINGS_PER_STEM;
+    /* A leaf-bearing twig bends as one piece: two steps give wind its joint
+     * and keep the thousands of twigs of a crown inside the LOD0 budget. */
+    int rings = s->has_children || s->parent < 0 ? RINGS_PER_STEM : TWIG_RINGS;
+    float spacing = opt->segment_length > 0 ? opt->segment_length : total / (float)rings;
     size_t count = 1;
     for (size_t i = 0; i + 1 < n; i++) {
         float c = sy_dot3(tan + 3 * i, tan + 3 * i + 3);
@@ -305,6 +309,9 @@ static int sample_curve(sy_stem *s, const sy_mesh_options *opt)
             float r = (2 * t3 - 3 * t2 + 1) * ra + (t3 - 2 * t2 + t) * ma + (-2 * t3 + 3 * t2) * rb + (t3 - t2) * mb;
             float drdt = (6 * t2 - 6 * t) * ra + (3 * t2 - 4 * t + 1) * ma + (-6 * t2 + 6 * t) * rb + (3 * t2 - 2 * t) * mb;
             s->sr[j] = fmaxf(r, 1e-5f);
+            /* A branch that droops to the ground rests on it instead of
+             * passing below (the trunk's base ring sits on it already). */
+            if (s->parent >= 0 && s->sp[3 * j + 2] < ground + s->sr[j]) s->sp[3 * j + 2] = ground + s->sr[j];
             s->sdr[j] = drdt / speed;
             if (j == 0) {
                 s->ss[j] = 0;
@@ -322,6 +329,45 @@ static int sample_curve(sy_stem *s, const sy_mesh_options *opt)
     s->length = s->ss[j - 1];
     free(chord), free(tan), free(slope), free(sub);
     return 1;
+}
+
+/* A grown child leaves its parent between two parent nodes, while its chain
+ * starts from the node before: the first segment would run inside the
+ * parent and come out as a flap. The attachment moves to the point of the
+ * parent's curve nearest the child's first own point (ring samples, within
+ * the parent segments next to the attachment node). */
+static int attach_on_parent(const sy_stem *p, sy_stem *s)
+{
+    const float *q = s->pts + 3;
+    float best = INFINITY, at[3] = {s->pts[0], s->pts[1], s->pts[2]}, as = s->attach_s;
+    /* It cannot leave the parent farther along than its first point lies
+     * from the attachment node. */
+    float d0[3] = {q[0] - at[0], q[1] - at[1], q[2] - at[2]}, reach = sqrtf(sy_dot3(d0, d0));
+    for (size_t k = 0; k + 1 < p->n_samp; k++) {
+        if (p->ss[k + 1] < s->attach_s - reach || p->ss[k] > s->attach_s + reach) continue;
+        const float *a = p->sp + 3 * k, *b = a + 3;
+        float ab[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, aq[3] = {q[0] - a[0], q[1] - a[1], q[2] - a[2]};
+        float l2 = sy_dot3(ab, ab), t = l2 > 0 ? sy_dot3(aq, ab) / l2 : 0;
+        t = t < 0 ? 0 : t > 1 ? 1 : t;
+        float c[3] = {a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]};
+        float d[3] = {q[0] - c[0], q[1] - c[1], q[2] - c[2]}, dd = sy_dot3(d, d);
+        if (dd < best) best = dd, memcpy(at, c, sizeof at), as = p->ss[k] + t * (p->ss[k + 1] - p->ss[k]);
+    }
+    /* Keep the attachment node when the nearest point would collapse onto
+     * the child's first point (a child starting on the parent's axis). */
+    if (best < DEDUPE_EPS * DEDUPE_EPS) return 0;
+    s->attach_s = as;
+    if (best < s->rad[0] * s->rad[0] && s->n_pts > 2) {
+        /* The child starts on its parent's axis: that first point is the
+         * attachment, and a millimetre-long first segment would only give
+         * its base a random direction. */
+        memmove(s->pts, s->pts + 3, 3 * (s->n_pts - 1) * sizeof(float));
+        memmove(s->rad + 1, s->rad + 2, (s->n_pts - 2) * sizeof(float));
+        s->n_pts--;
+        return 1;
+    }
+    memcpy(s->pts, at, sizeof at);
+    return 0;
 }
 
 /* Seam placement: u = 0 faces down on branches (under the branch) and away
@@ -462,10 +508,11 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
     }
     st->height = zmax - zmin;
     st->trunk_radius = sk->radius[st->s[st->root].nodes[0]];
+    st->ground = sk->pos[3 * st->s[st->root].nodes[0] + 2];
     for (size_t o = 0; o < st->n; o++) {
         sy_stem *s = &st->s[st->by_depth[o]];
         int32_t *node_pt = malloc(s->n_nodes * sizeof *node_pt);
-        if (!node_pt || !build_polyline(sk, s, node_pt)) {
+        if (!node_pt || !build_polyline(sk, s, node_pt, opt->min_radius)) {
             free(node_pt);
             sy_stems_free(st);
             return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
@@ -473,8 +520,13 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
         s->r_base = s->rad[0];
         s->r_tip = s->rad[s->n_pts - 1];
         if (s->parent >= 0) s->attach_s = st->node_s[s->attach_node];
+        /* (Only when the first node is a point of its own: a child whose first
+         * node sits on the attachment node starts exactly there.) */
+        if (s->parent >= 0 && st->s[s->parent].has_geometry && s->n_pts >= 2 && node_pt[0] == 1 &&
+            attach_on_parent(&st->s[s->parent], s))
+            for (size_t i = 0; i < s->n_nodes; i++) node_pt[i] = node_pt[i] > 0 ? node_pt[i] - 1 : 0;
         if (s->n_pts >= 2) {
-            if (!sample_curve(s, opt)) {
+            if (!sample_curve(s, opt, st->ground)) {
                 free(node_pt);
                 sy_stems_free(st);
                 return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");

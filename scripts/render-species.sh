@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Regenerates the species pictures in docs/pictures/ (docs/species.md, docs/mesh.md):
+# every library species grown with seed 1 and drawn by three.js in headless Chromium
+# (tests/three/render_glb.mjs) at LOD0 and every coarser level, side by side, plus a
+# bark-only junction close-up of the rTwig QSM and of quaking aspen.
+# Usage: bash scripts/render-species.sh [path/to/sylva]   (default build/sylva)
+set -euo pipefail
+here=$(cd "$(dirname "$0")/.." && pwd)
+SYLVA=$(realpath "${1:-$here/build/sylva}")
+out="$here/docs/pictures"
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+mkdir -p "$out"
+render() { node --experimental-websocket "$here/tests/three/render_glb.mjs" "$@"; }
+names=$(awk -F'\t' '!/^#/ && NF >= 5 {print $2}' "$here/species/library.tsv")
+files=()
+for sp in $names; do
+    "$SYLVA" grow --species "$sp" --seed 1 -o "$tmp/$sp.glb" --impostor-size 256 --quiet
+    files+=("$tmp/$sp.glb")
+done
+render --lod all --size 300 --png "$tmp/" "${files[@]}" > "$tmp/verdicts.jsonl"
+for sp in $names; do
+    shots=$(ls "$tmp/${sp}"_lod*_persp.png | sort)
+    montage $shots -tile "$(echo "$shots" | wc -l)x1" -geometry 300x300+1+1 -background '#b9cfe0' \
+        "$out/${sp}_lods.png"
+done
+# Junction close-ups, bark only (glTF frame: y up).
+"$SYLVA" mesh "$here/../shared/data/real/rtwig/QSM.csv" -o "$tmp/qsm.glb" --species quaking_aspen --quiet
+render --view close --bark-only 1 --size 400 --at 0.02,0.9,0,0.18 --png "$tmp/j_" "$tmp/qsm.glb" > /dev/null
+cp "$tmp/j_qsm_lod0_close.png" "$out/junction_qsm.png"
+render --view close --bark-only 1 --size 400 --at -0.1,5.1,0.05,0.5 --png "$tmp/j_" "$tmp/quaking_aspen.glb" > /dev/null
+cp "$tmp/j_quaking_aspen_lod0_close.png" "$out/junction_aspen.png"
+echo "wrote $(ls "$out" | wc -l) pictures to $out"

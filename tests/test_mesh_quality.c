@@ -1,0 +1,112 @@
+/* What a game artist sees on every library species, grown with two seeds
+ * and built by the pipeline (sy_tree_asset_build), measured by sy_mesh_check
+ * (docs/mesh.md, "Quality checks"): no sails or slivers, welded bark, LOD0
+ * within its triangle budget, leaves on twigs and nothing below the ground,
+ * a LOD chain without cliffs whose silhouettes stay close to LOD0's. */
+#include "testutil.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "pipeline/tree_asset.h"
+#include "species/library.h"
+#include "stages/eval/eval.h"
+#include "stages/grow/grow.h"
+
+/* Budgets and tolerances, with the worst value measured over the library
+ * (two seeds) when they were set. */
+#define LOD0_BARK_MAX 60000     /* issue budget; measured <= 57.3k */
+/* Flagged "sails" left are twig quads on looping Weber-Penn curves a few
+ * radii off the skeleton's straight segments (measured <= 3.6 %); the sail
+ * the asset had, 5.85 m across, stood 600 radii off. */
+#define SAIL_SHARE 0.04         /* sails / bark triangles */
+#define OFF_SURFACE_MAX 60      /* local radii (measured <= 46) */
+#define SLIVER_SHARE 0.002      /* slivers / bark triangles (measured <= 0.11 %) */
+#define OPEN_EDGE_SHARE 0.03    /* boundary edges / bark triangles: unwelded junction rings (<= 2.3 %) */
+#define NONMANIFOLD_SHARE 0.001 /* coincident stems of a grown tree share edges */
+#define LEAF_GAP_MAX 1.0        /* petiole to LOD0 bark, in leaf lengths */
+#define RATIO_MIN 0.25          /* each level's triangles over the previous level's */
+#define RATIO_MAX 0.5
+#define IOU_LOD1 0.55           /* silhouette vs LOD0 (measured >= 0.71, weeping willow 0.56:
+                                   its LOD1 drops the thin hanging twigs) */
+#define IOU_ANY 0.5             /* (measured >= 0.54) */
+
+static void check_asset(const char *name, const sy_tree_asset_report *rep)
+{
+    const sy_mesh_check_report *c = &rep->check;
+    assert_true(c->n_levels >= 3);
+    const sy_mesh_check_level *l0 = &c->level[0];
+    double bark = (double)l0->bark_triangles;
+    printf("%s: LOD0 %zu bark + %zu leaves, sails %zu slivers %zu open %zu nonmanifold %zu misoriented %zu, "
+           "leaf gap %.2f, top bark %.2f leaf %.2f\n",
+           name, l0->bark_triangles, l0->leaves, l0->sails, l0->slivers, l0->boundary_edges, l0->nonmanifold_edges,
+           l0->misoriented_edges, l0->max_leaf_gap, l0->bark_top, l0->leaf_top);
+    assert_true(l0->bark_triangles <= LOD0_BARK_MAX);
+    assert_true(l0->sails <= SAIL_SHARE * bark);
+    assert_true(l0->max_off_surface <= OFF_SURFACE_MAX);
+    assert_true(l0->slivers <= SLIVER_SHARE * bark);
+    assert_true(l0->boundary_edges <= OPEN_EDGE_SHARE * bark);
+    assert_true(l0->nonmanifold_edges <= NONMANIFOLD_SHARE * bark);
+    assert_int_equal(l0->misoriented_edges, 0);
+    /* Leaves on twigs, bark reaching the leafy tips. */
+    if (l0->leaves) {
+        assert_true(l0->max_leaf_gap <= LEAF_GAP_MAX);
+        assert_int_equal(l0->leaves_far, 0);
+        assert_true(l0->leaf_top <= l0->bark_top + 1.0);
+    }
+    for (size_t l = 0; l < c->n_levels; l++) {
+        const sy_mesh_check_level *v = &c->level[l];
+        assert_int_equal(v->below_ground, 0);
+        assert_int_equal(v->leaves_below_ground, 0);
+        assert_int_equal(v->misoriented_edges, 0);
+        if (l == 0) continue;
+        printf("  LOD%zu: %zu triangles, ratio %.3f, silhouette IoU %.3f, sails %zu, open %zu\n", v->lod, v->triangles,
+               v->ratio, v->silhouette_iou, v->sails, v->boundary_edges);
+        assert_true(v->ratio >= RATIO_MIN && v->ratio <= RATIO_MAX);
+        assert_true(v->silhouette_iou >= (l == 1 ? IOU_LOD1 : IOU_ANY));
+    }
+}
+
+static void species_assets_survive_a_close_look(void **state)
+{
+    const char *name = *state;
+    sy_species_params sp;
+    sy_error err = {0};
+    assert_int_equal(sy_species_params_find(name, &sp, &err), SY_OK);
+    for (uint64_t seed = 1; seed <= 2; seed++) {
+        sy_skeleton sk;
+        sy_leaves lv;
+        assert_int_equal(sy_grow_tree(&sp, seed, &sk, &lv, &err), SY_OK);
+        sy_tree_asset_options o = sy_tree_asset_options_default();
+        o.impostor = 0; /* not checked; its CPU render is a third of the build */
+        o.texture_size = 64;
+        o.seed = seed;
+        o.check = 1;
+        sy_asset a;
+        sy_tree_asset_report rep;
+        if (sy_tree_asset_build(&sk, &lv, &sp, &o, &a, &rep, &err) != SY_OK) fail_msg("%s: %s", name, err.msg);
+        check_asset(name, &rep);
+        sy_asset_free(&a);
+        sy_skeleton_free(&sk);
+        sy_leaves_free(&lv);
+    }
+    sy_species_params_free(&sp);
+}
+
+int main(void)
+{
+    /* Every species of the library manifest. */
+    static sy_library lib;
+    sy_error err = {0};
+    if (sy_library_load(NULL, &lib, &err) != SY_OK) return fprintf(stderr, "%s\n", err.msg), 1;
+    size_t n = lib.n < 64 ? lib.n : 64;
+    struct CMUnitTest tests[64];
+    for (size_t i = 0; i < n; i++)
+        tests[i] = (struct CMUnitTest){lib.entries[i].name, species_assets_survive_a_close_look, NULL, NULL,
+                                       (void *)lib.entries[i].name};
+    int rc = _cmocka_run_group_tests("mesh_quality", tests, n, NULL, NULL);
+    sy_library_free(&lib);
+    return rc;
+}

@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# The mesh checks (sylva ... --check, docs/mesh.md "Quality checks") on the
+# reconstructions a user makes first: `sylva run` on every bundled
+# single-tree sample and `sylva mesh` on rTwig's reference QSM (with species
+# leaves). Asserted per file: no misoriented edges, nothing below the
+# ground (the root's height less the trunk's base radius: a leaning trunk's
+# base disc tilts), few sails and slivers, LOD0 leaves within a leaf length of bark,
+# each LOD level 25-50 % of the previous one's triangles.
+set -u
+source "$SYLVA_SOURCE_DIR/tests/glb_cli_common.sh"
+samples="$SYLVA_SOURCE_DIR/samples"
+# The checks of one --json report: jq exits 1 unless every condition holds.
+assert_quality() {
+    jq -e --argjson empty_ok "${2:-false}" '
+      .mesh_check as $c | ($c[0]) as $l0 |
+      ($c | length) == 0 and $empty_ok or ($c | length) >= 2 and
+      ([$c[] | .misoriented_edges == 0 and .below_ground == 0 and .leaves_below_ground == 0] | all) and
+      $l0.sails <= 0.004 * $l0.bark_triangles and $l0.slivers <= 0.002 * $l0.bark_triangles and
+      $l0.bark_triangles <= 60000 and $l0.leaves_far == 0 and
+      ([$c[1:][] | .ratio >= 0.25 and .ratio <= 0.5] | all)' "$1" > /dev/null
+}
+for s in aspen_tls fir_tls palm_tls aspen_als fir_als palm_als; do
+    if "$SYLVA" run "$samples/$s.las" -o "$tmp/$s.glb" --check --json --impostor-size 64 > "$tmp/$s.json" 2> "$tmp/$s.err"; then
+        # Airborne scans of a leafy tree may see no wood at all: then no bark to check.
+        empty=false; [[ $s == *_als ]] && empty=true
+        check "run $s: mesh checks hold ($(jq -c '[.mesh_check[] | .triangles]' "$tmp/$s.json"))" "assert_quality '$tmp/$s.json' $empty"
+    else
+        echo "FAIL: run $s: $(tail -1 "$tmp/$s.err")"; fail=1
+    fi
+done
+"$SYLVA" run "$samples/tree1.xyz" -o "$tmp/tree1.glb" --check --json --impostor-size 64 > "$tmp/tree1.json" 2> "$tmp/tree1.err" ||
+    { echo "FAIL: run tree1.xyz: $(tail -1 "$tmp/tree1.err")"; fail=1; }
+check "run tree1.xyz: mesh checks hold" "assert_quality '$tmp/tree1.json'"
+qsm="$SYLVA_DATA_DIR/real/rtwig/QSM.csv"
+"$SYLVA" mesh "$qsm" -o "$tmp/q.glb" --species quaking_aspen --check --json --impostor-size 64 > "$tmp/q.json" 2> "$tmp/q.err" ||
+    { echo "FAIL: mesh QSM.csv: $(tail -1 "$tmp/q.err")"; fail=1; }
+check "rTwig QSM: mesh checks hold ($(jq -c '[.mesh_check[] | .triangles]' "$tmp/q.json"))" "assert_quality '$tmp/q.json'"
+# Its junctions are welded: at most a few open ring edges per hundred triangles.
+check "rTwig QSM: welded junctions" "jq -e '.mesh_check[0] | .boundary_edges <= 0.03 * .bark_triangles' '$tmp/q.json' > /dev/null"
+exit $fail
