@@ -38,7 +38,6 @@ typedef struct {
     int sylva;           /* 1: also keep the .sylva file (result->sylva); the asset is always made from it */
     int proxy;           /* 1: also draw the lobe hulls as the semi-transparent foliage_proxy mesh (0) */
     double lobe_size;    /* largest lobe as a share of the tree's extent, [0, 1] (0.25; 0: one cluster a cut) */
-    int sylva;           /* 1: also encode the .sylva file (result->sylva) */
     int classify;        /* 1: without a species, the classifier names one from the cleaned cloud and a
                             confident answer's parameters and materials are used (1) */
     const char *model;   /* classifier model; NULL: the library's classifier.sjb */

@@ -39,9 +39,9 @@ static void density_from_species(void **state)
     sy_error err = {0};
     assert_int_equal(sy_species_params_find("quaking_aspen", &sp, &err), SY_OK);
     sy_leaf_placement p = sy_leaf_placement_from_species(&sp, 3);
-    /* Leaves 9 on a last-level stem of 13 * 0.9 * 0.3 * 0.6 m. */
-    assert_true(fabs(p.per_metre - 9.0 / (13 * 0.9 * 0.3 * 0.6)) < 1e-4);
-    assert_true(fabs(p.size - 0.3f) < 1e-6);
+    /* Leaves 16 on a last-level stem of 13 * 0.9 * 0.3 * 0.6 m. */
+    assert_true(fabs(p.per_metre - 16.0 / (13 * 0.9 * 0.3 * 0.6)) < 1e-4);
+    assert_true(fabs(p.size - 0.55f) < 1e-6);
     assert_int_equal(p.max_reverse_order, 2);
     sy_species_params_free(&sp);
 }
