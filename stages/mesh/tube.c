@@ -616,7 +616,7 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
     size_t w = 0;
     for (size_t t = 0; t < nt; t++)
         if (!cut[t]) memcpy(ix + w, out->indices + 3 * t, 3 * sizeof *ix), w += 3;
-    memcpy(ix + w, strips, n_strips * sizeof *ix), w += n_strips;
+    if (n_strips) memcpy(ix + w, strips, n_strips * sizeof *ix), w += n_strips; /* strips may be NULL */
     free(out->indices);
     out->indices = ix;
     out->n_indices = w;

@@ -8,7 +8,7 @@
 #include <stdlib.h>
 
 #include "fuzz_util.h"
-#include "stages/eval/gltf_read_tinygltf.h"
+#include "stages/gltf/gltf_read.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
@@ -18,8 +18,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     const char *path = fuzz_file(data[0] & 1 ? "gltf" : "glb", data + 1, size - 1);
     double *tri;
     size_t n, *hull;
-    char msg[512];
-    if (sy_gltf_read_triangles(path, &tri, &n, &hull, msg, sizeof msg) == 0) {
+    sy_error err = {0};
+    if (sy_gltf_read_triangles(path, &tri, &n, &hull, &err) == SY_OK) {
         for (size_t i = 0; i < 9 * n; i++)
             if (!isfinite(tri[i])) abort();
         free(tri);

@@ -103,7 +103,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         return 0;
     }
     sy_skeleton_metrics sm;
-    sy_skeleton_metrics_opts mo = sy_skeleton_metrics_defaults();
+    sy_skeleton_metrics_options mo = sy_skeleton_metrics_options_default();
     sy_skeleton_metrics_compute(&f, &f, &mo, &sm, &err);
     sy_eval_model model = {0, NULL, f};
     sy_surface_metrics su;
