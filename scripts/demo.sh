@@ -18,7 +18,7 @@ echo "== sylva grow --species quaking_aspen -o out/quaking_aspen.glb"
 $sylva grow --species quaking_aspen --seed 1 -o out/quaking_aspen.glb
 echo "== sylva run samples/aspen_tls.las -o out/aspen_tls.glb --sylva out/aspen_tls.sylva"
 $sylva run samples/aspen_tls.las -o out/aspen_tls.glb --sylva out/aspen_tls.sylva
-echo "reconstructed tree: $PWD/out/aspen_tls.glb (branches + foliage-proxy hulls), $PWD/out/aspen_tls.sylva"
+echo "reconstructed tree: $PWD/out/aspen_tls.glb (bark mesh + instanced leaves from the species branchlets), $PWD/out/aspen_tls.sylva"
 $sylva eval --truth samples/aspen_tls.json out/aspen_tls.sylva
 echo
 echo "demo outputs are in $PWD/out/"
