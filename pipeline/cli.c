@@ -208,3 +208,16 @@ int sy_cli_check_outputs(const char *const *outs, size_t n_out, const char *cons
     }
     return 0;
 }
+
+int sy_cli_parse_all(const sy_cmd_spec *spec, int argc, char **argv, sy_cli *cli, const char ***pos, int *n_pos)
+{
+    *n_pos = 0;
+    *pos = calloc((size_t)argc + 1, sizeof **pos);
+    if (!*pos) return SY_EINTERNAL;
+    int rc = sy_cli_parse(spec, argc, argv, cli, *pos, argc, n_pos);
+    if (rc) {
+        free(*pos);
+        *pos = NULL;
+    }
+    return rc;
+}

@@ -44,6 +44,12 @@ typedef struct {
 int sy_cli_parse(const sy_cmd_spec *spec, int argc, char **argv, sy_cli *cli, const char **pos,
                  int max, int *n_pos);
 
+/* sy_cli_parse for commands that take any number of positional arguments:
+ * *pos is allocated with room for all of them (the caller frees it). On any
+ * non-zero return *pos is NULL and the return is as sy_cli_parse's, with
+ * SY_EINTERNAL when out of memory. */
+int sy_cli_parse_all(const sy_cmd_spec *spec, int argc, char **argv, sy_cli *cli, const char ***pos, int *n_pos);
+
 /* The two process-wide settings a command makes once, after parsing:
  * sy_set_threads(--threads) and sy_progress_set_quiet(--quiet or --json).
  * They change speed and stderr, never output bytes. */

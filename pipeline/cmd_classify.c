@@ -76,13 +76,9 @@ int cmd_classify(int argc, char **argv, sy_cli *cli)
         "voting come from LAS coordinates (the trunk base) or --positions. Trees whose features lie\n"
         "outside the model's training range are never confident. See docs/classify.md.",
         opts, 1, -1};
-    const char **pos = calloc((size_t)argc + 1, sizeof *pos);
-    if (!pos) return SY_EINTERNAL;
-    int n = 0, rc = sy_cli_parse(&spec, argc, argv, cli, pos, argc, &n);
-    if (rc) {
-        free(pos);
-        return rc < 0 ? 0 : rc;
-    }
+    const char **pos;
+    int n, rc = sy_cli_parse_all(&spec, argc, argv, cli, &pos, &n);
+    if (rc) return rc < 0 ? 0 : rc;
     sy_cli_apply_settings(cli);
     vo.voting = !no_voting;
     sy_error err = {0};

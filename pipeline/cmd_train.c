@@ -205,13 +205,9 @@ int cmd_train(int argc, char **argv, sy_cli *cli)
         "Species are stored by name. The shipped model is rebuilt by species/train-classifier.sh.\n"
         "See docs/classify.md.",
         opts, 0, -1};
-    const char **pos = calloc((size_t)argc + 1, sizeof *pos);
-    if (!pos) return SY_EINTERNAL;
-    int n = 0, rc = sy_cli_parse(&spec, argc, argv, cli, pos, argc, &n);
-    if (rc) {
-        free(pos);
-        return rc < 0 ? 0 : rc;
-    }
+    const char **pos;
+    int n, rc = sy_cli_parse_all(&spec, argc, argv, cli, &pos, &n);
+    if (rc) return rc < 0 ? 0 : rc;
     sy_cli_apply_settings(cli);
     sy_error err = {0};
     sy_feature_table t = {0};
