@@ -21,6 +21,10 @@
 #include "stages/core/cloud.h"
 #include "stages/core/status.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* ---------------------------------------------------------------- features */
 
 /* Bumped whenever a feature's definition or the order changes: a model trained
@@ -168,5 +172,9 @@ typedef struct {
  * such neighbour it is unknown (-1). */
 sy_code sy_vote(size_t n, size_t n_classes, const double *prob, const double *novelty, const double *xy,
                 const sy_vote_options *o, sy_tree_decision *out, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -20,7 +20,9 @@
 
 #include "classify/classify.h"
 #include "stages/clusters/clusters.h"
+#include "stages/core/geometry.h"
 #include "stages/core/progress.h"
+#include "stages/core/voxel.h"
 #include "stages/skeleton/skeleton.h"
 
 #define N_ELEV 18     /* normal-elevation bins over 0..90 degrees */
@@ -193,39 +195,17 @@ static double quantile(const float *v, size_t n, double q, float *scratch)
     return scratch[i] * (1 - t) + scratch[i + 1] * t;
 }
 
-typedef struct {
-    uint64_t key;
-    uint32_t idx;
-} keyed;
-
-static int cmp_keyed(const void *a, const void *b)
-{
-    const keyed *x = a, *y = b;
-    if (x->key != y->key) return x->key < y->key ? -1 : 1;
-    return (x->idx > y->idx) - (x->idx < y->idx);
-}
-
 /* Voxel centroids of xyz at voxel size v; returns the count written to out (3m floats). */
-static size_t voxel_centroids(const float *xyz, size_t n, const float lo[3], double v, keyed *tmp, float *out)
+static size_t voxel_centroids(const float *xyz, size_t n, const float lo[3], double v, sy_voxel_entry *tmp,
+                              float *out)
 {
-    for (size_t i = 0; i < n; i++) {
-        uint64_t k = 0;
-        for (int a = 0; a < 3; a++) {
-            double c = floor((xyz[3 * i + a] - lo[a]) / v);
-            if (c < 0) c = 0;
-            if (c > 2097151) c = 2097151;
-            k = (k << 21) | (uint64_t)c;
-        }
-        tmp[i].key = k;
-        tmp[i].idx = (uint32_t)i;
-    }
-    qsort(tmp, n, sizeof *tmp, cmp_keyed);
+    sy_voxel_sort(xyz, n, lo, v, tmp);
     size_t m = 0;
     for (size_t i = 0; i < n;) {
         size_t j = i;
         double s[3] = {0, 0, 0};
         while (j < n && tmp[j].key == tmp[i].key) {
-            for (int a = 0; a < 3; a++) s[a] += xyz[3 * tmp[j].idx + a];
+            for (int a = 0; a < 3; a++) s[a] += xyz[3 * tmp[j].index + a];
             j++;
         }
         for (int a = 0; a < 3; a++) out[3 * m + a] = (float)(s[a] / (double)(j - i));
@@ -238,7 +218,7 @@ static size_t voxel_centroids(const float *xyz, size_t n, const float lo[3], dou
 /* Voxel centroids at *voxel or coarser, at most max_points of them. A crown
  * sampled like a surface loses points as voxel^-2, so each retry jumps by the
  * square root of the excess (plus 3%): two or three passes, not dozens. */
-static size_t subsample(const float *xyz, size_t n, const float lo[3], size_t max_points, keyed *tmp, float *out,
+static size_t subsample(const float *xyz, size_t n, const float lo[3], size_t max_points, sy_voxel_entry *tmp, float *out,
                         double *voxel)
 {
     size_t m = voxel_centroids(xyz, n, lo, *voxel, tmp, out);
@@ -357,52 +337,6 @@ static size_t local_cov(const grid *g, const float *xyz, size_t i, double r, dou
     cov[4] = ss[4] * inv - s[1] * s[2] * inv * inv;
     cov[5] = ss[5] * inv - s[2] * s[2] * inv * inv;
     return m;
-}
-
-/* Eigen-decomposition of a symmetric 3x3 (upper triangle c) by cyclic Jacobi:
- * values descending in l, unit vectors as columns of v (v[row*3+col]). */
-static void eigen3(const double c[6], double l[3], double v[9])
-{
-    double a[3][3] = {{c[0], c[1], c[2]}, {c[1], c[3], c[4]}, {c[2], c[4], c[5]}};
-    double e[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-    for (int sweep = 0; sweep < 24; sweep++) {
-        double off = fabs(a[0][1]) + fabs(a[0][2]) + fabs(a[1][2]);
-        if (off < 1e-18) break;
-        for (int p = 0; p < 2; p++)
-            for (int q = p + 1; q < 3; q++) {
-                if (fabs(a[p][q]) < 1e-300) continue;
-                double th = (a[q][q] - a[p][p]) / (2 * a[p][q]);
-                double t = (th >= 0 ? 1 : -1) / (fabs(th) + sqrt(th * th + 1));
-                double cs = 1 / sqrt(t * t + 1), sn = t * cs;
-                for (int k = 0; k < 3; k++) {
-                    double akp = a[k][p], akq = a[k][q];
-                    a[k][p] = cs * akp - sn * akq;
-                    a[k][q] = sn * akp + cs * akq;
-                }
-                for (int k = 0; k < 3; k++) {
-                    double apk = a[p][k], aqk = a[q][k];
-                    a[p][k] = cs * apk - sn * aqk;
-                    a[q][k] = sn * apk + cs * aqk;
-                }
-                for (int k = 0; k < 3; k++) {
-                    double ekp = e[k][p], ekq = e[k][q];
-                    e[k][p] = cs * ekp - sn * ekq;
-                    e[k][q] = sn * ekp + cs * ekq;
-                }
-            }
-    }
-    int ord[3] = {0, 1, 2};
-    for (int i = 0; i < 2; i++)
-        for (int j = i + 1; j < 3; j++)
-            if (a[ord[j]][ord[j]] > a[ord[i]][ord[i]]) {
-                int t = ord[i];
-                ord[i] = ord[j];
-                ord[j] = t;
-            }
-    for (int i = 0; i < 3; i++) {
-        l[i] = a[ord[i]][ord[i]] > 0 ? a[ord[i]][ord[i]] : 0;
-        for (int k = 0; k < 3; k++) v[k * 3 + i] = e[k][ord[i]];
-    }
 }
 
 /* Area of the 2-D convex hull of pts (2m doubles; reordered) by Andrew's monotone chain. */
@@ -598,7 +532,7 @@ typedef struct {
     float *P;         /* 3m subsampled points */
     float *h, *r;     /* m: relative height, radial distance */
     float *scratch;   /* max(m, n) */
-    keyed *keys;      /* n */
+    sy_voxel_entry *keys; /* n */
     double *pts2, *hull2;
     double *tmp;
 } work;
@@ -812,7 +746,7 @@ sy_code sy_features_compute(const sy_cloud *tree, const sy_features_options *o, 
                 size_t j = i;
                 while (j < m && w.keys[j].key == w.keys[i].key) j++;
                 cnt[runs++] = (double)(j - i);
-                int q = quarter_of(w.h[w.keys[i].idx]);
+                int q = quarter_of(w.h[w.keys[i].index]);
                 if (qbuf) qcnt[q][qruns[q]++] = (double)(j - i);
                 i = j;
             }
@@ -866,7 +800,7 @@ sy_code sy_features_compute(const sy_cloud *tree, const sy_features_options *o, 
                     if (qloc) qloc[(size_t)q * m + qn[q]++] = (double)k;
                 }
                 if (k < 4) continue;
-                eigen3(cov, l, v);
+                sy_sym3_eigen(cov, l, v);
                 if (!(l[0] > 0)) continue;
                 double L = (sqrt(l[0]) - sqrt(l[1])) / sqrt(l[0]), Pl = (sqrt(l[1]) - sqrt(l[2])) / sqrt(l[0]),
                        S = sqrt(l[2]) / sqrt(l[0]);

@@ -25,6 +25,7 @@
 
 #include "classify/classify.h"
 #include "stages/core/fileio.h"
+#include "stages/core/lines.h"
 
 static uint64_t fnv1a(const char *s, size_t n)
 {
@@ -125,23 +126,22 @@ sy_code sy_jb_save(const sy_jb_model *m, const char *path, sy_error *err)
 
 typedef struct {
     const char *name;
-    const char *p, *end;
+    sy_lines lines;
     int line;
     char cur[65536];
     sy_error *err;
 } reader;
 
-/* Next line into r->cur (without the newline); 0 at the end of the text. */
+/* Next line into r->cur (without the end of line); 0 at the end of the text. */
 static int next_line(reader *r)
 {
-    if (r->p >= r->end) return 0;
-    const char *nl = memchr(r->p, '\n', (size_t)(r->end - r->p));
-    size_t n = nl ? (size_t)(nl - r->p) : (size_t)(r->end - r->p);
+    const char *b, *e;
+    if (!sy_lines_next(&r->lines, &b, &e)) return 0;
+    size_t n = (size_t)(e - b);
     r->line++;
     if (n >= sizeof r->cur) n = sizeof r->cur - 1; /* too long: the field checks fail on it */
-    memcpy(r->cur, r->p, n);
+    memcpy(r->cur, b, n);
     r->cur[n] = 0;
-    r->p = nl ? nl + 1 : r->end;
     return 1;
 }
 
@@ -197,7 +197,8 @@ static int at_end(const char *s)
 sy_code sy_jb_parse(const char *name, const char *text, size_t len, sy_jb_model *m, sy_error *err)
 {
     memset(m, 0, sizeof *m);
-    reader r = {name, text, text + len, 0, {0}, err};
+    reader r = {name, {0}, 0, {0}, err};
+    sy_lines_init(&r.lines, text, len);
     const char *s;
     if (!next_line(&r) || strncmp(r.cur, "sylva-jointboost ", 17) != 0)
         return sy_fail(err, SY_EINPUT, "%s: not a Sylva JointBoost model (no \"sylva-jointboost\" header)", name);

@@ -9,7 +9,9 @@
 #include "classify/classify.h"
 #include "pipeline/commands.h"
 #include "pipeline/tree_species.h"
+#include "stages/core/fileio.h"
 #include "stages/core/json.h"
+#include "stages/core/lines.h"
 #include "stages/core/progress.h"
 #include "stages/eval/eval.h"
 
@@ -17,13 +19,19 @@
  * enough: parse the three columns ourselves). */
 static sy_code read_positions(const char *path, const char **files, int n, double *xy, int *have, sy_error *err)
 {
-    FILE *fp = fopen(path, "r");
-    if (!fp) return sy_fail(err, SY_EINPUT, "%s: cannot open", path);
+    sy_buffer buf;
+    sy_code rc = sy_read_file(path, &buf, err);
+    if (rc) return rc;
+    sy_lines L;
+    sy_lines_init(&L, buf.data, buf.size);
+    const char *lb, *le;
     char line[4096];
     int ln = 0;
-    sy_code rc = SY_OK;
-    while (fgets(line, sizeof line, fp)) {
+    while (sy_lines_next(&L, &lb, &le)) {
         ln++;
+        size_t len = (size_t)(le - lb) < sizeof line ? (size_t)(le - lb) : sizeof line - 1;
+        memcpy(line, lb, len);
+        line[len] = 0;
         char *p = line;
         while (*p == ' ') p++;
         if (*p == '#' || *p == '\n' || *p == 0) continue;
@@ -51,7 +59,7 @@ static sy_code read_positions(const char *path, const char **files, int n, doubl
             if (!strcmp(files[i], p) || !strcmp(b ? b + 1 : files[i], p)) xy[2 * i] = x, xy[2 * i + 1] = y, have[i] = 1;
         }
     }
-    fclose(fp);
+    sy_buffer_free(&buf);
     return rc;
 }
 

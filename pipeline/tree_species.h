@@ -11,6 +11,10 @@
 #include "species/species.h"
 #include "stages/core/cloud.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* The shipped default model, classifier.sjb in the species library folder
  * (species/library.h locates it; built by species/train-classifier.sh). */
 sy_code sy_default_model_path(char *path, size_t size, sy_error *err);
@@ -73,5 +77,9 @@ typedef struct {
 
 sy_code sy_classify_cloud(const sy_cloud *tree, const char *model_path, sy_species_guess *out, sy_error *err);
 void sy_species_guess_free(sy_species_guess *g);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

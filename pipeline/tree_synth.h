@@ -13,6 +13,10 @@
 #include "stages/encode/encode.h"
 #include "stages/synthesize/synthesize.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     sy_skeleton skel;     /* decoded main skeleton, root at (0,0,0), origin = its world position */
     sy_clusters lobes;    /* decoded hulls, same frame */
@@ -34,5 +38,9 @@ void sy_decoded_tree_free(sy_decoded_tree *t);
 
 /* One line per bare lobe ("lobe 3 (node 12): no room inside its hull ...") to stderr. */
 void sy_decoded_tree_report_bare(const char *command, const sy_decoded_tree *t);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -17,6 +17,7 @@
 #include "species/species.h"
 #include "stages/core/fileio.h"
 #include "stages/core/array.h"
+#include "stages/core/lines.h"
 
 #ifndef SYLVA_LIBRARY_INSTALL_DIR
 #define SYLVA_LIBRARY_INSTALL_DIR "/usr/local/share/sylva/species"
@@ -183,23 +184,18 @@ sy_code sy_library_parse(const char *path, const char *dir, const char *text, si
 {
     memset(lib, 0, sizeof *lib);
     snprintf(lib->dir, sizeof lib->dir, "%s", dir ? dir : "");
-    size_t cap = 0, line_no = 0;
-    const char *p = text, *end = text + size;
+    size_t cap = 0;
+    sy_lines L;
+    sy_lines_init(&L, text, size);
+    const char *p, *pe;
     sy_code rc = SY_OK;
-    while (p < end && !rc) {
-        const char *nl = memchr(p, '\n', (size_t)(end - p));
-        size_t len = nl ? (size_t)(nl - p) : (size_t)(end - p);
-        line_no++;
-        if (len && p[len - 1] == '\r') len--;
+    while (!rc && sy_lines_next(&L, &p, &pe)) {
+        size_t len = (size_t)(pe - p), line_no = L.line;
         if (memchr(p, '\0', len)) {
             rc = sy_fail(err, SY_EINPUT, "%s:%zu: NUL byte", path, line_no);
             break;
         }
-        const char *next = nl ? nl + 1 : end;
-        if (len == 0 || p[0] == '#') {
-            p = next;
-            continue;
-        }
+        if (len == 0 || p[0] == '#') continue;
         if ((rc = sy_array_reserve(&lib->entries, &cap, lib->n + 1, sizeof *lib->entries, 16, err, path))) break;
         char *line = strndup(p, len);
         if (!line) {
@@ -217,7 +213,6 @@ sy_code sy_library_parse(const char *path, const char *dir, const char *text, si
             else if (strcmp(lib->entries[i].name, e->name) == 0)
                 rc = sy_fail(err, SY_EINPUT, "%s:%zu: species '%s' is listed twice", path, line_no, e->name);
         }
-        p = next;
     }
     if (!rc && lib->n == 0) rc = sy_fail(err, SY_EINPUT, "%s: lists no species", path);
     if (rc) sy_library_free(lib);

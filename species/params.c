@@ -20,6 +20,7 @@
 
 #include "species/library.h"
 #include "stages/core/fileio.h"
+#include "stages/core/lines.h"
 
 typedef enum { K_FLOAT, K_INT, K_STRING, K_VEC3 } key_type;
 typedef enum { S_NONE, S_GENERAL, S_LEVEL, S_SYLVA } section_kind;
@@ -456,20 +457,19 @@ sy_code sy_species_params_parse(const char *text, size_t size, const char *path,
     p->base_dir = base_dir;
     p->err = err;
     sy_code rc = SY_OK;
-    size_t pos = 0;
     char line[4096];
-    while (pos < size && rc == SY_OK) {
-        size_t end = pos;
-        while (end < size && text[end] != '\n') end++;
+    sy_lines L;
+    sy_lines_init(&L, text, size);
+    const char *lb, *le;
+    while (rc == SY_OK && sy_lines_next(&L, &lb, &le)) {
         p->line++;
-        size_t len = end - pos;
+        size_t len = (size_t)(le - lb);
         if (len >= sizeof line) {
             rc = perr(p, "line too long", NULL);
             break;
         }
-        memcpy(line, text + pos, len);
+        memcpy(line, lb, len);
         line[len] = 0;
-        pos = end + 1;
         if (memchr(line, 0, len)) {
             rc = perr(p, "NUL byte in text", NULL);
             break;

@@ -107,6 +107,47 @@ static void skeleton_vs_itself_is_perfect(void **state)
     sy_forest_free(&t);
 }
 
+/* The skeleton_stages fuzz find (tests/fuzz/corpus/skeleton_stages/
+ * long_edges_timeout): 20 nodes, one of them 330 m below the others, scored
+ * against itself. The edge samples followed the length (1 cm steps: 6e5 a
+ * direction, past the fuzz time budget under the sanitizers); they now follow
+ * the size: at most max(1e5, 256 per edge) a direction. A small tree keeps
+ * the 1 cm step. */
+static void long_edges_take_bounded_samples(void **state)
+{
+    (void)state;
+    static const float node[20][4] = {
+        {1.64f, 1.99f, 1, -1},    {0.25f, 1.9f, 2, 0},     {-0.02f, 1.81f, 3, 0},  {-1.5f, -1.85f, 4, 1},
+        {2.44f, -1.17f, 5, 2},    {2.11f, 0.46f, 6, 2},    {-2.09f, 2.03f, 7, 5},  {2.27f, 2.61f, 8, 5},
+        {0.69f, -2.36f, 9, 5},    {-2.65f, 0.13f, 10, 7},  {2.72f, -0.13f, 11, 8}, {-0.11f, 0, 12, 9},
+        {-1.18f, 2.94f, 13, 10},  {1.85f, 2.6f, -313.68f, 12}, {0.33f, -0.2f, 15, 12}, {-0.05f, 2.12f, 16, 13},
+        {0.65f, 0.56f, 17, 13},   {0.53f, 1.18f, 18, 15},  {-1.24f, 1.6f, 19, 16}, {0.43f, 2.3f, 20, 17}};
+    sy_error err = {0};
+    sy_eval_tree t;
+    memset(&t, 0, sizeof t);
+    t.tree_id = 1;
+    t.species_id = -1;
+    t.crown_width = NAN;
+    for (int i = 0; i < 20; i++)
+        assert_true(sy_skeleton_add(&t.skel, node[i], 0.19f - 0.006f * (float)i, (int32_t)node[i][3], 0, i, &err) ==
+                    i);
+    t.height = sy_skeleton_height(&t.skel);
+    t.dbh = sy_skeleton_dbh(&t.skel);
+    sy_forest f = {0};
+    assert_int_equal(sy_forest_add(&f, &t, &err), SY_OK);
+    sy_skeleton_metrics m = score(&f, &f);
+    assert_true(m.truth_length > 600);
+    assert_true(m.n_samples <= 2 * 100000 + 2 * 19);
+    assert_true(m.sample_step > 0.01 && fabs(m.sample_step * 1e5 - m.truth_length) < 1e-6 * m.truth_length);
+    assert_true(m.recall == 1 && m.precision == 1); /* still itself */
+    sy_forest_free(&f);
+    sy_forest small;
+    planar_tree(&small, 1, zero3, 0, NULL);
+    m = score(&small, &small);
+    assert_true(m.sample_step == 0.01);
+    sy_forest_free(&small);
+}
+
 static void shifted_copies(void **state)
 {
     (void)state;
@@ -638,6 +679,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(skeleton_vs_itself_is_perfect),
+        cmocka_unit_test(long_edges_take_bounded_samples),
         cmocka_unit_test(shifted_copies),
         cmocka_unit_test(removed_branches_lower_recall_by_their_length),
         cmocka_unit_test(radius_scaled_by_1_2),

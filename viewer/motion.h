@@ -7,6 +7,10 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 #define SY_MOTION_LEVELS 4
 
 typedef struct {
@@ -37,5 +41,9 @@ void sy_fft(double *re, double *im, int n, int inverse);
 /* Grass slice textures for the ray-traced grass: `layers` RGBA8 images of w x h, blades
  * grown from a seed (non-premultiplied alpha). Returns malloc'd bytes or NULL. */
 unsigned char *sy_grass_slices(int w, int h, int layers, uint64_t seed);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

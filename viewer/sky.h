@@ -5,6 +5,10 @@
 #ifndef SYLVA_VIEWER_SKY_H
 #define SYLVA_VIEWER_SKY_H
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     float perez[5][3];    /* A..E for (Y, x, y) */
     float zenith[3];      /* Y (kcd/m^2), x, y */
@@ -21,5 +25,9 @@ void sy_sky_make(sy_sky *sky, double az_deg, double el_deg, double turbidity);
 
 /* Sky radiance (render units, linear sRGB) in unit direction d (world, Y up). */
 void sy_sky_radiance(const sy_sky *sky, const double d[3], double rgb[3]);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

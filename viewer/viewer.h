@@ -9,6 +9,10 @@
 
 #include "stages/gltf/gltf_read.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     int width, height;
     int camera_set;                 /* --camera given */
@@ -68,5 +72,9 @@ sy_gl_context *sy_gl_open(int headless, int width, int height, const char *title
 void sy_gl_close(sy_gl_context *c);
 /* Window only: */
 void *sy_gl_window(sy_gl_context *c); /* the GLFWwindow */
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

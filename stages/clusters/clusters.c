@@ -480,29 +480,11 @@ static sy_code box_hull(sy_cluster *c, const float *xyz, double pad, sy_error *e
         for (int a = 0; a < 3; a++)
             for (int b = 0; b < 3; b++) C[a][b] += d[a] * d[b];
     }
-    /* Jacobi eigenvectors of the 3x3 covariance. */
-    double V[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-    for (int sweep = 0; sweep < 30; sweep++)
-        for (int p = 0; p < 2; p++)
-            for (int q = p + 1; q < 3; q++) {
-                if (fabs(C[p][q]) < 1e-15) continue;
-                double th = 0.5 * atan2(2 * C[p][q], C[q][q] - C[p][p]), cs = cos(th), sn = sin(th);
-                for (int k = 0; k < 3; k++) {
-                    double a = C[k][p], b = C[k][q];
-                    C[k][p] = cs * a - sn * b;
-                    C[k][q] = sn * a + cs * b;
-                }
-                for (int k = 0; k < 3; k++) {
-                    double a = C[p][k], b = C[q][k];
-                    C[p][k] = cs * a - sn * b;
-                    C[q][k] = sn * a + cs * b;
-                }
-                for (int k = 0; k < 3; k++) {
-                    double a = V[k][p], b = V[k][q];
-                    V[k][p] = cs * a - sn * b;
-                    V[k][q] = sn * a + cs * b;
-                }
-            }
+    /* The principal axes: eigenvectors of the scatter matrix. */
+    double cu[6] = {C[0][0], C[0][1], C[0][2], C[1][1], C[1][2], C[2][2]}, ev[3], v[9], V[3][3];
+    sy_sym3_eigen(cu, ev, v);
+    for (int k = 0; k < 3; k++)
+        for (int a = 0; a < 3; a++) V[k][a] = v[3 * k + a];
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (size_t i = 0; i < n; i++)
         for (int a = 0; a < 3; a++) {

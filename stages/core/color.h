@@ -6,6 +6,10 @@
 
 #include <math.h>
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 static inline double sy_srgb_to_linear(double c)
 {
     c = c < 0 ? 0 : c > 1 ? 1 : c;
@@ -17,5 +21,9 @@ static inline double sy_linear_to_srgb(double v)
     v = v < 0 ? 0 : v > 1 ? 1 : v;
     return v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1 / 2.4) - 0.055;
 }
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

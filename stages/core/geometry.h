@@ -15,6 +15,13 @@ double sy_point_segment_distance(const double p[3], const double a[3], const dou
 double sy_point_triangle_distance(const double p[3], const double a[3], const double b[3], const double c[3],
                                   double closest[3]);
 
+/* Eigen-decomposition of a symmetric 3x3 matrix given by its upper triangle
+ * c = {c00, c01, c02, c11, c12, c22} (a covariance, or a scatter matrix) by
+ * cyclic Jacobi rotations (Golub & Van Loan, "Matrix Computations", 8.5):
+ * eigenvalues descending in l (negative round-off clamped to 0), unit
+ * eigenvectors as the columns of v (v[row * 3 + col]). */
+void sy_sym3_eigen(const double c[6], double l[3], double v[9]);
+
 #ifdef __cplusplus
 }
 #endif

@@ -6,6 +6,10 @@
 
 #include <stdint.h>
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 #define SY_GOLDEN_GAMMA 0x9E3779B97F4A7C15ull
 
 /* The splitmix64 output function of z + the golden gamma: a stateless hash
@@ -28,5 +32,9 @@ static inline uint64_t sy_splitmix64(uint64_t *state)
 
 /* Uniform double in [0, 1) from the top 53 bits of x. */
 static inline double sy_unit53(uint64_t x) { return (double)(x >> 11) * (1.0 / 9007199254740992.0); }
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

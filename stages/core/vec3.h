@@ -6,6 +6,10 @@
 
 #include <math.h>
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 static inline double sy_v3_dot(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
 static inline void sy_v3_sub(double r[3], const double a[3], const double b[3])
@@ -33,5 +37,9 @@ static inline double sy_v3_normalize(double v[3])
         for (int i = 0; i < 3; i++) v[i] /= l;
     return l;
 }
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

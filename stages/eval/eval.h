@@ -128,7 +128,8 @@ double *sy_cloud_world_points(const sy_cloud *c, sy_error *err);
 #define SY_EVAL_ORDERS 4 /* orders 0, 1, 2, 3+ */
 
 typedef struct {
-    double sample_step;        /* metres between samples along edges (0.01) */
+    double sample_step;        /* metres between samples along edges (0.01; widened for skeletons with
+                                  more than 1 km of axes, see sy_skeleton_metrics.sample_step) */
     double min_tolerance;      /* metres (0.05) */
     double radius_factor;      /* tolerance = max(radius_factor * r, min_tolerance) (2) */
     double thick_radius;       /* "thick" branches: base radius >= this (0.02) */
@@ -147,6 +148,9 @@ typedef struct {
     double bifurcation_error_mean, bifurcation_error_median;
     size_t trees_truth, trees_matched;
     double dbh_error, height_error; /* mean |model - truth| over matched trees */
+    double sample_step; /* the step used: options' sample_step, widened so that the samples stay
+                           within max(1e5, 256 per edge) a direction (never more than 2e7) */
+    size_t n_samples;   /* samples matched, both directions */
 } sy_skeleton_metrics;
 
 sy_code sy_skeleton_metrics_compute(const sy_forest *truth, const sy_forest *model, const sy_skeleton_metrics_options *opts,

@@ -115,6 +115,10 @@ static sy_code segments_build(const sy_forest *f, double thick_radius, segments 
     return rc;
 }
 
+#define SKELETON_SAMPLES_FLOOR 1e5
+#define SKELETON_SAMPLES_PER_EDGE 256.0
+#define SKELETON_SAMPLES_MAX 2e7
+
 /* Samples: k = ceil(len / step) per edge at sub-interval midpoints. */
 static size_t samples_on(const segments *s, size_t i, double step)
 {
@@ -404,18 +408,27 @@ sy_code sy_skeleton_metrics_compute(const sy_forest *truth, const sy_forest *mod
         segments_free(&T);
         return rc;
     }
-    /* Keep sample counts bounded for huge inputs by coarsening the step. */
+    /* The cost follows the skeletons' size, never their extent: the step
+     * widens so that each direction takes at most SKELETON_SAMPLES_FLOOR
+     * samples (1 km of axes at 1 cm: any real tree, which spans at most
+     * SY_SKELETON_MAX_SPAN) or SKELETON_SAMPLES_PER_EDGE per edge, whichever
+     * is more, and never more than SKELETON_SAMPLES_MAX. A 20-node skeleton
+     * with 300 m edges took 6e5 samples a direction before. */
     double len_t = 0, len_m = 0;
     for (size_t i = 0; i < T.n; i++) len_t += edge_length(&T, i);
     for (size_t i = 0; i < M.n; i++) len_m += edge_length(&M, i);
     double max_len = fmax(len_t, len_m);
-    if (max_len / o.sample_step > 2e7) o.sample_step = max_len / 2e7;
+    double budget = fmin(fmax(SKELETON_SAMPLES_FLOOR, SKELETON_SAMPLES_PER_EDGE * (double)(T.n > M.n ? T.n : M.n)),
+                         SKELETON_SAMPLES_MAX);
+    if (max_len / o.sample_step > budget) o.sample_step = max_len / budget;
     sample_set R, P;
     rc = match_samples(&T, &M, &o, 0, &R, err);
     if (!rc && (rc = match_samples(&M, &T, &o, 1, &P, err))) sample_set_free(&R);
     if (!rc) {
         out->truth_length = len_t;
         out->model_length = len_m;
+        out->sample_step = o.sample_step;
+        out->n_samples = R.n + P.n;
         out->recall = share(&R, R.cls_order, -1);
         out->precision = share(&P, P.cls_order, -1);
         out->recall_r2cm = share(&R, R.cls_thick, 1);

@@ -6,7 +6,9 @@
 #include <string.h>
 
 #include "eval.h"
+#include "stages/core/array.h"
 #include "stages/core/fileio.h"
+#include "stages/core/lines.h"
 
 void sy_label_table_free(sy_label_table *t)
 {
@@ -141,20 +143,16 @@ static sy_code check_unique_ids(const sy_label_table *t, const char *name, const
 sy_code sy_label_table_parse_csv(const char *name, const char *text, size_t len, sy_label_table *out, sy_error *err)
 {
     memset(out, 0, sizeof *out);
-    size_t pos = 0, lines_cap = 0;
-    int line = 0, *lines = NULL; /* the line of each row, for messages */
-    while (pos < len) {
-        size_t end = pos;
-        while (end < len && text[end] != '\n') end++;
-        size_t next = end < len ? end + 1 : end;
-        line++;
-        if (end > pos && text[end - 1] == '\r') end--;
-        size_t p = pos;
+    size_t lines_cap = 0;
+    int *lines = NULL; /* the line of each row, for messages */
+    sy_lines L;
+    sy_lines_init(&L, text, len);
+    const char *lb, *le;
+    while (sy_lines_next(&L, &lb, &le)) {
+        int line = (int)L.line;
+        size_t p = (size_t)(lb - text), end = (size_t)(le - text);
         while (p < end && (text[p] == ' ' || text[p] == '\t')) p++;
-        if (p == end || text[p] == '#') {
-            pos = next;
-            continue;
-        }
+        if (p == end || text[p] == '#') continue;
         int bad = 0;
         char *id = csv_field(text, &p, end, &bad);
         char *label = id && p <= end ? csv_field(text, &p, end, &bad) : NULL;
@@ -167,12 +165,7 @@ sy_code sy_label_table_parse_csv(const char *name, const char *text, size_t len,
         } else if (!*id || !*label) {
             rc = sy_fail(err, SY_EINPUT, "%s:%d: expected 'id,species' with both fields non-empty", name, line);
         } else if (!(out->n == 0 && ieq(id, "id") && (ieq(label, "species") || ieq(label, "label")))) {
-            if (out->n == lines_cap) {
-                size_t cap = lines_cap ? 2 * lines_cap : 64;
-                int *grown = realloc(lines, cap * sizeof *grown);
-                if (grown) lines = grown, lines_cap = cap;
-                else rc = sy_fail(err, SY_EINTERNAL, "%s: out of memory", name);
-            }
+            rc = sy_array_reserve(&lines, &lines_cap, out->n + 1, sizeof *lines, 64, err, name);
             if (!rc) lines[out->n] = line;
             if (!rc) rc = sy_label_table_add(out, id, label, err);
         }
@@ -183,7 +176,6 @@ sy_code sy_label_table_parse_csv(const char *name, const char *text, size_t len,
             sy_label_table_free(out);
             return rc;
         }
-        pos = next;
     }
     sy_code rc = out->n ? check_unique_ids(out, name, lines, err) : sy_fail(err, SY_EINPUT, "%s: no 'id,species' rows", name);
     free(lines);

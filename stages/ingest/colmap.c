@@ -223,11 +223,12 @@ static int data_line(const char *p, const char *e, sy_tok *first)
 
 static sy_code cameras_txt(const char *path, const unsigned char *d, size_t size, colmap_model *m, sy_error *err)
 {
-    sy_lines l = {(const char *)d, size, 0, 0};
+    sy_lines l;
+    sy_lines_init(&l, d, size);
     const char *p, *e;
     size_t cap = 0;
     sy_tok first;
-    while (sy_line_next(&l, &p, &e)) {
+    while (sy_lines_next(&l, &p, &e)) {
         if (!data_line(p, e, &first)) continue;
         sy_code rc = camera_line(path, l.line, p, e, m, &cap, err);
         if (rc) return rc;
@@ -340,15 +341,16 @@ static sy_code image_line(const char *path, size_t line, const char *p, const ch
 
 static sy_code images_txt(const char *path, const unsigned char *d, size_t size, colmap_model *m, sy_error *err)
 {
-    sy_lines l = {(const char *)d, size, 0, 0};
+    sy_lines l;
+    sy_lines_init(&l, d, size);
     const char *p, *e;
     size_t cap = 0;
     sy_tok first;
-    while (sy_line_next(&l, &p, &e)) {
+    while (sy_lines_next(&l, &p, &e)) {
         if (!data_line(p, e, &first)) continue;
         sy_code rc = image_line(path, l.line, p, e, m, &cap, err);
         /* The next line always holds the image's 2D points, even when empty. */
-        if (!rc && sy_line_next(&l, &p, &e)) rc = points2d_line(path, l.line, p, e, err);
+        if (!rc && sy_lines_next(&l, &p, &e)) rc = points2d_line(path, l.line, p, e, err);
         if (rc) return rc;
     }
     return index_images(path, m, err);
@@ -459,14 +461,15 @@ static sy_code point_line(point_sink *s, size_t line, const char *p, const char 
 
 static sy_code points_txt(point_sink *s, const unsigned char *d, size_t size, sy_error *err)
 {
-    sy_lines l = {(const char *)d, size, 0, 0};
+    sy_lines l;
+    sy_lines_init(&l, d, size);
     const char *p, *e;
     sy_tok first;
     size_t n = 0;
-    while (sy_line_next(&l, &p, &e)) n += (size_t)data_line(p, e, &first);
+    while (sy_lines_next(&l, &p, &e)) n += (size_t)data_line(p, e, &first);
     sy_code rc = sink_open(s, n, err);
-    l = (sy_lines){(const char *)d, size, 0, 0};
-    while (!rc && sy_line_next(&l, &p, &e))
+    sy_lines_init(&l, d, size);
+    while (!rc && sy_lines_next(&l, &p, &e))
         if (data_line(p, e, &first)) rc = point_line(s, l.line, p, e, err);
     return rc;
 }

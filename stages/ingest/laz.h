@@ -12,6 +12,10 @@
 #include "../core/status.h"
 #include "laz_items.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 enum {
     LAZ_VLR_RECORD_ID = 22204,
     LAZ_DEFAULT_CHUNK = 50000, /* LASzip's default points per chunk */
@@ -68,5 +72,9 @@ sy_code laz_write_points(FILE *fp, const char *path, const laz_layout *L, uint64
  * chunks, their point counts in the chunk table, as COPC files have). */
 sy_code laz_compress_mem_chunked(const char *path, const unsigned char *las, size_t size, uint32_t chunk_size,
                                  sy_buffer *out, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -18,6 +18,10 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 enum {
     LAZ_MIN_LENGTH = 0x01000000u, /* renormalise below this interval length */
     LAZ_BIT_SHIFT = 13,           /* bit model probabilities in 13 bits */
@@ -231,5 +235,9 @@ static inline void laz_enc_symbol(laz_encoder *e, laz_model *m, uint32_t sym)
     m->symbol_count[sym]++;
     if (--m->symbols_until_update == 0) laz_model_update(m);
 }
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -17,6 +17,10 @@
 #include "las_format.h"
 #include "laz_codec.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     int format;             /* LAS point data record format: 0-3 or 6-8 */
     unsigned record_length; /* the format's core plus `extra` bytes */
@@ -98,5 +102,9 @@ int laz_chunk10_encode(const laz_layout *L, const unsigned char *records, uint32
 int laz_chunk14_decode(const laz_layout *L, const unsigned char *in, size_t len, uint32_t n, unsigned char *out,
                        const char **why);
 int laz_chunk14_encode(const laz_layout *L, const unsigned char *records, uint32_t n, laz_buf *out);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

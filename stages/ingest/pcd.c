@@ -225,9 +225,10 @@ static sy_code layout_fields(pcd_header *h, sy_error *err)
 
 static sy_code parse_header(pcd_header *h, const unsigned char *d, size_t size, sy_error *err)
 {
-    sy_lines lines = {(const char *)d, size, 0, 0};
+    sy_lines lines;
+    sy_lines_init(&lines, d, size);
     const char *p, *e;
-    while (sy_line_next(&lines, &p, &e)) {
+    while (sy_lines_next(&lines, &p, &e)) {
         size_t line = lines.line;
         sy_tok key;
         sy_code rc = SY_OK;
@@ -250,7 +251,7 @@ static sy_code parse_header(pcd_header *h, const unsigned char *d, size_t size, 
         } else if (sy_tok_is(&key, "DATA")) {
             rc = parse_data_kind(h, p, e, line, err);
             if (rc) return rc;
-            h->data = lines.pos;
+            h->data = sy_lines_offset(&lines, d);
             h->data_line = line;
             rc = layout_fields(h, err);
             return rc ? rc : resolve_counts(h, err);
@@ -389,7 +390,7 @@ static sy_code ascii_point(pcd_body *b, size_t i, size_t row, sy_error *err)
     size_t ntok = 0;
     while (ntok == 0) {
         const char *p, *e;
-        if (!sy_line_next(&b->lines, &p, &e))
+        if (!sy_lines_next(&b->lines, &p, &e))
             return sy_fail(err, SY_EINPUT, "%s: truncated: data ends after %zu of %llu points", h->path, i,
                            (unsigned long long)h->points);
         while (ntok <= h->columns && sy_tok_next(&p, e, &b->toks[ntok])) ntok++;
@@ -634,7 +635,8 @@ sy_code sy_read_pcd_mem(const char *path, const unsigned char *data, size_t size
     if (!rc) rc = assign_roles(&h, out, &intensity, err);
     if (!rc) {
         b.h = &h;
-        b.lines = (sy_lines){(const char *)data, size, h.data, h.data_line};
+        sy_lines_init(&b.lines, data + h.data, size - h.data);
+        b.lines.line = h.data_line;
         b.rows = PCD_BLOCK_VALUES / h.nf < PCD_BLOCK ? PCD_BLOCK_VALUES / h.nf : PCD_BLOCK;
         if (b.rows == 0) b.rows = 1;
         b.cols = sy_calloc(h.nf, b.rows * sizeof *b.cols, err, "PCD values");

@@ -66,15 +66,3 @@ int sy_tok_double(const sy_tok *t, double *v)
 }
 
 int sy_tok_shown(const sy_tok *t) { return (int)(t->n < 32 ? t->n : 32); }
-
-int sy_line_next(sy_lines *l, const char **s, const char **e)
-{
-    if (l->pos >= l->size) return 0;
-    size_t end = l->pos;
-    while (end < l->size && l->d[end] != '\n') end++;
-    *s = l->d + l->pos;
-    *e = l->d + end;
-    l->pos = end < l->size ? end + 1 : end;
-    l->line++;
-    return 1;
-}

@@ -1,11 +1,14 @@
-/* Whitespace tokens and lines over bytes that are not NUL-terminated (a file
- * in memory): what the text parts of the PCD and COLMAP readers share. Every
- * function stays inside [start, end) and never reads a terminator. */
+/* Whitespace tokens over bytes that are not NUL-terminated (a file in
+ * memory): what the text parts of the PCD and COLMAP readers share (their
+ * lines come from stages/core/lines.h). Every function stays inside
+ * [start, end) and never reads a terminator. */
 #ifndef SYLVA_TEXT_SCAN_H
 #define SYLVA_TEXT_SCAN_H
 
 #include <stddef.h>
 #include <stdint.h>
+
+#include "stages/core/lines.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -27,14 +30,6 @@ int sy_tok_double(const sy_tok *t, double *v);
 /* printf precision that shows at most 32 characters of a token in messages. */
 int sy_tok_shown(const sy_tok *t);
 
-typedef struct {
-    const char *d;
-    size_t size, pos;
-    size_t line; /* 1-based number of the line last returned */
-} sy_lines;
-
-/* Next line [*s, *e) without its '\n'; 0 at the end of the data. */
-int sy_line_next(sy_lines *l, const char **s, const char **e);
 
 #ifdef __cplusplus
 }

@@ -36,6 +36,7 @@
 #include <string.h>
 
 #include "../core/fileio.h"
+#include "../core/lines.h"
 #include "textnum.h"
 
 #define XYZ_MAX_COLS 64
@@ -52,8 +53,7 @@ typedef struct {
 
 typedef struct {
     const char *path;
-    const char *p, *end; /* unread input */
-    size_t line_no;      /* of the line last returned */
+    sy_lines lines;
 } line_reader;
 
 static int is_blank(char c)
@@ -69,11 +69,8 @@ static int is_delim(char c)
 /* Next line, trimmed of surrounding blanks; returns 0 at end of input. */
 static int next_line(line_reader *r, const char **s, const char **e)
 {
-    if (r->p >= r->end) return 0;
-    const char *nl = memchr(r->p, '\n', (size_t)(r->end - r->p));
-    const char *a = r->p, *b = nl ? nl : r->end;
-    r->p = nl ? nl + 1 : r->end;
-    r->line_no++;
+    const char *a, *b;
+    if (!sy_lines_next(&r->lines, &a, &b)) return 0;
     while (a < b && is_blank(*a)) a++;
     while (b > a && is_blank(b[-1])) b--;
     *s = a;
@@ -436,10 +433,10 @@ static sy_code read_preamble(line_reader *r, header_info *h, double *row0, size_
         }
         int n = parse_row(s, e, row0, XYZ_MAX_COLS, &bad);
         if (n < 0)
-            return sy_fail(err, SY_EINPUT, "%s: line %zu: malformed number '%s'", r->path, r->line_no,
+            return sy_fail(err, SY_EINPUT, "%s: line %zu: malformed number '%s'", r->path, r->lines.line,
                            token_text(bad, e, tok));
         if (n > XYZ_MAX_COLS)
-            return sy_fail(err, SY_EINPUT, "%s: line %zu: more than %d columns", r->path, r->line_no,
+            return sy_fail(err, SY_EINPUT, "%s: line %zu: more than %d columns", r->path, r->lines.line,
                            XYZ_MAX_COLS);
         if (n == 1 && !seen_count && row0[0] >= 0 && row0[0] == floor(row0[0]) && row0[0] < 1e18) {
             h->pts_count = (uint64_t)row0[0];
@@ -448,9 +445,9 @@ static sy_code read_preamble(line_reader *r, header_info *h, double *row0, size_
         }
         if (n < 3)
             return sy_fail(err, SY_EINPUT, "%s: line %zu: %d column%s, need at least 3 (x y z)", r->path,
-                           r->line_no, n, n == 1 ? "" : "s");
+                           r->lines.line, n, n == 1 ? "" : "s");
         *cols = n;
-        *row0_line = r->line_no;
+        *row0_line = r->lines.line;
         return SY_OK;
     }
     return SY_OK;
@@ -465,17 +462,17 @@ static sy_code read_rows(line_reader *r, table *t, size_t row0_line, sy_error *e
         if (s == e || is_comment(s, e)) continue;
         if (t->rows == t->cap)
             return sy_fail(err, SY_EINPUT, "%s: line %zu: more rows than the file size allows", r->path,
-                           r->line_no);
+                           r->lines.line);
         double *dst = t->v + t->rows * (size_t)t->cols;
         int n = parse_row(s, e, dst, t->cols, &bad);
         if (n > t->cols) n = parse_row(s, e, extra, XYZ_MAX_COLS + 1, &bad); /* the real count */
         char tok[32];
         if (n < 0)
-            return sy_fail(err, SY_EINPUT, "%s: line %zu: malformed number '%s'", r->path, r->line_no,
+            return sy_fail(err, SY_EINPUT, "%s: line %zu: malformed number '%s'", r->path, r->lines.line,
                            token_text(bad, e, tok));
         if (n != t->cols)
             return sy_fail(err, SY_EINPUT, "%s: line %zu: %d columns, expected %d as on line %zu",
-                           r->path, r->line_no, n, t->cols, row0_line);
+                           r->path, r->lines.line, n, t->cols, row0_line);
         t->rows++;
     }
     return SY_OK;
@@ -500,7 +497,8 @@ sy_code sy_read_xyz_mem(const char *path, const unsigned char *data, size_t size
                         sy_error *err)
 {
     memset(out, 0, sizeof *out);
-    line_reader r = {path, (const char *)data, (const char *)data + size, 0};
+    line_reader r = {path, {0}};
+    sy_lines_init(&r.lines, data, size);
     header_info h;
     memset(&h, 0, sizeof h);
     double row0[XYZ_MAX_COLS];
@@ -511,7 +509,7 @@ sy_code sy_read_xyz_mem(const char *path, const unsigned char *data, size_t size
     if (cols == 0) return sy_fail(err, SY_EINPUT, "%s: no point rows (x y z) found", path);
 
     table t = {NULL, 1, 0, cols};
-    t.cap = max_rows(r.p, r.end, cols) + 1;
+    t.cap = max_rows(r.lines.p, r.lines.end, cols) + 1;
     t.v = sy_calloc(t.cap, (size_t)cols * sizeof(double), err, "XYZ rows");
     if (!t.v) return SY_EINTERNAL;
     memcpy(t.v, row0, (size_t)cols * sizeof(double));

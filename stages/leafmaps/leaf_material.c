@@ -12,6 +12,7 @@
 
 #include "stages/core/color.h"
 #include "stages/core/fileio.h"
+#include "stages/core/lines.h"
 #include "stages/leafmaps/leafmaps_cv.h"
 
 #define ATLAS_MAX 2048
@@ -286,15 +287,14 @@ sy_code sy_leaf_material_load(const char *path, sy_leaf_material *m, sy_error *e
     else snprintf(dir, sizeof dir, ".");
     int in_leaf = 0, line_no = 0, have_format = 0;
     char *text = (char *)buf.data;
-    size_t pos = 0;
-    while (pos < buf.size && !rc) {
-        size_t end = pos;
-        while (end < buf.size && text[end] != '\n') end++;
+    sy_lines L;
+    sy_lines_init(&L, text, buf.size);
+    const char *lb, *le;
+    while (!rc && sy_lines_next(&L, &lb, &le)) {
         char line[1024];
-        size_t len = end - pos < sizeof line - 1 ? end - pos : sizeof line - 1;
-        memcpy(line, text + pos, len);
+        size_t len = (size_t)(le - lb) < sizeof line - 1 ? (size_t)(le - lb) : sizeof line - 1;
+        memcpy(line, lb, len);
         line[len] = 0;
-        pos = end + 1;
         line_no++;
         char *s = line;
         while (isspace((unsigned char)*s)) s++;

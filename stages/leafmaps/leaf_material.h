@@ -9,6 +9,10 @@
 
 #include "stages/leafmaps/leafmaps.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 #define SY_LEAF_MAX_FILES 24
 #define SY_LEAF_MATERIAL_FILE "leaf.material"
 /* HL2 coefficients in the 16-bit PNGs: value = (h - MIN) / (MAX - MIN). */
@@ -48,5 +52,9 @@ typedef struct {
 
 /* Parses dir/leaf.material. Missing or malformed: SY_EINPUT, message names the file. */
 sy_code sy_leaf_material_load(const char *path, sy_leaf_material *m, sy_error *err);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

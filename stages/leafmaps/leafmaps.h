@@ -24,6 +24,10 @@
 
 #include "stages/core/status.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* A float image, row-major, c interleaved channels, row 0 at the top. */
 typedef struct {
     int w, h, c;
@@ -196,5 +200,9 @@ typedef struct {
 sy_code sy_leaf_synthesize(int size, uint64_t seed, double shift_px, const sy_leafmaps_options *o,
                            sy_leaf_synthetic *out, sy_error *err);
 void sy_leaf_synthetic_free(sy_leaf_synthetic *s);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

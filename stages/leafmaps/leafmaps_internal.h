@@ -4,6 +4,10 @@
 
 #include "stages/leafmaps/leafmaps.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* out[i](x_o) = A_p sum_{x_i} T(|x_o - x_i|, d(x_i)) in[i](x_i) for i < n_out
  * (eq 3.16 with the non-stationary kernel), by FFT: the kernel is tabulated
  * at `bins` thicknesses over the range of d inside the mask and each input is
@@ -19,5 +23,9 @@ static inline float sy_leaf_luma(const float *rgb)
 {
     return 0.2126f * rgb[0] + 0.7152f * rgb[1] + 0.0722f * rgb[2];
 }
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

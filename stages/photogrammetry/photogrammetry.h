@@ -11,6 +11,10 @@
 
 #include "../core/cloud.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef enum { SY_PHOTO_LOW = 0, SY_PHOTO_MEDIUM = 1, SY_PHOTO_HIGH = 2 } sy_photo_quality;
 
 typedef struct {
@@ -65,5 +69,9 @@ void sy_photogrammetry_result_free(sy_photogrammetry_result *r);
 /* The number of photos (.jpg .jpeg .png .tif .tiff .bmp .ppm .pgm, any case)
  * directly in dir; 0 when dir cannot be read. */
 size_t sy_photogrammetry_count_images(const char *dir);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

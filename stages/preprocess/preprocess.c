@@ -7,6 +7,7 @@
 
 #include "../core/parallel.h"
 #include "../core/progress.h"
+#include "../core/voxel.h"
 #include "pcl_filters.h"
 
 /* ---------------------------------------------------------------- options */
@@ -261,20 +262,6 @@ sy_code sy_crop(sy_cloud *c, const double box[6], sy_error *err)
     return rc;
 }
 
-typedef struct {
-    uint64_t key;
-    size_t index;
-} voxel_entry;
-
-static int cmp_voxel(const void *a, const void *b)
-{
-    const voxel_entry *x = a, *y = b;
-    if (x->key != y->key) return x->key < y->key ? -1 : 1;
-    return (x->index > y->index) - (x->index < y->index);
-}
-
-#define VOXEL_BITS 21
-
 sy_code sy_voxel_downsample(sy_cloud *c, double size, sy_error *err)
 {
     if (c->n == 0 || size <= 0) return SY_OK;
@@ -286,26 +273,17 @@ sy_code sy_voxel_downsample(sy_cloud *c, double size, sy_error *err)
             if (v > hi[k]) hi[k] = v;
         }
     for (int k = 0; k < 3; k++)
-        if ((hi[k] - lo[k]) / size >= (double)(1u << VOXEL_BITS) - 1)
+        if ((hi[k] - lo[k]) / size >= (double)SY_VOXEL_AXIS_CELLS - 1)
             return sy_fail(err, SY_EUSAGE, "--voxel: %g m is too small for a cloud %.0f m wide (at most %u voxels per axis)",
-                           size, (double)(hi[k] - lo[k]), 1u << VOXEL_BITS);
-    voxel_entry *e = sy_calloc(c->n, sizeof *e, err, "voxel keys");
+                           size, (double)(hi[k] - lo[k]), SY_VOXEL_AXIS_CELLS);
+    sy_voxel_entry *e = sy_calloc(c->n, sizeof *e, err, "voxel keys");
     uint8_t *keep = sy_calloc(c->n, 1, err, "voxel mask");
     if (!e || !keep) {
         free(e);
         free(keep);
         return SY_EINTERNAL;
     }
-    for (size_t i = 0; i < c->n; i++) {
-        uint64_t key = 0;
-        for (int k = 0; k < 3; k++) {
-            uint64_t cell = (uint64_t)floor((c->xyz[3 * i + k] - lo[k]) / size);
-            key = key << VOXEL_BITS | cell;
-        }
-        e[i].key = key;
-        e[i].index = i;
-    }
-    qsort(e, c->n, sizeof *e, cmp_voxel);
+    sy_voxel_sort(c->xyz, c->n, lo, size, e);
     for (size_t b = 0; b < c->n;) {
         size_t end = b;
         double cen[3] = {0, 0, 0};

@@ -158,35 +158,6 @@ void sy_origin_floor(const double world[3], double origin[3])
     for (int k = 0; k < 3; k++) origin[k] = isfinite(world[k]) ? floor(world[k]) : 0;
 }
 
-/* ------------------------------------------------------------ text */
-
-void sy_lines_init(sy_lines *L, const unsigned char *data, size_t size)
-{
-    L->p = (const char *)data;
-    L->end = (const char *)data + size;
-    L->line = 0;
-}
-
-int sy_lines_next(sy_lines *L, const char **b, const char **e)
-{
-    if (L->p >= L->end) return 0;
-    const char *q = L->p;
-    while (q < L->end && *q != '\n' && *q != '\r') q++;
-    *b = L->p;
-    *e = q;
-    if (q < L->end && *q == '\r') q++;
-    if (q < L->end && *q == '\n' && (q == *e || q[-1] == '\r')) q++;
-    L->p = q;
-    L->line++;
-    return 1;
-}
-
-void sy_trim(const char **b, const char **e)
-{
-    while (*b < *e && (**b == ' ' || **b == '\t')) (*b)++;
-    while (*e > *b && ((*e)[-1] == ' ' || (*e)[-1] == '\t')) (*e)--;
-}
-
 /* ------------------------------------------------------------ assembly */
 
 static double dist3(const double a[3], const double b[3])

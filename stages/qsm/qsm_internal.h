@@ -7,6 +7,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "stages/core/lines.h"
 #include "stages/qsm/qsm.h"
 
 #ifdef __cplusplus
@@ -44,18 +45,6 @@ int sy_qsm_parse_number(const char *b, const char *e, double *out);
 /* floor() per axis: the origin readers pick when the file names none. */
 void sy_origin_floor(const double world[3], double origin[3]);
 
-/* ------------------------------------------------------------ text */
-
-typedef struct {
-    const char *p, *end;
-    size_t line; /* 1-based number of the line last returned */
-} sy_lines;
-
-void sy_lines_init(sy_lines *L, const unsigned char *data, size_t size);
-/* Next line without its end-of-line (\n, \r\n or \r); 0 at the end. */
-int sy_lines_next(sy_lines *L, const char **b, const char **e);
-/* Trims ASCII blanks (space, tab) on both sides. */
-void sy_trim(const char **b, const char **e);
 
 /* ------------------------------------------------------------ assembly */
 
