@@ -823,9 +823,24 @@ static sy_code step_up(sy_cloud *c, const sy_preprocess_options *o, sy_preproces
         sy_code rc = sy_detect_up(c, &up, &ev, err);
         if (rc) return rc;
         r->up_detected = 1;
-        snprintf(s->detail, sizeof s->detail, "detected %s (axis scores x %.3f y %.3f z %.3f, sign %+.4f)%s",
-                 sy_up_name(up), ev.axis_score[0], ev.axis_score[1], ev.axis_score[2],
-                 ev.sign_score[abs(up) - 1], up == SY_UP_Z ? "; kept" : "; rotated to +z");
+        int a = abs(up) - 1;
+        /* The file's own +z is the convention of survey and scanner exports
+         * (every AdTree, TreeLS, rTwig and PyTLidar file): leave it only on
+         * decisive evidence. Near-ties are what a sparse airborne crown gives
+         * (ahn3_delft: y 0.039 vs z 0.031, and a 2-node tree lying down). */
+        int weak_axis = a != 2 && ev.axis_score[a] < SY_UP_AXIS_MARGIN * ev.axis_score[2];
+        int weak_sign = up == -SY_UP_Z && -ev.sign_score[2] < SY_UP_SIGN_MARGIN;
+        if (weak_axis || weak_sign) {
+            snprintf(s->detail, sizeof s->detail,
+                     "geometry leans %s (axis scores x %.3f y %.3f z %.3f, sign %+.4f) but not decisively; kept the "
+                     "file's +z",
+                     sy_up_name(up), ev.axis_score[0], ev.axis_score[1], ev.axis_score[2], ev.sign_score[a]);
+            up = SY_UP_Z;
+        } else {
+            snprintf(s->detail, sizeof s->detail, "detected %s (axis scores x %.3f y %.3f z %.3f, sign %+.4f)%s",
+                     sy_up_name(up), ev.axis_score[0], ev.axis_score[1], ev.axis_score[2], ev.sign_score[a],
+                     up == SY_UP_Z ? "; kept" : "; rotated to +z");
+        }
     } else {
         snprintf(s->detail, sizeof s->detail, "given %s%s", sy_up_name(up), up == SY_UP_Z ? "; kept" : "; rotated to +z");
     }

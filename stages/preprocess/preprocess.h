@@ -74,6 +74,12 @@ typedef struct {
     size_t sample;        /* points analysed */
 } sy_up_evidence;
 
+/* `auto` in sy_preprocess keeps the file's +z unless the detected axis scores
+ * at least SY_UP_AXIS_MARGIN times z's, or (for -z) the sign evidence is at
+ * least SY_UP_SIGN_MARGIN; sy_detect_up itself has no such prior. */
+#define SY_UP_AXIS_MARGIN 1.5
+#define SY_UP_SIGN_MARGIN 0.03
+
 /* Detects which signed axis of c points up (geometry only); ev may be NULL. */
 sy_code sy_detect_up(const sy_cloud *c, int *up, sy_up_evidence *ev, sy_error *err);
 /* Rotates c (positions, origin, normals) so that the signed axis up becomes
