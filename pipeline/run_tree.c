@@ -25,6 +25,7 @@ sy_run_tree_options sy_run_tree_options_default(void)
     o.seed = 1;
     o.lobe_size = 0.25;
     o.classify = 1;
+    o.max_points = SY_POINT_BUDGET;
     o.asset = sy_tree_asset_options_default();
     return o;
 }
@@ -112,6 +113,21 @@ static sy_code clean(sy_cloud *c, const char *name, const sy_run_tree_options *o
 static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree_options *o,
                                 const sy_species_params *sp, sy_run_tree_result *r, sy_error *err);
 
+/* Step lines for the thinning and any retry the checks made. */
+static void report_checks(const sy_run_tree_options *o, const sy_tree_checks *k)
+{
+    char line[320];
+    if (k->thinning_voxel > 0) {
+        snprintf(line, sizeof line, "%zu -> %zu points (%.4f m voxels, point budget %zu)", k->points_before_thinning,
+                 k->points_after_thinning, k->thinning_voxel, o->max_points);
+        step(o, "thin", 0, line);
+    }
+    if (k->attempts > 1) {
+        snprintf(line, sizeof line, "first skeleton failed the checks; passed after retrying with %s", k->retried);
+        step(o, "checks", 0, line);
+    }
+}
+
 static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_options *o,
                            const sy_species_params *sp, sy_run_tree_result *r, sy_error *err)
 {
@@ -156,10 +172,11 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
     sy_skeleton s;
     sy_clusters cl;
     sy_skeleton_report *sr = &r->skeleton;
-    rc = sy_reconstruct_tree(c, &so, 0, &s, &cl, sr, &r->hulls, err);
+    rc = sy_reconstruct_tree_checked(c, name, &so, 0, o->max_points, &s, &cl, sr, &r->hulls, &r->checks, err);
     sy_cloud_free(c);
     if (rc) return name_input(rc, name, err);
     char line[512];
+    report_checks(o, &r->checks);
     snprintf(line, sizeof line, "%zu nodes, %zu branches, DBH %.3f m, height %.2f m", sr->nodes, sr->branches,
              sr->dbh, sr->height);
     step(o, "skeleton", sr->t_total - sr->t_clusters, line);

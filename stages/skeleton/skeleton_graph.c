@@ -589,8 +589,20 @@ sy_code sy_graph_build(const float *xyz, size_t n, int k, double radius, uint32_
     for (size_t i = 0; i < n; i++) up[i] = (uint32_t)i;
     for (size_t i = 0; i < n; i++)
         for (int t = 0; t < J.cnt[i]; t++) uf_union(up, (uint32_t)i, J.nbr[i * cap + t]);
-    for (size_t i = 0; i < n; i++)
-        if (uf_find(up, (uint32_t)i) == i) G->components++;
+    {
+        /* Component sizes, counted at each root. */
+        uint32_t *size = sy_calloc(n, sizeof *size, err, "graph");
+        if (!size) {
+            rc = SY_EINTERNAL;
+            goto fail;
+        }
+        for (size_t i = 0; i < n; i++) size[uf_find(up, (uint32_t)i)]++;
+        for (size_t i = 0; i < n; i++) {
+            if (size[i]) G->components++;
+            if (size[i] > G->largest) G->largest = size[i];
+        }
+        free(size);
+    }
     rc = bridge_components(xyz, n, up, anchor, &bridges, &n_bridges, err);
     if (rc) goto fail;
     G->bridges = n_bridges;
