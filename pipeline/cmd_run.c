@@ -43,6 +43,9 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
     }
     sy_json_int(&j, "points_in", (long long)res->points_in);
     sy_json_int(&j, "points_preprocessed", (long long)res->points_clean);
+    sy_json_int(&j, "points_reconstructed", (long long)res->checks.points_after_thinning);
+    sy_json_number(&j, "thinning_voxel", res->checks.thinning_voxel);
+    sy_json_int(&j, "attempts", res->checks.attempts);
     sy_json_int(&j, "nodes", (long long)r->nodes);
     sy_json_int(&j, "branches", (long long)r->branches);
     sy_json_int(&j, "clusters", (long long)r->clusters);
