@@ -134,6 +134,15 @@ static sy_code clean(sy_cloud *c, const char *name, const sy_run_tree_options *o
     double t = sy_now();
     sy_preprocess_options po = sy_preprocess_options_default();
     po.voxel = o->voxel;
+    /* A scan beyond the point budget is thinned in the preprocess voxel step,
+     * before the outlier filter (k-nearest statistics on 1 M raw points cost
+     * more than all the rest of the run). */
+    double budget_voxel = 0;
+    if (!(o->voxel > 0) && o->max_points && c->n > o->max_points) {
+        sy_code rv = sy_voxel_size_for_count(c, o->max_points, &budget_voxel, err);
+        if (rv) return rv;
+        po.voxel = budget_voxel;
+    }
     po.remove_ground = 1; /* one tree: the ground would become a skeleton of its own */
     po.normals = 0;       /* the skeleton does not use them */
     sy_preprocess_result pr;
@@ -142,8 +151,8 @@ static sy_code clean(sy_cloud *c, const char *name, const sy_run_tree_options *o
     r->t_preprocess = sy_now() - t;
     r->points_clean = c->n;
     char line[160];
-    snprintf(line, sizeof line, "%zu points left (up %s, %zu ground removed)", c->n, sy_up_name(pr.up_axis),
-             pr.ground_points);
+    snprintf(line, sizeof line, "%zu points left (up %s, %zu ground removed%s)", c->n, sy_up_name(pr.up_axis),
+             pr.ground_points, budget_voxel > 0 ? ", thinned to the point budget first" : "");
     step(o, "preprocess", r->t_preprocess, line);
     if (c->n == 0) return sy_fail(err, SY_EINPUT, "%s: no points left after preprocessing", name);
     return SY_OK;
