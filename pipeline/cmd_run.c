@@ -43,6 +43,9 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
     }
     sy_json_int(&j, "points_in", (long long)res->points_in);
     sy_json_int(&j, "points_preprocessed", (long long)res->points_clean);
+    sy_json_int(&j, "points_reconstructed", (long long)res->checks.points_after_thinning);
+    sy_json_number(&j, "thinning_voxel", res->checks.thinning_voxel);
+    sy_json_int(&j, "attempts", res->checks.attempts);
     sy_json_int(&j, "nodes", (long long)r->nodes);
     sy_json_int(&j, "branches", (long long)r->branches);
     sy_json_int(&j, "clusters", (long long)r->clusters);
@@ -85,7 +88,7 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
     run_args a = {NULL, NULL, sy_run_tree_options_default(), sy_glb_args_default()};
     sy_photo_cli photo;
     memset(&photo, 0, sizeof photo);
-    int no_classify = 0;
+    int no_classify = 0, max_points = SY_POINT_BUDGET;
     const sy_opt opts[] = {
         {"-o", OPT_STRING, &a.out_path, "OUT.glb", "output glTF binary"},
         {"--sylva", OPT_STRING, &a.sylva_path, "OUT.sylva", "also write the compact .sylva file of the reconstruction"},
@@ -102,6 +105,8 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
         {"--fs", OPT_DOUBLE, &a.run.fs, "F", "scan-density factor f_s in (0,1]; smaller gives larger clusters (default 1)"},
         {"--wood-share", OPT_DOUBLE, &a.run.wood_share, "W",
          "wood/leaf separation: wood = shortest-path subtrees of >= W of the points (e.g. 0.005; default 0 = off)"},
+        {"--max-points", OPT_INT, &max_points, "N",
+         "voxel-thin denser scans to at most N points after preprocessing (default 300000; 0: never)"},
         {"--voxel", OPT_DOUBLE, &a.run.voxel, "SIZE", "thin the scan to one point per SIZE-metre voxel (default off)"},
         {"--spread-around", OPT_FLAG, &a.run.spread_around, NULL,
          "judge a level set's spread from the skeleton around its node, not its edge (leaf-off scans)"},
@@ -142,6 +147,11 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
     sy_glb_args_apply(&a.glb, &a.run.asset);
     a.run.sylva = a.sylva_path != NULL;
     a.run.classify = !no_classify;
+    if (max_points < 0) {
+        fprintf(stderr, "sylva run: --max-points must be >= 0\n");
+        return SY_EUSAGE;
+    }
+    a.run.max_points = (size_t)max_points;
     a.run.seed = cli->seed;
     if (!cli->quiet && !cli->json) a.run.on_step = step_line;
     sy_error err = {0};

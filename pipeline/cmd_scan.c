@@ -218,7 +218,7 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
         {"--returns", OPT_INT, &args.returns, "N", "most returns per pulse, 1..15 (default 4)"},
         {"--separation", OPT_DOUBLE, &args.separation, "M", "least range gap between returns (0.1; 0.5 airborne)"},
         {"--max-range", OPT_DOUBLE, &args.max_range, "M", "maximum range (150; 1500 airborne)"},
-        {"--max-points", OPT_INT, &args.max_points, "N", "keep at most N points (in pulse order)"},
+        {"--max-points", OPT_INT, &args.max_points, "N", "keep at most N points, spread evenly over the scan"},
         {"--plot", OPT_DOUBLE, &args.plot_size, "SIZE", "scan a SIZE x SIZE m plot of trees instead of one tree"},
         {"--trees", OPT_INT, &args.trees, "N", "trees in the plot (default 5)"},
         {"--species", OPT_STRING, &args.species_list, "LIST", "plot species, comma-separated (default quaking_aspen,black_oak,european_pine)"},

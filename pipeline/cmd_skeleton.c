@@ -73,14 +73,14 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
 typedef struct {
     const char *out_path;
     double voxel;
-    int species, no_clusters;
+    int species, no_clusters, max_points;
     sy_skeleton_options o;
     sy_hull_options hull;
 } skeleton_args;
 
 int cmd_skeleton(int argc, char **argv, sy_cli *cli)
 {
-    skeleton_args a = {NULL, 0, 0, 0, sy_skeleton_options_default(), sy_hull_options_default()};
+    skeleton_args a = {NULL, 0, 0, 0, SY_POINT_BUDGET, sy_skeleton_options_default(), sy_hull_options_default()};
     const sy_opt opts[] = {
         {"-o", OPT_STRING, &a.out_path, "OUT", "output: .sylva (skeleton + hulls), or the skeleton as .ply .csv .json .obj"},
         {"--beta", OPT_DOUBLE, &a.o.beta, "B", "Dijkstra edge weight |u-v|^B (default 1)"},
@@ -89,6 +89,8 @@ int cmd_skeleton(int argc, char **argv, sy_cli *cli)
         {"--wood-share", OPT_DOUBLE, &a.o.wood_share, "W",
          "wood/leaf separation: wood = shortest-path subtrees of >= W of the points (e.g. 0.005; default 0 = off)"},
         {"--voxel", OPT_DOUBLE, &a.voxel, "SIZE", "thin the scan to one point per SIZE-metre voxel first (default off)"},
+        {"--max-points", OPT_INT, &a.max_points, "N",
+         "voxel-thin denser scans to at most N points before the graph (default 300000; 0: never)"},
         {"--spacing", OPT_DOUBLE, &a.o.spacing, "S", "point spacing in metres (default: median nearest-neighbour distance)"},
         {"--k", OPT_INT, &a.o.k, "K", "neighbours per point in the graph (default 12)"},
         {"--bin", OPT_DOUBLE, &a.o.bin_factor, "F", "level-set width in point spacings (default 4)"},
@@ -127,8 +129,8 @@ int cmd_skeleton(int argc, char **argv, sy_cli *cli)
                 a.out_path);
         return SY_EUSAGE;
     }
-    if (a.species < 0 || a.species > 65535 || !(a.voxel >= 0) || !isfinite(a.voxel)) {
-        fprintf(stderr, "sylva skeleton: --species must be in 0..65535 and --voxel >= 0\n");
+    if (a.species < 0 || a.species > 65535 || !(a.voxel >= 0) || !isfinite(a.voxel) || a.max_points < 0) {
+        fprintf(stderr, "sylva skeleton: --species must be in 0..65535, --voxel and --max-points >= 0\n");
         return SY_EUSAGE;
     }
     /* Interchange formats hold no hulls: clustering would drop the fine
@@ -144,7 +146,16 @@ int cmd_skeleton(int argc, char **argv, sy_cli *cli)
     /* The preprocess stage's voxel filter, as `sylva run --voxel` uses. */
     rc = a.voxel > 0 ? sy_voxel_downsample(&c, a.voxel, &err) : SY_OK;
     sy_hull_report h = {0};
-    if (!rc) rc = sy_reconstruct_tree(&c, &a.o, a.hull.alpha_scale, &s, &cl, &r, &h, &err);
+    sy_tree_checks checks;
+    if (!rc)
+        rc = sy_reconstruct_tree_checked(&c, in[0], &a.o, a.hull.alpha_scale, (size_t)a.max_points, &s, &cl, &r, &h,
+                                         &checks, &err);
+    if (!rc && !cli->quiet && !cli->json && checks.thinning_voxel > 0)
+        fprintf(stderr, "sylva skeleton: thinned %zu -> %zu points (%.4f m voxels, --max-points %d)\n",
+                checks.points_before_thinning, checks.points_after_thinning, checks.thinning_voxel, a.max_points);
+    if (!rc && !cli->quiet && !cli->json && checks.attempts > 1)
+        fprintf(stderr, "sylva skeleton: the first skeleton failed the checks; passed after retrying with %s\n",
+                checks.retried);
     if (rc) {
         sy_cloud_free(&c);
         /* Name the scan: the stage's messages name only the step. */

@@ -25,6 +25,7 @@ sy_run_tree_options sy_run_tree_options_default(void)
     o.seed = 1;
     o.lobe_size = 0.25;
     o.classify = 1;
+    o.max_points = SY_POINT_BUDGET;
     o.asset = sy_tree_asset_options_default();
     return o;
 }
@@ -133,6 +134,15 @@ static sy_code clean(sy_cloud *c, const char *name, const sy_run_tree_options *o
     double t = sy_now();
     sy_preprocess_options po = sy_preprocess_options_default();
     po.voxel = o->voxel;
+    /* A scan beyond the point budget is thinned in the preprocess voxel step,
+     * before the outlier filter (k-nearest statistics on 1 M raw points cost
+     * more than all the rest of the run). */
+    double budget_voxel = 0;
+    if (!(o->voxel > 0) && o->max_points && c->n > o->max_points) {
+        sy_code rv = sy_voxel_size_for_count(c, o->max_points, &budget_voxel, err);
+        if (rv) return rv;
+        po.voxel = budget_voxel;
+    }
     po.remove_ground = 1; /* one tree: the ground would become a skeleton of its own */
     po.normals = 0;       /* the skeleton does not use them */
     sy_preprocess_result pr;
@@ -141,8 +151,8 @@ static sy_code clean(sy_cloud *c, const char *name, const sy_run_tree_options *o
     r->t_preprocess = sy_now() - t;
     r->points_clean = c->n;
     char line[160];
-    snprintf(line, sizeof line, "%zu points left (up %s, %zu ground removed)", c->n, sy_up_name(pr.up_axis),
-             pr.ground_points);
+    snprintf(line, sizeof line, "%zu points left (up %s, %zu ground removed%s)", c->n, sy_up_name(pr.up_axis),
+             pr.ground_points, budget_voxel > 0 ? ", thinned to the point budget first" : "");
     step(o, "preprocess", r->t_preprocess, line);
     if (c->n == 0) return sy_fail(err, SY_EINPUT, "%s: no points left after preprocessing", name);
     return SY_OK;
@@ -150,6 +160,21 @@ static sy_code clean(sy_cloud *c, const char *name, const sy_run_tree_options *o
 
 static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree_options *o,
                                 const sy_species_params *sp, sy_run_tree_result *r, sy_error *err);
+
+/* Step lines for the thinning and any retry the checks made. */
+static void report_checks(const sy_run_tree_options *o, const sy_tree_checks *k)
+{
+    char line[320];
+    if (k->thinning_voxel > 0) {
+        snprintf(line, sizeof line, "%zu -> %zu points (%.4f m voxels, point budget %zu)", k->points_before_thinning,
+                 k->points_after_thinning, k->thinning_voxel, o->max_points);
+        step(o, "thin", 0, line);
+    }
+    if (k->attempts > 1) {
+        snprintf(line, sizeof line, "first skeleton failed the checks; passed after retrying with %s", k->retried);
+        step(o, "checks", 0, line);
+    }
+}
 
 static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_options *o,
                            const sy_species_params *sp, sy_run_tree_result *r, sy_error *err)
@@ -195,10 +220,11 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
     sy_skeleton s;
     sy_clusters cl;
     sy_skeleton_report *sr = &r->skeleton;
-    rc = sy_reconstruct_tree(c, &so, 0, &s, &cl, sr, &r->hulls, err);
+    rc = sy_reconstruct_tree_checked(c, name, &so, 0, o->max_points, &s, &cl, sr, &r->hulls, &r->checks, err);
     sy_cloud_free(c);
     if (rc) return name_input(rc, name, err);
     char line[512];
+    report_checks(o, &r->checks);
     snprintf(line, sizeof line, "%zu nodes, %zu branches, DBH %.3f m, height %.2f m", sr->nodes, sr->branches,
              sr->dbh, sr->height);
     step(o, "skeleton", sr->t_total - sr->t_clusters, line);

@@ -17,6 +17,7 @@
 #include <stdint.h>
 
 #include "pipeline/tree_asset.h"
+#include "pipeline/tree_checks.h"
 #include "stages/synthesize/synthesize.h"
 #include "pipeline/tree_species.h"
 #include "stages/clusters/clusters.h"
@@ -35,6 +36,8 @@ typedef struct {
     double fs;           /* scan-density factor f_s in (0, 1] (1) */
     double wood_share;   /* wood/leaf separation share in [0, 1) (0: off) */
     double voxel;        /* thin the scan to one point per voxel of this edge in metres first (0: off) */
+    size_t max_points;   /* after preprocessing, voxel-thin to at most this many points (SY_POINT_BUDGET;
+                            0: never) */
     int spread_around;   /* skeleton: spread around the node, not the edge (0) */
     int sylva;           /* 1: also keep the .sylva file (result->sylva); the asset is always made from it */
     int proxy;           /* 1: also draw the lobe hulls as the semi-transparent foliage_proxy mesh (0) */
@@ -66,6 +69,7 @@ typedef struct {
     size_t points_in, points_clean; /* after ingest, after preprocessing */
     sy_skeleton_report skeleton;
     sy_hull_report hulls;
+    sy_tree_checks checks; /* thinning, retries and the verdict (pipeline/tree_checks.h) */
     sy_tree_asset_report asset;
     sy_synth_report synth; /* the lobes' texturing (docs/synthesize.md) */
     double t_synth;        /* decode + branchlets + texturing, seconds */

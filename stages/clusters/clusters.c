@@ -2,6 +2,7 @@
  * cluster (alpha shape -> coarse closed mesh), with the mesh checks that make
  * every hull closed, outward and holding its points. */
 #include "clusters.h"
+#include "stages/core/parallel.h"
 #include "stages/core/progress.h"
 
 #include <math.h>
@@ -572,6 +573,25 @@ sy_code sy_hull_options_check(const sy_hull_options *o, sy_error *err)
     return SY_OK;
 }
 
+typedef struct {
+    sy_clusters *cl;
+    const float *xyz;
+    const sy_hull_options *o;
+    sy_code *rc;
+    sy_error *err;
+} hull_job;
+
+static void hull_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
+{
+    (void)chunk;
+    hull_job *J = ctx;
+    for (size_t c = begin; c < end; c++) {
+        sy_cluster *C = &J->cl->items[c];
+        J->rc[c] = sy_cluster_build_hull(C, J->xyz, J->o->alpha_scale, J->o->triangles, J->o->tol, &J->err[c]);
+        if (!J->rc[c]) J->rc[c] = sy_cluster_occupancy(C, J->xyz, 8, &J->err[c]); /* what synthesis reads on decode */
+    }
+}
+
 sy_code sy_clusters_build_hulls(sy_clusters *cl, const float *xyz, const sy_hull_options *o, sy_hull_report *report,
                                 sy_error *err)
 {
@@ -579,15 +599,31 @@ sy_code sy_clusters_build_hulls(sy_clusters *cl, const float *xyz, const sy_hull
     if (!report) report = &local;
     memset(report, 0, sizeof *report);
     sy_code rc = sy_hull_options_check(o, err);
+    if (rc) return rc;
     double t = sy_now();
-    for (size_t c = 0; c < cl->n && !rc; c++) {
-        sy_cluster *C = &cl->items[c];
-        rc = sy_cluster_build_hull(C, xyz, o->alpha_scale, o->triangles, o->tol, err);
-        if (!rc) rc = sy_cluster_occupancy(C, xyz, 8, err); /* what synthesis reads on decode */
+    /* Clusters are independent: one per task on every thread, each with its
+     * own status, reported in cluster order (the first failure wins), so the
+     * hulls are the same for any thread count. */
+    hull_job J = {cl, xyz, o, sy_calloc(cl->n ? cl->n : 1, sizeof *J.rc, err, "hulls"),
+                  sy_calloc(cl->n ? cl->n : 1, sizeof *J.err, err, "hulls")};
+    if (!J.rc || !J.err) {
+        free(J.rc);
+        free(J.err);
+        return SY_EINTERNAL;
+    }
+    sy_parallel_for(cl->n, 1, hull_chunk, &J);
+    for (size_t c = 0; c < cl->n; c++) {
+        const sy_cluster *C = &cl->items[c];
+        if (!rc && J.rc[c]) {
+            rc = J.rc[c];
+            if (err) *err = J.err[c];
+        }
         if (C->hull == SY_HULL_ALPHA) report->alpha++;
         else if (C->hull == SY_HULL_CONVEX) report->convex++;
         else report->box++;
     }
+    free(J.rc);
+    free(J.err);
     report->seconds = sy_now() - t;
     return rc;
 }

@@ -74,6 +74,12 @@ typedef struct {
     size_t sample;        /* points analysed */
 } sy_up_evidence;
 
+/* `auto` in sy_preprocess keeps the file's +z unless the detected axis scores
+ * at least SY_UP_AXIS_MARGIN times z's, or (for -z) the sign evidence is at
+ * least SY_UP_SIGN_MARGIN; sy_detect_up itself has no such prior. */
+#define SY_UP_AXIS_MARGIN 1.5
+#define SY_UP_SIGN_MARGIN 0.03
+
 /* Detects which signed axis of c points up (geometry only); ev may be NULL. */
 sy_code sy_detect_up(const sy_cloud *c, int *up, sy_up_evidence *ev, sy_error *err);
 /* Rotates c (positions, origin, normals) so that the signed axis up becomes
@@ -86,6 +92,11 @@ sy_code sy_crop(sy_cloud *c, const double box[6], sy_error *err);
 /* Keeps one real point per voxel of edge size: the one nearest the voxel's
  * centroid (lowest index on ties). Order of the kept points is unchanged. */
 sy_code sy_voxel_downsample(sy_cloud *c, double size, sy_error *err);
+
+/* The voxel edge (metres) that leaves at most target occupied voxels, found
+ * by bisection in log size to within 0.5%; 0 when c has target points or
+ * fewer. O(n) a step, ten steps. */
+sy_code sy_voxel_size_for_count(const sy_cloud *c, size_t target, double *size, sy_error *err);
 
 /* Removes statistical outliers (PCL). */
 sy_code sy_remove_outliers(sy_cloud *c, int k, double std_mul, sy_error *err);

@@ -504,9 +504,16 @@ static sy_code fill_cloud(const scan_job *j, size_t n_chunks, size_t total, sy_c
         sy_cloud_free(c);
         return SY_EINTERNAL;
     }
-    size_t at = 0;
+    /* A cap keeps an even spread of the returns in pulse order (the k-th kept
+     * is return floor(k * all / total)), so a capped scan still covers every
+     * station and the whole tree, only sparser: the first N returns of a
+     * terrestrial sweep would be a wedge of the first station's view. */
+    size_t all = 0;
+    for (size_t ch = 0; ch < n_chunks; ch++) all += j->chunks[ch].n;
+    size_t at = 0, seen = 0;
     for (size_t ch = 0; ch < n_chunks && at < total; ch++)
-        for (size_t k = 0; k < j->chunks[ch].n && at < total; k++, at++) {
+        for (size_t k = 0; k < j->chunks[ch].n && at < total; k++, seen++) {
+            if (seen != (size_t)((unsigned long long)at * all / total)) continue;
             const scan_return *r = &j->chunks[ch].r[k];
             memcpy(c->xyz + 3 * at, r->xyz, sizeof r->xyz);
             c->intensity[at] = r->intensity;
@@ -522,6 +529,7 @@ static sy_code fill_cloud(const scan_job *j, size_t n_chunks, size_t total, sy_c
             else if (r->cls == 4) st->understory++;
             else if (r->wood) st->wood++;
             else st->leaf++;
+            at++;
         }
     return SY_OK;
 }

@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "skeleton_internal.h"
+#include "stages/core/parallel.h"
 #include "stages/core/rng.h"
 
 /* ---- Circle fit ---- */
@@ -293,31 +294,36 @@ static int32_t continuation(const sy_skeleton *s, const int32_t *first_child, co
     return -1;
 }
 
-sy_code sy_measure_node_radii(const sy_skeleton *s, const float *xyz, double spacing, float *fit, size_t *fitted_out,
-                              sy_error *err)
+typedef struct {
+    const sy_skeleton *s;
+    const float *xyz;
+    const int32_t *first_child, *next_sibling;
+    size_t most;
+    double tol;
+    float *fit;
+    uint8_t *failed; /* per chunk: it ran out of memory */
+} ring_job;
+
+/* The ring fits of nodes [begin, end): each node's fit reads only the
+ * skeleton and the points and seeds its RANSAC with its own id, so chunks
+ * run on any thread and give the same radii. */
+static void ring_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
 {
-    *fitted_out = 0;
-    size_t m = s->n, fitted = 0;
-    for (size_t i = 0; i < m; i++) fit[i] = 0;
-    if (!s->support_start || m < 2) return SY_OK;
-    size_t most = 0;
-    for (size_t i = 0; i < m; i++)
-        if (s->support_start[i + 1] - s->support_start[i] > most) most = s->support_start[i + 1] - s->support_start[i];
-    int32_t *first_child = sy_calloc(m, sizeof *first_child, err, "radii");
-    int32_t *next_sibling = sy_calloc(m, sizeof *next_sibling, err, "radii");
-    double *xy = sy_calloc(3 * most + 1, 2 * sizeof *xy, err, "radii");
-    double *ang = sy_calloc(3 * most + 1, sizeof *ang, err, "radii");
-    if (!first_child || !next_sibling || !xy || !ang) {
-        free(first_child);
-        free(next_sibling);
+    ring_job *J = ctx;
+    const sy_skeleton *s = J->s;
+    const float *xyz = J->xyz;
+    const int32_t *first_child = J->first_child, *next_sibling = J->next_sibling;
+    double tol = J->tol;
+    float *fit = J->fit;
+    double *xy = malloc((3 * J->most + 1) * 2 * sizeof *xy);
+    double *ang = malloc((3 * J->most + 1) * sizeof *ang);
+    if (!xy || !ang) {
         free(xy);
         free(ang);
-        return SY_EINTERNAL;
+        J->failed[chunk] = 1;
+        return;
     }
-    sy_skeleton_children(s, first_child, next_sibling);
-    /* The inlier band: the scan's own roughness, a few millimetres at least. */
-    double tol = fmax(0.5 * spacing, 0.006);
-    for (size_t i = 1; i < m; i++) {
+    for (size_t i = begin < 1 ? 1 : begin; i < end; i++) {
         int32_t p = s->parent[i], c = continuation(s, first_child, next_sibling, i);
         int32_t prev = s->branch[p] == s->branch[i] ? p : -1;
         /* The local axis: from the previous node along the branch to the next. */
@@ -372,12 +378,45 @@ sy_code sy_measure_node_radii(const sy_skeleton *s, const float *xyz, double spa
         if ((double)in < 0.7 * (double)k || r > spread || r < tol) continue;
         if (largest_angle_gap(xy, k, ctr, r, tol, ang) > 0.5 * TWO_PI) continue;
         fit[i] = (float)r;
-        fitted++;
-    }
-    free(first_child);
-    free(next_sibling);
+        }
     free(xy);
     free(ang);
+}
+
+sy_code sy_measure_node_radii(const sy_skeleton *s, const float *xyz, double spacing, float *fit, size_t *fitted_out,
+                              sy_error *err)
+{
+    *fitted_out = 0;
+    size_t m = s->n, fitted = 0;
+    for (size_t i = 0; i < m; i++) fit[i] = 0;
+    if (!s->support_start || m < 2) return SY_OK;
+    size_t most = 0;
+    for (size_t i = 0; i < m; i++)
+        if (s->support_start[i + 1] - s->support_start[i] > most) most = s->support_start[i + 1] - s->support_start[i];
+    int32_t *first_child = sy_calloc(m, sizeof *first_child, err, "radii");
+    int32_t *next_sibling = sy_calloc(m, sizeof *next_sibling, err, "radii");
+    if (!first_child || !next_sibling) {
+        free(first_child);
+        free(next_sibling);
+        return SY_EINTERNAL;
+    }
+    sy_skeleton_children(s, first_child, next_sibling);
+    /* The inlier band: the scan's own roughness, a few millimetres at least. */
+    uint8_t *failed = sy_calloc(m / 32 + 1, 1, err, "radii");
+    if (!failed) {
+        free(first_child);
+        free(next_sibling);
+        return SY_EINTERNAL;
+    }
+    ring_job J = {s, xyz, first_child, next_sibling, most, fmax(0.5 * spacing, 0.006), fit, failed};
+    sy_parallel_for(m, 32, ring_chunk, &J);
+    free(first_child);
+    free(next_sibling);
+    int out_of_memory = 0;
+    for (size_t c = 0; c <= m / 32; c++) out_of_memory |= failed[c];
+    free(failed);
+    if (out_of_memory) return sy_fail(err, SY_EINTERNAL, "radii: out of memory");
+    for (size_t i = 0; i < m; i++) fitted += fit[i] > 0;
     *fitted_out = fitted;
     return SY_OK;
 }

@@ -62,6 +62,7 @@ sy_code sy_skeleton_options_check(const sy_skeleton_options *o, sy_error *err);
 
 typedef struct {
     size_t points, graph_edges, components, bridges;
+    size_t largest_component; /* points in the largest graph component before bridging */
     size_t wood_points;   /* points classified wood (all of them with wood_share 0) */
     double spacing, bin_width;
     size_t raw_nodes, pruned_nodes, merged_nodes;
@@ -86,6 +87,25 @@ typedef struct {
 sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options *o, sy_full_skeleton *out,
                                 sy_skeleton_report *report, sy_error *err);
 
+/* Whether a reconstruction is a plausible tree (sanity.c). A failed one
+ * says why in reason; the figures behind the verdict are kept. */
+typedef struct {
+    int failed;
+    char reason[240];
+    double cloud_height;   /* z span of the cloud, 1st to 99th percentile, metres */
+    double skeleton_share; /* z span of the main skeleton's nodes over cloud_height */
+    double expected_nodes; /* the fewest nodes a tree of that height gives at this level-set width */
+    double largest_share;  /* the largest graph component's share of the points (before bridging) */
+} sy_skeleton_verdict;
+
+/* Judges s (from sy_reconstruct_skeleton on cloud, with its report r): a
+ * handful of nodes from thousands of points, a main skeleton spanning far
+ * less of the cloud's height than a tree's stem does, or a neighbour graph
+ * that fell apart into pieces none of which holds a fair share of the points
+ * (the spacing too fine for the scan's density) each fail it. */
+void sy_skeleton_judge(const sy_cloud *cloud, const sy_skeleton *s, const sy_skeleton_report *r,
+                       sy_skeleton_verdict *v);
+
 /* ---- The pieces, exposed for tests and benchmarks. ---- */
 
 /* Symmetric neighbour graph in CSR form. */
@@ -95,6 +115,7 @@ typedef struct {
     uint32_t *adj;
     float *len;    /* Euclidean edge lengths, parallel to adj */
     size_t components; /* before bridging */
+    size_t largest;    /* points in the largest of them */
     size_t bridges;    /* edges added to connect them */
 } sy_graph;
 

@@ -547,6 +547,7 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     if (rc) return rc;
     rep->graph_edges = g.start[n] / 2;
     rep->components = g.components;
+    rep->largest_component = g.largest;
     rep->bridges = g.bridges;
     rep->t_graph = sy_now() - t;
     t = sy_now();
