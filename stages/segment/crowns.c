@@ -13,6 +13,9 @@
 
 #include "segment_internal.h"
 
+/* A canopy top this close (metres, across) over a stem is its crown's top. */
+#define TOP_REACH 1.5
+
 typedef struct {
     uint64_t key;
     uint32_t point;
@@ -25,8 +28,82 @@ static int cmp_keyed(const void *a, const void *b)
     return (x->point > y->point) - (x->point < y->point);
 }
 
+/* The voxel graph: edges implicit between voxels up to R cells apart along
+ * each axis, cost len * (len / voxel)^gap_penalty. */
+typedef struct {
+    const keyed *pts;
+    const uint32_t *start;
+    const double *cen;
+    double *dist;
+    int32_t *vlab;
+    const uint8_t *fixed; /* NULL, or voxels whose label is final */
+    const seg_map *map;
+    seg_heap *heap;
+    double voxel, gap_penalty;
+    /* neighbour iteration */
+    uint32_t at, ix, iy, iz;
+    int R, dx, dy, dz;
+} graph;
+
+static void neighbours_begin(graph *g, uint32_t vi, int R)
+{
+    uint64_t key = g->pts[g->start[vi]].key;
+    g->at = vi;
+    g->ix = (uint32_t)(key >> 42), g->iy = (uint32_t)(key >> 21) & 0x1fffff, g->iz = (uint32_t)key & 0x1fffff;
+    g->R = R;
+    g->dx = -R, g->dy = -R, g->dz = -R - 1;
+}
+
+/* The next existing neighbour and the cost of the edge to it; 0 at the end. */
+static int neighbours_next(graph *g, uint32_t *nb, double *cost)
+{
+    for (;;) {
+        if (++g->dz > g->R) {
+            g->dz = -g->R;
+            if (++g->dy > g->R) {
+                g->dy = -g->R;
+                if (++g->dx > g->R) return 0;
+            }
+        }
+        if (!g->dx && !g->dy && !g->dz) continue;
+        uint32_t n = seg_map_get(g->map, seg_key3(g->ix + (uint32_t)g->dx, g->iy + (uint32_t)g->dy, g->iz + (uint32_t)g->dz));
+        if (n == UINT32_MAX) continue;
+        const double *a = g->cen + 3 * (size_t)g->at, *b = g->cen + 3 * (size_t)n;
+        double ex = b[0] - a[0], ey = b[1] - a[1], ez = b[2] - a[2];
+        double len = sqrt(ex * ex + ey * ey + ez * ez), gp = g->gap_penalty, v = g->voxel;
+        *cost = gp == 1 ? len * len / v : gp == 0 ? len : len * pow(len / v, gp);
+        *nb = n;
+        return 1;
+    }
+}
+
+/* Dijkstra from what the heap holds, over edges up to R cells, never
+ * relabelling a fixed voxel. */
+static sy_code grow(graph *g, int R, sy_error *err)
+{
+    double d;
+    uint32_t vi;
+    while (seg_heap_pop(g->heap, &d, &vi)) {
+        if (d > g->dist[vi]) continue;
+        neighbours_begin(g, vi, R);
+        uint32_t nb;
+        double cost;
+        while (neighbours_next(g, &nb, &cost)) {
+            if (g->fixed && g->fixed[nb]) continue;
+            double nd = d + cost;
+            if (nd < g->dist[nb]) {
+                g->dist[nb] = nd;
+                g->vlab[nb] = g->vlab[vi];
+                sy_code rc = seg_heap_push(g->heap, nd, nb, err);
+                if (rc) return rc;
+            }
+        }
+    }
+    return SY_OK;
+}
+
 sy_code seg_grow_crowns(const seg_frame *f, const sy_segment_options *o, const seg_stem *stems, size_t n_stems,
-                        int32_t *label, sy_error *err)
+                        const seg_top *tops, size_t n_tops, int32_t *label, sy_error *err)
 {
     const double v = o->voxel;
     size_t m = 0;
@@ -36,7 +113,7 @@ sy_code seg_grow_crowns(const seg_frame *f, const sy_segment_options *o, const s
     }
     if (m == 0 || n_stems == 0) return SY_OK;
     for (int k = 0; k < 3; k++)
-        if ((f->hi[k] - f->lo[k]) / v >= (double)(1u << 21) - 8)
+        if ((f->hi[k] - f->lo[k]) / v >= (double)(1u << 21) - 80)
             return sy_fail(err, SY_EINPUT, "segment: the plot spans %.0f m, too much for %.3g m voxels",
                            f->hi[k] - f->lo[k], v);
     keyed *pts = sy_calloc(m, sizeof *pts, err, "crown voxels");
@@ -46,7 +123,7 @@ sy_code seg_grow_crowns(const seg_frame *f, const sy_segment_options *o, const s
         if (f->ground[i]) continue;
         uint32_t ix = (uint32_t)((f->xyz[3 * i] - f->lo[0]) / v), iy = (uint32_t)((f->xyz[3 * i + 1] - f->lo[1]) / v),
                  iz = (uint32_t)((f->xyz[3 * i + 2] - f->lo[2]) / v);
-        pts[m].key = seg_key3(ix + 4, iy + 4, iz + 4); /* +4: neighbours of cell 0 need no sign */
+        pts[m].key = seg_key3(ix + 32, iy + 32, iz + 32); /* +32: neighbours of cell 0 need no sign */
         pts[m++].point = (uint32_t)i;
     }
     qsort(pts, m, sizeof *pts, cmp_keyed);
@@ -96,34 +173,35 @@ sy_code seg_grow_crowns(const seg_frame *f, const sy_segment_options *o, const s
             dist[i] = 0;
             rc = seg_heap_push(&heap, 0, (uint32_t)i, err);
         }
+        /* And the top of its crown, where the canopy has a top right above
+         * the stem: a crown the scan saw apart from its trunk (the stem
+         * hidden by a neighbour's foliage half way up) still grows from its
+         * own tree instead of being taken over from the side. */
+        for (size_t s = 0; s < n_stems && rc == SY_OK && tops; s++) {
+            const seg_top *best = NULL;
+            for (size_t t = 0; t < n_tops; t++) {
+                double d = hypot(tops[t].x - stems[s].x, tops[t].y - stems[s].y);
+                if (d > TOP_REACH || (best && tops[t].h <= best->h)) continue;
+                int nearest = 1;
+                for (size_t q = 0; q < n_stems && nearest; q++)
+                    nearest = q == s || hypot(tops[t].x - stems[q].x, tops[t].y - stems[q].y) >= d;
+                if (nearest) best = &tops[t];
+            }
+            if (!best) continue;
+            for (size_t i = 0; i < nv && rc == SY_OK; i++) {
+                if (vlab[i] > 0 || vhag[i] < best->h - 1.5 || hypot(cen[3 * i] - best->x, cen[3 * i + 1] - best->y) > 0.75)
+                    continue;
+                vlab[i] = (int32_t)s + 1;
+                dist[i] = 0;
+                rc = seg_heap_push(&heap, 0, (uint32_t)i, err);
+            }
+        }
     }
-    const int R = o->graph_reach;
-    const double gp = o->gap_penalty;
-    while (rc == SY_OK) {
-        double d;
-        uint32_t vi;
-        if (!seg_heap_pop(&heap, &d, &vi)) break;
-        if (d > dist[vi]) continue;
-        uint64_t key = pts[start[vi]].key;
-        uint32_t ix = (uint32_t)(key >> 42), iy = (uint32_t)(key >> 21) & 0x1fffff, iz = (uint32_t)key & 0x1fffff;
-        for (int dx = -R; dx <= R && rc == SY_OK; dx++)
-            for (int dy = -R; dy <= R && rc == SY_OK; dy++)
-                for (int dz = -R; dz <= R; dz++) {
-                    if (!dx && !dy && !dz) continue;
-                    uint32_t nb = seg_map_get(&map, seg_key3(ix + dx, iy + dy, iz + dz));
-                    if (nb == UINT32_MAX) continue;
-                    double ex = cen[3 * nb] - cen[3 * vi], ey = cen[3 * nb + 1] - cen[3 * vi + 1],
-                           ez = cen[3 * nb + 2] - cen[3 * vi + 2];
-                    double len = sqrt(ex * ex + ey * ey + ez * ez);
-                    double cost = gp == 1 ? len * len / v : gp == 0 ? len : len * pow(len / v, gp);
-                    double nd = d + cost;
-                    if (nd < dist[nb]) {
-                        dist[nb] = nd;
-                        vlab[nb] = vlab[vi];
-                        if ((rc = seg_heap_push(&heap, nd, nb, err))) break;
-                    }
-                }
-    }
+    graph g = {.pts = pts, .start = start, .cen = cen, .dist = dist, .vlab = vlab, .map = &map, .heap = &heap, .voxel = v, .gap_penalty = o->gap_penalty};
+    if (rc == SY_OK) rc = grow(&g, o->graph_reach, err);
+    /* What no path reaches stays unassigned: giving a crown the scan saw
+     * apart from every stem to the stem nearest across hands the top of a
+     * leaning tree to its neighbour (measured: worse than leaving it). */
     if (rc == SY_OK)
         for (size_t i = 0; i < nv; i++)
             for (uint32_t j = start[i]; j < start[i + 1]; j++) label[pts[j].point] = vlab[i];

@@ -99,7 +99,7 @@ static sy_code fit_cluster(double *xy, double *gz, size_t m, const sy_segment_op
         }
         int arc = 0;
         for (int b = 0; b < ARC_BINS; b++) arc += bins[b];
-        int ok = r >= o->stem_min_radius && r <= o->stem_max_radius && inl >= 12 &&
+        int ok = r >= o->stem_min_radius && r <= o->stem_max_radius && inl >= o->stem_min_points &&
                  (double)arc / ARC_BINS >= o->min_arc && (double)inside <= 0.25 * (double)inl;
         if (ok) {
             seg_stem s = {.x = c[0], .y = c[1], .r = r, .inliers = inl, .band = 0, .dbh = 2 * r, .ground_z = gsum / (double)inl};
@@ -259,7 +259,7 @@ static sy_code detect_band(const seg_frame *f, const sy_segment_options *o, doub
     return rc;
 }
 
-/* The points under the stem bands on a 0.5 m grid, to ask whether a circle
+/* The ground points and those under the stem bands on a 0.5 m grid, to ask whether a circle
  * stands on the ground: a trunk's surface continues down to its base, a
  * branch hanging through the band or a clump of leaves does not. */
 typedef struct {
@@ -275,14 +275,14 @@ static sy_code low_index_build(const seg_frame *f, double top, low_index *ix, sy
     memset(ix, 0, sizeof *ix);
     ix->cell = 0.5;
     size_t m = 0;
-    for (size_t i = 0; i < f->n; i++) m += !f->ground[i] && f->hag[i] < top;
+    for (size_t i = 0; i < f->n; i++) m += f->ground[i] || f->hag[i] < top;
     ix->pts = sy_calloc(m ? m : 1, sizeof *ix->pts, err, "stem bases");
     ix->start = sy_calloc(m + 1, sizeof *ix->start, err, "stem bases");
     sy_code rc = ix->pts && ix->start ? seg_map_init(&ix->map, m, err) : SY_EINTERNAL;
     if (rc) return rc;
     m = 0;
     for (size_t i = 0; i < f->n; i++) {
-        if (f->ground[i] || f->hag[i] >= top) continue;
+        if (!f->ground[i] && f->hag[i] >= top) continue;
         uint32_t cx = (uint32_t)((f->xyz[3 * i] - f->lo[0]) / ix->cell), cy = (uint32_t)((f->xyz[3 * i + 1] - f->lo[1]) / ix->cell);
         ix->pts[m].key = ((uint64_t)cx << 32) | cy;
         ix->pts[m++].point = (uint32_t)i;
@@ -323,7 +323,7 @@ static double base_support(const seg_frame *f, const low_index *ix, double x, do
             for (uint32_t j = ix->start[c]; j < ix->start[c + 1]; j++) {
                 uint32_t p = ix->pts[j].point;
                 double h = f->hag[p];
-                if (h < zlo || h >= zhi) continue;
+                if (f->ground[p] || h < zlo || h >= zhi) continue;
                 double dx = f->xyz[3 * p] - x, dy = f->xyz[3 * p + 1] - y;
                 if (dx * dx + dy * dy > reach * reach) continue;
                 int b = (int)((h - zlo) / 0.1);
@@ -333,6 +333,26 @@ static double base_support(const seg_frame *f, const low_index *ix, double x, do
     int k = 0;
     for (int b = 0; b < nbins; b++) k += (int)((seen >> b) & 1);
     return (double)k / nbins;
+}
+
+/* Ground returns within radius of (x, y): where the ground filter saw none,
+ * its surface is extrapolated and heights above it mean little. */
+static size_t ground_near(const seg_frame *f, const low_index *ix, double x, double y, double radius)
+{
+    size_t k = 0;
+    long x0 = (long)floor((x - radius - f->lo[0]) / ix->cell), x1 = (long)floor((x + radius - f->lo[0]) / ix->cell);
+    long y0 = (long)floor((y - radius - f->lo[1]) / ix->cell), y1 = (long)floor((y + radius - f->lo[1]) / ix->cell);
+    for (long cx = x0 < 0 ? 0 : x0; cx <= x1; cx++)
+        for (long cy = y0 < 0 ? 0 : y0; cy <= y1; cy++) {
+            uint32_t c = seg_map_get(&ix->map, ((uint64_t)cx << 32) | (uint64_t)cy);
+            if (c == UINT32_MAX) continue;
+            for (uint32_t j = ix->start[c]; j < ix->start[c + 1]; j++) {
+                uint32_t p = ix->pts[j].point;
+                double dx = f->xyz[3 * p] - x, dy = f->xyz[3 * p + 1] - y;
+                k += f->ground[p] && dx * dx + dy * dy <= radius * radius;
+            }
+        }
+    return k;
 }
 
 sy_code seg_find_stems(const seg_frame *f, const sy_segment_options *o, seg_stem **stems, size_t *n_stems,
@@ -350,7 +370,9 @@ sy_code seg_find_stems(const seg_frame *f, const sy_segment_options *o, seg_stem
     if (low - 0.5 * o->slice >= 0.2) rc = detect_band(f, o, low, 0, &list, candidates, err);
     if (rc == SY_OK) rc = detect_band(f, o, o->breast_height, 1, &list, candidates, err);
     /* A stem stands on the ground: its circle's disc holds points at most
-     * heights between the ground filter's band and the circle's own band. */
+     * heights between the ground filter's band and the circle's own band,
+     * and ground returns were seen around it (under a canopy that hides the
+     * ground the surface is a guess, and so is every height above it). */
     low_index ix;
     if (rc == SY_OK) rc = low_index_build(f, o->breast_height, &ix, err);
     if (rc) {
@@ -361,7 +383,8 @@ sy_code seg_find_stems(const seg_frame *f, const sy_segment_options *o, seg_stem
     double zlo = o->ground_threshold + 0.05;
     for (size_t i = 0; i < list.n; i++) {
         double top = (list.v[i].band ? o->breast_height : low) - 0.5 * o->slice;
-        if (base_support(f, &ix, list.v[i].x, list.v[i].y, list.v[i].r, o->circle_tolerance, zlo, top) >= 0.5)
+        if (base_support(f, &ix, list.v[i].x, list.v[i].y, list.v[i].r, o->circle_tolerance, zlo, top) >= 0.5 &&
+            ground_near(f, &ix, list.v[i].x, list.v[i].y, list.v[i].r + 1.0) >= 10)
             list.v[grounded++] = list.v[i];
     }
     list.n = grounded;
