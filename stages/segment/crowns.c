@@ -13,8 +13,11 @@
 
 #include "segment_internal.h"
 
-/* A canopy top this close (metres, across) over a stem is its crown's top. */
-#define TOP_REACH 1.5
+/* The column over a stem that belongs to it (metres, at least). */
+#define COLUMN_RADIUS 0.5
+/* Climbing the column costs this much per metre more than a path seen in
+ * the points, so a path the scan shows wins where both reach. */
+#define COLUMN_COST 3.0
 
 typedef struct {
     uint64_t key;
@@ -103,7 +106,7 @@ static sy_code grow(graph *g, int R, sy_error *err)
 }
 
 sy_code seg_grow_crowns(const seg_frame *f, const sy_segment_options *o, const seg_stem *stems, size_t n_stems,
-                        const seg_top *tops, size_t n_tops, int32_t *label, sy_error *err)
+                        int32_t *label, sy_error *err)
 {
     const double v = o->voxel;
     size_t m = 0;
@@ -173,28 +176,23 @@ sy_code seg_grow_crowns(const seg_frame *f, const sy_segment_options *o, const s
             dist[i] = 0;
             rc = seg_heap_push(&heap, 0, (uint32_t)i, err);
         }
-        /* And the top of its crown, where the canopy has a top right above
-         * the stem: a crown the scan saw apart from its trunk (the stem
-         * hidden by a neighbour's foliage half way up) still grows from its
-         * own tree instead of being taken over from the side. */
-        for (size_t s = 0; s < n_stems && rc == SY_OK && tops; s++) {
-            const seg_top *best = NULL;
-            for (size_t t = 0; t < n_tops; t++) {
-                double d = hypot(tops[t].x - stems[s].x, tops[t].y - stems[s].y);
-                if (d > TOP_REACH || (best && tops[t].h <= best->h)) continue;
-                int nearest = 1;
-                for (size_t q = 0; q < n_stems && nearest; q++)
-                    nearest = q == s || hypot(tops[t].x - stems[q].x, tops[t].y - stems[q].y) >= d;
-                if (nearest) best = &tops[t];
+        /* And the column over it, at the cost of climbing there along the
+         * trunk: a trunk is upright, so what stands right above a stem is
+         * that tree, even where the scan lost the trunk half way up behind
+         * a neighbour's foliage and the crown would otherwise be reached
+         * from the side only. */
+        for (size_t i = 0; i < nv && rc == SY_OK; i++) {
+            if (vlab[i] > 0 || vhag[i] <= top) continue;
+            int best = -1;
+            double bd = INFINITY;
+            for (size_t s = 0; s < n_stems; s++) {
+                double dx = cen[3 * i] - stems[s].x, dy = cen[3 * i + 1] - stems[s].y, d = sqrt(dx * dx + dy * dy);
+                if (d <= fmax(2 * stems[s].r, COLUMN_RADIUS) && d < bd) bd = d, best = (int)s;
             }
-            if (!best) continue;
-            for (size_t i = 0; i < nv && rc == SY_OK; i++) {
-                if (vlab[i] > 0 || vhag[i] < best->h - 1.5 || hypot(cen[3 * i] - best->x, cen[3 * i + 1] - best->y) > 0.75)
-                    continue;
-                vlab[i] = (int32_t)s + 1;
-                dist[i] = 0;
-                rc = seg_heap_push(&heap, 0, (uint32_t)i, err);
-            }
+            if (best < 0) continue;
+            vlab[i] = best + 1;
+            dist[i] = COLUMN_COST * (vhag[i] - top + bd);
+            rc = seg_heap_push(&heap, dist[i], (uint32_t)i, err);
         }
     }
     graph g = {.pts = pts, .start = start, .cen = cen, .dist = dist, .vlab = vlab, .map = &map, .heap = &heap, .voxel = v, .gap_penalty = o->gap_penalty};

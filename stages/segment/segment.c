@@ -393,13 +393,7 @@ sy_code sy_segment(const sy_cloud *plot, const sy_segment_options *o, sy_segment
         rc = seg_find_stems(&f, o, &stems, &n_stems, &out->n_stem_candidates, err);
         /* Auto: a dense cloud in which no stem shows is a canopy seen from above. */
         if (rc == SY_OK && n_stems == 0 && o->method == SY_SEGMENT_AUTO) airborne = 1;
-        else if (rc == SY_OK) {
-            seg_top *tops = NULL;
-            size_t n_tops = 0;
-            rc = seg_chm_watershed(&f, o, 1, &tops, &n_tops, NULL, err);
-            if (rc == SY_OK) rc = seg_grow_crowns(&f, o, stems, n_stems, tops, n_tops, out->tree_of, err);
-            free(tops);
-        }
+        else if (rc == SY_OK) rc = seg_grow_crowns(&f, o, stems, n_stems, out->tree_of, err);
         if (rc == SY_OK && !airborne) rc = build_trees(plot, &f, o, n_stems, stems, NULL, out, err);
     }
     if (rc == SY_OK && airborne) {

@@ -45,11 +45,10 @@ sy_code seg_chm_watershed(const seg_frame *f, const sy_segment_options *o, int t
                           size_t *n_tops, int32_t *label, sy_error *err);
 
 /* Labels every non-ground point with the stem (1..n_stems) its shortest
- * voxel-graph path reaches first (from its lower trunk, and from the
- * canopy top right above it when tops has one), -1 where no path leads;
- * ground gets 0. */
+ * voxel-graph path reaches first (from its lower trunk, and up the column
+ * over it), -1 where no path leads; ground gets 0. */
 sy_code seg_grow_crowns(const seg_frame *f, const sy_segment_options *o, const seg_stem *stems, size_t n_stems,
-                        const seg_top *tops, size_t n_tops, int32_t *label, sy_error *err);
+                        int32_t *label, sy_error *err);
 
 /* Open-addressing map from 63-bit voxel or cell keys to indices. */
 typedef struct {
