@@ -16,7 +16,7 @@
 
 typedef struct {
     const char *out_path, *method_text, *format;
-    int split;
+    int split, stem_points;
     double min_points;
     sy_segment_options o;
 } segment_args;
@@ -137,7 +137,7 @@ static sy_code write_split(const sy_cloud *plot, const sy_segmentation *s, const
 
 int cmd_segment(int argc, char **argv, sy_cli *cli)
 {
-    segment_args a = {NULL, "auto", "las", 0, -1, sy_segment_options_default()};
+    segment_args a = {NULL, "auto", "las", 0, 30, -1, sy_segment_options_default()};
     const sy_opt opts[] = {
         {"-o", OPT_STRING, &a.out_path, "OUT", "labelled cloud (.las .laz .ply .xyz), or with --split a folder"},
         {"--split", OPT_FLAG, &a.split, NULL, "write one file per tree into the folder OUT, plus " SEGMENT_TABLE},
@@ -148,6 +148,7 @@ int cmd_segment(int argc, char **argv, sy_cli *cli)
         {"--min-radius", OPT_DOUBLE, &a.o.stem_min_radius, "M", "smallest stem radius (default 0.025)"},
         {"--max-radius", OPT_DOUBLE, &a.o.stem_max_radius, "M", "largest stem radius (default 1.0)"},
         {"--circle-tolerance", OPT_DOUBLE, &a.o.circle_tolerance, "M", "stem circle inlier band (default 0.025)"},
+        {"--stem-points", OPT_INT, &a.stem_points, "N", "points a stem circle needs (default 30)"},
         {"--voxel", OPT_DOUBLE, &a.o.voxel, "M", "crown graph voxel size (default 0.15)"},
         {"--gap-penalty", OPT_DOUBLE, &a.o.gap_penalty, "P", "crown paths: edge cost grows as length^(1+P) (default 1)"},
         {"--chm-cell", OPT_DOUBLE, &a.o.chm_cell, "M", "airborne: canopy height model cell (default 0.5)"},
@@ -199,6 +200,11 @@ int cmd_segment(int argc, char **argv, sy_cli *cli)
         fprintf(stderr, "sylva segment: --min-points: expected a whole number of points\n");
         return SY_EUSAGE;
     }
+    if (a.stem_points < 5) {
+        fprintf(stderr, "sylva segment: --stem-points: expected at least 5\n");
+        return SY_EUSAGE;
+    }
+    a.o.stem_min_points = (size_t)a.stem_points;
     a.o.seed = cli->seed;
     sy_error err = {0};
     if (sy_segment_options_check(&a.o, &err)) {

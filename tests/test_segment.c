@@ -131,6 +131,7 @@ static void terrestrial_plot_scores(void **state)
         assert_false(isnan(s.trees[t].dbh));
         assert_true(fabs(s.trees[t].dbh - tr->dbh) < 0.05);
         assert_true(fabs(s.trees[t].stem[2] - tr->pos[2]) < 0.2);
+        printf("  tree %zu: dbh %.3f (truth %.3f) height %.2f (truth %.2f)\n", t + 1, s.trees[t].dbh, tr->dbh, s.trees[t].height, tr->height);
         assert_true(s.trees[t].height > 0.6 * tr->height && s.trees[t].height < tr->height + 0.5);
     }
     /* Same labels on one thread and on two. */

@@ -13,6 +13,12 @@
 
 #include "segment_internal.h"
 
+/* The column over a stem that belongs to it (metres, at least). */
+#define COLUMN_RADIUS 0.5
+/* Climbing the column costs this much per metre more than a path seen in
+ * the points, so a path the scan shows wins where both reach. */
+#define COLUMN_COST 3.0
+
 typedef struct {
     uint64_t key;
     uint32_t point;
@@ -23,6 +29,80 @@ static int cmp_keyed(const void *a, const void *b)
     const keyed *x = a, *y = b;
     if (x->key != y->key) return x->key < y->key ? -1 : 1;
     return (x->point > y->point) - (x->point < y->point);
+}
+
+/* The voxel graph: edges implicit between voxels up to R cells apart along
+ * each axis, cost len * (len / voxel)^gap_penalty. */
+typedef struct {
+    const keyed *pts;
+    const uint32_t *start;
+    const double *cen;
+    double *dist;
+    int32_t *vlab;
+    const uint8_t *fixed; /* NULL, or voxels whose label is final */
+    const seg_map *map;
+    seg_heap *heap;
+    double voxel, gap_penalty;
+    /* neighbour iteration */
+    uint32_t at, ix, iy, iz;
+    int R, dx, dy, dz;
+} graph;
+
+static void neighbours_begin(graph *g, uint32_t vi, int R)
+{
+    uint64_t key = g->pts[g->start[vi]].key;
+    g->at = vi;
+    g->ix = (uint32_t)(key >> 42), g->iy = (uint32_t)(key >> 21) & 0x1fffff, g->iz = (uint32_t)key & 0x1fffff;
+    g->R = R;
+    g->dx = -R, g->dy = -R, g->dz = -R - 1;
+}
+
+/* The next existing neighbour and the cost of the edge to it; 0 at the end. */
+static int neighbours_next(graph *g, uint32_t *nb, double *cost)
+{
+    for (;;) {
+        if (++g->dz > g->R) {
+            g->dz = -g->R;
+            if (++g->dy > g->R) {
+                g->dy = -g->R;
+                if (++g->dx > g->R) return 0;
+            }
+        }
+        if (!g->dx && !g->dy && !g->dz) continue;
+        uint32_t n = seg_map_get(g->map, seg_key3(g->ix + (uint32_t)g->dx, g->iy + (uint32_t)g->dy, g->iz + (uint32_t)g->dz));
+        if (n == UINT32_MAX) continue;
+        const double *a = g->cen + 3 * (size_t)g->at, *b = g->cen + 3 * (size_t)n;
+        double ex = b[0] - a[0], ey = b[1] - a[1], ez = b[2] - a[2];
+        double len = sqrt(ex * ex + ey * ey + ez * ez), gp = g->gap_penalty, v = g->voxel;
+        *cost = gp == 1 ? len * len / v : gp == 0 ? len : len * pow(len / v, gp);
+        *nb = n;
+        return 1;
+    }
+}
+
+/* Dijkstra from what the heap holds, over edges up to R cells, never
+ * relabelling a fixed voxel. */
+static sy_code grow(graph *g, int R, sy_error *err)
+{
+    double d;
+    uint32_t vi;
+    while (seg_heap_pop(g->heap, &d, &vi)) {
+        if (d > g->dist[vi]) continue;
+        neighbours_begin(g, vi, R);
+        uint32_t nb;
+        double cost;
+        while (neighbours_next(g, &nb, &cost)) {
+            if (g->fixed && g->fixed[nb]) continue;
+            double nd = d + cost;
+            if (nd < g->dist[nb]) {
+                g->dist[nb] = nd;
+                g->vlab[nb] = g->vlab[vi];
+                sy_code rc = seg_heap_push(g->heap, nd, nb, err);
+                if (rc) return rc;
+            }
+        }
+    }
+    return SY_OK;
 }
 
 sy_code seg_grow_crowns(const seg_frame *f, const sy_segment_options *o, const seg_stem *stems, size_t n_stems,
@@ -36,7 +116,7 @@ sy_code seg_grow_crowns(const seg_frame *f, const sy_segment_options *o, const s
     }
     if (m == 0 || n_stems == 0) return SY_OK;
     for (int k = 0; k < 3; k++)
-        if ((f->hi[k] - f->lo[k]) / v >= (double)(1u << 21) - 8)
+        if ((f->hi[k] - f->lo[k]) / v >= (double)(1u << 21) - 80)
             return sy_fail(err, SY_EINPUT, "segment: the plot spans %.0f m, too much for %.3g m voxels",
                            f->hi[k] - f->lo[k], v);
     keyed *pts = sy_calloc(m, sizeof *pts, err, "crown voxels");
@@ -46,7 +126,7 @@ sy_code seg_grow_crowns(const seg_frame *f, const sy_segment_options *o, const s
         if (f->ground[i]) continue;
         uint32_t ix = (uint32_t)((f->xyz[3 * i] - f->lo[0]) / v), iy = (uint32_t)((f->xyz[3 * i + 1] - f->lo[1]) / v),
                  iz = (uint32_t)((f->xyz[3 * i + 2] - f->lo[2]) / v);
-        pts[m].key = seg_key3(ix + 4, iy + 4, iz + 4); /* +4: neighbours of cell 0 need no sign */
+        pts[m].key = seg_key3(ix + 32, iy + 32, iz + 32); /* +32: neighbours of cell 0 need no sign */
         pts[m++].point = (uint32_t)i;
     }
     qsort(pts, m, sizeof *pts, cmp_keyed);
@@ -96,34 +176,30 @@ sy_code seg_grow_crowns(const seg_frame *f, const sy_segment_options *o, const s
             dist[i] = 0;
             rc = seg_heap_push(&heap, 0, (uint32_t)i, err);
         }
+        /* And the column over it, at the cost of climbing there along the
+         * trunk: a trunk is upright, so what stands right above a stem is
+         * that tree, even where the scan lost the trunk half way up behind
+         * a neighbour's foliage and the crown would otherwise be reached
+         * from the side only. */
+        for (size_t i = 0; i < nv && rc == SY_OK; i++) {
+            if (vlab[i] > 0 || vhag[i] <= top) continue;
+            int best = -1;
+            double bd = INFINITY;
+            for (size_t s = 0; s < n_stems; s++) {
+                double dx = cen[3 * i] - stems[s].x, dy = cen[3 * i + 1] - stems[s].y, d = sqrt(dx * dx + dy * dy);
+                if (d <= fmax(2 * stems[s].r, COLUMN_RADIUS) && d < bd) bd = d, best = (int)s;
+            }
+            if (best < 0) continue;
+            vlab[i] = best + 1;
+            dist[i] = COLUMN_COST * (vhag[i] - top + bd);
+            rc = seg_heap_push(&heap, dist[i], (uint32_t)i, err);
+        }
     }
-    const int R = o->graph_reach;
-    const double gp = o->gap_penalty;
-    while (rc == SY_OK) {
-        double d;
-        uint32_t vi;
-        if (!seg_heap_pop(&heap, &d, &vi)) break;
-        if (d > dist[vi]) continue;
-        uint64_t key = pts[start[vi]].key;
-        uint32_t ix = (uint32_t)(key >> 42), iy = (uint32_t)(key >> 21) & 0x1fffff, iz = (uint32_t)key & 0x1fffff;
-        for (int dx = -R; dx <= R && rc == SY_OK; dx++)
-            for (int dy = -R; dy <= R && rc == SY_OK; dy++)
-                for (int dz = -R; dz <= R; dz++) {
-                    if (!dx && !dy && !dz) continue;
-                    uint32_t nb = seg_map_get(&map, seg_key3(ix + dx, iy + dy, iz + dz));
-                    if (nb == UINT32_MAX) continue;
-                    double ex = cen[3 * nb] - cen[3 * vi], ey = cen[3 * nb + 1] - cen[3 * vi + 1],
-                           ez = cen[3 * nb + 2] - cen[3 * vi + 2];
-                    double len = sqrt(ex * ex + ey * ey + ez * ez);
-                    double cost = gp == 1 ? len * len / v : gp == 0 ? len : len * pow(len / v, gp);
-                    double nd = d + cost;
-                    if (nd < dist[nb]) {
-                        dist[nb] = nd;
-                        vlab[nb] = vlab[vi];
-                        if ((rc = seg_heap_push(&heap, nd, nb, err))) break;
-                    }
-                }
-    }
+    graph g = {.pts = pts, .start = start, .cen = cen, .dist = dist, .vlab = vlab, .map = &map, .heap = &heap, .voxel = v, .gap_penalty = o->gap_penalty};
+    if (rc == SY_OK) rc = grow(&g, o->graph_reach, err);
+    /* What no path reaches stays unassigned: giving a crown the scan saw
+     * apart from every stem to the stem nearest across hands the top of a
+     * leaning tree to its neighbour (measured: worse than leaving it). */
     if (rc == SY_OK)
         for (size_t i = 0; i < nv; i++)
             for (uint32_t j = start[i]; j < start[i + 1]; j++) label[pts[j].point] = vlab[i];

@@ -41,6 +41,7 @@ sy_segment_options sy_segment_options_default(void)
     o.stem_min_radius = 0.025;
     o.stem_max_radius = 1.0;
     o.circle_tolerance = 0.025;
+    o.stem_min_points = 30;
     o.stem_cluster_gap = 0.1;
     o.min_arc = 0.35;
     o.voxel = 0.15;
@@ -78,6 +79,7 @@ sy_code sy_segment_options_check(const sy_segment_options *o, sy_error *err)
              o->stem_max_radius > 5)
         bad = "stem_min_radius/stem_max_radius: need 0 < min < max <= 5 metres";
     else if (!positive(o->circle_tolerance) || o->circle_tolerance > 0.5) bad = "circle_tolerance: must be in (0, 0.5] metres";
+    else if (o->stem_min_points < 5 || o->stem_min_points > 100000) bad = "stem_min_points: must be 5..100000";
     else if (!positive(o->stem_cluster_gap) || o->stem_cluster_gap > 2) bad = "stem_cluster_gap: must be in (0, 2] metres";
     else if (!(o->min_arc >= 0 && o->min_arc <= 1)) bad = "min_arc: must be in [0, 1]";
     else if (!(o->voxel >= 0.01 && o->voxel <= 5)) bad = "voxel: must be in [0.01, 5] metres";

@@ -48,6 +48,7 @@ typedef struct {
     double stem_min_radius;    /* metres (0.025) */
     double stem_max_radius;    /* metres (1.0) */
     double circle_tolerance;   /* inlier band of the circle fit, metres (0.025) */
+    size_t stem_min_points;    /* points a stem circle needs within the tolerance (30) */
     double stem_cluster_gap;   /* slice points closer than this join one stem candidate, metres (0.1) */
     double min_arc;            /* fraction of the circle the inliers must surround (0.35) */
     /* crowns (terrestrial) */

@@ -32,10 +32,6 @@ typedef struct {
 sy_code seg_find_stems(const seg_frame *f, const sy_segment_options *o, seg_stem **stems, size_t *n_stems,
                        size_t *candidates, sy_error *err);
 
-/* Labels every non-ground point with the stem (1..n_stems) its shortest
- * voxel-graph path reaches first, -1 where no path leads; ground points get 0. */
-sy_code seg_grow_crowns(const seg_frame *f, const sy_segment_options *o, const seg_stem *stems, size_t n_stems,
-                        int32_t *label, sy_error *err);
 
 /* A tree top of the canopy height model (local frame). */
 typedef struct {
@@ -47,6 +43,12 @@ typedef struct {
  * may be NULL). */
 sy_code seg_chm_watershed(const seg_frame *f, const sy_segment_options *o, int tops_only, seg_top **tops,
                           size_t *n_tops, int32_t *label, sy_error *err);
+
+/* Labels every non-ground point with the stem (1..n_stems) its shortest
+ * voxel-graph path reaches first (from its lower trunk, and up the column
+ * over it), -1 where no path leads; ground gets 0. */
+sy_code seg_grow_crowns(const seg_frame *f, const sy_segment_options *o, const seg_stem *stems, size_t n_stems,
+                        int32_t *label, sy_error *err);
 
 /* Open-addressing map from 63-bit voxel or cell keys to indices. */
 typedef struct {

@@ -15,6 +15,8 @@
 
 #define PI 3.14159265358979323846
 #define ARC_BINS 16
+/* Two stems closer than this bark to bark are one tree forking (metres). */
+#define FORK_GAP 0.6
 
 typedef struct {
     uint64_t key;
@@ -76,8 +78,8 @@ static sy_code stem_push(stem_list *l, const seg_stem *s, sy_error *err)
 
 /* Tries circles in one cluster's points (xy pairs, z-ground below) until
  * none fits; accepted ones are appended. */
-static sy_code fit_cluster(double *xy, double *gz, size_t m, const sy_segment_options *o, uint64_t seed,
-                           stem_list *out, sy_error *err)
+static sy_code fit_cluster(double *xy, double *gz, double *hz, size_t m, double centre, const sy_segment_options *o,
+                           uint64_t seed, stem_list *out, sy_error *err)
 {
     const double tol = o->circle_tolerance;
     for (int attempt = 0; attempt < 4 && m >= 12; attempt++) {
@@ -85,12 +87,14 @@ static sy_code fit_cluster(double *xy, double *gz, size_t m, const sy_segment_op
         if (sy_fit_circle(xy, m, tol, seed + 7919ULL * (uint64_t)attempt, c, &r, &rms) != 0) break;
         size_t inl = 0, inside = 0;
         int bins[ARC_BINS] = {0};
-        double gsum = 0;
+        double gsum = 0, half[2][3] = {{0}};
         for (size_t i = 0; i < m; i++) {
             double dx = xy[2 * i] - c[0], dy = xy[2 * i + 1] - c[1], d = sqrt(dx * dx + dy * dy);
             if (fabs(d - r) <= tol) {
                 inl++;
                 gsum += gz[i];
+                int up = hz[i] >= centre;
+                half[up][0] += xy[2 * i], half[up][1] += xy[2 * i + 1], half[up][2] += 1;
                 int b = (int)((atan2(dy, dx) + PI) / (2 * PI) * ARC_BINS);
                 bins[b < 0 ? 0 : b >= ARC_BINS ? ARC_BINS - 1 : b] = 1;
             } else if (d < r - tol) {
@@ -99,8 +103,14 @@ static sy_code fit_cluster(double *xy, double *gz, size_t m, const sy_segment_op
         }
         int arc = 0;
         for (int b = 0; b < ARC_BINS; b++) arc += bins[b];
-        int ok = r >= o->stem_min_radius && r <= o->stem_max_radius && inl >= 12 &&
-                 (double)arc / ARC_BINS >= o->min_arc && (double)inside <= 0.25 * (double)inl;
+        /* Upright: the ring's lower and upper halves share their centre (a
+         * branch crossing the band slants, its section walks sideways). */
+        double drift = INFINITY;
+        if (half[0][2] >= 5 && half[1][2] >= 5)
+            drift = hypot(half[1][0] / half[1][2] - half[0][0] / half[0][2], half[1][1] / half[1][2] - half[0][1] / half[0][2]);
+        int ok = r >= o->stem_min_radius && r <= o->stem_max_radius && inl >= o->stem_min_points &&
+                 (double)arc / ARC_BINS >= o->min_arc && (double)inside <= 0.25 * (double)inl &&
+                 drift <= 0.05 + 0.5 * r;
         if (ok) {
             seg_stem s = {.x = c[0], .y = c[1], .r = r, .inliers = inl, .band = 0, .dbh = 2 * r, .ground_z = gsum / (double)inl};
             sy_code rc = stem_push(out, &s, err);
@@ -114,7 +124,7 @@ static sy_code fit_cluster(double *xy, double *gz, size_t m, const sy_segment_op
             double dx = xy[2 * i] - c[0], dy = xy[2 * i + 1] - c[1];
             int drop = ok ? dx * dx + dy * dy <= reach * reach : fabs(sqrt(dx * dx + dy * dy) - r) <= tol;
             if (drop) continue;
-            xy[2 * k] = xy[2 * i], xy[2 * k + 1] = xy[2 * i + 1], gz[k] = gz[i];
+            xy[2 * k] = xy[2 * i], xy[2 * k + 1] = xy[2 * i + 1], gz[k] = gz[i], hz[k] = hz[i];
             k++;
         }
         if (k == m) break;
@@ -211,7 +221,7 @@ static sy_code detect_band(const seg_frame *f, const sy_segment_options *o, doub
     }
     /* Points grouped by component (components in order of their first cell). */
     uint32_t *order = NULL, *comp_of = NULL;
-    double *xy = NULL, *gz = NULL;
+    double *xy = NULL, *gz = NULL, *hz = NULL;
     stem_list list = *out;
     size_t first = list.n;
     if (rc == SY_OK) {
@@ -219,7 +229,8 @@ static sy_code detect_band(const seg_frame *f, const sy_segment_options *o, doub
         comp_of = sy_calloc(nc, sizeof *comp_of, err, "stem clusters");
         xy = sy_calloc(2 * m, sizeof *xy, err, "stem clusters");
         gz = sy_calloc(m, sizeof *gz, err, "stem clusters");
-        if (!order || !comp_of || !xy || !gz) rc = SY_EINTERNAL;
+        hz = sy_calloc(m, sizeof *hz, err, "stem clusters");
+        if (!order || !comp_of || !xy || !gz || !hz) rc = SY_EINTERNAL;
     }
     if (rc == SY_OK) {
         for (size_t c = 0; c < nc; c++) comp_of[c] = uf_find(parent, (uint32_t)c);
@@ -246,20 +257,21 @@ static sy_code detect_band(const seg_frame *f, const sy_segment_options *o, doub
                     xy[2 * j] = f->xyz[3 * p];
                     xy[2 * j + 1] = f->xyz[3 * p + 1];
                     gz[j] = f->xyz[3 * p + 2] - f->hag[p];
+                    hz[j] = f->hag[p];
                 }
-                        rc = fit_cluster(xy, gz, k, o, o->seed * 1000003ULL + 2 * c + (uint64_t)band, &list, err);
+                rc = fit_cluster(xy, gz, hz, k, centre, o, o->seed * 1000003ULL + 2 * c + (uint64_t)band, &list, err);
             }
             free(count);
         }
     }
-    free(pts), free(cell_start), free(parent), free(order), free(comp_of), free(xy), free(gz);
+    free(pts), free(cell_start), free(parent), free(order), free(comp_of), free(xy), free(gz), free(hz);
     seg_map_free(&map);
     for (size_t i = first; i < list.n; i++) list.v[i].band = band, list.v[i].dbh = 2 * list.v[i].r;
     *out = list; /* the caller frees it, also on failure */
     return rc;
 }
 
-/* The points under the stem bands on a 0.5 m grid, to ask whether a circle
+/* The ground points and those under the stem bands on a 0.5 m grid, to ask whether a circle
  * stands on the ground: a trunk's surface continues down to its base, a
  * branch hanging through the band or a clump of leaves does not. */
 typedef struct {
@@ -275,14 +287,14 @@ static sy_code low_index_build(const seg_frame *f, double top, low_index *ix, sy
     memset(ix, 0, sizeof *ix);
     ix->cell = 0.5;
     size_t m = 0;
-    for (size_t i = 0; i < f->n; i++) m += !f->ground[i] && f->hag[i] < top;
+    for (size_t i = 0; i < f->n; i++) m += f->ground[i] || f->hag[i] < top;
     ix->pts = sy_calloc(m ? m : 1, sizeof *ix->pts, err, "stem bases");
     ix->start = sy_calloc(m + 1, sizeof *ix->start, err, "stem bases");
     sy_code rc = ix->pts && ix->start ? seg_map_init(&ix->map, m, err) : SY_EINTERNAL;
     if (rc) return rc;
     m = 0;
     for (size_t i = 0; i < f->n; i++) {
-        if (f->ground[i] || f->hag[i] >= top) continue;
+        if (!f->ground[i] && f->hag[i] >= top) continue;
         uint32_t cx = (uint32_t)((f->xyz[3 * i] - f->lo[0]) / ix->cell), cy = (uint32_t)((f->xyz[3 * i + 1] - f->lo[1]) / ix->cell);
         ix->pts[m].key = ((uint64_t)cx << 32) | cy;
         ix->pts[m++].point = (uint32_t)i;
@@ -323,7 +335,7 @@ static double base_support(const seg_frame *f, const low_index *ix, double x, do
             for (uint32_t j = ix->start[c]; j < ix->start[c + 1]; j++) {
                 uint32_t p = ix->pts[j].point;
                 double h = f->hag[p];
-                if (h < zlo || h >= zhi) continue;
+                if (f->ground[p] || h < zlo || h >= zhi) continue;
                 double dx = f->xyz[3 * p] - x, dy = f->xyz[3 * p + 1] - y;
                 if (dx * dx + dy * dy > reach * reach) continue;
                 int b = (int)((h - zlo) / 0.1);
@@ -333,6 +345,26 @@ static double base_support(const seg_frame *f, const low_index *ix, double x, do
     int k = 0;
     for (int b = 0; b < nbins; b++) k += (int)((seen >> b) & 1);
     return (double)k / nbins;
+}
+
+/* Ground returns within radius of (x, y): where the ground filter saw none,
+ * its surface is extrapolated and heights above it mean little. */
+static size_t ground_near(const seg_frame *f, const low_index *ix, double x, double y, double radius)
+{
+    size_t k = 0;
+    long x0 = (long)floor((x - radius - f->lo[0]) / ix->cell), x1 = (long)floor((x + radius - f->lo[0]) / ix->cell);
+    long y0 = (long)floor((y - radius - f->lo[1]) / ix->cell), y1 = (long)floor((y + radius - f->lo[1]) / ix->cell);
+    for (long cx = x0 < 0 ? 0 : x0; cx <= x1; cx++)
+        for (long cy = y0 < 0 ? 0 : y0; cy <= y1; cy++) {
+            uint32_t c = seg_map_get(&ix->map, ((uint64_t)cx << 32) | (uint64_t)cy);
+            if (c == UINT32_MAX) continue;
+            for (uint32_t j = ix->start[c]; j < ix->start[c + 1]; j++) {
+                uint32_t p = ix->pts[j].point;
+                double dx = f->xyz[3 * p] - x, dy = f->xyz[3 * p + 1] - y;
+                k += f->ground[p] && dx * dx + dy * dy <= radius * radius;
+            }
+        }
+    return k;
 }
 
 sy_code seg_find_stems(const seg_frame *f, const sy_segment_options *o, seg_stem **stems, size_t *n_stems,
@@ -350,7 +382,9 @@ sy_code seg_find_stems(const seg_frame *f, const sy_segment_options *o, seg_stem
     if (low - 0.5 * o->slice >= 0.2) rc = detect_band(f, o, low, 0, &list, candidates, err);
     if (rc == SY_OK) rc = detect_band(f, o, o->breast_height, 1, &list, candidates, err);
     /* A stem stands on the ground: its circle's disc holds points at most
-     * heights between the ground filter's band and the circle's own band. */
+     * heights between the ground filter's band and the circle's own band,
+     * and ground returns were seen around it (under a canopy that hides the
+     * ground the surface is a guess, and so is every height above it). */
     low_index ix;
     if (rc == SY_OK) rc = low_index_build(f, o->breast_height, &ix, err);
     if (rc) {
@@ -361,7 +395,8 @@ sy_code seg_find_stems(const seg_frame *f, const sy_segment_options *o, seg_stem
     double zlo = o->ground_threshold + 0.05;
     for (size_t i = 0; i < list.n; i++) {
         double top = (list.v[i].band ? o->breast_height : low) - 0.5 * o->slice;
-        if (base_support(f, &ix, list.v[i].x, list.v[i].y, list.v[i].r, o->circle_tolerance, zlo, top) >= 0.5)
+        if (base_support(f, &ix, list.v[i].x, list.v[i].y, list.v[i].r, o->circle_tolerance, zlo, top) >= 0.5 &&
+            ground_near(f, &ix, list.v[i].x, list.v[i].y, list.v[i].r + 1.0) >= 10)
             list.v[grounded++] = list.v[i];
     }
     list.n = grounded;
@@ -383,8 +418,8 @@ sy_code seg_find_stems(const seg_frame *f, const sy_segment_options *o, seg_stem
             int dup = 0;
             for (size_t j = 0; j < kept && !dup; j++) {
                 double dx = c->x - out[j].x, dy = c->y - out[j].y, d = sqrt(dx * dx + dy * dy);
-                if (out[j].band == band) dup = d < c->r + out[j].r;
-                else if (d < out[j].r + c->r + 0.3) {
+                if (out[j].band == band) dup = d < c->r + out[j].r + FORK_GAP;
+                else if (d < out[j].r + c->r + FORK_GAP) {
                     dup = 1;
                     /* The trunk itself (not a fork) when the circles agree. */
                     if (d < 0.5 * out[j].r && c->r < 1.25 * out[j].r) out[j].dbh = 2 * c->r;
