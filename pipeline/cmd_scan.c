@@ -20,7 +20,7 @@
 /* One call's arguments: NAN and -1 mean "the scanner kind's default". */
 typedef struct {
     const char *out_path, *truth_path, *kind_name, *species_list, *path_text;
-    int positions, max_points, returns, trees, subrays, no_leaves, no_terrain, rect_leaves, lawn, neighbours;
+    int positions, max_points, returns, trees, subrays, no_leaves, no_terrain, rect_leaves, lawn, neighbours, isolate;
     double forest, clip, step, vstep, density, noise, divergence, plot_size, radius, height, altitude, swath, overlap, speed,
         rotation, line_spacing, separation, max_range, understory, slope, aspect, roughness;
 } scan_args;
@@ -31,7 +31,7 @@ static scan_args scan_args_default(void)
     memset(a, 0, sizeof *a);
     a->out_path = a->truth_path = a->kind_name = a->species_list = a->path_text = NULL;
     a->positions = a->max_points = a->returns = a->trees = a->subrays = -1;
-    a->neighbours = 0;
+    a->neighbours = a->isolate = 0;
     a->forest = 0;
     a->clip = NAN;
     a->no_leaves = a->no_terrain = a->rect_leaves = a->lawn = 0;
@@ -232,6 +232,7 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
         {"--forest", OPT_DOUBLE, &args.forest, "F", "forest-grown habit 0..1: raised crown base, narrower crown (default 0)"},
         {"--neighbours", OPT_INT, &args.neighbours, "N", "single tree: N trees of its species around it, crowns touching (default 0)"},
         {"--clip", OPT_DOUBLE, &args.clip, "M", "keep the points within M metres of the (first) tree's stem, as plot segmentation does"},
+        {"--isolate", OPT_FLAG, &args.isolate, NULL, "keep the (first) tree's own points and the ground under its crown: a perfect segmentation"},
         {"--no-leaves", OPT_FLAG, &args.no_leaves, NULL, "wood only"},
         {"--no-terrain", OPT_FLAG, &args.no_terrain, NULL, "no ground (and no understory)"},
         {"--rect-leaves", OPT_FLAG, &args.rect_leaves, NULL, "full rectangular leaf cards (default: the inscribed ellipse)"},
@@ -328,6 +329,9 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
         fprintf(stderr, "scene: %zu primitives, %zu tree(s); scanning (%s)\n", scene.prims.n, scene.n_trees,
                 sy_scanner_kind_name(kind));
     if (!rc) rc = sy_scan(&scene, &sc, &cloud, &st, &err);
+    if (!rc && a->isolate && scene.n_trees > 0)
+        rc = sy_scan_isolate_tree(&cloud, scene.trees[0].tree_id, scene.trees[0].pos,
+                                  0.5 * scene.trees[0].crown_width + 1, &st, &err);
     if (!rc && !isnan(a->clip) && scene.n_trees > 0)
         rc = sy_scan_clip_cylinder(&cloud, scene.trees[0].pos, a->clip, &st, &err);
     if (!rc) rc = write_outputs(a, &cloud, &scene, &sc, st.stations, &err);

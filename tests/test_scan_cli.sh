@@ -53,6 +53,14 @@ awk -v o="$(width "$TMP/open.json")" -v f="$(width "$TMP/stand.json")" 'BEGIN { 
 "$SYLVA" convert "$TMP/stand.las" -o "$TMP/stand.xyz" >/dev/null 2>&1 || fail "convert the clipped scan"
 awk '!/^\/\// { n++; if ($1 * $1 + $2 * $2 > 1.5 * 1.5 + 1e-3) bad++ } END { exit !(n > 50 && bad == 0) }' "$TMP/stand.xyz" \
     || fail "clipped scan has points outside 1.5 m of the stem (or too few points)"
+# --isolate keeps the first tree's own points (and ground): no neighbour's.
+"$SYLVA" scan european_pine --seed 4 --scanner airborne --density 20 --forest 0.5 --neighbours 3 --isolate \
+    -o "$TMP/iso.las" --quiet || fail "isolated scan exited $?"
+"$SYLVA" convert "$TMP/iso.las" -o "$TMP/iso.xyz" >/dev/null 2>&1 || fail "convert the isolated scan"
+awk 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "treeID") col = i }
+     NR > 1 { n++; if ($col == 1) own++; else if ($col != 0) bad++ }
+     END { exit !(col > 0 && own > 50 && bad == 0) }' "$TMP/iso.xyz" \
+    || fail "isolated scan holds other trees' points (or none of its own)"
 for bad in "--forest 1.5" "--neighbours 13" "--clip 0" "--plot 10 --neighbours 2"; do
     # shellcheck disable=SC2086
     "$SYLVA" scan european_pine $bad -o "$TMP/out/z.las" --quiet 2>"$TMP/err"

@@ -352,6 +352,9 @@ static void forest_habit(sy_species_params *sp, double forest)
     if (sp->base_size < 0.5f) sp->base_size += (float)(forest * (0.5 - sp->base_size));
     sp->level[1].length *= (float)(1 - 0.7 * forest);
     sp->ratio *= (float)(1 - 0.5 * forest);
+    /* Shade sheds the inner foliage: a stand crown is a thin live shell the
+     * scanner sees into (the open-grown files' foliage is opaque). */
+    sp->leaves *= (float)(1 - 0.7 * forest);
 }
 
 static sy_code grow_one(grown_tree *g, const char *species, uint64_t seed, int leaves, double forest, sy_error *err)

@@ -233,6 +233,12 @@ sy_code sy_scan(const sy_scene *s, const sy_scan_options *sc, sy_cloud *out, sy_
  * real segmented trees), and recounts stats. */
 sy_code sy_scan_clip_cylinder(sy_cloud *c, const double centre[2], double radius, sy_scan_stats *stats, sy_error *err);
 
+/* Segmentation by the truth labels: keeps the points of the tree tree_id and
+ * the ground and understory points within `radius` metres of (x, y), the
+ * points a perfect segmentation of a plot scan would give that tree. */
+sy_code sy_scan_isolate_tree(sy_cloud *c, int tree_id, const double centre[2], double radius, sy_scan_stats *stats,
+                             sy_error *err);
+
 /* The truth file (docs/truth-format.md) of a scene. */
 void sy_write_truth(FILE *fp, const sy_scene *s, const sy_scan_options *sc, int stations);
 
