@@ -55,8 +55,8 @@ seen_settings=(
   "mlsleafoff|--scanner mobile --step 0.8 --rotation 10 --noise 0.02 --divergence 0 --no-leaves"
   "als50|--scanner airborne --density 50"
   "als20|--scanner airborne --density 20 --altitude 120 --noise 0.04"
-  "tlsstand|--positions 3 --step 0.3 --divergence 0 --forest 0.7 --neighbours 4 --radius 7 --isolate"
-  "tlsstandclip|--positions 4 --step 0.25 --divergence 0 --forest 1 --neighbours 6 --radius 5 --clip 1.25"
+  "tlsstand|--positions 3 --step 0.4 --divergence 0 --forest 0.7 --neighbours 4 --radius 7 --isolate"
+  "tlsstandclip|--positions 3 --step 0.4 --divergence 0 --forest 1 --neighbours 6 --radius 5 --clip 1.25"
   "mlsstandclip|--scanner mobile --step 1 --rotation 10 --divergence 0 --forest 0.9 --neighbours 5 --radius 6 --clip 2"
   "alsstand|--scanner airborne --density 40 --forest 0.8 --neighbours 5 --isolate"
 )
@@ -66,7 +66,7 @@ unseen_settings=(
   "mlsfast|--scanner mobile --speed 2 --step 1.2 --rotation 8 --height 2.5 --divergence 0"
   "als100|--scanner airborne --density 100 --altitude 150"
   "als10leafoff|--scanner airborne --density 10 --altitude 60 --no-leaves"
-  "tlsstand5clip|--positions 5 --step 0.35 --height 1.2 --noise 0.01 --divergence 0 --forest 0.85 --neighbours 3 --radius 8 --clip 1.6"
+  "tlsstand5clip|--positions 4 --step 0.45 --height 1.2 --noise 0.01 --divergence 0 --forest 0.85 --neighbours 3 --radius 8 --clip 1.6"
 )
 
 # One line per scan: output path, species, seed, arguments.
