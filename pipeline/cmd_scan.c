@@ -20,8 +20,8 @@
 /* One call's arguments: NAN and -1 mean "the scanner kind's default". */
 typedef struct {
     const char *out_path, *truth_path, *kind_name, *species_list, *path_text;
-    int positions, max_points, returns, trees, subrays, no_leaves, no_terrain, rect_leaves, lawn;
-    double step, vstep, density, noise, divergence, plot_size, radius, height, altitude, swath, overlap, speed,
+    int positions, max_points, returns, trees, subrays, no_leaves, no_terrain, rect_leaves, lawn, neighbours, isolate;
+    double forest, clip, step, vstep, density, noise, divergence, plot_size, radius, height, altitude, swath, overlap, speed,
         rotation, line_spacing, separation, max_range, understory, slope, aspect, roughness;
 } scan_args;
 
@@ -31,6 +31,9 @@ static scan_args scan_args_default(void)
     memset(a, 0, sizeof *a);
     a->out_path = a->truth_path = a->kind_name = a->species_list = a->path_text = NULL;
     a->positions = a->max_points = a->returns = a->trees = a->subrays = -1;
+    a->neighbours = a->isolate = 0;
+    a->forest = 0;
+    a->clip = NAN;
     a->no_leaves = a->no_terrain = a->rect_leaves = a->lawn = 0;
     a->step = a->vstep = a->density = a->noise = a->divergence = a->radius = a->height = a->altitude = a->swath =
         a->overlap = a->speed = a->rotation = a->line_spacing = a->separation = a->max_range = a->understory = NAN;
@@ -226,6 +229,10 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
         {"--slope", OPT_DOUBLE, &args.slope, "DEG", "terrain slope (default 0)"},
         {"--aspect", OPT_DOUBLE, &args.aspect, "DEG", "direction the terrain rises towards (default 0: +X)"},
         {"--roughness", OPT_DOUBLE, &args.roughness, "M", "terrain noise amplitude (default 0.05)"},
+        {"--forest", OPT_DOUBLE, &args.forest, "F", "forest-grown habit 0..1: raised crown base, narrower crown (default 0)"},
+        {"--neighbours", OPT_INT, &args.neighbours, "N", "single tree: N trees of its species around it, crowns touching (default 0)"},
+        {"--clip", OPT_DOUBLE, &args.clip, "M", "keep the points within M metres of the (first) tree's stem, as plot segmentation does"},
+        {"--isolate", OPT_FLAG, &args.isolate, NULL, "keep the (first) tree's own points and the ground under its crown: a perfect segmentation"},
         {"--no-leaves", OPT_FLAG, &args.no_leaves, NULL, "wood only"},
         {"--no-terrain", OPT_FLAG, &args.no_terrain, NULL, "no ground (and no understory)"},
         {"--rect-leaves", OPT_FLAG, &args.rect_leaves, NULL, "full rectangular leaf cards (default: the inscribed ellipse)"},
@@ -284,6 +291,13 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
     so.terrain = !a->no_terrain;
     so.leaves = !a->no_leaves;
     so.elliptic = !a->rect_leaves;
+    so.forest = a->forest;
+    so.neighbours = a->neighbours;
+    if (!isnan(a->clip) && !(a->clip > 0)) {
+        fprintf(stderr, "sylva scan: --clip must be a positive radius in metres\n");
+        free(path);
+        return SY_EUSAGE;
+    }
     char *list = strdup(a->species_list ? a->species_list : n_pos ? pos[0] : "quaking_aspen,black_oak,european_pine");
     if (!list || !split_species(list, &so)) {
         fprintf(stderr, "sylva scan: --species needs 1..32 comma-separated names\n");
@@ -304,7 +318,7 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
         sy_species_params_free(&sp);
     }
     sy_scene scene;
-    if (!cli->quiet && !cli->json) fprintf(stderr, "growing %d tree(s)\n", a->plot_size > 0 ? so.trees : 1);
+    if (!cli->quiet && !cli->json) fprintf(stderr, "growing %d tree(s)\n", a->plot_size > 0 ? so.trees : 1 + so.neighbours);
     double reach = (sc.radius > 0 ? sc.radius : 0) + 5;
     rc = sy_scene_build(&scene, &so, reach, &err);
     free(list);
@@ -315,6 +329,11 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
         fprintf(stderr, "scene: %zu primitives, %zu tree(s); scanning (%s)\n", scene.prims.n, scene.n_trees,
                 sy_scanner_kind_name(kind));
     if (!rc) rc = sy_scan(&scene, &sc, &cloud, &st, &err);
+    if (!rc && a->isolate && scene.n_trees > 0)
+        rc = sy_scan_isolate_tree(&cloud, scene.trees[0].tree_id, scene.trees[0].pos,
+                                  0.5 * scene.trees[0].crown_width + 1, &st, &err);
+    if (!rc && !isnan(a->clip) && scene.n_trees > 0)
+        rc = sy_scan_clip_cylinder(&cloud, scene.trees[0].pos, a->clip, &st, &err);
     if (!rc) rc = write_outputs(a, &cloud, &scene, &sc, st.stations, &err);
     if (!rc) print_report(a, cli, &scene, &sc, &st, sy_now() - t0);
     sy_cloud_free(&cloud);

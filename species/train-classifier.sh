@@ -4,13 +4,17 @@
 #   species/train-classifier.sh [--trees N] [--work DIR] [--unseen] [--jobs J] [--sylva BIN] [--out MODEL]
 #                               [--reuse-features]
 # Every library species gets N trees (default 40), each grown from its own seed
-# and scanned with one of eight scanner settings in turn: terrestrial with 4, 3
-# and 2 stations (occlusion), coarse and fine steps, extra range noise, leaf-off;
-# mobile leaf-on and leaf-off; airborne at 50 and 20 pulses/m^2. The features go
-# to WORK/train.tsv and the model to --out. --unseen also scans N/4 trees per
-# species (other seeds) with five settings the model never sees (5 and 6
-# stations, other steps, heights and noise, a fast high mobile pass, airborne at
-# 100 and 10 pulses/m^2 from other altitudes) into WORK/unseen.tsv for
+# and scanned with one of twelve settings in turn: terrestrial with 4, 3 and 2
+# stations (occlusion), coarse and fine steps, extra range noise, leaf-off;
+# mobile leaf-on and leaf-off; airborne at 50 and 20 pulses/m^2; and four
+# stand settings (sylva scan --forest/--neighbours/--clip: a forest-grown tree
+# among 4-6 neighbours, seen from stations inside the stand, from a mobile
+# circle and from the air, two of them cut to a 1.25 m / 2 m cylinder round the
+# stem as plot segmentation does). The features go to WORK/train.tsv and the
+# model to --out. --unseen also scans N/4 trees per species (other seeds) with
+# six settings the model never sees (5 and 6 stations, other steps, heights and
+# noise, a fast high mobile pass, airborne at 100 and 10 pulses/m^2 from other
+# altitudes, a sparser stand with a 1.6 m cylinder) into WORK/unseen.tsv for
 # bench_classify. Same sylva, same arguments: the same model, byte for byte.
 # --reuse-features trains on WORK/train.tsv as it is (after a change to the
 # classifier but not to the features: the same model as from the scans).
@@ -51,6 +55,10 @@ seen_settings=(
   "mlsleafoff|--scanner mobile --step 0.8 --rotation 10 --noise 0.02 --divergence 0 --no-leaves"
   "als50|--scanner airborne --density 50"
   "als20|--scanner airborne --density 20 --altitude 120 --noise 0.04"
+  "tlsstand|--positions 3 --step 0.4 --divergence 0 --forest 0.7 --neighbours 4 --radius 7 --isolate"
+  "tlsstandclip|--positions 3 --step 0.4 --divergence 0 --forest 1 --neighbours 6 --radius 5 --clip 1.25"
+  "mlsstandclip|--scanner mobile --step 1 --rotation 10 --divergence 0 --forest 0.9 --neighbours 5 --radius 6 --clip 2"
+  "alsstand|--scanner airborne --density 40 --forest 0.8 --neighbours 5 --isolate"
 )
 unseen_settings=(
   "tls5|--positions 5 --step 0.2 --radius 14 --divergence 0"
@@ -58,6 +66,7 @@ unseen_settings=(
   "mlsfast|--scanner mobile --speed 2 --step 1.2 --rotation 8 --height 2.5 --divergence 0"
   "als100|--scanner airborne --density 100 --altitude 150"
   "als10leafoff|--scanner airborne --density 10 --altitude 60 --no-leaves"
+  "tlsstand5clip|--positions 4 --step 0.45 --height 1.2 --noise 0.01 --divergence 0 --forest 0.85 --neighbours 3 --radius 8 --clip 1.6"
 )
 
 # One line per scan: output path, species, seed, arguments.

@@ -39,4 +39,34 @@ rc=$?
 [ "$rc" -eq 2 ] || fail "unwritable truth path exited $rc, want 2"
 grep -q "missing/y.json" "$TMP/err" || fail "message does not name the truth path: $(cat "$TMP/err")"
 [ -z "$(ls -A "$TMP/out")" ] || fail "refused scan left files: $(ls -A "$TMP/out")"
+# A forest-grown tree among neighbours, clipped to a cylinder round its stem:
+# the truth lists the neighbours, the crown is narrower than the open-grown
+# tree's of the same seed, and every point lies within the clip radius.
+"$SYLVA" scan european_pine --seed 4 --scanner airborne --density 20 -o "$TMP/open.las" --truth "$TMP/open.json" --quiet \
+    || fail "open-grown scan"
+"$SYLVA" scan european_pine --seed 4 --scanner airborne --density 20 --forest 1 --neighbours 3 --clip 1.5 \
+    -o "$TMP/stand.las" --truth "$TMP/stand.json" --quiet || fail "forest-grown scan exited $?"
+[ "$(grep -o '"tree_id":' "$TMP/stand.json" | wc -l)" -eq 4 ] || fail "want 4 trees (3 neighbours) in the truth"
+width() { sed -n 's/.*"crown_width":\([0-9.e+-]*\).*/\1/p' "$1" | head -1; }
+awk -v o="$(width "$TMP/open.json")" -v f="$(width "$TMP/stand.json")" 'BEGIN { exit !(f < 0.6 * o) }' \
+    || fail "forest-grown crown $(width "$TMP/stand.json") m is not narrower than the open-grown $(width "$TMP/open.json") m"
+"$SYLVA" convert "$TMP/stand.las" -o "$TMP/stand.xyz" >/dev/null 2>&1 || fail "convert the clipped scan"
+awk '!/^\/\// { n++; if ($1 * $1 + $2 * $2 > 1.5 * 1.5 + 1e-3) bad++ } END { exit !(n > 50 && bad == 0) }' "$TMP/stand.xyz" \
+    || fail "clipped scan has points outside 1.5 m of the stem (or too few points)"
+# --isolate keeps the first tree's own points (and ground): no neighbour's.
+"$SYLVA" scan european_pine --seed 4 --scanner airborne --density 20 --forest 0.5 --neighbours 3 --isolate \
+    -o "$TMP/iso.las" --quiet || fail "isolated scan exited $?"
+"$SYLVA" convert "$TMP/iso.las" -o "$TMP/iso.xyz" >/dev/null 2>&1 || fail "convert the isolated scan"
+awk 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "treeID") col = i }
+     NR > 1 { n++; if ($col == 1) own++; else if ($col != 0) bad++ }
+     END { exit !(col > 0 && own > 50 && bad == 0) }' "$TMP/iso.xyz" \
+    || fail "isolated scan holds other trees' points (or none of its own)"
+for bad in "--forest 1.5" "--neighbours 13" "--clip 0" "--plot 10 --neighbours 2"; do
+    # shellcheck disable=SC2086
+    "$SYLVA" scan european_pine $bad -o "$TMP/out/z.las" --quiet 2>"$TMP/err"
+    rc=$?
+    [ "$rc" -eq 1 ] || fail "scan $bad exited $rc, want 1 (usage)"
+    [ "$(wc -l <"$TMP/err")" -eq 1 ] || fail "scan $bad: want one stderr line, got: $(cat "$TMP/err")"
+    [ -z "$(ls -A "$TMP/out")" ] || fail "scan $bad left files"
+done
 echo "ok"

@@ -342,10 +342,26 @@ static void free_grown(grown_tree *g, size_t n)
     free(g);
 }
 
-static sy_code grow_one(grown_tree *g, const char *species, uint64_t seed, int leaves, sy_error *err)
+/* The forest-grown habit (sy_scene_options.forest): self-pruning of shaded
+ * lower limbs raises the crown base (towards half the height), crowding shortens the limbs, and a stand
+ * tree is slender (its height over diameter is about twice an open-grown
+ * one's: the trunk radius ratio halves at forest = 1). */
+static void forest_habit(sy_species_params *sp, double forest)
+{
+    if (!(forest > 0)) return;
+    if (sp->base_size < 0.5f) sp->base_size += (float)(forest * (0.5 - sp->base_size));
+    sp->level[1].length *= (float)(1 - 0.7 * forest);
+    sp->ratio *= (float)(1 - 0.5 * forest);
+    /* Shade sheds the inner foliage: a stand crown is a thin live shell the
+     * scanner sees into (the open-grown files' foliage is opaque). */
+    sp->leaves *= (float)(1 - 0.7 * forest);
+}
+
+static sy_code grow_one(grown_tree *g, const char *species, uint64_t seed, int leaves, double forest, sy_error *err)
 {
     sy_species_params sp;
     if (sy_species_params_find(species, &sp, err)) return err->code;
+    forest_habit(&sp, forest);
     sy_code rc = sy_grow_tree(&sp, seed, &g->skel, leaves ? &g->leaves : NULL, err);
     g->leaf_width = sp.leaf_scale_x;
     snprintf(g->name, sizeof g->name, "%s", sp.name ? sp.name : species);
@@ -387,7 +403,11 @@ sy_code sy_scene_build(sy_scene *s, const sy_scene_options *o, double reach, sy_
 {
     sy_scene_init(s);
     int plot = o->plot_size > 0;
-    int n = plot ? o->trees : 1;
+    if (o->neighbours < 0 || o->neighbours > 12)
+        return sy_fail(err, SY_EUSAGE, "scan: --neighbours %d is out of range 0..12", o->neighbours);
+    if (plot && o->neighbours > 0) return sy_fail(err, SY_EUSAGE, "scan: --neighbours is for a single tree, not --plot");
+    if (!(o->forest >= 0 && o->forest <= 1)) return sy_fail(err, SY_EUSAGE, "scan: --forest must be within 0..1");
+    int n = plot ? o->trees : 1 + o->neighbours;
     if (o->n_species < 1) return sy_fail(err, SY_EUSAGE, "scan: no species given");
     if (n < 0 || n > 10000) return sy_fail(err, SY_EUSAGE, "scan: --trees %d is out of range 0..10000", n);
     grown_tree *g = sy_calloc(n ? (size_t)n : 1, sizeof *g, err, "trees");
@@ -395,8 +415,8 @@ sy_code sy_scene_build(sy_scene *s, const sy_scene_options *o, double reach, sy_
     rng r = {mix64(o->seed ^ 0x504C4F54ull)};
     for (int i = 0; i < n; i++) {
         const char *species = o->species[plot ? (int)(rng_u01(&r) * o->n_species) % o->n_species : 0];
-        uint64_t seed = plot ? mix64(o->seed * 1000003ull + (uint64_t)i) & 0xFFFFFFFFull : o->seed;
-        if (grow_one(&g[i], species, seed, o->leaves, err)) {
+        uint64_t seed = plot || i > 0 ? mix64(o->seed * 1000003ull + (uint64_t)i) & 0xFFFFFFFFull : o->seed;
+        if (grow_one(&g[i], species, seed, o->leaves, o->forest, err)) {
             free_grown(g, (size_t)n);
             return err->code;
         }
@@ -409,8 +429,21 @@ sy_code sy_scene_build(sy_scene *s, const sy_scene_options *o, double reach, sy_
         s->area_lo[0] = s->area_lo[1] = -o->plot_size / 2;
         s->area_hi[0] = s->area_hi[1] = o->plot_size / 2;
     } else {
-        s->area_lo[0] = s->area_lo[1] = -(crown + 5);
-        s->area_hi[0] = s->area_hi[1] = crown + 5;
+        /* Neighbours on a ring, crowns about touching: their own generator,
+         * so a lone tree's scene is what it always was. */
+        rng ring = {mix64(o->seed ^ 0x4E45494748ull)};
+        double extent = crown;
+        for (int i = 1; i < n; i++) {
+            double a = 2 * PI * (i - 1 + rng_range(&ring, -0.3, 0.3)) / (n - 1);
+            double d = (g[0].half_crown + g[i].half_crown) * rng_range(&ring, 0.8, 1.1);
+            d = fmax(d, 1.0);
+            g[i].x = d * cos(a);
+            g[i].y = d * sin(a);
+            g[i].yaw = rng_range(&ring, 0, 360);
+            extent = fmax(extent, d + g[i].half_crown);
+        }
+        s->area_lo[0] = s->area_lo[1] = -(extent + 5);
+        s->area_hi[0] = s->area_hi[1] = extent + 5;
     }
     if (o->terrain) {
         sy_terrain t = {o->slope_deg, o->aspect_deg, o->roughness, 6.0, 0.0, mix64(o->seed ^ 0x47524F554E44ull),

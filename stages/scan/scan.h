@@ -154,6 +154,16 @@ typedef struct {
     int leaves;        /* 0: wood only */
     int elliptic;      /* leaf cards masked to their inscribed ellipse */
     uint64_t seed;
+    /* Forest-grown habit, 0 (open-grown, the species file as it is) .. 1: a
+     * stand's competition for light raises the crown base (Weber-Penn
+     * BaseSize moves towards half the height), narrows the crown (level-1
+     * branch lengths shrink to 0.3 of the file's) and slims the trunk (the
+     * radius ratio halves). */
+    double forest;
+    /* Single tree only: this many trees of the same species (their own seeds
+     * and headings) stand on a ring around it, crowns about touching, so the
+     * scanner sees the tree through its neighbours. */
+    int neighbours;
 } sy_scene_options;
 
 sy_scene_options sy_scene_options_default(void);
@@ -215,6 +225,19 @@ typedef struct {
  * depends only on the scene, the scanner and its seed, never on the thread
  * count. */
 sy_code sy_scan(const sy_scene *s, const sy_scan_options *sc, sy_cloud *out, sy_scan_stats *stats, sy_error *err);
+
+/* Cylinder segmentation, as tree extraction from a plot scan does it (the
+ * TreeLS and lidR tools clip a stem's points within a radius): keeps the
+ * points within `radius` metres horizontally of the world position (x, y),
+ * whatever they hit (a neighbour's branches inside the cylinder stay, as in
+ * real segmented trees), and recounts stats. */
+sy_code sy_scan_clip_cylinder(sy_cloud *c, const double centre[2], double radius, sy_scan_stats *stats, sy_error *err);
+
+/* Segmentation by the truth labels: keeps the points of the tree tree_id and
+ * the ground and understory points within `radius` metres of (x, y), the
+ * points a perfect segmentation of a plot scan would give that tree. */
+sy_code sy_scan_isolate_tree(sy_cloud *c, int tree_id, const double centre[2], double radius, sy_scan_stats *stats,
+                             sy_error *err);
 
 /* The truth file (docs/truth-format.md) of a scene. */
 void sy_write_truth(FILE *fp, const sy_scene *s, const sy_scan_options *sc, int stations);

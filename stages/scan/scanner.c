@@ -596,3 +596,46 @@ sy_code sy_scan(const sy_scene *s, const sy_scan_options *sc, sy_cloud *out, sy_
     if (stats) *stats = st;
     return rc;
 }
+
+/* Keeps the points within radius of centre (any label) or, with tree_id >= 1,
+ * that tree's points and the unlabelled (ground, understory) ones within
+ * radius; recounts stats. */
+static sy_code keep_points(sy_cloud *c, int tree_id, const double centre[2], double radius, sy_scan_stats *stats,
+                           sy_error *err)
+{
+    if (!(radius > 0)) return sy_fail(err, SY_EUSAGE, "scan: the clip radius must be positive");
+    uint8_t *keep = sy_calloc(c->n ? c->n : 1, 1, err, "clip mask");
+    if (!keep) return err->code;
+    const double *wood = sy_cloud_attr(c, "isWood"), *tree = sy_cloud_attr(c, "treeID");
+    sy_scan_stats counted = stats ? *stats : (sy_scan_stats){0};
+    counted.points = counted.wood = counted.leaf = counted.ground = counted.understory = 0;
+    for (size_t i = 0; i < c->n; i++) {
+        double dx = c->origin[0] + c->xyz[3 * i] - centre[0], dy = c->origin[1] + c->xyz[3 * i + 1] - centre[1];
+        int near = dx * dx + dy * dy <= radius * radius;
+        int label = tree ? (int)tree[i] : 0;
+        keep[i] = tree_id >= 1 ? label == tree_id || (label == 0 && near) : near;
+        if (!keep[i]) continue;
+        counted.points++;
+        uint8_t cls = c->classification ? c->classification[i] : 5;
+        if (cls == 2) counted.ground++;
+        else if (cls == 4) counted.understory++;
+        else if (wood && wood[i] > 0.5) counted.wood++;
+        else counted.leaf++;
+    }
+    sy_code rc = sy_cloud_filter(c, keep, err);
+    free(keep);
+    if (!rc && stats) *stats = counted;
+    return rc;
+}
+
+sy_code sy_scan_clip_cylinder(sy_cloud *c, const double centre[2], double radius, sy_scan_stats *stats, sy_error *err)
+{
+    return keep_points(c, 0, centre, radius, stats, err);
+}
+
+sy_code sy_scan_isolate_tree(sy_cloud *c, int tree_id, const double centre[2], double radius, sy_scan_stats *stats,
+                             sy_error *err)
+{
+    if (tree_id < 1) return sy_fail(err, SY_EUSAGE, "scan: no tree to isolate");
+    return keep_points(c, tree_id, centre, radius, stats, err);
+}
