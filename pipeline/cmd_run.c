@@ -60,6 +60,7 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
     sy_json_int(&j, "leaves", (long long)res->synth.leaves);
     sy_json_int(&j, "lobes_bare", (long long)res->synth.lobes_bare);
     sy_json_number(&j, "lobe_coverage", res->synth.coverage);
+    sy_json_number(&j, "lobe_fill", res->synth.fill);
     sy_json_number(&j, "leaves_in_hull",
                    res->synth.leaves ? (double)res->synth.leaves_in_hull / (double)res->synth.leaves : 0);
     sy_tree_asset_report_lods_json(&j, &res->asset);
@@ -96,6 +97,7 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
          "library species: its beta/gamma, branchlets, bark and leaf materials (default: the classifier's answer,\n"
          "else default.lsys and plain materials)"},
         {"--proxy", OPT_FLAG, &a.run.proxy, NULL, "also draw the lobe hulls as a semi-transparent foliage_proxy mesh"},
+        {"--leaf-off", OPT_FLAG, &a.run.leaf_off, NULL, "a leaf-off scan (bare branches): the synthesised branches without leaf cards"},
         {"--lobe-size", OPT_DOUBLE, &a.run.lobe_size, "F",
          "largest lobe as a share of the tree's extent, in [0,1]; 0: one cluster per cut (default 0.25)"},
         {"--model", OPT_STRING, &a.run.model, "MODEL.sjb", "species classifier used without --species (default: the shipped one)"},

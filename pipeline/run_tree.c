@@ -248,6 +248,7 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
     }
     if (!rc) {
         r->synth = dt.synth;
+        if (o->leaf_off) r->synth.leaves = r->synth.leaves_in_hull = 0;
         const char *lsys = strrchr(dt.lsys, '/') ? strrchr(dt.lsys, '/') + 1 : dt.lsys;
         snprintf(line, sizeof line, "%zu patches (%.60s: %zu branchlets, %zu patches), %zu leaves, %zu lobes bare",
                  dt.synth.patches, lsys, dt.branchlets, dt.patches, dt.synth.leaves, dt.synth.lobes_bare);
@@ -266,7 +267,9 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
         ao.hulls = o->proxy ? &dt.lobes : NULL;
         ao.source = name;
         ao.source_format = "scan";
-        rc = sy_tree_asset_glb(&dt.grown, &dt.leaves, sp, &ao, name, &r->glb, &r->glb_size, &r->asset, err);
+        /* A leaf-off scan: the synthesised branches without their cards. */
+        rc = sy_tree_asset_glb(&dt.grown, o->leaf_off ? NULL : &dt.leaves, sp, &ao, name, &r->glb, &r->glb_size,
+                               &r->asset, err);
     }
     if (have_tree) sy_decoded_tree_free(&dt);
     if (!o->sylva) {

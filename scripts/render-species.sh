@@ -24,9 +24,10 @@ for sp in $names; do
     montage $shots -tile "$(echo "$shots" | wc -l)x1" -geometry 300x300+1+1 -background '#b9cfe0' \
         "$out/${sp}_lods.png"
 done
-# Junction close-ups, bark only (glTF frame: y up).
+# Junction close-ups, bark only (glTF frame: y up; the QSM's first limb leaves the trunk at
+# 1.34 m, the aspen's first limbs at about 5 m).
 "$SYLVA" mesh "$here/../shared/data/real/rtwig/QSM.csv" -o "$tmp/qsm.glb" --species quaking_aspen --quiet
-render --view close --bark-only 1 --size 400 --at 0.02,0.9,0,0.18 --png "$tmp/j_" "$tmp/qsm.glb" > /dev/null
+render --view close --bark-only 1 --size 400 --at 0.04,1.34,-0.08,0.15 --png "$tmp/j_" "$tmp/qsm.glb" > /dev/null
 cp "$tmp/j_qsm_lod0_close.png" "$out/junction_qsm.png"
 render --view close --bark-only 1 --size 400 --at -0.1,5.1,0.05,0.5 --png "$tmp/j_" "$tmp/quaking_aspen.glb" > /dev/null
 cp "$tmp/j_quaking_aspen_lod0_close.png" "$out/junction_aspen.png"

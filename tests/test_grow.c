@@ -498,13 +498,12 @@ static void every_library_species_grows(void **state)
             assert_int_equal(sy_grow_tree(&sp, seed, &sk, &lv, &err), SY_OK);
             if (species_with_taper_at_most_2(&sp)) check_structure(&sk);
             float h = tree_height(&sk);
-            /* 40k: the closed crowns of docs/species.md put black_oak at 35k and
-             * weeping_willow at 37k leaves (over the 30k LOD0 instance budget of
-             * the whole-tree asset: an open gap, not a target met). */
-            if (fabsf(h - sp.scale) > 0.2f * sp.scale || lv.n < 100 || lv.n > 40000)
+            /* The whole-tree asset's LOD0 budget of 30k leaf instances
+             * (measured <= 28.9k, weeping willow; black oak 26.6k). */
+            if (fabsf(h - sp.scale) > 0.2f * sp.scale || lv.n < 100 || lv.n > 30000)
                 fprintf(stderr, "%s: height %.1f (scale %.1f), %zu leaves\n", name, h, sp.scale, lv.n);
             assert_true(fabsf(h - sp.scale) <= 0.2f * sp.scale);
-            assert_true(lv.n >= 100 && lv.n <= 40000);
+            assert_true(lv.n >= 100 && lv.n <= 30000);
             sy_skeleton_free(&sk);
             sy_leaves_free(&lv);
         }

@@ -71,10 +71,13 @@ static void check_mesh_basics_share(const sy_mesh *m, double max_inward)
     assert_true((double)wrong <= max_inward * (double)faces);
 }
 static void check_mesh_basics(const sy_mesh *m) { check_mesh_basics_share(m, 0); }
-/* Welded junctions: a strip triangle whose corners sit on both tubes can face
- * against their averaged normals where a child leaves steeply (measured
- * 0.1-0.7 % of faces on these trees). */
-#define WELD_FOLD_SHARE 0.01
+/* Junctions: a strip triangle whose corners sit on both tubes can face
+ * against their averaged normals where a child leaves steeply, and the cap
+ * that closes a ring that could not be welded faces into the parent while
+ * its ring vertices keep the child's outward normals (measured up to 2.7 %
+ * of LOD0's faces on these crowded random trees and 4.9 % of a coarse
+ * level's, caps included; the caps are hidden in the parent). */
+#define WELD_FOLD_SHARE 0.06
 
 /* Welds vertices with bit-identical positions: id[i] is the smallest index
  * with the same position. */
@@ -182,14 +185,14 @@ static size_t edge_uses(const edge *all, size_t n, edge e)
 }
 
 /* Topology and junction of every branch of the LOD0 bark (branch ids are
- * stem indices in these test trees). Every welded edge of the bark has one
- * or two faces. A branch's own triangles are closed except for its base
- * ring; each ring edge is either welded into the parent (the junction strip
- * gives it its second face) or open, and then both its vertices lie on the
- * parent's surface within 2 mm + 5% of the parent radius. The root stem's
- * own boundary (the holes its children are welded into) is all welded.
- * Returns the number of junctions checked; *welded (may be NULL) the
- * number whose rings are fully welded. */
+ * stem indices in these test trees). The bark is closed: every welded edge
+ * has two faces. A branch's own triangles are closed except for its base
+ * ring, or entirely when the ring is capped inside the parent; each ring
+ * edge is welded into the parent (the junction strip gives it its second
+ * face), and both its vertices lie on the parent's surface within 2 mm +
+ * 5% of the parent radius. The root stem's own boundary (the holes its
+ * children are welded into) is all welded. Returns the number of junctions
+ * checked; *welded (may be NULL) the number whose rings are welded. */
 static size_t check_branches_welded(const sy_skeleton *s, const sy_asset *a, size_t *welded)
 {
     const sy_mesh *m = bark0(a);
@@ -206,7 +209,7 @@ static size_t check_branches_welded(const sy_skeleton *s, const sy_asset *a, siz
     for (size_t i = 0; i < n_all;) {
         size_t j = i;
         while (j < n_all && !cmp_edge(&all[i], &all[j])) j++;
-        assert_true(j - i == 1 || j - i == 2);
+        assert_int_equal(j - i, 2);
         i = j;
     }
     for (size_t b = 0; b < a->n_wind; b++) {
@@ -249,11 +252,11 @@ static size_t check_branches_welded(const sy_skeleton *s, const sy_asset *a, siz
         if (a->wind[b].parent < 0) {
             assert_int_equal(open, 0);
         } else {
-            assert_true(boundary >= 3);
+            assert_true(boundary == 0 || boundary >= 3); /* capped, or welded along its ring */
             if (worst > tol) fprintf(stderr, "branch %zu: base ring %g m off its parent (tolerance %g)\n", b, worst, tol);
             assert_true(worst <= tol);
             junctions++;
-            if (welded && open == 0) (*welded)++;
+            if (welded && boundary > 0 && open == 0) (*welded)++;
         }
         free(e);
     }

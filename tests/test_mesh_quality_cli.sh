@@ -10,13 +10,14 @@ set -u
 source "$SYLVA_SOURCE_DIR/tests/glb_cli_common.sh"
 samples="$SYLVA_SOURCE_DIR/samples"
 # The checks of one --json report: jq exits 1 unless every condition holds.
-# Sails: a classified palm_tls (synthesised fronds) measures 0.46% at LOD0.
+# Sails: a classified palm_tls (synthesised fronds) measures 0.72% at LOD0 and
+# fir_tls 0.61% with every junction closed (welded or capped; 0.46% before).
 assert_quality() {
     jq -e --argjson empty_ok "${2:-false}" '
       .mesh_check as $c | ($c[0]) as $l0 |
       ($c | length) == 0 and $empty_ok or ($c | length) >= 2 and
       ([$c[] | .misoriented_edges == 0 and .below_ground == 0 and .leaves_below_ground == 0] | all) and
-      $l0.sails <= 0.005 * $l0.bark_triangles and $l0.slivers <= 0.002 * $l0.bark_triangles and
+      $l0.sails <= 0.008 * $l0.bark_triangles and $l0.slivers <= 0.002 * $l0.bark_triangles and
       $l0.bark_triangles <= 60000 and $l0.leaves_far == 0 and
       ([$c[1:][] | .ratio >= 0.25 and .ratio <= 0.5] | all)' "$1" > /dev/null
 }
@@ -36,6 +37,6 @@ qsm="$SYLVA_DATA_DIR/real/rtwig/QSM.csv"
 "$SYLVA" mesh "$qsm" -o "$tmp/q.glb" --species quaking_aspen --check --json --impostor-size 64 > "$tmp/q.json" 2> "$tmp/q.err" ||
     { echo "FAIL: mesh QSM.csv: $(tail -1 "$tmp/q.err")"; fail=1; }
 check "rTwig QSM: mesh checks hold ($(jq -c '[.mesh_check[] | .triangles]' "$tmp/q.json"))" "assert_quality '$tmp/q.json'"
-# Its junctions are welded: at most a few open ring edges per hundred triangles.
-check "rTwig QSM: welded junctions" "jq -e '.mesh_check[0] | .boundary_edges <= 0.03 * .bark_triangles' '$tmp/q.json' > /dev/null"
+# Its bark is closed at every level: junctions welded or capped.
+check "rTwig QSM: closed bark" "jq -e '[.mesh_check[] | .boundary_edges == 0] | all' '$tmp/q.json' > /dev/null"
 exit $fail

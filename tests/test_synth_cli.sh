@@ -45,6 +45,19 @@ fi
 "$SYLVA" mesh "$tmp/a.sylva" -o "$tmp/p.glb" --proxy --quiet || fail "mesh --proxy"
 grep -a -q '"name":"foliage_proxy"' "$tmp/p.glb" || fail "no foliage_proxy with --proxy"
 
+# --leaf-off (a scan of bare branches): the same synthesised branches, no
+# leaf cards; the .sylva is the same, and `mesh --no-leaves` of it gives
+# the same tree.
+off=$("$SYLVA" run "$scan" -o "$tmp/off.glb" --sylva "$tmp/off.sylva" --species quaking_aspen --leaf-off --json --threads 2) ||
+  fail "run --leaf-off exit $?"
+(( $(key leaves "$off") == 0 && $(key lod0_leaf_instances "$off") == 0 )) || fail "leaves with --leaf-off: $off"
+(( $(key patches "$off") == $(key patches "$out") )) || fail "--leaf-off changed the branches: $off"
+cmp -s "$tmp/a.sylva" "$tmp/off.sylva" || fail "--leaf-off changed the .sylva"
+if command -v node >/dev/null; then
+  "$SYLVA" mesh "$tmp/a.sylva" -o "$tmp/mo.glb" --no-leaves --quiet || fail "mesh --no-leaves exit $?"
+  node "$src/tests/glb_same_tree.mjs" "$tmp/off.glb" "$tmp/mo.glb" || fail "mesh --no-leaves differs from run --leaf-off"
+fi
+
 # The look against the scan. Measured with the aspen's denser, larger cards
 # (docs/species.md): IoU mean 0.741, min 0.700, profile 0.764, height -5.9%,
 # width -11.8% (0.815 / 0.793 with the earlier small cards; the bare skeleton of

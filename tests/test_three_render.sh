@@ -3,14 +3,18 @@
 # GLTFLoader with EXT_mesh_gpu_instancing) in Debian's headless Chromium
 # (tests/three/render_glb.mjs). Each must load with no error or warning, and
 # its LOD0 seen from the front (framed like the impostor atlas) must draw
-# the tree. The page also reports the intersection over union with the
-# atlas's own silhouette (impostor_iou); it reads about 0.2 on every species
-# although the pictures line up by eye (docs/pictures), a readback bug not
-# found yet, so it is printed here and not asserted.
+# the tree, and three.js's silhouette must agree with the project's own
+# picture of the asset (the impostor atlas, drawn by the mesh stage's CPU
+# rasteriser) seen from the front: intersection over union on the atlas's
+# pixel grid >= IOU_MIN (measured 0.86 palm, 0.90-0.96 the others; the
+# front render against the side half of the atlas, a wrong view, reads
+# 0.75-0.84). One view keeps the test near a minute (4x supersampling in
+# SwiftShader); docs/mesh.md has both.
 set -u
 source "$SYLVA_SOURCE_DIR/tests/glb_cli_common.sh"
 [[ -f $SYLVA_SOURCE_DIR/node_modules/three/package.json ]] || { echo "FAIL: npm three missing (run scripts/install-deps.sh)"; exit 1; }
 command -v chromium > /dev/null || { echo "FAIL: chromium missing (run scripts/install-deps.sh)"; exit 1; }
+IOU_MIN=0.85
 files=()
 for ini in "$SYLVA_SOURCE_DIR"/species/*.ini; do
     sp=$(basename "$ini" .ini)
@@ -23,10 +27,12 @@ node --experimental-websocket "$SYLVA_SOURCE_DIR/tests/three/render_glb.mjs" --v
 check "one verdict per species" "[[ \$(wc -l < '$tmp/verdicts.jsonl') == ${#files[@]} ]]"
 while read -r line; do
     printf '%s\n' "$line" > "$tmp/v.json"
-    f=$(jq -r .file "$tmp/v.json")
+    f="$(jq -r .file "$tmp/v.json") $(jq -r .view "$tmp/v.json")"
     check "$f loads in three.js without errors or warnings" \
         "jq -e '(.errors | length) == 0 and (.warnings | length) == 0' '$tmp/v.json' > /dev/null"
     check "$f: three.js draws the tree, all levels reachable (coverage $(jq .coverage "$tmp/v.json"), impostor IoU $(jq .impostor_iou "$tmp/v.json"))" \
         "jq -e '.coverage >= 0.02 and .levels >= 3 and (.triangles | length) == .levels' '$tmp/v.json' > /dev/null"
+    check "$f: three.js's silhouette agrees with the atlas (IoU $(jq .impostor_iou "$tmp/v.json") >= $IOU_MIN)" \
+        "jq -e '.impostor_iou >= $IOU_MIN' '$tmp/v.json' > /dev/null"
 done < "$tmp/verdicts.jsonl"
 exit $fail

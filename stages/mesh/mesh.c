@@ -15,7 +15,7 @@ sy_mesh_options sy_mesh_options_default(void)
     o.radial_segments = 16;
     o.segment_length = 0;
     o.n_lods = 4;
-    o.lod0_max_triangles = 56000;
+    o.lod0_max_triangles = 55000;
     o.impostor = 1;
     o.impostor_size = 512;
     o.min_radius = 0.0015f;

@@ -315,14 +315,15 @@ void sy_tube_emit(const sy_stems *st, size_t stem, const sy_lod_params *lp, sy_m
 /* ---- welding junctions into their parents ----
  * A child's base ring lies on its parent's drawn surface. Welding cuts the
  * parent quads under it (a rectangle of the parent's ring grid that holds
- * the ring with half a quad to spare) and fills the hole between the
- * rectangle's boundary and the child's ring with a strip of triangles, so
- * parent, junction and child are one closed, consistently oriented surface.
- * The strip is zipped by angle about the child's axis, in the manner of
- * contour stitching (Fuchs, Kedem & Uselton 1977, reduced to the greedy
- * angular merge). A junction that cannot be welded (its ring wraps most of
- * the parent, runs off the parent's end, or overlaps a neighbour's hole)
- * stays as it was: an open ring on the parent's surface. */
+ * the ring; children whose rectangles overlap share one, grown to hold them
+ * all) and fills the hole between the rectangle's boundary and the rings
+ * with a strip of triangles: a polygon with holes in the parent's (around,
+ * along) parameter plane, ear-clipped and flipped towards Delaunay. Parent,
+ * junctions and children are one closed, consistently oriented surface. A
+ * group that cannot be welded (a ring that wraps most of the parent, runs
+ * off its end, crosses another ring, or a strip that would fold) keeps its
+ * parent's quads and closes each ring with a cap inside the parent, so the
+ * bark has no open edge either way. */
 
 typedef struct {
     int32_t stem;
@@ -343,7 +344,6 @@ typedef struct {
     int32_t stem;
     long q0, q1; /* quad rows */
     int c0, c1;  /* quad columns, unwrapped about jc */
-    int jc;
     int ok;      /* the rectangle lies in the parent's tube and leaves it a band */
 } weld_rect;
 
@@ -399,7 +399,8 @@ static void weld_footprint(const sy_stems *st, size_t c, const sy_lod_params *lp
     size_t np = sy_stem_rings(ps, lp, pidx);
     const float *ring = m->position + 3 * vo[c];
     float rows[WELD_MAX_RING], cols[WELD_MAX_RING], sx, R;
-    int inside = 1;
+    int inside = Pc <= WELD_MAX_RING;
+    if (Pc > WELD_MAX_RING) Pc = WELD_MAX_RING;
     for (int v = 0; v < Pc; v++) {
         grid_coords(ps, pidx, np, P, ring + 3 * v, s->attach_s, &sx, &rows[v], &cols[v], &R);
         if (rows[v] < 0) inside = 0;
@@ -416,17 +417,16 @@ static void weld_footprint(const sy_stems *st, size_t c, const sy_lod_params *lp
     float rmin = INFINITY, rmax = -INFINITY, cmin = INFINITY, cmax = -INFINITY;
     for (int v = 0; v < Pc; v++) {
         float u = unwrap_col(cols[v], ref, P);
-        rmin = fminf(rmin, rows[v]), rmax = fmaxf(rmax, rows[v]);
+        if (rows[v] >= 0) rmin = fminf(rmin, rows[v]), rmax = fmaxf(rmax, rows[v]);
         cmin = fminf(cmin, u), cmax = fmaxf(cmax, u);
     }
     w->stem = (int32_t)c;
-    w->jc = 0;
-    w->q0 = inside ? (long)floorf(rmin) : 0;
-    w->q1 = inside ? (long)floorf(rmax) : 0;
+    /* A ring partly off the tube still blocks the quads it stands on. */
+    w->q0 = rmin <= rmax ? (long)floorf(rmin) : -1;
+    w->q1 = rmin <= rmax ? (long)floorf(rmax) : -2;
     w->c0 = (int)floorf(cmin), w->c1 = (int)floorf(cmax);
     if (w->q1 > (long)np - 2) w->q1 = (long)np - 2;
-    w->ok = inside && Pc <= WELD_MAX_RING && w->c1 - w->c0 + 1 <= P - 1 &&
-            2 * ((size_t)(w->q1 - w->q0 + 1) + (size_t)(w->c1 - w->c0 + 1)) <= WELD_MAX_LOOP;
+    w->ok = inside && w->c1 - w->c0 + 1 <= P - 1;
 }
 
 /* First triangle of parent quad (r, j) (unwrapped column j about jc). */
@@ -435,117 +435,367 @@ static size_t quad_tri(const size_t *io, size_t p, int P, long r, int j, int jc)
     return io[p] / 3 + 2 * ((size_t)r * (size_t)P + (size_t)(((j + jc) % P + P) % P));
 }
 
-/* Angle of (u, s) about (u0, s0) in [0, 2 pi). */
-static float param_angle(float u, float sv, float u0, float s0)
+/* ---- a polygon with holes in the parent's (around, along) plane ----
+ * The hole cut for a group of junctions is a rectangle of parent quads;
+ * the rings of the group's children are holes in it. Each ring is bridged
+ * to the outer boundary (nearest vertex that sees it, holes taken from the
+ * largest "around" coordinate down, as in Eberly's "Triangulation by Ear
+ * Clipping"), then the single polygon is ear-clipped (Meisters 1975). */
+
+typedef struct {
+    float u, s;  /* parameter plane, metres */
+    uint32_t id; /* mesh vertex */
+    int loop;    /* 0: the parent's boundary, k + 1: ring k */
+} weld_pt;
+
+static float orient2(const weld_pt *a, const weld_pt *b, const weld_pt *c)
 {
-    float a = atan2f(sv - s0, u - u0);
-    return a < 0 ? a + 2 * SY_PI : a;
+    return (b->u - a->u) * (c->s - a->s) - (b->s - a->s) * (c->u - a->u);
 }
 
-/* Unwraps n angles from index start on; 0 unless they climb once around. */
-static int climb_once(const float *ang, size_t n, size_t start, float *un)
+static int same_pt(const weld_pt *a, const weld_pt *b) { return a->id == b->id || (a->u == b->u && a->s == b->s); }
+
+/* Proper crossing of segments ab and cd (shared end points do not count). */
+static int segments_cross(const weld_pt *a, const weld_pt *b, const weld_pt *c, const weld_pt *d)
 {
-    un[0] = ang[start];
-    for (size_t i = 1; i <= n; i++) {
-        float d = ang[(start + i) % n] - ang[(start + i - 1) % n];
-        while (d > SY_PI) d -= 2 * SY_PI;
-        while (d <= -SY_PI) d += 2 * SY_PI;
-        if (d < 0) return 0;
-        un[i] = un[i - 1] + d;
-    }
-    return fabsf(un[n] - un[0] - 2 * SY_PI) < 0.1f;
+    if (same_pt(a, c) || same_pt(a, d) || same_pt(b, c) || same_pt(b, d)) return 0;
+    float d1 = orient2(a, b, c), d2 = orient2(a, b, d), d3 = orient2(c, d, a), d4 = orient2(c, d, b);
+    return ((d1 > 0) != (d2 > 0)) && ((d3 > 0) != (d4 > 0)) && d1 != 0 && d2 != 0 && d3 != 0 && d4 != 0;
 }
 
-/* Welds child w->stem into its parent: marks the parent's quads in cut (per
- * triangle) and writes the strip to extra (3 indices per triangle).
- * Returns the strip's triangles, 0 when either loop does not turn once
- * about the ring's centre in the parent's (around, along) parameter plane
- * (then nothing is cut). */
-static size_t weld_one(const sy_stems *st, const weld_rect *w, const sy_lod_params *lp, const sy_mesh *m,
-                       const size_t *vo, const size_t *io, uint8_t *cut, uint32_t *extra, int32_t *pidx)
+typedef struct {
+    weld_pt *v; /* the polygon being built, counter-clockwise */
+    size_t n, cap;
+} weld_poly;
+
+/* Splices hole h (clockwise, nh points) into poly through the nearest
+ * polygon vertex whose bridge crosses no edge of the polygon or of the
+ * holes still to come (rest, their sizes in nrest). */
+static int bridge_hole(weld_poly *poly, const weld_pt *h, size_t nh, const weld_pt *const *rest, const size_t *nrest,
+                       size_t n_rest)
 {
-    const sy_stem *s = &st->s[w->stem];
-    size_t p = (size_t)s->parent;
-    const sy_stem *ps = &st->s[p];
-    int P = sy_stem_radial(ps, lp), Pc = sy_stem_radial(s, lp);
-    size_t row = (size_t)P + 1, np = sy_stem_rings(ps, lp, pidx);
-    /* The hole's boundary, oriented like the removed quads (counter-clockwise
-     * seen from outside): along row q0, up column c1 + 1, back along row
-     * q1 + 1, down column c0. (u, s): around in metres, along. */
-    uint32_t loop[WELD_MAX_LOOP];
-    float lu[WELD_MAX_LOOP], ls[WELD_MAX_LOOP];
-    size_t n = 0;
-    float c0[3], T0[3], N0[3], R;
-    sy_stem_frame_at(ps, pidx, np, s->attach_s, c0, T0, N0, &R);
-    float arc = 2 * SY_PI * R / (float)P;
-#define PUSH(r, j)                                                                                        \
-    do {                                                                                                  \
-        loop[n] = (uint32_t)(vo[p] + (size_t)(r) * row + (size_t)((((j) + w->jc) % P + P) % P));          \
-        lu[n] = (float)(j) * arc, ls[n] = ps->ss[pidx[r]], n++;                                           \
-    } while (0)
-    for (int j = w->c0; j < w->c1 + 1; j++) PUSH(w->q0, j);
-    for (long r = w->q0; r < w->q1 + 1; r++) PUSH(r, w->c1 + 1);
-    for (int j = w->c1 + 1; j > w->c0; j--) PUSH(w->q1 + 1, j);
-    for (long r = w->q1 + 1; r > w->q0; r--) PUSH(r, w->c0);
-#undef PUSH
-    /* The ring in the same plane, columns unwrapped next to the hole's. */
-    float iu[WELD_MAX_RING], is[WELD_MAX_RING], u0 = 0, s0 = 0, ref = 0.5f * (float)(w->c0 + w->c1 + 1);
-    const float *ring = m->position + 3 * vo[w->stem];
-    for (int k = 0; k < Pc; k++) {
-        float rw, cl, sx, Rx;
-        grid_coords(ps, pidx, np, P, ring + 3 * k, s->attach_s, &sx, &rw, &cl, &Rx);
-        iu[k] = unwrap_col(cl, ref, P) * arc, is[k] = sx;
-        u0 += iu[k] / (float)Pc, s0 += is[k] / (float)Pc;
+    if (poly->n + nh + 2 > poly->cap) return 0;
+    size_t m = 0;
+    for (size_t i = 1; i < nh; i++)
+        if (h[i].u > h[m].u) m = i;
+    long best = -1;
+    float best_d = INFINITY;
+    for (size_t i = 0; i < poly->n; i++) {
+        const weld_pt *q = &poly->v[i];
+        float d = (q->u - h[m].u) * (q->u - h[m].u) + (q->s - h[m].s) * (q->s - h[m].s);
+        if (!(d < best_d)) continue;
+        /* The bridge must leave q into the polygon's inside (q may be a
+         * copy left by an earlier bridge). */
+        const weld_pt *pv = &poly->v[(i + poly->n - 1) % poly->n], *nv = &poly->v[(i + 1) % poly->n];
+        int inside = orient2(pv, q, nv) >= 0 ? orient2(pv, q, &h[m]) > 0 && orient2(q, nv, &h[m]) > 0
+                                              : orient2(pv, q, &h[m]) > 0 || orient2(q, nv, &h[m]) > 0;
+        if (!inside) continue;
+        int clear = 1;
+        for (size_t e = 0; e < poly->n && clear; e++)
+            clear = !segments_cross(&h[m], q, &poly->v[e], &poly->v[(e + 1) % poly->n]);
+        for (size_t e = 0; e < nh && clear; e++) clear = !segments_cross(&h[m], q, &h[e], &h[(e + 1) % nh]);
+        for (size_t r = 0; r < n_rest && clear; r++)
+            for (size_t e = 0; e < nrest[r] && clear; e++)
+                clear = !segments_cross(&h[m], q, &rest[r][e], &rest[r][(e + 1) % nrest[r]]);
+        if (clear) best = (long)i, best_d = d;
     }
-    float ao[WELD_MAX_LOOP], uo[WELD_MAX_LOOP + 1], ai[WELD_MAX_RING], ui[WELD_MAX_RING + 1];
-    size_t so = 0, si = 0;
-    for (size_t i = 0; i < n; i++) {
-        ao[i] = param_angle(lu[i], ls[i], u0, s0);
-        if (ao[i] < ao[so]) so = i;
-    }
-    for (int k = 0; k < Pc; k++) {
-        ai[k] = param_angle(iu[k], is[k], u0, s0);
-        if (ai[k] < ai[si]) si = (size_t)k;
-    }
-    if (!climb_once(ao, n, so, uo) || !climb_once(ai, (size_t)Pc, si, ui)) return 0;
-    /* Zip: state (outer i, inner k); advance whichever comes next by angle.
-     * Outer edges keep the removed quads' direction, ring edges run against
-     * the child tube's, so the strip is oriented with both. The ring's
-     * vertex Pc is its seam copy of vertex 0. */
-    uint32_t r0 = (uint32_t)vo[w->stem];
-    size_t i = 0, k = 0, t = 0;
-    while (i < n || k < (size_t)Pc) {
-        float next_outer = i < n ? uo[i + 1] : INFINITY, next_inner = k < (size_t)Pc ? ui[k + 1] : INFINITY;
-        uint32_t o = loop[(so + i) % n];
-        size_t kk = (si + k) % (size_t)Pc, k1 = si + k + 1 == (size_t)Pc ? (size_t)Pc : (si + k + 1) % (size_t)Pc;
-        if (next_outer <= next_inner) {
-            extra[t++] = o, extra[t++] = loop[(so + i + 1) % n], extra[t++] = r0 + (uint32_t)kk;
-            i++;
-        } else {
-            extra[t++] = o, extra[t++] = r0 + (uint32_t)k1, extra[t++] = r0 + (uint32_t)kk;
-            k++;
+    if (best < 0) return 0;
+    /* ... q, h[m], h[m+1], ..., h[m-1], h[m], q, ... */
+    size_t at = (size_t)best + 1;
+    memmove(poly->v + at + nh + 2, poly->v + at, (poly->n - at) * sizeof *poly->v);
+    for (size_t i = 0; i <= nh; i++) poly->v[at + i] = h[(m + i) % nh];
+    poly->v[at + nh + 1] = poly->v[best];
+    poly->n += nh + 2;
+    return 1;
+}
+
+static int inside_tri(const weld_pt *p, const weld_pt *a, const weld_pt *b, const weld_pt *c)
+{
+    if (same_pt(p, a) || same_pt(p, b) || same_pt(p, c)) return 0;
+    return orient2(a, b, p) >= 0 && orient2(b, c, p) >= 0 && orient2(c, a, p) >= 0;
+}
+
+/* Ear-clips the simple counter-clockwise polygon (its bridges doubled) into
+ * tri (3 ids each); returns the triangle count or 0 when it gets stuck. */
+static size_t ear_clip(weld_poly *poly, uint32_t *tri)
+{
+    size_t n = poly->n, t = 0;
+    weld_pt *v = poly->v;
+    while (n > 3) {
+        int clipped = 0;
+        for (size_t i = 0; i < n && !clipped; i++) {
+            const weld_pt *a = &v[(i + n - 1) % n], *b = &v[i], *c = &v[(i + 1) % n];
+            float area = orient2(a, b, c);
+            float scale = fmaxf(fabsf(b->u - a->u) + fabsf(b->s - a->s), fabsf(c->u - b->u) + fabsf(c->s - b->s));
+            if (!(area > 1e-6f * scale * scale)) continue;
+            int empty = 1;
+            for (size_t k = 0; k < n && empty; k++)
+                if (k != i && k != (i + n - 1) % n && k != (i + 1) % n) empty = !inside_tri(&v[k], a, b, c);
+            if (!empty) continue;
+            tri[3 * t] = a->id, tri[3 * t + 1] = b->id, tri[3 * t + 2] = c->id, t++;
+            memmove(v + i, v + i + 1, (n - i - 1) * sizeof *v);
+            n--;
+            clipped = 1;
         }
+        if (!clipped) return 0;
     }
-    /* No folds: every strip triangle faces the way the parent's surface does
-     * at its outer corner (the first of its three). */
-    for (size_t f = 0; f < t; f += 3) {
-        const float *a = m->position + 3 * extra[f], *b = m->position + 3 * extra[f + 1];
-        const float *c = m->position + 3 * extra[f + 2];
-        float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]}, g[3];
-        sy_cross3(e1, e2, g);
-        if (!(sy_dot3(g, m->normal + 3 * extra[f]) > 0)) return 0;
+    if (orient2(&v[0], &v[1], &v[2]) > 0) tri[3 * t] = v[0].id, tri[3 * t + 1] = v[1].id, tri[3 * t + 2] = v[2].id, t++;
+    return t;
+}
+
+
+/* Lawson's flips towards the Delaunay triangulation of the ear-clipped
+ * strip in the parameter plane (edges of the outer loop and of the rings
+ * occur once and never flip): ear clipping leaves fans of long, thin
+ * triangles that fold over a curved or lobed parent. pts[0..n) are the
+ * plane positions by vertex id. */
+static const weld_pt *weld_find(const weld_pt *pts, size_t n, uint32_t id)
+{
+    for (size_t i = 0; i < n; i++)
+        if (pts[i].id == id) return &pts[i];
+    return NULL;
+}
+
+static void delaunay_flips(uint32_t *tri, size_t t, const weld_pt *pts, size_t n)
+{
+    for (size_t pass = 0, flipped = 1; flipped && pass < 4 * t + 8; pass++) {
+        flipped = 0;
+        for (size_t f = 0; f < t; f++)
+            for (int e = 0; e < 3; e++) {
+                uint32_t a = tri[3 * f + e], b = tri[3 * f + (e + 1) % 3], c = tri[3 * f + (e + 2) % 3];
+                for (size_t g = f + 1; g < t; g++)
+                    for (int k = 0; k < 3; k++) {
+                        if (tri[3 * g + k] != b || tri[3 * g + (k + 1) % 3] != a) continue;
+                        uint32_t d = tri[3 * g + (k + 2) % 3];
+                        const weld_pt *pa = weld_find(pts, n, a), *pb = weld_find(pts, n, b), *pc = weld_find(pts, n, c),
+                                      *pd = weld_find(pts, n, d);
+                        /* Only edges between two loops (the parent's and a
+                         * ring, or two rings): a chord between two vertices
+                         * of one loop could repeat an edge of the tube or of
+                         * the neighbouring quads that the strip cannot see. */
+                        if (!pa || !pb || !pc || !pd || d == c || pc->loop == pd->loop) continue;
+                        /* d inside the circle through a, b, c (counter-clockwise)? */
+                        double ax = pa->u - pd->u, ay = pa->s - pd->s, bx = pb->u - pd->u, by = pb->s - pd->s;
+                        double cx = pc->u - pd->u, cy = pc->s - pd->s;
+                        double det = (ax * ax + ay * ay) * (bx * cy - cx * by) - (bx * bx + by * by) * (ax * cy - cx * ay) +
+                                     (cx * cx + cy * cy) * (ax * by - bx * ay);
+                        double scale = ax * ax + ay * ay + bx * bx + by * by + cx * cx + cy * cy;
+                        if (!(det > 1e-9 * scale * scale)) continue;
+                        /* The quad a d b c must be convex for (a, d, c), (d, b, c). */
+                        if (!(orient2(pa, pd, pc) > 0) || !(orient2(pd, pb, pc) > 0)) continue;
+                        /* Never duplicate an edge (c, d) the strip already has. */
+                        int exists = 0;
+                        for (size_t h = 0; h < t && !exists; h++)
+                            for (int q = 0; q < 3; q++) {
+                                uint32_t x = tri[3 * h + q], y = tri[3 * h + (q + 1) % 3];
+                                exists |= (x == c && y == d) || (x == d && y == c);
+                            }
+                        if (exists) continue;
+                        tri[3 * f] = a, tri[3 * f + 1] = d, tri[3 * f + 2] = c;
+                        tri[3 * g] = d, tri[3 * g + 1] = b, tri[3 * g + 2] = c;
+                        flipped = 1;
+                        goto next_triangle;
+                    }
+            }
+    next_triangle:;
+        (void)0;
     }
-    for (long r = w->q0; r <= w->q1; r++)
-        for (int j = w->c0; j <= w->c1; j++) {
-            size_t q = quad_tri(io, p, P, r, j, w->jc);
+}
+
+/* A strip fills its polygon exactly once: every directed edge occurs once,
+ * and each is either on the polygon's boundary (pts, in order, its bridges
+ * included) or matched by its reverse. Vertices compare by position (the
+ * seams' copies are distinct vertices at one place). */
+static int same_at(const float *pos, uint32_t a, uint32_t b)
+{
+    return a == b || (pos[3 * a] == pos[3 * b] && pos[3 * a + 1] == pos[3 * b + 1] && pos[3 * a + 2] == pos[3 * b + 2]);
+}
+
+static int strip_valid(const uint32_t *tri, size_t t, const weld_pt *pts, size_t n, const float *pos)
+{
+    for (size_t f = 0; f < 3 * t; f++) {
+        size_t base = f - f % 3;
+        uint32_t x = tri[f], y = tri[base + (f - base + 1) % 3];
+        if (same_at(pos, x, y)) return 0;
+        int twice = 0, reverse = 0, boundary = 0;
+        for (size_t g = 0; g < 3 * t; g++) {
+            size_t gb = g - g % 3;
+            uint32_t u = tri[g], v = tri[gb + (g - gb + 1) % 3];
+            twice += g != f && same_at(pos, u, x) && same_at(pos, v, y);
+            reverse += same_at(pos, u, y) && same_at(pos, v, x);
+        }
+        for (size_t i = 0; i < n && !boundary; i++) boundary = pts[i].id == x && pts[(i + 1) % n].id == y;
+        if (twice || reverse > 1 || !(reverse || boundary)) return 0;
+    }
+    return 1;
+}
+#define WELD_MAX_GROUP 64
+
+/* Welds the group of children g[0..ng) of one parent into the parent's
+ * quads [q0, q1] x [c0, c1] (columns unwrapped about the rectangle): cuts them (marked in cut) and writes
+ * the strip to extra. Returns the strip's triangles, 0 when the rings do
+ * not fit (crossing rings, a ring that winds the wrong way, a fold). */
+static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q0, long q1, int c0, int c1,
+                         const sy_lod_params *lp, const sy_mesh *m, const size_t *vo, const size_t *io, uint8_t *cut,
+                         uint32_t *extra, size_t extra_cap, int32_t *pidx, weld_pt *scratch, size_t scratch_cap)
+{
+    size_t p = (size_t)st->s[g[0]].parent;
+    const sy_stem *ps = &st->s[p];
+    int P = sy_stem_radial(ps, lp);
+    size_t row = (size_t)P + 1, np = sy_stem_rings(ps, lp, pidx);
+    float cmid[3], T0[3], N0[3], R;
+    float s_mid = 0.5f * (ps->ss[pidx[q0]] + ps->ss[pidx[q1 + 1]]);
+    sy_stem_frame_at(ps, pidx, np, s_mid, cmid, T0, N0, &R);
+    float arc = 2 * SY_PI * R / (float)P, ref = 0.5f * (float)(c0 + c1 + 1);
+    /* Outer boundary, counter-clockwise in (around, along): along row q0,
+     * up column c1 + 1, back along row q1 + 1, down column c0. */
+    size_t n_out = 2 * ((size_t)(q1 - q0 + 1) + (size_t)(c1 - c0 + 1)), n_ring = 0;
+    for (size_t k = 0; k < ng; k++) n_ring += (size_t)sy_stem_radial(&st->s[g[k]], lp);
+    size_t need = 2 * (n_out + n_ring + 2 * ng) + n_ring;
+    if (need > scratch_cap || 3 * (n_out + n_ring + 2 * ng) > extra_cap) return 0;
+    weld_poly poly = {scratch, 0, n_out + n_ring + 2 * ng};
+    weld_pt *holes = scratch + poly.cap;
+#define PUSH(r, j)                                                                                          \
+    do {                                                                                                    \
+        poly.v[poly.n].id = (uint32_t)(vo[p] + (size_t)(r) * row + (size_t)((((j) % P) + P) % P));          \
+        poly.v[poly.n].u = (float)(j) * arc, poly.v[poly.n].s = ps->ss[pidx[r]], poly.v[poly.n++].loop = 0;  \
+    } while (0)
+    for (int j = c0; j < c1 + 1; j++) PUSH(q0, j);
+    for (long r = q0; r < q1 + 1; r++) PUSH(r, c1 + 1);
+    for (int j = c1 + 1; j > c0; j--) PUSH(q1 + 1, j);
+    for (long r = q1 + 1; r > q0; r--) PUSH(r, c0);
+#undef PUSH
+    /* Rings, clockwise (reversed): their edges then run against the child
+     * tubes', so the strip is oriented with them. */
+    const weld_pt *hp[WELD_MAX_GROUP];
+    size_t hn[WELD_MAX_GROUP], at = 0;
+    float umin = (float)c0 * arc, umax = (float)(c1 + 1) * arc, smin = ps->ss[pidx[q0]], smax = ps->ss[pidx[q1 + 1]];
+    for (size_t k = 0; k < ng; k++) {
+        const sy_stem *s = &st->s[g[k]];
+        int Pc = sy_stem_radial(s, lp);
+        const float *ring = m->position + 3 * vo[g[k]];
+        weld_pt *h = holes + at;
+        double area = 0;
+        for (int v = 0; v < Pc; v++) {
+            float rw, cl, sx, Rx;
+            grid_coords(ps, pidx, np, P, ring + 3 * v, s->attach_s, &sx, &rw, &cl, &Rx);
+            weld_pt *q = &h[Pc - 1 - v];
+            q->u = unwrap_col(cl, ref, P) * arc, q->s = sx;
+            /* The seam copy keeps the strip's u continuous at the seam. */
+            q->id = (uint32_t)(vo[g[k]] + (size_t)v);
+            q->loop = (int)k + 1;
+            if (!(q->u > umin && q->u < umax && q->s > smin && q->s < smax)) return 0;
+        }
+        for (int v = 0; v < Pc; v++) area += orient2(&h[0], &h[v], &h[(v + 1) % Pc]);
+        if (!(area < 0)) return 0;
+        hp[k] = h, hn[k] = (size_t)Pc, at += (size_t)Pc;
+    }
+    for (size_t a = 0; a < ng; a++)
+        for (size_t i = 0; i < hn[a]; i++)
+            for (size_t j = i + 2; j < hn[a]; j++)
+                if (segments_cross(&hp[a][i], &hp[a][(i + 1) % hn[a]], &hp[a][j], &hp[a][(j + 1) % hn[a]])) return 0;
+    /* Rings must not cross each other. */
+    for (size_t a = 0; a < ng; a++)
+        for (size_t b = a + 1; b < ng; b++)
+            for (size_t i = 0; i < hn[a]; i++)
+                for (size_t j = 0; j < hn[b]; j++) {
+                    if (segments_cross(&hp[a][i], &hp[a][(i + 1) % hn[a]], &hp[b][j], &hp[b][(j + 1) % hn[b]])) return 0;
+                    if (hp[a][i].u == hp[b][j].u && hp[a][i].s == hp[b][j].s) return 0;
+                }
+    /* Bridge from the largest "around" coordinate down. */
+    size_t order[WELD_MAX_GROUP];
+    float key[WELD_MAX_GROUP];
+    for (size_t k = 0; k < ng; k++) {
+        order[k] = k, key[k] = -INFINITY;
+        for (size_t i = 0; i < hn[k]; i++) key[k] = fmaxf(key[k], hp[k][i].u);
+    }
+    for (size_t a = 1; a < ng; a++)
+        for (size_t b = a; b > 0 && key[order[b]] > key[order[b - 1]]; b--) {
+            size_t tmp = order[b];
+            order[b] = order[b - 1], order[b - 1] = tmp;
+        }
+    for (size_t k = 0; k < ng; k++) {
+        const weld_pt *rest[WELD_MAX_GROUP];
+        size_t nrest[WELD_MAX_GROUP];
+        for (size_t r = k + 1; r < ng; r++) rest[r - k - 1] = hp[order[r]], nrest[r - k - 1] = hn[order[r]];
+        if (!bridge_hole(&poly, hp[order[k]], hn[order[k]], rest, nrest, ng - k - 1)) return 0;
+    }
+    /* Ear clipping consumes the polygon; the flips need its points. */
+    weld_pt *pts = holes + n_ring;
+    size_t n_pts = poly.n;
+    memcpy(pts, poly.v, n_pts * sizeof *pts);
+    size_t t = ear_clip(&poly, extra);
+    if (!t) return 0;
+    uint32_t first = (uint32_t)vo[p], end = (uint32_t)(vo[p] + row * np);
+    uint32_t *clipped = malloc(3 * t * sizeof *clipped);
+    if (!clipped) return 0;
+    memcpy(clipped, extra, 3 * t * sizeof *clipped);
+    delaunay_flips(extra, t, pts, n_pts);
+    if (!strip_valid(extra, t, pts, n_pts, m->position)) memcpy(extra, clipped, 3 * t * sizeof *clipped);
+    free(clipped);
+    /* A ring's last vertex pairs with its seam copy, not with vertex 0. */
+    for (size_t f = 0; f < t; f++)
+        for (size_t k = 0; k < ng; k++) {
+            uint32_t r0 = (uint32_t)vo[g[k]], last = r0 + (uint32_t)hn[k] - 1;
+            uint32_t *x = extra + 3 * f;
+            if (x[0] == last || x[1] == last || x[2] == last)
+                for (int c = 0; c < 3; c++)
+                    if (x[c] == r0) x[c] = r0 + (uint32_t)hn[k];
+        }
+    /* No folds: a strip triangle touching the parent's boundary faces the
+     * way the parent's surface does there. */
+    for (size_t f = 0; f < t; f++) {
+        const uint32_t *x = extra + 3 * f;
+        const float *a = m->position + 3 * x[0], *b = m->position + 3 * x[1], *c = m->position + 3 * x[2];
+        float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]}, gn[3];
+        sy_cross3(e1, e2, gn);
+        float ref_n[3] = {0, 0, 0};
+        for (int k = 0; k < 3; k++)
+            if (x[k] >= first && x[k] < end)
+                for (int q = 0; q < 3; q++) ref_n[q] += m->normal[3 * x[k] + q];
+        if (sy_dot3(ref_n, ref_n) > 0 && !(sy_dot3(gn, ref_n) > 0)) return 0;
+    }
+    for (long r = q0; r <= q1; r++)
+        for (int j = c0; j <= c1; j++) {
+            size_t q = quad_tri(io, p, P, r, j, 0);
             cut[q] = cut[q + 1] = 1;
         }
+    return t;
+}
+
+/* Closes a ring that could not be welded with a fan facing into the
+ * parent: the tube stays a closed surface, its end hidden in the bark. */
+static size_t cap_ring(const sy_stems *st, size_t c, const sy_lod_params *lp, const size_t *vo, uint32_t *extra)
+{
+    int Pc = sy_stem_radial(&st->s[c], lp);
+    uint32_t r0 = (uint32_t)vo[c];
+    size_t t = 0;
+    for (int k = 1; k + 1 < Pc; k++) extra[t++] = r0, extra[t++] = r0 + (uint32_t)k + 1, extra[t++] = r0 + (uint32_t)k;
     return t / 3;
 }
 
-/* Welds every junction of the level whose hole overlaps no other
- * junction's (thicker children first), then rewrites out's index buffer:
- * the parents' cut quads out, the strips in. */
+static int cols_overlap(int a0, int a1, int b0, int b1, int P, int *shift)
+{
+    for (int k = -2; k <= 2; k++)
+        if (b0 + k * P <= a1 && b1 + k * P >= a0) {
+            *shift = k * P;
+            return 1;
+        }
+    return 0;
+}
+
+static int cmp_weld_parent(const void *x, const void *y, const sy_stems *st)
+{
+    const weld_job *a = x, *b = y;
+    int32_t pa = st->s[a->stem].parent, pb = st->s[b->stem].parent;
+    if (pa != pb) return pa < pb ? -1 : 1;
+    return cmp_weld(x, y);
+}
+
+/* Welds every junction of the level: the children of a parent whose
+ * footprints overlap (and any the grown rectangle reaches) share one hole
+ * and one strip; a group that cannot be welded has its rings capped. Then
+ * rewrites out's index buffer: the parents' cut quads out, strips and caps in. */
 static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const size_t *vo, const size_t *io,
                               int32_t *idx, sy_mesh *out, sy_error *err)
 {
@@ -553,13 +803,17 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
     for (size_t i = 0; i < st->n; i++)
         nj += st->s[i].junction && lp->keep[i] && st->s[i].has_geometry && (i + 1 == st->n || vo[i + 1] > vo[i]);
     if (nj == 0) return SY_OK;
+    size_t extra_cap = 3 * (WELD_MAX_LOOP + WELD_MAX_GROUP * (WELD_MAX_RING + 2)), scratch_cap = 3 * extra_cap;
     weld_job *jobs = malloc(nj * sizeof *jobs);
     weld_rect *rect = malloc(nj * sizeof *rect);
-    uint8_t *cut = calloc(nt + 1, 1), *claim = calloc(nt + 1, 1);
-    uint32_t *extra = malloc(3 * (WELD_MAX_LOOP + WELD_MAX_RING + 4) * sizeof *extra), *strips = NULL;
+    weld_rect *box = malloc(nj * sizeof *box);
+    int *group = malloc(nj * sizeof *group);
+    uint8_t *cut = calloc(nt + 1, 1);
+    uint32_t *extra = malloc(extra_cap * sizeof *extra), *strips = NULL;
+    weld_pt *scratch = malloc(scratch_cap * sizeof *scratch);
     size_t n_strips = 0, cap_strips = 0;
     sy_code rc = SY_OK;
-    if (!jobs || !rect || !cut || !claim || !extra) {
+    if (!jobs || !rect || !box || !group || !cut || !extra || !scratch) {
         rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
         goto done;
     }
@@ -569,42 +823,85 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
         if (s->junction && lp->keep[i] && s->has_geometry && (i + 1 == st->n || vo[i + 1] > vo[i]))
             jobs[nj++] = (weld_job){(int32_t)i, s->r_base};
     }
-    qsort(jobs, nj, sizeof *jobs, cmp_weld);
-    /* Every footprint claims its quads; a hole is cut only where no other
-     * junction's ring stands (else that ring would float over the hole). */
+    /* Parents together, thicker children first (insertion sort keeps it
+     * deterministic without a comparison context). */
+    for (size_t a = 1; a < nj; a++)
+        for (size_t b = a; b > 0 && cmp_weld_parent(&jobs[b], &jobs[b - 1], st) < 0; b--) {
+            weld_job tmp = jobs[b];
+            jobs[b] = jobs[b - 1], jobs[b - 1] = tmp;
+        }
     for (size_t j = 0; j < nj; j++) {
         weld_footprint(st, (size_t)jobs[j].stem, lp, out, vo, idx, &rect[j]);
-        const weld_rect *w = &rect[j];
-        size_t p = (size_t)st->s[w->stem].parent;
-        int P = sy_stem_radial(&st->s[p], lp);
-        for (long r = w->q0; r <= w->q1; r++)
-            for (int c = w->c0; c <= w->c1 && c - w->c0 < P; c++) {
-                size_t t = quad_tri(io, p, P, r, c, w->jc);
-                if (claim[t] < 255) claim[t]++;
-            }
     }
-    for (size_t j = 0; j < nj; j++) {
-        const weld_rect *w = &rect[j];
-        if (!w->ok) continue;
-        size_t p = (size_t)st->s[w->stem].parent;
-        int P = sy_stem_radial(&st->s[p], lp), alone = 1;
-        for (long r = w->q0; r <= w->q1 && alone; r++)
-            for (int c = w->c0; c <= w->c1; c++) alone &= claim[quad_tri(io, p, P, r, c, w->jc)] == 1;
-        if (!alone) continue;
-        size_t t = weld_one(st, w, lp, out, vo, io, cut, extra, idx);
-        if (!t) continue;
-        if (n_strips + 3 * t > cap_strips) {
-            size_t nc = cap_strips ? 2 * cap_strips : 3 * 4096;
-            while (nc < n_strips + 3 * t) nc *= 2;
-            uint32_t *g = realloc(strips, nc * sizeof *g);
-            if (!g) {
-                rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
-                goto done;
-            }
-            strips = g, cap_strips = nc;
+    int32_t members[WELD_MAX_GROUP];
+    for (size_t a = 0; a < nj;) {
+        size_t b = a;
+        int32_t parent = st->s[jobs[a].stem].parent;
+        while (b < nj && st->s[jobs[b].stem].parent == parent) b++;
+        int P = sy_stem_radial(&st->s[parent], lp);
+        size_t np = sy_stem_rings(&st->s[parent], lp, idx);
+        /* Groups: footprints whose rectangles overlap share one, grown to
+         * their bounding rectangle, until no two rectangles overlap. */
+        for (size_t j = a; j < b; j++) {
+            group[j] = (int)j;
+            box[j] = rect[j];
+            box[j].ok = rect[j].ok && rect[j].q0 >= 0;
         }
-        memcpy(strips + n_strips, extra, 3 * t * sizeof *extra);
-        n_strips += 3 * t;
+        for (int changed = 1; changed;) {
+            changed = 0;
+            for (size_t j = a; j < b; j++) {
+                if (group[j] != (int)j || box[j].q0 < 0) continue;
+                for (size_t k = j + 1; k < b; k++) {
+                    int sh;
+                    if (group[k] != (int)k || box[k].q0 < 0 || box[k].q1 < box[j].q0 || box[k].q0 > box[j].q1 ||
+                        !cols_overlap(box[j].c0, box[j].c1, box[k].c0, box[k].c1, P, &sh))
+                        continue;
+                    for (size_t q = a; q < b; q++)
+                        if (group[q] == (int)k) group[q] = (int)j;
+                    weld_rect *u = &box[j];
+                    u->q0 = box[k].q0 < u->q0 ? box[k].q0 : u->q0, u->q1 = box[k].q1 > u->q1 ? box[k].q1 : u->q1;
+                    u->c0 = box[k].c0 + sh < u->c0 ? box[k].c0 + sh : u->c0;
+                    u->c1 = box[k].c1 + sh > u->c1 ? box[k].c1 + sh : u->c1;
+                    u->ok &= box[k].ok;
+                    changed = 1;
+                }
+            }
+        }
+        for (size_t j = a; j < b; j++) {
+            if (group[j] != (int)j) continue;
+            const weld_rect *u = &box[j];
+            size_t ng = 0, t = 0;
+            for (size_t k = j; k < b; k++)
+                if (group[k] == (int)j) {
+                    if (ng < WELD_MAX_GROUP) members[ng] = jobs[k].stem;
+                    ng++;
+                }
+            int ok = u->ok && ng <= WELD_MAX_GROUP && u->c1 - u->c0 + 1 <= P - 1 && u->q1 <= (long)np - 2 &&
+                     2 * ((size_t)(u->q1 - u->q0 + 1) + (size_t)(u->c1 - u->c0 + 1)) <= WELD_MAX_LOOP;
+            if (ok)
+                t = weld_group(st, members, ng, u->q0, u->q1, u->c0, u->c1, lp, out, vo, io, cut, extra, extra_cap,
+                               idx, scratch, scratch_cap);
+            /* The strip, or a cap on every ring of a group that cannot be
+             * welded (also rings that stand on no quad of the tube). */
+            for (size_t k = j; k < b; k++) {
+                if (t && k > j) break;
+                if (!t && group[k] != (int)j) continue;
+                size_t add = t ? t : cap_ring(st, (size_t)jobs[k].stem, lp, vo, extra);
+                if (n_strips + 3 * add > cap_strips) {
+                    size_t nc = cap_strips ? 2 * cap_strips : 3 * 4096;
+                    while (nc < n_strips + 3 * add) nc *= 2;
+                    uint32_t *gr = realloc(strips, nc * sizeof *gr);
+                    if (!gr) {
+                        rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
+                        goto done;
+                    }
+                    strips = gr, cap_strips = nc;
+                }
+                if (add) memcpy(strips + n_strips, extra, 3 * add * sizeof *extra);
+                n_strips += 3 * add;
+            }
+        }
+        a = b;
     }
     size_t removed = 0;
     for (size_t t = 0; t < nt; t++) removed += cut[t];
@@ -621,7 +918,7 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
     out->indices = ix;
     out->n_indices = w;
 done:
-    free(jobs), free(rect), free(cut), free(claim), free(extra), free(strips);
+    free(jobs), free(rect), free(box), free(group), free(cut), free(extra), free(strips), free(scratch);
     return rc;
 }
 

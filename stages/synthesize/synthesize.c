@@ -37,6 +37,7 @@ sy_code sy_synth_options_check(const sy_synth_options *o, sy_error *err)
         return sy_fail(err, SY_EUSAGE, "synthesize: max_patches >= 1, candidates 1..64, rolls 1..16");
     if (!(o->outside_max >= 0 && o->outside_max <= 1)) return sy_fail(err, SY_EUSAGE, "synthesize: outside_max must be in [0, 1]");
     if (o->grid < 2 || o->grid > 64) return sy_fail(err, SY_EUSAGE, "synthesize: grid must be 2..64");
+
     return SY_OK;
 }
 
@@ -145,6 +146,7 @@ typedef struct {
     uint32_t *block;     /* leaves per block */
     float *block_cap;    /* leaves a block holds: capacity x its occupied cells */
     size_t n_occupied, n_blocks, n_filled; /* occupied cells; blocks with room; blocks holding a leaf */
+    size_t n_inside;     /* cells inside the hull */
     double capacity;     /* leaves a cell holds before docking there stops */
     float centroid[3];   /* of the occupied cells */
 } lobe_grid;
@@ -250,6 +252,7 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
                 size_t i = (size_t)x + (size_t)g->d[0] * ((size_t)y + (size_t)g->d[1] * (size_t)z);
                 double p[3] = {g->lo[0] + (x + 0.5) * g->h, g->lo[1] + (y + 0.5) * g->h, g->lo[2] + (z + 0.5) * g->h};
                 g->occupied[i] = g->inside[i] && occ_bit(c, g->lo, g->hi, p);
+                g->n_inside += g->inside[i];
                 if (g->occupied[i]) {
                     g->n_occupied++;
                     for (int k = 0; k < 3; k++) cs[k] += p[k];
@@ -514,7 +517,7 @@ static int cmp_cand(const void *a, const void *b)
 
 static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_branchlets *lib, const sy_synth_options *o,
                             double density, int max_depth, double max_thick, cand *cands, synth_out *so,
-                            sy_synth_report *rep, size_t *occupied, sy_error *err)
+                            sy_synth_report *rep, size_t *occupied, size_t cells[2], sy_error *err)
 {
     double leaf_area = 0.5 * o->leaf_size * o->leaf_size; /* a card about half as wide as long */
     lobe_grid g;
@@ -695,6 +698,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
                 rep->patches - placed0, starts, rep->docks_outside, rep->docks_rejected, rep->docks_full, rep->docks_depth);
     /* Summed over lobes; the caller divides by all occupied cells. */
     if (!rc) rep->coverage += (double)g.n_filled;
+    if (!rc) cells[0] += g.n_inside, cells[1] += g.n_occupied;
     *occupied += g.n_blocks;
     free(tried);
     free(Q.q);
@@ -755,7 +759,7 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
     if (!cands) rc = sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
     double density = o->leaf_density > 0 ? o->leaf_density : 1.5;
     int max_depth = o->max_depth > 0 ? o->max_depth : 7;
-    size_t occupied = 0;
+    size_t occupied = 0, cells[2] = {0, 0};
     for (size_t c = 0; !rc && lobes && c < lobes->n; c++) {
         const sy_cluster *C = &lobes->items[c];
         if (C->n_tris < 4 || C->n_verts < 4) {
@@ -763,10 +767,14 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
             rep.lobes_bare++;
             continue;
         }
-        rc = texture_lobe(C, (int32_t)c, lib, o, density, max_depth, max_thick, cands, &so, &rep, &occupied, err);
+        rc = texture_lobe(C, (int32_t)c, lib, o, density, max_depth, max_thick, cands, &so, &rep, &occupied, cells, err);
     }
     rep.lobes = lobes ? lobes->n : 0;
     rep.coverage = occupied ? rep.coverage / (double)occupied : 0;
+    /* How much of the hulls the scan's points fill: thin bare limbs leave
+     * most of a hull empty, a foliated crown fills it (a diagnostic; on the
+     * AdTree scans it does not separate leaf-off from leaf-on, 0.35-0.57). */
+    rep.fill = cells[0] ? (double)cells[1] / (double)cells[0] : 1;
     rep.leaves = leaves->n;
     free(cands);
     /* Stochastic-pruning order: every prefix holds the same leading share of each patch's stored order. */

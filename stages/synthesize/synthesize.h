@@ -51,6 +51,7 @@ typedef struct {
     size_t patches, docks_filled, docks_outside, docks_depth, docks_full, docks_rejected;
     size_t nodes_added, leaves, leaves_in_hull;
     double coverage;            /* share of the lobes' occupied blocks (2 x 2 x 2 grid cells) holding a leaf */
+    double fill;                /* share of the lobes' inside cells holding scan points (all lobes) */
     double seconds;
 } sy_synth_report;
 

@@ -97,28 +97,43 @@ async function main() {
     cam.position.set(c.x + d * 0.55, c.y + ext.y * 0.05, c.z + d * 0.85);
     cam.lookAt(c);
   }
-  renderer.setSize(w, h);
   document.body.appendChild(renderer.domElement);
   // The mask render clears to pure magenta, a colour no bark or leaf has.
   renderer.setClearColor(0xff00ff, 1);
-  renderer.render(scene, cam);
-  const gl = renderer.getContext(), px = new Uint8Array(4 * w * h);
-  gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, px);
-  // readPixels is bottom-up; flip to image rows.
-  const flip = new Uint8Array(px.length);
-  for (let y = 0; y < h; y++) flip.set(px.subarray(4 * w * (h - 1 - y), 4 * w * (h - y)), 4 * w * y);
-  const m3 = drawn(flip, w, h);
-  verdict.coverage = m3.reduce((a, b) => a + b, 0) / (w * h);
-  verdict.mean_colour = meanColour(flip, m3);
+  const readMask = (mw, mh) => {
+    renderer.setSize(mw, mh);
+    renderer.render(scene, cam);
+    const gl = renderer.getContext(), px = new Uint8Array(4 * mw * mh);
+    gl.readPixels(0, 0, mw, mh, gl.RGBA, gl.UNSIGNED_BYTE, px);
+    // readPixels is bottom-up; flip to image rows.
+    const flip = new Uint8Array(px.length);
+    for (let y = 0; y < mh; y++) flip.set(px.subarray(4 * mw * (mh - 1 - y), 4 * mw * (mh - y)), 4 * mw * y);
+    return { px: flip, m: drawn(flip, mw, mh) };
+  };
   if (impMesh && (view === 'front' || view === 'side')) {
-    const img = impMesh.material.map.image;
-    const cv = new OffscreenCanvas(w, h), cx = cv.getContext('2d');
-    const half = img.width / 2, sx = view === 'front' ? 0 : half;
-    cx.drawImage(img, sx, 0, half, img.height, 0, 0, w, h);
-    const ip = cx.getImageData(0, 0, w, h).data, mi = mask(ip, w, h, 128);
-    verdict.impostor_iou = iou(m3, mi);
+    // Agreement with the atlas, on the atlas's own pixel grid. The atlas
+    // rasteriser is conservative (a pixel a triangle touches counts) and
+    // samples the leaf texture without mip-maps; a GPU render at the atlas's
+    // size misses every leaf card thinner than a pixel and thins alpha-tested
+    // cards through the mip chain, so the crown would read as half empty
+    // (IoU ~0.2 at 128 px). Rendering at SS times the atlas resolution and
+    // counting a texel covered when any of its SS x SS samples is brings the
+    // GPU's coverage to the same definition.
+    const img = impMesh.material.map.image, SS = 4;
+    const aw = img.width / 2, ah = img.height, hi = readMask(aw * SS, ah * SS);
+    const mg = new Uint8Array(aw * ah);
+    for (let y = 0; y < ah * SS; y++)
+      for (let x = 0; x < aw * SS; x++) if (hi.m[y * aw * SS + x]) mg[((y / SS) | 0) * aw + ((x / SS) | 0)] = 1;
+    const cv = new OffscreenCanvas(aw, ah), cx = cv.getContext('2d');
+    cx.drawImage(img, view === 'front' ? 0 : aw, 0, aw, ah, 0, 0, aw, ah);
+    const ip = cx.getImageData(0, 0, aw, ah).data, mi = mask(ip, aw, ah, 128);
+    verdict.impostor_iou = iou(mg, mi);
     verdict.impostor_colour = meanColour(ip, mi);
+    verdict.atlas_coverage = mi.reduce((a, b) => a + b, 0) / (aw * ah);
   }
+  const lo = readMask(w, h);
+  verdict.coverage = lo.m.reduce((a, b) => a + b, 0) / (w * h);
+  verdict.mean_colour = meanColour(lo.px, lo.m);
   renderer.setClearColor(0xb9cfe0, 1);
   renderer.render(scene, cam);
 }
