@@ -18,6 +18,7 @@ int cmd_eval(int argc, char **argv, sy_cli *cli);
 int cmd_skeleton(int argc, char **argv, sy_cli *cli);
 int cmd_mesh(int argc, char **argv, sy_cli *cli);
 int cmd_run(int argc, char **argv, sy_cli *cli);
+int cmd_batch(int argc, char **argv, sy_cli *cli);
 int cmd_train(int argc, char **argv, sy_cli *cli);
 int cmd_classify(int argc, char **argv, sy_cli *cli);
 int cmd_encode(int argc, char **argv, sy_cli *cli);
