@@ -602,6 +602,36 @@ sy_code sy_batch_prepare_dir(const char *out_dir, sy_error *err)
     return rc;
 }
 
+/* Temp files of processes that no longer run (a batch or a worker killed
+ * mid-write, or the viewer's own temp beside a worker's): the output rule
+ * names them ".tmp.<pid>.<name>"; none of them is an output. */
+static void sweep_temps(const char *dir)
+{
+    DIR *d = opendir(dir);
+    if (!d) return;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        if (strncmp(e->d_name, ".tmp.", 5)) continue;
+        char *end;
+        long pid = strtol(e->d_name + 5, &end, 10);
+        if (end == e->d_name + 5 || *end != '.' || pid <= 0) continue;
+        if (kill((pid_t)pid, 0) == 0 || errno != ESRCH) continue;
+        char p[8500];
+        if (snprintf(p, sizeof p, "%s/%s", dir, e->d_name) < (int)sizeof p) unlink(p);
+    }
+    closedir(d);
+}
+
+void sy_batch_sweep(const char *out_dir)
+{
+    static const char *const sub[] = {"", "/trees", "/report", "/slurm", "/slurm/done"};
+    char p[8300];
+    for (size_t i = 0; i < sizeof sub / sizeof *sub; i++) {
+        snprintf(p, sizeof p, "%s%s", out_dir, sub[i]);
+        sweep_temps(p);
+    }
+}
+
 /* Did the worker leave a record of this attempt (of this input and options)? */
 static int has_current_record(const sy_batch_input *in, const char *out_dir, const sy_batch_options *o, uint64_t h)
 {
@@ -617,6 +647,7 @@ sy_code sy_batch_run(const sy_batch_inputs *in, const char *out_dir, const sy_ba
     double t0 = sy_now();
     sy_code rc = sy_batch_prepare_dir(out_dir, err);
     if (rc) return rc;
+    sy_batch_sweep(out_dir);
     size_t n = in->n;
     size_t *todo = calloc(n ? n : 1, sizeof *todo);
     uint64_t *hash = calloc(n ? n : 1, sizeof *hash);

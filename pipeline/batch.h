@@ -102,6 +102,10 @@ uint64_t sy_batch_hash(const void *data, size_t size);
 /* Creates out_dir and its trees/ and logs/ folders. */
 sy_code sy_batch_prepare_dir(const char *out_dir, sy_error *err);
 
+/* Removes the temp files (".tmp.<pid>.*") that processes no longer running
+ * left in out_dir and its folders: what a kill mid-write leaves. */
+void sy_batch_sweep(const char *out_dir);
+
 /* ---- the worker side (batch_tree.c) ---- */
 
 /* Makes one tree's outputs in out_dir/trees and commits them with the
