@@ -95,6 +95,7 @@ sy_code sy_slurm_submit(const sy_batch_inputs *in, const char *out_dir, const ch
     sh_quote(fp, cwd);
     fprintf(fp, " || exit 1\nexec ");
     sh_quote(fp, sylva_exe);
+    fprintf(fp, " batch");
     for (int i = 0; i < argc; i++) {
         int k = slurm_flag(argv[i]);
         if (k) {
