@@ -37,7 +37,7 @@
 uint64_t sy_batch_hash(const void *data, size_t size)
 {
     const unsigned char *p = data;
-    uint64_t h = 1469598103934665603ull;
+    uint64_t h = 14695981039346656037ull;
     for (size_t i = 0; i < size; i++) h = (h ^ p[i]) * 1099511628211ull;
     return h;
 }
@@ -81,9 +81,9 @@ char *sy_batch_options_text(const sy_batch_options *o, const sy_batch_input *in)
     const sy_tree_asset_options *a = &r->asset;
     char *buf = malloc(4096);
     if (!buf) return NULL;
-    char asset[512] = "";
-    /* The asset options as raw bytes' hash: any field that changes changes it. */
-    snprintf(asset, sizeof asset, "%016llx", (unsigned long long)sy_batch_hash(a, sizeof *a));
+    char asset[256];
+    snprintf(asset, sizeof asset, "lods %d impostor %d/%d meshopt %d instancing %d texture %d check %d", a->lods,
+             a->impostor, a->impostor_size, a->meshopt, a->instancing, a->texture_size, a->check);
     snprintf(buf, 4096,
              "sylva %s batch 1\nspecies=%s\nmodel=%s\nclassify=%d\nbeta=%.17g\ngamma=%.17g\nfs=%.17g\nwood_share=%.17g\n"
              "voxel=%.17g\nspread_around=%d\nproxy=%d\nlobe_size=%.17g\nseed=%llu\nasset=%s\nthumbnails=%d\n"
