@@ -19,6 +19,7 @@
 #include <string.h>
 
 #include "classify/classify.h"
+#include "stages/clusters/clusters.h"
 #include "stages/core/progress.h"
 #include "stages/skeleton/skeleton.h"
 
@@ -468,14 +469,19 @@ static void skeleton_features(const float *P, size_t m, double z0, double H, dou
     c.n = m;
     c.xyz = (float *)P; /* read only: the stage takes a const cloud */
     sy_skeleton_options so = sy_skeleton_options_default();
-    so.clusters = 0;
+    sy_cut_options co = sy_cut_options_default();
+    co.clusters = 0; /* the skeleton alone, every point on it */
+    sy_full_skeleton full;
     sy_skeleton s;
     sy_skeleton_report r;
     sy_error e2 = {0};
-    if (sy_reconstruct_skeleton(&c, &so, &s, NULL, &r, &e2)) {
+    if (sy_reconstruct_skeleton(&c, &so, &full, &r, &e2)) {
         (void)err; /* a tree too odd for a skeleton still has its point features */
         return;
     }
+    sy_code cut = sy_clusters_extract(&full, c.xyz, &co, &s, NULL, NULL, &e2);
+    sy_full_skeleton_free(&full);
+    if (cut) return;
     size_t n = s.n;
     int32_t nb = sy_skeleton_branch_count(&s);
     double total = 0, by_order[4] = {0, 0, 0, 0};

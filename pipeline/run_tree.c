@@ -70,14 +70,53 @@ static sy_code name_input(sy_code rc, const char *name, sy_error *err)
     return rc;
 }
 
+/* The cut's share of the reconstruction options. */
+static sy_cut_options cut_options(const sy_skeleton_options *o)
+{
+    sy_cut_options c = sy_cut_options_default();
+    c.clusters = o->clusters;
+    c.fs = o->fs;
+    c.min_points = o->min_cluster_points;
+    c.spread_around = o->spread_around;
+    c.lobe_size = o->lobe_size;
+    return c;
+}
+
+sy_code sy_reconstruct_options_check(const sy_skeleton_options *o, sy_error *err)
+{
+    sy_cut_options co = cut_options(o);
+    sy_code rc = sy_skeleton_options_check(o, err);
+    return rc ? rc : sy_cut_options_check(&co, err);
+}
+
 sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, double alpha_scale, sy_skeleton *out,
                             sy_clusters *clusters, sy_skeleton_report *report, sy_hull_report *hulls, sy_error *err)
 {
+    memset(out, 0, sizeof *out);
+    if (clusters) memset(clusters, 0, sizeof *clusters);
+    sy_skeleton_report local;
+    if (!report) report = &local;
     sy_hull_options ho = sy_hull_options_default();
     if (alpha_scale > 0) ho.alpha_scale = alpha_scale;
+    sy_cut_options co = cut_options(o);
     sy_code rc = sy_hull_options_check(&ho, err);
+    if (!rc) rc = sy_cut_options_check(&co, err);
     if (rc) return rc;
-    if ((rc = sy_reconstruct_skeleton(c, o, out, clusters, report, err))) return rc;
+    /* The skeleton stage: the full skeleton, every point on a node. */
+    sy_full_skeleton full;
+    if ((rc = sy_reconstruct_skeleton(c, o, &full, report, err))) return rc;
+    /* The clusters stage: cut, lobes, split, then the hulls. */
+    sy_cut_report cut;
+    rc = sy_clusters_extract(&full, c->xyz, &co, out, clusters, &cut, err);
+    sy_full_skeleton_free(&full);
+    if (rc) return rc;
+    report->nodes = cut.nodes;
+    report->branches = cut.branches;
+    report->clusters = cut.clusters;
+    report->cluster_points = cut.cluster_points;
+    report->skeleton_points = cut.skeleton_points;
+    report->t_clusters = cut.seconds;
+    report->t_total += cut.seconds;
     if (!clusters) return SY_OK;
     ho.triangles = sy_sylva_hull_budget(clusters->n, out->n);
     if ((rc = sy_clusters_build_hulls(clusters, c->xyz, &ho, hulls, err))) {

@@ -19,6 +19,7 @@
 #include "pipeline/tree_asset.h"
 #include "stages/synthesize/synthesize.h"
 #include "pipeline/tree_species.h"
+#include "stages/clusters/clusters.h"
 #include "stages/core/cloud.h"
 #include "stages/core/status.h"
 #include "stages/skeleton/skeleton.h"
@@ -84,13 +85,17 @@ sy_code sy_run_tree(const char *path, const sy_run_tree_options *o, sy_run_tree_
 sy_code sy_run_tree_cloud(sy_cloud *c, const char *name, const sy_run_tree_options *o, sy_run_tree_result *r,
                           sy_error *err);
 
-/* The reconstruction steps alone: the skeleton stage, then the clusters
- * stage's hulls with the encode stage's .sylva triangle budget. clusters
- * NULL: skeleton only (o->clusters is then ignored). hulls may be NULL; the
- * hull options are the defaults except alpha_scale (0: the default). On
- * failure out and clusters hold nothing to free. */
+/* The reconstruction steps alone: the skeleton stage (the full skeleton),
+ * then the clusters stage: its cut (o's fs, min_cluster_points, clusters,
+ * spread_around, lobe_size) into out and clusters, and their hulls with the
+ * encode stage's .sylva triangle budget. clusters NULL: skeleton only
+ * (o->clusters is then ignored). hulls may be NULL; the hull options are the
+ * defaults except alpha_scale (0: the default). On failure out and clusters
+ * hold nothing to free. */
 sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, double alpha_scale, sy_skeleton *out,
                             sy_clusters *clusters, sy_skeleton_report *report, sy_hull_report *hulls, sy_error *err);
+/* The checks of both stages' options in o (SY_EUSAGE naming the field). */
+sy_code sy_reconstruct_options_check(const sy_skeleton_options *o, sy_error *err);
 
 /* Writes r->glb to glb_path and, when sylva_path is not NULL, r->sylva there:
  * each atomically, both or neither. */

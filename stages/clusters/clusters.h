@@ -130,6 +130,41 @@ sy_code sy_clusters_split_lobes(const sy_skeleton *full, const float *xyz, doubl
                                 int32_t *cluster_of, int32_t *seed_of, int32_t *point_lobe, size_t *n_clusters,
                                 sy_error *err);
 
+/* ---- The cut: the full skeleton -> main skeleton + clusters. ---- */
+
+typedef struct {
+    int clusters;      /* 0: no cut, every point stays on the skeleton (1) */
+    double fs;         /* scan-density factor f_s of eq. 3.2, in (0, 1] (1 = leafless) */
+    int min_points;    /* smaller low-confidence groups stay on the skeleton (24) */
+    int spread_around; /* the spread of sy_edge_low_confidence: around the node (0) */
+    double lobe_size;  /* lobes no larger than this share of the cloud's largest extent, [0, 1]
+                          (0.25; 0 = one cluster a cut, as Pirk 2013 §3.3.2 alone gives) */
+} sy_cut_options;
+
+sy_cut_options sy_cut_options_default(void);
+/* SY_EUSAGE naming the field when a value is out of range. */
+sy_code sy_cut_options_check(const sy_cut_options *o, sy_error *err);
+
+typedef struct {
+    size_t nodes, branches;   /* of the main skeleton */
+    size_t clusters, cluster_points, skeleton_points;
+    double seconds;
+} sy_cut_report;
+
+/* The cut of a full skeleton (the skeleton stage's sy_reconstruct_skeleton)
+ * of the cloud xyz: sy_clusters_cut, then sy_clusters_split_lobes when
+ * o->lobe_size > 0, then the split of nodes and points into out (the main
+ * skeleton, branch ids renumbered, support filled) and clusters (seeds in
+ * out, point lists ascending, no hulls yet: sy_clusters_build_hulls). Leaf
+ * points (f->wood) join the cluster of their cut node or one foliage cluster
+ * per branch; a root above the known ground gets a foot down to it. clusters
+ * NULL or o->clusters 0: no cut, every point stays on the main skeleton. Every
+ * input point ends up in exactly one place: the support of one node or the
+ * point list of one cluster. On failure out and clusters hold nothing to
+ * free. report may be NULL. */
+sy_code sy_clusters_extract(const sy_full_skeleton *f, const float *xyz, const sy_cut_options *o, sy_skeleton *out,
+                            sy_clusters *clusters, sy_cut_report *report, sy_error *err);
+
 /* ---- Mesh checks (used by the hull builder and the tests). ---- */
 
 /* Edges not shared by exactly two triangles traversing them in opposite

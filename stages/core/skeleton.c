@@ -207,3 +207,95 @@ void sy_skeleton_children(const sy_skeleton *s, int32_t *first_child, int32_t *n
         first_child[p] = (int32_t)i;
     }
 }
+
+double sy_skeleton_edge_length(const sy_skeleton *s, size_t i)
+{
+    int32_t p = s->parent[i];
+    if (p < 0) return 0;
+    double d2 = 0;
+    for (int a = 0; a < 3; a++) {
+        double d = s->pos[3 * i + a] - s->pos[3 * (size_t)p + a];
+        d2 += d * d;
+    }
+    return sqrt(d2);
+}
+
+void sy_skeleton_subtree_lengths(const sy_skeleton *s, double *l)
+{
+    for (size_t i = 0; i < s->n; i++) l[i] = sy_skeleton_edge_length(s, i);
+    for (size_t i = s->n; i-- > 1;)
+        if (s->parent[i] >= 0) l[s->parent[i]] += l[i];
+}
+
+void sy_skeleton_assign_branches(sy_skeleton *s, const double *l)
+{
+    size_t n = s->n;
+    int32_t *cont = malloc((n ? n : 1) * sizeof *cont);
+    if (!cont) return; /* leaves the previous ids: only cosmetic information is lost */
+    for (size_t i = 0; i < n; i++) cont[i] = -1;
+    for (size_t i = 1; i < n; i++) {
+        int32_t p = s->parent[i];
+        if (p >= 0 && (cont[p] < 0 || l[i] > l[cont[p]])) cont[p] = (int32_t)i;
+    }
+    int32_t next = 0;
+    for (size_t i = 0; i < n; i++) {
+        int32_t p = s->parent[i];
+        if (p < 0) {
+            s->branch[i] = next++;
+            s->order[i] = 0;
+        } else if (cont[p] == (int32_t)i) {
+            s->branch[i] = s->branch[p];
+            s->order[i] = s->order[p];
+        } else {
+            s->branch[i] = next++;
+            s->order[i] = (uint8_t)(s->order[p] < 255 ? s->order[p] + 1 : 255);
+        }
+    }
+    free(cont);
+}
+
+sy_code sy_skeleton_prepend_root(sy_skeleton *s, float z, sy_error *err)
+{
+    if (s->n == 0) return sy_fail(err, SY_EINTERNAL, "skeleton: no root to extend");
+    sy_skeleton t;
+    sy_code rc = sy_skeleton_init(&t, s->n + 1, err);
+    if (rc) return rc;
+    if (s->support_start) {
+        t.support_start = sy_calloc(s->n + 2, sizeof *t.support_start, err, "skeleton");
+        if (!t.support_start) {
+            sy_skeleton_free(&t);
+            return SY_EINTERNAL;
+        }
+        for (size_t i = 0; i <= s->n; i++) t.support_start[i + 1] = s->support_start[i];
+    }
+    memcpy(t.origin, s->origin, sizeof t.origin);
+    t.pos[0] = s->pos[0];
+    t.pos[1] = s->pos[1];
+    t.pos[2] = z;
+    t.parent[0] = -1;
+    t.radius[0] = s->radius[0];
+    t.order[0] = s->order[0];
+    t.branch[0] = s->branch[0];
+    memcpy(t.pos + 3, s->pos, 3 * s->n * sizeof *s->pos);
+    memcpy(t.radius + 1, s->radius, s->n * sizeof *s->radius);
+    memcpy(t.order + 1, s->order, s->n * sizeof *s->order);
+    memcpy(t.branch + 1, s->branch, s->n * sizeof *s->branch);
+    for (size_t i = 0; i < s->n; i++) t.parent[i + 1] = s->parent[i] + 1; /* the old root's -1 becomes 0 */
+    t.lobes = s->lobes;
+    t.lobe_depth = s->lobe_depth;
+    t.support = s->support;
+    s->support = NULL;
+    sy_skeleton_free(s);
+    *s = t;
+    return SY_OK;
+}
+
+void sy_full_skeleton_free(sy_full_skeleton *f)
+{
+    if (!f) return;
+    sy_skeleton_free(&f->full);
+    free(f->point_node);
+    free(f->wood);
+    free(f->measured);
+    memset(f, 0, sizeof *f);
+}

@@ -63,6 +63,37 @@ double sy_skeleton_length(const sy_skeleton *s);
 /* Child lists (s->n entries each, -1 = none): node i's children are
  * first_child[i], next_sibling[first_child[i]], ... in ascending index order. */
 void sy_skeleton_children(const sy_skeleton *s, int32_t *first_child, int32_t *next_sibling);
+/* Length of node i's incoming edge in metres (0 at the root). */
+double sy_skeleton_edge_length(const sy_skeleton *s, size_t i);
+/* l[i] = length of all edges below node i plus its incoming edge (so leaves
+ * get their own edge length, never 0). Needs parent[i] < i (breadth-first
+ * order). */
+void sy_skeleton_subtree_lengths(const sy_skeleton *s, double *l);
+/* Branch ids and orders from the subtree lengths l: each node's continuation
+ * is its child with the largest l; the other children start new branches of
+ * order + 1. Ids are numbered in node order. Needs breadth-first order. */
+void sy_skeleton_assign_branches(sy_skeleton *s, const double *l);
+/* Puts a new root under the old one, at the old root's x, y and height z:
+ * the new node supports no points and carries the old root's radius, order
+ * and branch; every old node's id grows by one. */
+sy_code sy_skeleton_prepend_root(sy_skeleton *s, float z, sy_error *err);
+
+/* A reconstructed skeleton before the cut into main skeleton and clusters,
+ * as the skeleton stage hands it to the clusters stage: every node, the node
+ * each input point belongs to, which points are wood, the radii a ring of
+ * returns measured, and the ground under the base. */
+typedef struct {
+    sy_skeleton full;      /* breadth-first order; support holds the wood points of each node */
+    size_t n_points;       /* points of the cloud the indices refer to */
+    int32_t *point_node;   /* n_points: the node of full each point belongs to (leaf points too) */
+    uint8_t *wood;         /* n_points: 1 = wood; NULL: every point is wood */
+    float *measured;       /* full.n: radius a circle fit measured, 0 = none */
+    double ground;         /* ground height under the base in the skeleton's frame; NaN: unknown */
+    double foot_step;      /* extend the root down to the ground only when it lies more than this
+                              above it (a foot worth a node: the level-set width) */
+} sy_full_skeleton;
+
+void sy_full_skeleton_free(sy_full_skeleton *f);
 
 /* Leaf placements of a generated tree: each leaf is a card of size scale,
  * positioned at pos, oriented by the unit quaternion rot (x, y, z, w) whose

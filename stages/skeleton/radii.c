@@ -106,54 +106,6 @@ int sy_fit_circle(const double *xy, size_t n, double tol, unsigned long long see
     return 0;
 }
 
-/* ---- Subtree lengths, branches ---- */
-
-static double edge_len(const sy_skeleton *s, size_t i)
-{
-    int32_t p = s->parent[i];
-    if (p < 0) return 0;
-    double d2 = 0;
-    for (int a = 0; a < 3; a++) {
-        double d = s->pos[3 * i + a] - s->pos[3 * (size_t)p + a];
-        d2 += d * d;
-    }
-    return sqrt(d2);
-}
-
-void sy_subtree_lengths(const sy_skeleton *s, double *l)
-{
-    for (size_t i = 0; i < s->n; i++) l[i] = edge_len(s, i);
-    for (size_t i = s->n; i-- > 1;)
-        if (s->parent[i] >= 0) l[s->parent[i]] += l[i];
-}
-
-void sy_assign_branches(sy_skeleton *s, const double *l)
-{
-    size_t n = s->n;
-    int32_t *cont = malloc((n ? n : 1) * sizeof *cont);
-    if (!cont) return; /* leaves the previous ids: only cosmetic information is lost */
-    for (size_t i = 0; i < n; i++) cont[i] = -1;
-    for (size_t i = 1; i < n; i++) {
-        int32_t p = s->parent[i];
-        if (p >= 0 && (cont[p] < 0 || l[i] > l[cont[p]])) cont[p] = (int32_t)i;
-    }
-    int32_t next = 0;
-    for (size_t i = 0; i < n; i++) {
-        int32_t p = s->parent[i];
-        if (p < 0) {
-            s->branch[i] = next++;
-            s->order[i] = 0;
-        } else if (cont[p] == (int32_t)i) {
-            s->branch[i] = s->branch[p];
-            s->order[i] = s->order[p];
-        } else {
-            s->branch[i] = next++;
-            s->order[i] = (uint8_t)(s->order[p] < 255 ? s->order[p] + 1 : 255);
-        }
-    }
-    free(cont);
-}
-
 /* ---- Radii ---- */
 
 static int cmp_double(const void *a, const void *b)
@@ -232,7 +184,7 @@ sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of
         free(xy);
         return SY_EINTERNAL;
     }
-    sy_subtree_lengths(s, l);
+    sy_skeleton_subtree_lengths(s, l);
     double z0 = isfinite(ground_z) ? ground_z : s->pos[2], zmax = z0;
     for (size_t i = 0; i < n; i++) zmax = fmax(zmax, xyz[3 * i + 2]);
     info->height = zmax - z0;

@@ -1,24 +1,23 @@
 /* Skeleton reconstruction: one segmented, Z-up tree scan becomes a rooted
- * skeleton (the main branching structure) plus clusters (the parts the scan
- * cannot resolve into branches, each hanging off a seed node and enclosed by an
- * alpha-shape hull). Follows Pirk 2013 ch. 3 / Livny et al. 2011; the choices
- * the thesis leaves open are documented in docs/skeleton.md.
+ * skeleton of the whole tree, every point assigned to a node. Follows Pirk
+ * 2013 ch. 3 / Livny et al. 2011; the choices the thesis leaves open are
+ * documented in docs/skeleton.md.
  *
- * Pipeline: neighbour graph (kNN joined with a radius graph, disconnected parts
+ * Steps: neighbour graph (kNN joined with a radius graph, disconnected parts
  * bridged by their shortest gap edge) -> Dijkstra shortest-path tree from the
  * base with weights |u-v|^beta -> geodesic level sets split into connected
  * sub-clusters, one node each -> pruning, sibling merging, smoothing -> DBH
- * circle fit and allometric radii (gamma) -> low-confidence edges (f_s) cut the
- * skeleton into the main structure and clusters -> one hull per cluster.
+ * circle fit, allometric radii (gamma) and measured radii.
  *
- * Every input point ends up in exactly one place: the support of one skeleton
- * node (skel->support) or the point list of one cluster. */
+ * The result is the full skeleton (sy_full_skeleton, stages/core/skeleton.h).
+ * The clusters stage (sy_clusters_extract) then cuts it at low-confidence
+ * edges (f_s) into the main structure and clusters, and builds one hull per
+ * cluster; the pipeline (sy_reconstruct_tree) calls the two in turn. */
 #ifndef SYLVA_STAGE_SKELETON_H
 #define SYLVA_STAGE_SKELETON_H
 
 #include <stddef.h>
 
-#include "stages/clusters/clusters.h"
 #include "stages/core/cloud.h"
 #include "stages/core/skeleton.h"
 #include "stages/core/status.h"
@@ -30,7 +29,6 @@ extern "C" {
 typedef struct {
     double beta;          /* Dijkstra edge weight |u-v|^beta (1) */
     double gamma;         /* allometry: d^gamma is additive over children (2 = da Vinci areas) */
-    double fs;            /* scan-density factor f_s of eq. 3.2, in (0, 1] (1 = leafless) */
     double spacing;       /* point spacing s in metres; 0 = median nearest-neighbour distance */
     int k;                /* neighbours per point in the kNN graph (12) */
     double radius_factor; /* also join all points within radius_factor * s (2.0) */
@@ -41,6 +39,13 @@ typedef struct {
     int smooth_iters;     /* Laplacian passes along chains (3) */
     double dbh_height;    /* breast height above the base in metres (1.3) */
     double dbh_slab;      /* slab thickness for the DBH circle fit in metres (0.10) */
+    double wood_share;    /* wood/leaf separation: wood = shortest-path subtrees holding at least this
+                             share of the points, plus their neighbours; 0 = off, all wood (default:
+                             on leafy TLS scans it gained little and hurt leafless trees, docs/skeleton.md) */
+    /* The cut's options, carried here so one struct configures a
+     * reconstruction; the skeleton stage does not read them, the pipeline
+     * hands them to the clusters stage (sy_cut_options) and checks them there. */
+    double fs;            /* scan-density factor f_s of eq. 3.2, in (0, 1] (1 = leafless) */
     int min_cluster_points; /* smaller low-confidence groups stay on the skeleton (24) */
     int clusters;         /* 0: skeleton only, every point stays on the skeleton */
     int spread_around;    /* low-confidence spread from the skeleton around the node, not the
@@ -49,9 +54,6 @@ typedef struct {
     double lobe_size;     /* lobes: low-confidence regions split into parts no larger than this share of
                              the tree's largest extent, each hanging off the skeleton node next to it
                              (0.25; 0 = one cluster per cut, as Pirk 2013 §3.3.2 alone gives) */
-    double wood_share;    /* wood/leaf separation: wood = shortest-path subtrees holding at least this
-                             share of the points, plus their neighbours; 0 = off, all wood (default:
-                             on leafy TLS scans it gained little and hurt leafless trees, docs/skeleton.md) */
 } sy_skeleton_options;
 
 sy_skeleton_options sy_skeleton_options_default(void);
@@ -63,6 +65,8 @@ typedef struct {
     size_t wood_points;   /* points classified wood (all of them with wood_share 0) */
     double spacing, bin_width;
     size_t raw_nodes, pruned_nodes, merged_nodes;
+    /* After the stage: the full skeleton's; after sy_reconstruct_tree: the
+     * main skeleton's and the clusters' (the clusters stage's cut). */
     size_t nodes, branches;
     size_t clusters, cluster_points, skeleton_points;
     double dbh, dbh_rms, height;
@@ -72,13 +76,15 @@ typedef struct {
     double t_graph, t_dijkstra, t_levels, t_radii, t_clusters, t_total; /* seconds */
 } sy_skeleton_report;
 
-/* Reconstructs cloud into out (positions relative to cloud->origin, nodes in
- * breadth-first order from the root, support filled) and clusters (may be
- * NULL when o->clusters is 0). report may be NULL. Fails with SY_EUSAGE for
- * options sy_skeleton_options_check rejects, SY_EINPUT for clouds too small to
- * hold a tree (< 16 points). */
-sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options *o, sy_skeleton *out,
-                                sy_clusters *clusters, sy_skeleton_report *report, sy_error *err);
+/* Reconstructs cloud into out: the full skeleton (positions relative to
+ * cloud->origin, nodes in breadth-first order from the root, support filled),
+ * each point's node, the wood mask, the measured radii and the ground under
+ * the base. report (may be NULL) gets everything up to the radii; its node
+ * and point counts are the full skeleton's. Fails with SY_EUSAGE for options
+ * sy_skeleton_options_check rejects, SY_EINPUT for clouds too small to hold a
+ * tree (< 16 points); on failure out holds nothing to free. */
+sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options *o, sy_full_skeleton *out,
+                                sy_skeleton_report *report, sy_error *err);
 
 /* ---- The pieces, exposed for tests and benchmarks. ---- */
 

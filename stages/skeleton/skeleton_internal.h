@@ -8,16 +8,6 @@
 extern "C" {
 #endif
 
-/* l[i] = length of all edges below node i plus its incoming edge (so leaves
- * get their own edge length, never 0). Needs parent[i] < i (breadth-first
- * order). */
-void sy_subtree_lengths(const sy_skeleton *s, double *l);
-
-/* Branch ids and orders: each node's continuation is its child with the
- * largest l; the other children start new branches of order + 1. Ids are
- * numbered in node order. Needs breadth-first order. */
-void sy_assign_branches(sy_skeleton *s, const double *l);
-
 typedef struct {
     double dbh, rms, d_root, height, dbh_z;
     int fitted;

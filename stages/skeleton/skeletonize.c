@@ -3,8 +3,8 @@
  * into its connected sub-clusters, one node each, linked to the node of the
  * lower bin their shortest paths come from. Then: pruning of short side
  * subtrees, merging of near-parallel siblings, Laplacian smoothing along
- * chains, radii, and the cut into main skeleton and clusters. */
-#include <limits.h>
+ * chains and radii. The cut into main skeleton and clusters is the clusters
+ * stage's (sy_clusters_extract), which the pipeline calls next. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -42,7 +42,6 @@ sy_code sy_skeleton_options_check(const sy_skeleton_options *o, sy_error *err)
     if (!(o->beta > 0) || !isfinite(o->beta)) return sy_fail(err, SY_EUSAGE, "skeleton: beta %g must be > 0", o->beta);
     if (!(o->gamma > 0) || !isfinite(o->gamma))
         return sy_fail(err, SY_EUSAGE, "skeleton: gamma %g must be > 0", o->gamma);
-    if (!(o->fs > 0 && o->fs <= 1)) return sy_fail(err, SY_EUSAGE, "skeleton: fs %g outside (0, 1]", o->fs);
     if (!(o->spacing >= 0) || !isfinite(o->spacing))
         return sy_fail(err, SY_EUSAGE, "skeleton: spacing %g must be >= 0", o->spacing);
     if (o->k < 1 || o->k > 32) return sy_fail(err, SY_EUSAGE, "skeleton: k %d outside [1, 32]", o->k);
@@ -53,12 +52,8 @@ sy_code sy_skeleton_options_check(const sy_skeleton_options *o, sy_error *err)
         return sy_fail(err, SY_EUSAGE, "skeleton: prune_factor >= 0, merge_cos in [-1, 1], smooth_iters >= 0");
     if (!(o->dbh_height > 0) || !(o->dbh_slab > 0))
         return sy_fail(err, SY_EUSAGE, "skeleton: dbh_height and dbh_slab must be > 0");
-    if (o->min_cluster_points < 0)
-        return sy_fail(err, SY_EUSAGE, "skeleton: min_cluster_points %d must be >= 0", o->min_cluster_points);
     if (!(o->wood_share >= 0 && o->wood_share < 1))
         return sy_fail(err, SY_EUSAGE, "skeleton: wood_share %g outside [0, 1)", o->wood_share);
-    if (!(o->lobe_size >= 0 && o->lobe_size <= 1))
-        return sy_fail(err, SY_EUSAGE, "skeleton: lobe_size %g outside [0, 1]", o->lobe_size);
     return SY_OK;
 }
 
@@ -458,244 +453,6 @@ done:
     return rc;
 }
 
-/* Puts a new root under the old one at the ground (ground_z, in the
- * skeleton's frame): the foot that ground removal took off the scan. The
- * tree then stands on the ground in the asset, and breast height 1.3 m above
- * the root (how eval and truth files read DBH) is 1.3 m above the ground.
- * Done on the final skeleton: the foot is not a measured edge for the
- * low-confidence rule to judge. The new node supports no points and carries
- * the old root's radius; node ids and cluster seeds shift by one. */
-static sy_code extend_root_to_ground(sy_skeleton *s, sy_clusters *cl, double ground_z, sy_error *err)
-{
-    sy_skeleton t;
-    sy_code rc = sy_skeleton_init(&t, s->n + 1, err);
-    if (rc) return rc;
-    t.support_start = sy_calloc(s->n + 2, sizeof *t.support_start, err, "skeleton");
-    if (!t.support_start) {
-        sy_skeleton_free(&t);
-        return SY_EINTERNAL;
-    }
-    memcpy(t.origin, s->origin, sizeof t.origin);
-    t.pos[0] = s->pos[0];
-    t.pos[1] = s->pos[1];
-    t.pos[2] = (float)ground_z;
-    t.parent[0] = -1;
-    t.radius[0] = s->radius[0];
-    t.order[0] = s->order[0];
-    t.branch[0] = s->branch[0];
-    memcpy(t.pos + 3, s->pos, 3 * s->n * sizeof *s->pos);
-    memcpy(t.radius + 1, s->radius, s->n * sizeof *s->radius);
-    memcpy(t.order + 1, s->order, s->n * sizeof *s->order);
-    memcpy(t.branch + 1, s->branch, s->n * sizeof *s->branch);
-    for (size_t i = 0; i < s->n; i++) t.parent[i + 1] = s->parent[i] + 1; /* the old root's -1 becomes 0 */
-    if (s->support_start)
-        for (size_t i = 0; i <= s->n; i++) t.support_start[i + 1] = s->support_start[i];
-    t.support = s->support;
-    s->support = NULL;
-    sy_skeleton_free(s);
-    *s = t;
-    for (size_t c = 0; cl && c < cl->n; c++) cl->items[c].seed++;
-    return SY_OK;
-}
-
-/* Splits the full skeleton into the main skeleton (out) and clusters.
- * point_lobe (may be NULL): per input point a cluster that takes it from its
- * main-skeleton node (-1: it stays with its node). */
-static sy_code split_clusters(const sy_skeleton *full, const float *xyz, const int32_t *cluster_of,
-                              const int32_t *seed_of, const int32_t *point_lobe, size_t n_clusters, sy_skeleton *out,
-                              sy_clusters *cl, sy_error *err)
-{
-    size_t n = full->n;
-    int32_t *newid = sy_calloc(n, sizeof *newid, err, "skeleton");
-    size_t *cnt = sy_calloc(n_clusters + 1, sizeof *cnt, err, "clusters");
-    if (!newid || !cnt) {
-        free(newid);
-        free(cnt);
-        return SY_EINTERNAL;
-    }
-    sy_code rc = sy_skeleton_init(out, 0, err);
-    memcpy(out->origin, full->origin, sizeof out->origin);
-    size_t kept_points = 0;
-    for (size_t i = 0; i < n && !rc; i++) {
-        const uint32_t *sp = full->support + full->support_start[i];
-        size_t sc = full->support_start[i + 1] - full->support_start[i];
-        if (cluster_of[i] >= 0) {
-            cnt[cluster_of[i]] += sc;
-            newid[i] = -1;
-            continue;
-        }
-        int32_t p = full->parent[i] >= 0 ? newid[full->parent[i]] : -1;
-        newid[i] = sy_skeleton_add(out, full->pos + 3 * i, full->radius[i], p, full->order[i], full->branch[i], err);
-        if (newid[i] < 0) rc = SY_EINTERNAL;
-        for (size_t k = 0; k < sc; k++) {
-            int32_t l = point_lobe ? point_lobe[sp[k]] : -1;
-            if (l >= 0) cnt[l]++;
-            else kept_points++;
-        }
-    }
-    if (!rc) {
-        out->support_start = sy_calloc(out->n + 1, sizeof *out->support_start, err, "skeleton");
-        out->support = sy_calloc(kept_points ? kept_points : 1, sizeof *out->support, err, "skeleton");
-        cl->items = sy_calloc(n_clusters ? n_clusters : 1, sizeof *cl->items, err, "clusters");
-        if (!out->support_start || !out->support || !cl->items) rc = SY_EINTERNAL;
-    }
-    if (!rc) {
-        cl->n = n_clusters;
-        for (size_t c = 0; c < n_clusters && !rc; c++) {
-            cl->items[c].seed = newid[seed_of[c]];
-            cl->items[c].points = sy_calloc(cnt[c] ? cnt[c] : 1, sizeof(uint32_t), err, "clusters");
-            if (!cl->items[c].points) rc = SY_EINTERNAL;
-        }
-    }
-    if (!rc) {
-        size_t w = 0;
-        for (size_t i = 0; i < n; i++) {
-            const uint32_t *sp = full->support + full->support_start[i];
-            size_t sc = full->support_start[i + 1] - full->support_start[i];
-            if (cluster_of[i] >= 0) {
-                sy_cluster *c = &cl->items[cluster_of[i]];
-                memcpy(c->points + c->n_points, sp, sc * sizeof *sp);
-                c->n_points += sc;
-            } else {
-                out->support_start[newid[i]] = w;
-                for (size_t k = 0; k < sc; k++) {
-                    int32_t l = point_lobe ? point_lobe[sp[k]] : -1;
-                    if (l >= 0) cl->items[l].points[cl->items[l].n_points++] = sp[k];
-                    else out->support[w++] = sp[k];
-                }
-            }
-        }
-        out->support_start[out->n] = w;
-    }
-    (void)xyz;
-    free(newid);
-    free(cnt);
-    return rc;
-}
-
-static int cmp_u32(const void *a, const void *b)
-{
-    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
-    return x < y ? -1 : x > y;
-}
-
-static int cmp_cluster_seed(const void *a, const void *b)
-{
-    const sy_cluster *x = a, *y = b;
-    if (x->seed != y->seed) return x->seed < y->seed ? -1 : 1;
-    return x->points[0] < y->points[0] ? -1 : x->points[0] > y->points[0];
-}
-
-/* Leaf points (not in any node's support so far) after the cut: those of a
- * cut node join its cluster; the others are grouped by the branch of their
- * node on the main skeleton, one foliage cluster per branch seeded at the
- * branch node holding most of them. Groups under min_points join their nodes'
- * support. Clusters end up ordered by seed. */
-static sy_code attach_leaves(const sy_skeleton *full, const int32_t *cluster_of, const int32_t *point_node,
-                             const uint8_t *wood, size_t n_points, int min_points, sy_skeleton *out,
-                             sy_clusters *cl, sy_error *err)
-{
-    size_t n = full->n, m = out->n, nb = 0, base = cl->n;
-    for (size_t v = 0; v < m; v++)
-        if ((size_t)out->branch[v] + 1 > nb) nb = (size_t)out->branch[v] + 1;
-    int32_t *newid = sy_calloc(n ? n : 1, sizeof *newid, err, "clusters");
-    size_t *per_node = sy_calloc(m + 1, sizeof *per_node, err, "clusters");
-    size_t *per_branch = sy_calloc(nb + 1, sizeof *per_branch, err, "clusters");
-    int32_t *best = sy_calloc(nb + 1, sizeof *best, err, "clusters");
-    int32_t *group = sy_calloc(nb + 1, sizeof *group, err, "clusters");
-    size_t *extra = sy_calloc(base + nb + 1, sizeof *extra, err, "clusters");
-    uint32_t *support = NULL;
-    sy_code rc = SY_EINTERNAL;
-    if (!newid || !per_node || !per_branch || !best || !group || !extra) goto done;
-    for (size_t i = 0, k = 0; i < n; i++) newid[i] = cluster_of[i] >= 0 ? -1 : (int32_t)k++;
-    for (size_t i = 0; i < n_points; i++) {
-        if (wood[i] || cluster_of[point_node[i]] >= 0) continue;
-        int32_t v = newid[point_node[i]];
-        per_node[v]++;
-        per_branch[out->branch[v]]++;
-    }
-    for (size_t b = 0; b < nb; b++) best[b] = -1;
-    for (size_t v = 0; v < m; v++) {
-        int32_t b = out->branch[v];
-        if (per_node[v] && (best[b] < 0 || per_node[v] > per_node[best[b]])) best[b] = (int32_t)v;
-    }
-    size_t total = base;
-    for (size_t b = 0; b < nb; b++) group[b] = per_branch[b] >= (size_t)min_points ? (int32_t)total++ : -1;
-    /* Target of each leaf point: a cluster index, or -1 for its node. */
-    for (size_t i = 0; i < n_points; i++) {
-        if (wood[i]) continue;
-        int32_t c = cluster_of[point_node[i]];
-        if (c < 0) c = group[out->branch[newid[point_node[i]]]];
-        if (c >= 0) extra[c]++;
-    }
-    sy_cluster *items = realloc(cl->items, (total ? total : 1) * sizeof *items);
-    if (!items) {
-        rc = sy_fail(err, SY_EINTERNAL, "clusters: out of memory");
-        goto done;
-    }
-    cl->items = items;
-    for (size_t c = base; c < total; c++) memset(&items[c], 0, sizeof items[c]);
-    cl->n = total;
-    for (size_t b = 0; b < nb; b++)
-        if (group[b] >= 0) items[group[b]].seed = best[b];
-    for (size_t c = 0; c < total; c++) {
-        uint32_t *p = realloc(items[c].points, (items[c].n_points + extra[c] + 1) * sizeof *p);
-        if (!p) {
-            rc = sy_fail(err, SY_EINTERNAL, "clusters: out of memory");
-            goto done;
-        }
-        items[c].points = p;
-    }
-    /* Node supports grow by the leaf points of small groups. */
-    size_t kept = out->support_start[m];
-    for (size_t v = 0; v < m; v++) per_node[v] = 0;
-    for (size_t i = 0; i < n_points; i++) {
-        if (wood[i] || cluster_of[point_node[i]] >= 0) continue;
-        int32_t v = newid[point_node[i]];
-        if (group[out->branch[v]] < 0) per_node[v]++;
-    }
-    size_t add = 0;
-    for (size_t v = 0; v < m; v++) add += per_node[v];
-    support = sy_calloc(kept + add + 1, sizeof *support, err, "skeleton");
-    if (!support) goto done;
-    size_t w = 0;
-    uint32_t *start = sy_calloc(m + 1, sizeof *start, err, "skeleton");
-    if (!start) goto done;
-    for (size_t v = 0; v < m; v++) {
-        start[v] = (uint32_t)w;
-        size_t sc = out->support_start[v + 1] - out->support_start[v];
-        memcpy(support + w, out->support + out->support_start[v], sc * sizeof *support);
-        w += sc + per_node[v];
-        per_node[v] = start[v] + sc; /* write cursor for the leaf points */
-    }
-    start[m] = (uint32_t)w;
-    for (size_t i = 0; i < n_points; i++) {
-        if (wood[i]) continue;
-        int32_t c = cluster_of[point_node[i]];
-        int32_t v = c < 0 ? newid[point_node[i]] : -1;
-        if (c < 0) c = group[out->branch[v]];
-        if (c >= 0) items[c].points[items[c].n_points++] = (uint32_t)i;
-        else support[per_node[v]++] = (uint32_t)i;
-    }
-    free(out->support);
-    free(out->support_start);
-    out->support = support;
-    out->support_start = start;
-    support = NULL;
-    for (size_t c = 0; c < total; c++) qsort(items[c].points, items[c].n_points, sizeof(uint32_t), cmp_u32);
-    qsort(items, total, sizeof *items, cmp_cluster_seed);
-    rc = SY_OK;
-done:
-    free(support);
-    free(newid);
-    free(per_node);
-    free(per_branch);
-    free(best);
-    free(group);
-    free(extra);
-    return rc;
-}
-
 /* The Dijkstra sources: the points of the base slab (z <= ztop) connected to
  * the root within the slab. Low foliage of a wide crown (drooping branches,
  * leaves near the ground) also lies in the slab; as sources it would start
@@ -753,14 +510,13 @@ static double ground_under_base(const sy_cloud *c, double zbase)
     return ground <= zbase + 0.05 && ground >= zbase - 1.0 ? ground : NAN;
 }
 
-sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options *o, sy_skeleton *out,
-                                sy_clusters *clusters, sy_skeleton_report *rep, sy_error *err)
+sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options *o, sy_full_skeleton *out,
+                                sy_skeleton_report *rep, sy_error *err)
 {
     sy_skeleton_report local;
     if (!rep) rep = &local;
     memset(rep, 0, sizeof *rep);
     memset(out, 0, sizeof *out);
-    if (clusters) memset(clusters, 0, sizeof *clusters);
     size_t n = cloud->n;
     const float *xyz = cloud->xyz;
     if (n < 16) return sy_fail(err, SY_EINPUT, "skeleton: %zu points are too few for a tree", n);
@@ -768,12 +524,15 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     if (rc) return rc;
     double t0 = sy_now(), t = t0;
     rep->points = n;
+    out->n_points = n;
+    out->ground = NAN;
 
     double s = o->spacing > 0 ? o->spacing : sy_estimate_spacing(xyz, n);
     if (!(s > 0)) s = 0.01;
     double w = fmax(o->bin_factor * s, o->min_bin);
     rep->spacing = s;
     rep->bin_width = w;
+    out->foot_step = w;
     double zlo = INFINITY, zhi = -INFINITY;
     for (size_t i = 0; i < n; i++) {
         zlo = fmin(zlo, xyz[3 * i + 2]);
@@ -798,8 +557,8 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     int32_t *node_of = sy_calloc(n, sizeof *node_of, err, "skeleton");
     int32_t *point_node = sy_calloc(n, sizeof *point_node, err, "skeleton");
     nodes N = {0};
-    sy_skeleton full = {0};
-    int32_t *order = NULL, *stack = NULL, *cluster_of = NULL, *seed_of = NULL, *point_lobe = NULL;
+    sy_skeleton *full = &out->full;
+    int32_t *order = NULL, *stack = NULL;
     uint8_t *wood = NULL; /* NULL: every point is wood */
     uint32_t *by_dist = NULL;
     float *fit = NULL; /* measured radius per node of the full skeleton, 0 = none */
@@ -843,33 +602,33 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     rep->merged_nodes = merge_siblings(&N, nroot, o->merge_cos, w, order);
     /* Merging can leave new short spurs beside the merged stems. */
     rep->pruned_nodes += prune(&N, nroot, o->prune_factor, w, order, stack, reach);
-    rc = compact(&N, nroot, node_of, wood, n, cloud->origin, &full, point_node, err);
+    rc = compact(&N, nroot, node_of, wood, n, cloud->origin, full, point_node, err);
     if (rc) goto done;
-    smooth(&full, o->smooth_iters);
+    smooth(full, o->smooth_iters);
     rep->t_levels = sy_now() - t;
     t = sy_now();
 
-    double *l = sy_calloc(full.n, sizeof *l, err, "skeleton");
+    double *l = sy_calloc(full->n, sizeof *l, err, "skeleton");
     if (!l) {
         rc = SY_EINTERNAL;
         goto done;
     }
-    sy_subtree_lengths(&full, l);
-    sy_assign_branches(&full, l);
+    sy_skeleton_subtree_lengths(full, l);
+    sy_skeleton_assign_branches(full, l);
     sy_radii_info ri;
-    rc = sy_assign_radii(&full, xyz, point_node, n, o->gamma, s, ground, o->dbh_height, o->dbh_slab, &ri, err);
+    rc = sy_assign_radii(full, xyz, point_node, n, o->gamma, s, ground, o->dbh_height, o->dbh_slab, &ri, err);
     free(l);
     if (rc) goto done;
     /* Where the scan shows a limb as a ring of returns, its measured radius
      * recalibrates the allometry along that branch: eq. 3.1 alone put order-1
      * and order-2 radii off by 50-100% (docs/skeleton.md, Radii). */
-    fit = sy_calloc(full.n, sizeof *fit, err, "skeleton");
+    fit = sy_calloc(full->n, sizeof *fit, err, "skeleton");
     if (!fit) {
         rc = SY_EINTERNAL;
         goto done;
     }
-    rc = sy_measure_node_radii(&full, xyz, s, fit, &rep->radii_measured, err);
-    if (!rc) rc = sy_calibrate_radii(&full, fit, err);
+    rc = sy_measure_node_radii(full, xyz, s, fit, &rep->radii_measured, err);
+    if (!rc) rc = sy_calibrate_radii(full, fit, err);
     if (rc) goto done;
     rep->dbh = ri.dbh;
     rep->dbh_rms = ri.rms;
@@ -877,89 +636,19 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     rep->height = ri.height;
     rep->d_root = ri.d_root;
     rep->t_radii = sy_now() - t;
-    t = sy_now();
-
-    size_t n_clusters = 0;
-    cluster_of = sy_calloc(full.n, sizeof *cluster_of, err, "clusters");
-    seed_of = sy_calloc(full.n + n, sizeof *seed_of, err, "clusters"); /* lobes: up to a chunk a point */
-    if (!cluster_of || !seed_of) {
-        rc = SY_EINTERNAL;
-        goto done;
-    }
-    if (o->clusters && clusters) {
-        rc = sy_clusters_cut(&full, xyz, fit, o->spread_around, o->fs, o->min_cluster_points, cluster_of, seed_of, &n_clusters, err);
-        if (rc) goto done;
-        if (o->lobe_size > 0) {
-            float lo[3], hi[3];
-            for (int k = 0; k < 3; k++) lo[k] = hi[k] = xyz[k];
-            for (size_t i = 1; i < n; i++)
-                for (int k = 0; k < 3; k++) {
-                    if (xyz[3 * i + k] < lo[k]) lo[k] = xyz[3 * i + k];
-                    if (xyz[3 * i + k] > hi[k]) hi[k] = xyz[3 * i + k];
-                }
-            double ext = 0;
-            for (int k = 0; k < 3; k++)
-                if (hi[k] - lo[k] > ext) ext = hi[k] - lo[k];
-            point_lobe = sy_calloc(n, sizeof *point_lobe, err, "lobes");
-            rc = point_lobe ? sy_clusters_split_lobes(&full, xyz, o->lobe_size * ext, o->min_cluster_points, cluster_of,
-                                                      seed_of, point_lobe, &n_clusters, err)
-                            : SY_EINTERNAL;
-            if (rc) goto done;
-        }
-    } else {
-        for (size_t i = 0; i < full.n; i++) cluster_of[i] = -1;
-    }
-    sy_clusters tmp = {0};
-    rc = split_clusters(&full, xyz, cluster_of, seed_of, point_lobe, n_clusters, out, clusters ? clusters : &tmp, err);
-    if (rc) {
-        sy_clusters_free(&tmp);
-        goto done;
-    }
-    /* Branch ids again on the main skeleton alone, so ids stay dense. */
-    l = sy_calloc(out->n, sizeof *l, err, "skeleton");
-    if (!l) {
-        sy_clusters_free(&tmp);
-        rc = SY_EINTERNAL;
-        goto done;
-    }
-    sy_subtree_lengths(out, l);
-    sy_assign_branches(out, l);
-    free(l);
-    if (wood) {
-        sy_clusters *cl = clusters ? clusters : &tmp;
-        int min_points = o->clusters && clusters ? o->min_cluster_points : INT_MAX;
-        rc = attach_leaves(&full, cluster_of, point_node, wood, n, min_points, out, cl, err);
-        if (rc) goto done;
-    }
-    sy_clusters_free(&tmp);
-    /* Only a foot worth a node (the root sits half a level set up anyway). */
-    if (isfinite(ground) && out->n && out->pos[2] - ground > w) {
-        rc = extend_root_to_ground(out, clusters, ground, err);
-        if (rc) goto done;
-    }
-    rep->t_clusters = sy_now() - t;
-
-    if (clusters) {
-        /* Ascending point lists: the hull step (stages/clusters) and the
-         * encoder see the same order whatever the split did. */
-        for (size_t c = 0; c < clusters->n; c++) {
-            sy_cluster *C = &clusters->items[c];
-            qsort(C->points, C->n_points, sizeof *C->points, cmp_u32);
-            rep->cluster_points += C->n_points;
-        }
-        rep->clusters = clusters->n;
-    }
-    rep->nodes = out->n;
-    rep->branches = (size_t)sy_skeleton_branch_count(out);
-    rep->skeleton_points = out->support_start ? out->support_start[out->n] : 0;
-    rc = rc ? rc : sy_skeleton_validate(out, err);
+    rep->nodes = full->n;
+    rep->branches = (size_t)sy_skeleton_branch_count(full);
+    rep->skeleton_points = full->support_start[full->n];
+    out->point_node = point_node;
+    out->wood = wood;
+    out->measured = fit;
+    out->ground = ground;
+    point_node = NULL;
+    wood = NULL;
+    fit = NULL;
 
 done:
-    if (rc) {
-        sy_skeleton_free(out);
-        sy_clusters_free(clusters);
-    }
-    sy_skeleton_free(&full);
+    if (rc) sy_full_skeleton_free(out);
     nodes_free(&N);
     sy_graph_free(&g);
     free(dist);
@@ -970,9 +659,6 @@ done:
     free(order);
     free(stack);
     free(reach);
-    free(cluster_of);
-    free(seed_of);
-    free(point_lobe);
     free(fit);
     free(wood);
     free(by_dist);

@@ -1,6 +1,6 @@
 /* Structured libFuzzer target: a fuzzed cloud through preprocess (up axis,
  * crop, voxel, outliers, ground, normals) and the skeleton stage (graph,
- * level sets, radii, clusters and hulls), as `sylva run` chains them.
+ * level sets, radii) and the clusters stage's cut, as `sylva run` chains them.
  *
  * Layout: byte 0 switches steps (bit 0 voxel, 1 outliers, 2 ground,
  * 3 normals, 4 skeleton, 5 clusters), byte 1 is the scale exponent (units
@@ -53,14 +53,19 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         if (rc == SY_OK) rc = sy_preprocess(&c, &o, &r, &err);
         if (rc == SY_OK && (flags & 16) && c.n >= 2) {
             sy_skeleton_options so = sy_skeleton_options_default();
-            so.clusters = (flags >> 5) & 1;
+            sy_cut_options co = sy_cut_options_default();
+            co.clusters = (flags >> 5) & 1;
+            sy_full_skeleton full;
             sy_skeleton s;
             sy_clusters cl;
             sy_skeleton_report rep;
-            if (sy_reconstruct_skeleton(&c, &so, &s, &cl, &rep, &err) == SY_OK) {
-                if (sy_skeleton_validate(&s, &err) != SY_OK) abort();
-                sy_skeleton_free(&s);
-                sy_clusters_free(&cl);
+            if (sy_reconstruct_skeleton(&c, &so, &full, &rep, &err) == SY_OK) {
+                if (sy_clusters_extract(&full, c.xyz, &co, &s, &cl, NULL, &err) == SY_OK) {
+                    if (sy_skeleton_validate(&s, &err) != SY_OK) abort();
+                    sy_skeleton_free(&s);
+                    sy_clusters_free(&cl);
+                }
+                sy_full_skeleton_free(&full);
             }
         }
     }
