@@ -385,6 +385,7 @@ static sy_code assign_ids(sy_batch_inputs *in, sy_error *err)
             snprintf(unique, sizeof unique, "%s-%d", id, k);
         }
         if (!(in->items[i].id = dupstr(unique))) return sy_fail(err, SY_EINTERNAL, "batch: out of memory");
+        in->items[i].origin = i;
     }
     return SY_OK;
 }
@@ -532,15 +533,14 @@ static void progress_draw(progress *p, int workers, const char *id, const char *
     fflush(stderr);
 }
 
-static void worker_main(const sy_batch_input *in, const char *out_dir, const sy_batch_options *o, int threads,
-                        double mem_gb, pid_t parent)
+void sy_batch_worker_setup(const char *out_dir, const char *id, int threads, double mem_gb, pid_t parent)
 {
     /* Die with the batch: a killed batch leaves no worker writing behind it. */
     prctl(PR_SET_PDEATHSIG, SIGKILL);
     if (getppid() != parent) _exit(SY_EINTERNAL);
     /* The worker's stdout is not the batch's (--json events); its stderr goes to its log. */
     char log[8192];
-    snprintf(log, sizeof log, "%s/logs/%s.log", out_dir, in->id);
+    snprintf(log, sizeof log, "%s/logs/%s.log", out_dir, id);
     int fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
     if (fd >= 0) {
         dup2(fd, 2);
@@ -562,11 +562,6 @@ static void worker_main(const sy_batch_input *in, const char *out_dir, const sy_
 #endif
     sy_set_threads(threads);
     sy_progress_set_quiet(1);
-    sy_error err = {0};
-    sy_code rc = sy_batch_tree(in, out_dir, o, &err);
-    if (rc) fprintf(stderr, "sylva batch: %s\n", err.msg);
-    fflush(NULL);
-    _exit(rc);
 }
 
 static const char *signal_name(int sig)
@@ -640,6 +635,129 @@ static int has_current_record(const sy_batch_input *in, const char *out_dir, con
     return record_state(in, out_dir, &any, h) != JOB_TODO;
 }
 
+void sy_batch_death(int status, int timed_out, double timeout, char *why, size_t size)
+{
+    if (timed_out) snprintf(why, size, "the worker took longer than %g s and was stopped", timeout);
+    else if (WIFSIGNALED(status))
+        snprintf(why, size, "the worker died: %s (signal %d)", signal_name(WTERMSIG(status)), WTERMSIG(status));
+    else snprintf(why, size, "the worker exited with status %d", WEXITSTATUS(status));
+}
+
+sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void *ctx, size_t job),
+                      void (*done)(void *ctx, size_t job, int status, int timed_out, double seconds), void *ctx,
+                      sy_error *err)
+{
+    worker *w = calloc((size_t)(nw > 0 ? nw : 1), sizeof *w);
+    if (!w) return sy_fail(err, SY_EINTERNAL, "batch: out of memory");
+    size_t next = 0, running = 0;
+    sy_code rc = SY_OK;
+    fflush(NULL);
+    while (next < n_jobs || running) {
+        /* Fill the free slots. */
+        for (int k = 0; k < nw && next < n_jobs; k++) {
+            if (w[k].pid) continue;
+            size_t j = next++;
+            pid_t pid = fork();
+            if (pid < 0) {
+                rc = sy_fail(err, SY_EINTERNAL, "batch: cannot start a worker: %s", strerror(errno));
+                next = n_jobs;
+                break;
+            }
+            if (pid == 0) {
+                child(ctx, j);
+                _exit(SY_EINTERNAL);
+            }
+            w[k].pid = pid;
+            w[k].job = j;
+            w[k].start = sy_now();
+            w[k].timed_out = 0;
+            running++;
+        }
+        if (!running) break;
+        int status;
+        pid_t pid = waitpid(-1, &status, timeout > 0 ? WNOHANG : 0);
+        if (pid < 0) {
+            if (errno == EINTR) continue;
+            rc = sy_fail(err, SY_EINTERNAL, "batch: waiting for the workers: %s", strerror(errno));
+            break;
+        }
+        if (pid == 0) {
+            double now = sy_now();
+            for (int k = 0; k < nw; k++)
+                if (w[k].pid && !w[k].timed_out && now - w[k].start > timeout) {
+                    kill(w[k].pid, SIGKILL);
+                    w[k].timed_out = 1;
+                }
+            struct timespec ts = {0, 50000000};
+            nanosleep(&ts, NULL);
+            continue;
+        }
+        int k = 0;
+        while (k < nw && w[k].pid != pid) k++;
+        if (k == nw) continue;
+        w[k].pid = 0;
+        running--;
+        done(ctx, w[k].job, status, w[k].timed_out, sy_now() - w[k].start);
+    }
+    if (rc) {
+        /* A batch-level failure: stop the workers still running. */
+        for (int k = 0; k < nw; k++)
+            if (w[k].pid) kill(w[k].pid, SIGKILL), waitpid(w[k].pid, NULL, 0);
+    }
+    free(w);
+    return rc;
+}
+
+typedef struct {
+    const sy_batch_inputs *in;
+    const char *out_dir;
+    const sy_batch_options *o;
+    const size_t *todo;
+    const uint64_t *hash;
+    int threads;
+    double mem_gb;
+    sy_batch_summary *summary;
+    progress *p;
+    int nw;
+    pid_t parent;
+} tree_pool;
+
+static void tree_child(void *ctx, size_t job)
+{
+    tree_pool *t = ctx;
+    const sy_batch_input *in = &t->in->items[t->todo[job]];
+    sy_batch_worker_setup(t->out_dir, in->id, t->threads, t->mem_gb, t->parent);
+    sy_error err = {0};
+    sy_code rc = sy_batch_tree(in, t->out_dir, t->o, &err);
+    if (rc) fprintf(stderr, "sylva batch: %s\n", err.msg);
+    fflush(NULL);
+    _exit(rc);
+}
+
+static void tree_done(void *ctx, size_t job, int status, int timed_out, double secs)
+{
+    tree_pool *t = ctx;
+    size_t j = t->todo[job];
+    const sy_batch_input *in = &t->in->items[j];
+    const char *st = "ok";
+    if (WIFEXITED(status) && WEXITSTATUS(status) == 0 && !timed_out) {
+        t->summary->done++;
+    } else {
+        char why[256];
+        sy_batch_death(status, timed_out, t->o->worker_timeout, why, sizeof why);
+        /* Bad input is recorded by the worker itself; a death is recorded here. */
+        if (!has_current_record(in, t->out_dir, t->o, t->hash[j]) || WIFSIGNALED(status) || timed_out) {
+            sy_error e2 = {0};
+            sy_batch_record_failure(in, t->out_dir, t->o, t->hash[j], why, secs, &e2);
+        }
+        t->summary->failed++;
+        st = "failed";
+    }
+    t->p->finished++;
+    t->p->failed = t->summary->failed;
+    progress_draw(t->p, t->nw, in->id, st, secs);
+}
+
 sy_code sy_batch_run(const sy_batch_inputs *in, const char *out_dir, const sy_batch_options *o,
                      sy_batch_summary *summary, sy_error *err)
 {
@@ -658,7 +776,7 @@ sy_code sy_batch_run(const sy_batch_inputs *in, const char *out_dir, const sy_ba
     }
     size_t n_todo = 0, mine = 0;
     for (size_t i = 0; i < n; i++) {
-        if (o->task_count && (int)(i % (size_t)o->task_count) != o->task_index) continue;
+        if (o->task_count && (int)(in->items[i].origin % (size_t)o->task_count) != o->task_index) continue;
         mine++;
         int ok;
         hash[i] = file_hash(in->items[i].path, &ok);
@@ -696,87 +814,9 @@ sy_code sy_batch_run(const sy_batch_inputs *in, const char *out_dir, const sy_ba
         fprintf(stderr, "sylva batch: %zu tree%s, %zu kept from before, %zu to do on %d worker%s x %d thread%s\n", mine,
                 mine == 1 ? "" : "s", summary->skipped, n_todo, nw, nw == 1 ? "" : "s", threads, threads == 1 ? "" : "s");
     }
-    worker *w = calloc((size_t)nw, sizeof *w);
-    if (!w) {
-        free(todo);
-        free(hash);
-        return sy_fail(err, SY_EINTERNAL, "batch: out of memory");
-    }
-    size_t next = 0, running = 0;
-    pid_t self = getpid();
-    fflush(NULL);
-    while (next < n_todo || running) {
-        /* Fill the free slots. */
-        for (int k = 0; k < nw && next < n_todo; k++) {
-            if (w[k].pid) continue;
-            size_t j = todo[next++];
-            pid_t pid = fork();
-            if (pid < 0) {
-                rc = sy_fail(err, SY_EINTERNAL, "batch: cannot start a worker: %s", strerror(errno));
-                next = n_todo;
-                break;
-            }
-            if (pid == 0) worker_main(&in->items[j], out_dir, o, threads, mem_gb, self);
-            w[k].pid = pid;
-            w[k].job = j;
-            w[k].start = sy_now();
-            w[k].timed_out = 0;
-            running++;
-        }
-        if (!running) break;
-        int status;
-        pid_t done = waitpid(-1, &status, o->worker_timeout > 0 ? WNOHANG : 0);
-        if (done < 0) {
-            if (errno == EINTR) continue;
-            rc = sy_fail(err, SY_EINTERNAL, "batch: waiting for the workers: %s", strerror(errno));
-            break;
-        }
-        if (done == 0) {
-            double now = sy_now();
-            for (int k = 0; k < nw; k++)
-                if (w[k].pid && !w[k].timed_out && now - w[k].start > o->worker_timeout) {
-                    kill(w[k].pid, SIGKILL);
-                    w[k].timed_out = 1;
-                }
-            struct timespec ts = {0, 50000000};
-            nanosleep(&ts, NULL);
-            continue;
-        }
-        int k = 0;
-        while (k < nw && w[k].pid != done) k++;
-        if (k == nw) continue; /* not ours (a thumbnail's viewer is reaped by its worker) */
-        const sy_batch_input *t = &in->items[w[k].job];
-        double secs = sy_now() - w[k].start;
-        const char *st = "ok";
-        if (WIFEXITED(status) && WEXITSTATUS(status) == 0) {
-            summary->done++;
-        } else {
-            char why[256];
-            if (w[k].timed_out) snprintf(why, sizeof why, "the worker took longer than %g s and was stopped", o->worker_timeout);
-            else if (WIFSIGNALED(status))
-                snprintf(why, sizeof why, "the worker died: %s (signal %d)", signal_name(WTERMSIG(status)), WTERMSIG(status));
-            else snprintf(why, sizeof why, "the worker exited with status %d", WEXITSTATUS(status));
-            /* Bad input is recorded by the worker itself; a death is recorded here. */
-            if (!has_current_record(t, out_dir, o, hash[w[k].job]) || WIFSIGNALED(status) || w[k].timed_out) {
-                sy_error e2 = {0};
-                sy_batch_record_failure(t, out_dir, o, hash[w[k].job], why, secs, &e2);
-            }
-            summary->failed++;
-            st = "failed";
-        }
-        w[k].pid = 0;
-        running--;
-        p.finished++;
-        p.failed = summary->failed;
-        progress_draw(&p, nw, t->id, st, secs);
-    }
-    if (rc) {
-        /* A batch-level failure: stop the workers still running. */
-        for (int k = 0; k < nw; k++)
-            if (w[k].pid) kill(w[k].pid, SIGKILL), waitpid(w[k].pid, NULL, 0);
-    }
+    tree_pool tp = {in, out_dir, o, todo, hash, threads, mem_gb, summary, &p, nw, getpid()};
+    rc = sy_batch_pool(n_todo, nw, o->worker_timeout, tree_child, tree_done, &tp, err);
     if (!n_todo) progress_draw(&p, nw, NULL, NULL, 0);
-    free(w);
     free(todo);
     free(hash);
     summary->seconds = sy_now() - t0;

@@ -19,6 +19,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <sys/types.h>
 
 #include "classify/classify.h"
 #include "pipeline/run_tree.h"
@@ -34,8 +35,9 @@ typedef struct {
     char *id;          /* the tree id: the file's name without extension, made unique in input order */
     char *species;     /* species hint (a library name), or NULL: classify */
     char *label;       /* the true species for the confusion matrix, or NULL */
-    int has_position;  /* position given by the manifest */
+    int has_position;  /* position given by the manifest (or a plot's stem) */
     double position[3];
+    size_t origin;     /* index of the argument-level input it came from (a plot's trees share it) */
 } sy_batch_input;
 
 typedef struct {
@@ -105,6 +107,19 @@ sy_code sy_batch_prepare_dir(const char *out_dir, sy_error *err);
 /* Removes the temp files (".tmp.<pid>.*") that processes no longer running
  * left in out_dir and its folders: what a kill mid-write leaves. */
 void sy_batch_sweep(const char *out_dir);
+
+/* The worker pool: runs child(ctx, j) for j in [0, n_jobs) in forked
+ * processes, nw at once (child must _exit), and done(ctx, j, wait status,
+ * timed_out, seconds) in the parent as each ends; workers running past
+ * timeout seconds (0: none) are killed. Fails only for the pool itself. */
+sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void *ctx, size_t job),
+                      void (*done)(void *ctx, size_t job, int status, int timed_out, double seconds), void *ctx,
+                      sy_error *err);
+/* In a forked worker: dies with the parent, stdout to /dev/null, stderr to
+ * out_dir/logs/ID.log, the memory cap, threads, quiet progress. */
+void sy_batch_worker_setup(const char *out_dir, const char *id, int threads, double mem_gb, pid_t parent);
+/* One line saying how a worker ended (a wait status). */
+void sy_batch_death(int status, int timed_out, double timeout, char *why, size_t size);
 
 /* ---- the worker side (batch_tree.c) ---- */
 
