@@ -90,6 +90,63 @@ static sy_code list_records(const char *out_dir, char ***ids, size_t *n, sy_erro
     return SY_OK;
 }
 
+/* The plot records (out_dir/plots/ID.json of kind "plot") whose trees are in
+ * the list, sorted by id. */
+typedef struct {
+    sy_jv **rec;
+    size_t n;
+} plot_list;
+
+static void plots_load(const char *out_dir, const tree_row *t, size_t n_trees, plot_list *pl)
+{
+    memset(pl, 0, sizeof *pl);
+    char dir[8192];
+    snprintf(dir, sizeof dir, "%s/plots", out_dir);
+    DIR *d = opendir(dir);
+    if (!d) return;
+    char **names = NULL;
+    size_t n = 0, cap = 0;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        size_t l = strlen(e->d_name);
+        if (e->d_name[0] == '.' || l < 6 || strcmp(e->d_name + l - 5, ".json")) continue;
+        if (n == cap) {
+            cap = cap ? 2 * cap : 16;
+            char **p = realloc(names, cap * sizeof *p);
+            if (!p) break;
+            names = p;
+        }
+        if (!(names[n] = malloc(l + 1))) break;
+        memcpy(names[n++], e->d_name, l + 1);
+    }
+    closedir(d);
+    if (n) qsort(names, n, sizeof *names, cmp_str);
+    pl->rec = calloc(n ? n : 1, sizeof *pl->rec);
+    for (size_t i = 0; i < n; i++) {
+        char path[8500];
+        snprintf(path, sizeof path, "%s/%s", dir, names[i]);
+        sy_jv *r = NULL;
+        sy_error e2 = {0};
+        const char *kind = NULL, *id = NULL;
+        if (pl->rec && !sy_jv_parse_file(path, &r, &e2)) kind = str(r, "kind", NULL), id = str(r, "id", NULL);
+        int used = 0;
+        if (kind && id && !strcmp(kind, "plot")) {
+            size_t l = strlen(id);
+            for (size_t k = 0; k < n_trees && !used; k++) used = !strncmp(t[k].id, id, l) && !strncmp(t[k].id + l, "_t", 2);
+        }
+        if (used) pl->rec[pl->n++] = r;
+        else sy_jv_free(r);
+        free(names[i]);
+    }
+    free(names);
+}
+
+static void plots_free(plot_list *pl)
+{
+    for (size_t i = 0; i < pl->n; i++) sy_jv_free(pl->rec[i]);
+    free(pl->rec);
+}
+
 /* ------------------------------------------------------------ voting */
 
 static sy_code vote(tree_row *t, size_t n, const sy_vote_options *vo, sy_error *err)
@@ -357,7 +414,8 @@ static sy_code confusion_of(const tree_row *t, size_t n, sy_confusion *cm, int *
     return rc;
 }
 
-static void write_html(FILE *fp, const tree_row *t, size_t n, const sy_confusion *cm, int have_cm, const char *three_why)
+static void write_html(FILE *fp, const tree_row *t, size_t n, const sy_confusion *cm, int have_cm, const char *three_why,
+                       const plot_list *pl)
 {
     size_t ok = 0, failed = 0, pending = 0;
     double total = 0, cpu = 0, stage[9] = {0};
@@ -378,6 +436,22 @@ static void write_html(FILE *fp, const tree_row *t, size_t n, const sy_confusion
                 "<style>%s</style></head><body>\n<header><h1>Sylva batch report</h1>"
                 "<div>%zu trees: %zu made, %zu failed, %zu not yet run &middot; Sylva %s</div></header><main>\n",
             report_css, n, ok, failed, pending, SYLVA_VERSION);
+    if (pl->n) {
+        fprintf(fp, "<section id=\"plots\"><h2>Plots</h2><table><tr><th class=l>plot</th><th class=l>input</th><th>method</th>"
+                    "<th>points</th><th>trees</th><th>ground</th><th>unassigned</th><th>seconds</th></tr>\n");
+        for (size_t i = 0; i < pl->n; i++) {
+            const sy_jv *r = pl->rec[i];
+            fprintf(fp, "<tr><td class=l>");
+            html_text(fp, str(r, "id", NULL));
+            fprintf(fp, "</td><td class=l>");
+            html_text(fp, str(r, "input", NULL));
+            fprintf(fp, "</td><td>%s</td><td>%.0f</td><td>%zu</td><td>%.0f</td><td>%.0f</td><td>%.1f</td></tr>\n",
+                    flag(r, "airborne", NULL) ? "canopy (airborne)" : "stems (terrestrial)", num(r, "points", NULL),
+                    sy_jv_count(path_get(r, "trees", NULL)), num(r, "ground", NULL), num(r, "unassigned", NULL),
+                    num(r, "seconds", NULL));
+        }
+        fprintf(fp, "</table></section>\n");
+    }
     /* Species counts. */
     fprintf(fp, "<section id=\"species\"><h2>Species</h2><table><tr><th class=l>species</th><th>trees</th>"
                 "<th>confident</th><th>by vote</th></tr>\n");
@@ -548,6 +622,8 @@ sy_code sy_batch_report(const sy_batch_inputs *in, const char *out_dir, const sy
         }
         if (strcmp(r->status, "ok")) r->species = NULL, r->source = NULL;
     }
+    plot_list pl;
+    plots_load(out_dir, t, n, &pl);
     sy_vote_options vo = o->vote;
     rc = vote(t, n, &vo, err);
     sy_confusion cm;
@@ -622,6 +698,22 @@ sy_code sy_batch_report(const sy_batch_inputs *in, const char *out_dir, const sy
             sy_json_end(&j);
         }
         sy_json_end(&j);
+        if (pl.n) {
+            sy_json_array(&j, "plots");
+            for (size_t i = 0; i < pl.n; i++) {
+                const sy_jv *r = pl.rec[i];
+                sy_json_object(&j, NULL);
+                sy_json_string(&j, "id", str(r, "id", NULL));
+                sy_json_string(&j, "input", str(r, "input", NULL));
+                sy_json_bool(&j, "airborne", flag(r, "airborne", NULL));
+                sy_json_number(&j, "points", num(r, "points", NULL));
+                sy_json_int(&j, "trees", (long long)sy_jv_count(path_get(r, "trees", NULL)));
+                sy_json_number(&j, "ground", num(r, "ground", NULL));
+                sy_json_number(&j, "unassigned", num(r, "unassigned", NULL));
+                sy_json_end(&j);
+            }
+            sy_json_end(&j);
+        }
         if (have_cm) {
             sy_json_object(&j, "confusion");
             sy_confusion_json(&cm, &j);
@@ -663,10 +755,11 @@ sy_code sy_batch_report(const sy_batch_inputs *in, const char *out_dir, const sy
     if (!rc) rc = write_three_bundle(out_dir, why, sizeof why, err);
     snprintf(path, sizeof path, "%s/report.html", out_dir);
     if (!rc && !(rc = sy_atomic_open(&f, path, err))) {
-        write_html(f.fp, t, n, &cm, have_cm, why);
+        write_html(f.fp, t, n, &cm, have_cm, why, &pl);
         rc = sy_atomic_commit(&f, err);
     }
     if (have_cm) sy_confusion_free(&cm);
+    plots_free(&pl);
     for (size_t i = 0; i < n; i++) sy_jv_free(t[i].rec);
     free(t);
     for (size_t i = 0; i < n && ids; i++) free(ids[i]);
