@@ -299,6 +299,8 @@ static int run_segmentation(const eval_args *a, const char *t_path, const char *
     put(&r, "instance_recall", "instance recall", m.recall, "");
     put(&r, "f1", "F1", m.f1, "");
     put(&r, "mean_iou", "mean IoU of matches", m.mean_iou, "");
+    put_count(&r, "over_segmented", "truth trees cut into pieces", m.n_over_segmented);
+    put_count(&r, "under_segmented", "predicted trees merging several", m.n_under_segmented);
     report_end(&r);
     return 0;
 }
@@ -380,7 +382,8 @@ int cmd_eval(int argc, char **argv, sy_cli *cli)
     "                         relative height and crown-width errors (LOD0, foliage proxy left out).\n"
     "                         SCAN may be a .glb too (a reference asset, e.g. `sylva grow`'s true tree:\n"
     "                         its LOD0 surface sampled every 2 cm).\n"
-        "  --segmentation T P     instance precision/recall/F1 at IoU > 0.5 (labels 0/NaN: no tree).\n"
+        "  --segmentation T P     instance precision/recall/F1 at IoU > 0.5 (labels 0/NaN: no tree),\n"
+        "                         over-/under-segmentation counts (sylva segment's output as P).\n"
         "  --species T P          accuracy, macro-F1 and the confusion matrix.\n"
         "--json prints flat keys (only those that apply); exit 2 on bad input.",
         opts, 1, 2};

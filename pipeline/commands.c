@@ -6,6 +6,7 @@ const sy_command sy_commands[] = {
     {"info", "describe point-cloud files: format, count, bounds, attributes, CRS", cmd_info},
     {"convert", "convert a point cloud between formats (PLY, LAS, LAZ, XYZ)", cmd_convert},
     {"preprocess", "clean a scan: up-axis, crop, voxel, outliers, ground, normals", cmd_preprocess},
+    {"segment", "split a plot scan into trees: stems, crowns or canopy watershed, one cloud per tree", cmd_segment},
     {"grow", "grow a procedural species tree (Weber & Penn) and write it as glTF", cmd_grow},
     {"scan", "virtual LiDAR: scan a generated tree or plot, with exact per-point truth", cmd_scan},
     {"eval", "score a reconstruction: skeleton vs truth, model vs points, segmentation, species", cmd_eval},

@@ -28,8 +28,9 @@ declare -A allowed=(
   [photogrammetry]="core ingest"
   [viewer]="core gltf ingest"
   [classify]="core clusters skeleton"
+  [segment]="core preprocess skeleton"
 )
-main_path="core leafmaps species ingest preprocess clusters skeleton synthesize encode grow mesh gltf export photogrammetry classify"
+main_path="core leafmaps species ingest preprocess segment clusters skeleton synthesize encode grow mesh gltf export photogrammetry classify"
 reconstruction="skeleton clusters encode"
 
 folder_of() { case $1 in species|viewer|classify) echo "$root/$1" ;; *) echo "$root/stages/$1" ;; esac; }

@@ -96,6 +96,11 @@ sy_code sy_cloud_filter(sy_cloud *c, const uint8_t *keep, sy_error *err);
 /* Deep copy. */
 sy_code sy_cloud_copy(sy_cloud *dst, const sy_cloud *src, sy_error *err);
 
+/* Deep copy of the points with keep[i] != 0 only, in order, every array and
+ * the meta kept: what sy_cloud_copy + sy_cloud_filter give, without holding
+ * the whole copy (a tree out of a plot of millions). */
+sy_code sy_cloud_subset(sy_cloud *dst, const sy_cloud *src, const uint8_t *keep, sy_error *err);
+
 /* Sets origin to the bounds' lower corner (rounded to the metre) and rebases
  * xyz, so float positions stay small. */
 void sy_cloud_rebase(sy_cloud *c);

@@ -404,3 +404,139 @@ sy_code sy_stage_commit(sy_staged_output *s, size_t n, sy_error *err)
     }
     return SY_OK;
 }
+
+/* ---- Folder outputs ---- */
+
+/* Removes a folder of regular files; 0, or -1 when it holds anything else. */
+static int remove_flat_folder(const char *dir)
+{
+    DIR *d = opendir(dir);
+    if (!d) return errno == ENOENT ? 0 : -1;
+    struct dirent *e;
+    char path[8192];
+    int rc = 0;
+    while ((e = readdir(d)) != NULL) {
+        if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, "..")) continue;
+        snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+        struct stat st;
+        if (lstat(path, &st) != 0 || !S_ISREG(st.st_mode) || unlink(path) != 0) rc = -1;
+    }
+    closedir(d);
+    if (rc == 0 && rmdir(dir) != 0) rc = -1;
+    return rc;
+}
+
+/* 1 when dir may be replaced: empty, or holding manifest and regular files only. */
+static int replaceable_folder(const char *dir, const char *manifest)
+{
+    DIR *d = opendir(dir);
+    if (!d) return 0;
+    struct dirent *e;
+    char path[8192];
+    int entries = 0, has_manifest = 0, only_files = 1;
+    while ((e = readdir(d)) != NULL) {
+        if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, "..")) continue;
+        entries++;
+        if (manifest && !strcmp(e->d_name, manifest)) has_manifest = 1;
+        snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+        struct stat st;
+        if (lstat(path, &st) != 0 || !S_ISREG(st.st_mode)) only_files = 0;
+    }
+    closedir(d);
+    return entries == 0 || (has_manifest && only_files);
+}
+
+/* target as its folder ("." when none) and its last name, trailing slashes dropped. */
+static int split_target(const char *target, char *dir, size_t dsize, char *name, size_t nsize)
+{
+    size_t len = strlen(target);
+    while (len > 1 && target[len - 1] == '/') len--;
+    size_t cut = len;
+    while (cut > 0 && target[cut - 1] != '/') cut--;
+    if (len == cut || len - cut >= nsize || cut >= dsize) return -1;
+    memcpy(name, target + cut, len - cut);
+    name[len - cut] = 0;
+    if (cut == 0) snprintf(dir, dsize, ".");
+    else if (cut == 1) snprintf(dir, dsize, "/");
+    else {
+        memcpy(dir, target, cut - 1);
+        dir[cut - 1] = 0;
+    }
+    return 0;
+}
+
+/* "<dir>/.<tag>.<pid>.<name>" */
+static int folder_sibling(const char *target, const char *tag, long pid, char *buf, size_t size)
+{
+    char dir[4096], name[256];
+    if (split_target(target, dir, sizeof dir, name, sizeof name)) return -1;
+    int n = snprintf(buf, size, "%s/.%s.%ld.%s", dir, tag, pid, name);
+    return n > 0 && (size_t)n < size ? 0 : -1;
+}
+
+/* Temp and aside folders of this target left by processes that are gone. */
+static void sweep_folder_siblings(const char *target)
+{
+    char dir[4096], name[256];
+    if (split_target(target, dir, sizeof dir, name, sizeof name)) return;
+    DIR *d = opendir(dir);
+    if (!d) return;
+    struct dirent *e;
+    while ((e = readdir(d)) != NULL) {
+        static const char *tags[2] = {".tmp.", ".old."};
+        for (int t = 0; t < 2; t++) {
+            size_t tl = strlen(tags[t]);
+            if (strncmp(e->d_name, tags[t], tl) != 0) continue;
+            char *end;
+            long pid = strtol(e->d_name + tl, &end, 10);
+            if (end == e->d_name + tl || *end != '.' || strcmp(end + 1, name) != 0) continue;
+            if (pid > 0 && (kill((pid_t)pid, 0) == 0 || errno == EPERM)) continue;
+            char path[8600];
+            snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+            if (sy_is_directory(path)) remove_flat_folder(path);
+        }
+    }
+    closedir(d);
+}
+
+sy_code sy_dir_output_begin(const char *target, const char *manifest, char *tmp, size_t size, sy_error *err)
+{
+    struct stat st;
+    if (lstat(target, &st) == 0) {
+        if (!S_ISDIR(st.st_mode)) return sy_fail(err, SY_EINPUT, "%s: exists and is not a folder", target);
+        if (!replaceable_folder(target, manifest))
+            return sy_fail(err, SY_EINPUT, "%s: folder is not empty and was not written by this command (no %s)", target,
+                           manifest ? manifest : "manifest");
+    }
+    if (folder_sibling(target, "tmp", (long)getpid(), tmp, size))
+        return sy_fail(err, SY_EINPUT, "%s: path too long", target);
+    sweep_folder_siblings(target);
+    remove_flat_folder(tmp);
+    if (mkdir(tmp, 0777) != 0) return sy_fail(err, SY_EINPUT, "%s: cannot create a folder beside it: %s", target, strerror(errno));
+    return SY_OK;
+}
+
+sy_code sy_dir_output_commit(const char *target, const char *tmp, sy_error *err)
+{
+    char old[4200];
+    if (folder_sibling(target, "old", (long)getpid(), old, sizeof old)) {
+        sy_dir_output_abort(tmp);
+        return sy_fail(err, SY_EINPUT, "%s: path too long", target);
+    }
+    int had = sy_is_directory(target);
+    if (had && rename(target, old) != 0) {
+        int e = errno;
+        sy_dir_output_abort(tmp);
+        return sy_fail(err, SY_EINPUT, "%s: cannot replace: %s", target, strerror(e));
+    }
+    if (rename(tmp, target) != 0) {
+        int e = errno;
+        if (had) rename(old, target);
+        sy_dir_output_abort(tmp);
+        return sy_fail(err, SY_EINPUT, "%s: cannot create: %s", target, strerror(e));
+    }
+    if (had) remove_flat_folder(old);
+    return SY_OK;
+}
+
+void sy_dir_output_abort(const char *tmp) { remove_flat_folder(tmp); }

@@ -112,6 +112,21 @@ sy_code sy_stage_commit(sy_staged_output *s, size_t n, sy_error *err);
 /* Removes the staged files. */
 void sy_stage_abort(sy_staged_output *s, size_t n);
 
+/* ---- Folder outputs (one file per tree): the folder is written in full
+ * under a temp name beside it, "<dir>/.tmp.<pid>.<name>", then swapped in.
+ * A folder already at the target is replaced only when it is empty or holds
+ * `manifest` (the file the command writes into every folder it makes) and
+ * nothing but regular files, so a mistyped -o never empties an unrelated
+ * folder; a kill at any moment leaves the old folder or the new one, never a
+ * mix (at worst a temp or ".old" folder beside it, swept by the next run). */
+
+/* Checks the target and creates the temp folder; its path goes to tmp. */
+sy_code sy_dir_output_begin(const char *target, const char *manifest, char *tmp, size_t size, sy_error *err);
+/* Swaps the finished temp folder in (the old one renamed aside, then removed). */
+sy_code sy_dir_output_commit(const char *target, const char *tmp, sy_error *err);
+/* Removes the temp folder and its files. */
+void sy_dir_output_abort(const char *tmp);
+
 #ifdef __cplusplus
 }
 #endif

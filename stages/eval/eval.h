@@ -160,6 +160,11 @@ typedef struct {
     size_t n_truth, n_pred;     /* instances (labels other than 0/NaN) */
     size_t n_matched;           /* pairs with IoU > 0.5 */
     double precision, recall, f1, mean_iou; /* mean_iou over matched pairs */
+    /* Over-segmentation: truth trees holding most (> 50%) of the points of
+     * two or more predicted trees (one tree cut into pieces). Under-
+     * segmentation: predicted trees holding most of two or more truth trees
+     * (neighbours merged). */
+    size_t n_over_segmented, n_under_segmented;
 } sy_segmentation_metrics;
 
 /* Per-point labels (0 or NaN: not a tree). */

@@ -75,6 +75,13 @@ sy_code sy_segmentation_metrics_labels(const double *truth, const double *pred, 
     }
     qsort(pairs, n_pairs, sizeof *pairs, cmp_u64);
     double iou_sum = 0;
+    /* pieces[ti]: predicted trees mostly inside truth ti; merged[pi]: truth trees mostly inside pi. */
+    size_t *pieces = sy_calloc(nt ? nt : 1, sizeof *pieces, err, "labels");
+    size_t *merged = sy_calloc(np ? np : 1, sizeof *merged, err, "labels");
+    if (!pieces || !merged) {
+        free(tl), free(pl), free(pairs), free(tsize), free(psize), free(pieces), free(merged);
+        return SY_EINTERNAL;
+    }
     for (size_t i = 0; i < n_pairs;) {
         size_t j = i;
         while (j < n_pairs && pairs[j] == pairs[i]) j++;
@@ -84,8 +91,13 @@ sy_code sy_segmentation_metrics_labels(const double *truth, const double *pred, 
             out->n_matched++;
             iou_sum += iou;
         }
+        if (2 * inter > psize[pi]) pieces[ti]++;
+        if (2 * inter > tsize[ti]) merged[pi]++;
         i = j;
     }
+    for (size_t t = 0; t < nt; t++) out->n_over_segmented += pieces[t] >= 2;
+    for (size_t q = 0; q < np; q++) out->n_under_segmented += merged[q] >= 2;
+    free(pieces), free(merged);
     out->n_truth = nt;
     out->n_pred = np;
     out->precision = np ? (double)out->n_matched / (double)np : NAN;
