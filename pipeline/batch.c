@@ -758,7 +758,7 @@ static void tree_done(void *ctx, size_t job, int status, int timed_out, double s
     progress_draw(t->p, t->nw, in->id, st, secs);
 }
 
-sy_code sy_batch_run(const sy_batch_inputs *in, const char *out_dir, const sy_batch_options *o,
+sy_code sy_batch_run(const sy_batch_inputs *all, const char *out_dir, const sy_batch_options *o,
                      sy_batch_summary *summary, sy_error *err)
 {
     memset(summary, 0, sizeof *summary);
@@ -766,12 +766,17 @@ sy_code sy_batch_run(const sy_batch_inputs *in, const char *out_dir, const sy_ba
     sy_code rc = sy_batch_prepare_dir(out_dir, err);
     if (rc) return rc;
     sy_batch_sweep(out_dir);
+    /* Plots become their trees first. */
+    sy_batch_inputs expanded;
+    if ((rc = sy_batch_expand(all, out_dir, o, 1, &expanded, err))) return rc;
+    const sy_batch_inputs *in = &expanded;
     size_t n = in->n;
     size_t *todo = calloc(n ? n : 1, sizeof *todo);
     uint64_t *hash = calloc(n ? n : 1, sizeof *hash);
     if (!todo || !hash) {
         free(todo);
         free(hash);
+        sy_batch_inputs_free(&expanded);
         return sy_fail(err, SY_EINTERNAL, "batch: out of memory");
     }
     size_t n_todo = 0, mine = 0;
@@ -820,8 +825,8 @@ sy_code sy_batch_run(const sy_batch_inputs *in, const char *out_dir, const sy_ba
     free(todo);
     free(hash);
     summary->seconds = sy_now() - t0;
-    if (rc) return rc;
-    if (o->report && !o->task_count) rc = sy_batch_report(in, out_dir, o, err);
-    else if (o->task_count) rc = sy_slurm_task_done(in, out_dir, o, err);
+    if (!rc && o->report && !o->task_count) rc = sy_batch_report(in, out_dir, o, err);
+    else if (!rc && o->task_count) rc = sy_slurm_task_done(all, out_dir, o, err);
+    sy_batch_inputs_free(&expanded);
     return rc;
 }

@@ -96,6 +96,15 @@ sy_code sy_batch_run(const sy_batch_inputs *in, const char *out_dir, const sy_ba
 sy_code sy_batch_report(const sy_batch_inputs *in, const char *out_dir, const sy_batch_options *o,
                         sy_error *err);
 
+/* Plots (batch_plots.c): each input of this task whose plot record is
+ * missing or stale is judged (sy_segment_is_plot) and, when it holds
+ * several trees, segmented in a worker into out_dir/plots/ID/ID_tNNN.las
+ * and out_dir/plots/ID.json (segment_now 0: records only, nothing run).
+ * out gets every input, each plot replaced by its trees (placed at their
+ * stems, the plot's species hint kept, origin the plot's). */
+sy_code sy_batch_expand(const sy_batch_inputs *in, const char *out_dir, const sy_batch_options *o, int segment_now,
+                        sy_batch_inputs *out, sy_error *err);
+
 /* The options as the record stores them: a canonical text of everything
  * that changes a tree's outputs (caller frees), and its hash. */
 char *sy_batch_options_text(const sy_batch_options *o, const sy_batch_input *in);

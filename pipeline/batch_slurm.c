@@ -160,6 +160,10 @@ sy_code sy_slurm_task_done(const sy_batch_inputs *in, const char *out_dir, const
         snprintf(marker, sizeof marker, "%s/task-%d-of-%d", done, k, o->task_count);
         if (access(marker, F_OK)) return SY_OK; /* not the last: another task merges */
     }
-    /* The last task: the report of the whole batch. */
-    return sy_batch_report(in, out_dir, o, err);
+    /* The last task: the report of the whole batch (every plot's trees from its record). */
+    sy_batch_inputs ex;
+    if ((rc = sy_batch_expand(in, out_dir, o, 0, &ex, err))) return rc;
+    rc = sy_batch_report(&ex, out_dir, o, err);
+    sy_batch_inputs_free(&ex);
+    return rc;
 }

@@ -118,7 +118,11 @@ int cmd_batch(int argc, char **argv, sy_cli *cli)
     }
     free(pos);
     if (collect) {
-        rc = sy_batch_report(n ? &in : NULL, out_dir, &o, &err);
+        sy_batch_inputs ex;
+        memset(&ex, 0, sizeof ex);
+        rc = n ? sy_batch_expand(&in, out_dir, &o, 0, &ex, &err) : SY_OK;
+        if (!rc) rc = sy_batch_report(n ? &ex : NULL, out_dir, &o, &err);
+        sy_batch_inputs_free(&ex);
         sy_batch_inputs_free(&in);
         if (rc) return sy_cli_report(&err);
         if (!cli->quiet && !cli->json) fprintf(stderr, "sylva batch: wrote %s/index.json, trees.csv and report.html\n", out_dir);
