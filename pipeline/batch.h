@@ -38,6 +38,7 @@ typedef struct {
     int has_position;  /* position given by the manifest (or a plot's stem) */
     double position[3];
     size_t origin;     /* index of the argument-level input it came from (a plot's trees share it) */
+    int from_plot;     /* a tree segmented out of a plot: position is its stem */
 } sy_batch_input;
 
 typedef struct {

@@ -213,7 +213,7 @@ static sy_code add_copy(sy_batch_inputs *out, const sy_batch_input *src, const c
     t->species = src->species ? strdup(src->species) : NULL;
     t->label = src->label && !pos ? strdup(src->label) : NULL; /* a plot's label is no tree's */
     t->origin = origin;
-    if (pos) t->has_position = 1, memcpy(t->position, pos, sizeof t->position);
+    if (pos) t->has_position = 1, t->from_plot = 1, memcpy(t->position, pos, sizeof t->position);
     else if (src->has_position) t->has_position = 1, memcpy(t->position, src->position, sizeof t->position);
     if (!t->path || !t->id) return sy_fail(err, SY_EINTERNAL, "batch: out of memory");
     return SY_OK;

@@ -308,7 +308,7 @@ sy_code sy_batch_tree(const sy_batch_input *in, const char *out_dir, const sy_ba
     char label_buf[64];
     const char *label = in->label;
     if (!rc) {
-        if (in->has_position) memcpy(position, in->position, sizeof position), pos_source = "manifest";
+        if (in->has_position) memcpy(position, in->position, sizeof position), pos_source = in->from_plot ? "stem" : "manifest";
         else if (georef) cloud_base(&c, position), pos_source = "las";
         if (!label) label = sy_species_name_at(sy_cloud_majority_species(&c), label_buf, sizeof label_buf);
         rc = sy_cloud_copy(&copy, &c, err);

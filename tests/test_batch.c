@@ -140,7 +140,7 @@ static void options_text_tracks_outputs(void **state)
 {
     (void)state;
     sy_batch_options o = sy_batch_options_default();
-    sy_batch_input in = {"a.las", "a", NULL, NULL, 0, {0, 0, 0}};
+    sy_batch_input in = {"a.las", "a", NULL, NULL, 0, {0, 0, 0}, 0, 0};
     uint64_t h0 = opt_hash(&o, &in);
     /* What never changes a tree's bytes: workers, voting, progress. */
     sy_batch_options p = o;

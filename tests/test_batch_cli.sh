@@ -133,7 +133,7 @@ check "no temp file survives the kills" "[[ -z \$(find '$tmp/killed' -name '.tmp
 check "the plot becomes its trees, the single tree stays one" \
     "jq -e '(.plots | length) == 1 and .plots[0].trees >= 3 and .counts.ok == .plots[0].trees + 1 and ([.trees[] | select(.id | startswith(\"plot_tls_t\"))] | length) == .plots[0].trees' '$tmp/plot/index.json' > /dev/null"
 check "plot trees are placed at their stems" \
-    "jq -s -e 'all(.[]; .position_source == \"manifest\" and (.position | length) == 3)' '$tmp'/plot/trees/plot_tls_t*.json > /dev/null"
+    "jq -s -e 'all(.[]; .position_source == \"stem\" and (.position | length) == 3)' '$tmp'/plot/trees/plot_tls_t*.json > /dev/null"
 "$SYLVA" batch "$src/samples/plot_tls.las" "$src/samples/palm_als.las" -o "$tmp/plot" --workers 2 --no-eval --no-thumbnails --json > "$tmp/plot2.jsonl"
 check "a rerun segments nothing and keeps every tree" \
     "jq -s -e '([.[] | select(.event == \"inspected\")] | length) == 0 and .[-1].made == 0' '$tmp/plot2.jsonl' > /dev/null"
