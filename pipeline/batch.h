@@ -142,9 +142,6 @@ sy_code sy_batch_tree(const sy_batch_input *in, const char *out_dir, const sy_ba
 sy_code sy_batch_record_failure(const sy_batch_input *in, const char *out_dir, const sy_batch_options *o,
                                 uint64_t input_hash, const char *error, double seconds, sy_error *err);
 
-/* Finds the sylva-view executable (beside this sylva, $SYLVA_VIEW, PATH). */
-int sy_find_viewer(char *out, size_t size);
-
 /* ---- Slurm (batch_slurm.c) ---- */
 
 typedef struct {

@@ -11,6 +11,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/prctl.h>
 #include <sys/resource.h>
 #include <sys/types.h>
 #include <sys/wait.h>
@@ -18,6 +19,7 @@
 #include <unistd.h>
 
 #include "pipeline/batch.h"
+#include "pipeline/commands.h"
 #include "pipeline/tree_species.h"
 #include "stages/core/fileio.h"
 #include "stages/core/json.h"
@@ -27,37 +29,6 @@
 #include "stages/gltf/gltf_read.h"
 #include "stages/ingest/ingest.h"
 #include "stages/preprocess/preprocess.h"
-
-static int executable(const char *p) { return access(p, X_OK) == 0; }
-
-int sy_find_viewer(char *out, size_t size)
-{
-    const char *env = getenv("SYLVA_VIEW");
-    if (env && *env) {
-        snprintf(out, size, "%s", env);
-        return executable(out);
-    }
-    char self[4096];
-    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
-    if (n > 0) {
-        self[n] = 0;
-        char *slash = strrchr(self, '/');
-        if (slash) {
-            *slash = 0;
-            snprintf(out, size, "%s/sylva-view", self);
-            if (executable(out)) return 1;
-        }
-    }
-    const char *path = getenv("PATH");
-    for (const char *p = path; p && *p;) {
-        const char *e = strchr(p, ':');
-        size_t len = e ? (size_t)(e - p) : strlen(p);
-        snprintf(out, size, "%.*s/sylva-view", (int)len, p);
-        if (len && executable(out)) return 1;
-        p = e ? e + 1 : p + len;
-    }
-    return 0;
-}
 
 static void hex64(uint64_t h, char *buf) { snprintf(buf, 17, "%016llx", (unsigned long long)h); }
 
@@ -213,6 +184,7 @@ static int thumbnail(const sy_batch_options *o, const char *glb, const char *png
         return 0;
     }
     if (pid == 0) {
+        prctl(PR_SET_PDEATHSIG, SIGKILL); /* the viewer dies with its worker too */
         int fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
         if (fd >= 0) dup2(fd, 2), dup2(fd, 1), close(fd);
         char *args[] = {viewer, (char *)glb, "--screenshot", (char *)png, "--size", size, "--no-stats", NULL};
