@@ -197,10 +197,10 @@ static int thumbnail(const sy_batch_options *o, const char *glb, const char *png
         pid_t r = waitpid(pid, &status, WNOHANG);
         if (r == pid) break;
         if (r < 0 && errno != EINTR) break;
-        if (sy_now() - t0 > 180) {
+        if (sy_now() - t0 > 600) {
             kill(pid, SIGKILL);
             waitpid(pid, &status, 0);
-            snprintf(why, why_size, "no thumbnail: sylva-view took longer than 180 s");
+            snprintf(why, why_size, "no thumbnail: sylva-view took longer than 600 s");
             return 0;
         }
         struct timespec ts = {0, 20000000};
