@@ -86,7 +86,7 @@ static sy_code list_records(const char *out_dir, char ***ids, size_t *n, sy_erro
         (*ids)[(*n)++] = s;
     }
     closedir(d);
-    qsort(*ids, *n, sizeof **ids, cmp_str);
+    if (*n) qsort(*ids, *n, sizeof **ids, cmp_str);
     return SY_OK;
 }
 

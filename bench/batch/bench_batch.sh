@@ -109,13 +109,13 @@ if [[ $only == all || $only == kills ]]; then
     mkdir -p "$kin"
     cp "$here"/samples/{aspen,fir,palm}_als.las "$kin/"
     rm -rf "$work/kref" "$work/kkill"
-    nice -n 10 "$sylva" batch "$kin" -o "$work/kref" --workers 2 --no-eval --quiet
+    nice -n 10 "$sylva" batch "$kin" -o "$work/kref" --workers 2 --no-eval --no-thumbnails --quiet
     RANDOM=20
     moments=()
     for ((k = 0; k < kills; k++)); do
         ms=$((100 + RANDOM % 6000))
         moments+=("$ms")
-        nice -n 10 "$sylva" batch "$kin" -o "$work/kkill" --workers 2 --no-eval --quiet &
+        nice -n 10 "$sylva" batch "$kin" -o "$work/kkill" --workers 2 --no-eval --no-thumbnails --quiet &
         pid=$!
         sleep "$(awk -v m="$ms" 'BEGIN { print m / 1000 }')"
         kill -9 "$pid" 2> /dev/null
@@ -124,7 +124,7 @@ if [[ $only == all || $only == kills ]]; then
         echo "  kill $((k + 1)) at $ms ms: $done_now records so far"
     done
     sleep 0.5
-    nice -n 10 "$sylva" batch "$kin" -o "$work/kkill" --workers 2 --no-eval --quiet
+    nice -n 10 "$sylva" batch "$kin" -o "$work/kkill" --workers 2 --no-eval --no-thumbnails --quiet
     same() {
         ( cd "$1" && for f in $(find trees -type f \( -name '*.glb' -o -name '*.sylva' -o -name '*.png' -o -name '*.glb.js' \) | sort); do sha1sum "$f"; done
           for f in trees/*.json; do echo "$f"; jq -S 'del(.seconds, .peak_rss_kb)' "$f"; done
