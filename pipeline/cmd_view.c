@@ -12,8 +12,7 @@
 
 static int executable(const char *p) { return access(p, X_OK) == 0; }
 
-/* The sylva-view beside /proc/self/exe, else $SYLVA_VIEW, else the first on PATH. */
-static int find_viewer(char *out, size_t size)
+int sy_find_viewer(char *out, size_t size)
 {
     const char *env = getenv("SYLVA_VIEW");
     if (env && *env) {
@@ -46,7 +45,7 @@ int cmd_view(int argc, char **argv, sy_cli *cli)
 {
     (void)cli;
     char viewer[PATH_MAX + 16];
-    if (!find_viewer(viewer, sizeof viewer)) {
+    if (!sy_find_viewer(viewer, sizeof viewer)) {
         fprintf(stderr, "sylva view: no GL preview here: sylva-view is not installed (build it with GLFW, epoxy and EGL)\n");
         return SY_EINPUT;
     }

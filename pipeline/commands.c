@@ -15,6 +15,7 @@ const sy_command sy_commands[] = {
     /* The export stage's own name: meshing and glTF export are one command. */
     {"export", "same as mesh: a skeleton, QSM or .sylva file to a game-ready .glb", cmd_mesh},
     {"run", "reconstruct one scanned tree end to end: skeleton, clusters, mesh -> .glb", cmd_run},
+    {"batch", "many scans (folders, files, manifests) to trees and a report, on all cores or Slurm, resumable", cmd_batch},
     {"train", "train the species classifier (JointBoost) on labelled tree scans", cmd_train},
     {"classify", "species of scanned trees: probabilities, confidence, spatial voting", cmd_classify},
     {"encode", "write a .sylva tree file from its JSON form or a skeleton/QSM file", cmd_encode},

@@ -19,6 +19,7 @@ int cmd_eval(int argc, char **argv, sy_cli *cli);
 int cmd_skeleton(int argc, char **argv, sy_cli *cli);
 int cmd_mesh(int argc, char **argv, sy_cli *cli);
 int cmd_run(int argc, char **argv, sy_cli *cli);
+int cmd_batch(int argc, char **argv, sy_cli *cli);
 int cmd_train(int argc, char **argv, sy_cli *cli);
 int cmd_classify(int argc, char **argv, sy_cli *cli);
 int cmd_encode(int argc, char **argv, sy_cli *cli);
@@ -55,6 +56,9 @@ sy_code sy_photo_cli_apply(sy_photo_cli *c, const char *workspace, sy_photogramm
 sy_code sy_photos_to_cloud(const char *dir, const char *out_path_hint, sy_photo_cli *c, const sy_cli *cli,
                            sy_photogrammetry_result *r, sy_error *err);
 int cmd_view(int argc, char **argv, sy_cli *cli);
+/* The sylva-view executable: $SYLVA_VIEW when set, else the one beside this
+ * sylva, else the first on PATH; 1 when found (view and batch run it). */
+int sy_find_viewer(char *out, size_t size);
 
 #ifdef __cplusplus
 }

@@ -26,8 +26,7 @@ sy_code sy_classify_preprocess(sy_cloud *c, const char *path, sy_error *err)
     return SY_OK;
 }
 
-/* The most frequent non-negative speciesID. */
-static int majority_species(const sy_cloud *c)
+int sy_cloud_majority_species(const sy_cloud *c)
 {
     const double *sid = sy_cloud_attr(c, "speciesID");
     if (!sid) return -1;
@@ -47,7 +46,7 @@ sy_code sy_scan_features(const char *path, const sy_features_options *fo, float 
     sy_cloud c;
     sy_code rc = sy_read_cloud(path, &c, err);
     if (rc) return rc;
-    int sid = majority_species(&c);
+    int sid = sy_cloud_majority_species(&c);
     if (sid >= 0) sy_species_name_at(sid, r->label, sizeof r->label);
     r->georeferenced = strcmp(c.meta.format, "LAS") == 0;
     if ((rc = sy_classify_preprocess(&c, path, err))) {

@@ -36,6 +36,10 @@ sy_code sy_classify_preprocess(sy_cloud *c, const char *path, sy_error *err);
 sy_code sy_scan_features(const char *path, const sy_features_options *fo, float *f, sy_scan_features_result *r,
                          sy_error *err);
 
+/* The most frequent non-negative speciesID of the cloud (the simulator's
+ * per-point label), or -1 when it has none. */
+int sy_cloud_majority_species(const sy_cloud *c);
+
 /* Name of the library species with id idx (the scanner's speciesID), or NULL
  * when there is none; buf holds it. */
 const char *sy_species_name_at(int idx, char *buf, size_t size);

@@ -17,6 +17,8 @@ APT_PACKAGES=(
   libxgboost-dev colmap
   # tests: a second glTF client (three.js in headless Chromium), image tools
   libcmocka-dev nodejs npm chromium imagemagick jq
+  # batch scale-out: the Slurm test starts a single-node cluster (slurmctld, slurmd, munged) on loopback
+  slurm-wlm munge procps
 )
 
 missing=()

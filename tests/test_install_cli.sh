@@ -47,5 +47,11 @@ if [ ! -e /usr/local/share/sylva/species/library.tsv ]; then
   [ $rc = 2 ] && grep -q "SYLVA_LIBRARY" "$tmp/err" && [ "$(wc -l < "$tmp/err")" = 1 ] ||
     no "no library: exit $rc, $(cat "$tmp/err")"
 fi
+# The batch report's three.js bundle travels with an install.
+if [ -f "$SYLVA_SOURCE_DIR/node_modules/three/build/three.module.js" ]; then
+  for f in build/three.module.js build/three.core.js examples/jsm/loaders/GLTFLoader.js examples/jsm/controls/OrbitControls.js LICENSE; do
+    [ -f "$tmp/prefix/share/sylva/three/$f" ] || no "three.js file $f not installed"
+  done
+fi
 [ $fail = 0 ] && echo "ok: installed sylva finds its library from /, SYLVA_LIBRARY works, library list/show print the manifest"
 exit $fail
