@@ -316,8 +316,8 @@ static size_t occupied_voxels(const sy_cloud *c, const float lo[3], double size,
     memset(table, 0, (mask + 1) * sizeof *table);
     size_t count = 0;
     for (size_t i = 0; i < c->n && count <= limit; i++) {
-        uint64_t key = 1; /* a leading 1 keeps 0 free as the empty slot */
-        for (int k = 0; k < 3; k++) key = key << VOXEL_BITS | (uint64_t)floor((c->xyz[3 * i + k] - lo[k]) / size);
+        /* The core key uses 63 bits; a leading 1 keeps 0 free as the empty slot. */
+        uint64_t key = 1ull << 63 | sy_voxel_key(c->xyz + 3 * i, lo, size);
         uint64_t h = key * 0x9E3779B97F4A7C15ull;
         for (size_t slot = (size_t)(h >> 20) & mask;; slot = (slot + 1) & mask) {
             if (table[slot] == key) break;
@@ -348,7 +348,7 @@ sy_code sy_voxel_size_for_count(const sy_cloud *c, size_t target, double *size, 
         wide = fmax(wide, hi[k] - lo[k]);
     }
     /* With edge cbrt(volume / target) the box holds at most target voxels. */
-    double big = cbrt(vol / (double)target), small = fmax(big / 64, wide / ((double)(1u << VOXEL_BITS) - 2));
+    double big = cbrt(vol / (double)target), small = fmax(big / 64, wide / ((double)SY_VOXEL_AXIS_CELLS - 2));
     size_t tsize = 16;
     while (tsize < 2 * (target + 1)) tsize *= 2;
     uint64_t *table = sy_calloc(tsize, sizeof *table, err, "voxel count");
