@@ -214,7 +214,7 @@ sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int
     /* Rebuild: stem nodes on the axis from the root to the top; trunk nodes
      * go, their points join the stem node at their height; every branch that
      * left the trunk leaves the stem at its own first node's height. */
-    double step = fmax(2 * w, H / 48);
+    double step = fmax(w, H / 48);
     size_t K = (size_t)ceil(H / step) + 1, kept = 0;
     step = H / (double)(K - 1);
     int32_t *newid = malloc(m * sizeof *newid);
