@@ -44,6 +44,8 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
         sy_json_end(&j);
         sy_json_number(&j, "dbh", r->dbh);
         sy_json_bool(&j, "dbh_fitted", r->dbh_fitted);
+        sy_json_bool(&j, "stem_rebuilt", r->stem_rebuilt);
+        sy_json_number(&j, "stem_excursion", r->stem_excursion);
         sy_json_number(&j, "height", r->height);
         sy_json_object(&j, "seconds");
         sy_json_number(&j, "graph", r->t_graph);
@@ -66,6 +68,9 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
            h->convex, h->box, r->cluster_points);
     printf("  DBH        %.3f m (%s), height %.2f m\n", r->dbh, r->dbh_fitted ? "circle fit" : "fallback estimate",
            r->height);
+    if (r->stem_rebuilt)
+        printf("  stem       rebuilt on the crown's axis (the trunk chain strayed %.2f m from it, crown radius %.2f m)\n",
+               r->stem_excursion, r->crown_radius);
     printf("  time       %.3f s (graph %.3f, dijkstra %.3f, level sets %.3f, radii %.3f, clusters %.3f, hulls %.3f)\n",
            r->t_total + h->seconds, r->t_graph, r->t_dijkstra, r->t_levels, r->t_radii, r->t_clusters, h->seconds);
 }

@@ -74,6 +74,9 @@ typedef struct {
     int dbh_fitted;       /* 1: circle fit at breast height, 0: fallback estimate */
     double d_root;        /* root diameter from which the allometry runs */
     size_t radii_measured; /* nodes whose radius a circle fit measured (they rescale their branch) */
+    int stem_rebuilt;     /* 1: the trunk chain circled the crown's axis (an occluded conifer stem) and
+                             the stem was rebuilt on the axis of the crown's slab centroids */
+    double stem_excursion, crown_radius; /* the trunk chain's largest distance from that axis; the crown's radius */
     double t_graph, t_dijkstra, t_levels, t_radii, t_clusters, t_total; /* seconds */
 } sy_skeleton_report;
 

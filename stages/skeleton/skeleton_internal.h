@@ -47,6 +47,31 @@ size_t sy_base_sources(const float *xyz, size_t n, const sy_graph *g, uint32_t r
 sy_code sy_classify_wood(const sy_graph *g, const int32_t *spt, const double *dist, double min_share, uint8_t *wood,
                          uint32_t *order, size_t *n_wood, sy_error *err);
 
+/* The occluded stem of an excurrent crown (stem.c). */
+typedef struct {
+    int rebuilt;         /* 1: the trunk chain left the crown's axis and was rebuilt on it */
+    int excurrent;       /* the crown narrows upward */
+    double excursion;    /* the trunk chain's largest horizontal distance from the axis, metres */
+    double crown_radius; /* median over height slabs of the points' mean distance from the axis */
+    double axis_rms;     /* RMS distance of the slab centroids from the axis */
+    double axis[4];      /* x, y at the root and dx/dz, dy/dz */
+    double measured_r, measured_z, measured_rms; /* a stem circle fit (radius 0: none stood) */
+    double upper_r, upper_z; /* a run of stem returns higher up on that circle's centre (0: none) */
+    double fallback_r;   /* radius at breast height when no stem fit stood (slenderness) */
+} sy_stem_info;
+
+/* Rebuilds the trunk of s (branch ids assigned, breadth-first, support
+ * filled) on the crown's slab-centroid axis when the trunk chain wanders off
+ * it (see stem.c); point_node is remapped to the new nodes. s comes back in
+ * breadth-first order with support, radii 1 and branch ids to reassign.
+ * info->rebuilt says whether it changed anything. */
+sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int32_t *point_node,
+                                 const uint8_t *wood, double w, double spacing, sy_stem_info *info, sy_error *err);
+/* After sy_assign_radii on a rebuilt stem: the allometry runs from the
+ * measured stem circle (or the slenderness estimate) instead of the
+ * breast-height slab fit, which on such scans rings the lowest branches. */
+void sy_apply_stem_radius(sy_skeleton *s, const sy_stem_info *stem, double gamma, double spacing, sy_radii_info *ri);
+
 #ifdef __cplusplus
 }
 #endif

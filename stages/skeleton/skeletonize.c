@@ -616,8 +616,25 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     }
     sy_skeleton_subtree_lengths(full, l);
     sy_skeleton_assign_branches(full, l);
+    /* A trunk chain that circles the crown's axis is the shell of an
+     * occluded conifer, not its stem: rebuild the stem on the axis. */
+    sy_stem_info stem;
+    rc = sy_rebuild_occluded_stem(full, xyz, n, point_node, wood, w, s, &stem, err);
+    if (!rc && stem.rebuilt) {
+        double *l2 = realloc(l, (full->n ? full->n : 1) * sizeof *l2);
+        if (!l2) rc = sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
+        else {
+            l = l2;
+            sy_skeleton_subtree_lengths(full, l);
+            sy_skeleton_assign_branches(full, l);
+        }
+    }
+    rep->stem_rebuilt = stem.rebuilt;
+    rep->stem_excursion = stem.excursion;
+    rep->crown_radius = stem.crown_radius;
     sy_radii_info ri;
-    rc = sy_assign_radii(full, xyz, point_node, n, o->gamma, s, ground, o->dbh_height, o->dbh_slab, &ri, err);
+    if (!rc) rc = sy_assign_radii(full, xyz, point_node, n, o->gamma, s, ground, o->dbh_height, o->dbh_slab, &ri, err);
+    if (!rc) sy_apply_stem_radius(full, &stem, o->gamma, s, &ri);
     free(l);
     if (rc) goto done;
     /* Where the scan shows a limb as a ring of returns, its measured radius

@@ -1,0 +1,357 @@
+/* Occluded stems of excurrent crowns. A dense conifer whose foliage reaches
+ * the ground shows a terrestrial scanner only the outer shell of its crown and
+ * hardly any stem. The shortest-path tree then runs along the shell, level
+ * sets split into arcs, and the longest chain - the "trunk" - spirals up the
+ * cone. The evidence that does exist is the crown itself: for an excurrent
+ * (cone-shaped) crown the centroids of horizontal slabs lie on a near-vertical
+ * line, the stem. This follows the occluded-stem treatment of conifer QSMs
+ * (Hackenberg et al. 2015, SimpleTree: the stem axis from the crown's slab
+ * centroids where the stem is not seen; Raumonen et al. 2013 for circle fits
+ * where it is): when the trunk chain wanders far from that axis while the
+ * centroids stay on it, the stem is rebuilt on the axis, the chain's nodes
+ * and the geodesic branches hang from it at their own height, and its radius comes
+ * from circle fits to the few stem returns there are (checked by residual,
+ * arc coverage, centring on the axis and taper), the pipe-model allometry
+ * carrying it to breast height. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "skeleton_internal.h"
+
+#define STEM_SLABS 32
+#define STEM_TWO_PI 6.28318530717958647692
+/* The trunk chain is off the stem when it strays this share of the median
+ * crown radius from the axis (a real trunk stays within its own radius). */
+#define STEM_EXCURSION_SHARE 0.35
+/* ... and at least this share of the height. */
+#define STEM_EXCURSION_HEIGHT 0.05
+/* Slab centroids on a line: their RMS distance from it below this share of the crown radius. */
+#define STEM_AXIS_RMS_SHARE 0.35
+/* Excurrent: the upper third's crown radius below this share of the lower half's. */
+#define STEM_EXCURRENT_SHARE 0.8
+/* Height-to-diameter ratio of an excurrent stem whose bark the scan never
+ * shows. The slenderness coefficient of conifers runs from about 40 for
+ * open-grown trees to 100 and more in dense stands; a crown that reaches the
+ * ground (the case that hides the stem) is an open-grown tree, so the low end. */
+#define STEM_SLENDERNESS 45.0
+
+static int cmp_dbl(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+static double median_of(double *v, size_t k)
+{
+    if (!k) return 0;
+    qsort(v, k, sizeof *v, cmp_dbl);
+    return k % 2 ? v[k / 2] : 0.5 * (v[k / 2 - 1] + v[k / 2]);
+}
+
+/* Stem circle fits: slabs near the base, the points within the inner band
+ * around the axis. A fit stands only when its points are a stem, not a ring
+ * of branch bases: enough inliers, most of the band's points on it, a
+ * residual small against the radius, centred on the axis, an arc of at least
+ * a third of the circle, and no wider than a fit below it (stems taper). */
+static void measure_stem(const float *xyz, size_t n, double z0, double H, const double root[2], const double ax[2],
+                         double band, double spacing, sy_stem_info *info)
+{
+    double *xy = malloc((n ? n : 1) * 2 * sizeof *xy), *ang = malloc((n ? n : 1) * sizeof *ang);
+    if (!xy || !ang) goto done;
+    double tol = fmax(0.5 * spacing, 0.01), slab = 0.25, best_r = 0, best_z = 0, best_rms = 0;
+    double lowest_r = INFINITY, best_c[2] = {0, 0};
+    size_t best_in = 0;
+    double top = z0 + fmin(0.3 * H, 4.0);
+    for (double zc = z0 + slab / 2; zc <= top; zc += slab / 2) {
+        size_t k = 0;
+        double cxa = root[0] + ax[0] * (zc - z0), cya = root[1] + ax[1] * (zc - z0);
+        for (size_t i = 0; i < n; i++) {
+            const float *p = xyz + 3 * i;
+            if (fabs(p[2] - zc) > slab / 2) continue;
+            if (hypot(p[0] - cxa, p[1] - cya) > band) continue;
+            xy[2 * k] = p[0];
+            xy[2 * k + 1] = p[1];
+            k++;
+        }
+        double c[2], r, rms;
+        if (k < 6 || sy_fit_circle(xy, k, tol, 7, c, &r, &rms) != 0) continue;
+        size_t in = 0;
+        for (size_t j = 0; j < k; j++) {
+            double dx = xy[2 * j] - c[0], dy = xy[2 * j + 1] - c[1];
+            if (fabs(hypot(dx, dy) - r) <= tol) ang[in++] = atan2(dy, dx);
+        }
+        if (in < 6 || (double)in < 0.6 * (double)k || r >= band || rms > 0.3 * r) continue;
+        if (hypot(c[0] - cxa, c[1] - cya) > fmax(0.5 * r, 0.1)) continue;
+        qsort(ang, in, sizeof *ang, cmp_dbl);
+        double gap = ang[0] + STEM_TWO_PI - ang[in - 1];
+        for (size_t j = 1; j < in; j++) gap = fmax(gap, ang[j] - ang[j - 1]);
+        if (gap > STEM_TWO_PI * 2.0 / 3.0) continue;
+        if (r > 1.3 * lowest_r) continue; /* wider than the stem below: branch bases */
+        lowest_r = fmin(lowest_r, r);
+        if (in > best_in) {
+            best_in = in;
+            best_r = r;
+            best_z = zc;
+            best_rms = rms;
+            best_c[0] = c[0];
+            best_c[1] = c[1];
+        }
+    }
+    if (best_in) {
+        info->measured_r = best_r;
+        info->measured_z = best_z;
+        info->measured_rms = best_rms;
+    } else {
+        goto done; /* no stem circle: no centre to measure the few returns higher up on */
+    }
+    /* Higher up a dense crown lets through a few stem returns, too few for a
+     * free circle but enough on a known centre: the innermost run of three or
+     * more at one distance, narrower than any fit below (taper), is the stem
+     * there: with the base fit it gives the taper to breast height past the
+     * butt swell. */
+    double *d = ang;
+    for (double zc = best_z + 0.75; zc <= top; zc += 0.25) {
+        double cxa = best_c[0] + ax[0] * (zc - best_z), cya = best_c[1] + ax[1] * (zc - best_z);
+        size_t k = 0;
+        for (size_t i = 0; i < n; i++) {
+            const float *p = xyz + 3 * i;
+            if (fabs(p[2] - zc) > 0.5) continue;
+            double di = hypot(p[0] - cxa, p[1] - cya);
+            if (di < best_r) d[k++] = di;
+        }
+        if (k < 3) continue;
+        qsort(d, k, sizeof *d, cmp_dbl);
+        for (size_t j = 0; j + 2 < k; j++)
+            if (d[j + 2] - d[j] <= tol && d[j] > 0.3 * best_r) {
+                info->upper_r = d[j + 1];
+                info->upper_z = zc;
+                break;
+            }
+        if (info->upper_r > 0) break;
+    }
+done:
+    free(xy);
+    free(ang);
+}
+
+sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int32_t *point_node,
+                                 const uint8_t *wood, double w, double spacing, sy_stem_info *info, sy_error *err)
+{
+    memset(info, 0, sizeof *info);
+    size_t m = s->n;
+    if (m < 4 || n < 100) return SY_OK;
+    double z0 = s->pos[2], ztop = z0;
+    for (size_t i = 0; i < n; i++) ztop = fmax(ztop, xyz[3 * i + 2]);
+    double H = ztop - z0;
+    if (!(H > 2.0)) return SY_OK;
+    /* Slab centroids above the base. */
+    double cnt[STEM_SLABS] = {0}, sx[STEM_SLABS] = {0}, sy[STEM_SLABS] = {0}, sz[STEM_SLABS] = {0};
+    double hs = H / STEM_SLABS;
+    for (size_t i = 0; i < n; i++) {
+        const float *p = xyz + 3 * i;
+        if (p[2] < z0) continue;
+        int b = (int)((p[2] - z0) / hs);
+        if (b >= STEM_SLABS) b = STEM_SLABS - 1;
+        cnt[b]++;
+        sx[b] += p[0];
+        sy[b] += p[1];
+        sz[b] += p[2];
+    }
+    /* The axis through the root (the base is where the stem is seen), its
+     * lean fitted to the centroids weighted by their points. */
+    double root[2] = {s->pos[0], s->pos[1]}, num[2] = {0, 0}, den = 0;
+    for (int b = 0; b < STEM_SLABS; b++) {
+        if (cnt[b] < 10) continue;
+        double dz = sz[b] / cnt[b] - z0;
+        num[0] += cnt[b] * dz * (sx[b] / cnt[b] - root[0]);
+        num[1] += cnt[b] * dz * (sy[b] / cnt[b] - root[1]);
+        den += cnt[b] * dz * dz;
+    }
+    if (!(den > 0)) return SY_OK;
+    double ax[2] = {num[0] / den, num[1] / den};
+    info->axis[0] = root[0];
+    info->axis[1] = root[1];
+    info->axis[2] = ax[0];
+    info->axis[3] = ax[1];
+    /* Crown radius per slab: mean distance of its points from the axis. */
+    double R[STEM_SLABS] = {0}, off[STEM_SLABS], tmp[STEM_SLABS];
+    for (size_t i = 0; i < n; i++) {
+        const float *p = xyz + 3 * i;
+        if (p[2] < z0) continue;
+        int b = (int)((p[2] - z0) / hs);
+        if (b >= STEM_SLABS) b = STEM_SLABS - 1;
+        R[b] += hypot(p[0] - root[0] - ax[0] * (p[2] - z0), p[1] - root[1] - ax[1] * (p[2] - z0)) / cnt[b];
+    }
+    size_t k = 0;
+    double ss = 0, lower = 0, upper = 0, nl = 0, nu = 0;
+    for (int b = 0; b < STEM_SLABS; b++) {
+        if (cnt[b] < 10) continue;
+        double dz = sz[b] / cnt[b] - z0;
+        off[b] = hypot(sx[b] / cnt[b] - root[0] - ax[0] * dz, sy[b] / cnt[b] - root[1] - ax[1] * dz);
+        ss += off[b] * off[b];
+        tmp[k++] = R[b];
+        if (b < STEM_SLABS / 2) lower += R[b], nl++;
+        if (b >= 2 * STEM_SLABS / 3) upper += R[b], nu++;
+    }
+    if (k < STEM_SLABS / 2 || !nl || !nu) return SY_OK;
+    double Rmed = median_of(tmp, k);
+    info->crown_radius = Rmed;
+    info->axis_rms = sqrt(ss / (double)k);
+    info->excurrent = upper / nu < STEM_EXCURRENT_SHARE * (lower / nl);
+    /* The trunk chain's largest horizontal distance from the axis. */
+    for (size_t i = 0; i < m; i++) {
+        if (s->branch[i] != 0) continue;
+        const float *p = s->pos + 3 * i;
+        double d = hypot(p[0] - root[0] - ax[0] * (p[2] - z0), p[1] - root[1] - ax[1] * (p[2] - z0));
+        info->excursion = fmax(info->excursion, d);
+    }
+    if (!(Rmed > 0) || info->axis_rms > STEM_AXIS_RMS_SHARE * Rmed || !info->excurrent ||
+        info->excursion <= STEM_EXCURSION_SHARE * Rmed || info->excursion <= STEM_EXCURSION_HEIGHT * H ||
+        hypot(ax[0], ax[1]) > 0.25)
+        return SY_OK;
+
+    /* Rebuild: stem nodes on the axis from the root to the top; trunk nodes
+     * go, their points join the stem node at their height; every branch that
+     * left the trunk leaves the stem at its own first node's height. */
+    double step = fmax(w, H / 48);
+    size_t K = (size_t)ceil(H / step) + 1, kept = 0;
+    step = H / (double)(K - 1);
+    int32_t *newid = malloc(m * sizeof *newid);
+    size_t M0 = K + m;
+    int32_t *tpar = malloc(M0 * sizeof *tpar), *first = malloc(M0 * sizeof *first), *next = malloc(M0 * sizeof *next);
+    int32_t *order = malloc(M0 * sizeof *order), *final = malloc(M0 * sizeof *final);
+    float *tpos = malloc(M0 * 3 * sizeof *tpos);
+    sy_skeleton out = {0};
+    sy_code rc = SY_OK;
+    if (!newid || !tpar || !first || !next || !order || !final || !tpos) {
+        rc = sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
+        goto done;
+    }
+#define STEM_AT(z) ((int32_t)fmin((double)(K - 1), fmax(0.0, floor(((z) - z0) / step + 0.5))))
+    for (size_t t = 0; t < K; t++) {
+        double z = z0 + step * (double)t;
+        tpos[3 * t] = (float)(root[0] + ax[0] * (z - z0));
+        tpos[3 * t + 1] = (float)(root[1] + ax[1] * (z - z0));
+        tpos[3 * t + 2] = (float)z;
+        tpar[t] = t ? (int32_t)t - 1 : -1;
+    }
+    /* The trunk chain's nodes off the axis are real returns of the crown: each
+     * becomes a limb from the stem at its own height out to where the chain
+     * passed (the whorls of an excurrent crown), keeping its side branches.
+     * Those within reach of the axis are the stem itself and merge into it. */
+    for (size_t i = 0; i < m; i++) {
+        const float *p = s->pos + 3 * i;
+        double d = hypot(p[0] - root[0] - ax[0] * (p[2] - z0), p[1] - root[1] - ax[1] * (p[2] - z0));
+        newid[i] = i == 0 || (s->branch[i] == 0 && d < 2 * w) ? -1 : (int32_t)(K + kept++);
+    }
+    for (size_t i = 0; i < m; i++) {
+        if (newid[i] < 0) continue;
+        int32_t p = s->parent[i], v = newid[i];
+        memcpy(tpos + 3 * (size_t)v, s->pos + 3 * i, 3 * sizeof *tpos);
+        tpar[v] = newid[p] >= 0 && s->branch[i] != 0 ? newid[p] : STEM_AT(s->pos[3 * i + 2]);
+        /* Side chains trace the shell the same way (arcs around the axis, not
+         * limbs out from it): an edge that runs more around the axis than
+         * away from it is cut, and the node hangs from the stem instead. */
+        if (newid[p] >= 0 && s->branch[i] != 0) {
+            const float *a = s->pos + 3 * (size_t)p, *c = s->pos + 3 * i;
+            double ra[2] = {a[0] - root[0] - ax[0] * (a[2] - z0), a[1] - root[1] - ax[1] * (a[2] - z0)};
+            double rc_[2] = {c[0] - root[0] - ax[0] * (c[2] - z0), c[1] - root[1] - ax[1] * (c[2] - z0)};
+            double da = hypot(ra[0], ra[1]), dc = hypot(rc_[0], rc_[1]);
+            double e[2] = {rc_[0] - ra[0], rc_[1] - ra[1]}, el = hypot(e[0], e[1]);
+            double radial = fabs(dc - da), around = sqrt(fmax(0, el * el - radial * radial));
+            if (around > radial && around > w && da > 2 * w) tpar[v] = STEM_AT(c[2]);
+        }
+    }
+    size_t M = K + kept;
+    for (size_t v = 0; v < M; v++) first[v] = next[v] = -1;
+    for (size_t v = M; v-- > 1;) {
+        next[v] = first[tpar[v]];
+        first[tpar[v]] = (int32_t)v;
+    }
+    size_t head = 0, tail = 0;
+    order[tail++] = 0;
+    while (head < tail) {
+        int32_t u = order[head++];
+        for (int32_t c = first[u]; c >= 0; c = next[c]) order[tail++] = c;
+    }
+    if ((rc = sy_skeleton_init(&out, M, err))) goto done;
+    memcpy(out.origin, s->origin, sizeof out.origin);
+    for (size_t t = 0; t < M; t++) final[order[t]] = (int32_t)t;
+    for (size_t t = 0; t < M; t++) {
+        int32_t u = order[t];
+        memcpy(out.pos + 3 * t, tpos + 3 * (size_t)u, 3 * sizeof *tpos);
+        out.parent[t] = t ? final[tpar[u]] : -1;
+        out.radius[t] = 1;
+    }
+    out.support_start = calloc(M + 1, sizeof *out.support_start);
+    out.support = calloc(n ? n : 1, sizeof *out.support);
+    if (!out.support_start || !out.support) {
+        rc = sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
+        goto done;
+    }
+    for (size_t i = 0; i < n; i++) {
+        int32_t v = newid[point_node[i]];
+        point_node[i] = final[v >= 0 ? v : STEM_AT(xyz[3 * i + 2])];
+        if (!wood || wood[i]) out.support_start[point_node[i] + 1]++;
+    }
+    for (size_t t = 0; t < M; t++) out.support_start[t + 1] += out.support_start[t];
+    for (size_t t = 0; t < M; t++) order[t] = (int32_t)out.support_start[t];
+    for (size_t i = 0; i < n; i++)
+        if (!wood || wood[i]) out.support[order[point_node[i]]++] = (uint32_t)i;
+#undef STEM_AT
+    sy_skeleton_free(s);
+    *s = out;
+    memset(&out, 0, sizeof out);
+    info->rebuilt = 1;
+    measure_stem(xyz, n, z0, H, root, ax, fmax(0.15, 0.2 * Rmed), spacing, info);
+    if (!(info->measured_r > 0)) info->fallback_r = 0.5 * H / STEM_SLENDERNESS;
+done:
+    sy_skeleton_free(&out);
+    free(newid);
+    free(tpar);
+    free(first);
+    free(next);
+    free(order);
+    free(final);
+    free(tpos);
+    return rc;
+}
+
+void sy_apply_stem_radius(sy_skeleton *s, const sy_stem_info *stem, double gamma, double spacing, sy_radii_info *ri)
+{
+    if (!stem->rebuilt || !(gamma > 0)) return;
+    size_t m = s->n;
+    double *l = malloc((m ? m : 1) * sizeof *l);
+    if (!l) return; /* the allometry from the breast-height fit stands */
+    sy_skeleton_subtree_lengths(s, l);
+    double z0 = s->pos[2], zb = z0 + ri->dbh_z;
+    double zm = stem->measured_r > 0 ? stem->measured_z : zb;
+    size_t um = 0, ub = 0;
+    for (size_t i = 0; i < m; i++) {
+        if (s->branch[i] != 0) continue;
+        if (fabs(s->pos[3 * i + 2] - zm) < fabs(s->pos[3 * um + 2] - zm)) um = i;
+        if (fabs(s->pos[3 * i + 2] - zb) < fabs(s->pos[3 * ub + 2] - zb)) ub = i;
+    }
+    double inv = 1.0 / gamma, l0 = l[0] > 0 ? l[0] : 1;
+    double r = stem->measured_r > 0 ? stem->measured_r : stem->fallback_r;
+    /* The pipe model from the measured slab to the root, then to breast height. */
+    double d_root = 2 * r / pow(fmax(l[um] / l0, 1e-9), inv);
+    ri->fitted = 0;
+    ri->dbh = d_root * pow(fmax(l[ub] / l0, 1e-9), inv);
+    if (stem->measured_r > 0 && stem->upper_r > 0 && stem->upper_z > stem->measured_z) {
+        /* Two stem measurements: the taper between them, to breast height. */
+        double t = (zb - stem->measured_z) / (stem->upper_z - stem->measured_z);
+        ri->dbh = 2 * (stem->measured_r + t * (stem->upper_r - stem->measured_r));
+        ri->fitted = zb >= stem->measured_z - 0.3 && zb <= stem->upper_z + 0.3;
+        d_root = ri->dbh / pow(fmax(l[ub] / l0, 1e-9), inv);
+    }
+    ri->d_root = d_root;
+    ri->fitted = ri->fitted || (stem->measured_r > 0 && fabs(stem->measured_z - zb) < 0.3);
+    ri->rms = stem->measured_r > 0 ? stem->measured_rms : 0;
+    double rmin = fmax(0.25 * spacing, 0.001);
+    for (size_t i = 0; i < m; i++) s->radius[i] = (float)fmax(0.5 * d_root * pow(l[i] / l0, inv), rmin);
+    for (size_t i = 1; i < m; i++)
+        if (s->parent[i] >= 0 && s->radius[i] > s->radius[s->parent[i]]) s->radius[i] = s->radius[s->parent[i]];
+    free(l);
+}
