@@ -779,6 +779,19 @@ sy_code sy_batch_run(const sy_batch_inputs *all, const char *out_dir, const sy_b
         sy_batch_inputs_free(&expanded);
         return sy_fail(err, SY_EINTERNAL, "batch: out of memory");
     }
+    /* Trees not run again (finished before, or failed when their input was
+     * inspected) still get their one "tree" event after "start". */
+    size_t *kept = calloc(n ? n : 1, sizeof *kept);
+    unsigned char *kept_failed = calloc(n ? n : 1, 1);
+    size_t n_kept = 0;
+    if (!kept || !kept_failed) {
+        free(kept);
+        free(kept_failed);
+        free(todo);
+        free(hash);
+        sy_batch_inputs_free(&expanded);
+        return sy_fail(err, SY_EINTERNAL, "batch: out of memory");
+    }
     size_t n_todo = 0, mine = 0;
     for (size_t i = 0; i < n; i++) {
         if (o->task_count && (int)(in->items[i].origin % (size_t)o->task_count) != o->task_index) continue;
@@ -789,6 +802,7 @@ sy_code sy_batch_run(const sy_batch_inputs *all, const char *out_dir, const sy_b
         if (s == JOB_SKIP_OK) summary->skipped++;
         else if (s == JOB_SKIP_FAILED) summary->skipped++, summary->failed++;
         else todo[n_todo++] = i;
+        if (s != JOB_TODO) kept[n_kept] = i, kept_failed[n_kept++] = s == JOB_SKIP_FAILED;
     }
     summary->trees = mine;
     int nw = o->workers ? o->workers : cores();
@@ -814,6 +828,15 @@ sy_code sy_batch_run(const sy_batch_inputs *all, const char *out_dir, const sy_b
         sy_json_int(&j, "threads_per_worker", threads);
         sy_json_end(&j);
         sy_json_finish(&j);
+        for (size_t k = 0; k < n_kept; k++) {
+            sy_json_begin(&j, stdout, 0);
+            sy_json_object(&j, NULL);
+            sy_json_string(&j, "event", "tree");
+            sy_json_string(&j, "id", in->items[kept[k]].id);
+            sy_json_string(&j, "status", kept_failed[k] ? "failed" : "kept");
+            sy_json_end(&j);
+            sy_json_finish(&j);
+        }
         fflush(stdout);
     } else if (!o->quiet) {
         fprintf(stderr, "sylva batch: %zu tree%s, %zu kept from before, %zu to do on %d worker%s x %d thread%s\n", mine,
@@ -822,6 +845,8 @@ sy_code sy_batch_run(const sy_batch_inputs *all, const char *out_dir, const sy_b
     tree_pool tp = {in, out_dir, o, todo, hash, threads, mem_gb, summary, &p, nw, getpid()};
     rc = sy_batch_pool(n_todo, nw, o->worker_timeout, tree_child, tree_done, &tp, err);
     if (!n_todo) progress_draw(&p, nw, NULL, NULL, 0);
+    free(kept);
+    free(kept_failed);
     free(todo);
     free(hash);
     summary->seconds = sy_now() - t0;
