@@ -421,7 +421,7 @@ sy_code sy_batch_inputs_collect(const char *const *args, size_t n, sy_batch_inpu
 
 /* ------------------------------------------------------------ resume */
 
-typedef enum { JOB_TODO, JOB_SKIP_OK, JOB_SKIP_FAILED } job_state;
+typedef enum { JOB_TO_RUN, JOB_SKIP_OK, JOB_SKIP_FAILED } job_state;
 
 /* What the record of in says about it: finished with this input and these options? */
 static job_state record_state(const sy_batch_input *in, const char *out_dir, const sy_batch_options *o,
@@ -431,7 +431,7 @@ static job_state record_state(const sy_batch_input *in, const char *out_dir, con
     snprintf(path, sizeof path, "%s/trees/%s.json", out_dir, in->id);
     sy_jv *r;
     sy_error e = {0};
-    if (access(path, F_OK) != 0 || sy_jv_parse_file(path, &r, &e)) return JOB_TODO;
+    if (access(path, F_OK) != 0 || sy_jv_parse_file(path, &r, &e)) return JOB_TO_RUN;
     char *opt = sy_batch_options_text(o, in);
     char want_in[32], want_opt[32];
     snprintf(want_in, sizeof want_in, "%016llx", (unsigned long long)input_hash);
@@ -439,7 +439,7 @@ static job_state record_state(const sy_batch_input *in, const char *out_dir, con
     free(opt);
     const char *hi = sy_jv_string(sy_jv_get(r, "input_hash")), *ho = sy_jv_string(sy_jv_get(r, "options_hash"));
     const char *st = sy_jv_string(sy_jv_get(r, "status"));
-    job_state s = JOB_TODO;
+    job_state s = JOB_TO_RUN;
     if (hi && ho && st && !strcmp(hi, want_in) && !strcmp(ho, want_opt)) {
         if (!strcmp(st, "ok")) s = JOB_SKIP_OK;
         else if (!strcmp(st, "failed") && !o->retry_failed) s = JOB_SKIP_FAILED;
@@ -632,7 +632,7 @@ static int has_current_record(const sy_batch_input *in, const char *out_dir, con
 {
     sy_batch_options any = *o;
     any.retry_failed = 0;
-    return record_state(in, out_dir, &any, h) != JOB_TODO;
+    return record_state(in, out_dir, &any, h) != JOB_TO_RUN;
 }
 
 void sy_batch_death(int status, int timed_out, double timeout, char *why, size_t size)
@@ -798,11 +798,11 @@ sy_code sy_batch_run(const sy_batch_inputs *all, const char *out_dir, const sy_b
         mine++;
         int ok;
         hash[i] = file_hash(in->items[i].path, &ok);
-        job_state s = o->resume && ok ? record_state(&in->items[i], out_dir, o, hash[i]) : JOB_TODO;
+        job_state s = o->resume && ok ? record_state(&in->items[i], out_dir, o, hash[i]) : JOB_TO_RUN;
         if (s == JOB_SKIP_OK) summary->skipped++;
         else if (s == JOB_SKIP_FAILED) summary->skipped++, summary->failed++;
         else todo[n_todo++] = i;
-        if (s != JOB_TODO) kept[n_kept] = i, kept_failed[n_kept++] = s == JOB_SKIP_FAILED;
+        if (s != JOB_TO_RUN) kept[n_kept] = i, kept_failed[n_kept++] = s == JOB_SKIP_FAILED;
     }
     summary->trees = mine;
     int nw = o->workers ? o->workers : cores();
