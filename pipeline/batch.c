@@ -610,7 +610,7 @@ static void sweep_temps(const char *dir)
         char *end;
         long pid = strtol(e->d_name + 5, &end, 10);
         if (end == e->d_name + 5 || *end != '.' || pid <= 0) continue;
-        if (kill((pid_t)pid, 0) == 0 || errno != ESRCH) continue;
+        if (!sy_process_gone(pid)) continue;
         char p[8500];
         if (snprintf(p, sizeof p, "%s/%s", dir, e->d_name) < (int)sizeof p) unlink(p);
     }
@@ -619,12 +619,23 @@ static void sweep_temps(const char *dir)
 
 void sy_batch_sweep(const char *out_dir)
 {
-    static const char *const sub[] = {"", "/trees", "/report", "/slurm", "/slurm/done"};
+    static const char *const sub[] = {"", "/trees", "/report", "/slurm", "/slurm/done", "/plots"};
     char p[8300];
     for (size_t i = 0; i < sizeof sub / sizeof *sub; i++) {
         snprintf(p, sizeof p, "%s%s", out_dir, sub[i]);
         sweep_temps(p);
     }
+    /* A plot's tree clouds: plots/ID/ID_tNNN.las, staged like any output. */
+    snprintf(p, sizeof p, "%s/plots", out_dir);
+    DIR *d = opendir(p);
+    if (!d) return;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        if (e->d_name[0] == '.') continue;
+        char q[8600];
+        if (snprintf(q, sizeof q, "%s/%s", p, e->d_name) < (int)sizeof q && sy_is_directory(q)) sweep_temps(q);
+    }
+    closedir(d);
 }
 
 /* Did the worker leave a record of this attempt (of this input and options)? */
@@ -850,6 +861,10 @@ sy_code sy_batch_run(const sy_batch_inputs *all, const char *out_dir, const sy_b
     free(todo);
     free(hash);
     summary->seconds = sy_now() - t0;
+    /* Again at the end: a killed batch's workers may still have been
+     * exiting when the sweep at the start looked at their temps. (Not in a
+     * Slurm task: other tasks may be writing into out_dir right now.) */
+    if (!o->task_count) sy_batch_sweep(out_dir);
     if (!rc && o->report && !o->task_count) rc = sy_batch_report(in, out_dir, o, err);
     else if (!rc && o->task_count) rc = sy_slurm_task_done(all, out_dir, o, err);
     sy_batch_inputs_free(&expanded);

@@ -178,6 +178,7 @@ static int thumbnail(const sy_batch_options *o, const char *glb, const char *png
     char size[64];
     snprintf(size, sizeof size, "%dx%d", o->thumb_size, o->thumb_size);
     fflush(NULL);
+    pid_t worker = getpid();
     pid_t pid = fork();
     if (pid < 0) {
         snprintf(why, why_size, "no thumbnail: cannot start sylva-view: %s", strerror(errno));
@@ -185,6 +186,7 @@ static int thumbnail(const sy_batch_options *o, const char *glb, const char *png
     }
     if (pid == 0) {
         prctl(PR_SET_PDEATHSIG, SIGKILL); /* the viewer dies with its worker too */
+        if (getppid() != worker) _exit(127); /* the worker died before prctl: no orphan writes behind it */
         int fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
         if (fd >= 0) dup2(fd, 2), dup2(fd, 1), close(fd);
         char *args[] = {viewer, (char *)glb, "--screenshot", (char *)png, "--size", size, "--no-stats", NULL};

@@ -86,6 +86,44 @@ static void stale_temps_of_dead_processes_go(void **state)
     assert_int_equal(dir_entry_count(dir), 3);
 }
 
+/* A killed writer that nobody has reaped yet (an orphan waits for init)
+ * still answers kill(pid, 0): its temps are leftovers all the same, while a
+ * live writer's stay. (A batch killed and resumed at once met this.) */
+static void temps_of_unreaped_killed_writers_go(void **state)
+{
+    (void)state;
+    const char *dir = fresh_dir("zombie");
+    pid_t z = fork();
+    if (z == 0) _exit(0);
+    pid_t live = fork();
+    if (live == 0) {
+        pause();
+        _exit(0);
+    }
+    assert_true(z > 0 && live > 0);
+    /* Wait until z is a zombie (exited, not reaped). */
+    siginfo_t si;
+    memset(&si, 0, sizeof si);
+    assert_int_equal(waitid(P_PID, (id_t)z, &si, WEXITED | WNOWAIT), 0);
+    assert_int_equal(kill(z, 0), 0); /* still there for kill() */
+    assert_true(sy_process_gone((long)z));
+    assert_false(sy_process_gone((long)live));
+    assert_false(sy_process_gone((long)getpid()));
+    char path[4400], tz[4400], tl[4400];
+    snprintf(path, sizeof path, "%s/tree.glb", dir);
+    assert_int_equal(sy_output_temp_name(path, (long)z, tz, sizeof tz), 0);
+    assert_int_equal(sy_output_temp_name(path, (long)live, tl, sizeof tl), 0);
+    assert_int_equal(write_bytes(tz, "x", 1), 0);
+    assert_int_equal(write_bytes(tl, "x", 1), 0);
+    assert_int_equal(sy_output_remove_stale(path), 1);
+    assert_false(file_exists(tz));
+    assert_true(file_exists(tl));
+    kill(live, SIGKILL);
+    int status;
+    waitpid(live, &status, 0);
+    waitpid(z, &status, 0);
+}
+
 static void links_stay_links(void **state)
 {
     (void)state;
@@ -257,7 +295,7 @@ int main(void)
         cmocka_unit_test(long_names_fit_name_max),    cmocka_unit_test(stale_temps_of_dead_processes_go),
         cmocka_unit_test(links_stay_links),           cmocka_unit_test(devices_are_written_through),
         cmocka_unit_test(output_is_never_an_input),   cmocka_unit_test(pairs_commit_together),
-        cmocka_unit_test(killed_writer_leaves_no_output),
+        cmocka_unit_test(killed_writer_leaves_no_output), cmocka_unit_test(temps_of_unreaped_killed_writers_go),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

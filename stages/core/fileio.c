@@ -185,6 +185,34 @@ int sy_output_temp_name(const char *target, long pid, char *buf, size_t size)
     return k > 0 && (size_t)k < size ? 0 : -1;
 }
 
+int sy_process_gone(long pid)
+{
+    if (pid <= 0) return 0;
+    if (kill((pid_t)pid, 0) != 0) return errno == ESRCH;
+    /* kill() still finds a process that was killed and has not been reaped
+     * yet: a zombie (an orphan waits for init, which may reap late), one
+     * whose memory is already gone (exiting: no Vm lines in its status), or
+     * one with SIGKILL pending. None of them writes again. */
+    char path[64], line[256];
+    snprintf(path, sizeof path, "/proc/%ld/status", pid);
+    FILE *fp = fopen(path, "r");
+    if (!fp) return 0; /* no /proc: trust kill() */
+    int gone = 0, has_mm = 0;
+    while (!gone && fgets(line, sizeof line, fp)) {
+        if (!strncmp(line, "State:", 6)) {
+            const char *c = line + 6;
+            while (*c == ' ' || *c == '\t') c++;
+            gone = *c == 'Z' || *c == 'X';
+        } else if (!strncmp(line, "VmSize:", 7)) has_mm = 1;
+        else if (!strncmp(line, "SigPnd:", 7) || !strncmp(line, "ShdPnd:", 7)) {
+            unsigned long long mask = strtoull(line + 7, NULL, 16);
+            gone = (mask >> (SIGKILL - 1)) & 1;
+        }
+    }
+    fclose(fp);
+    return gone || !has_mm;
+}
+
 /* 1 when name is ".tmp.<digits>.<part>"; *pid gets the digits. */
 static int temp_match(const char *name, const char *part, long *pid)
 {
@@ -210,8 +238,8 @@ size_t sy_output_remove_stale(const char *target)
     for (struct dirent *e; (e = readdir(d));) {
         long pid;
         if (!temp_match(e->d_name, part, &pid) || pid == self || pid <= 0) continue;
-        /* Only a process that no longer exists leaves its temp for good. */
-        if (kill((pid_t)pid, 0) == 0 || errno != ESRCH) continue;
+        /* Only a process that no longer runs leaves its temp for good. */
+        if (!sy_process_gone(pid)) continue;
         snprintf(victim, sizeof victim, "%s%s%s", dir, dirlen ? "" : "/", e->d_name);
         if (unlink(victim) == 0) removed++;
     }
@@ -490,7 +518,7 @@ static void sweep_folder_siblings(const char *target)
             char *end;
             long pid = strtol(e->d_name + tl, &end, 10);
             if (end == e->d_name + tl || *end != '.' || strcmp(end + 1, name) != 0) continue;
-            if (pid > 0 && (kill((pid_t)pid, 0) == 0 || errno == EPERM)) continue;
+            if (pid > 0 && !sy_process_gone(pid)) continue;
             char path[8600];
             snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
             if (sy_is_directory(path)) remove_flat_folder(path);

@@ -65,6 +65,12 @@ sy_code sy_output_check(const char *path, const char *const *inputs, size_t n_in
  * "<dir>/.tmp.<pid>.<name>", within NAME_MAX. 0, or -1 when it cannot fit. */
 int sy_output_temp_name(const char *target, long pid, char *buf, size_t size);
 
+/* 1 when process pid no longer runs and will never write again: it does
+ * not exist, or it is a zombie, exiting, or has SIGKILL pending (a killed
+ * batch's workers linger so until they are reaped). The owner test for
+ * ".tmp.<pid>." names. */
+int sy_process_gone(long pid);
+
 /* Removes "<dir>/.tmp.<pid>.<name>" files of target whose pid no longer runs;
  * returns how many went. */
 size_t sy_output_remove_stale(const char *target);
