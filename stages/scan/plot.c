@@ -149,16 +149,78 @@ static sy_code add_wood(sy_scene *s, const sy_skeleton *world, int tree_id, int 
     return SY_OK;
 }
 
-static sy_code add_leaves(sy_scene *s, const sy_leaves *lv, const sy_skeleton *world, const placement *pl,
-                          float leaf_width, int elliptic, int tree_id, int species_id, extent *ext, sy_error *err)
+/* How far under the terrain's surface wood may reach: the stem base sits
+ * 2 cm down, and the triangulated ground departs from the height function
+ * by about the roughness. */
+#define SY_BELOW_GROUND 0.05
+
+/* Weber & Penn's model knows no ground: a low limb that curves down (black
+ * oak's do, by up to 3 m) runs on under the terrain, where no scanner sees it
+ * and where, in a plot, it hides the ground and passes for stems at breast
+ * height. A limb ends where it meets the ground: the nodes under the surface
+ * go, with everything they carry. world is compacted in place; map gets each
+ * old node's new index (-1: gone). Returns how many nodes went. */
+static size_t prune_below_ground(const sy_scene *s, sy_skeleton *world, int32_t *map)
 {
+    size_t n = world->n, gone = 0;
+    /* map: -2 not judged yet, -1 gone, 1 kept (new indices below). */
+    for (size_t i = 0; i < n; i++) map[i] = -2;
+    for (size_t i = 0; i < n; i++) {
+        /* Judge i's unjudged ancestors from the top down, then i. */
+        for (;;) {
+            size_t k = i;
+            /* the highest unjudged node on the way up (its parent judged, or none) */
+            while (map[k] == -2) {
+                int32_t p = world->parent[k];
+                if (p < 0 || map[p] != -2) break;
+                k = (size_t)p;
+            }
+            if (map[k] != -2) break;
+            int32_t p = world->parent[k];
+            const float *x = world->pos + 3 * k;
+            int keep = p < 0 || (map[p] == 1 &&
+                                 x[2] >= sy_terrain_height(&s->terrain, x[0], x[1]) - SY_BELOW_GROUND);
+            map[k] = keep ? 1 : -1;
+        }
+    }
+    size_t j = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (map[i] < 0) {
+            gone++;
+            continue;
+        }
+        map[i] = (int32_t)j++;
+    }
+    for (size_t i = 0; i < n; i++) {
+        int32_t m = map[i];
+        if (m < 0) continue;
+        int32_t p = world->parent[i];
+        memmove(world->pos + 3 * m, world->pos + 3 * i, 3 * sizeof *world->pos);
+        world->radius[m] = world->radius[i];
+        world->order[m] = world->order[i];
+        world->branch[m] = world->branch[i];
+        world->parent[m] = p < 0 ? -1 : map[p];
+    }
+    world->n = j;
+    return gone;
+}
+
+static sy_code add_leaves(sy_scene *s, const sy_leaves *lv, const sy_skeleton *world, const int32_t *map,
+                          const placement *pl, float leaf_width, int elliptic, int tree_id, int species_id, extent *ext,
+                          size_t *added, sy_error *err)
+{
+    *added = 0;
     for (size_t i = 0; i < lv->n; i++) {
+        int32_t node = lv->node[i];
+        if (map && node >= 0 && map[node] < 0) continue; /* its twig went with a limb under the ground */
+        if (map && node >= 0) node = map[node];
         const float *q = lv->rot + 4 * i;
         double ex[3] = {1, 0, 0}, ey[3] = {0, 1, 0}, lx[3], ly[3], base[3];
         quat_rotate(q, ex, lx);
         quat_rotate(q, ey, ly);
         double lp[3] = {lv->pos[3 * i], lv->pos[3 * i + 1], lv->pos[3 * i + 2]};
         place_point(pl, lp, base);
+        if (s->has_terrain && base[2] < sy_terrain_height(&s->terrain, base[0], base[1]) - SY_BELOW_GROUND) continue;
         float fx[3], fy[3], fb[3] = {(float)base[0], (float)base[1], (float)base[2]};
         place_dir(pl, lx, fx);
         place_dir(pl, ly, fy);
@@ -166,7 +228,6 @@ static sy_code add_leaves(sy_scene *s, const sy_leaves *lv, const sy_skeleton *w
         sy_prim c = sy_prim_quad(fb, fx, fy, len, width, elliptic);
         c.tree_id = tree_id;
         c.species_id = species_id;
-        int32_t node = lv->node[i];
         c.branch_id = node >= 0 && (size_t)node < world->n ? world->branch[node] : -1;
         for (int sx = -1; sx <= 1; sx += 2)
             for (int ty = 0; ty <= 1; ty++) {
@@ -175,6 +236,7 @@ static sy_code add_leaves(sy_scene *s, const sy_leaves *lv, const sy_skeleton *w
                 extent_add(ext, corner);
             }
         if (push_labelled(s, &c, err)) return err->code;
+        ++*added;
     }
     return SY_OK;
 }
@@ -214,19 +276,25 @@ sy_code sy_scene_add_tree(sy_scene *s, const sy_skeleton *local, const sy_leaves
         t->skel.order[i] = local->order[i];
         t->skel.branch[i] = local->branch[i];
     }
-    if (add_wood(s, &t->skel, t->tree_id, species_id, &ext, err)) return err->code;
-    if (leaves) {
+    int32_t *map = NULL;
+    if (s->has_terrain) {
+        if (!(map = sy_calloc(local->n ? local->n : 1, sizeof *map, err, "node map"))) return err->code;
+        t->pruned_nodes = prune_below_ground(s, &t->skel, map);
+    }
+    sy_code rc = add_wood(s, &t->skel, t->tree_id, species_id, &ext, err);
+    if (!rc && leaves) {
         sy_leaves moved = *leaves;
         float *lp = sy_calloc(leaves->n ? 3 * leaves->n : 1, sizeof(float), err, "leaf positions");
-        if (!lp) return err->code;
-        for (size_t i = 0; i < leaves->n; i++)
+        if (!lp) rc = err->code;
+        for (size_t i = 0; lp && i < leaves->n; i++)
             for (int k = 0; k < 3; k++) lp[3 * i + k] = (float)((double)leaves->pos[3 * i + k] + local->origin[k] - shift[k]);
         moved.pos = lp;
-        sy_code rc = add_leaves(s, &moved, &t->skel, &pl, leaf_width, elliptic, t->tree_id, species_id, &ext, err);
+        if (lp) rc = add_leaves(s, &moved, &t->skel, map, &pl, leaf_width, elliptic, t->tree_id, species_id, &ext,
+                                &t->leaf_count, err);
         free(lp);
-        if (rc) return rc;
-        t->leaf_count = leaves->n;
     }
+    free(map);
+    if (rc) return rc;
     t->height = ext.top - pos[2];
     t->crown_width = 0.5 * ((ext.hi[0] - ext.lo[0]) + (ext.hi[1] - ext.lo[1]));
     t->dbh = 2 * sy_trunk_radius_at(&t->skel, 1.3);
@@ -508,6 +576,7 @@ void sy_write_truth(FILE *fp, const sy_scene *s, const sy_scan_options *sc, int 
         sy_json_number(&j, "dbh", t->dbh);
         sy_json_number(&j, "crown_width", t->crown_width);
         sy_json_int(&j, "leaf_count", (long long)t->leaf_count);
+        sy_json_int(&j, "nodes_below_ground", (long long)t->pruned_nodes);
         sy_json_array(&j, "nodes");
         for (size_t k = 0; k < t->skel.n; k++) {
             sy_json_object(&j, NULL);

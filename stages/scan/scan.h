@@ -108,6 +108,7 @@ typedef struct {
     double yaw_deg;
     sy_skeleton skel; /* world coordinates (origin 0) */
     size_t leaf_count;
+    size_t pruned_nodes; /* grown nodes that went under the terrain and were cut off with what they carry */
     double height, dbh, crown_width;
 } sy_scan_tree;
 
