@@ -8,15 +8,16 @@
 #      headless Chromium (screenshot to --shot).
 #   3. 20 kills at random moments, then a resume: outputs identical to an uninterrupted run.
 # Usage: bench/batch/bench_batch.sh [--build DIR] [--work DIR] [--trees 50] [--sub 10] [--kills 20]
-#        [--shot docs/pictures/batch_report.png] [--only trees|plots|kills]
+#        [--shot docs/pictures/batch_report.png] [--only trees|plots|kills] [--nice 10]
 # The machine is shared: run under nice; CPU times (user+sys) are the figures to trust.
 set -u
 here=$(cd "$(dirname "$0")/../.." && pwd)
-build=$here/build work=/tmp/sylva-bench-batch trees=50 sub=10 kills=20 shot=$here/docs/pictures/batch_report.png only=all
+build=$here/build work=/tmp/sylva-bench-batch trees=50 sub=10 kills=20 shot=$here/docs/pictures/batch_report.png only=all niceness=10
 while [[ $# -gt 0 ]]; do
     case $1 in
     --build) build=$2; shift 2 ;; --work) work=$2; shift 2 ;; --trees) trees=$2; shift 2 ;;
     --sub) sub=$2; shift 2 ;; --kills) kills=$2; shift 2 ;; --shot) shot=$2; shift 2 ;; --only) only=$2; shift 2 ;;
+    --nice) niceness=$2; shift 2 ;;
     *) echo "bench_batch: unknown option $1"; exit 1 ;;
     esac
 done
@@ -44,13 +45,13 @@ if [[ $only == all || $only == trees ]]; then
     if [[ $has_segment == 1 ]]; then
         mode="one simulated plot of $trees trees (segmented first)"
         mkdir -p "$in"
-        [[ -s $in/plot.las ]] || nice -n 10 "$sylva" scan --plot 60 --trees "$trees" --step 0.1 --seed 11 -o "$in/plot.las" --quiet
+        [[ -s $in/plot.las ]] || nice -n "$niceness" "$sylva" scan --plot 60 --trees "$trees" --step 0.1 --seed 11 -o "$in/plot.las" --quiet
     else
         mode="$trees single-tree scans (the segment stage has not landed on this branch: no plot)"
         mkdir -p "$in"
         for ((k = 0; k < trees; k++)); do
             f=$(printf '%s/t%02d.las' "$in" "$k")
-            [[ -s $f ]] || nice -n 10 "$sylva" scan "${species[k % ${#species[@]}]}" --seed $((k + 1)) --step 0.3 --no-terrain \
+            [[ -s $f ]] || nice -n "$niceness" "$sylva" scan "${species[k % ${#species[@]}]}" --seed $((k + 1)) --step 0.3 --no-terrain \
                 -o "$f" --quiet
         done
     fi
@@ -60,7 +61,7 @@ if [[ $only == all || $only == trees ]]; then
         for f in $(ls "$in"/*.las | head -"$sub"); do ln -sf "$f" "$work/sub/"; done
         for w in 1 2; do
             rm -rf "$work/out_w$w"
-            /usr/bin/time -v nice -n 10 "$sylva" batch "$work/sub" -o "$work/out_w$w" --workers "$w" --quiet 2> "$work/time_w$w.log"
+            /usr/bin/time -v nice -n "$niceness" "$sylva" batch "$work/sub" -o "$work/out_w$w" --workers "$w" --quiet 2> "$work/time_w$w.log"
             wall[$w]=$(awk -F': ' '/Elapsed/ {n = split($2, a, ":"); s = 0; for (i = 1; i <= n; i++) s = s * 60 + a[i]; print s}' "$work/time_w$w.log")
             read -r cpu[$w] rss[$w] <<< "$(cpu_of "$work/time_w$w.log")"
         done
@@ -72,7 +73,7 @@ if [[ $only == all || $only == trees ]]; then
         printf '%-38s %10.1f %10.1f  (same work: the CPU should match)\n' "CPU s (user+sys, all processes)" "${cpu[1]}" "${cpu[2]}"
     fi
     rm -rf "$work/out_all"
-    /usr/bin/time -v nice -n 10 "$sylva" batch "$in" -o "$work/out_all" --workers 2 --quiet 2> "$work/time_all.log"
+    /usr/bin/time -v nice -n "$niceness" "$sylva" batch "$in" -o "$work/out_all" --workers 2 --quiet 2> "$work/time_all.log"
     read -r cpu_all rss_all <<< "$(cpu_of "$work/time_all.log")"
     IFS=$'\t' read -r ok mwall mcpu mrss pts <<< "$(tree_stats "$work/out_all")"
     wall_all=$(awk -F': ' '/Elapsed/ {n = split($2, a, ":"); s = 0; for (i = 1; i <= n; i++) s = s * 60 + a[i]; print s}' "$work/time_all.log")
@@ -92,7 +93,7 @@ if [[ $only == all || $only == plots ]]; then
     for p in "$data/lidr/Megaplot.las" "$data/treels/pine_plot.las"; do
         name=$(basename "$p" .las)
         rm -rf "$work/plot_$name"
-        /usr/bin/time -v nice -n 10 "$sylva" batch "$p" -o "$work/plot_$name" --workers 2 --quiet 2> "$work/time_$name.log"
+        /usr/bin/time -v nice -n "$niceness" "$sylva" batch "$p" -o "$work/plot_$name" --workers 2 --quiet 2> "$work/time_$name.log"
         read -r c r <<< "$(cpu_of "$work/time_$name.log")"
         printf '%-16s %s  (%.0f s CPU, peak %.0f MB)%s\n' "$name" "$(jq -c .counts "$work/plot_$name/index.json")" "$c" \
             "$(awk -v k="$r" 'BEGIN { print k / 1024 }')" "$([[ $has_segment == 0 ]] && echo ' - no segment stage: the plot ran as ONE tree')"
@@ -109,13 +110,18 @@ if [[ $only == all || $only == kills ]]; then
     mkdir -p "$kin"
     cp "$here"/samples/{aspen,fir,palm}_als.las "$kin/"
     rm -rf "$work/kref" "$work/kkill"
-    nice -n 10 "$sylva" batch "$kin" -o "$work/kref" --workers 2 --no-eval --no-thumbnails --quiet
+    t0=$(date +%s%N)
+    nice -n "$niceness" "$sylva" batch "$kin" -o "$work/kref" --workers 2 --no-eval --no-thumbnails --quiet
+    # The moments spread over the whole of an uninterrupted run (its wall time
+    # here, at this load), so that the kills land in every phase.
+    span=$((($(date +%s%N) - t0) / 1000000))
+    echo "  uninterrupted run: $((span / 1000)) s wall (load $(cut -d' ' -f1 /proc/loadavg)); kills drawn in 0.1 s .. $((span / 1000)) s"
     RANDOM=20
     moments=()
     for ((k = 0; k < kills; k++)); do
-        ms=$((100 + RANDOM % 6000))
+        ms=$((100 + RANDOM * 32768 % span))
         moments+=("$ms")
-        nice -n 10 "$sylva" batch "$kin" -o "$work/kkill" --workers 2 --no-eval --no-thumbnails --quiet &
+        nice -n "$niceness" "$sylva" batch "$kin" -o "$work/kkill" --workers 2 --no-eval --no-thumbnails --quiet &
         pid=$!
         sleep "$(awk -v m="$ms" 'BEGIN { print m / 1000 }')"
         kill -9 "$pid" 2> /dev/null
@@ -123,8 +129,8 @@ if [[ $only == all || $only == kills ]]; then
         done_now=$(ls "$work"/kkill/trees/*.json 2> /dev/null | wc -l)
         echo "  kill $((k + 1)) at $ms ms: $done_now records so far"
     done
-    sleep 0.5
-    nice -n 10 "$sylva" batch "$kin" -o "$work/kkill" --workers 2 --no-eval --no-thumbnails --quiet
+    # The resume starts at once: the killed workers may still be unreaped (sy_process_gone).
+    nice -n "$niceness" "$sylva" batch "$kin" -o "$work/kkill" --workers 2 --no-eval --no-thumbnails --quiet
     same() {
         ( cd "$1" && for f in $(find trees -type f \( -name '*.glb' -o -name '*.sylva' -o -name '*.png' -o -name '*.glb.js' \) | sort); do sha1sum "$f"; done
           for f in trees/*.json; do echo "$f"; jq -S 'del(.seconds, .peak_rss_kb)' "$f"; done
