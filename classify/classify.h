@@ -66,7 +66,7 @@ sy_code sy_features_compute(const sy_cloud *tree, const sy_features_options *o, 
 /* --------------------------------------------------------------- JointBoost */
 
 #define SY_JB_MAX_CLASSES 64
-#define SY_JB_FORMAT_VERSION 1
+#define SY_JB_FORMAT_VERSION 2
 
 typedef struct {
     int rounds;           /* most boosting rounds (600) */
@@ -82,6 +82,10 @@ typedef struct {
     int refit;            /* 1: after early stopping, retrain on everything for the best
                              round count (1) */
     uint64_t seed;        /* the held-out split */
+    /* The joint novelty test (classify/novelty.c, docs/classify.md). */
+    double novelty_quantile; /* its threshold: this quantile of the cross-validated
+                                training trees' scores ... (0.995) */
+    double novelty_factor;   /* ... times this factor (2) */
 } sy_jb_options;
 
 sy_jb_options sy_jb_options_default(void);
@@ -100,7 +104,14 @@ typedef struct {
     uint64_t *mask;
     float *k;               /* n_rounds x n_classes */
     double kappa;           /* calibration: p_c = exp(kappa H_c) / sum exp(kappa H) */
-    float *feat_lo, *feat_hi; /* per feature: training range, for the novelty test */
+    /* The joint novelty test (classify/novelty.c): features standardised by
+     * the training median and robust spread, then per class a diagonal
+     * Mahalanobis distance; score = min over classes. */
+    float *nov_center, *nov_scale; /* n_features */
+    float *nov_mean, *nov_sd;      /* n_classes x n_features, standardised units */
+    double nov_cap;                /* cap of one feature's squared deviation */
+    double nov_trim;               /* share of the largest deviations left out */
+    double nov_threshold;          /* scores above it are novel */
     /* What training measured, kept in the file for `sylva classify --info`. */
     size_t train_samples;
     double holdout_accuracy; /* NaN without a held-out set */
@@ -128,9 +139,23 @@ void sy_jb_model_free(sy_jb_model *m);
  * summing to 1) for one feature vector of m->n_features floats. */
 void sy_jb_scores(const sy_jb_model *m, const float *x, double *H);
 void sy_jb_predict(const sy_jb_model *m, const float *x, double *prob);
-/* Share of the features outside the training range widened by `margin`
- * times its width on each side: how far x lies from anything trained on. */
-double sy_jb_novelty(const sy_jb_model *m, const float *x, double margin);
+/* The joint novelty score of x: min over the classes of the trimmed mean of
+ * the capped squared standardised deviations from the class (a diagonal
+ * Mahalanobis distance per feature, averaged). sy_jb_novelty divides it by
+ * the calibrated threshold: above 1, x lies farther from every species than
+ * the held-out training trees do (a house, not a tree). 0 for a model
+ * without the test. */
+double sy_jb_novelty_score(const sy_jb_model *m, const float *x);
+double sy_jb_novelty(const sy_jb_model *m, const float *x);
+/* Fits the test's statistics on the samples idx[0..n_idx) of X (n x d) into m
+ * (m->n_features, m->n_classes set; allocates the arrays). */
+sy_code sy_jb_novelty_fit(sy_jb_model *m, const float *X, const int *y, const uint32_t *idx, size_t n_idx,
+                          sy_error *err);
+/* Fits on all n samples and calibrates the threshold: `folds`-fold scores of
+ * every sample against statistics fitted without its fold (stratified by
+ * seed), threshold = factor x the quantile q of those scores. */
+sy_code sy_jb_novelty_train(sy_jb_model *m, const float *X, size_t n, const int *y, int folds, double q,
+                            double factor, uint64_t seed, sy_error *err);
 
 /* Text model file (docs/classify.md): "sylva-jointboost 1" ... "end <fnv64>".
  * Written atomically; a damaged, truncated or foreign file fails to load with
@@ -147,8 +172,8 @@ typedef struct {
     double ratio;       /* confident iff h1 > ratio * h2 (1.5, Pirk 2013) */
     double radius;      /* voting radius, metres (25) */
     int voting;         /* 1: unconfident trees with positions take their neighbours' vote (1) */
-    double novelty_margin; /* the training range is widened by this share of its width (0.25) */
-    double novelty_max; /* more than this share of features outside it: unknown (0.2) */
+    double novelty_max; /* sy_jb_novelty above this (1: the model's calibrated
+                           threshold): unknown, never confident, never voted (1) */
 } sy_vote_options;
 
 sy_vote_options sy_vote_options_default(void);

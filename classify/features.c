@@ -215,24 +215,21 @@ static size_t voxel_centroids(const float *xyz, size_t n, const float lo[3], dou
     return m;
 }
 
-/* Voxel centroids at *voxel or coarser, at most max_points of them. A crown
- * sampled like a surface loses points as voxel^-2, so each retry jumps by the
- * square root of the excess (plus 3%): two or three passes, not dozens. */
-static size_t subsample(const float *xyz, size_t n, const float lo[3], size_t max_points, sy_voxel_entry *tmp, float *out,
-                        double *voxel)
+/* Voxel centroids at *voxel or coarser, at most max_points of them, from
+ * `first`, the m0 centroids of the input at *voxel (computed once and shared
+ * by the statistics' and the skeleton's samples). A crown sampled like a
+ * surface loses points as voxel^-2, so each retry jumps by the square root of
+ * the excess (plus 3%): two or three passes, not dozens. Coarser passes run
+ * over the first pass's centroids: far fewer points. */
+static size_t subsample(const float *first, size_t m0, const float lo[3], size_t max_points, sy_voxel_entry *tmp,
+                        float *out, double *voxel)
 {
-    size_t m = voxel_centroids(xyz, n, lo, *voxel, tmp, out);
-    if (m <= max_points) return m;
-    /* Coarser passes run over the first pass's centroids: far fewer points. */
-    float *first = malloc(3 * m * sizeof *first);
-    if (!first) return m; /* the caller's cap is a time budget, not a correctness bound */
-    memcpy(first, out, 3 * m * sizeof *first);
-    size_t m0 = m;
+    size_t m = m0;
+    memcpy(out, first, 3 * m0 * sizeof *out);
     for (int it = 0; it < 40 && m > max_points; it++) {
         *voxel *= fmax(1.05, 1.03 * sqrt((double)m / (double)max_points));
         m = voxel_centroids(first, m0, lo, *voxel, tmp, out);
     }
-    free(first);
     return m;
 }
 
@@ -530,6 +527,7 @@ static void skeleton_features(const float *P, size_t m, double z0, double H, dou
 
 typedef struct {
     float *P;         /* 3m subsampled points */
+    float *first;     /* 3m0: the centroids at the first voxel */
     float *h, *r;     /* m: relative height, radial distance */
     float *scratch;   /* max(m, n) */
     sy_voxel_entry *keys; /* n */
@@ -539,7 +537,7 @@ typedef struct {
 
 static void work_free(work *w)
 {
-    free(w->P), free(w->h), free(w->r), free(w->scratch), free(w->keys), free(w->pts2), free(w->hull2), free(w->tmp);
+    free(w->P), free(w->first), free(w->h), free(w->r), free(w->scratch), free(w->keys), free(w->pts2), free(w->hull2), free(w->tmp);
 }
 
 sy_code sy_features_compute(const sy_cloud *tree, const sy_features_options *o, float *f, sy_features_info *info,
@@ -571,8 +569,14 @@ sy_code sy_features_compute(const sy_cloud *tree, const sy_features_options *o, 
             if (v > hi[a]) hi[a] = v;
         }
     /* Subsample to at most max_points voxel centroids. */
+    w.first = sy_calloc(3 * n, sizeof *w.first, err, "features");
+    if (!w.first) {
+        work_free(&w);
+        return err->code;
+    }
     double voxel = o->voxel;
-    size_t m = subsample(tree->xyz, n, lo, o->max_points, w.keys, w.P, &voxel);
+    size_t m0 = voxel_centroids(tree->xyz, n, lo, o->voxel, w.keys, w.first);
+    size_t m = subsample(w.first, m0, lo, o->max_points, w.keys, w.P, &voxel);
     double spacing = sy_estimate_spacing(tree->xyz, n);
     w.h = sy_calloc(m, sizeof *w.h, err, "features");
     w.r = sy_calloc(m, sizeof *w.r, err, "features");
@@ -842,7 +846,7 @@ sy_code sy_features_compute(const sy_cloud *tree, const sy_features_options *o, 
             return sy_fail(err, SY_EINTERNAL, "features: out of memory");
         }
         double sv = o->voxel;
-        size_t mq = subsample(tree->xyz, n, lo, o->skeleton_points, w.keys, Q, &sv);
+        size_t mq = subsample(w.first, m0, lo, o->skeleton_points, w.keys, Q, &sv);
         skeleton_features(Q, mq, z0, H, trunk_r, crown_base, f, err);
         free(Q);
     }

@@ -53,6 +53,8 @@ sy_jb_options sy_jb_options_default(void)
     o.balance = 1;
     o.refit = 1;
     o.seed = 1;
+    o.novelty_quantile = 0.995;
+    o.novelty_factor = 2.0;
     return o;
 }
 
@@ -65,6 +67,10 @@ sy_code sy_jb_options_check(const sy_jb_options *o, sy_error *err)
         return sy_fail(err, SY_EUSAGE, "jointboost: validation must be in [0, 0.9)");
     if (o->patience < 1) return sy_fail(err, SY_EUSAGE, "jointboost: patience must be >= 1");
     if (!(o->shrinkage > 0 && o->shrinkage <= 1)) return sy_fail(err, SY_EUSAGE, "jointboost: shrinkage must be in (0, 1]");
+    if (!(o->novelty_quantile > 0 && o->novelty_quantile <= 1))
+        return sy_fail(err, SY_EUSAGE, "jointboost: novelty_quantile must be in (0, 1]");
+    if (!(o->novelty_factor > 0 && o->novelty_factor < 1e6))
+        return sy_fail(err, SY_EUSAGE, "jointboost: novelty_factor must be > 0");
     return SY_OK;
 }
 
@@ -74,7 +80,7 @@ void sy_jb_model_free(sy_jb_model *m)
     for (size_t c = 0; c < m->n_classes; c++) free(m->classes ? m->classes[c] : NULL);
     free(m->classes);
     free(m->feature), free(m->threshold), free(m->a), free(m->b), free(m->mask), free(m->k);
-    free(m->feat_lo), free(m->feat_hi);
+    free(m->nov_center), free(m->nov_scale), free(m->nov_mean), free(m->nov_sd);
     memset(m, 0, sizeof *m);
 }
 
@@ -104,18 +110,6 @@ void sy_jb_predict(const sy_jb_model *m, const float *x, double *prob)
     double H[SY_JB_MAX_CLASSES];
     sy_jb_scores(m, x, H);
     softmax(H, m->n_classes, m->kappa, prob);
-}
-
-double sy_jb_novelty(const sy_jb_model *m, const float *x, double margin)
-{
-    if (!m->feat_lo || m->n_features == 0) return 0;
-    size_t out = 0;
-    for (size_t f = 0; f < m->n_features; f++) {
-        double w = (double)m->feat_hi[f] - m->feat_lo[f];
-        double pad = margin * w;
-        if (x[f] < m->feat_lo[f] - pad || x[f] > m->feat_hi[f] + pad) out++;
-    }
-    return (double)out / (double)m->n_features;
 }
 
 /* ------------------------------------------------------------ training */
@@ -218,13 +212,24 @@ static void search_features(void *vctx, size_t begin, size_t end, size_t chunk)
         size_t np = nc;
         for (size_t t = 0; t < nc; t++) pick[t] = (uint32_t)t;
         if (s->greedy > 0 && nc > s->greedy) {
-            np = 0;
-            for (size_t t = 0; t < nc; t++) {
-                size_t above = 0;
-                for (size_t u = 0; u < nc && above < s->greedy; u++)
-                    above += single[u] > single[t] || (single[u] == single[t] && u < t);
-                if (above < s->greedy) pick[np++] = (uint32_t)t;
+            /* Partial selection sort: the `greedy` best (gain descending, ties to
+             * the lower rank), O(nc greedy), then back into rank order. */
+            np = s->greedy;
+            for (size_t k = 0; k < np; k++) {
+                size_t b = k;
+                for (size_t u = k + 1; u < nc; u++)
+                    if (single[pick[u]] > single[pick[b]] || (single[pick[u]] == single[pick[b]] && pick[u] < pick[b]))
+                        b = u;
+                uint32_t t = pick[k];
+                pick[k] = pick[b];
+                pick[b] = t;
             }
+            for (size_t k = 1; k < np; k++)
+                for (size_t u = k; u > 0 && pick[u - 1] > pick[u]; u--) {
+                    uint32_t t = pick[u];
+                    pick[u] = pick[u - 1];
+                    pick[u - 1] = t;
+                }
         }
         double best = 0, best_a = 0, best_b = 0;
         uint64_t best_mask = 0;
@@ -470,10 +475,8 @@ sy_code sy_jb_train(const float *X, size_t n, size_t d, const int *y, size_t C, 
     uint32_t *perm = sy_calloc(n, sizeof *perm, err, "jointboost");
     uint32_t *train = sy_calloc(n, sizeof *train, err, "jointboost"), *held = sy_calloc(n, sizeof *held, err, "jointboost");
     out->classes = sy_calloc(C, sizeof *out->classes, err, "jointboost");
-    out->feat_lo = sy_calloc(d, sizeof *out->feat_lo, err, "jointboost");
-    out->feat_hi = sy_calloc(d, sizeof *out->feat_hi, err, "jointboost");
     stumps st = {0};
-    if (!w0 || !perm || !train || !held || !out->classes || !out->feat_lo || !out->feat_hi) {
+    if (!w0 || !perm || !train || !held || !out->classes) {
         rc = err->code;
         goto fail;
     }
@@ -489,11 +492,6 @@ sy_code sy_jb_train(const float *X, size_t n, size_t d, const int *y, size_t C, 
             rc = sy_fail(err, SY_EINTERNAL, "jointboost: out of memory");
             goto fail;
         }
-    }
-    for (size_t f = 0; f < d; f++) {
-        float lo = INFINITY, hi = -INFINITY;
-        for (size_t i = 0; i < n; i++) lo = fminf(lo, X[i * d + f]), hi = fmaxf(hi, X[i * d + f]);
-        out->feat_lo[f] = lo, out->feat_hi[f] = hi;
     }
     for (size_t i = 0; i < n; i++) w0[i] = o->balance ? (double)n / ((double)C * (double)per[y[i]]) : 1.0;
     /* Stratified held-out split: per class, a seeded shuffle, the first share held out. */
@@ -555,6 +553,8 @@ sy_code sy_jb_train(const float *X, size_t n, size_t d, const int *y, size_t C, 
         }
     }
     out->holdout_accuracy = hold_acc;
+    /* The novelty test: statistics of every tree, threshold from 5-fold scores. */
+    if ((rc = sy_jb_novelty_train(out, X, n, y, 5, o->novelty_quantile, o->novelty_factor, o->seed, err))) goto fail;
     if (report) {
         size_t ok = 0;
         double H[SY_JB_MAX_CLASSES];

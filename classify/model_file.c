@@ -4,13 +4,14 @@
  * an FNV-1a 64-bit hash of every byte before it, so a damaged or truncated
  * file is refused rather than predicting nonsense.
  *
- *   sylva-jointboost 1
+ *   sylva-jointboost 2
  *   features <count> <features-version>
  *   classes <count>
  *   class <name>                       (one per class, in index order)
  *   kappa <temperature>
  *   trained <samples> <held-out accuracy or nan>
- *   range <lo> <hi>                    (one per feature)
+ *   novelty <threshold> <cap> <trim>   (the joint novelty test, classify/novelty.c)
+ *   stat <center> <scale> <mean_0> <sd_0> ... <mean_C-1> <sd_C-1>   (one per feature)
  *   rounds <count>
  *   stump <feature> <threshold> <a> <b> <mask hex> <k_0> ... <k_C-1>
  *   end <fnv1a64 hex>
@@ -89,8 +90,17 @@ sy_code sy_jb_serialize(const sy_jb_model *m, char **text, size_t *len, sy_error
     for (size_t c = 0; c < m->n_classes; c++) sb_printf(&b, "class %s\n", m->classes[c]);
     sb_printf(&b, "kappa %.17g\n", m->kappa);
     sb_printf(&b, "trained %zu %.6g\n", m->train_samples, m->holdout_accuracy);
-    for (size_t f = 0; f < m->n_features; f++)
-        sb_printf(&b, "range %.9g %.9g\n", m->feat_lo ? m->feat_lo[f] : -INFINITY, m->feat_hi ? m->feat_hi[f] : INFINITY);
+    /* A model without the test (too few trees to calibrate it) writes a zero
+     * threshold and neutral statistics: nothing is novel. */
+    sb_printf(&b, "novelty %.9g %.9g %.9g\n", m->nov_center ? m->nov_threshold : 0.0, m->nov_center ? m->nov_cap : 25.0,
+              m->nov_center ? m->nov_trim : 0.0);
+    for (size_t f = 0; f < m->n_features; f++) {
+        sb_printf(&b, "stat %.9g %.9g", m->nov_center ? m->nov_center[f] : 0.0f, m->nov_center ? m->nov_scale[f] : 1.0f);
+        for (size_t c = 0; c < m->n_classes; c++)
+            sb_printf(&b, " %.9g %.9g", m->nov_center ? m->nov_mean[c * m->n_features + f] : 0.0f,
+                      m->nov_center ? m->nov_sd[c * m->n_features + f] : 1.0f);
+        sb_printf(&b, "\n");
+    }
     sb_printf(&b, "rounds %zu\n", m->n_rounds);
     for (size_t r = 0; r < m->n_rounds; r++) {
         sb_printf(&b, "stump %d %.9g %.9g %.9g %llx", m->feature[r], m->threshold[r], m->a[r], m->b[r],
@@ -262,18 +272,34 @@ sy_code sy_jb_parse(const char *name, const char *text, size_t len, sy_jb_model 
         return bad(&r, "expected \"trained <samples> <accuracy>\"");
     }
     m->holdout_accuracy = strtod(s, NULL);
-    m->feat_lo = sy_calloc(nf, sizeof *m->feat_lo, err, "model");
-    m->feat_hi = sy_calloc(nf, sizeof *m->feat_hi, err, "model");
-    if (!m->feat_lo || !m->feat_hi) {
+    {
+        float th, cap, trim;
+        if (!(s = expect(&r, "novelty")) || !parse_float(&s, &th, 0) || !parse_float(&s, &cap, 0) ||
+            !parse_float(&s, &trim, 0) || !at_end(s) || th < 0 || !(cap > 0) || trim < 0 || trim >= 1) {
+            sy_jb_model_free(m);
+            return bad(&r, "expected \"novelty <threshold> <cap> <trim>\" with threshold >= 0, cap > 0, 0 <= trim < 1");
+        }
+        m->nov_threshold = th, m->nov_cap = cap, m->nov_trim = trim;
+    }
+    m->nov_center = sy_calloc(nf, sizeof *m->nov_center, err, "model");
+    m->nov_scale = sy_calloc(nf, sizeof *m->nov_scale, err, "model");
+    m->nov_mean = sy_calloc(nf * nc, sizeof *m->nov_mean, err, "model");
+    m->nov_sd = sy_calloc(nf * nc, sizeof *m->nov_sd, err, "model");
+    if (!m->nov_center || !m->nov_scale || !m->nov_mean || !m->nov_sd) {
         sy_jb_model_free(m);
         return err->code;
     }
-    for (size_t f = 0; f < nf; f++)
-        if (!(s = expect(&r, "range")) || !parse_float(&s, &m->feat_lo[f], 1) || !parse_float(&s, &m->feat_hi[f], 1) ||
-            !at_end(s) || m->feat_lo[f] > m->feat_hi[f]) {
+    for (size_t f = 0; f < nf; f++) {
+        int ok = (s = expect(&r, "stat")) && parse_float(&s, &m->nov_center[f], 0) &&
+                 parse_float(&s, &m->nov_scale[f], 0) && m->nov_scale[f] > 0;
+        for (size_t c = 0; ok && c < nc; c++)
+            ok = parse_float(&s, &m->nov_mean[c * nf + f], 0) && parse_float(&s, &m->nov_sd[c * nf + f], 0) &&
+                 m->nov_sd[c * nf + f] > 0;
+        if (!ok || !at_end(s)) {
             sy_jb_model_free(m);
-            return bad(&r, "expected \"range <lo> <hi>\" with lo <= hi");
+            return bad(&r, "expected \"stat <center> <scale> <mean> <sd> ...\" (one mean and sd per class, scale and sd > 0)");
         }
+    }
     size_t nr;
     if (!(s = expect(&r, "rounds")) || !parse_size(&s, &nr, 1000000) || !at_end(s)) {
         sy_jb_model_free(m);

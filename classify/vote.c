@@ -5,7 +5,7 @@
  * the set of possible species and the candidate this tree itself finds most
  * probable is chosen. In mixed stands voting hurts (the thesis: 95.5% -> 89%),
  * hence the switch. A tree whose features lie outside what the model was
- * trained on (novelty) is never confident: it is how a house comes out
+ * trained on (the joint novelty test, novelty.c) is never confident: it is how a house comes out
  * unknown rather than as its nearest species. */
 #include <math.h>
 #include <string.h>
@@ -14,7 +14,7 @@
 
 sy_vote_options sy_vote_options_default(void)
 {
-    sy_vote_options o = {1.5, 25.0, 1, 0.25, 0.2};
+    sy_vote_options o = {1.5, 25.0, 1, 1.0};
     return o;
 }
 
@@ -22,9 +22,7 @@ sy_code sy_vote_options_check(const sy_vote_options *o, sy_error *err)
 {
     if (!(o->ratio >= 1 && o->ratio < 1e6)) return sy_fail(err, SY_EUSAGE, "vote: ratio must be >= 1");
     if (!(o->radius >= 0 && o->radius < 1e7)) return sy_fail(err, SY_EUSAGE, "vote: radius must be >= 0 metres");
-    if (!(o->novelty_margin >= 0 && o->novelty_margin < 100))
-        return sy_fail(err, SY_EUSAGE, "vote: novelty_margin must be >= 0");
-    if (!(o->novelty_max >= 0 && o->novelty_max <= 1)) return sy_fail(err, SY_EUSAGE, "vote: novelty_max must be in [0, 1]");
+    if (!(o->novelty_max > 0 && o->novelty_max < 1e6)) return sy_fail(err, SY_EUSAGE, "vote: novelty_max must be > 0");
     return SY_OK;
 }
 

@@ -123,7 +123,7 @@ int cmd_classify(int argc, char **argv, sy_cli *cli)
     for (int i = 0; i < n; i++) {
         if ((rc = sy_scan_features(pos[i], &fo, x + (size_t)i * d, &res[i], &err))) break;
         sy_jb_predict(&m, x + (size_t)i * d, prob + (size_t)i * m.n_classes);
-        nov[i] = sy_jb_novelty(&m, x + (size_t)i * d, vo.novelty_margin);
+        nov[i] = sy_jb_novelty(&m, x + (size_t)i * d);
         if (res[i].georeferenced) xy[2 * i] = res[i].info.base[0], xy[2 * i + 1] = res[i].info.base[1], have[i] = 1;
         sy_progress_update(&bar, (size_t)i + 1);
     }
@@ -164,8 +164,8 @@ int cmd_classify(int argc, char **argv, sy_cli *cli)
             if (t->confident) printf(" (confident, p %.2f)", t->h1);
             else if (t->voted) printf(" (voted by %d confident neighbour%s; own best %s p %.2f)", t->votes,
                                       t->votes == 1 ? "" : "s", m.classes[t->best], t->h1);
-            else if (t->novel) printf(" (unlike any training tree: %.0f%% of features out of range; best %s p %.2f)",
-                                      100 * nov[i], m.classes[t->best], t->h1);
+            else if (t->novel) printf(" (unlike any training tree: novelty %.2f of the threshold; best %s p %.2f)",
+                                      nov[i], m.classes[t->best], t->h1);
             else printf(" (not confident: best %s p %.2f, second p %.2f)", m.classes[t->best], t->h1, t->h2);
             printf("\n ");
             /* The probability vector, largest first (at most 5). */

@@ -267,7 +267,7 @@ sy_code sy_classify_cloud(const sy_cloud *tree, const char *model_path, sy_speci
         double p[SY_JB_MAX_CLASSES];
         sy_jb_predict(&m, x, p);
         sy_vote_options vo = sy_vote_options_default();
-        out->novelty = sy_jb_novelty(&m, x, vo.novelty_margin);
+        out->novelty = sy_jb_novelty(&m, x);
         sy_tree_decision dec;
         if (!(rc = sy_vote(1, m.n_classes, p, &out->novelty, NULL, &vo, &dec, err))) {
             snprintf(out->best, sizeof out->best, "%s", m.classes[dec.best]);

@@ -173,6 +173,67 @@ static void jointboost_learns_separable_classes(void **state)
     sy_jb_model_free(&m);
 }
 
+/* Three classes in 24 dimensions, class c offset by 6 sigma in features
+ * 8c..8c+7. */
+enum { NOV_D = 24 };
+static void blobs24(size_t n, uint64_t seed, float *X, int *y)
+{
+    uint64_t s = seed;
+    for (size_t i = 0; i < n; i++) {
+        int c = (int)(i % 3);
+        y[i] = c;
+        for (int f = 0; f < NOV_D; f++) X[i * NOV_D + f] = (float)syn_normal(&s) + 6.0f * (float)(f / 8 == c);
+    }
+}
+
+/* The joint novelty test: held-out samples of the training classes stay below
+ * the calibrated threshold; a sample inside every feature's training range
+ * but in a combination no class has (the offsets of two classes at once), and
+ * one far off along a few features, come out novel. The model file keeps
+ * the test. */
+static void novelty_flags_what_no_class_looks_like(void **state)
+{
+    (void)state;
+    enum { N = 300, NT = 300 };
+    static float X[N * NOV_D], XT[NT * NOV_D];
+    int y[N], yt[NT];
+    blobs24(N, 1, X, y);
+    blobs24(NT, 2, XT, yt);
+    sy_jb_options o = sy_jb_options_default();
+    o.rounds = 40;
+    sy_jb_model m, back;
+    sy_error err = {0};
+    assert_int_equal(sy_jb_train(X, N, NOV_D, y, 3, NULL, 1, &o, &m, NULL, &err), SY_OK);
+    assert_true(m.nov_threshold > 0);
+    size_t novel = 0;
+    double worst = 0;
+    for (size_t i = 0; i < NT; i++) {
+        double v = sy_jb_novelty(&m, XT + i * NOV_D);
+        novel += v > 1;
+        worst = fmax(worst, v);
+    }
+    assert_int_equal(novel, 0); /* the threshold is twice the 99.5th percentile */
+    float corner[NOV_D] = {0}, far[NOV_D] = {0}, typical[NOV_D] = {0};
+    for (int f = 0; f < 16; f++) corner[f] = 6; /* classes 0 and 1 at once */
+    for (int f = 0; f < 8; f++) typical[8 + f] = 6; /* class 1 */
+    for (int f = 16; f < 24; f++) far[f] = f < 20 ? 30.0f : 0.0f; /* 4 features at 30 sigma */
+    for (int f = 0; f < NOV_D; f++) {
+        float lo = INFINITY, hi = -INFINITY;
+        for (size_t i = 0; i < N; i++) lo = fminf(lo, X[i * NOV_D + f]), hi = fmaxf(hi, X[i * NOV_D + f]);
+        assert_true(corner[f] > lo && corner[f] < hi); /* per-feature ranges would call it known */
+    }
+    assert_true(sy_jb_novelty(&m, corner) > 1.5);
+    assert_true(sy_jb_novelty(&m, far) > 1);
+    assert_true(sy_jb_novelty(&m, typical) < 0.6);
+    assert_true(worst < 1);
+    const char *path = tmp_path("novelty.sjb");
+    assert_int_equal(sy_jb_save(&m, path, &err), SY_OK);
+    assert_int_equal(sy_jb_load(path, &back, &err), SY_OK);
+    assert_float_equal(sy_jb_novelty(&back, corner), sy_jb_novelty(&m, corner), 1e-5);
+    sy_jb_model_free(&m);
+    sy_jb_model_free(&back);
+}
+
 static void jointboost_same_model_for_any_thread_count(void **state)
 {
     (void)state;
@@ -289,10 +350,13 @@ static void confidence_rule_is_h1_over_1_5_h2(void **state)
     assert_int_equal(d[0].species, -1);
     assert_true(d[1].confident);
     assert_int_equal(d[1].species, 0);
-    double nov[2] = {0, 0.5};
+    double nov[2] = {0, 1.2}; /* 1.2 times the calibrated threshold */
     assert_int_equal(sy_vote(2, 3, p, nov, NULL, &o, d, &err), SY_OK);
     assert_false(d[1].confident);
     assert_true(d[1].novel);
+    nov[1] = 0.9;
+    assert_int_equal(sy_vote(2, 3, p, nov, NULL, &o, d, &err), SY_OK);
+    assert_true(d[1].confident);
 }
 
 static void voting_reads_confident_neighbours_within_the_radius(void **state)
@@ -336,6 +400,7 @@ int main(void)
         cmocka_unit_test(features_robust_to_density),
         cmocka_unit_test(features_reject_tiny_clouds),
         cmocka_unit_test(jointboost_learns_separable_classes),
+        cmocka_unit_test(novelty_flags_what_no_class_looks_like),
         cmocka_unit_test(jointboost_same_model_for_any_thread_count),
         cmocka_unit_test(jointboost_rejects_bad_training_sets),
         cmocka_unit_test(model_file_round_trip_and_damage),

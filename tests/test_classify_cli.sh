@@ -65,9 +65,16 @@ out=$("$SYLVA" classify "$real/adtree/house.xyz" --json --quiet) || fail "classi
 for sp in $("$SYLVA" library list | awk 'NR > 1 { print $2 }'); do
     echo "$out" | grep -q "\"$sp\":" || fail "the shipped model has no class $sp (rerun species/train-classifier.sh)"
 done
-# Known gaps of the 13-species model, measured in docs/classify.md and not
-# asserted here: the AdTree house comes out confidently quaking_aspen (the
-# 11-species model left it unknown) and the TreeLS pine lombardy_poplar.
+# The AdTree house is no tree: the joint novelty test makes it unknown, never
+# confident. A real tree is known (not novel): the test does not turn every
+# real scan into "unknown".
+echo "$out" | grep -q '"species":"unknown"' || fail "the AdTree house is not unknown: $out"
+echo "$out" | grep -q '"confident":false' || fail "the AdTree house is confident: $out"
+nov=$(echo "$out" | sed -n 's/.*"novelty":\([0-9.e+-]*\).*/\1/p')
+awk -v v="$nov" 'BEGIN { exit !(v > 1) }' || fail "the AdTree house has novelty $nov <= 1 (the threshold)"
+out=$("$SYLVA" classify "$real/adtree/tree1.xyz" --json --quiet) || fail "classify tree1 exited $?"
+nov=$(echo "$out" | sed -n 's/.*"novelty":\([0-9.e+-]*\).*/\1/p')
+awk -v v="$nov" 'BEGIN { exit !(v < 1) }' || fail "the AdTree tree1 is novel ($nov): $out"
 
 # sylva run without --species names the classified species and its confidence.
 run=$("$SYLVA" run "$TMP/lombardy_poplar_t1.las" -o "$TMP/t.glb" --lods 1 --no-impostor --json) || fail "run exited $?"
