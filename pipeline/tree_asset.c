@@ -84,6 +84,10 @@ void sy_tree_asset_report_lods_json(sy_json *j, const sy_tree_asset_report *rep)
         sy_json_int(j, "nonmanifold_edges", (long long)c->nonmanifold_edges);
         sy_json_int(j, "misoriented_edges", (long long)c->misoriented_edges);
         sy_json_int(j, "components", (long long)c->components);
+        if (c->lod < rep->welds.levels) {
+            sy_json_int(j, "junctions", (long long)rep->welds.junctions[c->lod]);
+            sy_json_int(j, "welded", (long long)rep->welds.welded[c->lod]);
+        }
         sy_json_int(j, "below_ground", (long long)c->below_ground);
         sy_json_int(j, "leaves", (long long)c->leaves);
         sy_json_int(j, "leaves_far", (long long)c->leaves_far);
@@ -267,6 +271,8 @@ sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, co
         mo.leaf_aspect = species->leaf_scale_x;
         mo.leaf_shape = species->leaf_shape;
     }
+    sy_mesh_weld_stats welds;
+    mo.weld_stats = &welds;
     if ((rc = sy_mesh_tree(skel, leaves, &mo, out, err))) goto fail;
     size_t hull_tris = 0;
     if (hulls) {
@@ -280,6 +286,7 @@ sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, co
     }
     if (rep) {
         memset(rep, 0, sizeof *rep);
+        rep->welds = welds;
         rep->nodes = skel->n;
         rep->branches = (size_t)sy_skeleton_branch_count(skel);
         rep->leaves = leaves ? leaves->n : 0;

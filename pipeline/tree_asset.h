@@ -13,6 +13,7 @@
 #include "stages/core/skeleton.h"
 #include "stages/eval/eval.h"
 #include "stages/grow/grow.h"
+#include "stages/mesh/mesh.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -81,6 +82,7 @@ typedef struct {
     size_t leaf_cards[16];
     size_t bytes;
     double seconds_mesh, seconds_export;
+    sy_mesh_weld_stats welds;   /* per mesh level: junctions drawn and welded (the rest capped) */
     int checked;                /* opt->check was set: check holds the figures */
     sy_mesh_check_report check;
 } sy_tree_asset_report;

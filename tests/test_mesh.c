@@ -71,6 +71,24 @@ static void check_mesh_basics_share(const sy_mesh *m, double max_inward)
     assert_true((double)wrong <= max_inward * (double)faces);
 }
 static void check_mesh_basics(const sy_mesh *m) { check_mesh_basics_share(m, 0); }
+
+/* Bark texture runs on without a seam or a mirrored patch: every bark
+ * triangle maps onto the texture the way it faces (u around, v along:
+ * counter-clockwise from outside is counter-clockwise in (u, v)). A triangle
+ * from u = (P-1)/P to u = 0 across a seam, or a junction strip mixing the
+ * child's ring u with the parent's, maps mirrored. Returns how many do
+ * (caps hidden inside a parent map onto a line, area 0). */
+static size_t mirrored_uv(const sy_mesh *m)
+{
+    size_t bad = 0;
+    for (size_t t = 0; t + 2 < m->n_indices; t += 3) {
+        const float *a = m->uv + 2 * m->indices[t], *b = m->uv + 2 * m->indices[t + 1], *c = m->uv + 2 * m->indices[t + 2];
+        double area = ((double)b[0] - a[0]) * ((double)c[1] - a[1]) - ((double)b[1] - a[1]) * ((double)c[0] - a[0]);
+        double scale = fabs((double)b[0] - a[0]) + fabs((double)c[0] - a[0]) + fabs((double)b[1] - a[1]) + fabs((double)c[1] - a[1]);
+        bad += area < -1e-3 * scale * scale;
+    }
+    return bad;
+}
 /* Junctions: a strip triangle whose corners sit on both tubes can face
  * against their averaged normals where a child leaves steeply, and the cap
  * that closes a ring that could not be welded faces into the parent while
@@ -404,6 +422,64 @@ static void straight_trunk_is_closed_and_stands_along_y(void **state)
     sy_skeleton_free(&s);
 }
 
+/* Largest angle (degrees) between consecutive chords of stem t's rings at
+ * this level. */
+static double max_chord_turn(const sy_stem *t, const sy_lod_params *lp, int32_t *idx)
+{
+    size_t n = sy_stem_rings(t, lp, idx);
+    double worst = 0;
+    for (size_t k = 0; k + 2 < n; k++) {
+        const float *a = t->sp + 3 * idx[k], *b = t->sp + 3 * idx[k + 1], *c = t->sp + 3 * idx[k + 2];
+        float u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - b[0], c[1] - b[1], c[2] - b[2]};
+        double cs = sy_dot3(u, v) / sqrt((double)sy_dot3(u, u) * sy_dot3(v, v));
+        worst = fmax(worst, acos(cs > 1 ? 1 : cs < -1 ? -1 : cs) * 180 / PI);
+    }
+    return worst;
+}
+
+/* A branch bent through a half circle keeps its curve at every level: the
+ * coarse levels skip LOD0 rings (10 degrees a step) only where the tube
+ * turns little, never the square "staple" bends of every stride-th ring
+ * (40 degrees a segment at LOD2, 80 at LOD3). */
+static void curved_branch_keeps_its_curve_at_every_level(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_error err;
+    memset(&s, 0, sizeof s);
+    int32_t prev = -1;
+    for (int i = 0; i <= 4; i++) prev = sy_skeleton_add(&s, (float[3]){0, 0, (float)i}, 0.2f, prev, 0, 0, &err);
+    int32_t at = prev;
+    /* A half circle of radius 1 m from the trunk's top, sampled at 6 nodes. */
+    for (int i = 0; i <= 6; i++) {
+        float th = (float)PI * (float)i / 6.0f;
+        at = sy_skeleton_add(&s, (float[3]){1 - cosf(th), 0, 4 + sinf(th)}, 0.05f, i == 0 ? prev : at, 1, 1, &err);
+    }
+    sy_mesh_options o = sy_mesh_options_default();
+    sy_stems st;
+    assert_int_equal(sy_stems_build(&s, &o, &st, &err), SY_OK);
+    int32_t *idx = malloc(2 * 4096 * sizeof *idx);
+    uint8_t keep[8] = {1, 1, 1, 1, 1, 1, 1, 1};
+    for (size_t i = 0; i < st.n; i++) {
+        const sy_stem *t = &st.s[i];
+        assert_true(t->n_samp < 4096);
+        sy_lod_params l0 = {0, 1, keep, 1};
+        double own = max_chord_turn(t, &l0, idx);
+        for (int level = 1; level < 4; level++) {
+            sy_lod_params lp = {level, 1 << level, keep, 0};
+            double turn = max_chord_turn(t, &lp, idx);
+            size_t rings = sy_stem_rings(t, &lp, idx), rings0 = sy_stem_rings(t, &l0, idx);
+            printf("# stem %zu LOD%d: %zu of %zu rings, max turn %.1f deg (LOD0 %.1f)\n", i, level, rings, rings0, turn, own);
+            /* 25 degrees a ring step (LOD_MAX_TURN) plus the curve's own step. */
+            assert_true(turn <= 25.0 + own);
+            if (t->parent >= 0 && level == 3) assert_true(rings < rings0); /* the level still saves rings */
+        }
+    }
+    free(idx);
+    sy_stems_free(&st);
+    sy_skeleton_free(&s);
+}
+
 /* Distances from the axis x = 1, z = -2 (Y-up) of the P + 1 vertices of
  * tube ring r of m, as the amplitudes |c_k| / c_0 of their harmonics
  * k = 0..P/2 around the ring (vertex j at angle 2 pi j / P). */
@@ -627,6 +703,12 @@ static void random_tree_meets_every_property(void **state)
         assert_true(4 * t1 >= t0); /* no cliff: at least a quarter */
         check_mesh_basics_share(&a.meshes[a.lods[k].meshes[0]], WELD_FOLD_SHARE);
     }
+    for (size_t k = 0; k + 1 < a.n_lods; k++) {
+        const sy_mesh *bk = &a.meshes[a.lods[k].meshes[0]];
+        size_t bad = mirrored_uv(bk);
+        printf("# LOD%zu: %zu of %zu bark triangles map mirrored onto the texture\n", k, bad, bk->n_indices / 3);
+        assert_int_equal(bad, 0);
+    }
     for (size_t k = 1; k < a.n_lods; k++) assert_true(a.lods[k].screen_coverage < a.lods[k - 1].screen_coverage);
 
     /* Leaves: LOD0 has all, unit quaternions; each level is a subsequence of
@@ -777,6 +859,7 @@ int main(void)
         cmocka_unit_test(lobed_trunk_ripples_with_lobes_and_depth),
         cmocka_unit_test(branches_sit_on_a_lobed_trunk),
         cmocka_unit_test(bent_trunk_branches_sit_on_the_parent),
+        cmocka_unit_test(curved_branch_keeps_its_curve_at_every_level),
         cmocka_unit_test(random_tree_meets_every_property),
         cmocka_unit_test(bad_input_is_refused_with_a_message),
     };

@@ -143,14 +143,19 @@ static float next_leaf_level(const sy_leaves *lv, const leaf_level *prev, const 
 
 static sy_code add_level(sy_asset *a, const sy_stems *st, const sy_leaves *lv, sy_lod_params *lp, int bark,
                          int card, float aspect, const leaf_level *leaves, float grow, float coverage,
-                         sy_error *err)
+                         sy_mesh_weld_stats *ws, sy_error *err)
 {
     sy_lod lod;
     memset(&lod, 0, sizeof lod);
     lod.screen_coverage = coverage;
     sy_mesh m;
-    sy_code rc = sy_bark_mesh(st, lp, bark, &m, err);
+    size_t nj = 0, nw = 0;
+    sy_code rc = sy_bark_mesh_welds(st, lp, bark, &m, &nj, &nw, err);
     if (rc != SY_OK) return rc;
+    if (ws && ws->levels < SY_MESH_MAX_LEVELS) {
+        ws->junctions[ws->levels] = nj, ws->welded[ws->levels] = nw;
+        ws->levels++;
+    }
     snprintf(m.name, sizeof m.name, "bark_lod%d", lp->level);
     if (m.n_vertices > 0) {
         int mi = sy_asset_add_mesh(a, &m, err);
@@ -200,6 +205,7 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
     if ((rc = check_leaves(lv, skel, err)) != SY_OK) return rc;
     if (lv->n > UINT32_MAX) return sy_fail(err, SY_EINPUT, "mesh: %zu leaves are too many", lv->n);
 
+    if (opt->weld_stats) memset(opt->weld_stats, 0, sizeof *opt->weld_stats);
     sy_stems st;
     if ((rc = sy_stems_build(skel, opt, &st, err)) != SY_OK) return rc;
     uint8_t *keep_prev = malloc(st.n + 1), *keep = malloc(st.n + 1);
@@ -244,7 +250,7 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
     }
     size_t first_lod = out->n_lods;
     float coverage = 0.5f;
-    if ((rc = add_level(out, &st, lv, &lp, bark, card, opt->leaf_aspect, &cur, 1.0f, coverage, err)) != SY_OK) goto done;
+    if ((rc = add_level(out, &st, lv, &lp, bark, card, opt->leaf_aspect, &cur, 1.0f, coverage, opt->weld_stats, err)) != SY_OK) goto done;
     for (int level = 1; level < opt->n_lods; level++) {
         memcpy(keep_prev, keep, st.n);
         sy_lod_params next = {level, 1 << level, keep, 0};
@@ -255,7 +261,7 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
         }
         float grow = next_leaf_level(lv, &cur, &all, opt->leaf_aspect, st.ground, &nxt);
         coverage *= 0.5f;
-        if ((rc = add_level(out, &st, lv, &next, bark, card, opt->leaf_aspect, &nxt, grow, coverage, err)) != SY_OK) goto done;
+        if ((rc = add_level(out, &st, lv, &next, bark, card, opt->leaf_aspect, &nxt, grow, coverage, opt->weld_stats, err)) != SY_OK) goto done;
         leaf_level t = cur;
         cur = nxt, nxt = t;
         tris = next_tris;

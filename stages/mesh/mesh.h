@@ -15,6 +15,15 @@
 extern "C" {
 #endif
 
+/* Junctions per mesh level (optional output of sy_mesh_tree): children
+ * whose base ring is drawn on their parent, and those of them welded into
+ * the parent's bark (the rest are capped inside it). */
+#define SY_MESH_MAX_LEVELS 16
+typedef struct {
+    size_t levels;
+    size_t junctions[SY_MESH_MAX_LEVELS], welded[SY_MESH_MAX_LEVELS];
+} sy_mesh_weld_stats;
+
 typedef struct {
     int radial_segments;       /* ring vertices at LOD0 on the trunk (default 16); thinner
                                   branches use fewer, never below 3 */
@@ -39,6 +48,7 @@ typedef struct {
      * adds first, e.g. with sy_materials_add); -1 gives plain defaults. */
     int bark_material;
     int leaf_material;
+    sy_mesh_weld_stats *weld_stats; /* optional output, filled per mesh level (default NULL) */
 } sy_mesh_options;
 
 sy_mesh_options sy_mesh_options_default(void);

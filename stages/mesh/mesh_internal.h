@@ -138,6 +138,10 @@ int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris
 size_t sy_lod_bark_triangles(const sy_stems *st, const sy_lod_params *lp);
 /* Builds the bark mesh of all kept stems at a level. */
 sy_code sy_bark_mesh(const sy_stems *st, const sy_lod_params *lp, int material, sy_mesh *out, sy_error *err);
+/* The same, also counting the level's junctions and the welded ones
+ * (either may be NULL). */
+sy_code sy_bark_mesh_welds(const sy_stems *st, const sy_lod_params *lp, int material, sy_mesh *out,
+                           size_t *junctions, size_t *welded, sy_error *err);
 
 /* ---- wind (wind.c) ---- */
 /* Tapered-beam deflection (Habel 2009 eq. 4.7, unit prefactor) at x in [0,1]

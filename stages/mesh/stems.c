@@ -306,10 +306,18 @@ static int sample_curve(sy_stem *s, const sy_mesh_options *opt, float ground)
     size_t j = 0;
     for (size_t i = 0; i + 1 < n; i++) {
         const float *p0 = s->pts + 3 * i, *p1 = p0 + 3;
-        float m0[3], m1[3];
+        /* Hermite slopes of the chord's length overshoot where the
+         * tangent leaves the chord at a sharp polyline corner (a noisy
+         * reconstructed twig bulged up to 10 radii off its skeleton, the
+         * run outputs' "sails"): each is shortened by the cosine of its
+         * angle to the chord (at least 0.3), which keeps its direction, so
+         * the curve stays G1, and keeps straight runs as they were. */
+        float m0[3], m1[3], cd[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
+        float inv = chord[i] > 0 ? 1.0f / chord[i] : 0;
+        float k0 = fmaxf(0.3f, sy_dot3(tan + 3 * i, cd) * inv), k1 = fmaxf(0.3f, sy_dot3(tan + 3 * i + 3, cd) * inv);
         for (int k = 0; k < 3; k++) {
-            m0[k] = chord[i] * tan[3 * i + k];
-            m1[k] = chord[i] * tan[3 * i + 3 + k];
+            m0[k] = k0 * chord[i] * tan[3 * i + k];
+            m1[k] = k1 * chord[i] * tan[3 * i + 3 + k];
         }
         int last = i + 2 == n;
         for (int k = 0; k < sub[i] + last; k++) {

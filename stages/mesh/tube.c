@@ -27,13 +27,33 @@ int sy_stem_cap_rings(const sy_stem *s, const sy_lod_params *lp)
     return s->has_children || s->parent < 0 ? lp->cap_rings : 0;
 }
 
-size_t sy_stem_rings(const sy_stem *s, const sy_lod_params *lp, int32_t *idx)
+/* A coarser level skips LOD0 rings, but never so many that the tube turns
+ * more than this between two of its rings: LOD0 spaces rings by curvature
+ * (10 degrees a step), so a plain every-stride-th pick turned 40 degrees a
+ * segment at LOD2 and 80 at LOD3, the square "staple" bends of a curved
+ * branch. */
+#define LOD_MAX_TURN_COS 0.9063078f /* cos 25 degrees */
+
+/* The rings of s at this level (idx may be NULL to count them): from each
+ * ring, the farthest of the next stride LOD0 rings reached with the
+ * tangent never turning more than LOD_MAX_TURN from it (an S-bend between
+ * two parallel tangents counts), the next ring at least. */
+static size_t ring_walk(const sy_stem *s, const sy_lod_params *lp, int32_t *idx)
 {
-    size_t n = 0, last = s->n_samp - 1, stride = (size_t)lp->stride;
-    for (size_t i = 0; i < last; i += stride) idx[n++] = (int32_t)i;
-    idx[n++] = (int32_t)last;
+    size_t n = 0, last = s->n_samp - 1, stride = (size_t)lp->stride, i = 0;
+    if (idx) idx[n] = 0;
+    n++;
+    while (i < last) {
+        size_t end = i + stride < last ? i + stride : last, j = i + 1;
+        while (j < end && sy_dot3(s->st + 3 * i, s->st + 3 * (j + 1)) >= LOD_MAX_TURN_COS) j++;
+        if (idx) idx[n] = (int32_t)j;
+        n++;
+        i = j;
+    }
     return n;
 }
+
+size_t sy_stem_rings(const sy_stem *s, const sy_lod_params *lp, int32_t *idx) { return ring_walk(s, lp, idx); }
 
 /* A free base (the trunk, or a child that cannot reach its parent's
  * surface) is closed by a disc so no open end is visible. */
@@ -45,7 +65,7 @@ void sy_tube_counts(const sy_stems *st, size_t stem, const sy_lod_params *lp, si
     *nv = *ni = 0;
     if (!s->has_geometry || !lp->keep[stem]) return;
     size_t P = (size_t)sy_stem_radial(s, lp);
-    size_t rings = (s->n_samp - 1 + (size_t)lp->stride - 1) / (size_t)lp->stride + 1;
+    size_t rings = ring_walk(s, lp, NULL);
     size_t cap = (size_t)sy_stem_cap_rings(s, lp);
     size_t tris = (rings - 1 + cap) * P * 2 + P;
     *nv = (rings + cap) * (P + 1) + P;
@@ -629,15 +649,134 @@ static int strip_valid(const uint32_t *tri, size_t t, const weld_pt *pts, size_t
     }
     return 1;
 }
+/* Outward radial of parent p (glTF frame) at the point xy near its
+ * surface: xy minus its closest point on the axis (rings pidx). */
+static void parent_radial(const sy_stem *p, const int32_t *pidx, size_t np, const float xy[3], float s_hint,
+                          float out[3])
+{
+    float x[3] = {xy[0], -xy[2], xy[1]}, c[3], T[3], N[3], R, s_est = s_hint;
+    for (int it = 0; it < 6; it++) {
+        sy_stem_frame_at(p, pidx, np, s_est, c, T, N, &R);
+        float w[3] = {x[0] - c[0], x[1] - c[1], x[2] - c[2]}, ds = sy_dot3(w, T);
+        s_est += ds;
+        if (fabsf(ds) < 1e-6f) break;
+    }
+    sy_stem_frame_at(p, pidx, np, s_est, c, T, N, &R);
+    float w[3] = {x[0] - c[0], x[1] - c[1], x[2] - c[2]}, d = sy_dot3(w, T);
+    for (int k = 0; k < 3; k++) w[k] -= d * T[k];
+    sy_to_yup(w, out);
+}
+
+/* The strip's own vertices: a copy of each boundary and ring vertex it
+ * uses, textured in the parent's (around, along) coordinates unwrapped
+ * about the hole (u past 1 or below 0 repeats), so the bark runs on across
+ * the junction. Sharing the parent's and the child's vertices gave the
+ * strip u = 0 next to u = (P-1)/P where a hole crossed the parent's seam
+ * (the whole texture squeezed into one quad: the visible seam) and the
+ * child's own u and v around its ring (a smeared patch). Positions are
+ * the same, so the bark stays one closed surface; ring copies take the
+ * parent's normal and tangent there. */
+typedef struct {
+    size_t n, cap;
+    uint32_t base; /* index of the first copy in the mesh */
+    float *pos, *nrm, *tan, *uv, *ww;
+    uint16_t *wb;
+} strip_verts;
+
+static int strip_verts_grow(strip_verts *vb, size_t need)
+{
+    if (vb->n + need <= vb->cap) return 1;
+    size_t nc = vb->cap ? 2 * vb->cap : 4096;
+    while (nc < vb->n + need) nc *= 2;
+    float *a = realloc(vb->pos, 3 * nc * sizeof *a);
+    if (a) vb->pos = a;
+    float *b = realloc(vb->nrm, 3 * nc * sizeof *b);
+    if (b) vb->nrm = b;
+    float *c = realloc(vb->tan, 4 * nc * sizeof *c);
+    if (c) vb->tan = c;
+    float *d = realloc(vb->uv, 2 * nc * sizeof *d);
+    if (d) vb->uv = d;
+    float *e = realloc(vb->ww, 4 * nc * sizeof *e);
+    if (e) vb->ww = e;
+    uint16_t *f = realloc(vb->wb, nc * sizeof *f);
+    if (f) vb->wb = f;
+    if (!a || !b || !c || !d || !e || !f) return 0;
+    vb->cap = nc;
+    return 1;
+}
+
+static void strip_verts_free(strip_verts *vb)
+{
+    free(vb->pos), free(vb->nrm), free(vb->tan), free(vb->uv), free(vb->ww), free(vb->wb);
+}
+
+static int strip_copies(const sy_stems *st, const int32_t *g, size_t ng, const sy_lod_params *lp, const sy_mesh *m,
+                        const size_t *vo, const sy_stem *ps, const int32_t *pidx, size_t np, float s_mid, float arc,
+                        int P, const weld_pt *pts, size_t n_pts, uint32_t *tri, size_t t, strip_verts *vb)
+{
+    uint32_t *made = malloc((n_pts + 1) * sizeof *made);
+    if (!made || !strip_verts_grow(vb, n_pts)) {
+        free(made);
+        return 0;
+    }
+    for (size_t i = 0; i < n_pts; i++) made[i] = UINT32_MAX;
+    float vscale = 1.0f / (2 * SY_PI * ps->r_base);
+    for (size_t f = 0; f < 3 * t; f++) {
+        uint32_t id = tri[f];
+        /* A ring's seam copy stands for its vertex 0. */
+        for (size_t k = 0; k < ng; k++) {
+            uint32_t r0 = (uint32_t)vo[g[k]];
+            if (id == r0 + (uint32_t)sy_stem_radial(&st->s[g[k]], lp)) id = r0;
+        }
+        size_t i = 0;
+        while (i < n_pts && pts[i].id != id) i++;
+        if (i == n_pts) {
+            free(made);
+            return 0;
+        }
+        if (made[i] == UINT32_MAX) {
+            size_t w = vb->n++;
+            const weld_pt *q = &pts[i];
+            memcpy(vb->pos + 3 * w, m->position + 3 * id, 3 * sizeof(float));
+            memcpy(vb->ww + 4 * w, m->wind_w + 4 * id, 4 * sizeof(float));
+            vb->wb[w] = m->wind_branch[id];
+            vb->uv[2 * w] = q->u / arc / (float)P, vb->uv[2 * w + 1] = q->s * vscale;
+            if (q->loop == 0) {
+                memcpy(vb->nrm + 3 * w, m->normal + 3 * id, 3 * sizeof(float));
+                memcpy(vb->tan + 4 * w, m->tangent + 4 * id, 4 * sizeof(float));
+            } else {
+                const float *y = m->position + 3 * id;
+                float x[3] = {y[0], -y[2], y[1]}, c[3], T[3], N[3], R, s = q->s;
+                sy_stem_frame_at(ps, pidx, np, s, c, T, N, &R);
+                float r[3] = {x[0] - c[0], x[1] - c[1], x[2] - c[2]}, d = sy_dot3(r, T), e[3];
+                for (int k = 0; k < 3; k++) r[k] -= d * T[k];
+                sy_normalize3(r);
+                sy_cross3(T, r, e);
+                sy_normalize3(e);
+                sy_to_yup(r, vb->nrm + 3 * w);
+                sy_to_yup(e, vb->tan + 4 * w);
+                vb->tan[4 * w + 3] = 1.0f;
+            }
+            made[i] = vb->base + (uint32_t)w;
+        }
+        tri[f] = made[i];
+    }
+    (void)s_mid;
+    free(made);
+    return 1;
+}
+
 #define WELD_MAX_GROUP 64
 
+
 /* Welds the group of children g[0..ng) of one parent into the parent's
- * quads [q0, q1] x [c0, c1] (columns unwrapped about the rectangle): cuts them (marked in cut) and writes
- * the strip to extra. Returns the strip's triangles, 0 when the rings do
+ * quads [q0, q1] x [c0, c1] (columns unwrapped about the rectangle): cuts them (marked in cut; NULL
+ * only tries) and writes the strip to extra. Returns the strip's triangles, 0 when the rings do
  * not fit (crossing rings, a ring that winds the wrong way, a fold). */
 static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q0, long q1, int c0, int c1,
                          const sy_lod_params *lp, const sy_mesh *m, const size_t *vo, const size_t *io, uint8_t *cut,
-                         uint32_t *extra, size_t extra_cap, int32_t *pidx, weld_pt *scratch, size_t scratch_cap)
+                         uint32_t *extra, size_t extra_cap, int32_t *pidx, weld_pt *scratch, size_t scratch_cap,
+                         strip_verts *vb)
 {
     size_t p = (size_t)st->s[g[0]].parent;
     const sy_stem *ps = &st->s[p];
@@ -726,7 +865,7 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
     memcpy(pts, poly.v, n_pts * sizeof *pts);
     size_t t = ear_clip(&poly, extra);
     if (!t) return 0;
-    uint32_t first = (uint32_t)vo[p], end = (uint32_t)(vo[p] + row * np);
+    (void)row;
     uint32_t *clipped = malloc(3 * t * sizeof *clipped);
     if (!clipped) return 0;
     memcpy(clipped, extra, 3 * t * sizeof *clipped);
@@ -742,33 +881,50 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
                 for (int c = 0; c < 3; c++)
                     if (x[c] == r0) x[c] = r0 + (uint32_t)hn[k];
         }
-    /* No folds: a strip triangle touching the parent's boundary faces the
-     * way the parent's surface does there. */
+    /* No folds: every strip triangle faces away from the parent's axis
+     * (the outward radial at its centroid). Comparing with the normals of
+     * its corners on the parent's boundary instead refused sound triangles
+     * that span a wide hole on a six-sided parent (a corner normal is 30
+     * degrees off each face), and let triangles between ring vertices
+     * alone go unchecked. */
     for (size_t f = 0; f < t; f++) {
         const uint32_t *x = extra + 3 * f;
         const float *a = m->position + 3 * x[0], *b = m->position + 3 * x[1], *c = m->position + 3 * x[2];
         float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]}, gn[3];
         sy_cross3(e1, e2, gn);
-        float ref_n[3] = {0, 0, 0};
-        for (int k = 0; k < 3; k++)
-            if (x[k] >= first && x[k] < end)
-                for (int q = 0; q < 3; q++) ref_n[q] += m->normal[3 * x[k] + q];
-        if (sy_dot3(ref_n, ref_n) > 0 && !(sy_dot3(gn, ref_n) > 0)) return 0;
+        float g[3] = {(a[0] + b[0] + c[0]) / 3, (a[1] + b[1] + c[1]) / 3, (a[2] + b[2] + c[2]) / 3}, ref_n[3];
+        parent_radial(ps, pidx, np, g, s_mid, ref_n);
+        if (!(sy_dot3(gn, ref_n) > 0)) return 0;
     }
-    for (long r = q0; r <= q1; r++)
-        for (int j = c0; j <= c1; j++) {
-            size_t q = quad_tri(io, p, P, r, j, 0);
-            cut[q] = cut[q + 1] = 1;
-        }
+    if (vb && !strip_copies(st, g, ng, lp, m, vo, ps, pidx, np, s_mid, arc, P, pts, n_pts, extra, t, vb)) return 0;
+    if (cut)
+        for (long r = q0; r <= q1; r++)
+            for (int j = c0; j <= c1; j++) {
+                size_t q = quad_tri(io, p, P, r, j, 0);
+                cut[q] = cut[q + 1] = 1;
+            }
     return t;
 }
 
 /* Closes a ring that could not be welded with a fan facing into the
- * parent: the tube stays a closed surface, its end hidden in the bark. */
-static size_t cap_ring(const sy_stems *st, size_t c, const sy_lod_params *lp, const size_t *vo, uint32_t *extra)
+ * parent: the tube stays a closed surface, its end hidden in the bark. The
+ * fan has its own copies of the ring (u = 0: the ring's u would run the
+ * whole texture across one hidden triangle). Returns 0 when out of memory. */
+static size_t cap_ring(const sy_stems *st, size_t c, const sy_lod_params *lp, const size_t *vo, const sy_mesh *m,
+                       strip_verts *vb, uint32_t *extra)
 {
     int Pc = sy_stem_radial(&st->s[c], lp);
-    uint32_t r0 = (uint32_t)vo[c];
+    if (!strip_verts_grow(vb, (size_t)Pc)) return 0;
+    uint32_t r0 = vb->base + (uint32_t)vb->n;
+    for (int k = 0; k < Pc; k++) {
+        size_t w = vb->n++, id = vo[c] + (size_t)k;
+        memcpy(vb->pos + 3 * w, m->position + 3 * id, 3 * sizeof(float));
+        memcpy(vb->nrm + 3 * w, m->normal + 3 * id, 3 * sizeof(float));
+        memcpy(vb->tan + 4 * w, m->tangent + 4 * id, 4 * sizeof(float));
+        memcpy(vb->ww + 4 * w, m->wind_w + 4 * id, 4 * sizeof(float));
+        vb->wb[w] = m->wind_branch[id];
+        vb->uv[2 * w] = 0, vb->uv[2 * w + 1] = m->uv[2 * id + 1];
+    }
     size_t t = 0;
     for (int k = 1; k + 1 < Pc; k++) extra[t++] = r0, extra[t++] = r0 + (uint32_t)k + 1, extra[t++] = r0 + (uint32_t)k;
     return t / 3;
@@ -792,28 +948,45 @@ static int cmp_weld_parent(const void *x, const void *y, const sy_stems *st)
     return cmp_weld(x, y);
 }
 
+/* Appends t triangles from extra to the growing strips buffer. */
+static int append_strip(uint32_t **strips, size_t *n, size_t *cap, const uint32_t *extra, size_t t)
+{
+    if (*n + 3 * t > *cap) {
+        size_t nc = *cap ? 2 * *cap : 3 * 4096;
+        while (nc < *n + 3 * t) nc *= 2;
+        uint32_t *gr = realloc(*strips, nc * sizeof *gr);
+        if (!gr) return 0;
+        *strips = gr, *cap = nc;
+    }
+    if (t) memcpy(*strips + *n, extra, 3 * t * sizeof *extra);
+    *n += 3 * t;
+    return 1;
+}
+
 /* Welds every junction of the level: the children of a parent whose
  * footprints overlap (and any the grown rectangle reaches) share one hole
  * and one strip; a group that cannot be welded has its rings capped. Then
  * rewrites out's index buffer: the parents' cut quads out, strips and caps in. */
 static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const size_t *vo, const size_t *io,
-                              int32_t *idx, sy_mesh *out, sy_error *err)
+                              int32_t *idx, sy_mesh *out, size_t *n_junctions, size_t *n_welded, sy_error *err)
 {
     size_t nj = 0, nt = out->n_indices / 3;
     for (size_t i = 0; i < st->n; i++)
         nj += st->s[i].junction && lp->keep[i] && st->s[i].has_geometry && (i + 1 == st->n || vo[i + 1] > vo[i]);
+    *n_junctions = nj, *n_welded = 0;
     if (nj == 0) return SY_OK;
     size_t extra_cap = 3 * (WELD_MAX_LOOP + WELD_MAX_GROUP * (WELD_MAX_RING + 2)), scratch_cap = 3 * extra_cap;
     weld_job *jobs = malloc(nj * sizeof *jobs);
     weld_rect *rect = malloc(nj * sizeof *rect);
     weld_rect *box = malloc(nj * sizeof *box);
-    int *group = malloc(nj * sizeof *group);
+    int *group = malloc(nj * sizeof *group), *weld_joined = malloc(nj * sizeof *weld_joined);
     uint8_t *cut = calloc(nt + 1, 1);
     uint32_t *extra = malloc(extra_cap * sizeof *extra), *strips = NULL;
     weld_pt *scratch = malloc(scratch_cap * sizeof *scratch);
     size_t n_strips = 0, cap_strips = 0;
+    strip_verts vb = {0, 0, (uint32_t)out->n_vertices, NULL, NULL, NULL, NULL, NULL, NULL};
     sy_code rc = SY_OK;
-    if (!jobs || !rect || !box || !group || !cut || !extra || !scratch) {
+    if (!jobs || !rect || !box || !group || !weld_joined || !cut || !extra || !scratch) {
         rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
         goto done;
     }
@@ -840,65 +1013,74 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
         while (b < nj && st->s[jobs[b].stem].parent == parent) b++;
         int P = sy_stem_radial(&st->s[parent], lp);
         size_t np = sy_stem_rings(&st->s[parent], lp, idx);
-        /* Groups: footprints whose rectangles overlap share one, grown to
-         * their bounding rectangle, until no two rectangles overlap. */
+        /* Groups, built greedily, thicker children first: a child joins
+         * (or starts) a group when the rectangle grown to hold it and every
+         * group its rectangle overlaps (until none overlaps) still leaves
+         * the parent a band and the grown group welds; otherwise its ring
+         * is capped and the groups stay as they were. Merging every
+         * overlapping footprint at once instead let a whorl of twigs grow
+         * one rectangle round the whole parent, and a group that folded
+         * anywhere capped all its rings (a quarter of an aspen's junctions). */
+        for (size_t j = a; j < b; j++) group[j] = -1;
         for (size_t j = a; j < b; j++) {
-            group[j] = (int)j;
-            box[j] = rect[j];
-            box[j].ok = rect[j].ok && rect[j].q0 >= 0;
-        }
-        for (int changed = 1; changed;) {
-            changed = 0;
-            for (size_t j = a; j < b; j++) {
-                if (group[j] != (int)j || box[j].q0 < 0) continue;
-                for (size_t k = j + 1; k < b; k++) {
-                    int sh;
-                    if (group[k] != (int)k || box[k].q0 < 0 || box[k].q1 < box[j].q0 || box[k].q0 > box[j].q1 ||
-                        !cols_overlap(box[j].c0, box[j].c1, box[k].c0, box[k].c1, P, &sh))
-                        continue;
-                    for (size_t q = a; q < b; q++)
-                        if (group[q] == (int)k) group[q] = (int)j;
-                    weld_rect *u = &box[j];
-                    u->q0 = box[k].q0 < u->q0 ? box[k].q0 : u->q0, u->q1 = box[k].q1 > u->q1 ? box[k].q1 : u->q1;
-                    u->c0 = box[k].c0 + sh < u->c0 ? box[k].c0 + sh : u->c0;
-                    u->c1 = box[k].c1 + sh > u->c1 ? box[k].c1 + sh : u->c1;
-                    u->ok &= box[k].ok;
-                    changed = 1;
+            int ok = rect[j].ok && rect[j].q0 >= 0;
+            if (ok) {
+                weld_rect u = rect[j];
+                size_t ng = 0;
+                members[ng++] = jobs[j].stem;
+                int *joined = weld_joined;
+                for (size_t q = a; q < j; q++) joined[q - a] = 0;
+                for (int changed = 1; changed && ok;) {
+                    changed = 0;
+                    for (size_t k = a; k < j && ok; k++) {
+                        int sh;
+                        if (group[k] != (int)k || joined[k - a] || box[k].q1 < u.q0 || box[k].q0 > u.q1 ||
+                            !cols_overlap(u.c0, u.c1, box[k].c0, box[k].c1, P, &sh))
+                            continue;
+                        joined[k - a] = 1, changed = 1;
+                        u.q0 = box[k].q0 < u.q0 ? box[k].q0 : u.q0, u.q1 = box[k].q1 > u.q1 ? box[k].q1 : u.q1;
+                        u.c0 = box[k].c0 + sh < u.c0 ? box[k].c0 + sh : u.c0;
+                        u.c1 = box[k].c1 + sh > u.c1 ? box[k].c1 + sh : u.c1;
+                        for (size_t q = a; q < j; q++)
+                            if (group[q] == (int)k) {
+                                if (ng < WELD_MAX_GROUP) members[ng] = jobs[q].stem;
+                                ng++;
+                            }
+                    }
+                }
+                ok = ok && ng <= WELD_MAX_GROUP && u.c1 - u.c0 + 1 <= P - 1 && u.q1 <= (long)np - 2 &&
+                     2 * ((size_t)(u.q1 - u.q0 + 1) + (size_t)(u.c1 - u.c0 + 1)) <= WELD_MAX_LOOP;
+                if (ok)
+                    ok = weld_group(st, members, ng, u.q0, u.q1, u.c0, u.c1, lp, out, vo, io, NULL, extra, extra_cap,
+                                    idx, scratch, scratch_cap, NULL) > 0;
+                if (ok) {
+                    for (size_t k = a; k < j; k++)
+                        if (group[k] >= 0 && joined[group[k] - (int)a]) group[k] = (int)j;
+                    group[j] = (int)j;
+                    box[j] = u;
+                }
+            }
+            if (!ok) {
+                /* A cap on the ring (also one that stands on no quad of the tube). */
+                size_t add = cap_ring(st, (size_t)jobs[j].stem, lp, vo, out, &vb, extra);
+                if (!add || !append_strip(&strips, &n_strips, &cap_strips, extra, add)) {
+                    rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
+                    goto done;
                 }
             }
         }
         for (size_t j = a; j < b; j++) {
             if (group[j] != (int)j) continue;
             const weld_rect *u = &box[j];
-            size_t ng = 0, t = 0;
-            for (size_t k = j; k < b; k++)
-                if (group[k] == (int)j) {
-                    if (ng < WELD_MAX_GROUP) members[ng] = jobs[k].stem;
-                    ng++;
-                }
-            int ok = u->ok && ng <= WELD_MAX_GROUP && u->c1 - u->c0 + 1 <= P - 1 && u->q1 <= (long)np - 2 &&
-                     2 * ((size_t)(u->q1 - u->q0 + 1) + (size_t)(u->c1 - u->c0 + 1)) <= WELD_MAX_LOOP;
-            if (ok)
-                t = weld_group(st, members, ng, u->q0, u->q1, u->c0, u->c1, lp, out, vo, io, cut, extra, extra_cap,
-                               idx, scratch, scratch_cap);
-            /* The strip, or a cap on every ring of a group that cannot be
-             * welded (also rings that stand on no quad of the tube). */
-            for (size_t k = j; k < b; k++) {
-                if (t && k > j) break;
-                if (!t && group[k] != (int)j) continue;
-                size_t add = t ? t : cap_ring(st, (size_t)jobs[k].stem, lp, vo, extra);
-                if (n_strips + 3 * add > cap_strips) {
-                    size_t nc = cap_strips ? 2 * cap_strips : 3 * 4096;
-                    while (nc < n_strips + 3 * add) nc *= 2;
-                    uint32_t *gr = realloc(strips, nc * sizeof *gr);
-                    if (!gr) {
-                        rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
-                        goto done;
-                    }
-                    strips = gr, cap_strips = nc;
-                }
-                if (add) memcpy(strips + n_strips, extra, 3 * add * sizeof *extra);
-                n_strips += 3 * add;
+            size_t ng = 0;
+            for (size_t k = a; k < b; k++)
+                if (group[k] == (int)j) members[ng++] = jobs[k].stem;
+            size_t t = weld_group(st, members, ng, u->q0, u->q1, u->c0, u->c1, lp, out, vo, io, cut, extra, extra_cap,
+                                  idx, scratch, scratch_cap, &vb);
+            *n_welded += ng;
+            if (!t || !append_strip(&strips, &n_strips, &cap_strips, extra, t)) {
+                rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
+                goto done;
             }
         }
         a = b;
@@ -917,13 +1099,55 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
     free(out->indices);
     out->indices = ix;
     out->n_indices = w;
+    if (vb.n) {
+        size_t nv = out->n_vertices + vb.n;
+        if (nv > UINT32_MAX) {
+            rc = sy_fail(err, SY_EINPUT, "mesh: %zu vertices exceed 32-bit indices", nv);
+            goto done;
+        }
+        float *pos = realloc(out->position, 3 * nv * sizeof *pos);
+        if (pos) out->position = pos;
+        float *nrm = realloc(out->normal, 3 * nv * sizeof *nrm);
+        if (nrm) out->normal = nrm;
+        float *tan = realloc(out->tangent, 4 * nv * sizeof *tan);
+        if (tan) out->tangent = tan;
+        float *uv = realloc(out->uv, 2 * nv * sizeof *uv);
+        if (uv) out->uv = uv;
+        float *ww = realloc(out->wind_w, 4 * nv * sizeof *ww);
+        if (ww) out->wind_w = ww;
+        uint16_t *wb = realloc(out->wind_branch, nv * sizeof *wb);
+        if (wb) out->wind_branch = wb;
+        if (!pos || !nrm || !tan || !uv || !ww || !wb) {
+            rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
+            goto done;
+        }
+        size_t v0 = out->n_vertices;
+        memcpy(out->position + 3 * v0, vb.pos, 3 * vb.n * sizeof *pos);
+        memcpy(out->normal + 3 * v0, vb.nrm, 3 * vb.n * sizeof *nrm);
+        memcpy(out->tangent + 4 * v0, vb.tan, 4 * vb.n * sizeof *tan);
+        memcpy(out->uv + 2 * v0, vb.uv, 2 * vb.n * sizeof *uv);
+        memcpy(out->wind_w + 4 * v0, vb.ww, 4 * vb.n * sizeof *ww);
+        memcpy(out->wind_branch + v0, vb.wb, vb.n * sizeof *wb);
+        out->n_vertices = nv;
+    }
 done:
-    free(jobs), free(rect), free(box), free(group), free(cut), free(extra), free(strips), free(scratch);
+    strip_verts_free(&vb);
+    free(jobs), free(rect), free(box), free(group), free(weld_joined), free(cut), free(extra), free(strips), free(scratch);
     return rc;
 }
 
 sy_code sy_bark_mesh(const sy_stems *st, const sy_lod_params *lp, int material, sy_mesh *out, sy_error *err)
 {
+    return sy_bark_mesh_welds(st, lp, material, out, NULL, NULL, err);
+}
+
+sy_code sy_bark_mesh_welds(const sy_stems *st, const sy_lod_params *lp, int material, sy_mesh *out,
+                           size_t *junctions, size_t *welded, sy_error *err)
+{
+    size_t nj_local, nw_local;
+    if (!junctions) junctions = &nj_local;
+    if (!welded) welded = &nw_local;
+    *junctions = *welded = 0;
     memset(out, 0, sizeof *out);
     size_t nv = 0, ni = 0, max_samp = 1;
     size_t *vo = malloc((st->n + 1) * sizeof *vo), *io = malloc((st->n + 1) * sizeof *io);
@@ -963,7 +1187,7 @@ sy_code sy_bark_mesh(const sy_stems *st, const sy_lod_params *lp, int material, 
         if ((i + 1 == st->n ? nv : vo[i + 1]) == vo[i]) continue;
         sy_tube_emit(st, i, lp, out, vo[i], io[i], idx);
     }
-    sy_code rc = weld_junctions(st, lp, vo, io, idx, out, err);
+    sy_code rc = weld_junctions(st, lp, vo, io, idx, out, junctions, welded, err);
     free(vo), free(io), free(idx);
     if (rc != SY_OK) sy_mesh_free(out);
     return rc;
