@@ -12,7 +12,8 @@
 extern "C" {
 #endif
 
-/* Decodes an image file (PNG, JPEG, TIFF, ...) into floats in [0,1] without
+/* (image_io.c, stb_image and zlib, no OpenCV:) Decodes an image file (PNG
+ * 8/16-bit, JPEG, BMP, TGA, PNM) into floats in [0,1] without
  * any colour conversion, channels in R,G,B(,A) order; grey images have c = 1.
  * *depth is 8 or 16 (bits per sample of the file). *px is malloc'ed. */
 int sy_lcv_read(const char *path, float **px, int *w, int *h, int *c, int *depth);
@@ -20,6 +21,10 @@ int sy_lcv_read(const char *path, float **px, int *w, int *h, int *c, int *depth
 /* Encodes [0,1] floats as PNG with 8 or 16 bits per sample (c = 1, 3 or 4,
  * R,G,B(,A) order). *png is malloc'ed. */
 int sy_lcv_encode_png(const float *px, int w, int h, int c, int bits, unsigned char **png, size_t *size);
+
+/* PNG of w x h samples, c = 1..4 channels (grey, grey+alpha, RGB, RGBA),
+ * 8 bits or 16 (big-endian pairs, as PNG stores them). *png is malloc'ed. */
+int sy_png_encode(const unsigned char *samples, int w, int h, int c, int bits, unsigned char **png, size_t *size);
 
 /* Binary mask cleanup: opening then closing with a disc of radius r px,
  * components smaller than min_frac of the largest removed, holes (background
