@@ -2,6 +2,7 @@
  * EVLRs, CRS summary; LAZ (LASzip-compressed LAS) decoded chunk by chunk on
  * all cores. Every header number is checked against the bytes actually
  * present before it sizes anything. */
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -727,5 +728,73 @@ sy_code sy_read_las_mem(const char *path, const unsigned char *data, size_t size
     free(v.summary);
     free(v.geotiff);
     if (rc) sy_cloud_free(out);
+    return rc;
+}
+
+/* ------------------------------------------------ `sylva info`, streaming */
+
+/* Uncompressed LAS without the cloud: the same checks and the same numbers
+ * as sy_read_las_mem + sy_cloud_check_range + sy_cloud_bounds, from the
+ * header, the (E)VLRs and one pass over the records in blocks of
+ * INFO_BLOCK points decoded into a scratch cloud of that size (so the
+ * memory is bounded whatever the file). *done = 0 (and nothing set) when the
+ * file is LAZ or a block fails a check: the caller then reads it whole, for
+ * the reader's own message. */
+enum { INFO_BLOCK = 65536 };
+
+sy_code sy_las_info_mem(const char *path, const unsigned char *data, size_t size, sy_cloud *meta, size_t *n,
+                        double lo[3], double hi[3], int *done, sy_error *err)
+{
+    *done = 0;
+    memset(meta, 0, sizeof *meta);
+    meta->meta.point_format = -1;
+    las_header h;
+    las_vlrs v;
+    memset(&v, 0, sizeof v);
+    size_t points_end;
+    sy_code rc = parse_header(path, data, size, &h, err);
+    if (!rc) rc = walk_vlrs(path, data, size, &h, &v, err);
+    if (!rc) rc = walk_evlrs(path, data, size, &h, &v, &points_end, err);
+    if (rc || h.compressed || v.laszip || h.count == 0 || (points_end - h.point_offset) / h.record_length < h.count) {
+        free(v.summary), free(v.geotiff);
+        return rc; /* an error, or the whole reader's case */
+    }
+    const unsigned char *pts = data + h.point_offset;
+    size_t block = h.count < INFO_BLOCK ? (size_t)h.count : INFO_BLOCK;
+    point_sink k = {path, &h, meta, NULL, 0, NULL};
+    nonzero_fields nz = {0, 0, 0, 0, 0, 0};
+    float flo[3] = {FLT_MAX, FLT_MAX, FLT_MAX}, fhi[3] = {-FLT_MAX, -FLT_MAX, -FLT_MAX};
+    if ((rc = sy_cloud_init(meta, block, err)) || (rc = add_format_arrays(meta, &las_layouts[h.format], err)) ||
+        (rc = set_origin(path, &h, pts, meta, err)) ||
+        (rc = prepare_extra_bytes(path, &h, &v, meta, &k.fields, &k.n_fields, err)))
+        goto out;
+    int ok = 1;
+    for (uint64_t first = 0; ok && first < h.count; first += block) {
+        size_t m = h.count - first < block ? (size_t)(h.count - first) : block;
+        const unsigned char *p = pts + (size_t)first * h.record_length;
+        sy_error scratch = {0};
+        meta->n = m;
+        ok = decode_points(&k, p, 0, m, &nz, &scratch) == SY_OK && sy_cloud_check_range(meta, path, &scratch) == SY_OK;
+        for (size_t i = 0; ok && i < 3 * m; i++) {
+            float x = meta->xyz[i];
+            int a = (int)(i % 3);
+            if (x < flo[a]) flo[a] = x;
+            if (x > fhi[a]) fhi[a] = x;
+        }
+    }
+    meta->n = block;
+    if (!ok) goto out; /* the whole reader words the error */
+    drop_zero_fields(meta, &nz, 1);
+    if ((rc = adopt_normals(meta, err)) || (rc = fill_meta(path, &h, &v, meta, err))) goto out;
+    for (int a = 0; a < 3; a++) {
+        lo[a] = meta->origin[a] + flo[a];
+        hi[a] = meta->origin[a] + fhi[a];
+    }
+    *n = (size_t)h.count;
+    *done = 1;
+out:
+    free(k.fields);
+    free(v.summary), free(v.geotiff);
+    if (!*done) sy_cloud_free(meta);
     return rc;
 }
