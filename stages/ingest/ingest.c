@@ -97,8 +97,7 @@ sy_code sy_cloud_info(const char *path, sy_cloud *meta, size_t *n, double lo[3],
         size_t size = (size_t)st.st_size;
         void *map = mmap(NULL, size, PROT_READ, MAP_PRIVATE, fd, 0);
         if (map != MAP_FAILED) {
-            (void)posix_madvise(map, size, POSIX_MADV_SEQUENTIAL);
-            if (memcmp(map, "LASF", 4) == 0) rc = sy_las_info_mem(path, map, size, meta, n, lo, hi, &done, err);
+            if (memcmp(map, "LASF", 4) == 0) rc = sy_las_info_mem(path, map, size, fd, meta, n, lo, hi, &done, err);
             munmap(map, size);
         }
     }

@@ -19,7 +19,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     size_t n = 0;
     double lo[3], hi[3], flo[3], fhi[3];
     int done = 0;
-    sy_code irc = sy_las_info_mem("fuzz.las", data, size, &meta, &n, lo, hi, &done, &ierr);
+    sy_code irc = sy_las_info_mem("fuzz.las", data, size, -1, &meta, &n, lo, hi, &done, &ierr);
     if (done) {
         if (rc != SY_OK || n != c.n) abort();
         sy_cloud_bounds(&c, flo, fhi);
