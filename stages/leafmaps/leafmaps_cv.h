@@ -22,10 +22,6 @@ int sy_lcv_read(const char *path, float **px, int *w, int *h, int *c, int *depth
  * R,G,B(,A) order). *png is malloc'ed. */
 int sy_lcv_encode_png(const float *px, int w, int h, int c, int bits, unsigned char **png, size_t *size);
 
-/* PNG of w x h samples, c = 1..4 channels (grey, grey+alpha, RGB, RGBA),
- * 8 bits or 16 (big-endian pairs, as PNG stores them). *png is malloc'ed. */
-int sy_png_encode(const unsigned char *samples, int w, int h, int c, int bits, unsigned char **png, size_t *size);
-
 /* Binary mask cleanup: opening then closing with a disc of radius r px,
  * components smaller than min_frac of the largest removed, holes (background
  * components not touching the border) smaller than max_hole px filled. */
