@@ -12,7 +12,6 @@
 #include <string.h>
 
 #include <stb_image.h>
-#include <stb_image_write.h>
 
 #include "species/image_cv.h"
 #include "species/library.h"
@@ -20,6 +19,7 @@
 #include "stages/leafmaps/leaf_material.h"
 #include "stages/leafmaps/leafmaps_cv.h"
 #include "stages/core/fileio.h"
+#include "stages/core/png.h"
 
 #define BARK_NORMAL_STRENGTH 6.0f /* bark photos have shallow luminance relief */
 #define LEAF_NORMAL_STRENGTH 2.0f
@@ -41,47 +41,19 @@ static void image_free(image *im)
 
 /* ------------------------------------------------------------ PNG bytes */
 
-typedef struct {
-    unsigned char *data;
-    size_t size, cap;
-    int failed;
-} png_sink;
-
-static void sink_write(void *ctx, void *data, int size)
-{
-    png_sink *s = ctx;
-    if (s->failed || size <= 0) return;
-    if (s->size + (size_t)size > s->cap) {
-        size_t cap = (s->cap ? s->cap * 2 : 4096) + (size_t)size;
-        unsigned char *p = realloc(s->data, cap);
-        if (!p) {
-            s->failed = 1;
-            return;
-        }
-        s->data = p;
-        s->cap = cap;
-    }
-    memcpy(s->data + s->size, data, (size_t)size);
-    s->size += (size_t)size;
-}
-
 /* Encodes pixels (comp channels) as PNG and appends it to the asset. */
 static int add_png(sy_asset *asset, const char *name, const unsigned char *pixels, int w, int h, int comp,
                    sy_error *err)
 {
-    png_sink s = {0};
-    if (!stbi_write_png_to_func(sink_write, &s, w, h, comp, pixels, w * comp) || s.failed) {
-        free(s.data);
+    sy_image img;
+    memset(&img, 0, sizeof img);
+    if (sy_png_encode(pixels, w, h, comp, 8, &img.png, &img.size)) {
         sy_fail(err, SY_EINTERNAL, "%s: PNG encoding failed", name);
         return -1;
     }
-    sy_image img;
-    memset(&img, 0, sizeof img);
-    img.png = s.data;
-    img.size = s.size;
     snprintf(img.name, sizeof img.name, "%s", name);
     int idx = sy_asset_add_image(asset, &img, err);
-    if (idx < 0) free(s.data);
+    if (idx < 0) free(img.png);
     return idx;
 }
 

@@ -552,6 +552,85 @@ static void malformed_files_fail_with_the_path(void **state)
     }
 }
 
+/* ---- sylva info's streaming pass ---- */
+
+/* sy_cloud_info (headers + one pass, no cloud) against the whole reader:
+ * the same count, bounds, attribute names and header summary, or the same
+ * error, for every point format, the real files and each damaged file. */
+static void assert_info_like_reader(const char *path)
+{
+    sy_cloud c, meta;
+    sy_error e1 = {0}, e2 = {0};
+    size_t n = 0;
+    double lo[3], hi[3], flo[3], fhi[3];
+    sy_code r1 = sy_read_cloud(path, &c, &e1), r2 = sy_cloud_info(path, &meta, &n, lo, hi, &e2);
+    assert_int_equal(r1, r2);
+    if (r1) {
+        assert_string_equal(e1.msg, e2.msg);
+        return;
+    }
+    assert_int_equal(n, c.n);
+    sy_cloud_bounds(&c, flo, fhi);
+    for (int k = 0; k < 3; k++) {
+        assert_true(lo[k] == flo[k]);
+        assert_true(hi[k] == fhi[k]);
+    }
+    char a1[1024], a2[1024];
+    sy_cloud_attribute_names(&c, a1, sizeof a1);
+    sy_cloud_attribute_names(&meta, a2, sizeof a2);
+    assert_string_equal(a1, a2);
+    assert_string_equal(c.meta.format, meta.meta.format);
+    assert_string_equal(c.meta.version, meta.meta.version);
+    assert_int_equal(c.meta.point_format, meta.meta.point_format);
+    assert_int_equal(c.meta.header_count, meta.meta.header_count);
+    assert_true((c.meta.crs == NULL) == (meta.meta.crs == NULL));
+    if (c.meta.crs) assert_string_equal(c.meta.crs, meta.meta.crs);
+    assert_true((c.meta.vlr_summary == NULL) == (meta.meta.vlr_summary == NULL));
+    if (c.meta.vlr_summary) assert_string_equal(c.meta.vlr_summary, meta.meta.vlr_summary);
+    sy_cloud_free(&c);
+    sy_cloud_free(&meta);
+}
+
+static void info_streams_like_the_reader(void **state)
+{
+    (void)state;
+    const eb_desc eb[] = {{6, 0, "treeID", 0, 0}, {9, 0, "NormalX", 0, 0}, {9, 0, "NormalY", 0, 0},
+                          {9, 0, "NormalZ", 0, 0}};
+    for (int f = 0; f <= 10; f++) {
+        las_spec s = {.format = f, .minor = 4, .n = 9, .eb = eb, .n_eb = f % 2 ? 4 : 1, .wkt = f == 6 ? "GEOGCS[x]" : NULL};
+        size_t size = build_las(&s, buf, sizeof buf);
+        char name[64];
+        snprintf(name, sizeof name, "info_%d.las", f);
+        const char *path = tmp_path(name);
+        assert_int_equal(write_bytes(path, buf, size), 0);
+        assert_info_like_reader(path);
+        /* ... and it is the streaming pass that answered, not the fallback. */
+        sy_cloud m;
+        size_t n = 0;
+        double lo[3], hi[3];
+        int done = 0;
+        sy_error e = {0};
+        assert_int_equal(sy_las_info_mem(path, buf, size, -1, &m, &n, lo, hi, &done, &e), SY_OK);
+        assert_int_equal(done, 1);
+        assert_int_equal(n, 9);
+        sy_cloud_free(&m);
+    }
+    for (size_t f = 0; f < sizeof real_files / sizeof real_files[0]; f++) assert_info_like_reader(data_path(real_files[f].rel));
+    const eb_desc one[] = {{6, 0, "treeID", 0, 0}};
+    las_spec s = {.format = 6, .minor = 4, .n = 10, .eb = one, .n_eb = 1};
+    size_t size = build_las(&s, buf, sizeof buf);
+    static unsigned char copy[sizeof buf];
+    for (int d = 0; d < N_DAMAGE; d++) {
+        memcpy(copy, buf, size);
+        size_t len = damage_file(copy, size, (damage)d);
+        char name[64];
+        snprintf(name, sizeof name, "info_damaged_%d.las", d);
+        const char *path = tmp_path(name);
+        assert_int_equal(write_bytes(path, copy, len), 0);
+        assert_info_like_reader(path);
+    }
+}
+
 /* ---- writer round trips ---- */
 
 static void fill_cloud(sy_cloud *c, size_t n, int with_rgb, int with_nir)
@@ -948,6 +1027,7 @@ int main(void)
         cmocka_unit_test(tree_1_las14_zero_legacy_count_and_bounds),
         cmocka_unit_test(laz_files_read_like_their_las),
         cmocka_unit_test(every_point_format_decodes),
+        cmocka_unit_test(info_streams_like_the_reader),
         cmocka_unit_test(every_extra_bytes_type_decodes),
         cmocka_unit_test(unknown_extra_type_is_refused),
         cmocka_unit_test(wkt_crs_from_vlr_and_evlr),

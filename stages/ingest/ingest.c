@@ -5,6 +5,11 @@
 #include <stdint.h>
 #include <string.h>
 
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include "../core/fileio.h"
 
 sy_code sy_check_finite(const char *path, double x, double y, double z, size_t index, sy_error *err)
@@ -79,4 +84,27 @@ sy_code sy_write_cloud(const char *path, const sy_cloud *c, sy_error *err)
     if (strcmp(ext, "las") == 0 || strcmp(ext, "laz") == 0) return sy_write_las(path, c, err);
     if (strcmp(ext, "xyz") == 0 || strcmp(ext, "txt") == 0) return sy_write_xyz(path, c, err);
     return sy_fail(err, SY_EUSAGE, "%s: unknown output format '.%s' (use .ply, .las, .laz, .xyz or .txt)", path, ext);
+}
+
+sy_code sy_cloud_info(const char *path, sy_cloud *meta, size_t *n, double lo[3], double hi[3], sy_error *err)
+{
+    memset(meta, 0, sizeof *meta);
+    int done = 0;
+    sy_code rc = SY_OK;
+    int fd = sy_is_directory(path) ? -1 : open(path, O_RDONLY);
+    struct stat st;
+    if (fd >= 0 && fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size >= 4) {
+        size_t size = (size_t)st.st_size;
+        void *map = mmap(NULL, size, PROT_READ, MAP_PRIVATE, fd, 0);
+        if (map != MAP_FAILED) {
+            if (memcmp(map, "LASF", 4) == 0) rc = sy_las_info_mem(path, map, size, fd, meta, n, lo, hi, &done, err);
+            munmap(map, size);
+        }
+    }
+    if (fd >= 0) close(fd);
+    if (rc || done) return rc;
+    if ((rc = sy_read_cloud(path, meta, err))) return rc;
+    *n = meta->n;
+    sy_cloud_bounds(meta, lo, hi);
+    return SY_OK;
 }

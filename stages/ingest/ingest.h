@@ -26,6 +26,20 @@ sy_code sy_read_cloud(const char *path, sy_cloud *out, sy_error *err);
  * Atomic: temp file + rename. */
 sy_code sy_write_cloud(const char *path, const sy_cloud *c, sy_error *err);
 
+/* What `sylva info` prints, without holding the cloud where the format
+ * allows: uncompressed LAS from its header, (E)VLRs and one streaming pass
+ * over the records (bounded memory; the numbers and errors are those
+ * of sy_read_cloud); other formats read whole. meta carries the format,
+ * VLRs, CRS and the attribute arrays a full read keeps (free it with
+ * sy_cloud_free); *n and the bounds are the cloud's. */
+sy_code sy_cloud_info(const char *path, sy_cloud *meta, size_t *n, double lo[3], double hi[3], sy_error *err);
+/* The streaming LAS part over a mapped file (headers and (E)VLRs are read
+ * from data; the records too when fd < 0, else through a 1 MB buffer by
+ * pread on fd): *done = 0 (nothing set, SY_OK) when the file needs the whole
+ * reader (LAZ, or a check failed). */
+sy_code sy_las_info_mem(const char *path, const unsigned char *data, size_t size, int fd, sy_cloud *meta, size_t *n,
+                        double lo[3], double hi[3], int *done, sy_error *err);
+
 /* The individual readers, over a file already in memory (path is for messages).
  * They are what the fuzz targets drive. */
 sy_code sy_read_las_mem(const char *path, const unsigned char *data, size_t size, sy_cloud *out,

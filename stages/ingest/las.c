@@ -2,11 +2,13 @@
  * EVLRs, CRS summary; LAZ (LASzip-compressed LAS) decoded chunk by chunk on
  * all cores. Every header number is checked against the bytes actually
  * present before it sizes anything. */
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <unistd.h>
 
 #include "ingest.h"
 #include "las_format.h"
@@ -727,5 +729,117 @@ sy_code sy_read_las_mem(const char *path, const unsigned char *data, size_t size
     free(v.summary);
     free(v.geotiff);
     if (rc) sy_cloud_free(out);
+    return rc;
+}
+
+/* ------------------------------------------------ `sylva info`, streaming */
+
+/* Uncompressed LAS without the cloud: the same checks and the same numbers
+ * as sy_read_las_mem + sy_cloud_check_range + sy_cloud_bounds, from the
+ * header, the (E)VLRs and one pass over the records that keeps only the
+ * per-axis extremes of the stored integers and which optional fields are
+ * non-zero (so the memory is bounded whatever the file). A coordinate is
+ * i * scale + offset - origin rounded to float, monotonic in i, so the
+ * extremes of the integers give the bounds, the finiteness and the span
+ * check of every point exactly. *done = 0 (and nothing set) when the file
+ * is LAZ or a check fails: the caller then reads it whole, for the reader's
+ * own message. */
+sy_code sy_las_info_mem(const char *path, const unsigned char *data, size_t size, int fd, sy_cloud *meta, size_t *n,
+                        double lo[3], double hi[3], int *done, sy_error *err)
+{
+    enum { INFO_BUFFER = 1 << 20 };
+    *done = 0;
+    memset(meta, 0, sizeof *meta);
+    meta->meta.point_format = -1;
+    las_header h;
+    las_vlrs v;
+    memset(&v, 0, sizeof v);
+    size_t points_end;
+    sy_code rc = parse_header(path, data, size, &h, err);
+    if (!rc) rc = walk_vlrs(path, data, size, &h, &v, err);
+    if (!rc) rc = walk_evlrs(path, data, size, &h, &v, &points_end, err);
+    if (rc || h.compressed || v.laszip || h.count == 0 || (points_end - h.point_offset) / h.record_length < h.count) {
+        free(v.summary), free(v.geotiff);
+        return rc; /* an error, or the whole reader's case */
+    }
+    const unsigned char *pts = data + h.point_offset;
+    const las_layout *lay = &las_layouts[h.format];
+    const size_t stride = h.record_length;
+    const int legacy = h.format <= 5, gps_at = lay->gps, rgb_at = lay->rgb, nir_at = lay->nir;
+    const unsigned rn_mask = legacy ? 0x07 : 0x0F, nr_shift = legacy ? 3 : 4, nr_mask = legacy ? 0x07 : 0x0F;
+    const unsigned class_at = legacy ? 15 : 16, class_mask = legacy ? 0x1F : 0xFF;
+    int32_t mn[3] = {INT32_MAX, INT32_MAX, INT32_MAX}, mx[3] = {INT32_MIN, INT32_MIN, INT32_MIN};
+    unsigned any_int = 0, any_ret = 0, any_cls = 0, any_gps = 0, any_rgb = 0, any_nir = 0;
+    /* With a descriptor, the records come through a buffer of INFO_BUFFER
+     * bytes (whole records) by pread: no page of them stays mapped. */
+    size_t per = INFO_BUFFER / stride ? INFO_BUFFER / stride : 1, held = 0, base = 0;
+    unsigned char *buf = fd >= 0 ? malloc(per * stride) : NULL;
+    if (fd >= 0 && !buf) {
+        free(v.summary), free(v.geotiff);
+        return sy_fail(err, SY_EINTERNAL, "%s: out of memory", path);
+    }
+    for (uint64_t i = 0; i < h.count; i++) {
+        const unsigned char *p = pts + (size_t)i * stride;
+        if (buf) {
+            if (i >= base + held) {
+                base = (size_t)i;
+                held = h.count - i < per ? (size_t)(h.count - i) : per;
+                size_t want = held * stride, got = 0;
+                off_t at = (off_t)h.point_offset + (off_t)(base * stride);
+                while (got < want) {
+                    ssize_t r = pread(fd, buf + got, want - got, at + (off_t)got);
+                    if (r <= 0) break;
+                    got += (size_t)r;
+                }
+                if (got < want) { /* the file changed under us: read it whole */
+                    free(buf);
+                    free(v.summary), free(v.geotiff);
+                    return SY_OK;
+                }
+            }
+            p = buf + (size_t)(i - base) * stride;
+        }
+        for (int a = 0; a < 3; a++) {
+            int32_t q = las_i32(p + 4 * a);
+            mn[a] = q < mn[a] ? q : mn[a];
+            mx[a] = q > mx[a] ? q : mx[a];
+        }
+        unsigned flags = p[14];
+        any_int |= las_u16(p + 12);
+        any_ret |= (flags & rn_mask) | ((flags >> nr_shift) & nr_mask);
+        any_cls |= p[class_at] & class_mask;
+        if (gps_at >= 0) any_gps |= las_f64(p + gps_at) != 0.0;
+        if (rgb_at >= 0) any_rgb |= las_u16(p + rgb_at) | las_u16(p + rgb_at + 2) | las_u16(p + rgb_at + 4);
+        if (nir_at >= 0) any_nir |= las_u16(p + nir_at);
+    }
+    free(buf);
+    nonzero_fields nz = {any_int, any_ret, any_cls, any_rgb, any_nir, any_gps};
+    extra_field *fields = NULL;
+    size_t n_fields = 0;
+    if ((rc = sy_cloud_init(meta, 1, err)) || (rc = add_format_arrays(meta, lay, err)) ||
+        (rc = set_origin(path, &h, pts, meta, err)) ||
+        (rc = prepare_extra_bytes(path, &h, &v, meta, &fields, &n_fields, err)))
+        goto out;
+    int ok = fabs(meta->origin[0]) <= SY_WORLD_MAX && fabs(meta->origin[1]) <= SY_WORLD_MAX &&
+             fabs(meta->origin[2]) <= SY_WORLD_MAX;
+    for (int a = 0; ok && a < 3; a++) {
+        float f[2];
+        for (int e = 0; e < 2; e++) {
+            double x = (e ? mx[a] : mn[a]) * h.scale[a] + h.offset[a];
+            f[e] = (float)(x - meta->origin[a]);
+            ok &= isfinite(x) && fabsf(f[e]) <= (float)SY_CLOUD_MAX_SPAN;
+        }
+        lo[a] = meta->origin[a] + (f[0] < f[1] ? f[0] : f[1]);
+        hi[a] = meta->origin[a] + (f[0] < f[1] ? f[1] : f[0]);
+    }
+    if (!ok) goto out; /* the whole reader words the error */
+    drop_zero_fields(meta, &nz, 1);
+    if ((rc = adopt_normals(meta, err)) || (rc = fill_meta(path, &h, &v, meta, err))) goto out;
+    *n = (size_t)h.count;
+    *done = 1;
+out:
+    free(fields);
+    free(v.summary), free(v.geotiff);
+    if (!*done) sy_cloud_free(meta);
     return rc;
 }

@@ -1,4 +1,4 @@
-// OpenCV behind the leaf-maps stage (leafmaps_cv.h). GPL-3.0-or-later.
+// OpenCV behind the leaf-maps stage (leafmaps_cv.h; image files are image_io.c). GPL-3.0-or-later.
 #include "stages/leafmaps/leafmaps_cv.h"
 
 #include <algorithm>
@@ -9,7 +9,6 @@
 #include <vector>
 
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 
@@ -42,62 +41,6 @@ template <class F> void run_parallel(int n, int threads, F &&fn)
 }
 
 } // namespace
-
-extern "C" int sy_lcv_read(const char *path, float **px, int *w, int *h, int *c, int *depth)
-{
-    return guarded([&] {
-        cv::Mat m = cv::imread(path, cv::IMREAD_UNCHANGED);
-        if (m.empty()) return -1;
-        int d = m.depth();
-        if (d != CV_8U && d != CV_16U) return -1;
-        double scale = d == CV_8U ? 1.0 / 255.0 : 1.0 / 65535.0;
-        int ch = m.channels();
-        if (ch == 3) cv::cvtColor(m, m, cv::COLOR_BGR2RGB);
-        else if (ch == 4) cv::cvtColor(m, m, cv::COLOR_BGRA2RGBA);
-        else if (ch == 2) { // grey + alpha: expand to RGBA
-            std::vector<cv::Mat> p;
-            cv::split(m, p);
-            cv::merge(std::vector<cv::Mat>{p[0], p[0], p[0], p[1]}, m);
-            ch = 4;
-        } else if (ch != 1) return -1;
-        cv::Mat f;
-        m.convertTo(f, CV_MAKETYPE(CV_32F, ch), scale);
-        size_t n = (size_t)f.rows * (size_t)f.cols * (size_t)ch;
-        float *out = (float *)std::malloc(n * sizeof(float));
-        if (!out) return -1;
-        if (f.isContinuous()) std::memcpy(out, f.ptr<float>(0), n * sizeof(float));
-        else
-            for (int y = 0; y < f.rows; y++)
-                std::memcpy(out + (size_t)y * f.cols * ch, f.ptr<float>(y), (size_t)f.cols * ch * sizeof(float));
-        *px = out;
-        *w = f.cols;
-        *h = f.rows;
-        *c = ch;
-        *depth = d == CV_8U ? 8 : 16;
-        return 0;
-    });
-}
-
-extern "C" int sy_lcv_encode_png(const float *px, int w, int h, int c, int bits, unsigned char **png, size_t *size)
-{
-    return guarded([&] {
-        if (c != 1 && c != 3 && c != 4) return -1;
-        cv::Mat f(h, w, CV_MAKETYPE(CV_32F, c), const_cast<float *>(px));
-        cv::Mat q;
-        f.convertTo(q, CV_MAKETYPE(bits == 16 ? CV_16U : CV_8U, c), bits == 16 ? 65535.0 : 255.0);
-        if (c == 3) cv::cvtColor(q, q, cv::COLOR_RGB2BGR);
-        else if (c == 4) cv::cvtColor(q, q, cv::COLOR_RGBA2BGRA);
-        std::vector<unsigned char> buf;
-        // Level 3: within a few percent of the best size at a third of the time.
-        if (!cv::imencode(".png", q, buf, {cv::IMWRITE_PNG_COMPRESSION, 3})) return -1;
-        unsigned char *out = (unsigned char *)std::malloc(buf.size());
-        if (!out) return -1;
-        std::memcpy(out, buf.data(), buf.size());
-        *png = out;
-        *size = buf.size();
-        return 0;
-    });
-}
 
 extern "C" int sy_lcv_mask_clean(unsigned char *mask, int w, int h, int r, double min_frac, int max_hole)
 {

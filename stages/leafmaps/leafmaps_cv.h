@@ -12,7 +12,8 @@
 extern "C" {
 #endif
 
-/* Decodes an image file (PNG, JPEG, TIFF, ...) into floats in [0,1] without
+/* (image_io.c, stb_image and zlib, no OpenCV:) Decodes an image file (PNG
+ * 8/16-bit, JPEG, BMP, TGA, PNM) into floats in [0,1] without
  * any colour conversion, channels in R,G,B(,A) order; grey images have c = 1.
  * *depth is 8 or 16 (bits per sample of the file). *px is malloc'ed. */
 int sy_lcv_read(const char *path, float **px, int *w, int *h, int *c, int *depth);

@@ -9,9 +9,9 @@
 #include <string.h>
 
 #include <stb_image.h>
-#include <stb_image_write.h>
 
 #include "mesh_internal.h"
+#include "stages/core/png.h"
 
 /* Share of the tree's extent added around it so the silhouette never touches
  * the card border (mip-mapping would smear it). */
@@ -217,29 +217,6 @@ static void dilate(unsigned char *rgba, int W, int H)
     free(done);
 }
 
-typedef struct {
-    unsigned char *data;
-    size_t size, cap;
-    int failed;
-} png_buffer;
-
-static void png_append(void *ctx, void *data, int size)
-{
-    png_buffer *b = ctx;
-    if (b->failed || size <= 0) return;
-    if (b->size + (size_t)size > b->cap) {
-        size_t cap = (b->cap ? 2 * b->cap : 65536) + (size_t)size;
-        unsigned char *p = realloc(b->data, cap);
-        if (!p) {
-            b->failed = 1;
-            return;
-        }
-        b->data = p, b->cap = cap;
-    }
-    memcpy(b->data + b->size, data, (size_t)size);
-    b->size += (size_t)size;
-}
-
 /* Two quads: plane z = zc facing +Z (atlas u in [0, 0.5]) and plane x = xc
  * facing +X (u in [0.5, 1], image right = -Z). */
 static sy_code card_mesh(const float lo[3], const float hi[3], float xc, float zc, int material, sy_mesh *m,
@@ -329,22 +306,18 @@ int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
     for (int k = 0; k < 2 * SY_LOD_MAX_PARTS; k++) stbi_image_free(src[k].px);
     free(depth);
     dilate(rgba, W, H);
-    png_buffer png = {0};
-    int ok = stbi_write_png_to_func(png_append, &png, W, H, 4, rgba, 4 * W);
+    sy_image img;
+    memset(&img, 0, sizeof img);
+    int bad = sy_png_encode(rgba, W, H, 4, 8, &img.png, &img.size);
     free(rgba);
-    if (!ok || png.failed) {
-        free(png.data);
+    if (bad) {
         sy_fail(err, SY_EINTERNAL, "mesh: impostor PNG encoding failed");
         return -1;
     }
-    sy_image img;
-    memset(&img, 0, sizeof img);
-    img.png = png.data;
-    img.size = png.size;
     snprintf(img.name, sizeof img.name, "impostor");
     int ii = sy_asset_add_image(a, &img, err);
     if (ii < 0) {
-        free(png.data);
+        free(img.png);
         return -1;
     }
     sy_material mat = sy_material_default("impostor");

@@ -14,6 +14,12 @@
 #if defined(__SANITIZE_ADDRESS__) && defined(__linux__) && defined(__LP64__) && !defined(EIGEN_MALLOC_ALREADY_ALIGNED)
 #define EIGEN_MALLOC_ALREADY_ALIGNED 1
 #endif
+// PCL's templates are instantiated here rather than taken from libpcl_features,
+// _filters, _segmentation and _search: those carry ~190k relocations that the
+// dynamic loader resolved at every start of every sylva command (97% of
+// `sylva --version`'s 0.1 s), for the four classes used below. Only
+// libpcl_common stays linked.
+#define PCL_NO_PRECOMPILE
 #include "pcl_filters.h"
 
 #include <algorithm>

@@ -1,12 +1,15 @@
 /* libFuzzer target: arbitrary bytes as a species' bark and leaf texture
  * (decode, size checks, resize, normal map, alpha, PNG re-encode) through
- * sy_materials_add, small textures so each input stays quick. */
+ * sy_materials_add, small textures so each input stays quick; and the same
+ * bytes as a leaf map through the stb reader of the leaf-maps stage. */
 #include <stddef.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "fuzz_util.h"
 #include "species/materials.h"
+#include "stages/leafmaps/leafmaps_cv.h"
 #include "stages/core/asset.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
@@ -20,5 +23,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     sy_error err = {0};
     sy_materials_add(&spec, &a, &bark, &leaf, &err);
     sy_asset_free(&a);
+    float *px = NULL;
+    int w, h, c, depth;
+    if (sy_lcv_read(path, &px, &w, &h, &c, &depth) == 0) free(px);
     return 0;
 }
