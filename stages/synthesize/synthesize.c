@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "stages/core/geometry.h"
 #include "stages/core/progress.h"
 
 #ifndef M_PI
@@ -149,6 +150,7 @@ typedef struct {
     size_t n_inside;     /* cells inside the hull */
     double capacity;     /* leaves a cell holds before docking there stops */
     float centroid[3];   /* of the occupied cells */
+    const sy_cluster *hull; /* the lobe's hull itself (leaves' distance to it) */
 } lobe_grid;
 
 static void grid_free(lobe_grid *g)
@@ -174,6 +176,22 @@ static long grid_cell(const lobe_grid *g, const double p[3])
     return q[0] + (long)g->d[0] * (q[1] + (long)g->d[1] * q[2]);
 }
 
+/* 1 when p lies inside the hull (generalised winding number >= 1/2) or
+ * within tol of its surface: the exact test behind the grid's cell-centre
+ * one, which lets a leaf sit up to half a cell diagonal outside. */
+static int near_hull(const sy_cluster *c, const double p[3], double tol)
+{
+    const float pf[3] = {(float)p[0], (float)p[1], (float)p[2]};
+    if (sy_winding_number(c->verts, c->tris, c->n_tris, pf) >= 0.5) return 1;
+    for (size_t t = 0; t < c->n_tris; t++) {
+        double v[3][3];
+        for (int k = 0; k < 3; k++)
+            for (int j = 0; j < 3; j++) v[k][j] = c->verts[3 * c->tris[3 * t + k] + j];
+        if (sy_point_triangle_distance(p, v[0], v[1], v[2], NULL) <= tol) return 1;
+    }
+    return 0;
+}
+
 static int occ_bit(const sy_cluster *c, const float lo[3], const float hi[3], const double p[3])
 {
     if (!c->occupancy) return 1;
@@ -189,6 +207,7 @@ static int occ_bit(const sy_cluster *c, const float lo[3], const float hi[3], co
 static sy_code grid_build(const sy_cluster *c, int cells, double density, double leaf_area, lobe_grid *g, sy_error *err)
 {
     memset(g, 0, sizeof *g);
+    g->hull = c;
     for (int k = 0; k < 3; k++) g->lo[k] = g->hi[k] = c->verts[k];
     for (size_t i = 1; i < c->n_verts; i++)
         for (int k = 0; k < 3; k++) {
@@ -473,7 +492,7 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
         if (c < 0 || !g->inside[c]) continue;
         size_t b = block_of(g, c);
         if (g->block[b] >= g->block_cap[b]) continue;
-        if (g->inside[c]) rep->leaves_in_hull++;
+        rep->leaves_in_hull += near_hull(g->hull, w, 0.05);
         if (g->occupied[c]) g->leaves[c]++;
         if (g->block[b]++ == 0) g->n_filled++;
         so->leaf_key[so->leaves->n] = (float)((i + 0.5) / (double)p->n_leaves);
