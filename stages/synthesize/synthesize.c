@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "stages/core/geometry.h"
 #include "stages/core/progress.h"
 
 #ifndef M_PI
@@ -149,6 +150,7 @@ typedef struct {
     size_t n_inside;     /* cells inside the hull */
     double capacity;     /* leaves a cell holds before docking there stops */
     float centroid[3];   /* of the occupied cells */
+    const sy_cluster *hull; /* the lobe's hull itself (leaves' distance to it) */
 } lobe_grid;
 
 static void grid_free(lobe_grid *g)
@@ -174,6 +176,22 @@ static long grid_cell(const lobe_grid *g, const double p[3])
     return q[0] + (long)g->d[0] * (q[1] + (long)g->d[1] * q[2]);
 }
 
+/* 1 when p lies inside the hull (generalised winding number >= 1/2) or
+ * within tol of its surface: the exact test behind the grid's cell-centre
+ * one, which lets a leaf sit up to half a cell diagonal outside. */
+static int near_hull(const sy_cluster *c, const double p[3], double tol)
+{
+    const float pf[3] = {(float)p[0], (float)p[1], (float)p[2]};
+    if (sy_winding_number(c->verts, c->tris, c->n_tris, pf) >= 0.5) return 1;
+    for (size_t t = 0; t < c->n_tris; t++) {
+        double v[3][3];
+        for (int k = 0; k < 3; k++)
+            for (int j = 0; j < 3; j++) v[k][j] = c->verts[3 * c->tris[3 * t + k] + j];
+        if (sy_point_triangle_distance(p, v[0], v[1], v[2], NULL) <= tol) return 1;
+    }
+    return 0;
+}
+
 static int occ_bit(const sy_cluster *c, const float lo[3], const float hi[3], const double p[3])
 {
     if (!c->occupancy) return 1;
@@ -189,6 +207,7 @@ static int occ_bit(const sy_cluster *c, const float lo[3], const float hi[3], co
 static sy_code grid_build(const sy_cluster *c, int cells, double density, double leaf_area, lobe_grid *g, sy_error *err)
 {
     memset(g, 0, sizeof *g);
+    g->hull = c;
     for (int k = 0; k < 3; k++) g->lo[k] = g->hi[k] = c->verts[k];
     for (size_t i = 1; i < c->n_verts; i++)
         for (int k = 0; k < 3; k++) {
@@ -340,11 +359,13 @@ typedef struct {
 /* Eq. 3.3 with a cost that falls as the fit improves (digest §2.3):
  * thickness ratio max/min times (1 - cos of the vertical-angle difference + eps).
  * The literal form multiplies the ratio by the dot product. */
-static double eq33(const sy_patch *p, const dock *d, int literal)
+static double dock_elevation(const dock *d) { return asin(d->dir[2] > 1 ? 1 : d->dir[2] < -1 ? -1 : d->dir[2]); }
+
+/* ed: dock_elevation(d), once per dock. */
+static double eq33(const sy_patch *p, const dock *d, double ed, int literal)
 {
     double tr = p->thickness, td = d->thickness;
     double ratio = (tr > td ? tr : td) / (tr < td ? tr : td);
-    double ed = asin(d->dir[2] > 1 ? 1 : d->dir[2] < -1 ? -1 : d->dir[2]);
     double dot = cos(p->elevation - ed);
     return literal ? ratio * dot : ratio * (1 - dot + 0.05);
 }
@@ -359,20 +380,57 @@ static double geom_scale(double rs)
     return s < 0.35 ? 0.35 : s > 2 ? 2 : s;
 }
 
-/* Patch-to-world transform: world = pos + s R p. R aligns the patch root
- * direction (azimuth 0) with the dock's direction, then rolls by phi. */
-static void placement(const sy_patch *p, const dock *d, double phi, double R[9])
+typedef struct {
+    size_t idx;
+    double cost;
+} cand;
+
+static int cmp_cand(const void *a, const void *b)
+{
+    const cand *x = a, *y = b;
+    if (x->cost != y->cost) return x->cost < y->cost ? -1 : 1;
+    return x->idx < y->idx ? -1 : x->idx > y->idx;
+}
+
+/* Patch-to-world transform: world = pos + s R p, R = Rr T. T aligns the
+ * patch root direction (azimuth 0) with the dock's direction (turned by the
+ * dock's azimuth Rz, then the smallest rotation); Rr rolls by phi about the
+ * dock's direction. Split so a dock computes Rz once, T once per candidate
+ * and Rr once per roll. */
+#define SY_SYNTH_MAX_ROLLS 16 /* sy_synth_options_check's bound */
+
+static void placement_turn(const dock *d, double Rz[9])
 {
     double az = atan2(d->dir[1], d->dir[0]);
-    double zax[3] = {0, 0, 1}, Rz[9], A[9], Rr[9], T[9];
+    double zax[3] = {0, 0, 1};
     mat_axis(zax, az, Rz);
-    double v[3];
+}
+
+static void placement_align(const sy_patch *p, const dock *d, const double Rz[9], double T[9])
+{
+    double A[9], v[3];
     float pd[3] = {p->dir[0], p->dir[1], p->dir[2]};
     rot_apply(Rz, pd, v);
     mat_align(v, d->dir, A);
     mat_mul(A, Rz, T);
-    mat_axis(d->dir, phi, Rr);
-    mat_mul(Rr, T, R);
+}
+
+/* The best k of n candidates (cmp_cand order: cost, then index, a total
+ * order) moved to the front of c in that order, as sorting all of them
+ * would leave them, with k insertions instead of a sort of n. */
+static void best_k(cand *c, size_t n, size_t k)
+{
+    size_t m = 0; /* c[0..m) holds the best so far, sorted */
+    for (size_t i = 0; i < n; i++) {
+        cand x = c[i];
+        if (m == k && cmp_cand(&x, &c[m - 1]) >= 0) continue;
+        size_t j = m < k ? m++ : m - 1;
+        while (j > 0 && cmp_cand(&x, &c[j - 1]) < 0) {
+            c[j] = c[j - 1];
+            j--;
+        }
+        c[j] = x;
+    }
 }
 
 typedef struct {
@@ -473,7 +531,7 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
         if (c < 0 || !g->inside[c]) continue;
         size_t b = block_of(g, c);
         if (g->block[b] >= g->block_cap[b]) continue;
-        if (g->inside[c]) rep->leaves_in_hull++;
+        rep->leaves_in_hull += near_hull(g->hull, w, 0.05);
         if (g->occupied[c]) g->leaves[c]++;
         if (g->block[b]++ == 0) g->n_filled++;
         so->leaf_key[so->leaves->n] = (float)((i + 0.5) / (double)p->n_leaves);
@@ -501,18 +559,6 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
     free(ids);
     rep->patches++;
     return SY_OK;
-}
-
-typedef struct {
-    size_t idx;
-    double cost;
-} cand;
-
-static int cmp_cand(const void *a, const void *b)
-{
-    const cand *x = a, *y = b;
-    if (x->cost != y->cost) return x->cost < y->cost ? -1 : 1;
-    return x->idx < y->idx ? -1 : x->idx > y->idx;
 }
 
 static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_branchlets *lib, const sy_synth_options *o,
@@ -640,28 +686,37 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
              * in open space can continue the structure and one in a full
              * region can end it. */
             size_t nc = 0, half = (size_t)(o->candidates + 1) / 2;
+            double ed = dock_elevation(&d);
             for (int terminal = 0; terminal < 2; terminal++) {
                 size_t n0 = nc;
                 for (size_t i = 0; i < lib->n_patches; i++) {
                     const sy_patch *p = &lib->patches[i];
                     if (!(p->thickness > 0) || p->n_nodes == 0 || (p->n_docks == 0) != terminal) continue;
                     cands[nc].idx = i;
-                    cands[nc].cost = eq33(p, &d, o->literal_eq33);
+                    cands[nc].cost = eq33(p, &d, ed, o->literal_eq33);
                     nc++;
                 }
-                qsort(cands + n0, nc - n0, sizeof *cands, cmp_cand);
-                if (nc - n0 > half) nc = n0 + half;
+                if (nc - n0 > half) {
+                    best_k(cands + n0, nc - n0, half);
+                    nc = n0 + half;
+                } else {
+                    best_k(cands + n0, nc - n0, nc - n0);
+                }
             }
+            double phi0 = 2 * M_PI * sy_synth_uniform(&rng);
+            double Rz[9], Rr[SY_SYNTH_MAX_ROLLS][9];
+            placement_turn(&d, Rz);
+            for (int r = 0; r < o->rolls; r++) mat_axis(d.dir, phi0 + 2 * M_PI * r / o->rolls, Rr[r]);
             double best = INFINITY, bestR[9] = {0}, best_s = 1;
             int full = 0; /* a candidate fitted the hull but every leaf fell in full or empty cells */
             size_t best_i = 0;
-            double phi0 = 2 * M_PI * sy_synth_uniform(&rng);
             for (size_t ci = 0; ci < nc; ci++) {
                 const sy_patch *p = &lib->patches[cands[ci].idx];
-                double s = geom_scale(d.thickness / p->thickness);
+                double s = geom_scale(d.thickness / p->thickness), T[9];
+                placement_align(p, &d, Rz, T);
                 for (int r = 0; r < o->rolls; r++) {
                     double R[9];
-                    placement(p, &d, phi0 + 2 * M_PI * r / o->rolls, R);
+                    mat_mul(Rr[r], T, R);
                     fit_geo f = patch_fit(p, &d, R, s, &g);
                     /* A start may leave from a seed outside the hull: half of it may lie out. */
                     if (f.outside > (d.depth > 0 ? o->outside_max : 0.5)) continue;

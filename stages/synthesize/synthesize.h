@@ -49,7 +49,8 @@ typedef struct {
     int32_t bare_lobe[8];       /* the first bare lobes' indices */
     int bare_reason[8];         /* 0 no room inside the hull, 1 no candidate fitted */
     size_t patches, docks_filled, docks_outside, docks_depth, docks_full, docks_rejected;
-    size_t nodes_added, leaves, leaves_in_hull;
+    size_t nodes_added, leaves;
+    size_t leaves_in_hull;      /* leaves inside their lobe's hull or within 5 cm of it (exact test) */
     double coverage;            /* share of the lobes' occupied blocks (2 x 2 x 2 grid cells) holding a leaf */
     double fill;                /* share of the lobes' inside cells holding scan points (all lobes) */
     double seconds;
