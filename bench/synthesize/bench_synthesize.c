@@ -15,6 +15,10 @@
  *     world Z up, e.g. AdTree's branch mesh, so that a peer's model is scored
  *     by the same measure as Sylva's asset.
  *
+ *   bench_synthesize lookglb REFERENCE.glb ASSET.glb
+ *     `sylva eval --points REFERENCE.glb ASSET.glb`'s silhouette figures
+ *     alone (the same calls: LOD0 without proxy, the reference sampled every
+ *     2 cm), without its distance metrics, which cost minutes on a grown tree.
  *   bench_synthesize compare SPECIES SEED TREE.sylva
  *     The asset decoded from TREE.sylva (a `sylva run --species SPECIES` of
  *     a simulated scan of that tree) against the true tree (`sylva grow`'s,
@@ -30,6 +34,7 @@
 #include <time.h>
 
 #include "pipeline/tree_synth.h"
+#include "stages/gltf/gltf_read.h"
 #include "stages/grow/grow.h"
 #include "species/library.h"
 #include "stages/core/fileio.h"
@@ -273,12 +278,46 @@ static int look(const char *scan, const char *obj)
     return rc ? 2 : 0;
 }
 
+/* LOD0 triangles of a glb without its foliage proxy (as cmd_eval.c's glb_triangles). */
+static int glb_tris(const char *path, double **tri, size_t *n, sy_error *err)
+{
+    size_t nt = 0, *hull = NULL, k = 0;
+    if (sy_gltf_read_triangles(path, tri, &nt, &hull, err)) return 2;
+    for (size_t t = 0; t < nt; t++)
+        if (!hull[t]) memmove(*tri + 9 * k++, *tri + 9 * t, 9 * sizeof **tri);
+    free(hull);
+    *n = k;
+    return 0;
+}
+
+static int lookglb(const char *ref, const char *asset)
+{
+    sy_error err = {0};
+    double *rt = NULL, *at = NULL, *pts = NULL;
+    size_t nr = 0, na = 0, np = 0;
+    sy_eval_model m = {0};
+    sy_silhouette_metrics sm;
+    int rc = glb_tris(ref, &rt, &nr, &err) || glb_tris(asset, &at, &na, &err) ||
+             sy_eval_model_add_mesh(&m, rt, nr, 0, &err) || !(pts = sy_model_surface_samples(&m, 0.02, &np, &err)) ||
+             sy_silhouette_metrics_compute(at, na, pts, np, &sm, &err);
+    if (rc) fprintf(stderr, "%s\n", err.msg);
+    else
+        printf("iou_mean=%.3f iou_min=%.3f profile_correlation=%.3f height_error_rel=%+.3f crown_width_error_rel=%+.3f\n",
+               sm.iou_mean, sm.iou_min, sm.profile_correlation, sm.height_error, sm.width_error);
+    sy_eval_model_free(&m);
+    free(pts);
+    free(rt);
+    free(at);
+    return rc ? 2 : 0;
+}
+
 int main(int argc, char **argv)
 {
     sy_set_threads(1);
     if (argc >= 3 && strcmp(argv[1], "decode") == 0) return decode(argv[2], argc > 3 ? atoi(argv[3]) > 0 ? atoi(argv[3]) : 5 : 5);
     if (argc == 4 && strcmp(argv[1], "look") == 0) return look(argv[2], argv[3]);
+    if (argc == 4 && strcmp(argv[1], "lookglb") == 0) return lookglb(argv[2], argv[3]);
     if (argc == 5 && strcmp(argv[1], "compare") == 0) return compare(argv[2], strtoull(argv[3], NULL, 10), argv[4]);
-    fprintf(stderr, "usage: bench_synthesize decode TREE.sylva [REPS] | look SCAN MESH.obj | compare SPECIES SEED TREE.sylva\n");
+    fprintf(stderr, "usage: bench_synthesize decode TREE.sylva [REPS] | look SCAN MESH.obj | lookglb REF.glb ASSET.glb | compare SPECIES SEED TREE.sylva\n");
     return 2;
 }

@@ -144,11 +144,11 @@ if [[ $parts == *s* ]]; then
     cpu "$tmp/run.cpu" "$sylva" run "$tmp/$sp.las" --species "$sp" -o "$tmp/$sp.glb" --sylva "$tmp/s_$sp.sylva" --quiet 2>/dev/null ||
       { echo "| $sp | run failed |"; continue; }
     "$sylva" grow --species "$sp" --seed "$seed" -o "$tmp/${sp}_true.glb" --quiet 2>/dev/null
-    ev=$("$sylva" eval --points "$tmp/${sp}_true.glb" "$tmp/$sp.glb" --json 2>/dev/null)
+    ev=$("$bench" lookglb "$tmp/${sp}_true.glb" "$tmp/$sp.glb" 2>/dev/null) # eval --points' silhouette alone
     cmp=$("$bench" compare "$sp" "$seed" "$tmp/s_$sp.sylva" 2>&1)
     tr=$("$sylva" eval --truth "$tmp/$sp.json" "$tmp/s_$sp.sylva" --json 2>/dev/null)
     vis=$("$bench_visibility" "$tmp/$sp.las" "$tmp/$sp.json" 2>/dev/null | sed -n 's/.*of a wood return \([0-9.]*\),.*/\1/p')
-    echo "| $sp | $(key point_count "$out") | $(f3 "$(key iou_mean "$ev")") | $(f3 "$(key iou_min "$ev")") |" \
+    echo "| $sp | $(key point_count "$out") | $(f3 "$(kv iou_mean "$ev")") | $(f3 "$(kv iou_min "$ev")") |" \
       "$(f3 "$(kv leaf_area_ratio "$cmp")") | $(kv branches_r2cm "$cmp") ($(kv branches_r2cm_main "$cmp")) / $(kv branches_r2cm_truth "$cmp") |" \
       "$(f3 "$(kv branches_r2cm_ratio "$cmp")") | $(f3 "$(key recall_r2cm "$tr")") | $(f3 "${vis:-nan}") | $(cut -d' ' -f1 "$tmp/run.cpu") |"
   done
