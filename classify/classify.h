@@ -42,9 +42,11 @@ typedef struct {
 sy_features_options sy_features_options_default(void);
 sy_code sy_features_options_check(const sy_features_options *o, sy_error *err);
 
-/* Number of features and the name of feature i ("height_m", "normal_elev_s2_b07"). */
+/* Number of features and the name of feature i ("height_m", "normal_elev_s2_b07")
+ * written to name and returned; NULL past the last feature (or out of memory). */
+#define SY_FEATURE_NAME_MAX 40
 size_t sy_feature_count(void);
-const char *sy_feature_name(size_t i);
+const char *sy_feature_name(size_t i, char name[SY_FEATURE_NAME_MAX]);
 
 typedef struct {
     size_t points_in;    /* points of the tree cloud */

@@ -21,6 +21,7 @@
 #include "classify/classify.h"
 #include "stages/clusters/clusters.h"
 #include "stages/core/geometry.h"
+#include "stages/core/grid.h"
 #include "stages/core/progress.h"
 #include "stages/core/voxel.h"
 #include "stages/skeleton/skeleton.h"
@@ -104,10 +105,8 @@ static const char *const scalar_names[] = {
     "height_kurtosis", "radius_mean_rel", "radius_std_rel", "hull_volume_m3", "hull_volume_rel",
     "hull_fill_of_cylinder", "voxel_fill_of_hull"};
 
-static char g_names[F_COUNT][40];
-static int g_names_ready;
-
-static void build_names(void)
+/* Every feature's name, from constants only (no table kept between calls). */
+static void build_names(char g_names[F_COUNT][SY_FEATURE_NAME_MAX])
 {
     for (int i = 0; i < F_COUNT; i++) snprintf(g_names[i], sizeof g_names[i], "f%d", i);
     for (int i = 0; i < (int)(sizeof scalar_names / sizeof *scalar_names); i++)
@@ -146,16 +145,19 @@ static void build_names(void)
     for (int b = 0; b < N_ANG; b++) snprintf(g_names[F_SK_ANGLE_HIST + b], 40, "branch_angle_b%d", b);
     for (int b = 0; b < N_ANG; b++) snprintf(g_names[F_SK_ELEV_HIST + b], 40, "branch_elevation_b%d", b);
     for (int b = 0; b < N_LEN; b++) snprintf(g_names[F_SK_LEN_HIST + b], 40, "branch_length_b%d", b);
-    g_names_ready = 1;
 }
 
 size_t sy_feature_count(void) { return F_COUNT; }
 
-const char *sy_feature_name(size_t i)
+const char *sy_feature_name(size_t i, char name[SY_FEATURE_NAME_MAX])
 {
-    /* Built on first use from constants only: every caller sees the same table. */
-    if (!g_names_ready) build_names();
-    return i < F_COUNT ? g_names[i] : NULL;
+    if (i >= F_COUNT) return NULL;
+    char (*all)[SY_FEATURE_NAME_MAX] = malloc(F_COUNT * sizeof *all);
+    if (!all) return NULL;
+    build_names(all);
+    memcpy(name, all[i], SY_FEATURE_NAME_MAX);
+    free(all);
+    return name;
 }
 
 sy_features_options sy_features_options_default(void)
@@ -233,88 +235,37 @@ static size_t subsample(const float *first, size_t m0, const float lo[3], size_t
     return m;
 }
 
-/* A dense uniform grid for radius queries: points bucketed by cell. */
-typedef struct {
-    float lo[3];
-    double cell;
-    int dim[3];
-    uint32_t *start; /* cells + 1 */
-    uint32_t *idx;
-} grid;
-
-static void grid_free(grid *g)
-{
-    free(g->start);
-    free(g->idx);
-}
-
-static size_t grid_cell(const grid *g, const float *p, int c[3])
-{
-    for (int a = 0; a < 3; a++) {
-        int v = (int)floor((p[a] - g->lo[a]) / g->cell);
-        c[a] = v < 0 ? 0 : v >= g->dim[a] ? g->dim[a] - 1 : v;
-    }
-    return ((size_t)c[2] * (size_t)g->dim[1] + (size_t)c[1]) * (size_t)g->dim[0] + (size_t)c[0];
-}
-
-static sy_code grid_build(grid *g, const float *xyz, size_t n, const float lo[3], const float hi[3], double cell,
+/* The neighbourhood grid (stages/core/grid.h) with cells of edge cell, grown
+ * by half until the extent spans at most 4 M cells: the cell order is the
+ * order local_cov sums in, so the edge is kept as it was for a dense grid. */
+static sy_code grid_build(sy_grid *g, const float *xyz, size_t n, const float lo[3], const float hi[3], double cell,
                           sy_error *err)
 {
-    memset(g, 0, sizeof *g);
     for (;;) {
         size_t cells = 1;
-        for (int a = 0; a < 3; a++) {
-            double d = floor((hi[a] - lo[a]) / cell) + 1;
-            g->dim[a] = (int)d;
-            cells *= (size_t)d;
-        }
+        for (int a = 0; a < 3; a++) cells *= (size_t)(floor((hi[a] - lo[a]) / cell) + 1);
         if (cells <= (size_t)4 << 20) break;
         cell *= 1.5; /* a query radius below the cell only costs time, never answers */
     }
-    memcpy(g->lo, lo, sizeof g->lo);
-    g->cell = cell;
-    size_t cells = (size_t)g->dim[0] * (size_t)g->dim[1] * (size_t)g->dim[2];
-    g->start = sy_calloc(cells + 1, sizeof *g->start, err, "feature grid");
-    g->idx = sy_calloc(n ? n : 1, sizeof *g->idx, err, "feature grid");
-    size_t *cellof = sy_calloc(n ? n : 1, sizeof *cellof, err, "feature grid");
-    if (!g->start || !g->idx || !cellof) {
-        free(cellof);
-        grid_free(g);
-        return err->code;
-    }
-    int c[3];
-    for (size_t i = 0; i < n; i++) g->start[(cellof[i] = grid_cell(g, xyz + 3 * i, c)) + 1]++;
-    for (size_t i = 0; i < cells; i++) g->start[i + 1] += g->start[i];
-    uint32_t *fill = sy_calloc(cells ? cells : 1, sizeof *fill, err, "feature grid");
-    if (!fill) {
-        free(cellof);
-        grid_free(g);
-        return err->code;
-    }
-    for (size_t i = 0; i < n; i++) g->idx[g->start[cellof[i]] + fill[cellof[i]]++] = (uint32_t)i;
-    free(fill);
-    free(cellof);
-    return SY_OK;
+    return sy_grid_build(g, xyz, n, cell, err);
 }
 
 /* Covariance of the points within r of point i; returns the neighbour count. */
-static size_t local_cov(const grid *g, const float *xyz, size_t i, double r, double cov[6])
+static size_t local_cov(const sy_grid *g, const float *xyz, size_t i, double r, double cov[6])
 {
     const float *p = xyz + 3 * i;
-    int c[3];
-    grid_cell(g, p, c);
-    int reach = (int)ceil(r / g->cell);
+    int32_t c[3];
+    sy_grid_cell_of(g, p, c);
+    int reach = (int)ceil(r / g->h);
     double s[3] = {0, 0, 0}, ss[6] = {0, 0, 0, 0, 0, 0}, r2 = r * r;
     size_t m = 0;
-    for (int z = c[2] - reach; z <= c[2] + reach; z++) {
-        if (z < 0 || z >= g->dim[2]) continue;
-        for (int y = c[1] - reach; y <= c[1] + reach; y++) {
-            if (y < 0 || y >= g->dim[1]) continue;
-            for (int x = c[0] - reach; x <= c[0] + reach; x++) {
-                if (x < 0 || x >= g->dim[0]) continue;
-                size_t cell = ((size_t)z * (size_t)g->dim[1] + (size_t)y) * (size_t)g->dim[0] + (size_t)x;
-                for (uint32_t k = g->start[cell]; k < g->start[cell + 1]; k++) {
-                    const float *q = xyz + 3 * g->idx[k];
+    for (int32_t z = c[2] - reach; z <= c[2] + reach; z++) {
+        for (int32_t y = c[1] - reach; y <= c[1] + reach; y++) {
+            for (int32_t x = c[0] - reach; x <= c[0] + reach; x++) {
+                long cell = sy_grid_find(g, x, y, z);
+                if (cell < 0) continue;
+                for (size_t k = g->cell_start[cell]; k < g->cell_start[cell + 1]; k++) {
+                    const float *q = g->pts + 3 * k;
                     double d[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]};
                     if (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > r2) continue;
                     for (int a = 0; a < 3; a++) s[a] += d[a];
@@ -781,7 +732,7 @@ sy_code sy_features_compute(const sy_cloud *tree, const sy_features_options *o, 
         double *qloc = malloc(m * sizeof *qloc * N_QUART);
         size_t qn[N_QUART] = {0};
         for (int s = 0; s < N_SCALES; s++) {
-            grid g;
+            sy_grid g;
             float plo[3] = {INFINITY, INFINITY, INFINITY}, phi[3] = {-INFINITY, -INFINITY, -INFINITY};
             for (size_t i = 0; i < m; i++)
                 for (int a = 0; a < 3; a++) plo[a] = fminf(plo[a], P[3 * i + a]), phi[a] = fmaxf(phi[a], P[3 * i + a]);
@@ -826,7 +777,7 @@ sy_code sy_features_compute(const sy_cloud *tree, const sy_features_options *o, 
                 for (int q = 0; q < N_QUART; q++)
                     f[F_INHOM_LOCAL + 1 + q] = qloc ? (float)cv_of(qloc + (size_t)q * m, qn[q]) : -1;
             }
-            grid_free(&g);
+            sy_grid_free(&g);
         }
         free(qloc);
         normalise(f + F_NORMAL_GLOBAL, N_ELEV);

@@ -293,6 +293,11 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
     so.elliptic = !a->rect_leaves;
     so.forest = a->forest;
     so.neighbours = a->neighbours;
+    sy_error check_err = {0};
+    if (sy_scan_options_check(&sc, &check_err)) {
+        free(path);
+        return sy_cli_report(&check_err);
+    }
     if (!isnan(a->clip) && !(a->clip > 0)) {
         fprintf(stderr, "sylva scan: --clip must be a positive radius in metres\n");
         free(path);

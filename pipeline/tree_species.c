@@ -136,7 +136,10 @@ sy_code sy_feature_table_write(const sy_feature_table *t, const char *path, sy_e
     sy_code rc = sy_atomic_open(&af, path, err);
     if (rc) return rc;
     fprintf(af.fp, "file\tlabel\tspacing\tpoints");
-    for (size_t j = 0; j < t->d; j++) fprintf(af.fp, "\t%s", sy_feature_name(j) ? sy_feature_name(j) : "feature");
+    for (size_t j = 0; j < t->d; j++) {
+        char name[SY_FEATURE_NAME_MAX];
+        fprintf(af.fp, "\t%s", sy_feature_name(j, name) ? name : "feature");
+    }
     fprintf(af.fp, "\n");
     for (size_t i = 0; i < t->n; i++) {
         fprintf(af.fp, "%s\t%s\t%.6g\t%zu", t->file[i], t->label[i][0] ? t->label[i] : "-", t->spacing[i], t->points[i]);

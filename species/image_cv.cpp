@@ -25,7 +25,8 @@ struct QuietOpenCv {
 } quiet_opencv;
 } // namespace
 
-int sy_cv_resize_rgba(const unsigned char *src, int w, int h, unsigned char *dst, int dw, int dh)
+sy_code sy_cv_resize_rgba(const unsigned char *src, int w, int h, unsigned char *dst, int dw, int dh,
+                          sy_error *err)
 {
     try {
         cv::Mat in(h, w, CV_8UC4, const_cast<unsigned char *>(src));
@@ -44,13 +45,14 @@ int sy_cv_resize_rgba(const unsigned char *src, int w, int h, unsigned char *dst
         cv::merge(ch, small);
         cv::Mat out(dh, dw, CV_8UC4, dst);
         small.convertTo(out, CV_8UC4, 255.0);
-        return 0;
-    } catch (const cv::Exception &) {
-        return -1;
+        return SY_OK;
+    } catch (const cv::Exception &e) {
+        return sy_fail(err, SY_EINTERNAL, "%s: OpenCV: %s", "resize", e.what());
     }
 }
 
-int sy_cv_normal_map(const unsigned char *rgba, int w, int h, float strength, int wrap, unsigned char *rgb)
+sy_code sy_cv_normal_map(const unsigned char *rgba, int w, int h, float strength, int wrap, unsigned char *rgb,
+                         sy_error *err)
 {
     try {
         cv::Mat in(h, w, CV_8UC4, const_cast<unsigned char *>(rgba));
@@ -80,13 +82,13 @@ int sy_cv_normal_map(const unsigned char *rgba, int w, int h, float strength, in
                 }
             }
         }
-        return 0;
-    } catch (const cv::Exception &) {
-        return -1;
+        return SY_OK;
+    } catch (const cv::Exception &e) {
+        return sy_fail(err, SY_EINTERNAL, "%s: OpenCV: %s", "normal map", e.what());
     }
 }
 
-int sy_cv_alpha_from_background(unsigned char *rgba, int w, int h, float threshold)
+sy_code sy_cv_alpha_from_background(unsigned char *rgba, int w, int h, float threshold, sy_error *err)
 {
     try {
         cv::Mat img(h, w, CV_8UC4, rgba);
@@ -115,8 +117,8 @@ int sy_cv_alpha_from_background(unsigned char *rgba, int w, int h, float thresho
         cv::medianBlur(mask, mask, 3); // drop speckles from photo noise
         for (int y = 0; y < h; y++)
             for (int x = 0; x < w; x++) img.at<cv::Vec4b>(y, x)[3] = mask.at<unsigned char>(y, x);
-        return 0;
-    } catch (const cv::Exception &) {
-        return -1;
+        return SY_OK;
+    } catch (const cv::Exception &e) {
+        return sy_fail(err, SY_EINTERNAL, "%s: OpenCV: %s", "alpha extraction", e.what());
     }
 }

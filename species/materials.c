@@ -120,9 +120,9 @@ static sy_code resize_to(image *im, int max_size, const char *what, sy_error *er
     if (tw == im->w && th == im->h) return SY_OK;
     unsigned char *dst = malloc((size_t)tw * (size_t)th * 4);
     if (!dst) return sy_fail(err, SY_EINTERNAL, "%s: out of memory", what);
-    if (sy_cv_resize_rgba(im->rgba, im->w, im->h, dst, tw, th)) {
+    if (sy_cv_resize_rgba(im->rgba, im->w, im->h, dst, tw, th, err)) {
         free(dst);
-        return sy_fail(err, SY_EINTERNAL, "%s: resize failed", what);
+        return sy_error_prefix(err, what);
     }
     free(im->rgba);
     im->rgba = dst;
@@ -256,8 +256,8 @@ static int add_maps(sy_asset *asset, const char *prefix, const image *im, int rg
         *color_idx = add_png(asset, name, buf, im->w, im->h, 3, err);
     }
     if (*color_idx < 0) rc = -1;
-    if (rc == 0 && sy_cv_normal_map(im->rgba, im->w, im->h, strength, wrap, buf)) {
-        sy_fail(err, SY_EINTERNAL, "%s: normal map failed", prefix);
+    if (rc == 0 && sy_cv_normal_map(im->rgba, im->w, im->h, strength, wrap, buf, err)) {
+        sy_error_prefix(err, prefix);
         rc = -1;
     }
     if (rc == 0) {
@@ -295,8 +295,8 @@ static sy_code make_leaf(const sy_material_spec *spec, int max_size, float trans
     int had_alpha = 1;
     sy_code rc = spec->leaf_image ? load_rgba(spec->leaf_image, &im, &had_alpha, err)
                                   : procedural_leaf(is_pow2_floor(max_size), &im, err);
-    if (rc == SY_OK && !had_alpha && sy_cv_alpha_from_background(im.rgba, im.w, im.h, ALPHA_THRESHOLD))
-        rc = sy_fail(err, SY_EINTERNAL, "%s: alpha extraction failed", spec->leaf_image);
+    if (rc == SY_OK && !had_alpha && sy_cv_alpha_from_background(im.rgba, im.w, im.h, ALPHA_THRESHOLD, err))
+        rc = sy_error_prefix(err, spec->leaf_image);
     if (rc == SY_OK && spec->leaf_image) rc = resize_to(&im, max_size, spec->leaf_image, err);
     int color = -1, normal = -1;
     if (rc == SY_OK && add_maps(asset, "leaf", &im, 1, LEAF_NORMAL_STRENGTH, 0, &color, &normal, err)) rc = err->code;

@@ -13,10 +13,20 @@
 #include "stages/skeleton/skeleton.h"
 #include "synthetic_tree.h"
 
+/* sy_mesh_bad_edges' count (the call itself must succeed). */
+static size_t bad_edges(const uint32_t *tris, size_t n_tris, size_t n_verts)
+{
+    size_t bad = 0;
+    sy_error err = {0};
+    assert_int_equal(sy_mesh_bad_edges(tris, n_tris, n_verts, &bad, &err), SY_OK);
+    return bad;
+}
+
+
 static void assert_good_hull(const sy_cluster *c, const float *xyz)
 {
     assert_true(c->n_tris >= 4);
-    assert_int_equal(sy_mesh_bad_edges(c->tris, c->n_tris, c->n_verts), 0);
+    assert_int_equal(bad_edges(c->tris, c->n_tris, c->n_verts), 0);
     assert_true(sy_mesh_signed_volume(c->verts, c->tris, c->n_tris) > 0);
     double in = sy_mesh_containment(c->verts, c->tris, c->n_tris, xyz, c->points, c->n_points, 0.01);
     assert_true(in >= 0.95);
@@ -31,7 +41,7 @@ static void mesh_checks_detect_open_and_flipped(void **state)
     (void)state;
     uint32_t t[36];
     memcpy(t, cube_t, sizeof t);
-    assert_int_equal(sy_mesh_bad_edges(t, 12, 8), 0);
+    assert_int_equal(bad_edges(t, 12, 8), 0);
     assert_float_equal(sy_mesh_signed_volume(cube_v, t, 12), 1.0, 1e-9);
     /* Inside, outside, and just outside within tolerance. */
     float pts[9] = {0.5f, 0.5f, 0.5f, 2, 2, 2, 1.005f, 0.5f, 0.5f};
@@ -44,16 +54,16 @@ static void mesh_checks_detect_open_and_flipped(void **state)
     uint32_t s = t[1];
     t[1] = t[2];
     t[2] = s;
-    assert_true(sy_mesh_bad_edges(t, 12, 8) > 0);
+    assert_true(bad_edges(t, 12, 8) > 0);
     memcpy(t, cube_t, sizeof t);
-    assert_true(sy_mesh_bad_edges(t, 11, 8) > 0);
+    assert_true(bad_edges(t, 11, 8) > 0);
     /* Reversed everywhere: closed but inside out. */
     for (int i = 0; i < 12; i++) {
         s = t[3 * i + 1];
         t[3 * i + 1] = t[3 * i + 2];
         t[3 * i + 2] = s;
     }
-    assert_int_equal(sy_mesh_bad_edges(t, 12, 8), 0);
+    assert_int_equal(bad_edges(t, 12, 8), 0);
     assert_true(sy_mesh_signed_volume(cube_v, t, 12) < 0);
 }
 
@@ -145,15 +155,16 @@ static void alpha_shape_of_a_ball(void **state)
     assert_good_hull(&c, xyz);
     /* CGAL's alpha is a squared radius: alpha = 5 * alpha_min exactly. */
     sy_alpha_mesh m;
-    char msg[128];
-    assert_int_equal(sy_alpha_shape_boundary(xyz, n, 5.0, &m, msg, sizeof msg), 0);
+    sy_error shape_err = {0};
+    assert_int_equal(sy_alpha_shape_boundary(xyz, n, 5.0, &m, &shape_err), SY_OK);
     assert_float_equal(m.alpha, 5.0 * m.alpha_min, 1e-12 * m.alpha);
-    assert_int_equal(sy_mesh_bad_edges(m.tris, m.n_tris, m.n_verts), 0);
+    assert_int_equal(bad_edges(m.tris, m.n_tris, m.n_verts), 0);
     assert_true(sy_mesh_signed_volume(m.verts, m.tris, m.n_tris) > 0);
     sy_alpha_mesh_free(&m);
     /* Flat input: CGAL refuses, the builder falls back to a padded box. */
     for (size_t i = 0; i < n; i++) xyz[3 * i + 2] = 5;
-    assert_int_equal(sy_alpha_shape_boundary(xyz, n, 5.0, &m, msg, sizeof msg), -1);
+    assert_int_equal(sy_alpha_shape_boundary(xyz, n, 5.0, &m, &shape_err), SY_EINPUT);
+    assert_non_null(strstr(shape_err.msg, "dimensions"));
     assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, &err), SY_OK);
     assert_int_equal(c.hull, SY_HULL_BOX);
     assert_good_hull(&c, xyz);

@@ -134,11 +134,12 @@ static void copy_model(const char *dir, const char *kind, const char *target, co
         sy_buffer b;
         sy_error err = {0};
         assert_int_equal(sy_read_file(src, &b, &err), SY_OK);
-        size_t size = b.size, at = SIZE_MAX;
+        size_t size = b.size, at = 0;
         if (target && strcmp(target, name) == 0) {
-            for (size_t k = 0; k + old_len <= b.size && at == SIZE_MAX; k++)
-                if (memcmp(b.data + k, old, old_len) == 0) at = k;
-            assert_true(at != SIZE_MAX);
+            int found = 0;
+            for (size_t k = 0; k + old_len <= b.size && !found; k++)
+                if (memcmp(b.data + k, old, old_len) == 0) at = k, found = 1;
+            assert_true(found);
             unsigned char *d = malloc(b.size + new_len);
             memcpy(d, b.data, at);
             memcpy(d + at, new, new_len);

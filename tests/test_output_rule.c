@@ -26,10 +26,11 @@ static const char *fresh_dir(const char *name)
     return dir;
 }
 
-static size_t file_size(const char *path)
+/* The file's size, or -1 when it is missing. */
+static long long file_size(const char *path)
 {
     struct stat st;
-    return stat(path, &st) == 0 ? (size_t)st.st_size : (size_t)-1;
+    return stat(path, &st) == 0 ? (long long)st.st_size : -1;
 }
 
 /* A pid that certainly ran and ended: a child we waited for. */

@@ -119,9 +119,9 @@ static void bench_pmf_full(void)
         sy_cloud c;
         make_plot(&c, n / 2, n / 16);
         uint8_t *g = malloc(c.n);
-        char msg[256];
+        sy_error err = {0};
         double t = sy_now();
-        sy_pcl_ground_pmf(c.xyz, c.n, 0.5, 0.3, 16, 0.15, 7.8, g, msg, sizeof msg);
+        sy_pcl_ground_pmf(c.xyz, c.n, 0.5, 0.3, 16, 0.15, 7.8, g, &err);
         t = sy_now() - t;
         printf("PMF on all %zu raw points: %.2f s\n", c.n, t);
         free(g);

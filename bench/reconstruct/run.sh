@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Reconstruction benchmark: `sylva run` end to end, scored by `sylva eval`,
-# printed as a table with a comparison against the targets of issue 5.
+# printed as a table with a comparison against the reconstruction targets below.
 #  (a) simulated terrestrial scans of every library species, scored against
 #      their exact truth: recall_r2cm >= 0.90, precision >= 0.90, median
 #      radius error <= 20 %, DBH error <= 1 cm;

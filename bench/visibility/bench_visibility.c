@@ -63,15 +63,15 @@ static int grid_build(grid *g, const sy_cloud *c, const double *wood)
     int cc[3];
     for (size_t i = 0; i < c->n; i++) {
         double p[3] = {c->origin[0] + c->xyz[3 * i], c->origin[1] + c->xyz[3 * i + 1], c->origin[2] + c->xyz[3 * i + 2]};
-        key[i] = (wood && wood[i] < 0.5) ? (size_t)-1 : cell_of(g, p, cc);
-        if (key[i] != (size_t)-1) g->start[key[i] + 1]++;
+        key[i] = cell_of(g, p, cc);
+        if (!(wood && wood[i] < 0.5)) g->start[key[i] + 1]++;
     }
     for (size_t k = 0; k < cells; k++) g->start[k + 1] += g->start[k];
     size_t *fill = malloc((cells + 1) * sizeof *fill);
     if (!fill) return -1;
     memcpy(fill, g->start, (cells + 1) * sizeof *fill);
     for (size_t i = 0; i < c->n; i++) {
-        if (key[i] == (size_t)-1) continue;
+        if (wood && wood[i] < 0.5) continue;
         size_t at = fill[key[i]]++;
         for (int k = 0; k < 3; k++) g->pts[3 * at + k] = (float)(c->origin[k] + c->xyz[3 * i + k] - g->lo[k]);
     }

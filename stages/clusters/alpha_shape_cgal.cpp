@@ -98,8 +98,8 @@ int extract(const Alpha_shape &as, sy_alpha_mesh *out)
 
 } // namespace
 
-extern "C" int sy_alpha_shape_boundary(const float *pts, size_t n, double alpha_scale, sy_alpha_mesh *out,
-                                       char *msg, size_t msg_size)
+extern "C" sy_code sy_alpha_shape_boundary(const float *pts, size_t n, double alpha_scale, sy_alpha_mesh *out,
+                                           sy_error *err)
 {
     *out = sy_alpha_mesh{};
     try {
@@ -108,14 +108,12 @@ extern "C" int sy_alpha_shape_boundary(const float *pts, size_t n, double alpha_
         for (size_t i = 0; i < n; i++) p.emplace_back(pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]);
         Alpha_shape as(p.begin(), p.end(), 0, Alpha_shape::REGULARIZED);
         if (as.dimension() < 3) {
-            snprintf(msg, msg_size, "points span %d dimensions", as.dimension());
-            return -1;
+            return sy_fail(err, SY_EINPUT, "alpha shape: points span %d dimensions", as.dimension());
         }
         if (alpha_scale > 0) {
             auto opt = as.find_optimal_alpha(1);
             if (opt == as.alpha_end()) {
-                snprintf(msg, msg_size, "no alpha gives one solid component");
-                return -1;
+                return sy_fail(err, SY_EINPUT, "alpha shape: no alpha gives one solid component");
             }
             out->alpha_min = *opt;
             out->alpha = alpha_scale * *opt;
@@ -124,16 +122,14 @@ extern "C" int sy_alpha_shape_boundary(const float *pts, size_t n, double alpha_
             out->alpha = std::numeric_limits<double>::max();
         }
         as.set_alpha(out->alpha);
-        int rc = extract(as, out);
-        if (rc) {
+        if (extract(as, out)) {
             sy_alpha_mesh_free(out);
-            snprintf(msg, msg_size, "out of memory");
+            return sy_fail(err, SY_EINTERNAL, "alpha shape: out of memory");
         }
-        return rc;
+        return SY_OK;
     } catch (const std::exception &e) {
         sy_alpha_mesh_free(out);
-        snprintf(msg, msg_size, "CGAL: %s", e.what());
-        return -2;
+        return sy_fail(err, SY_EINTERNAL, "alpha shape: CGAL: %s", e.what());
     }
 }
 

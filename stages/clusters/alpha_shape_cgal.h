@@ -12,6 +12,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "stages/core/status.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -27,10 +29,10 @@ typedef struct {
 
 /* Boundary of the regularized alpha shape of pts (3n floats): the REGULAR
  * facets, oriented outward. alpha_scale <= 0 asks for the convex hull (an
- * infinite alpha). Returns 0 on success; -1 with msg set when the points span
- * fewer than three dimensions, -2 on a CGAL failure or out of memory. */
-int sy_alpha_shape_boundary(const float *pts, size_t n, double alpha_scale, sy_alpha_mesh *out, char *msg,
-                            size_t msg_size);
+ * infinite alpha). Returns SY_OK; SY_EINPUT when the points span fewer than
+ * three dimensions (or no alpha holds them in one solid), SY_EINTERNAL on a
+ * CGAL failure or out of memory; err says which. */
+sy_code sy_alpha_shape_boundary(const float *pts, size_t n, double alpha_scale, sy_alpha_mesh *out, sy_error *err);
 
 void sy_alpha_mesh_free(sy_alpha_mesh *m);
 

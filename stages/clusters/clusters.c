@@ -12,6 +12,7 @@
 
 #include "alpha_shape_cgal.h"
 #include "stages/core/geometry.h"
+#include "stages/core/voxel.h"
 
 void sy_clusters_free(sy_clusters *c)
 {
@@ -157,11 +158,12 @@ static int cmp_half(const void *a, const void *b)
     return x->dir - y->dir;
 }
 
-size_t sy_mesh_bad_edges(const uint32_t *tris, size_t n_tris, size_t n_verts)
+sy_code sy_mesh_bad_edges(const uint32_t *tris, size_t n_tris, size_t n_verts, size_t *bad_out, sy_error *err)
 {
-    if (n_tris == 0) return 1;
-    half *h = malloc(3 * n_tris * sizeof *h);
-    if (!h) return (size_t)-1;
+    *bad_out = 1;
+    if (n_tris == 0) return SY_OK;
+    half *h = sy_calloc(3 * n_tris, sizeof *h, err, "mesh check: half-edges");
+    if (!h) return SY_EINTERNAL;
     size_t bad = 0;
     for (size_t t = 0; t < n_tris; t++)
         for (int k = 0; k < 3; k++) {
@@ -179,7 +181,8 @@ size_t sy_mesh_bad_edges(const uint32_t *tris, size_t n_tris, size_t n_verts)
         i = j;
     }
     free(h);
-    return bad;
+    *bad_out = bad;
+    return SY_OK;
 }
 
 double sy_mesh_signed_volume(const float *v, const uint32_t *tris, size_t n_tris)
@@ -320,13 +323,10 @@ static size_t thin_points(const float *xyz, const uint32_t *pts, size_t n, size_
     for (int tries = 0; tries < 30 && m > max; tries++, h *= 1.25) {
         for (size_t i = 0; i < n; i++) {
             const float *p = xyz + 3 * (size_t)pts[i];
-            uint64_t q[3];
+            double pd[3] = {p[0], p[1], p[2]};
             float d2 = 0;
-            for (int k = 0; k < 3; k++) {
-                q[k] = (uint64_t)((p[k] - lo[k]) / h) & 0x1fffff;
-                d2 += (float)((p[k] - c[k]) * (p[k] - c[k]));
-            }
-            v[i].key = (q[0] << 42) | (q[1] << 21) | q[2];
+            for (int k = 0; k < 3; k++) d2 += (float)((p[k] - c[k]) * (p[k] - c[k]));
+            v[i].key = sy_voxel_key_d(pd, lo, h);
             v[i].d2 = d2;
             v[i].idx = pts[i];
         }
@@ -370,9 +370,13 @@ static int compact_mesh(float **verts, size_t *nv, uint32_t *tris, size_t nt)
     return 0;
 }
 
+/* Out of memory counts as not closed: the caller tries the next hull. */
 static int closed_outward(const float *verts, size_t nv, const uint32_t *tris, size_t nt)
 {
-    return nt >= 4 && sy_mesh_bad_edges(tris, nt, nv) == 0 && sy_mesh_signed_volume(verts, tris, nt) > 0;
+    size_t bad;
+    sy_error err;
+    return nt >= 4 && sy_mesh_bad_edges(tris, nt, nv, &bad, &err) == SY_OK && bad == 0 &&
+           sy_mesh_signed_volume(verts, tris, nt) > 0;
 }
 
 static int holds_points(const float *verts, const uint32_t *tris, size_t nt, const float *xyz, const uint32_t *pts,
@@ -533,14 +537,15 @@ sy_code sy_cluster_build_hull(sy_cluster *c, const float *xyz, double alpha_scal
         float *p = sy_calloc(cap, 3 * sizeof(float), err, "hull");
         if (!p) return SY_EINTERNAL;
         size_t m = thin_points(xyz, c->points, c->n_points, HULL_MAX_POINTS, p);
-        char msg[256];
-        /* The alpha shape first, then the convex hull (infinite alpha). */
+        /* The alpha shape first, then the convex hull (infinite alpha). A
+         * failure here is not the stage's: the next hull, then the box, fit. */
         double scales[2] = {alpha_scale, 0};
         for (int s = 0; s < 2; s++) {
             sy_alpha_mesh mesh;
-            int rc = sy_alpha_shape_boundary(p, m, scales[s], &mesh, msg, sizeof msg);
-            if (rc == -1) break; /* flat or collinear: only the box fits */
-            if (rc == 0) {
+            sy_error shape_err;
+            sy_code rc = sy_alpha_shape_boundary(p, m, scales[s], &mesh, &shape_err);
+            if (rc == SY_EINPUT) break; /* flat or collinear: only the box fits */
+            if (rc == SY_OK) {
                 int ok = try_hull(c, xyz, &mesh, target_tris, tol, s == 0 ? SY_HULL_ALPHA : SY_HULL_CONVEX);
                 sy_alpha_mesh_free(&mesh);
                 if (ok) {

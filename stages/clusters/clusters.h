@@ -167,9 +167,10 @@ sy_code sy_clusters_extract(const sy_full_skeleton *f, const float *xyz, const s
 
 /* ---- Mesh checks (used by the hull builder and the tests). ---- */
 
-/* Edges not shared by exactly two triangles traversing them in opposite
- * directions; 0 for a closed, consistently oriented 2-manifold. */
-size_t sy_mesh_bad_edges(const uint32_t *tris, size_t n_tris, size_t n_verts);
+/* *bad: the edges not shared by exactly two triangles traversing them in
+ * opposite directions; 0 for a closed, consistently oriented 2-manifold (no
+ * triangles count as one bad edge). SY_EINTERNAL when out of memory. */
+sy_code sy_mesh_bad_edges(const uint32_t *tris, size_t n_tris, size_t n_verts, size_t *bad, sy_error *err);
 /* Signed volume (> 0 when the triangles face outward). */
 double sy_mesh_signed_volume(const float *verts, const uint32_t *tris, size_t n_tris);
 /* Fraction of the points inside the closed mesh or within tol of it. */

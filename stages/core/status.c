@@ -4,6 +4,7 @@
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 sy_code sy_fail(sy_error *err, sy_code code, const char *fmt, ...)
 {
@@ -23,6 +24,22 @@ void sy_error_clear(sy_error *err)
         err->code = SY_OK;
         err->msg[0] = '\0';
     }
+}
+
+sy_code sy_error_prefix(sy_error *err, const char *prefix)
+{
+    char reason[sizeof err->msg];
+    memcpy(reason, err->msg, sizeof reason);
+    reason[sizeof reason - 1] = '\0';
+    size_t n = strlen(prefix);
+    if (n > sizeof err->msg - 3) n = sizeof err->msg - 3;
+    memcpy(err->msg, prefix, n);
+    memcpy(err->msg + n, ": ", 2);
+    size_t room = sizeof err->msg - n - 3, len = strlen(reason);
+    if (len > room) len = room;
+    memcpy(err->msg + n + 2, reason, len);
+    err->msg[n + 2 + len] = '\0';
+    return err->code;
 }
 
 void *sy_calloc(size_t n, size_t size, sy_error *err, const char *what)

@@ -28,6 +28,9 @@ sy_code sy_fail(sy_error *err, sy_code code, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
 
 void sy_error_clear(sy_error *err);
+/* Puts "prefix: " before err's message (a shim's reason gets its caller's
+ * file or step in front); keeps and returns err's code. */
+sy_code sy_error_prefix(sy_error *err, const char *prefix);
 
 /* Allocation that reports failure through err instead of returning silently;
  * rejects n*size overflow. */

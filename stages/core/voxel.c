@@ -4,15 +4,26 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* Appends the cell of offset d (in cells) to key. */
+static uint64_t push_cell(uint64_t key, double d)
+{
+    double c = floor(d);
+    if (!(c >= 0)) c = 0;
+    if (c > SY_VOXEL_AXIS_CELLS - 1) c = SY_VOXEL_AXIS_CELLS - 1;
+    return key << SY_VOXEL_BITS | (uint64_t)c;
+}
+
 uint64_t sy_voxel_key(const float p[3], const float lo[3], double size)
 {
     uint64_t key = 0;
-    for (int k = 0; k < 3; k++) {
-        double c = floor((p[k] - lo[k]) / size);
-        if (!(c >= 0)) c = 0;
-        if (c > SY_VOXEL_AXIS_CELLS - 1) c = SY_VOXEL_AXIS_CELLS - 1;
-        key = key << SY_VOXEL_BITS | (uint64_t)c;
-    }
+    for (int k = 0; k < 3; k++) key = push_cell(key, (p[k] - lo[k]) / size);
+    return key;
+}
+
+uint64_t sy_voxel_key_d(const double p[3], const double lo[3], double size)
+{
+    uint64_t key = 0;
+    for (int k = 0; k < 3; k++) key = push_cell(key, (p[k] - lo[k]) / size);
     return key;
 }
 

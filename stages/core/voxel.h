@@ -21,8 +21,12 @@ typedef struct {
     size_t index; /* of the point */
 } sy_voxel_entry;
 
-/* Key of p: per axis floor((p - lo) / size), clamped to [0, 2^21 - 1]. */
+/* Key of p: per axis floor((p - lo) / size), clamped to [0, 2^21 - 1]; the
+ * difference p - lo is taken in float. */
 uint64_t sy_voxel_key(const float p[3], const float lo[3], double size);
+/* The same key with the difference taken in double, for a corner held in
+ * double (the clusters' hull thinning). */
+uint64_t sy_voxel_key_d(const double p[3], const double lo[3], double size);
 /* e[i] = {key of point i of xyz, i} for the n points, sorted by key and
  * then index: the points of one voxel end up adjacent, ascending. */
 void sy_voxel_sort(const float *xyz, size_t n, const float lo[3], double size, sy_voxel_entry *e);

@@ -67,11 +67,11 @@ sy_code sy_segmentation_metrics_labels(const double *truth, const double *pred, 
     }
     size_t n_pairs = 0;
     for (size_t i = 0; i < n; i++) {
-        size_t ti = assigned(truth[i]) ? index_of(tl, nt, truth[i]) : SIZE_MAX;
-        size_t pi = assigned(pred[i]) ? index_of(pl, np, pred[i]) : SIZE_MAX;
-        if (ti != SIZE_MAX) tsize[ti]++;
-        if (pi != SIZE_MAX) psize[pi]++;
-        if (ti != SIZE_MAX && pi != SIZE_MAX) pairs[n_pairs++] = (uint64_t)ti * (uint64_t)np + pi;
+        int has_t = assigned(truth[i]), has_p = assigned(pred[i]);
+        size_t ti = has_t ? index_of(tl, nt, truth[i]) : 0, pi = has_p ? index_of(pl, np, pred[i]) : 0;
+        if (has_t) tsize[ti]++;
+        if (has_p) psize[pi]++;
+        if (has_t && has_p) pairs[n_pairs++] = (uint64_t)ti * (uint64_t)np + pi;
     }
     qsort(pairs, n_pairs, sizeof *pairs, cmp_u64);
     double iou_sum = 0;

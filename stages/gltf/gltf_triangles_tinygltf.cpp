@@ -169,11 +169,12 @@ std::vector<size_t> components(const std::vector<size_t> &idx, size_t n_vertices
     };
     for (size_t t = 0; t + 2 < idx.size(); t += 3)
         for (int k = 1; k < 3; k++) up[find(idx[t + size_t(k)])] = find(idx[t]);
-    std::vector<size_t> label(n_vertices, SIZE_MAX), part(idx.size() / 3);
+    std::vector<size_t> label(n_vertices, 0), part(idx.size() / 3);
+    std::vector<bool> labelled(n_vertices, false);
     size_t next = 0;
     for (size_t t = 0; t + 2 < idx.size(); t += 3) {
         size_t r = find(idx[t]);
-        if (label[r] == SIZE_MAX) label[r] = next++;
+        if (!labelled[r]) label[r] = next++, labelled[r] = true;
         part[t / 3] = label[r];
     }
     return part;

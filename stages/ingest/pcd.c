@@ -319,7 +319,8 @@ typedef struct {
     sy_tok *toks;     /* ascii: columns + 1 slots */
     size_t rows;      /* points per block */
     double *cols;     /* nf x rows: field k of block row i at cols[k * rows + i] */
-    size_t *slot;     /* rows: the row's cloud index, or SIZE_MAX for a skipped NaN point */
+    size_t *slot;     /* rows: the row's cloud index (kept rows only) */
+    uint8_t *skip;    /* rows: 1 for a NaN point left out */
 } pcd_body;
 
 /* Points binary fields at their data: point-major records for binary,
@@ -476,7 +477,7 @@ static sy_code store_positions(pcd_body *b, sy_cloud *c, size_t start, size_t m,
                  *z = b->cols + axis[2] * b->rows;
     for (size_t i = 0; i < m; i++) {
         if (isnan(x[i]) || isnan(y[i]) || isnan(z[i])) {
-            b->slot[i] = SIZE_MAX;
+            b->skip[i] = 1;
             ++*nan_skipped;
             continue;
         }
@@ -491,6 +492,7 @@ static sy_code store_positions(pcd_body *b, sy_cloud *c, size_t start, size_t m,
         q[0] = (float)(x[i] - c->origin[0]);
         q[1] = (float)(y[i] - c->origin[1]);
         q[2] = (float)(z[i] - c->origin[2]);
+        b->skip[i] = 0;
         b->slot[i] = (*j)++;
     }
     return SY_OK;
@@ -503,16 +505,17 @@ static void store_fields(const pcd_body *b, sy_cloud *c, size_t m, double *inten
         const pcd_field *f = &b->h->f[k];
         const double *v = b->cols + k * b->rows;
         const size_t *slot = b->slot;
+        const uint8_t *skip = b->skip;
         switch (f->role) {
         case ROLE_NX: case ROLE_NY: case ROLE_NZ: {
             size_t axis = (size_t)(f->role - ROLE_NX);
             for (size_t i = 0; i < m; i++)
-                if (slot[i] != SIZE_MAX) c->normal[3 * slot[i] + axis] = (float)v[i];
+                if (!skip[i]) c->normal[3 * slot[i] + axis] = (float)v[i];
             break;
         }
         case ROLE_RGB:
             for (size_t i = 0; i < m; i++) {
-                if (slot[i] == SIZE_MAX) continue;
+                if (skip[i]) continue;
                 uint32_t bits = (uint32_t)v[i];
                 for (int ch = 0; ch < 3; ch++)
                     c->rgb[3 * slot[i] + ch] = (uint16_t)(((bits >> (16 - 8 * ch)) & 0xff) * 257);
@@ -520,11 +523,11 @@ static void store_fields(const pcd_body *b, sy_cloud *c, size_t m, double *inten
             break;
         case ROLE_INTENSITY:
             for (size_t i = 0; i < m; i++)
-                if (slot[i] != SIZE_MAX) intensity[slot[i]] = v[i];
+                if (!skip[i]) intensity[slot[i]] = v[i];
             break;
         case ROLE_ATTR:
             for (size_t i = 0; i < m; i++)
-                if (slot[i] != SIZE_MAX) f->attr[slot[i]] = v[i];
+                if (!skip[i]) f->attr[slot[i]] = v[i];
             break;
         default: break;
         }
@@ -641,8 +644,9 @@ sy_code sy_read_pcd_mem(const char *path, const unsigned char *data, size_t size
         if (b.rows == 0) b.rows = 1;
         b.cols = sy_calloc(h.nf, b.rows * sizeof *b.cols, err, "PCD values");
         b.slot = sy_calloc(b.rows, sizeof *b.slot, err, "PCD values");
+        b.skip = sy_calloc(b.rows, sizeof *b.skip, err, "PCD values");
         if (h.kind == PCD_ASCII) b.toks = sy_calloc(h.columns + 1, sizeof *b.toks, err, "PCD tokens");
-        if (!b.cols || !b.slot || (h.kind == PCD_ASCII && !b.toks)) rc = SY_EINTERNAL;
+        if (!b.cols || !b.slot || !b.skip || (h.kind == PCD_ASCII && !b.toks)) rc = SY_EINTERNAL;
     }
     if (!rc) rc = read_points(&b, out, intensity, &nan_skipped, err);
     if (!rc && intensity) store_intensity(out, intensity);
@@ -656,6 +660,7 @@ sy_code sy_read_pcd_mem(const char *path, const unsigned char *data, size_t size
     }
     free(b.cols);
     free(b.slot);
+    free(b.skip);
     free(b.toks);
     free(intensity);
     free(owned);

@@ -39,16 +39,16 @@ static int cmp_ranked(const void *a, const void *b)
     return (x->index > y->index) - (x->index < y->index);
 }
 
-int sy_lod_fit_budget(const sy_stems *st, sy_lod_params *lp, size_t *count_io, size_t budget)
+/* The stems by importance, most important first: a volume proxy r^2 L,
+ * never above the parent's, so dropping in reverse rank order removes
+ * children before parents. NULL when out of memory. */
+static ranked *rank_stems(const sy_stems *st)
 {
-    size_t count = *count_io;
-    /* Importance: a volume proxy r^2 L, never above the parent's, so
-     * dropping in reverse rank order removes children before parents. */
     ranked *rk = malloc((st->n ? st->n : 1) * sizeof *rk);
     float *imp = malloc((st->n ? st->n : 1) * sizeof *imp);
     if (!rk || !imp) {
         free(rk), free(imp);
-        return 0;
+        return NULL;
     }
     for (size_t o = 0; o < st->n; o++) {
         int32_t i = st->by_depth[o];
@@ -57,7 +57,16 @@ int sy_lod_fit_budget(const sy_stems *st, sy_lod_params *lp, size_t *count_io, s
         imp[i] = s->parent >= 0 && imp[s->parent] < v ? imp[s->parent] : v;
         rk[o] = (ranked){imp[i], s->depth, i};
     }
+    free(imp);
     qsort(rk, st->n, sizeof *rk, cmp_ranked);
+    return rk;
+}
+
+int sy_lod_fit_budget(const sy_stems *st, sy_lod_params *lp, size_t *count_io, size_t budget)
+{
+    size_t count = *count_io;
+    ranked *rk = rank_stems(st);
+    if (!rk) return 0;
     for (size_t o = st->n; o-- > 0 && count > budget;) {
         int32_t i = rk[o].index;
         if (!lp->keep[i] || st->s[i].parent < 0) continue;
@@ -66,27 +75,16 @@ int sy_lod_fit_budget(const sy_stems *st, sy_lod_params *lp, size_t *count_io, s
         lp->keep[i] = 0;
         count -= ni / 3;
     }
-    free(rk), free(imp);
+    free(rk);
     *count_io = count;
     return 1;
 }
 
-size_t sy_lod_restore(const sy_stems *st, const uint8_t *prev_keep, sy_lod_params *lp, size_t count, size_t target)
+int sy_lod_restore(const sy_stems *st, const uint8_t *prev_keep, sy_lod_params *lp, size_t *count_io, size_t target)
 {
-    ranked *rk = malloc((st->n ? st->n : 1) * sizeof *rk);
-    float *imp = malloc((st->n ? st->n : 1) * sizeof *imp);
-    if (!rk || !imp) {
-        free(rk), free(imp);
-        return (size_t)-1;
-    }
-    for (size_t o = 0; o < st->n; o++) {
-        int32_t i = st->by_depth[o];
-        const sy_stem *s = &st->s[i];
-        float v = s->r_base * s->r_base * s->length;
-        imp[i] = s->parent >= 0 && imp[s->parent] < v ? imp[s->parent] : v;
-        rk[o] = (ranked){imp[i], s->depth, i};
-    }
-    qsort(rk, st->n, sizeof *rk, cmp_ranked);
+    size_t count = *count_io;
+    ranked *rk = rank_stems(st);
+    if (!rk) return 0;
     /* Ranked parents-first, so a stem's parent has had its turn before it. */
     for (size_t o = 0; o < st->n && count < target; o++) {
         int32_t i = rk[o].index;
@@ -101,8 +99,9 @@ size_t sy_lod_restore(const sy_stems *st, const uint8_t *prev_keep, sy_lod_param
         }
         count += ni / 3;
     }
-    free(rk), free(imp);
-    return count;
+    free(rk);
+    *count_io = count;
+    return 1;
 }
 
 #define WELD_MARGIN 0.47
@@ -128,9 +127,7 @@ int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris
      * stems come back (parents before children) up to FLOOR_SHARE of it. */
     size_t floor = (size_t)(FLOOR_SHARE * (double)prev_tris);
     if (count < prev_tris / 4 && count <= budget) {
-        size_t back = sy_lod_restore(st, prev_keep, lp, count, floor < budget ? floor : budget);
-        if (back == (size_t)-1) return 0;
-        count = back;
+        if (!sy_lod_restore(st, prev_keep, lp, &count, floor < budget ? floor : budget)) return 0;
     }
     *tris = count;
     return count <= budget;

@@ -124,14 +124,15 @@ void sy_tube_emit(const sy_stems *st, size_t stem, const sy_lod_params *lp, sy_m
  * of lp's level has at most budget triangles; *count holds the level's
  * triangles on entry and after. Returns 1, or 0 when out of memory. */
 int sy_lod_fit_budget(const sy_stems *st, sy_lod_params *lp, size_t *count, size_t budget);
+/* Brings back stems of prev_keep that lp drops, most important first and
+ * parents before children, while the bark stays within target triangles;
+ * *count holds the level's triangles on entry and after. Returns 1, or 0
+ * when out of memory. */
+int sy_lod_restore(const sy_stems *st, const uint8_t *prev_keep, sy_lod_params *lp, size_t *count, size_t target);
 /* Chooses the stems level lp->level keeps (lp->keep), a subset of prev_keep:
  * thin and short stems go first (thresholds double per level), children with
  * their parents, then the least important until the bark has at most half of
  * prev_tris triangles. Returns 0 when even the trunk alone is too many. */
-/* Brings back stems of prev_keep that lp drops, most important first and
- * parents before children, while the bark stays within target triangles;
- * returns the new count, or (size_t)-1 when out of memory. */
-size_t sy_lod_restore(const sy_stems *st, const uint8_t *prev_keep, sy_lod_params *lp, size_t count, size_t target);
 int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris, sy_lod_params *lp,
                   size_t *tris);
 /* Bark triangles of the kept stems at a level. */

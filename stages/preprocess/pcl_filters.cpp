@@ -63,23 +63,21 @@ Cloud::Ptr to_pcl(const float *xyz, size_t n)
     return c;
 }
 
-int fail(char *msg, size_t size, const char *what, const char *why)
+sy_code fail(sy_error *err, const char *what, const char *why)
 {
-    if (msg && size) std::snprintf(msg, size, "%s: %s", what, why);
-    return -1;
+    return sy_fail(err, SY_EINTERNAL, "%s: %s", what, why);
 }
 
 } // namespace
 
-extern "C" int sy_pcl_outliers(const float *xyz, size_t n, int k, double std_mul, uint8_t *keep, char *msg,
-                               size_t msg_size)
+extern "C" sy_code sy_pcl_outliers(const float *xyz, size_t n, int k, double std_mul, uint8_t *keep, sy_error *err)
 {
     try {
         std::fill(keep, keep + n, uint8_t{0});
-        if (n == 0) return 0;
+        if (n == 0) return SY_OK;
         if (n <= static_cast<size_t>(k)) { // too few points to judge any of them
             std::fill(keep, keep + n, uint8_t{1});
-            return 0;
+            return SY_OK;
         }
         Cloud::Ptr c = to_pcl(xyz, n);
         pcl::StatisticalOutlierRemoval<pcl::PointXYZ> sor;
@@ -89,20 +87,20 @@ extern "C" int sy_pcl_outliers(const float *xyz, size_t n, int k, double std_mul
         pcl::Indices kept;
         sor.filter(kept);
         for (auto i : kept) keep[i] = 1;
-        return 0;
+        return SY_OK;
     } catch (const std::exception &e) {
-        return fail(msg, msg_size, "outlier removal", e.what());
+        return fail(err, "outlier removal", e.what());
     } catch (...) {
-        return fail(msg, msg_size, "outlier removal", "PCL failed");
+        return fail(err, "outlier removal", "PCL failed");
     }
 }
 
-extern "C" int sy_pcl_normals(const float *xyz, size_t n, int k, int threads, float *normals,
-                              sy_pcl_progress_fn progress, void *ctx, char *msg, size_t msg_size)
+extern "C" sy_code sy_pcl_normals(const float *xyz, size_t n, int k, int threads, float *normals,
+                                  sy_pcl_progress_fn progress, void *ctx, sy_error *err)
 {
     try {
         std::fill(normals, normals + 3 * n, 0.0f);
-        if (n < 3) return 0;
+        if (n < 3) return SY_OK;
         Cloud::Ptr c = to_pcl(xyz, n);
         pcl::search::KdTree<pcl::PointXYZ>::Ptr tree(new pcl::search::KdTree<pcl::PointXYZ>);
         tree->setInputCloud(c);
@@ -130,22 +128,22 @@ extern "C" int sy_pcl_normals(const float *xyz, size_t n, int k, int threads, fl
             }
             if (progress) progress(ctx, end);
         }
-        return 0;
+        return SY_OK;
     } catch (const std::exception &e) {
-        return fail(msg, msg_size, "normal estimation", e.what());
+        return fail(err, "normal estimation", e.what());
     } catch (...) {
-        return fail(msg, msg_size, "normal estimation", "PCL failed");
+        return fail(err, "normal estimation", "PCL failed");
     }
 }
 
-extern "C" int sy_pcl_local_pca(const float *xyz, size_t n, int k, float *direction, float *normal, float *eigen,
-                                char *msg, size_t msg_size)
+extern "C" sy_code sy_pcl_local_pca(const float *xyz, size_t n, int k, float *direction, float *normal,
+                                    float *eigen, sy_error *err)
 {
     try {
         std::fill(direction, direction + 3 * n, 0.0f);
         std::fill(normal, normal + 3 * n, 0.0f);
         std::fill(eigen, eigen + 3 * n, 0.0f);
-        if (n < 3) return 0;
+        if (n < 3) return SY_OK;
         Cloud::Ptr c = to_pcl(xyz, n);
         pcl::KdTreeFLANN<pcl::PointXYZ> tree;
         tree.setInputCloud(c);
@@ -167,21 +165,21 @@ extern "C" int sy_pcl_local_pca(const float *xyz, size_t n, int k, float *direct
                 eigen[3 * i + a] = std::max(0.0f, w(2 - a));
             }
         }
-        return 0;
+        return SY_OK;
     } catch (const std::exception &e) {
-        return fail(msg, msg_size, "local PCA", e.what());
+        return fail(err, "local PCA", e.what());
     } catch (...) {
-        return fail(msg, msg_size, "local PCA", "PCL failed");
+        return fail(err, "local PCA", "PCL failed");
     }
 }
 
-extern "C" int sy_pcl_ground_pmf(const float *xyz, size_t n, double cell, double slope, double max_window,
-                                 double initial_distance, double max_distance, uint8_t *ground, char *msg,
-                                 size_t msg_size)
+extern "C" sy_code sy_pcl_ground_pmf(const float *xyz, size_t n, double cell, double slope, double max_window,
+                                     double initial_distance, double max_distance, uint8_t *ground,
+                                     sy_error *err)
 {
     try {
         std::fill(ground, ground + n, uint8_t{0});
-        if (n == 0) return 0;
+        if (n == 0) return SY_OK;
         Cloud::Ptr c = to_pcl(xyz, n);
         pcl::ProgressiveMorphologicalFilter<pcl::PointXYZ> pmf;
         pmf.setInputCloud(c);
@@ -195,10 +193,10 @@ extern "C" int sy_pcl_ground_pmf(const float *xyz, size_t n, double cell, double
         pcl::Indices g;
         pmf.extract(g);
         for (auto i : g) ground[i] = 1;
-        return 0;
+        return SY_OK;
     } catch (const std::exception &e) {
-        return fail(msg, msg_size, "ground filter", e.what());
+        return fail(err, "ground filter", e.what());
     } catch (...) {
-        return fail(msg, msg_size, "ground filter", "PCL failed");
+        return fail(err, "ground filter", "PCL failed");
     }
 }

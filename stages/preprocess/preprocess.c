@@ -191,11 +191,10 @@ sy_code sy_detect_up(const sy_cloud *c, int *up, sy_up_evidence *ev, sy_error *e
     }
     float *p = buf, *dir = buf + 3 * n, *nrm = buf + 6 * n, *eig = buf + 9 * n;
     for (size_t i = 0; i < n; i++) memcpy(p + 3 * i, c->xyz + 3 * i * stride, 3 * sizeof(float));
-    char msg[256];
-    if (sy_pcl_local_pca(p, n, UP_K, dir, nrm, eig, msg, sizeof msg)) {
+    if (sy_pcl_local_pca(p, n, UP_K, dir, nrm, eig, err)) {
         free(buf);
         free(h);
-        return sy_fail(err, SY_EINTERNAL, "%s", msg);
+        return SY_EINTERNAL;
     }
     ev->sample = n;
     for (int a = 0; a < 3; a++)
@@ -372,10 +371,8 @@ sy_code sy_remove_outliers(sy_cloud *c, int k, double std_mul, sy_error *err)
 {
     uint8_t *keep = sy_calloc(c->n ? c->n : 1, 1, err, "outlier mask");
     if (!keep) return SY_EINTERNAL;
-    char msg[256];
-    sy_code rc = SY_OK;
-    if (sy_pcl_outliers(c->xyz, c->n, k, std_mul, keep, msg, sizeof msg)) rc = sy_fail(err, SY_EINTERNAL, "%s", msg);
-    else rc = sy_cloud_filter(c, keep, err);
+    sy_code rc = sy_pcl_outliers(c->xyz, c->n, k, std_mul, keep, err);
+    if (rc == SY_OK) rc = sy_cloud_filter(c, keep, err);
     free(keep);
     return rc;
 }
@@ -697,12 +694,10 @@ static sy_code pmf_surface(const sy_cloud *c, const sy_preprocess_options *o, co
     h->z = sy_calloc(m, sizeof *h->z, err, "ground candidates");
     sy_code rc = SY_OK;
     if (!copy || !is_ground || !h->key || !h->z) rc = SY_EINTERNAL;
-    char msg[256];
     if (rc == SY_OK) {
         for (size_t j = 0; j < m; j++) memcpy(copy + 3 * j, c->xyz + 3 * (size_t)g->lowest[j], 3 * sizeof(float));
-        if (sy_pcl_ground_pmf(copy, m, o->ground_cell, o->ground_slope, o->ground_max_window, o->ground_threshold,
-                              3.0 + o->ground_slope * o->ground_max_window, is_ground, msg, sizeof msg))
-            rc = sy_fail(err, SY_EINTERNAL, "%s", msg);
+        rc = sy_pcl_ground_pmf(copy, m, o->ground_cell, o->ground_slope, o->ground_max_window, o->ground_threshold,
+                               3.0 + o->ground_slope * o->ground_max_window, is_ground, err);
     }
     for (size_t j = 0; rc == SY_OK && j < m; j++)
         if (is_ground[j]) h->key[h->n] = g->occupied[j], h->z[h->n++] = copy[3 * j + 2];
@@ -802,9 +797,7 @@ sy_code sy_estimate_normals(sy_cloud *c, int k, sy_error *err)
     if (c->n == 0) return SY_OK;
     sy_progress p;
     sy_progress_begin(&p, "normals", c->n);
-    char msg[256];
-    if (sy_pcl_normals(c->xyz, c->n, k, sy_threads(), c->normal, normals_progress, &p, msg, sizeof msg))
-        return sy_fail(err, SY_EINTERNAL, "%s", msg);
+    if (sy_pcl_normals(c->xyz, c->n, k, sy_threads(), c->normal, normals_progress, &p, err)) return SY_EINTERNAL;
     sy_progress_end(&p);
     float centre[2];
     if (median_xy(c, centre, err)) return SY_EINTERNAL;

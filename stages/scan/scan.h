@@ -213,6 +213,9 @@ typedef struct {
 sy_scan_options sy_scan_options_for(sy_scanner_kind kind);
 /* The terrestrial defaults. */
 sy_scan_options sy_scan_options_default(void);
+/* SY_EUSAGE naming the field when an option is outside its range (the kind's
+ * fields only); sy_scan calls it too. */
+sy_code sy_scan_options_check(const sy_scan_options *sc, sy_error *err);
 const char *sy_scanner_kind_name(sy_scanner_kind kind);
 
 typedef struct {

@@ -45,6 +45,36 @@ sy_scan_options sy_scan_options_for(sy_scanner_kind kind)
 
 sy_scan_options sy_scan_options_default(void) { return sy_scan_options_for(SY_SCANNER_TERRESTRIAL); }
 
+sy_code sy_scan_options_check(const sy_scan_options *sc, sy_error *err)
+{
+    if (sc->max_returns < 1 || sc->max_returns > 15)
+        return sy_fail(err, SY_EUSAGE, "scan: max_returns %d outside [1, 15]", sc->max_returns);
+    if (sc->divergence_mrad > 0 && (sc->subrays < 1 || sc->subrays > MAX_SUBRAYS))
+        return sy_fail(err, SY_EUSAGE, "scan: subrays %d outside [1, %d]", sc->subrays, MAX_SUBRAYS);
+    switch (sc->kind) {
+    case SY_SCANNER_TERRESTRIAL:
+        if (sc->positions < 1 || sc->positions > 1000)
+            return sy_fail(err, SY_EUSAGE, "scan: positions %d outside [1, 1000]", sc->positions);
+        if (!(sc->step_deg > 0)) return sy_fail(err, SY_EUSAGE, "scan: step_deg %g must be positive", sc->step_deg);
+        break;
+    case SY_SCANNER_MOBILE:
+        if (!(sc->step_deg > 0) || !(sc->rotation_hz > 0) || !(sc->speed > 0))
+            return sy_fail(err, SY_EUSAGE, "scan: mobile step_deg %g, rotation_hz %g and speed %g must be positive",
+                           sc->step_deg, sc->rotation_hz, sc->speed);
+        break;
+    case SY_SCANNER_AIRBORNE:
+        if (!(sc->density > 0) || !(sc->altitude > 0) || !(sc->speed > 0))
+            return sy_fail(err, SY_EUSAGE, "scan: airborne density %g, altitude %g and speed %g must be positive",
+                           sc->density, sc->altitude, sc->speed);
+        if (!(sc->swath_deg > 0 && sc->swath_deg < 170))
+            return sy_fail(err, SY_EUSAGE, "scan: swath_deg %g outside (0, 170)", sc->swath_deg);
+        if (!(sc->overlap >= 0 && sc->overlap <= 0.9))
+            return sy_fail(err, SY_EUSAGE, "scan: overlap %g outside [0, 0.9]", sc->overlap);
+        break;
+    }
+    return SY_OK;
+}
+
 const char *sy_scanner_kind_name(sy_scanner_kind kind)
 {
     return kind == SY_SCANNER_MOBILE ? "mobile" : kind == SY_SCANNER_AIRBORNE ? "airborne" : "terrestrial";
@@ -179,9 +209,6 @@ static void station_window(const sy_scene *s, const double p[3], double *az0, do
 static sy_code plan_terrestrial(scan_job *j, int *stations, sy_error *err)
 {
     const sy_scan_options *sc = j->sc;
-    if (sc->positions < 1 || sc->positions > 1000)
-        return sy_fail(err, SY_EUSAGE, "scan: --positions %d is out of range 1..1000", sc->positions);
-    if (!(sc->step_deg > 0)) return sy_fail(err, SY_EUSAGE, "scan: --step must be positive");
     double hstep = sc->step_deg * DEG, vstep = (sc->vstep_deg > 0 ? sc->vstep_deg : sc->step_deg) * DEG;
     j->n_st = *stations = sc->positions;
     j->st = sy_calloc((size_t)j->n_st, 7 * sizeof(double), err, "stations");
@@ -245,8 +272,6 @@ static sy_code path_push(scan_job *j, size_t *cap, double x, double y, sy_error 
 static sy_code plan_mobile(scan_job *j, int *passes, sy_error *err)
 {
     const sy_scan_options *sc = j->sc;
-    if (!(sc->step_deg > 0) || !(sc->rotation_hz > 0) || !(sc->speed > 0))
-        return sy_fail(err, SY_EUSAGE, "scan: mobile --step, --rotation and --speed must be positive");
     size_t cap = 0;
     const sy_scene *s = j->scene;
     *passes = 1;
@@ -314,9 +339,6 @@ static sy_code plan_airborne(scan_job *j, int *strips, sy_error *err)
 {
     const sy_scan_options *sc = j->sc;
     const sy_scene *s = j->scene;
-    if (!(sc->density > 0) || !(sc->altitude > 0) || !(sc->swath_deg > 0 && sc->swath_deg < 170) ||
-        !(sc->overlap >= 0 && sc->overlap <= 0.9) || !(sc->speed > 0))
-        return sy_fail(err, SY_EUSAGE, "scan: airborne --density, --altitude, --swath (0..170), --overlap (0..0.9) out of range");
     double ly = s->area_hi[1] - s->area_lo[1], lx = s->area_hi[0] - s->area_lo[0];
     if (!(lx > 0 && ly > 0)) return sy_fail(err, SY_EUSAGE, "scan: the scene has no survey area");
     double cx = 0.5 * (s->area_lo[0] + s->area_hi[0]), cy = 0.5 * (s->area_lo[1] + s->area_hi[1]);
@@ -395,7 +417,7 @@ static void trace_pulse(const scan_job *j, size_t i, chunk_out *out)
     else if (sc->kind == SY_SCANNER_MOBILE) pulse_mobile(j, i, o, d, &time);
     else pulse_airborne(j, i, o, d, &time);
 
-    int k_rays = sc->divergence_mrad > 0 && sc->subrays > 1 ? (sc->subrays < MAX_SUBRAYS ? sc->subrays : MAX_SUBRAYS) : 1;
+    int k_rays = sc->divergence_mrad > 0 && sc->subrays > 1 ? sc->subrays : 1;
     double dirs[MAX_SUBRAYS][3];
     memcpy(dirs[0], d, sizeof dirs[0]);
     if (k_rays > 1) {
@@ -443,7 +465,7 @@ static void trace_pulse(const scan_job *j, size_t i, chunk_out *out)
     for (int h = 0; h < n_hits; h++)
         if (h == 0 || hits[h].t - hits[h - 1].t > sc->separation) start[n_cl++] = h;
     start[n_cl] = n_hits;
-    int max_ret = sc->max_returns < 1 ? 1 : sc->max_returns > 15 ? 15 : sc->max_returns;
+    int max_ret = sc->max_returns;
     int kept = n_cl < max_ret ? n_cl : max_ret;
     for (int r = 0; r < kept; r++) {
         /* Past the limit the first max-1 echoes and the last one survive. */
@@ -551,6 +573,8 @@ static void free_job(scan_job *j, size_t n_chunks)
 sy_code sy_scan(const sy_scene *s, const sy_scan_options *sc, sy_cloud *out, sy_scan_stats *stats, sy_error *err)
 {
     memset(out, 0, sizeof *out);
+    sy_code checked = sy_scan_options_check(sc, err);
+    if (checked) return checked;
     sy_scan_stats st = {0};
     double t0 = sy_now();
     scan_job j;

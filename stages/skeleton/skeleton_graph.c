@@ -11,163 +11,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "stages/core/grid.h"
 #include "stages/core/kdtree.h"
 #include "stages/core/parallel.h"
-
-/* ---- Uniform hashed grid ---- */
-
-typedef struct {
-    double h, lo[3];
-    size_t n_cells;
-    uint32_t *order;     /* point indices sorted by cell */
-    float *pts;          /* their coordinates in that order (3 each), for locality */
-    size_t *cell_start;  /* n_cells + 1 into order */
-    uint64_t *cell_key;  /* n_cells */
-    int32_t *cell_coord; /* 3 * n_cells */
-    uint32_t *table;     /* open addressing: cell index + 1, 0 = empty */
-    size_t mask;
-} grid;
-
-#define KEY_BITS 21
-#define KEY_MAX ((1 << KEY_BITS) - 1)
-
-static uint64_t pack(int32_t x, int32_t y, int32_t z)
-{
-    return ((uint64_t)x << (2 * KEY_BITS)) | ((uint64_t)y << KEY_BITS) | (uint64_t)z;
-}
-
-static uint64_t mix(uint64_t k)
-{
-    k ^= k >> 33;
-    k *= 0xff51afd7ed558ccdULL;
-    k ^= k >> 33;
-    return k;
-}
-
-static void cell_of(const grid *g, const float *p, int32_t c[3])
-{
-    for (int a = 0; a < 3; a++) {
-        double v = floor((p[a] - g->lo[a]) / g->h);
-        c[a] = v < 0 ? 0 : v > KEY_MAX ? KEY_MAX : (int32_t)v;
-    }
-}
-
-static long grid_find(const grid *g, int32_t x, int32_t y, int32_t z)
-{
-    if (x < 0 || y < 0 || z < 0 || x > KEY_MAX || y > KEY_MAX || z > KEY_MAX) return -1;
-    uint64_t key = pack(x, y, z);
-    for (size_t s = mix(key) & g->mask;; s = (s + 1) & g->mask) {
-        uint32_t v = g->table[s];
-        if (!v) return -1;
-        if (g->cell_key[v - 1] == key) return (long)v - 1;
-    }
-}
-
-typedef struct {
-    uint64_t key;
-    uint32_t idx;
-} keyed;
-
-/* Stable LSD radix sort by key, 8 bits a pass, skipping bytes that never
- * vary; items enter in index order, so equal keys stay in index order. */
-static int radix_sort(keyed *a, size_t n)
-{
-    keyed *tmp = malloc(n * sizeof *tmp);
-    if (!tmp) return -1;
-    keyed *src = a, *dst = tmp;
-    for (int shift = 0; shift < 64; shift += 8) {
-        size_t count[257] = {0};
-        for (size_t i = 0; i < n; i++) count[((src[i].key >> shift) & 0xff) + 1]++;
-        int single = 0;
-        for (int b = 1; b <= 256; b++) single |= count[b] == n;
-        if (single) continue;
-        for (int b = 0; b < 256; b++) count[b + 1] += count[b];
-        for (size_t i = 0; i < n; i++) dst[count[(src[i].key >> shift) & 0xff]++] = src[i];
-        keyed *t = src;
-        src = dst;
-        dst = t;
-    }
-    if (src != a) memcpy(a, src, n * sizeof *a);
-    free(tmp);
-    return 0;
-}
-
-static void grid_free(grid *g)
-{
-    free(g->order);
-    free(g->pts);
-    free(g->cell_start);
-    free(g->cell_key);
-    free(g->cell_coord);
-    free(g->table);
-    memset(g, 0, sizeof *g);
-}
-
-static sy_code grid_build(grid *g, const float *xyz, size_t n, double h, sy_error *err)
-{
-    memset(g, 0, sizeof *g);
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (size_t i = 0; i < n; i++)
-        for (int a = 0; a < 3; a++) {
-            lo[a] = fmin(lo[a], xyz[3 * i + a]);
-            hi[a] = fmax(hi[a], xyz[3 * i + a]);
-        }
-    /* Keep every cell coordinate within the packed key's 21 bits. */
-    for (int a = 0; a < 3; a++)
-        if ((hi[a] - lo[a]) / h > KEY_MAX - 2) h = (hi[a] - lo[a]) / (KEY_MAX - 2);
-    if (!(h > 0)) h = 1;
-    g->h = h;
-    memcpy(g->lo, lo, sizeof lo);
-    keyed *k = sy_calloc(n, sizeof *k, err, "grid");
-    if (!k) return SY_EINTERNAL;
-    for (size_t i = 0; i < n; i++) {
-        int32_t c[3];
-        cell_of(g, xyz + 3 * i, c);
-        k[i].key = pack(c[0], c[1], c[2]);
-        k[i].idx = (uint32_t)i;
-    }
-    if (radix_sort(k, n)) {
-        free(k);
-        return sy_fail(err, SY_EINTERNAL, "grid: out of memory");
-    }
-    size_t cells = 0;
-    for (size_t i = 0; i < n; i++)
-        if (i == 0 || k[i].key != k[i - 1].key) cells++;
-    size_t tsize = 16;
-    while (tsize < 2 * cells) tsize *= 2;
-    g->order = sy_calloc(n, sizeof *g->order, err, "grid");
-    g->pts = sy_calloc(n, 3 * sizeof *g->pts, err, "grid");
-    g->cell_start = sy_calloc(cells + 1, sizeof *g->cell_start, err, "grid");
-    g->cell_key = sy_calloc(cells, sizeof *g->cell_key, err, "grid");
-    g->cell_coord = sy_calloc(cells, 3 * sizeof *g->cell_coord, err, "grid");
-    g->table = sy_calloc(tsize, sizeof *g->table, err, "grid");
-    if (!g->order || !g->pts || !g->cell_start || !g->cell_key || !g->cell_coord || !g->table) {
-        free(k);
-        grid_free(g);
-        return SY_EINTERNAL;
-    }
-    g->mask = tsize - 1;
-    size_t c = 0;
-    for (size_t i = 0; i < n; i++) {
-        g->order[i] = k[i].idx;
-        memcpy(g->pts + 3 * i, xyz + 3 * (size_t)k[i].idx, 3 * sizeof(float));
-        if (i == 0 || k[i].key != k[i - 1].key) {
-            g->cell_start[c] = i;
-            g->cell_key[c] = k[i].key;
-            g->cell_coord[3 * c] = (int32_t)(k[i].key >> (2 * KEY_BITS));
-            g->cell_coord[3 * c + 1] = (int32_t)((k[i].key >> KEY_BITS) & KEY_MAX);
-            g->cell_coord[3 * c + 2] = (int32_t)(k[i].key & KEY_MAX);
-            size_t s = mix(k[i].key) & g->mask;
-            while (g->table[s]) s = (s + 1) & g->mask;
-            g->table[s] = (uint32_t)(c + 1);
-            c++;
-        }
-    }
-    g->cell_start[cells] = n;
-    g->n_cells = cells;
-    free(k);
-    return SY_OK;
-}
 
 static double dist2(const float *a, const float *b)
 {
@@ -181,7 +27,7 @@ static double dist2(const float *a, const float *b)
         for (int32_t dy_ = -(r); dy_ <= (r); dy_++)                                                    \
             for (int32_t dx_ = -(r); dx_ <= (r); dx_++) {                                              \
                 if (abs(dx_) != (r) && abs(dy_) != (r) && abs(dz_) != (r)) continue;                   \
-                long cell = grid_find(g, (c)[0] + dx_, (c)[1] + dy_, (c)[2] + dz_);                    \
+                long cell = sy_grid_find(g, (c)[0] + dx_, (c)[1] + dy_, (c)[2] + dz_);                 \
                 if (cell < 0) continue;                                                                \
                 BODY                                                                                   \
             }
@@ -209,11 +55,11 @@ static void cand_insert(cand *list, int *len, int cap, float d2, uint32_t j)
 /* Up to cap nearest other points of q, searching rings until the need-th
  * nearest is certain and every point within one cell edge has been seen, or
  * max_ring is reached. */
-static int knn_query(const grid *g, const float *xyz, uint32_t q, int need, int cap, int max_ring, cand *list)
+static int knn_query(const sy_grid *g, const float *xyz, uint32_t q, int need, int cap, int max_ring, cand *list)
 {
     int len = 0;
     int32_t c[3];
-    cell_of(g, xyz + 3 * (size_t)q, c);
+    sy_grid_cell_of(g, xyz + 3 * (size_t)q, c);
     for (int r = 0; r <= max_ring; r++) {
         FOR_RING(g, c, r, cell, {
             for (size_t t = g->cell_start[cell]; t < g->cell_start[cell + 1]; t++) {
@@ -238,9 +84,9 @@ double sy_estimate_spacing(const float *xyz, size_t n)
         }
     double vol = 1;
     for (int a = 0; a < 3; a++) vol *= fmax(hi[a] - lo[a], 1e-3);
-    grid g;
+    sy_grid g;
     sy_error err;
-    if (grid_build(&g, xyz, n, cbrt(vol / (double)n), &err)) return 0;
+    if (sy_grid_build(&g, xyz, n, cbrt(vol / (double)n), &err)) return 0;
     size_t samples = n < 2000 ? n : 2000;
     double *d = malloc(samples * sizeof *d);
     size_t m = 0;
@@ -264,14 +110,14 @@ double sy_estimate_spacing(const float *xyz, size_t n)
         med = d[m / 2];
     }
     free(d);
-    grid_free(&g);
+    sy_grid_free(&g);
     return med;
 }
 
 /* ---- Graph construction ---- */
 
 typedef struct {
-    const grid *g, *tier;
+    const sy_grid *g, *tier;
     int last_tier;
     const float *xyz;
     int k, cap;
@@ -289,7 +135,7 @@ static void knn_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
 {
     (void)chunk;
     knn_job *J = ctx;
-    const grid *g = J->g;
+    const sy_grid *g = J->g;
     cand list[64];
     size_t cap_near = 1024;
     uint32_t *near = malloc(cap_near * sizeof *near);
@@ -345,7 +191,7 @@ static void knn_coarse_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
 {
     (void)chunk;
     knn_job *J = ctx;
-    const grid *g = J->tier;
+    const sy_grid *g = J->tier;
     cand list[64];
     size_t cap_near = 4096, nn;
     uint32_t *near = malloc(cap_near * sizeof *near);
@@ -562,12 +408,12 @@ sy_code sy_graph_build(const float *xyz, size_t n, int k, double radius, uint32_
     int cap = 2 * k;
     /* Two grids: cells of one join radius, and 4x coarser ones for the
      * sparse parts (foliage, the far side of a crown) the fine one leaves. */
-    grid g, coarse;
-    sy_code rc = grid_build(&g, xyz, n, radius, err);
+    sy_grid g, coarse;
+    sy_code rc = sy_grid_build(&g, xyz, n, radius, err);
     if (rc) return rc;
-    rc = grid_build(&coarse, xyz, n, 4 * radius, err);
+    rc = sy_grid_build(&coarse, xyz, n, 4 * radius, err);
     if (rc) {
-        grid_free(&g);
+        sy_grid_free(&g);
         return rc;
     }
     knn_job J = {&g, NULL, 0, xyz, k, cap, radius * radius, NULL, NULL, NULL};
@@ -675,8 +521,8 @@ sy_code sy_graph_build(const float *xyz, size_t n, int k, double radius, uint32_
     free(J.pending);
     free(up);
     free(bridges);
-    grid_free(&g);
-    grid_free(&coarse);
+    sy_grid_free(&g);
+    sy_grid_free(&coarse);
     return SY_OK;
 fail:
     free(J.nbr);
@@ -684,8 +530,8 @@ fail:
     free(J.pending);
     free(up);
     free(bridges);
-    grid_free(&g);
-    grid_free(&coarse);
+    sy_grid_free(&g);
+    sy_grid_free(&coarse);
     sy_graph_free(G);
     return rc;
 }
