@@ -42,36 +42,6 @@ long sy_grid_find(const sy_grid *g, int32_t x, int32_t y, int32_t z)
     }
 }
 
-typedef struct {
-    uint64_t key;
-    uint32_t idx;
-} keyed;
-
-/* Stable LSD radix sort by key, 8 bits a pass, skipping bytes that never
- * vary; items enter in index order, so equal keys stay in index order. */
-static int radix_sort(keyed *a, size_t n)
-{
-    if (n == 0) return 0;
-    keyed *tmp = malloc(n * sizeof *tmp);
-    if (!tmp) return -1;
-    keyed *src = a, *dst = tmp;
-    for (int shift = 0; shift < 64; shift += 8) {
-        size_t count[257] = {0};
-        for (size_t i = 0; i < n; i++) count[((src[i].key >> shift) & 0xff) + 1]++;
-        int single = 0;
-        for (int b = 1; b <= 256; b++) single |= count[b] == n;
-        if (single) continue;
-        for (int b = 0; b < 256; b++) count[b + 1] += count[b];
-        for (size_t i = 0; i < n; i++) dst[count[(src[i].key >> shift) & 0xff]++] = src[i];
-        keyed *t = src;
-        src = dst;
-        dst = t;
-    }
-    if (src != a) memcpy(a, src, n * sizeof *a);
-    free(tmp);
-    return 0;
-}
-
 void sy_grid_free(sy_grid *g)
 {
     free(g->order);
@@ -98,18 +68,15 @@ sy_code sy_grid_build(sy_grid *g, const float *xyz, size_t n, double h, sy_error
     if (!(h > 0)) h = 1;
     g->h = h;
     memcpy(g->lo, lo, sizeof lo);
-    keyed *k = sy_calloc(n, sizeof *k, err, "grid");
+    sy_voxel_entry *k = sy_calloc(n, sizeof *k, err, "grid");
     if (!k) return SY_EINTERNAL;
     for (size_t i = 0; i < n; i++) {
         int32_t c[3];
         sy_grid_cell_of(g, xyz + 3 * i, c);
         k[i].key = pack(c[0], c[1], c[2]);
-        k[i].idx = (uint32_t)i;
+        k[i].index = i;
     }
-    if (radix_sort(k, n)) {
-        free(k);
-        return sy_fail(err, SY_EINTERNAL, "grid: out of memory");
-    }
+    sy_voxel_entries_sort(k, n); /* by cell, points of a cell in index order */
     size_t cells = 0;
     for (size_t i = 0; i < n; i++)
         if (i == 0 || k[i].key != k[i - 1].key) cells++;
@@ -129,8 +96,8 @@ sy_code sy_grid_build(sy_grid *g, const float *xyz, size_t n, double h, sy_error
     g->mask = tsize - 1;
     size_t c = 0;
     for (size_t i = 0; i < n; i++) {
-        g->order[i] = k[i].idx;
-        memcpy(g->pts + 3 * i, xyz + 3 * (size_t)k[i].idx, 3 * sizeof(float));
+        g->order[i] = (uint32_t)k[i].index;
+        memcpy(g->pts + 3 * i, xyz + 3 * k[i].index, 3 * sizeof(float));
         if (i == 0 || k[i].key != k[i - 1].key) {
             g->cell_start[c] = i;
             g->cell_key[c] = k[i].key;

@@ -66,6 +66,11 @@ void sy_voxel_sort(const float *xyz, size_t n, const float lo[3], double size, s
         e[i].key = sy_voxel_key(xyz + 3 * i, lo, size);
         e[i].index = i;
     }
+    sy_voxel_entries_sort(e, n);
+}
+
+void sy_voxel_entries_sort(sy_voxel_entry *e, size_t n)
+{
     /* Radix for the large sorts (a 100k-point tree: ~10x faster than qsort). */
     if (n < 256 || !radix_sort(e, n)) qsort(e, n, sizeof *e, cmp_entry);
 }
