@@ -497,13 +497,7 @@ sy_code sy_jb_train(const float *X, size_t n, size_t d, const int *y, size_t C, 
     /* Stratified held-out split: per class, a seeded shuffle, the first share held out. */
     size_t n_train = 0, n_held = 0;
     uint64_t rs = o->seed ^ 0x4A6F696E74426F6Full;
-    for (size_t i = 0; i < n; i++) perm[i] = (uint32_t)i;
-    for (size_t i = n; i > 1; i--) {
-        size_t j = (size_t)(sy_splitmix64(&rs) % i);
-        uint32_t t = perm[i - 1];
-        perm[i - 1] = perm[j];
-        perm[j] = t;
-    }
+    sy_permutation(perm, n, &rs);
     size_t taken[SY_JB_MAX_CLASSES] = {0};
     for (size_t k = 0; k < n; k++) {
         uint32_t i = perm[k];

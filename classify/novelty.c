@@ -165,13 +165,7 @@ sy_code sy_jb_novelty_train(sy_jb_model *m, const float *X, size_t n, const int 
     if (folds >= 2 && n >= (size_t)folds) {
         /* Stratified folds: per species a seeded shuffle dealt round-robin. */
         uint64_t rs = seed ^ 0x4E6F76656C747921ull;
-        for (size_t i = 0; i < n; i++) perm[i] = (uint32_t)i;
-        for (size_t i = n; i > 1; i--) {
-            size_t j = (size_t)(sy_splitmix64(&rs) % i);
-            uint32_t t = perm[i - 1];
-            perm[i - 1] = perm[j];
-            perm[j] = t;
-        }
+        sy_permutation(perm, n, &rs);
         size_t dealt[SY_JB_MAX_CLASSES] = {0};
         for (size_t k = 0; k < n; k++) fold[perm[k]] = (int)(dealt[y[perm[k]]]++ % (size_t)folds);
         sy_jb_model tmp = *m;

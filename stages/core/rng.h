@@ -4,6 +4,7 @@
 #ifndef SYLVA_RNG_H
 #define SYLVA_RNG_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #ifdef __cplusplus
@@ -32,6 +33,19 @@ static inline uint64_t sy_splitmix64(uint64_t *state)
 
 /* Uniform double in [0, 1) from the top 53 bits of x. */
 static inline double sy_unit53(uint64_t x) { return (double)(x >> 11) * (1.0 / 9007199254740992.0); }
+
+/* perm = a Fisher–Yates shuffle of 0..n-1 drawn from the generator at *state
+ * (which it advances): the one seeded permutation of the stages. */
+static inline void sy_permutation(uint32_t *perm, size_t n, uint64_t *state)
+{
+    for (size_t i = 0; i < n; i++) perm[i] = (uint32_t)i;
+    for (size_t i = n; i > 1; i--) {
+        size_t j = (size_t)(sy_splitmix64(state) % i);
+        uint32_t t = perm[i - 1];
+        perm[i - 1] = perm[j];
+        perm[j] = t;
+    }
+}
 
 #ifdef __cplusplus
 }

@@ -6,7 +6,6 @@
 #include <string.h>
 
 #include "mesh_internal.h"
-#include "stages/core/rng.h"
 
 #define SY_PI 3.14159265358979323846f
 #define OUTLINE_STEPS 5
@@ -216,19 +215,6 @@ sy_code sy_leaf_card(int shape, float aspect, int material, sy_mesh *out, sy_err
     return SY_OK;
 }
 
-static uint64_t next_random(uint64_t *state) { return sy_splitmix64(state); }
-
-void sy_permutation(uint32_t *perm, size_t n, uint64_t seed)
-{
-    uint64_t state = seed;
-    for (size_t i = 0; i < n; i++) perm[i] = (uint32_t)i;
-    for (size_t i = n; i > 1; i--) {
-        size_t j = (size_t)(next_random(&state) % i);
-        uint32_t t = perm[i - 1];
-        perm[i - 1] = perm[j];
-        perm[j] = t;
-    }
-}
 
 /* (x, y, z, w) quaternion product a * b. */
 static void quat_mul(const float a[4], const float b[4], float out[4])

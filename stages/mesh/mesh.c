@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "mesh_internal.h"
+#include "stages/core/rng.h"
 
 sy_mesh_options sy_mesh_options_default(void)
 {
@@ -231,8 +232,10 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
      * every coarser level's leaves are a filtered prefix of it. */
     if (opt->keep_leaf_order)
         for (size_t i = 0; i < lv->n; i++) all.list[i] = (uint32_t)i;
-    else
-        sy_permutation(all.list, lv->n, opt->seed);
+    else {
+        uint64_t state = opt->seed;
+        sy_permutation(all.list, lv->n, &state);
+    }
     /* Nothing below the ground: a card that would dip under it is left out. */
     size_t kept = 0;
     for (size_t i = 0; i < lv->n; i++)

@@ -157,8 +157,6 @@ sy_code sy_wind_build(sy_stems *st, sy_asset *asset, sy_error *err);
 /* The leaf card mesh for a shape and aspect (local: stem at origin, +Y to
  * the tip, +Z normal). */
 sy_code sy_leaf_card(int shape, float aspect, int material, sy_mesh *out, sy_error *err);
-/* Deterministic Fisher-Yates permutation of 0..n-1 from seed. */
-void sy_permutation(uint32_t *perm, size_t n, uint64_t seed);
 /* Instances of the leaves list[0..n) (indices into lv) in glTF's frame, their
  * size multiplied by grow, with the wind data of the stem each hangs on.
  * keep (per stem, may be NULL): a leaf whose stem is not drawn moves to the
