@@ -147,9 +147,26 @@ check "a rerun segments nothing and keeps every tree" \
 ASAN_OPTIONS=${ASAN_OPTIONS:+$ASAN_OPTIONS:}handle_segv=0 UBSAN_OPTIONS=${UBSAN_OPTIONS:+$UBSAN_OPTIONS:}handle_segv=0 \
 "$SYLVA" batch "$tmp/kin" -o "$tmp/crash" --workers 1 --no-eval --no-thumbnails --quiet &
 pid=$!
-for i in $(seq 100); do w=$(pgrep -P "$pid" | head -1); [[ -n $w ]] && break; sleep 0.05; done
-kill -SEGV "$w" 2> /dev/null
+# The batch first forks a short child per input that checks whether it is a
+# plot (its stderr goes to logs/ID.segment.log); the target is a tree worker
+# (stderr to logs/ID.log). It is stopped first and seen stopped (state T)
+# before the signal: one that was already finishing (a zombie) cannot be
+# stopped, and the next is taken instead. A loaded machine may take a while.
+w=
+for i in $(seq 1200); do
+    for c in $(pgrep -P "$pid"); do
+        log=$(readlink "/proc/$c/fd/2" 2> /dev/null)
+        [[ $log == */logs/*.log && $log != *.segment.log ]] || continue
+        kill -STOP "$c" 2> /dev/null || continue
+        sleep 0.05
+        if [[ $(sed 's/.*) //' "/proc/$c/stat" 2> /dev/null | cut -d' ' -f1) == T ]]; then w=$c; break 2; fi
+        kill -CONT "$c" 2> /dev/null
+    done
+    sleep 0.05
+done
+[[ -n $w ]] && kill -SEGV "$w" && kill -CONT "$w"
 wait "$pid"; rc=$?
+check "a worker was caught and sent SIGSEGV" "[[ -n '$w' ]]"
 check "the batch survives a worker's SIGSEGV (exit $rc)" "[[ $rc == 0 ]]"
 check "the crashed tree is recorded with the signal, the other made" \
     "jq -e '.counts.ok == 1 and .counts.failed == 1 and (.failures[0].error | test(\"segmentation fault\"))' '$tmp/crash/index.json' > /dev/null"
