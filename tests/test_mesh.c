@@ -820,6 +820,69 @@ static void random_tree_meets_every_property(void **state)
     sy_skeleton_free(&s);
 }
 
+/* The wind table holds levels 0-3 only: deeper stems ride on their level-3
+ * ancestor. A crown of 70,000 level-4 twigs (more than the 16-bit index
+ * holds) gets a table of its 4 carrying stems, and every twig names the
+ * level-3 one. */
+static void wind_table_keeps_levels_0_to_3(void **state)
+{
+    (void)state;
+    const size_t n_twigs = 70000, n = 4 + n_twigs;
+    sy_stems st;
+    memset(&st, 0, sizeof st);
+    st.n = n;
+    st.s = calloc(n, sizeof *st.s);
+    float *pts = calloc(6 * n, sizeof *pts);
+    assert_non_null(st.s), assert_non_null(pts);
+    for (size_t i = 0; i < n; i++) {
+        sy_stem *t = &st.s[i];
+        t->depth = i < 4 ? (int)i : 4;
+        t->parent = i == 0 ? -1 : i < 4 ? (int32_t)i - 1 : 3;
+        t->pts = pts + 6 * i;
+        t->n_pts = 2;
+        t->pts[5] = 1; /* base (0,0,0), tip (0,0,1) */
+        t->length = 1;
+        t->r_base = 0.1f / (float)(t->depth + 1), t->r_tip = 0.5f * t->r_base;
+        t->attach_s = 0.5f;
+    }
+    sy_asset a;
+    memset(&a, 0, sizeof a);
+    sy_error err;
+    assert_int_equal(sy_wind_build(&st, &a, &err), SY_OK);
+    assert_int_equal(a.n_wind, 4);
+    for (int b = 0; b < 4; b++) assert_int_equal(a.wind[b].parent, b - 1), assert_int_equal(a.wind[b].level, b);
+    for (size_t i = 0; i < n; i++) {
+        assert_int_equal(st.s[i].wind_index, i < 4 ? (int32_t)i : 3);
+        assert_int_equal(st.s[i].wind_slot, i < 4 ? (int)i : -1);
+    }
+    free(a.wind);
+    free(pts);
+    free(st.s);
+
+    /* A whole mesh of a five-level tree: one entry per stem of levels 0-3. */
+    sy_skeleton s;
+    sy_leaves lv;
+    assert_int_equal(tg_tree(3, 5, 2, 0, 8.0f, &s, &lv), 0);
+    sy_mesh_options o = sy_mesh_options_default();
+    o.impostor = 0;
+    sy_stems built;
+    assert_int_equal(sy_stems_build(&s, &o, &built, &err), SY_OK);
+    size_t shallow = 0, deep = 0;
+    for (size_t i = 0; i < built.n; i++) built.s[i].depth < 4 ? shallow++ : deep++;
+    sy_stems_free(&built);
+    assert_true(deep > 0);
+    sy_asset tree;
+    mesh_tree(&s, &lv, &o, &tree);
+    assert_int_equal(tree.n_wind, shallow);
+    const sy_mesh *m = bark0(&tree);
+    for (size_t i = 0; i < m->n_vertices; i++) assert_true(m->wind_branch[i] < tree.n_wind);
+    for (size_t b = 0; b < tree.n_wind; b++)
+        if (tree.wind[b].parent >= 0) assert_int_equal(tree.wind[b].level, tree.wind[tree.wind[b].parent].level + 1);
+    sy_asset_free(&tree);
+    sy_skeleton_free(&s);
+    sy_leaves_free(&lv);
+}
+
 static void bad_input_is_refused_with_a_message(void **state)
 {
     (void)state;
@@ -861,6 +924,7 @@ int main(void)
         cmocka_unit_test(bent_trunk_branches_sit_on_the_parent),
         cmocka_unit_test(curved_branch_keeps_its_curve_at_every_level),
         cmocka_unit_test(random_tree_meets_every_property),
+        cmocka_unit_test(wind_table_keeps_levels_0_to_3),
         cmocka_unit_test(bad_input_is_refused_with_a_message),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -150,7 +150,8 @@ sy_code sy_bark_mesh_welds(const sy_stems *st, const sy_lod_params *lp, int mate
 double sy_beam_deflection(double alpha, double x);
 /* Least-squares fit u(x) ~ c2 x^2 + c4 x^4 on the 101 samples x = i/100. */
 void sy_beam_fit(double alpha, float *c2, float *c4);
-/* Fills asset->wind (one entry per stem) and each stem's wind fields. */
+/* Fills asset->wind (one entry per stem of levels 0-3: deeper stems ride on
+ * their level-3 ancestor) and each stem's wind fields. */
 sy_code sy_wind_build(sy_stems *st, sy_asset *asset, sy_error *err);
 
 /* ---- leaves (leaves.c) ---- */

@@ -43,10 +43,26 @@ static double raw_stiffness(const sy_stem *s)
 
 sy_code sy_wind_build(sy_stems *st, sy_asset *asset, sy_error *err)
 {
-    if (st->n > 65535)
-        return sy_fail(err, SY_EINPUT, "mesh: %zu branches exceed the 16-bit wind branch index", st->n);
-    sy_wind_branch *w = sy_calloc(st->n ? st->n : 1, sizeof *w, err, "mesh wind");
-    if (!w) return SY_EINTERNAL;
+    /* The table holds the stems of levels 0-3 only: deeper stems ride
+     * rigidly on their level-3 ancestor, so no vertex names them. A
+     * synthesised crown has tens of thousands of such twigs (a 300k-point
+     * black oak: 81,323 stems), which would overflow the 16-bit index for
+     * nothing. slot[i]: stem i's table entry, or -1. */
+    int32_t *slot = sy_calloc(st->n ? st->n : 1, sizeof *slot, err, "mesh wind");
+    if (!slot) return SY_EINTERNAL;
+    size_t n_table = 0;
+    for (size_t i = 0; i < st->n; i++) slot[i] = st->s[i].depth < WIND_LEVELS ? (int32_t)n_table++ : -1;
+    if (n_table > 65535) {
+        free(slot);
+        return sy_fail(err, SY_EINPUT, "mesh: %zu branches of levels 0-3 exceed the 16-bit wind branch index",
+                       n_table);
+    }
+    sy_wind_branch *w = sy_calloc(n_table ? n_table : 1, sizeof *w, err, "mesh wind");
+    if (!w) {
+        free(slot);
+        return SY_EINTERNAL;
+    }
+    /* Stiffness is relative to the whole tree, its rigid twigs included. */
     double kmin = INFINITY, kmax = -INFINITY;
     for (size_t i = 0; i < st->n; i++) {
         double k = raw_stiffness(&st->s[i]);
@@ -54,22 +70,25 @@ sy_code sy_wind_build(sy_stems *st, sy_asset *asset, sy_error *err)
     }
     for (size_t i = 0; i < st->n; i++) {
         sy_stem *s = &st->s[i];
-        sy_wind_branch *b = &w[i];
-        b->parent = s->parent;
-        b->level = s->depth < WIND_LEVELS - 1 ? s->depth : WIND_LEVELS - 1;
-        const float *base = s->pts, *tip = s->pts + 3 * (s->n_pts - 1);
-        float axis[3] = {tip[0] - base[0], tip[1] - base[1], tip[2] - base[2]};
-        if (sy_normalize3(axis) == 0) axis[0] = 0, axis[1] = 0, axis[2] = 1;
-        sy_to_yup(base, b->anchor);
-        sy_to_yup(axis, b->axis);
-        b->length = s->length;
-        double alpha = s->r_base > 0 ? s->r_tip / s->r_base : 1;
-        /* A tip thicker than its base is reconstruction noise; (4.7) needs
-         * alpha > 0. */
-        alpha = alpha < 0.02 ? 0.02 : alpha > 1 ? 1 : alpha;
-        sy_beam_fit(alpha, &b->c2, &b->c4);
-        b->frequency = (float)(2.55 * pow(s->length > 0.01f ? s->length : 0.01, -0.59));
-        b->stiffness = kmax > kmin ? (float)((raw_stiffness(s) - kmin) / (kmax - kmin)) : 1.0f;
+        sy_wind_branch *b = slot[i] >= 0 ? &w[slot[i]] : NULL;
+        if (b) {
+            /* Ancestors have lower levels: their entries exist. */
+            b->parent = s->parent >= 0 ? slot[s->parent] : -1;
+            b->level = s->depth < WIND_LEVELS - 1 ? s->depth : WIND_LEVELS - 1;
+            const float *base = s->pts, *tip = s->pts + 3 * (s->n_pts - 1);
+            float axis[3] = {tip[0] - base[0], tip[1] - base[1], tip[2] - base[2]};
+            if (sy_normalize3(axis) == 0) axis[0] = 0, axis[1] = 0, axis[2] = 1;
+            sy_to_yup(base, b->anchor);
+            sy_to_yup(axis, b->axis);
+            b->length = s->length;
+            double alpha = s->r_base > 0 ? s->r_tip / s->r_base : 1;
+            /* A tip thicker than its base is reconstruction noise; (4.7) needs
+             * alpha > 0. */
+            alpha = alpha < 0.02 ? 0.02 : alpha > 1 ? 1 : alpha;
+            sy_beam_fit(alpha, &b->c2, &b->c4);
+            b->frequency = (float)(2.55 * pow(s->length > 0.01f ? s->length : 0.01, -0.59));
+            b->stiffness = kmax > kmin ? (float)((raw_stiffness(s) - kmin) / (kmax - kmin)) : 1.0f;
+        }
         /* w: for each ancestor level l, where the path to this stem leaves
          * it. Stems deeper than level 3 ride rigidly on their level-3
          * ancestor at the point where their sub-hierarchy attaches. */
@@ -88,15 +107,16 @@ sy_code sy_wind_build(sy_stems *st, sy_asset *asset, sy_error *err)
             s->wind_w[l] = x < 1e-6f ? 1e-6f : x > 1 ? 1 : x;
         }
         if (depth < WIND_LEVELS) {
-            s->wind_index = (int32_t)i;
+            s->wind_index = slot[i];
             s->wind_slot = depth;
         } else {
-            s->wind_index = path[WIND_LEVELS - 1];
+            s->wind_index = slot[path[WIND_LEVELS - 1]];
             s->wind_slot = -1;
         }
     }
+    free(slot);
     free(asset->wind);
     asset->wind = w;
-    asset->n_wind = st->n;
+    asset->n_wind = n_table;
     return SY_OK;
 }
