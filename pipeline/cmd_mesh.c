@@ -18,14 +18,15 @@
 #include "stages/qsm/qsm.h"
 
 /* Leaf density and size for models that name no species: a common
- * broadleaf (4.3 leaf cards a metre of twig, 0.3 m long), the species of
+ * broadleaf (4.3 leaf cards a metre of twig, 0.55 m long on a tree of its
+ * 13 m, smaller on smaller trees: sy_leaf_placement_fit_tree), the species of
  * the README's first example. Bark and leaf materials stay the neutral
  * defaults, so the asset claims no species. */
 #define DEFAULT_LEAVES "quaking_aspen"
 
 typedef struct {
     const char *model, *format;
-    double height, twig_length, seconds_read, seconds_leaves;
+    double height, twig_length, leaf_size, seconds_read, seconds_leaves;
     double origin[3];
 } mesh_facts;
 
@@ -47,6 +48,7 @@ static void print_report(const sy_cli *cli, const char *out_path, const sy_tree_
         sy_json_int(&j, "leaves", (long long)rep->leaves);
         sy_json_int(&j, "hull_triangles", (long long)rep->hull_triangles);
         sy_json_number(&j, "twig_length", f->twig_length);
+        sy_json_number(&j, "leaf_size", f->leaf_size);
         sy_json_number(&j, "height", f->height);
         sy_json_int(&j, "bytes", (long long)rep->bytes);
         sy_tree_asset_report_lods_json(&j, rep);
@@ -60,8 +62,8 @@ static void print_report(const sy_cli *cli, const char *out_path, const sy_tree_
         fprintf(stderr, "read %s (%s) in %.3f s; root %.3f %.3f %.3f moved to the origin\n", f->model, f->format,
                 f->seconds_read, f->origin[0], f->origin[1], f->origin[2]);
         if (rep->leaves)
-            fprintf(stderr, "placed %zu %s leaves on %.2f m of twig in %.3f s\n", rep->leaves,
-                    sp ? sp->name : "default", f->twig_length, f->seconds_leaves);
+            fprintf(stderr, "placed %zu %s leaves (%.3f m cards) on %.2f m of twig in %.3f s\n", rep->leaves,
+                    sp ? sp->name : "default", f->leaf_size, f->twig_length, f->seconds_leaves);
         sy_tree_asset_report_text(rep, out_path);
     }
 }
@@ -165,7 +167,7 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
     o.seed = cli->seed;
     sy_error err = {0};
     if (sy_tree_asset_options_check(&o, &err)) return sy_cli_report(&err);
-    mesh_facts f = {pos[0], "", 0, 0, 0, 0, {0, 0, 0}};
+    mesh_facts f = {pos[0], "", 0, 0, 0, 0, 0, {0, 0, 0}};
     sy_skeleton skel;
     sy_clusters hulls; /* a .sylva's: the same foliage proxy `sylva run` draws */
     sy_skeleton_read_info info;
@@ -201,8 +203,10 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
         sy_species_params leaf_sp;
         if (!have_species && (rc = sy_species_params_find(DEFAULT_LEAVES, &leaf_sp, &err))) goto done;
         sy_leaf_placement lp = sy_leaf_placement_from_species(have_species ? &sp : &leaf_sp, cli->seed);
+        sy_leaf_placement_fit_tree(&lp, have_species ? &sp : &leaf_sp, f.height);
         if (!have_species) sy_species_params_free(&leaf_sp);
         if (leaf_density >= 0) lp.per_metre = leaf_density;
+        f.leaf_size = lp.size;
         t0 = sy_now();
         rc = sy_place_leaves(&skel, &lp, &leaves, &f.twig_length, &err);
         f.seconds_leaves = sy_now() - t0;

@@ -29,6 +29,14 @@ sy_leaf_placement sy_leaf_placement_from_species(const sy_species_params *sp, ui
     return p;
 }
 
+void sy_leaf_placement_fit_tree(sy_leaf_placement *p, const sy_species_params *sp, double tree_height)
+{
+    if (!(sp->scale > 0) || !(tree_height > 0) || tree_height >= sp->scale) return;
+    double k = fmax(tree_height / sp->scale, 0.25);
+    p->size = (float)(p->size * k);
+    p->per_metre /= k * k;
+}
+
 static double unit(uint64_t *state) { return sy_unit53(sy_splitmix64(state)); }
 
 static void normalize(double v[3])

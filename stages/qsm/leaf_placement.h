@@ -27,6 +27,13 @@ typedef struct {
  * last-level Weber-Penn stem, Scale * 0Length * ... * (Levels-1)Length. */
 sy_leaf_placement sy_leaf_placement_from_species(const sy_species_params *sp, uint64_t seed);
 
+/* A species' leaf cards are sized for the grown tree (its Scale: a 13 m
+ * aspen's 0.55 m cards). On a smaller tree (a 3.8 m sapling) they would be
+ * oversized: the cards shrink by k = tree_height / Scale (k in [0.25, 1];
+ * trees as tall as the species or taller keep them) and their count per
+ * metre of twig grows by 1/k^2, so the leaf area along a twig stays. */
+void sy_leaf_placement_fit_tree(sy_leaf_placement *p, const sy_species_params *sp, double tree_height);
+
 /* Twigs are the edges parent -> child whose reverse branch order
  * (sy_skeleton_reverse_order: 1 from a tip down to the first fork, +1 per
  * fork level) is at most max_reverse_order. Each twig gets per_metre x its
