@@ -11,6 +11,7 @@
 #include <stb_image.h>
 
 #include "mesh_internal.h"
+#include "stages/core/parallel.h"
 #include "stages/core/png.h"
 
 /* Share of the tree's extent added around it so the silhouette never touches
@@ -68,18 +69,25 @@ static void raster(view *v, const float a[3], const float b[3], const float c[3]
     float t0 = 0.5f * (fabsf(pb[1] - pc[1]) + fabsf(pc[0] - pb[0])) / aa;
     float t1 = 0.5f * (fabsf(pc[1] - pa[1]) + fabsf(pa[0] - pc[0])) / aa;
     float t2 = 0.5f * (fabsf(pa[1] - pb[1]) + fabsf(pb[0] - pa[0])) / aa;
+    /* The barycentric weights are affine in the pixel: w(x, y) = c + gx x +
+     * gy y, stepped along a row instead of evaluated with two divisions a
+     * pixel (most pixels of a twig's bounding box lie outside it). */
+    float inv = 1.0f / area;
+    float g0x = (pb[1] - pc[1]) * inv, g0y = (pc[0] - pb[0]) * inv;
+    float g1x = (pc[1] - pa[1]) * inv, g1y = (pa[0] - pc[0]) * inv;
+    float c0 = (pb[0] * pc[1] - pb[1] * pc[0]) * inv, c1 = (pc[0] * pa[1] - pc[1] * pa[0]) * inv;
     for (int y = ymin; y <= ymax; y++) {
-        float py = (float)y + 0.5f;
-        for (int x = xmin; x <= xmax; x++) {
-            float px = (float)x + 0.5f;
-            float w0 = ((pb[0] - px) * (pc[1] - py) - (pb[1] - py) * (pc[0] - px)) / area;
-            float w1 = ((pc[0] - px) * (pa[1] - py) - (pc[1] - py) * (pa[0] - px)) / area;
-            float w2 = 1 - w0 - w1;
+        float py = (float)y + 0.5f, x0 = (float)xmin + 0.5f;
+        float r0 = c0 + g0x * x0 + g0y * py, r1 = c1 + g1x * x0 + g1y * py;
+        for (int x = xmin; x <= xmax; x++, r0 += g0x, r1 += g1x) {
+            float w0 = r0, w1 = r1, w2 = 1 - w0 - w1;
             if (w0 < -t0 || w1 < -t1 || w2 < -t2) continue;
             /* Outside the triangle proper: interpolate at its nearest part. */
-            w0 = fmaxf(w0, 0), w1 = fmaxf(w1, 0), w2 = fmaxf(w2, 0);
-            float ws = w0 + w1 + w2;
-            w0 /= ws, w1 /= ws, w2 /= ws;
+            if (w0 < 0 || w1 < 0 || w2 < 0) {
+                w0 = fmaxf(w0, 0), w1 = fmaxf(w1, 0), w2 = fmaxf(w2, 0);
+                float ws = w0 + w1 + w2;
+                w0 /= ws, w1 /= ws, w2 /= ws;
+            }
             float z = w0 * pa[2] + w1 * pb[2] + w2 * pc[2];
             size_t i = (size_t)y * (size_t)v->W + (size_t)x;
             if (z <= v->depth[i]) continue;
@@ -97,7 +105,7 @@ static void raster(view *v, const float a[3], const float b[3], const float c[3]
             v->depth[i] = z;
             for (int k = 0; k < 3; k++) {
                 float c = col[k] * lit;
-                v->rgba[4 * i + k] = (unsigned char)lroundf(255.0f * (c < 0 ? 0 : c > 1 ? 1 : c));
+                v->rgba[4 * i + k] = (unsigned char)(255.0f * (c < 0 ? 0 : c > 1 ? 1 : c) + 0.5f);
             }
             v->rgba[4 * i + 3] = 255;
         }
@@ -186,6 +194,20 @@ static void render_view(const sy_asset *a, const sy_lod *lod, view *v, const sha
             }
         }
     }
+}
+
+typedef struct {
+    const sy_asset *a;
+    const sy_lod *lod;
+    view *views[2];
+    const shade_src *src;
+} view_job;
+
+static void render_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
+{
+    (void)chunk;
+    view_job *j = ctx;
+    for (size_t k = begin; k < end; k++) render_view(j->a, j->lod, j->views[k], j->src);
 }
 
 /* Spreads colour into uncovered texels (alpha stays 0) so filtering at the
@@ -301,8 +323,10 @@ int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
         material_source(a, a->meshes[lod0->instances[k].mesh].material, 1, &src[SY_LOD_MAX_PARTS + k]);
     view front = {rgba, depth, W, H, 0, W / 2, {1, 0, 0}, {0, 0, 1}, lo[0], hi[0], lo[1], hi[1]};
     view side = {rgba, depth, W, H, W / 2, W - W / 2, {0, 0, -1}, {1, 0, 0}, -hi[2], -lo[2], lo[1], hi[1]};
-    render_view(a, lod0, &front, src);
-    render_view(a, lod0, &side, src);
+    /* The two views fill disjoint halves of the atlas and its depth: one a
+     * thread, the same texels either way. */
+    view_job job = {a, lod0, {&front, &side}, src};
+    sy_parallel_for(2, 1, render_chunk, &job);
     for (int k = 0; k < 2 * SY_LOD_MAX_PARTS; k++) stbi_image_free(src[k].px);
     free(depth);
     dilate(rgba, W, H);
