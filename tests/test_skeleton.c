@@ -241,6 +241,43 @@ static void dbh_ignores_low_limbs(void **state)
     sy_cloud_free(&c);
 }
 
+/* Limbs that leave the trunk below breast height hold most of the tree's
+ * length: eq. 3.1 from the root alone made the butt 2.4 times the
+ * breast-height radius (a leafy black oak: 2.2 m for a 0.34 m DBH). The butt
+ * stays within twice the breast-height radius, and no limb is thicker than
+ * the stem at breast height. */
+static void low_limbs_do_not_swell_the_butt(void **state)
+{
+    (void)state;
+    syn_tree t;
+    syn_tree_make(&t, 0, 0);
+    const double pi = 3.14159265358979323846;
+    for (int i = 0; i < 12; i++) {
+        double az = 2 * pi * (i + 0.5) / 12, el = 15 * pi / 180;
+        syn_seg limb = {{0, 0, 0.5}, {0, 0, 0}, 0.05, 0.015, 0};
+        double d[3] = {cos(el) * cos(az), cos(el) * sin(az), sin(el)};
+        for (int k = 0; k < 3; k++) limb.b[k] = limb.a[k] + 4.5 * d[k];
+        t.seg[t.n++] = limb;
+    }
+    sy_cloud c;
+    sy_skeleton s;
+    sy_clusters cl;
+    sy_skeleton_report r;
+    sample_and_reconstruct(&t, 60000, 11, &c, &s, &cl, &r);
+    double r_bh = 0.5 * r.dbh, limb_max = 0;
+    for (size_t i = 0; i < s.n; i++)
+        if (s.branch[i] != 0) limb_max = fmax(limb_max, s.radius[i]);
+    printf("low limbs: DBH %.4f (truth %.4f), root radius %.4f, thickest limb node %.4f\n", r.dbh,
+           2 * syn_trunk_radius(1.3), s.radius[0], limb_max);
+    assert_true(fabs(r.dbh - 2 * syn_trunk_radius(1.3)) < 0.04);
+    assert_true(s.radius[0] >= r_bh - 1e-6 && s.radius[0] <= 2 * r_bh + 1e-6);
+    assert_true(limb_max <= r_bh + 1e-6);
+    assert_radii_taper(&s);
+    sy_skeleton_free(&s);
+    sy_clusters_free(&cl);
+    sy_cloud_free(&c);
+}
+
 static void circle_fit_resists_noise_and_outliers(void **state)
 {
     (void)state;
@@ -392,6 +429,7 @@ int main(void)
         cmocka_unit_test(radii_follow_the_measured_limbs),
         cmocka_unit_test(dbh_is_measured_from_the_ground),
         cmocka_unit_test(dbh_ignores_low_limbs),
+        cmocka_unit_test(low_limbs_do_not_swell_the_butt),
         cmocka_unit_test(real_trees_reconstruct),
         cmocka_unit_test(rejects_tiny_and_bad_options),
     };

@@ -172,6 +172,9 @@ static int fit_trunk_slab(const trunk_slab *q, double z, double *xy, size_t *k, 
     return 0;
 }
 
+/* The butt of a trunk is at most this many times its breast-height radius. */
+#define BUTT_FLARE 2.0
+
 sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of, size_t n, double gamma,
                         double spacing, double ground_z, double dbh_height, double slab, sy_radii_info *info,
                         sy_error *err)
@@ -249,15 +252,25 @@ sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of
     if (!(r > 0)) r = fmax(spacing, 0.01);
     info->dbh = 2 * r;
     info->rms = rms;
-    double inv = 1.0 / gamma;
-    double frac = l[ub] > 0 && l[0] > 0 ? l[ub] / l[0] : 1;
-    info->d_root = info->dbh / pow(frac, inv);
+    /* Eq. 3.1 anchored at the breast-height node: r_i = r_ub (l_i / l_ub)^(1/gamma).
+     * Below it the pipe model alone can run away: limbs or hanging foliage
+     * that the graph joins to the trunk near the ground put most of the
+     * tree's length below ub (a leafy black oak: 0.4% above it, a 2.2 m
+     * root radius for a 0.34 m DBH). So the butt swells to at most
+     * BUTT_FLARE times the breast-height radius (Weber & Penn's flare:
+     * 1 + Flare at the ground, Flare 0.3-1.2 in the library), and a limb that
+     * leaves below breast height is no thicker than the stem there. */
+    double inv = 1.0 / gamma, r_ub = 0.5 * info->dbh;
+    double l_ub = l[ub] > 0 ? l[ub] : l[0];
     double rmin = fmax(0.25 * spacing, 0.001);
     for (size_t i = 0; i < m; i++) {
-        double f = l[0] > 0 ? l[i] / l[0] : 1;
-        double ri = 0.5 * info->d_root * pow(f, inv);
+        double f = l_ub > 0 ? l[i] / l_ub : 1;
+        double ri = r_ub * pow(f, inv);
+        if (s->branch[i] == 0) ri = fmin(ri, BUTT_FLARE * r_ub);
+        else if (ri > r_ub) ri = r_ub;
         s->radius[i] = (float)fmax(ri, rmin);
     }
+    info->d_root = 2.0 * s->radius[0];
     /* Float rounding must not let a child exceed its parent. */
     for (size_t i = 1; i < m; i++)
         if (s->parent[i] >= 0 && s->radius[i] > s->radius[s->parent[i]]) s->radius[i] = s->radius[s->parent[i]];
