@@ -45,7 +45,12 @@ sy_code sy_tree_asset_options_check(const sy_tree_asset_options *o, sy_error *er
 sy_glb_args sy_glb_args_default(void)
 {
     sy_tree_asset_options d = sy_tree_asset_options_default();
-    return (sy_glb_args){d.lods, d.impostor_size, d.meshopt, !d.instancing, !d.impostor, d.check};
+    sy_glb_args g = {d.lods, d.impostor_size, d.meshopt, !d.instancing, !d.impostor, d.check, ""};
+    const char *dir = getenv("SYLVA_CACHE_DIR"), *xdg = getenv("XDG_CACHE_HOME"), *home = getenv("HOME");
+    if (dir) snprintf(g.texture_cache, sizeof g.texture_cache, "%s", dir);
+    else if (xdg && xdg[0] == '/') snprintf(g.texture_cache, sizeof g.texture_cache, "%s/sylva", xdg);
+    else if (home && home[0] == '/') snprintf(g.texture_cache, sizeof g.texture_cache, "%s/.cache/sylva", home);
+    return g;
 }
 
 void sy_glb_args_apply(const sy_glb_args *g, sy_tree_asset_options *o)
@@ -56,6 +61,7 @@ void sy_glb_args_apply(const sy_glb_args *g, sy_tree_asset_options *o)
     o->meshopt = g->meshopt;
     o->instancing = !g->no_instancing;
     o->check = g->check;
+    o->texture_cache = g->texture_cache[0] ? g->texture_cache : NULL;
 }
 
 void sy_tree_asset_report_lods_json(sy_json *j, const sy_tree_asset_report *rep)
@@ -247,7 +253,8 @@ sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, co
     memset(out, 0, sizeof *out);
     double t0 = sy_now();
     sy_material_spec ms = {species ? species->bark_texture : NULL, species ? species->leaf_texture : NULL,
-                           species ? species->leaf_translucency : -1.0f, opt->texture_size, NULL, 0};
+                           species ? species->leaf_translucency : -1.0f, opt->texture_size, NULL, 0,
+                           opt->texture_cache};
     char leaf_maps[4096];
     if (species) {
         /* A species' leaf maps from `sylva leaf`, when the library has them. */

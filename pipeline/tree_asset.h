@@ -41,6 +41,10 @@ typedef struct {
     /* 1: measure the asset (sy_mesh_check: sails, slivers, welding, leaf
      * gaps, ground, LOD ratios) into the report (--check). */
     int check;
+    /* The materials cache folder (species/material_cache.c: a species'
+     * encoded textures, made once and embedded as they are by later trees),
+     * or NULL (the default): every tree makes its own. Never changes bytes. */
+    const char *texture_cache;
 } sy_tree_asset_options;
 
 sy_tree_asset_options sy_tree_asset_options_default(void);
@@ -59,6 +63,9 @@ sy_code sy_tree_asset_options_check(const sy_tree_asset_options *o, sy_error *er
  * sy_tree_asset_options_check). */
 typedef struct {
     int lods, impostor_size, meshopt, no_instancing, no_impostor, check;
+    /* The user's materials cache: $SYLVA_CACHE_DIR (empty: none), else
+     * $XDG_CACHE_HOME/sylva, else $HOME/.cache/sylva; "" when none. */
+    char texture_cache[4096];
 } sy_glb_args;
 #define SY_GLB_OPTIONS(g)                                                                                      \
     {"--lods", OPT_INT, &(g).lods, "N", "mesh levels of detail before the impostor (default 4)"},              \

@@ -15,6 +15,7 @@
 
 #include "species/image_cv.h"
 #include "species/library.h"
+#include "species/material_cache.h"
 #include "stages/core/color.h"
 #include "stages/leafmaps/leaf_material.h"
 #include "stages/leafmaps/leafmaps_cv.h"
@@ -460,8 +461,14 @@ sy_code sy_materials_add(const sy_material_spec *spec, sy_asset *asset, int *bar
     float translucency = spec->leaf_translucency < 0 ? 0.4f : spec->leaf_translucency; /* negative: default */
     if (!(translucency <= 1))
         return sy_fail(err, SY_EINPUT, "leaf translucency %g is outside [0, 1]", translucency);
+    uint64_t key = 0;
+    int cached = spec->cache_dir && sy_material_cache_key(spec, max_size, translucency, &key);
+    if (cached && sy_material_cache_load(spec->cache_dir, key, asset, bark_material, leaf_material)) return SY_OK;
+    size_t img0 = asset->n_images, mat0 = asset->n_materials;
     sy_code rc = make_bark(spec, max_size, asset, bark_material, err);
     if (rc) return rc;
-    if (spec->leaf_maps) return make_leaf_from_maps(spec, max_size, asset, leaf_material, err);
-    return make_leaf(spec, max_size, translucency, asset, leaf_material, err);
+    rc = spec->leaf_maps ? make_leaf_from_maps(spec, max_size, asset, leaf_material, err)
+                         : make_leaf(spec, max_size, translucency, asset, leaf_material, err);
+    if (!rc && cached) sy_material_cache_store(spec->cache_dir, key, asset, img0, mat0, *bark_material, *leaf_material);
+    return rc;
 }

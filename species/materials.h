@@ -20,6 +20,9 @@ typedef struct {
      * given it replaces leaf_image and leaf_translucency (docs/leafmaps.md). */
     const char *leaf_maps;
     float leaf_length_m;     /* card length, the unit of the volume thickness (default 0.1) */
+    /* A folder for the materials cache (material_cache.c: the encoded images
+     * of this spec, read back by later trees instead of made again), or NULL. */
+    const char *cache_dir;
 } sy_material_spec;
 
 /* The absolute path of the library species' leaf material (its manifest's

@@ -34,6 +34,15 @@ check "meshopt output is smaller" "[[ \$(stat -c %s '$tmp/m.glb') -lt \$(stat -c
 check "baked leaves validate and need no extension" \
   "node '$validator' '$tmp/b.glb' | head -1 | grep -q 'errors=0 warnings=0' && ! grep -q EXT_mesh_gpu_instancing '$tmp/b.glb'"
 
+# The materials cache: the first tree of a species stores its encoded
+# textures, the next embeds them as they are; the bytes never change.
+SYLVA_CACHE_DIR="$tmp/cache" "$SYLVA" grow --species quaking_aspen --seed 3 -o "$tmp/c1.glb" --quiet
+SYLVA_CACHE_DIR="$tmp/cache" "$SYLVA" grow --species quaking_aspen --seed 3 -o "$tmp/c2.glb" --quiet
+SYLVA_CACHE_DIR= "$SYLVA" grow --species quaking_aspen --seed 3 -o "$tmp/c0.glb" --quiet
+check "cached textures: the same bytes as made ones, one entry" \
+  "cmp -s '$tmp/c0.glb' '$tmp/c1.glb' && cmp -s '$tmp/c0.glb' '$tmp/c2.glb' && [[ \$(ls '$tmp/cache' | wc -l) == 1 ]]"
+check "no temp file in the cache" "[[ -z \$(ls -A '$tmp/cache' | grep tmp) ]]"
+
 "$SYLVA" grow --species no_such_tree -o "$tmp/x.glb" 2>"$tmp/err"; rc=$?
 check "unknown species exits 2" "[[ $rc == 2 ]]"
 check "one-line error naming it" "[[ \$(wc -l <'$tmp/err') == 1 ]] && grep -q no_such_tree '$tmp/err'"

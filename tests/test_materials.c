@@ -115,7 +115,7 @@ static void library_textures_become_materials(void **state)
 {
     (void)state;
     sy_material_spec spec = {SYLVA_SPECIES_DIR "/textures/bark.png", SYLVA_SPECIES_DIR "/textures/ash_color.png",
-                             0.45f, 128, NULL, 0};
+                             0.45f, 128, NULL, 0, NULL};
     sy_asset asset;
     memset(&asset, 0, sizeof asset);
     sy_error err = {0};
@@ -174,7 +174,7 @@ static void cards_keep_a_power_of_two_aspect(void **state)
     (void)state;
     /* oak_leaf.png is 171 x 256: the long side becomes 128, the short side
      * the nearest power of two to 85.5, 64. */
-    sy_material_spec spec = {NULL, SYLVA_SPECIES_DIR "/textures/oak_leaf.png", 0.3f, 128, NULL, 0};
+    sy_material_spec spec = {NULL, SYLVA_SPECIES_DIR "/textures/oak_leaf.png", 0.3f, 128, NULL, 0, NULL};
     sy_asset asset;
     memset(&asset, 0, sizeof asset);
     sy_error err = {0};
@@ -191,7 +191,7 @@ static void cards_keep_a_power_of_two_aspect(void **state)
 static void procedural_fallbacks_are_deterministic(void **state)
 {
     (void)state;
-    sy_material_spec spec = {NULL, NULL, 0.4f, 64, NULL, 0};
+    sy_material_spec spec = {NULL, NULL, 0.4f, 64, NULL, 0, NULL};
     sy_asset a, b;
     memset(&a, 0, sizeof a);
     memset(&b, 0, sizeof b);
@@ -243,7 +243,7 @@ static void leaf_without_alpha_is_cut_from_its_background(void **state)
         }
     const char *path = tmp_path("leaf_rgb.png");
     assert_int_equal(stbi_write_png(path, n, n, 3, rgb, n * 3) != 0, 1);
-    sy_material_spec spec = {NULL, path, 0.5f, 64, NULL, 0};
+    sy_material_spec spec = {NULL, path, 0.5f, 64, NULL, 0, NULL};
     sy_asset asset;
     memset(&asset, 0, sizeof asset);
     sy_error err = {0};
@@ -262,7 +262,7 @@ static void leaf_without_alpha_is_cut_from_its_background(void **state)
 static void unreadable_images_are_input_errors(void **state)
 {
     (void)state;
-    sy_material_spec spec = {"/nonexistent/bark.png", NULL, 0.4f, 64, NULL, 0};
+    sy_material_spec spec = {"/nonexistent/bark.png", NULL, 0.4f, 64, NULL, 0, NULL};
     sy_asset asset;
     memset(&asset, 0, sizeof asset);
     sy_error err = {0};
@@ -288,7 +288,7 @@ static void leaf_maps_become_the_leaf_material(void **state)
 {
     (void)state;
     const char *lm = SYLVA_SPECIES_DIR "/leafmaps/quaking_aspen/leaf.material";
-    sy_material_spec spec = {NULL, NULL, -1.0f, 128, lm, 0.3f};
+    sy_material_spec spec = {NULL, NULL, -1.0f, 128, lm, 0.3f, NULL};
     sy_asset asset;
     memset(&asset, 0, sizeof asset);
     sy_error err = {0};
@@ -341,6 +341,97 @@ static void leaf_maps_become_the_leaf_material(void **state)
     sy_asset_free(&asset);
 }
 
+/* The materials cache: the second build of the same spec reads the first's
+ * entry and gives the same images byte for byte and the same materials; an
+ * entry cut short is a miss, never a wrong asset. */
+static void assets_equal(const sy_asset *a, const sy_asset *b)
+{
+    assert_int_equal(a->n_images, b->n_images);
+    assert_int_equal(a->n_materials, b->n_materials);
+    for (size_t i = 0; i < a->n_images; i++) {
+        assert_string_equal(a->images[i].name, b->images[i].name);
+        assert_int_equal(a->images[i].size, b->images[i].size);
+        assert_memory_equal(a->images[i].png, b->images[i].png, a->images[i].size);
+    }
+    for (size_t m = 0; m < a->n_materials; m++) {
+        const sy_material *x = &a->materials[m], *y = &b->materials[m];
+        assert_string_equal(x->name, y->name);
+        assert_int_equal(x->base_color_image, y->base_color_image);
+        assert_int_equal(x->normal_image, y->normal_image);
+        assert_int_equal(x->diffuse_transmission_image, y->diffuse_transmission_image);
+        assert_int_equal(x->thickness_image, y->thickness_image);
+        assert_int_equal(x->hl2_image[0], y->hl2_image[0]);
+        assert_int_equal(x->hl2_image[1], y->hl2_image[1]);
+        assert_memory_equal(x->base_color, y->base_color, sizeof x->base_color);
+        assert_memory_equal(x->diffuse_transmission_color, y->diffuse_transmission_color,
+                            sizeof x->diffuse_transmission_color);
+        assert_true(x->diffuse_transmission == y->diffuse_transmission && x->thickness_factor == y->thickness_factor);
+        assert_true(x->alpha_mode == y->alpha_mode && x->double_sided == y->double_sided);
+    }
+}
+
+static size_t cache_entries(const char *dir, char *one, size_t size)
+{
+    char cmd[4200];
+    snprintf(cmd, sizeof cmd, "ls '%s' 2>/dev/null", dir);
+    FILE *p = popen(cmd, "r");
+    size_t n = 0;
+    char line[512];
+    while (p && fgets(line, sizeof line, p)) {
+        line[strcspn(line, "\n")] = 0;
+        if (one && !n) snprintf(one, size, "%s/%s", dir, line);
+        n++;
+    }
+    if (p) pclose(p);
+    return n;
+}
+
+static void cache_gives_the_same_materials(void **state)
+{
+    (void)state;
+    const char *dir = tmp_path("material_cache");
+    char cmd[8800];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    assert_int_equal(system(cmd), 0);
+    const char *lm = SYLVA_SPECIES_DIR "/leafmaps/quaking_aspen/leaf.material";
+    sy_material_spec plain = {SYLVA_SPECIES_DIR "/textures/bark.png", NULL, -1.0f, 64, lm, 0.3f, NULL};
+    sy_material_spec cached = plain;
+    cached.cache_dir = dir;
+    sy_error err = {0};
+    sy_asset ref, miss, hit, cut;
+    int b0, l0, b1, l1, b2, l2, b3, l3;
+    memset(&ref, 0, sizeof ref), memset(&miss, 0, sizeof miss), memset(&hit, 0, sizeof hit);
+    memset(&cut, 0, sizeof cut);
+    /* An asset that already holds an image: indices are rebased on it. */
+    sy_image first = {NULL, 0, "first"};
+    first.png = malloc(4), first.size = 4;
+    memcpy(first.png, "abcd", 4);
+    assert_true(sy_asset_add_image(&hit, &first, &err) == 0);
+    assert_int_equal(sy_materials_add(&plain, &ref, &b0, &l0, &err), SY_OK);
+    assert_int_equal(sy_materials_add(&cached, &miss, &b1, &l1, &err), SY_OK);
+    char entry[4400];
+    assert_int_equal(cache_entries(dir, entry, sizeof entry), 1);
+    assert_int_equal(sy_materials_add(&cached, &hit, &b2, &l2, &err), SY_OK);
+    assets_equal(&ref, &miss);
+    assert_int_equal(b1, b0), assert_int_equal(l1, l0);
+    assert_int_equal(b2, b0), assert_int_equal(l2, l0);
+    assert_int_equal(hit.n_images, ref.n_images + 1);
+    for (size_t i = 0; i < ref.n_images; i++)
+        assert_memory_equal(ref.images[i].png, hit.images[i + 1].png, ref.images[i].size);
+    assert_int_equal(hit.materials[l2].base_color_image, ref.materials[l0].base_color_image + 1);
+    assert_int_equal(hit.materials[l2].hl2_image[1], ref.materials[l0].hl2_image[1] + 1);
+    /* A damaged entry (cut in half): made again, the same, and stored again. */
+    snprintf(cmd, sizeof cmd, "truncate -s %%50 '%s'", entry);
+    assert_int_equal(system(cmd), 0);
+    assert_int_equal(sy_materials_add(&cached, &cut, &b3, &l3, &err), SY_OK);
+    assets_equal(&ref, &cut);
+    sy_asset again;
+    memset(&again, 0, sizeof again);
+    assert_int_equal(sy_materials_add(&cached, &again, &b3, &l3, &err), SY_OK);
+    assets_equal(&ref, &again);
+    sy_asset_free(&ref), sy_asset_free(&miss), sy_asset_free(&hit), sy_asset_free(&cut), sy_asset_free(&again);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -352,6 +443,7 @@ int main(void)
         cmocka_unit_test(procedural_fallbacks_are_deterministic),
         cmocka_unit_test(leaf_without_alpha_is_cut_from_its_background),
         cmocka_unit_test(unreadable_images_are_input_errors),
+        cmocka_unit_test(cache_gives_the_same_materials),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
