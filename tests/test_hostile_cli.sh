@@ -136,6 +136,10 @@ run bad inf_truth.json "eval inf position" -- eval --quiet --truth inf_truth.jso
 run bad lying.ply "info lying count" -- info --quiet lying.ply
 run bad lying.ply "run lying count" -- run --quiet lying.ply -o lying.glb
 run bad cut.glb "eval truncated glb" -- eval --quiet --points tree.xyz cut.glb
+# An asset where a point cloud belongs: named as a glTF asset, not parsed as text.
+run bad tree.glb "info of a glb" -- info --quiet tree.glb && grep -q "glTF asset, not a point cloud" "$tmp/se" ||
+    note FAIL "info of a glb: not named a glTF asset: $(cat "$tmp/se")"
+run bad tree.glb "run on a glb" -- run --quiet tree.glb -o tree2.glb
 run bad cut.sylva "decode truncated" -- decode --quiet cut.sylva
 run bad cut.sylva "mesh truncated .sylva" -- mesh --quiet cut.sylva -o cut1.glb
 run bad cut.ply "mesh truncated skeleton" -- mesh --quiet cut.ply -o cut2.glb

@@ -56,6 +56,8 @@ static sy_code read_any(const char *path, sy_cloud *out, sy_error *err)
     else if (starts_with(&b, "ply\n") || starts_with(&b, "ply\r\n")) rc = sy_read_ply_mem(path, b.data, b.size, out, err);
     else if (strcmp(ext, "ply") == 0) rc = sy_fail(err, SY_EINPUT, "%s: not a PLY file (no 'ply' magic line)", path);
     else if (looks_like_pcd(&b, ext)) rc = sy_read_pcd_mem(path, b.data, b.size, out, err);
+    else if (starts_with(&b, "glTF") || strcmp(ext, "glb") == 0 || strcmp(ext, "gltf") == 0)
+        rc = sy_fail(err, SY_EINPUT, "%s: a glTF asset, not a point cloud (see `sylva view` or `sylva eval`)", path);
     else if (ends_with(path, "points3D.bin") || strcmp(ext, "bin") == 0)
         rc = sy_read_colmap_points_mem(path, b.data, b.size, 'b', out, err);
     else if (ends_with(path, "points3D.txt")) rc = sy_read_colmap_points_mem(path, b.data, b.size, 't', out, err);
