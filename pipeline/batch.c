@@ -599,7 +599,7 @@ sy_code sy_batch_prepare_dir(const char *out_dir, sy_error *err)
 
 /* Temp files of processes that no longer run (a batch or a worker killed
  * mid-write, or the viewer's own temp beside a worker's): the output rule
- * names them ".tmp.<pid>.<name>"; none of them is an output. */
+ * names them ".tmp.<pid>-<host tag>.<name>"; none of them is an output. */
 static void sweep_temps(const char *dir)
 {
     DIR *d = opendir(dir);
@@ -607,9 +607,11 @@ static void sweep_temps(const char *dir)
     struct dirent *e;
     while ((e = readdir(d))) {
         if (strncmp(e->d_name, ".tmp.", 5)) continue;
-        char *end;
-        long pid = strtol(e->d_name + 5, &end, 10);
-        if (end == e->d_name + 5 || *end != '.' || pid <= 0) continue;
+        long pid;
+        int here;
+        /* Another host's temp (a Slurm node writing into the same folder) is
+         * that node's to judge: its pid means nothing here. */
+        if (!sy_temp_owner(e->d_name + 5, &pid, &here, NULL) || !here) continue;
         if (!sy_process_gone(pid)) continue;
         char p[8500];
         if (snprintf(p, sizeof p, "%s/%s", dir, e->d_name) < (int)sizeof p) unlink(p);

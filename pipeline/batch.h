@@ -114,7 +114,7 @@ uint64_t sy_batch_hash(const void *data, size_t size);
 /* Creates out_dir and its trees/ and logs/ folders. */
 sy_code sy_batch_prepare_dir(const char *out_dir, sy_error *err);
 
-/* Removes the temp files (".tmp.<pid>.*") that processes no longer running
+/* Removes the temp files (".tmp.<pid>-<host tag>.*") that this host's processes no longer running
  * left in out_dir and its folders: what a kill mid-write leaves. */
 void sy_batch_sweep(const char *out_dir);
 

@@ -64,7 +64,10 @@ static void long_names_fit_name_max(void **state)
     /* Short names keep their whole name after the prefix. */
     snprintf(path, sizeof path, "%s/tree.las", dir);
     assert_int_equal(sy_output_temp_name(path, 42, tmp, sizeof tmp), 0);
-    assert_string_equal(strrchr(tmp, '/') + 1, ".tmp.42.tree.las");
+    char tag[9], want[64];
+    sy_host_tag(tag);
+    snprintf(want, sizeof want, ".tmp.42-%s.tree.las", tag);
+    assert_string_equal(strrchr(tmp, '/') + 1, want);
 }
 
 static void stale_temps_of_dead_processes_go(void **state)
@@ -85,6 +88,40 @@ static void stale_temps_of_dead_processes_go(void **state)
     assert_true(file_exists(live));   /* a running process may still finish it */
     assert_true(file_exists(other));  /* another output's temp is not ours to judge */
     assert_int_equal(dir_entry_count(dir), 3);
+}
+
+/* A Slurm array writes into one folder from several nodes, and a pid names
+ * a process on its own host only: another host's temp of a pid that does not
+ * run here stays (its node may be writing it); this host's, and one of the
+ * earlier tagless form, go. */
+static void temps_of_other_hosts_stay(void **state)
+{
+    (void)state;
+    const char *dir = fresh_dir("hosts");
+    char path[4400], mine[4400], theirs[4400], legacy[4400], tag[9];
+    snprintf(path, sizeof path, "%s/tree.glb", dir);
+    long dead = dead_pid();
+    sy_host_tag(tag);
+    assert_int_equal(sy_output_temp_name(path, dead, mine, sizeof mine), 0);
+    const char *other_tag = strcmp(tag, "0badc0de") ? "0badc0de" : "0badc0df";
+    snprintf(theirs, sizeof theirs, "%s/.tmp.%ld-%s.tree.glb", dir, dead, other_tag);
+    snprintf(legacy, sizeof legacy, "%s/.tmp.%ld.tree.glb", dir, dead);
+    long pid;
+    int here;
+    const char *rest;
+    assert_true(sy_temp_owner(strrchr(mine, '/') + 6, &pid, &here, &rest) && pid == dead && here);
+    assert_string_equal(rest, "tree.glb");
+    assert_true(sy_temp_owner(strrchr(theirs, '/') + 6, &pid, &here, &rest) && pid == dead && !here);
+    assert_true(sy_temp_owner(strrchr(legacy, '/') + 6, &pid, &here, &rest) && pid == dead && here);
+    assert_false(sy_temp_owner("12-xyz.tree.glb", &pid, &here, &rest));
+    assert_false(sy_temp_owner("-1.tree.glb", &pid, &here, &rest));
+    assert_int_equal(write_bytes(mine, "x", 1), 0);
+    assert_int_equal(write_bytes(theirs, "x", 1), 0);
+    assert_int_equal(write_bytes(legacy, "x", 1), 0);
+    assert_int_equal(sy_output_remove_stale(path), 2);
+    assert_false(file_exists(mine));
+    assert_false(file_exists(legacy));
+    assert_true(file_exists(theirs));
 }
 
 /* A killed writer that nobody has reaped yet (an orphan waits for init)
@@ -297,6 +334,7 @@ int main(void)
         cmocka_unit_test(links_stay_links),           cmocka_unit_test(devices_are_written_through),
         cmocka_unit_test(output_is_never_an_input),   cmocka_unit_test(pairs_commit_together),
         cmocka_unit_test(killed_writer_leaves_no_output), cmocka_unit_test(temps_of_unreaped_killed_writers_go),
+        cmocka_unit_test(temps_of_other_hosts_stay),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -165,7 +165,7 @@ static int temp_part(const char *target, char *part, size_t size, size_t *dirlen
     snprintf(dir, sizeof dir, "%.*s", *dirlen ? (int)*dirlen : 1, *dirlen ? target : ".");
     long name_max = pathconf(dir, _PC_NAME_MAX);
     if (name_max <= 0 || name_max > 4096) name_max = 255;
-    const size_t prefix = 16; /* ".tmp." + 10 digits + "." */
+    const size_t prefix = 25; /* ".tmp." + 10 digits + "-" + 8 (host tag) + "." */
     if ((size_t)name_max <= prefix + 16) return -1;
     size_t budget = (size_t)name_max - prefix, len = strlen(name);
     if (len <= budget) return snprintf(part, size, "%s", name) < (int)size ? 0 : -1;
@@ -176,12 +176,44 @@ static int temp_part(const char *target, char *part, size_t size, size_t *dirlen
     return snprintf(part, size, "%08x~%s", (unsigned)h, tail) < (int)size ? 0 : -1;
 }
 
+void sy_host_tag(char tag[9])
+{
+    char host[256] = "";
+    if (gethostname(host, sizeof host) != 0) host[0] = 0;
+    host[sizeof host - 1] = 0;
+    uint32_t h = 2166136261u; /* FNV-1a */
+    for (const char *c = host; *c; c++) h = (h ^ (unsigned char)*c) * 16777619u;
+    snprintf(tag, 9, "%08x", (unsigned)h);
+}
+
+int sy_temp_owner(const char *s, long *pid, int *here, const char **rest)
+{
+    long v = 0;
+    int digits = 0;
+    while (*s >= '0' && *s <= '9' && digits < 10) v = v * 10 + (*s++ - '0'), digits++;
+    if (!digits || v <= 0) return 0;
+    *pid = v;
+    *here = 1;
+    if (*s == '-') {
+        char mine[9];
+        sy_host_tag(mine);
+        for (int i = 0; i < 8; i++)
+            if (!isxdigit((unsigned char)s[1 + i])) return 0;
+        *here = strncmp(s + 1, mine, 8) == 0;
+        s += 9;
+    }
+    if (*s != '.') return 0;
+    if (rest) *rest = s + 1;
+    return 1;
+}
+
 int sy_output_temp_name(const char *target, long pid, char *buf, size_t size)
 {
-    char part[4096];
+    char part[4096], tag[9];
     size_t dirlen;
     if (temp_part(target, part, sizeof part, &dirlen)) return -1;
-    int k = snprintf(buf, size, "%.*s.tmp.%ld.%s", (int)dirlen, target, pid, part);
+    sy_host_tag(tag);
+    int k = snprintf(buf, size, "%.*s.tmp.%ld-%s.%s", (int)dirlen, target, pid, tag, part);
     return k > 0 && (size_t)k < size ? 0 : -1;
 }
 
@@ -213,17 +245,11 @@ int sy_process_gone(long pid)
     return gone || !has_mm;
 }
 
-/* 1 when name is ".tmp.<digits>.<part>"; *pid gets the digits. */
-static int temp_match(const char *name, const char *part, long *pid)
+/* 1 when name is ".tmp.<owner>.<part>"; *pid and *here from the owner. */
+static int temp_match(const char *name, const char *part, long *pid, int *here)
 {
-    if (strncmp(name, ".tmp.", 5) != 0) return 0;
-    const char *p = name + 5;
-    long v = 0;
-    int digits = 0;
-    while (*p >= '0' && *p <= '9' && digits < 10) v = v * 10 + (*p++ - '0'), digits++;
-    if (!digits || *p != '.' || strcmp(p + 1, part) != 0) return 0;
-    *pid = v;
-    return 1;
+    const char *rest;
+    return strncmp(name, ".tmp.", 5) == 0 && sy_temp_owner(name + 5, pid, here, &rest) && strcmp(rest, part) == 0;
 }
 
 size_t sy_output_remove_stale(const char *target)
@@ -237,8 +263,10 @@ size_t sy_output_remove_stale(const char *target)
     long self = (long)getpid();
     for (struct dirent *e; (e = readdir(d));) {
         long pid;
-        if (!temp_match(e->d_name, part, &pid) || pid == self || pid <= 0) continue;
-        /* Only a process that no longer runs leaves its temp for good. */
+        int here;
+        if (!temp_match(e->d_name, part, &pid, &here) || !here || pid == self) continue;
+        /* Only a process that no longer runs leaves its temp for good; one of
+         * another host (a Slurm node on the same folder) is not judged here. */
         if (!sy_process_gone(pid)) continue;
         snprintf(victim, sizeof victim, "%s%s%s", dir, dirlen ? "" : "/", e->d_name);
         if (unlink(victim) == 0) removed++;
@@ -253,8 +281,9 @@ static int is_own_temp(const char *path)
 {
     const char *slash = strrchr(path, '/');
     const char *name = slash ? slash + 1 : path;
-    char prefix[32];
-    int k = snprintf(prefix, sizeof prefix, ".tmp.%ld.", (long)getpid());
+    char prefix[48], tag[9];
+    sy_host_tag(tag);
+    int k = snprintf(prefix, sizeof prefix, ".tmp.%ld-%s.", (long)getpid(), tag);
     return strncmp(name, prefix, (size_t)k) == 0 && name[k];
 }
 
@@ -493,12 +522,13 @@ static int split_target(const char *target, char *dir, size_t dsize, char *name,
     return 0;
 }
 
-/* "<dir>/.<tag>.<pid>.<name>" */
+/* "<dir>/.<tag>.<pid>-<host tag>.<name>" */
 static int folder_sibling(const char *target, const char *tag, long pid, char *buf, size_t size)
 {
-    char dir[4096], name[256];
+    char dir[4096], name[256], host[9];
     if (split_target(target, dir, sizeof dir, name, sizeof name)) return -1;
-    int n = snprintf(buf, size, "%s/.%s.%ld.%s", dir, tag, pid, name);
+    sy_host_tag(host);
+    int n = snprintf(buf, size, "%s/.%s.%ld-%s.%s", dir, tag, pid, host, name);
     return n > 0 && (size_t)n < size ? 0 : -1;
 }
 
@@ -515,10 +545,11 @@ static void sweep_folder_siblings(const char *target)
         for (int t = 0; t < 2; t++) {
             size_t tl = strlen(tags[t]);
             if (strncmp(e->d_name, tags[t], tl) != 0) continue;
-            char *end;
-            long pid = strtol(e->d_name + tl, &end, 10);
-            if (end == e->d_name + tl || *end != '.' || strcmp(end + 1, name) != 0) continue;
-            if (pid > 0 && !sy_process_gone(pid)) continue;
+            long pid;
+            int here;
+            const char *rest;
+            if (!sy_temp_owner(e->d_name + tl, &pid, &here, &rest) || strcmp(rest, name) != 0) continue;
+            if (!here || !sy_process_gone(pid)) continue;
             char path[8600];
             snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
             if (sy_is_directory(path)) remove_flat_folder(path);

@@ -41,10 +41,10 @@ const char *sy_extension(const char *path, char *buf, size_t size);
  *   that already is this process's stdout or stderr (/dev/stdout redirected);
  * - a directory, block device or socket is refused (SY_EINPUT);
  * - anything else (a regular file, or nothing yet) is written to a temp name
- *   in the target's directory, ".tmp.<pid>.<name>" (the name's head shortened
+ *   in the target's directory, ".tmp.<pid>-<host tag>.<name>" (the name's head shortened
  *   to a hash so the whole stays within NAME_MAX, the extension kept), and
  *   renamed over the target when complete. Temp names of this pattern left
- *   by processes that no longer run are removed on the way. */
+ *   by processes of this host that no longer run are removed on the way. */
 
 typedef struct {
     char path[4096]; /* where the bytes go: the path, or its links' final target */
@@ -62,8 +62,20 @@ sy_code sy_output_resolve(const char *path, sy_output_target *t, sy_error *err);
 sy_code sy_output_check(const char *path, const char *const *inputs, size_t n_inputs, sy_error *err);
 
 /* The temp name the rule uses for target in its directory, for process pid:
- * "<dir>/.tmp.<pid>.<name>", within NAME_MAX. 0, or -1 when it cannot fit. */
+ * "<dir>/.tmp.<pid>-<host tag>.<name>", within NAME_MAX. 0, or -1 when it
+ * cannot fit. */
 int sy_output_temp_name(const char *target, long pid, char *buf, size_t size);
+
+/* This host's tag in temp names: 8 hex digits of a hash of its name. A pid
+ * names a process on one host only; batches on several Slurm nodes share
+ * their output folder, and a node must not take another's live writer for
+ * a process that is gone. */
+void sy_host_tag(char tag[9]);
+
+/* Parses a temp name's owner field at s, "<pid>-<host tag>." (or "<pid>."
+ * of earlier versions, taken as this host's): *pid, *here (1: this host)
+ * and *rest (may be NULL) after the '.'. 0 when s is no owner field. */
+int sy_temp_owner(const char *s, long *pid, int *here, const char **rest);
 
 /* 1 when process pid no longer runs and will never write again: it does
  * not exist, or it is a zombie, exiting, or has SIGKILL pending (a killed
@@ -71,8 +83,8 @@ int sy_output_temp_name(const char *target, long pid, char *buf, size_t size);
  * ".tmp.<pid>." names. */
 int sy_process_gone(long pid);
 
-/* Removes "<dir>/.tmp.<pid>.<name>" files of target whose pid no longer runs;
- * returns how many went. */
+/* Removes "<dir>/.tmp.<pid>-<host tag>.<name>" files of target whose pid, on
+ * this host, no longer runs; returns how many went. */
 size_t sy_output_remove_stale(const char *target);
 
 typedef struct {
