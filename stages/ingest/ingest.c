@@ -37,14 +37,51 @@ static int looks_like_pcd(const sy_buffer *b, const char *ext)
     return starts_with(b, "# .PCD") || starts_with(b, "VERSION .7") || starts_with(b, "VERSION 0.7");
 }
 
+/* LAS and LAZ, the formats of large scans, are decoded straight from a
+ * read-only mapping of the file: no copy of it in memory beside the cloud,
+ * and its pages are the kernel's to drop once read (POSIX_MADV_SEQUENTIAL), so the
+ * file costs no memory the decoder holds. 1 when path was such a file (rc
+ * set), 0 for anything else (other formats are read into a buffer: the text
+ * readers rely on its terminating NUL). */
+static int read_mapped_las(const char *path, sy_cloud *out, sy_code *rc, sy_error *err)
+{
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return 0;
+    struct stat st;
+    void *map = MAP_FAILED;
+    size_t size = 0;
+    if (fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size >= 4) {
+        size = (size_t)st.st_size;
+        map = mmap(NULL, size, PROT_READ, MAP_PRIVATE, fd, 0);
+    }
+    close(fd);
+    if (map == MAP_FAILED) return 0;
+    int las = memcmp(map, "LASF", 4) == 0;
+    if (las) {
+        (void)posix_madvise(map, size, POSIX_MADV_SEQUENTIAL);
+        *rc = sy_read_las_mem(path, map, size, out, err);
+    }
+    munmap(map, size);
+    return las;
+}
+
 static sy_code read_any(const char *path, sy_cloud *out, sy_error *err)
 {
     memset(out, 0, sizeof *out);
     if (sy_is_directory(path)) return sy_read_colmap_dir(path, out, err);
     char ext[16];
     sy_extension(path, ext, sizeof ext);
+    sy_code rc = SY_OK;
+    if (read_mapped_las(path, out, &rc, err)) {
+        if (rc == SY_OK && out->n == 0) {
+            sy_cloud_free(out);
+            return sy_fail(err, SY_EINPUT, "%s: no points", path);
+        }
+        if (rc) sy_cloud_free(out);
+        return rc;
+    }
     sy_buffer b;
-    sy_code rc = sy_read_file(path, &b, err);
+    rc = sy_read_file(path, &b, err);
     if (rc) return rc;
     if (b.size == 0) {
         sy_buffer_free(&b);
