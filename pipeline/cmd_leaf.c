@@ -37,8 +37,7 @@ static sy_code load_photo(const char *path, sy_fimage *im, sy_error *err)
 {
     int depth;
     if (access(path, R_OK) != 0) return sy_fail(err, SY_EINPUT, "%s: cannot open (%s)", path, strerror(errno));
-    if (sy_lcv_read(path, &im->px, &im->w, &im->h, &im->c, &depth))
-        return sy_fail(err, SY_EINPUT, "%s: not an image this build can decode", path);
+    if (sy_lcv_read(path, &im->px, &im->w, &im->h, &im->c, &depth, err)) return err->code;
     if (depth != 8) {
         sy_fimage_free(im);
         return sy_fail(err, SY_EINPUT, "%s: a %d-bit image where an 8-bit sRGB photo is expected", path, depth);
@@ -138,8 +137,7 @@ static sy_code load_height(const char *path, double scale, sy_fimage *im, sy_err
         return SY_OK;
     }
     if (access(path, R_OK) != 0) return sy_fail(err, SY_EINPUT, "%s: cannot open (%s)", path, strerror(errno));
-    if (sy_lcv_read(path, &im->px, &im->w, &im->h, &im->c, &depth))
-        return sy_fail(err, SY_EINPUT, "%s: not an image this build can decode", path);
+    if (sy_lcv_read(path, &im->px, &im->w, &im->h, &im->c, &depth, err)) return err->code;
     if (depth != 16 || im->c != 1) {
         sy_fimage_free(im);
         return sy_fail(err, SY_EINPUT, "%s: a height scan must be a 16-bit grey PNG", path);
@@ -154,7 +152,7 @@ static sy_code write_png(const char *dir, const char *name, const float *px, int
 {
     unsigned char *png;
     size_t n;
-    if (sy_lcv_encode_png(px, w, h, c, bits, &png, &n)) return sy_fail(err, SY_EINTERNAL, "%s: PNG encoding failed", name);
+    if (sy_lcv_encode_png(px, w, h, c, bits, &png, &n, err)) return sy_error_prefix(err, name);
     char path[4096];
     snprintf(path, sizeof path, "%s/%s", dir, name);
     sy_code rc = sy_write_file_atomic(path, png, n, err);

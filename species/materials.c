@@ -345,7 +345,7 @@ static sy_code read_map(const char *path, int want_c, int want_bits, int side, f
 {
     float *px;
     int w, h, c, depth;
-    if (sy_lcv_read(path, &px, &w, &h, &c, &depth)) return sy_fail(err, SY_EINPUT, "%s: cannot read the leaf map", path);
+    if (sy_lcv_read(path, &px, &w, &h, &c, &depth, err)) return err->code;
     if (c != want_c || depth != want_bits || w != h || w < 1) {
         free(px);
         return sy_fail(err, SY_EINPUT, "%s: expected a square %d-bit %d-channel leaf map", path, want_bits, want_c);
@@ -355,9 +355,10 @@ static sy_code read_map(const char *path, int want_c, int want_bits, int side, f
         return SY_OK;
     }
     float *r = malloc((size_t)side * side * (size_t)c * sizeof *r);
-    if (!r || sy_lcv_resize(px, w, h, c, r, side, side)) {
+    sy_code rc = r ? sy_lcv_resize(px, w, h, c, r, side, side, err) : sy_fail(err, SY_EINTERNAL, "out of memory");
+    if (rc) {
         free(px), free(r);
-        return sy_fail(err, SY_EINTERNAL, "%s: resize failed", path);
+        return sy_error_prefix(err, path);
     }
     free(px);
     *out = r;
@@ -368,8 +369,8 @@ static int add_png16(sy_asset *asset, const char *name, const float *px, int sid
 {
     sy_image img;
     memset(&img, 0, sizeof img);
-    if (sy_lcv_encode_png(px, side, side, c, bits, &img.png, &img.size)) {
-        sy_fail(err, SY_EINTERNAL, "%s: PNG encoding failed", name);
+    if (sy_lcv_encode_png(px, side, side, c, bits, &img.png, &img.size, err)) {
+        sy_error_prefix(err, name);
         return -1;
     }
     snprintf(img.name, sizeof img.name, "%s", name);
