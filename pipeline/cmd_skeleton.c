@@ -142,7 +142,7 @@ int cmd_skeleton(int argc, char **argv, sy_cli *cli)
      * branches the hulls stand for (rTwig: recall 0.16 instead of 0.97). */
     a.o.clusters = !a.no_clusters && sylva_file;
     sy_error err = {0};
-    if (sy_reconstruct_options_check(&a.o, &err) || sy_hull_options_check(&a.hull, &err)) return sy_cli_report(&err);
+    if (sy_reconstruct_check(&a.o, &err) || sy_hull_options_check(&a.hull, &err)) return sy_cli_report(&err);
     sy_cloud c;
     if (sy_read_cloud(in[0], &c, &err)) return sy_cli_report(&err);
     sy_skeleton s;
