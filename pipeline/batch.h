@@ -155,6 +155,9 @@ typedef struct {
 } sy_slurm_options;
 
 sy_slurm_options sy_slurm_options_default(void);
+/* SY_EUSAGE naming the field: negative array_size or cpus, or a line break
+ * in partition, time or mem (each becomes one #SBATCH line of the script). */
+sy_code sy_slurm_options_check(const sy_slurm_options *o, sy_error *err);
 
 /* Writes out_dir/slurm/batch.sbatch (a job array whose task k runs
  * `sylva batch ARGS --slurm-task k --slurm-tasks N`, argv being this

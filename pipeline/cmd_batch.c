@@ -106,7 +106,7 @@ int cmd_batch(int argc, char **argv, sy_cli *cli)
         }
     }
     sy_error err = {0};
-    if (sy_batch_options_check(&o, &err)) {
+    if (sy_batch_options_check(&o, &err) || sy_slurm_options_check(&so, &err)) {
         free(pos);
         return sy_cli_report(&err);
     }

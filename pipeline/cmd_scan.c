@@ -311,6 +311,11 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
         return SY_EUSAGE;
     }
     sy_error err = {0};
+    if (sy_scene_options_check(&so, &err)) {
+        free(list);
+        free(path);
+        return sy_cli_report(&err);
+    }
     /* Every species must load before any progress is printed: a bad name
      * makes exactly one line of output. */
     for (int i = 0; i < so.n_species; i++) {

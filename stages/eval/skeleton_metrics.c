@@ -17,6 +17,23 @@ sy_skeleton_metrics_options sy_skeleton_metrics_options_default(void)
     return o;
 }
 
+sy_code sy_skeleton_metrics_options_check(const sy_skeleton_metrics_options *o, sy_error *err)
+{
+    if (!(o->sample_step > 0) || !isfinite(o->sample_step))
+        return sy_fail(err, SY_EUSAGE, "skeleton metrics: sample_step %g must be > 0", o->sample_step);
+    const struct {
+        const char *name;
+        double v;
+    } at_least_0[] = {{"min_tolerance", o->min_tolerance},
+                      {"radius_factor", o->radius_factor},
+                      {"thick_radius", o->thick_radius},
+                      {"bifurcation_radius", o->bifurcation_radius}};
+    for (size_t i = 0; i < sizeof at_least_0 / sizeof *at_least_0; i++)
+        if (!(at_least_0[i].v >= 0) || !isfinite(at_least_0[i].v))
+            return sy_fail(err, SY_EUSAGE, "skeleton metrics: %s %g must be >= 0", at_least_0[i].name, at_least_0[i].v);
+    return SY_OK;
+}
+
 /* Every edge of a forest in world coordinates. */
 typedef struct {
     size_t n;
@@ -399,8 +416,9 @@ sy_code sy_skeleton_metrics_compute(const sy_forest *truth, const sy_forest *mod
                                     sy_skeleton_metrics *out, sy_error *err)
 {
     sy_skeleton_metrics_options o = opts ? *opts : sy_skeleton_metrics_options_default();
-    if (!(o.sample_step > 0)) o.sample_step = 0.01;
     memset(out, 0, sizeof *out);
+    sy_code checked = sy_skeleton_metrics_options_check(&o, err);
+    if (checked) return checked;
     segments T, M;
     sy_code rc = segments_build(truth, o.thick_radius, &T, err);
     if (rc) return rc;
