@@ -50,6 +50,23 @@ int sy_cli_parse(const sy_cmd_spec *spec, int argc, char **argv, sy_cli *cli, co
  * SY_EINTERNAL when out of memory. */
 int sy_cli_parse_all(const sy_cmd_spec *spec, int argc, char **argv, sy_cli *cli, const char ***pos, int *n_pos);
 
+/* What a command's opening asks of its -o (the "-o" entry of its option
+ * table: target and metavar). */
+typedef enum {
+    SY_CLI_OUT_NONE,     /* nothing: -o is optional, or the command checks more first */
+    SY_CLI_OUT_REQUIRED, /* -o must be given ("sylva NAME: -o META is required", exit 1) */
+    SY_CLI_OUT_CHECKED   /* ... and obey the output rule against the positional arguments */
+} sy_cli_out;
+
+/* The opening every command makes, so that a command reads: begin (parse,
+ * check), call, report. In this order: sy_cli_parse into spec's option
+ * targets and pos; sy_cli_apply_settings; then what `out` asks of -o
+ * (SY_CLI_OUT_CHECKED: sy_cli_check_outputs on it and the *n_pos inputs).
+ * Returns 1 to go on; 0 when the command is over: *status is then its exit
+ * status (0 after --help; otherwise the usage or output error, printed). */
+int sy_cli_begin(const sy_cmd_spec *spec, int argc, char **argv, sy_cli *cli, const char **pos, int max, int *n_pos,
+                 sy_cli_out out, int *status);
+
 /* The two process-wide settings a command makes once, after parsing:
  * sy_set_threads(--threads) and sy_progress_set_quiet(--quiet or --json).
  * They change speed and stderr, never output bytes. */

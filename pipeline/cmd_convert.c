@@ -76,15 +76,8 @@ int cmd_convert(int argc, char **argv, sy_cli *cli)
         "cores LAZ chunks are coded on.",
         opts, 1, 1};
     const char *in[1];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
-    if (!out_path) {
-        fprintf(stderr, "sylva convert: -o OUT is required\n");
-        return SY_EUSAGE;
-    }
-    if ((rc = sy_cli_check_outputs(&out_path, 1, in, 1))) return rc;
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, in, 1, &n, SY_CLI_OUT_CHECKED, &rc)) return rc;
     sy_error err = {0};
     int transcoded = 0;
     if ((rc = transcode_las(in[0], out_path, cli, &transcoded, &err))) return sy_cli_report(&err);

@@ -52,10 +52,8 @@ int cmd_encode(int argc, char **argv, sy_cli *cli)
         "without clusters. The seed of a skeleton file is --seed. See docs/sylva-format.md.",
         opts, 1, 1};
     const char *in[1];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, in, 1, &n, SY_CLI_OUT_NONE, &rc)) return rc;
     char ext[16];
     sy_extension(out_path ? out_path : "", ext, sizeof ext);
     if (!out_path || strcmp(ext, "sylva") != 0 || species < -1 || species > 65535) {

@@ -26,10 +26,8 @@ int cmd_grow(int argc, char **argv, sy_cli *cli)
         "library's species instead. The same species and --seed give a byte-identical file.",
         opts, 0, 1};
     const char *pos[1];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, pos, 1, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, pos, 1, &n, SY_CLI_OUT_NONE, &rc)) return rc;
     if (!out_path || (n == 0) == (species_name == NULL)) {
         fprintf(stderr, "sylva grow: give one species (a file or --species NAME) and -o OUT.glb\n");
         return SY_EUSAGE;

@@ -271,10 +271,8 @@ int cmd_leaf(int argc, char **argv, sy_cli *cli)
         "leaf.material (docs/leafmaps.md); --species NAME installs them as NAME's leaf.",
         opts, 0, MAX_PHOTOS};
     const char *pos[MAX_PHOTOS];
-    int n_pos;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, pos, MAX_PHOTOS, &n_pos);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
+    int n_pos, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, pos, MAX_PHOTOS, &n_pos, SY_CLI_OUT_NONE, &rc)) return rc;
     const char *out_dir = a.out_dir, *species_name = a.species_name, *library_dir = a.library_dir, *white = a.white;
     double thickness = a.thickness, texel = a.texel, leaf_length = a.leaf_length, height_scale = a.height_scale;
     int size = a.size, directions = a.directions;

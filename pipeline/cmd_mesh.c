@@ -147,15 +147,8 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
         "(a model with hulls has its foliage already and gets none). See docs/qsm-formats.md.",
         opts, 1, 1};
     const char *pos[1];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, pos, 1, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
-    if (!out_path) {
-        fprintf(stderr, "sylva mesh: -o OUT.glb is required\n");
-        return SY_EUSAGE;
-    }
-    if ((rc = sy_cli_check_outputs(&out_path, 1, pos, 1))) return rc;
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, pos, 1, &n, SY_CLI_OUT_CHECKED, &rc)) return rc;
     if (tree_index < -1 || (leaf_density != -1 && !(leaf_density >= 0 && leaf_density <= 1e4))) {
         fprintf(stderr, "sylva mesh: --tree must be >= 0 and --leaf-density 0..10000\n");
         return SY_EUSAGE;

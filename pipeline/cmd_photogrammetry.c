@@ -116,14 +116,8 @@ int cmd_photogrammetry(int argc, char **argv, sy_cli *cli)
         "models and log (colmap.log) stay in the workspace, OUT.colmap/ by default.",
         opts, 1, 1};
     const char *in[1];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
-    if (!out_path) {
-        fprintf(stderr, "sylva photogrammetry: -o OUT is required\n");
-        return SY_EUSAGE;
-    }
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, in, 1, &n, SY_CLI_OUT_REQUIRED, &rc)) return rc;
     sy_error err = {0};
     if (!sy_is_directory(in[0])) {
         sy_fail(&err, SY_EINPUT, "%s: not a folder of photos", in[0]);

@@ -98,16 +98,9 @@ int cmd_preprocess(int argc, char **argv, sy_cli *cli)
         "a \"steps\" array). Exit codes: 0 ok, 1 usage, 2 bad input.",
         opts, 1, 1};
     const char *in[1];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, in, 1, &n, SY_CLI_OUT_CHECKED, &rc)) return rc;
     sy_error err = {0};
-    if (!a.out_path) {
-        fprintf(stderr, "sylva preprocess: -o OUT is required\n");
-        return SY_EUSAGE;
-    }
-    if ((rc = sy_cli_check_outputs(&a.out_path, 1, in, 1))) return rc;
     if (build_opts(&a, &err)) {
         fprintf(stderr, "sylva preprocess: %s\n", err.msg);
         return SY_EUSAGE;

@@ -134,14 +134,8 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
     "`sylva photogrammetry` does (give --scale-ref or --camera-spacing for metres).",
         opts, 1, 1};
     const char *in[1];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
-    if (!a.out_path) {
-        fprintf(stderr, "sylva run: -o OUT.glb is required\n");
-        return SY_EUSAGE;
-    }
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, in, 1, &n, SY_CLI_OUT_REQUIRED, &rc)) return rc;
     if (a.sylva_path && strcmp(a.sylva_path, a.out_path) == 0) {
         fprintf(stderr, "sylva run: -o and --sylva name the same file\n");
         return SY_EUSAGE;

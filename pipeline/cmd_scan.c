@@ -247,15 +247,9 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
         "seed gives the same bytes for any --threads. See docs/scan.md.",
         opts, 0, 1};
     const char *pos[1];
-    int n_pos;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, pos, 1, &n_pos);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
+    int n_pos, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, pos, 1, &n_pos, SY_CLI_OUT_REQUIRED, &rc)) return rc;
     sy_scanner_kind kind;
-    if (!a->out_path) {
-        fprintf(stderr, "sylva scan: -o OUT is required\n");
-        return SY_EUSAGE;
-    }
     if (!parse_kind(a->kind_name, &kind)) {
         fprintf(stderr, "sylva scan: --scanner must be terrestrial, mobile or airborne, got '%s'\n", a->kind_name);
         return SY_EUSAGE;

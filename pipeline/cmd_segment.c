@@ -174,14 +174,8 @@ int cmd_segment(int argc, char **argv, sy_cli *cli)
         "with the point accounting and a \"trees\" array. Exit codes: 0 ok, 1 usage, 2 bad input.",
         opts, 1, 1};
     const char *in[1];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
-    if (!a.out_path) {
-        fprintf(stderr, "sylva segment: -o OUT is required\n");
-        return SY_EUSAGE;
-    }
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, in, 1, &n, SY_CLI_OUT_REQUIRED, &rc)) return rc;
     if (sy_segment_method_parse(a.method_text, &a.o.method)) {
         fprintf(stderr, "sylva segment: --method: expected auto, terrestrial or airborne, got '%s'\n", a.method_text);
         return SY_EUSAGE;

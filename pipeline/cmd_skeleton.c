@@ -117,15 +117,8 @@ int cmd_skeleton(int argc, char **argv, sy_cli *cli)
         "clusters: every point stays on it) in the scan's own world coordinates (docs/qsm-formats.md).",
         opts, 1, 1};
     const char *in[1];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
-    if (!a.out_path) {
-        fprintf(stderr, "sylva skeleton: -o OUT is required\n");
-        return SY_EUSAGE;
-    }
-    if ((rc = sy_cli_check_outputs(&a.out_path, 1, in, 1))) return rc;
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, in, 1, &n, SY_CLI_OUT_CHECKED, &rc)) return rc;
     char ext[16];
     sy_extension(a.out_path, ext, sizeof ext);
     int sylva_file = strcmp(ext, "sylva") == 0;
