@@ -184,6 +184,20 @@ void sy_cli_apply_settings(const sy_cli *cli)
     sy_set_threads(cli->threads);
 }
 
+void sy_cli_json_open(sy_json *j, const char *input, const char *output)
+{
+    sy_json_begin(j, stdout, 0);
+    sy_json_object(j, NULL);
+    if (input) sy_json_string(j, "input", input);
+    if (output) sy_json_string(j, "output", output);
+}
+
+void sy_cli_json_close(sy_json *j)
+{
+    sy_json_end(j);
+    sy_json_finish(j);
+}
+
 int sy_cli_report(const sy_error *err)
 {
     /* Always one line: a path named in the message may hold a newline. */

@@ -3,6 +3,7 @@
 #ifndef SYLVA_CLI_H
 #define SYLVA_CLI_H
 
+#include "stages/core/json.h"
 #include "stages/core/status.h"
 
 #ifdef __cplusplus
@@ -77,6 +78,12 @@ void sy_cli_apply_settings(const sy_cli *cli);
  * directory it must not replace, no input (n_in paths) and no other output.
  * Prints one line and returns its exit code (2), or 0. */
 int sy_cli_check_outputs(const char *const *outs, size_t n_out, const char *const *ins, size_t n_in);
+
+/* A command's --json report on stdout: one object that opens with "input"
+ * and "output" (each left out when NULL), the command's own fields after
+ * them; sy_cli_json_close ends the object and the line. */
+void sy_cli_json_open(sy_json *j, const char *input, const char *output);
+void sy_cli_json_close(sy_json *j);
 
 /* Prints "sylva: <msg>" on stderr and returns err->code (the exit status). */
 int sy_cli_report(const sy_error *err);

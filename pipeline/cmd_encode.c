@@ -82,15 +82,12 @@ int cmd_encode(int argc, char **argv, sy_cli *cli)
     if (!rc) {
         if (cli->json) {
             sy_json j;
-            sy_json_begin(&j, stdout, 0);
-            sy_json_object(&j, NULL);
-            sy_json_string(&j, "output", out_path);
+            sy_cli_json_open(&j, NULL, out_path);
             sy_json_int(&j, "bytes", (long long)size);
             sy_json_int(&j, "nodes", (long long)s.n);
             sy_json_int(&j, "clusters", (long long)cl.n);
             sy_json_int(&j, "species_id", meta.species_id);
-            sy_json_end(&j);
-            sy_json_finish(&j);
+            sy_cli_json_close(&j);
         } else if (!cli->quiet) {
             printf("%s: %zu nodes, %zu clusters, %zu bytes\n", out_path, s.n, cl.n, size);
         }

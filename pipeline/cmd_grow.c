@@ -58,9 +58,7 @@ int cmd_grow(int argc, char **argv, sy_cli *cli)
     if (rc == SY_OK) {
         if (cli->json) {
             sy_json j;
-            sy_json_begin(&j, stdout, 0);
-            sy_json_object(&j, NULL);
-            sy_json_string(&j, "output", out_path);
+            sy_cli_json_open(&j, NULL, out_path);
             sy_json_string(&j, "species", sp.name);
             sy_json_int(&j, "seed", (long long)cli->seed);
             sy_json_int(&j, "nodes", (long long)rep.nodes);
@@ -72,8 +70,7 @@ int cmd_grow(int argc, char **argv, sy_cli *cli)
             sy_json_number(&j, "seconds_grow", grow_s);
             sy_json_number(&j, "seconds_mesh", rep.seconds_mesh);
             sy_json_number(&j, "seconds_export", rep.seconds_export);
-            sy_json_end(&j);
-            sy_json_finish(&j);
+            sy_cli_json_close(&j);
         } else if (!cli->quiet) {
             fprintf(stderr, "grew %s (seed %llu) in %.3f s\n", sp.name, (unsigned long long)cli->seed, grow_s);
             sy_tree_asset_report_text(&rep, out_path);

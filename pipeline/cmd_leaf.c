@@ -218,12 +218,9 @@ static int make_synthetic(const leaf_args *a, sy_cli *cli)
                 s.white_reflectance);
     if (!rc && cli->json) {
         sy_json j;
-        sy_json_begin(&j, stdout, 0);
-        sy_json_object(&j, NULL);
-        sy_json_string(&j, "output", synthetic_dir);
+        sy_cli_json_open(&j, NULL, synthetic_dir);
         sy_json_number(&j, "texel_mm", s.texel_mm);
-        sy_json_end(&j);
-        sy_json_finish(&j);
+        sy_cli_json_close(&j);
     }
     sy_leaf_synthetic_free(&s);
     return rc ? sy_cli_report(&err) : 0;
@@ -384,9 +381,7 @@ int cmd_leaf(int argc, char **argv, sy_cli *cli)
         const sy_leaf_maps *m = &maps[0];
         if (cli->json) {
             sy_json j;
-            sy_json_begin(&j, stdout, 0);
-            sy_json_object(&j, NULL);
-            if (out_dir) sy_json_string(&j, "output", out_dir);
+            sy_cli_json_open(&j, NULL, out_dir);
             if (species_name) sy_json_string(&j, "species", species_name), sy_json_string(&j, "installed", dest);
             sy_json_int(&j, "leaves", built);
             sy_json_int(&j, "size", m->w);
@@ -400,8 +395,7 @@ int cmd_leaf(int argc, char **argv, sy_cli *cli)
             sy_json_int(&j, "energy_clamped", (long long)m->energy_clamped);
             sy_json_number(&j, "seconds", m->seconds[5]);
             sy_json_number(&j, "cpu_seconds", m->cpu_seconds);
-            sy_json_end(&j);
-            sy_json_finish(&j);
+            sy_cli_json_close(&j);
         } else if (!cli->quiet) {
             fprintf(stderr, "leaf maps: %d leaf(s), %dx%d texels of %.4f mm, thickness %.3f mm median (%.3f..%.3f)\n",
                     built, m->w, m->h, m->texel_mm, m->thickness_median, m->thickness_min, m->thickness_max);

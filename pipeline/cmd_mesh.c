@@ -34,9 +34,7 @@ static void print_report(const sy_cli *cli, const char *out_path, const sy_tree_
 {
     if (cli->json) {
         sy_json j;
-        sy_json_begin(&j, stdout, 0);
-        sy_json_object(&j, NULL);
-        sy_json_string(&j, "input", f->model);
+        sy_cli_json_open(&j, f->model, NULL);
         sy_json_string(&j, "format", f->format);
         sy_json_string(&j, "output", out_path);
         if (sp) sy_json_string(&j, "species", sp->name);
@@ -54,8 +52,7 @@ static void print_report(const sy_cli *cli, const char *out_path, const sy_tree_
         sy_json_number(&j, "seconds_leaves", f->seconds_leaves);
         sy_json_number(&j, "seconds_mesh", rep->seconds_mesh);
         sy_json_number(&j, "seconds_export", rep->seconds_export);
-        sy_json_end(&j);
-        sy_json_finish(&j);
+        sy_cli_json_close(&j);
     } else if (!cli->quiet) {
         fprintf(stderr, "read %s (%s) in %.3f s; root %.3f %.3f %.3f moved to the origin\n", f->model, f->format,
                 f->seconds_read, f->origin[0], f->origin[1], f->origin[2]);

@@ -32,10 +32,7 @@ static void print_report(const sy_preprocess_result *r, const char *in, const ch
 {
     if (json) {
         sy_json j;
-        sy_json_begin(&j, stdout, 0);
-        sy_json_object(&j, NULL);
-        sy_json_string(&j, "input", in);
-        sy_json_string(&j, "output", out);
+        sy_cli_json_open(&j, in, out);
         sy_json_int(&j, "point_count_in", (long long)r->point_count_in);
         sy_json_int(&j, "point_count_out", (long long)r->point_count_out);
         sy_json_string(&j, "up_axis", sy_up_name(r->up_axis));
@@ -55,8 +52,7 @@ static void print_report(const sy_preprocess_result *r, const char *in, const ch
             sy_json_end(&j);
         }
         sy_json_end(&j);
-        sy_json_end(&j);
-        sy_json_finish(&j);
+        sy_cli_json_close(&j);
         return;
     }
     for (int i = 0; i < SY_PREPROCESS_STEPS; i++) {

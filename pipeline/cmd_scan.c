@@ -129,9 +129,7 @@ static void print_report(const scan_args *a, const sy_cli *cli, const sy_scene *
     double wood_fraction = tree_pts ? (double)st->wood / tree_pts : 0;
     if (cli->json) {
         sy_json j;
-        sy_json_begin(&j, stdout, 0);
-        sy_json_object(&j, NULL);
-        sy_json_string(&j, "output", a->out_path);
+        sy_cli_json_open(&j, NULL, a->out_path);
         sy_json_string(&j, "truth", a->truth_path);
         sy_json_string(&j, "scanner", sy_scanner_kind_name(sc->kind));
         sy_json_int(&j, "seed", (long long)sc->seed);
@@ -147,8 +145,7 @@ static void print_report(const scan_args *a, const sy_cli *cli, const sy_scene *
         sy_json_number(&j, "wood_fraction", wood_fraction);
         sy_json_number(&j, "scan_seconds", st->seconds);
         sy_json_number(&j, "seconds", seconds);
-        sy_json_end(&j);
-        sy_json_finish(&j);
+        sy_cli_json_close(&j);
     } else if (!cli->quiet) {
         fprintf(stderr, "wrote %zu points (%zu pulses, %zu a->trees, wood fraction %.3f) to %s in %.2f s\n", st->points,
                 st->pulses, scene->n_trees, wood_fraction, a->out_path, seconds);

@@ -55,10 +55,7 @@ static void print_report(const sy_segmentation *s, const char *in, const char *o
     size_t tree_points = s->n_points - s->n_ground - s->n_unassigned;
     if (json) {
         sy_json j;
-        sy_json_begin(&j, stdout, 0);
-        sy_json_object(&j, NULL);
-        sy_json_string(&j, "input", in);
-        sy_json_string(&j, "output", out);
+        sy_cli_json_open(&j, in, out);
         sy_json_bool(&j, "split", split);
         sy_json_string(&j, "method", s->airborne ? "airborne" : "terrestrial");
         sy_json_int(&j, "point_count", (long long)s->n_points);
@@ -89,8 +86,7 @@ static void print_report(const sy_segmentation *s, const char *in, const char *o
             sy_json_end(&j);
         }
         sy_json_end(&j);
-        sy_json_end(&j);
-        sy_json_finish(&j);
+        sy_cli_json_close(&j);
         return;
     }
     printf("%s: %zu trees (%s), %zu points: %zu in trees, %zu ground, %zu unassigned\n", in, s->n_trees,

@@ -22,10 +22,7 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
 {
     if (cli->json) {
         sy_json j;
-        sy_json_begin(&j, stdout, 0);
-        sy_json_object(&j, NULL);
-        sy_json_string(&j, "input", in);
-        sy_json_string(&j, "output", out);
+        sy_cli_json_open(&j, in, out);
         sy_json_int(&j, "bytes", (long long)bytes);
         sy_json_int(&j, "points", (long long)r->points);
         sy_json_number(&j, "spacing", r->spacing);
@@ -56,8 +53,7 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
         sy_json_number(&j, "hulls", h->seconds);
         sy_json_number(&j, "total", r->t_total + h->seconds);
         sy_json_end(&j);
-        sy_json_end(&j);
-        sy_json_finish(&j);
+        sy_cli_json_close(&j);
         return;
     }
     printf("%s -> %s (%zu bytes)\n", in, out, bytes);
