@@ -380,15 +380,18 @@ static double geom_scale(double rs)
     return s < 0.35 ? 0.35 : s > 2 ? 2 : s;
 }
 
+/* An index with the key it is ranked by (ascending, ties by index: a total
+ * order, so any sort gives the same result): the dock's candidate patches
+ * by cost, the leaves by their pruning key. */
 typedef struct {
     size_t idx;
-    double cost;
-} cand;
+    double key;
+} ranked;
 
-static int cmp_cand(const void *a, const void *b)
+static int cmp_ranked(const void *a, const void *b)
 {
-    const cand *x = a, *y = b;
-    if (x->cost != y->cost) return x->cost < y->cost ? -1 : 1;
+    const ranked *x = a, *y = b;
+    if (x->key != y->key) return x->key < y->key ? -1 : 1;
     return x->idx < y->idx ? -1 : x->idx > y->idx;
 }
 
@@ -415,17 +418,17 @@ static void placement_align(const sy_patch *p, const dock *d, const double Rz[9]
     mat_mul(A, Rz, T);
 }
 
-/* The best k of n candidates (cmp_cand order: cost, then index, a total
+/* The best k of n candidates (cmp_ranked order: cost, then index, a total
  * order) moved to the front of c in that order, as sorting all of them
  * would leave them, with k insertions instead of a sort of n. */
-static void best_k(cand *c, size_t n, size_t k)
+static void best_k(ranked *c, size_t n, size_t k)
 {
     size_t m = 0; /* c[0..m) holds the best so far, sorted */
     for (size_t i = 0; i < n; i++) {
-        cand x = c[i];
-        if (m == k && cmp_cand(&x, &c[m - 1]) >= 0) continue;
+        ranked x = c[i];
+        if (m == k && cmp_ranked(&x, &c[m - 1]) >= 0) continue;
         size_t j = m < k ? m++ : m - 1;
-        while (j > 0 && cmp_cand(&x, &c[j - 1]) < 0) {
+        while (j > 0 && cmp_ranked(&x, &c[j - 1]) < 0) {
             c[j] = c[j - 1];
             j--;
         }
@@ -562,7 +565,7 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
 }
 
 static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_branchlets *lib, const sy_synth_options *o,
-                            double density, int max_depth, double max_thick, cand *cands, synth_out *so,
+                            double density, int max_depth, double max_thick, ranked *cands, synth_out *so,
                             sy_synth_report *rep, size_t *occupied, size_t cells[2], sy_error *err)
 {
     double leaf_area = 0.5 * o->leaf_size * o->leaf_size; /* a card about half as wide as long */
@@ -693,7 +696,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
                     const sy_patch *p = &lib->patches[i];
                     if (!(p->thickness > 0) || p->n_nodes == 0 || (p->n_docks == 0) != terminal) continue;
                     cands[nc].idx = i;
-                    cands[nc].cost = eq33(p, &d, ed, o->literal_eq33);
+                    cands[nc].key = eq33(p, &d, ed, o->literal_eq33);
                     nc++;
                 }
                 if (nc - n0 > half) {
@@ -724,7 +727,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
                         full = 1;
                         continue;
                     }
-                    double score = 0.25 * cands[ci].cost + f.outside + 2 * f.dist / (lobe_ext > 0 ? lobe_ext : 1) - f.gain;
+                    double score = 0.25 * cands[ci].key + f.outside + 2 * f.dist / (lobe_ext > 0 ? lobe_ext : 1) - f.gain;
                     if (score < best) best = score, best_i = cands[ci].idx, best_s = s, memcpy(bestR, R, sizeof R);
                 }
             }
@@ -759,18 +762,6 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     free(Q.q);
     grid_free(&g);
     return rc;
-}
-
-typedef struct {
-    float key;
-    uint32_t idx;
-} leaf_rank;
-
-static int cmp_rank(const void *a, const void *b)
-{
-    const leaf_rank *x = a, *y = b;
-    if (x->key != y->key) return x->key < y->key ? -1 : 1;
-    return x->idx < y->idx ? -1 : x->idx > y->idx;
 }
 
 static sy_code copy_skeleton(const sy_skeleton *s, sy_skeleton *out, sy_error *err)
@@ -809,7 +800,7 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
     double max_thick = 0;
     for (size_t i = 0; i < lib->n_patches; i++)
         if (lib->patches[i].thickness > max_thick) max_thick = lib->patches[i].thickness;
-    cand *cands = malloc((lib->n_patches + 1) * sizeof *cands);
+    ranked *cands = malloc((lib->n_patches + 1) * sizeof *cands);
     synth_out so = {out, leaves, NULL, 0, sy_skeleton_branch_count(skel)};
     if (!cands) rc = sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
     double density = o->leaf_density > 0 ? o->leaf_density : 1.5;
@@ -834,13 +825,13 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
     free(cands);
     /* Stochastic-pruning order: every prefix holds the same leading share of each patch's stored order. */
     if (!rc && leaves->n > 1) {
-        leaf_rank *rk = malloc(leaves->n * sizeof *rk);
+        ranked *rk = malloc(leaves->n * sizeof *rk);
         sy_leaves sorted = {0};
         if (!rk) rc = sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
-        for (size_t i = 0; !rc && i < leaves->n; i++) rk[i].key = so.leaf_key[i], rk[i].idx = (uint32_t)i;
-        if (!rc) qsort(rk, leaves->n, sizeof *rk, cmp_rank);
+        for (size_t i = 0; !rc && i < leaves->n; i++) rk[i].key = so.leaf_key[i], rk[i].idx = i; /* float to double: exact */
+        if (!rc) qsort(rk, leaves->n, sizeof *rk, cmp_ranked);
         for (size_t i = 0; !rc && i < leaves->n; i++) {
-            uint32_t j = rk[i].idx;
+            size_t j = rk[i].idx;
             rc = sy_leaves_add(&sorted, leaves->pos + 3 * j, leaves->rot + 4 * j, leaves->scale[j], leaves->node[j], err);
         }
         free(rk);
