@@ -215,10 +215,16 @@ static sy_code camera_line(const char *path, size_t line, const char *p, const c
     return add_camera(m, cap, cid, model, path, "line", line, err);
 }
 
-/* A data line: neither blank nor a '#' comment. */
-static int data_line(const char *p, const char *e, sy_tok *first)
+/* The next data line of l, [*p, *e): neither blank nor a '#' comment (the
+ * three text files share the rule); 0 at the end. */
+static int next_data_line(sy_lines *l, const char **p, const char **e)
 {
-    return sy_tok_next(&p, e, first) && first->s[0] != '#';
+    while (sy_lines_next(l, p, e)) {
+        const char *q = *p;
+        sy_tok first;
+        if (sy_tok_next(&q, *e, &first) && first.s[0] != '#') return 1;
+    }
+    return 0;
 }
 
 static sy_code cameras_txt(const char *path, const unsigned char *d, size_t size, colmap_model *m, sy_error *err)
@@ -227,9 +233,7 @@ static sy_code cameras_txt(const char *path, const unsigned char *d, size_t size
     sy_lines_init(&l, d, size);
     const char *p, *e;
     size_t cap = 0;
-    sy_tok first;
-    while (sy_lines_next(&l, &p, &e)) {
-        if (!data_line(p, e, &first)) continue;
+    while (next_data_line(&l, &p, &e)) {
         sy_code rc = camera_line(path, l.line, p, e, m, &cap, err);
         if (rc) return rc;
     }
@@ -345,9 +349,7 @@ static sy_code images_txt(const char *path, const unsigned char *d, size_t size,
     sy_lines_init(&l, d, size);
     const char *p, *e;
     size_t cap = 0;
-    sy_tok first;
-    while (sy_lines_next(&l, &p, &e)) {
-        if (!data_line(p, e, &first)) continue;
+    while (next_data_line(&l, &p, &e)) {
         sy_code rc = image_line(path, l.line, p, e, m, &cap, err);
         /* The next line always holds the image's 2D points, even when empty. */
         if (!rc && sy_lines_next(&l, &p, &e)) rc = points2d_line(path, l.line, p, e, err);
@@ -464,13 +466,11 @@ static sy_code points_txt(point_sink *s, const unsigned char *d, size_t size, sy
     sy_lines l;
     sy_lines_init(&l, d, size);
     const char *p, *e;
-    sy_tok first;
     size_t n = 0;
-    while (sy_lines_next(&l, &p, &e)) n += (size_t)data_line(p, e, &first);
+    while (next_data_line(&l, &p, &e)) n++;
     sy_code rc = sink_open(s, n, err);
     sy_lines_init(&l, d, size);
-    while (!rc && sy_lines_next(&l, &p, &e))
-        if (data_line(p, e, &first)) rc = point_line(s, l.line, p, e, err);
+    while (!rc && next_data_line(&l, &p, &e)) rc = point_line(s, l.line, p, e, err);
     return rc;
 }
 
