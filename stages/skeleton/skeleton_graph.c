@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "stages/core/array.h"
 #include "stages/core/grid.h"
 #include "stages/core/kdtree.h"
 #include "stages/core/parallel.h"
@@ -127,6 +128,16 @@ typedef struct {
     uint8_t *pending; /* not settled by the fine grid: the coarse pass takes it */
 } knn_job;
 
+/* Appends the grid slots of cell nb's points to *near (*nn used, room for
+ * *cap, doubled as needed); 0 when out of memory, the list as it was. */
+static int gather_cell(const sy_grid *g, long nb, uint32_t **near, size_t *nn, size_t *cap)
+{
+    size_t s = g->cell_start[nb], e = g->cell_start[nb + 1];
+    if (sy_array_reserve(near, cap, *nn + (e - s), sizeof **near, *cap, NULL, "neighbours")) return 0;
+    for (size_t t = s; t < e; t++) (*near)[(*nn)++] = (uint32_t)t;
+    return 1;
+}
+
 /* Queries run cell by cell: the 27 cells around a cell are looked up once
  * and their points serve every point of the cell, which settles most queries
  * (all points within one cell edge are then known); the rest (sparse parts,
@@ -144,15 +155,7 @@ static void knn_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
         size_t nn = 0;
         int ok = near != NULL;
         FOR_RING(g, c, 1, nb, {
-            size_t cnt = g->cell_start[nb + 1] - g->cell_start[nb];
-            if (ok && nn + cnt > cap_near) {
-                while (nn + cnt > cap_near) cap_near *= 2;
-                uint32_t *q = realloc(near, cap_near * sizeof *q);
-                if (q) near = q;
-                else ok = 0;
-            }
-            if (ok)
-                for (size_t t = g->cell_start[nb]; t < g->cell_start[nb + 1]; t++) near[nn++] = (uint32_t)t;
+            if (ok) ok = gather_cell(g, nb, &near, &nn, &cap_near);
         })
         size_t own_start = g->cell_start[cell], own_end = g->cell_start[cell + 1];
         for (size_t t = own_start; t < own_end; t++) {
@@ -205,15 +208,7 @@ static void knn_coarse_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
         nn = 0;
         for (int r = 0; r <= 1; r++) {
             FOR_RING(g, c, r, nb, {
-                size_t cnt = g->cell_start[nb + 1] - g->cell_start[nb];
-                if (ok && nn + cnt > cap_near) {
-                    while (nn + cnt > cap_near) cap_near *= 2;
-                    uint32_t *q = realloc(near, cap_near * sizeof *q);
-                    if (q) near = q;
-                    else ok = 0;
-                }
-                if (ok)
-                    for (size_t t = g->cell_start[nb]; t < g->cell_start[nb + 1]; t++) near[nn++] = (uint32_t)t;
+                if (ok) ok = gather_cell(g, nb, &near, &nn, &cap_near);
             })
         }
         for (size_t t = own_start; t < own_end; t++) {
