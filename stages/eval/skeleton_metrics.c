@@ -10,6 +10,7 @@
 #include "eval.h"
 #include "geometry.h"
 #include "stages/core/parallel.h"
+#include "stages/core/sort.h"
 
 sy_skeleton_metrics_options sy_skeleton_metrics_options_default(void)
 {
@@ -214,12 +215,6 @@ static void match_chunk(void *arg, size_t begin, size_t end, size_t chunk)
     }
 }
 
-static int cmp_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 /* Median of the non-NaN values among v[i] with keep(i); sorts a copy. */
 static double median_where(const float *v, const uint8_t *cls, int want, size_t n)
 {
@@ -230,7 +225,7 @@ static double median_where(const float *v, const uint8_t *cls, int want, size_t 
         if (!isnan(v[i]) && (want < 0 || cls[i] == want)) tmp[m++] = v[i];
     double med = NAN;
     if (m) {
-        qsort(tmp, m, sizeof *tmp, cmp_float);
+        qsort(tmp, m, sizeof *tmp, sy_cmp_float);
         med = m % 2 ? tmp[m / 2] : 0.5 * ((double)tmp[m / 2 - 1] + tmp[m / 2]);
     }
     free(tmp);
@@ -336,12 +331,6 @@ static sy_code branch_points(const sy_forest *f, point_set *out, sy_error *err)
     return SY_OK;
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
 static sy_code bifurcation_errors(const sy_forest *truth, const sy_forest *model, double radius,
                                   sy_skeleton_metrics *m, sy_error *err)
 {
@@ -370,7 +359,7 @@ static sy_code bifurcation_errors(const sy_forest *truth, const sy_forest *model
         m->bifurcations_truth = T.n;
         m->bifurcations_matched = matched;
         m->bifurcation_error_mean = matched ? sum / (double)matched : NAN;
-        qsort(d, matched, sizeof *d, cmp_double);
+        qsort(d, matched, sizeof *d, sy_cmp_double);
         m->bifurcation_error_median = !matched ? NAN : matched % 2 ? d[matched / 2] : 0.5 * (d[matched / 2 - 1] + d[matched / 2]);
     }
     sy_bvh_free(&bvh);

@@ -10,6 +10,7 @@
 #include "stages/core/parallel.h"
 #include "stages/core/rng.h"
 #include "stages/core/array.h"
+#include "stages/core/sort.h"
 
 #define PI 3.14159265358979323846
 
@@ -388,12 +389,6 @@ static sy_code model_to_points(const prims *P, const double *pts, size_t n, doub
     return rc;
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
 sy_code sy_surface_metrics_compute(const sy_eval_model *m, const double *pts, size_t n, double coverage_eps,
                                    double spacing, sy_surface_metrics *out, sy_error *err)
 {
@@ -431,7 +426,7 @@ sy_code sy_surface_metrics_compute(const sy_eval_model *m, const double *pts, si
     out->hausdorff = mx;
     out->coverage_eps = coverage_eps;
     out->coverage = sy_coverage(dist, n, coverage_eps);
-    qsort(dist, n, sizeof *dist, cmp_double);
+    qsort(dist, n, sizeof *dist, sy_cmp_double);
     /* Nearest-rank 95th percentile. */
     size_t rank = (size_t)ceil(0.95 * (double)n);
     out->p95_distance = dist[rank ? rank - 1 : 0];

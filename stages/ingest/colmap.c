@@ -15,6 +15,7 @@
 
 #include "../core/fileio.h"
 #include "../core/array.h"
+#include "../core/sort.h"
 
 /* COLMAP's camera model ids and parameter counts (src/base/camera_models.h);
  * the id is the index. */
@@ -56,12 +57,6 @@ static void model_free(colmap_model *m)
     memset(m, 0, sizeof *m);
 }
 
-static int cmp_u32(const void *a, const void *b)
-{
-    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
-    return (x > y) - (x < y);
-}
-
 static int cmp_camera(const void *a, const void *b)
 {
     uint32_t x = ((const colmap_camera *)a)->id, y = ((const colmap_camera *)b)->id;
@@ -83,7 +78,7 @@ static int has_image(const colmap_model *m, uint64_t id)
 {
     if (id > UINT32_MAX || m->nimages == 0) return 0;
     uint32_t key = (uint32_t)id;
-    return bsearch(&key, m->images, m->nimages, sizeof key, cmp_u32) != NULL;
+    return bsearch(&key, m->images, m->nimages, sizeof key, sy_cmp_u32) != NULL;
 }
 
 /* Appends to a growing array of elem-sized items. */
@@ -278,7 +273,7 @@ static sy_code add_image(colmap_model *m, size_t *cap, uint64_t id, uint64_t cam
 /* Sorts image ids for lookup and rejects duplicates. */
 static sy_code index_images(const char *path, colmap_model *m, sy_error *err)
 {
-    if (m->nimages) qsort(m->images, m->nimages, sizeof *m->images, cmp_u32);
+    if (m->nimages) qsort(m->images, m->nimages, sizeof *m->images, sy_cmp_u32);
     for (size_t i = 1; i < m->nimages; i++)
         if (m->images[i] == m->images[i - 1])
             return sy_fail(err, SY_EINPUT, "%s: duplicate image id %u", path, (unsigned)m->images[i]);

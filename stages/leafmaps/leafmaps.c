@@ -19,6 +19,7 @@
 #include <time.h>
 
 #include "stages/core/parallel.h"
+#include "stages/core/sort.h"
 #include "stages/leafmaps/leafmaps_cv.h"
 #include "stages/leafmaps/leafmaps_internal.h"
 
@@ -130,12 +131,6 @@ static void say(const sy_leafmaps_options *o, const char *what)
     if (o->progress) fprintf(stderr, "leaf: %s\n", what);
 }
 
-static int cmp_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 /* Median of v over mask (alpha >= 0.5); 0 if empty. */
 static double masked_median(const float *v, const float *alpha, size_t n, float *scratch)
 {
@@ -143,7 +138,7 @@ static double masked_median(const float *v, const float *alpha, size_t n, float 
     for (size_t i = 0; i < n; i++)
         if (alpha[i] >= 0.5f) scratch[k++] = v[i];
     if (!k) return 0;
-    qsort(scratch, k, sizeof *scratch, cmp_float);
+    qsort(scratch, k, sizeof *scratch, sy_cmp_float);
     return k % 2 ? scratch[k / 2] : 0.5 * (scratch[k / 2 - 1] + scratch[k / 2]);
 }
 
@@ -166,12 +161,6 @@ static void affine_compose(const double A[6], const double B[6], double out[6]) 
 static float gamma_enc(float v)
 {
     return v > 0 ? powf(v, 1.0f / 2.2f) : 0.0f;
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
 }
 
 /* Leaf mask of a photo: its alpha when it has one that is not all opaque,
@@ -205,7 +194,7 @@ static sy_code photo_mask(const sy_fimage *im, unsigned char *mask, const char *
                 border[k++] = gamma_enc(im->px[((size_t)y * w) * im->c + c]);
                 border[k++] = gamma_enc(im->px[((size_t)y * w + w - 1) * im->c + c]);
             }
-            qsort(border, k, sizeof *border, cmp_double);
+            qsort(border, k, sizeof *border, sy_cmp_double);
             bg[c] = (float)border[k / 2];
         }
         for (size_t i = 0; i < n; i++) {
@@ -961,7 +950,7 @@ static sy_code build(const sy_leaf_capture *cap, const sy_leafmaps_options *o, s
             }
             for (int ch = 0; ch < 3; ch++) {
                 for (size_t i = 0; i < np; i++) tmp[i] = c->transmitted->px[i * c->transmitted->c + ch];
-                qsort(tmp, np, sizeof *tmp, cmp_float);
+                qsort(tmp, np, sizeof *tmp, sy_cmp_float);
                 level[ch] = tmp[(size_t)(0.95 * (double)(np - 1))];
                 if (level[ch] < 1e-4f) level[ch] = 1e-4f;
             }

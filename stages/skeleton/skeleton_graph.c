@@ -15,6 +15,7 @@
 #include "stages/core/grid.h"
 #include "stages/core/kdtree.h"
 #include "stages/core/parallel.h"
+#include "stages/core/sort.h"
 
 static double dist2(const float *a, const float *b)
 {
@@ -625,12 +626,6 @@ sy_code sy_graph_dijkstra(const sy_graph *g, const uint32_t *sources, size_t n_s
 
 /* ---- Root ---- */
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 uint32_t sy_find_root(const float *xyz, size_t n, double slab, double *z0_out)
 {
     if (z0_out) *z0_out = 0;
@@ -638,7 +633,7 @@ uint32_t sy_find_root(const float *xyz, size_t n, double slab, double *z0_out)
     double *z = malloc(n * sizeof *z);
     if (!z) return 0;
     for (size_t i = 0; i < n; i++) z[i] = xyz[3 * i + 2];
-    qsort(z, n, sizeof *z, cmp_double);
+    qsort(z, n, sizeof *z, sy_cmp_double);
     /* The 0.5th percentile ignores a few stray points below the base. */
     double z0 = z[n / 200];
     if (z0_out) *z0_out = z0;
@@ -654,8 +649,8 @@ uint32_t sy_find_root(const float *xyz, size_t n, double slab, double *z0_out)
                 xs[t] = xyz[3 * i];
                 ys[t++] = xyz[3 * i + 1];
             }
-        qsort(xs, m, sizeof *xs, cmp_double);
-        qsort(ys, m, sizeof *ys, cmp_double);
+        qsort(xs, m, sizeof *xs, sy_cmp_double);
+        qsort(ys, m, sizeof *ys, sy_cmp_double);
         /* The median centre resists leftover ground around the trunk. */
         double cx = xs[m / 2], cy = ys[m / 2], bd = INFINITY;
         for (size_t i = 0; i < n; i++) {

@@ -9,6 +9,7 @@
 
 #include "stages/core/geometry.h"
 #include "stages/core/progress.h"
+#include "stages/core/sort.h"
 
 #ifndef M_PI
 #define M_PI 3.14159265358979323846
@@ -127,12 +128,6 @@ static void quat_from_basis(const double X[3], const double Y[3], const double Z
 }
 
 /* ---- The lobe's grid ---- */
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 typedef struct {
     float lo[3], hi[3];  /* hull box */
     double h;            /* cell size */
@@ -255,7 +250,7 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
                 if (u < 0 || v < 0 || u + v > 1) continue;
                 hits[nh++] = a[2] + u * (b[2] - a[2]) + v * (e[2] - a[2]);
             }
-            qsort(hits, nh, sizeof *hits, cmp_double);
+            qsort(hits, nh, sizeof *hits, sy_cmp_double);
             for (int z = 0; z < g->d[2]; z++) {
                 double pz = g->lo[2] + (z + 0.5) * g->h;
                 size_t below = 0;
