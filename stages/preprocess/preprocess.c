@@ -256,16 +256,23 @@ sy_code sy_crop(sy_cloud *c, const double box[6], sy_error *err)
     return rc;
 }
 
-sy_code sy_voxel_downsample(sy_cloud *c, double size, sy_error *err)
+/* The box of c's first `axes` coordinates, in its float frame; c->n > 0. */
+static void local_bounds(const sy_cloud *c, int axes, float *lo, float *hi)
 {
-    if (c->n == 0 || size <= 0) return SY_OK;
-    float lo[3] = {c->xyz[0], c->xyz[1], c->xyz[2]}, hi[3] = {lo[0], lo[1], lo[2]};
+    for (int k = 0; k < axes; k++) lo[k] = hi[k] = c->xyz[k];
     for (size_t i = 1; i < c->n; i++)
-        for (int k = 0; k < 3; k++) {
+        for (int k = 0; k < axes; k++) {
             float v = c->xyz[3 * i + k];
             if (v < lo[k]) lo[k] = v;
             if (v > hi[k]) hi[k] = v;
         }
+}
+
+sy_code sy_voxel_downsample(sy_cloud *c, double size, sy_error *err)
+{
+    if (c->n == 0 || size <= 0) return SY_OK;
+    float lo[3], hi[3];
+    local_bounds(c, 3, lo, hi);
     for (int k = 0; k < 3; k++)
         if ((hi[k] - lo[k]) / size >= (double)SY_VOXEL_AXIS_CELLS - 1)
             return sy_fail(err, SY_EUSAGE, "--voxel: %g m is too small for a cloud %.0f m wide (at most %u voxels per axis)",
@@ -329,13 +336,8 @@ sy_code sy_voxel_size_for_count(const sy_cloud *c, size_t target, double *size, 
 {
     *size = 0;
     if (c->n <= target || target == 0) return SY_OK;
-    float lo[3] = {c->xyz[0], c->xyz[1], c->xyz[2]}, hi[3] = {lo[0], lo[1], lo[2]};
-    for (size_t i = 1; i < c->n; i++)
-        for (int k = 0; k < 3; k++) {
-            float v = c->xyz[3 * i + k];
-            if (v < lo[k]) lo[k] = v;
-            if (v > hi[k]) hi[k] = v;
-        }
+    float lo[3], hi[3];
+    local_bounds(c, 3, lo, hi);
     double vol = 1, wide = 0;
     for (int k = 0; k < 3; k++) {
         vol *= fmax(hi[k] - lo[k], 1e-3);
@@ -443,13 +445,8 @@ static sy_code grid_init(ground_grid *g, const sy_cloud *c, double cell, sy_erro
 {
     memset(g, 0, sizeof *g);
     if (c->n >= UINT32_MAX) return sy_fail(err, SY_EINPUT, "ground: %zu points exceed the 2^32 a cloud may hold", c->n);
-    float lo[2] = {c->xyz[0], c->xyz[1]}, hi[2] = {lo[0], lo[1]};
-    for (size_t i = 1; i < c->n; i++)
-        for (int k = 0; k < 2; k++) {
-            float v = c->xyz[3 * i + k];
-            if (v < lo[k]) lo[k] = v;
-            if (v > hi[k]) hi[k] = v;
-        }
+    float lo[2], hi[2];
+    local_bounds(c, 2, lo, hi);
     g->x0 = lo[0], g->y0 = lo[1], g->cell = cell;
     double nx = floor(((double)hi[0] - lo[0]) / cell) + 1, ny = floor(((double)hi[1] - lo[1]) / cell) + 1;
     /* Only the key width limits the span; no memory depends on it. */

@@ -512,6 +512,8 @@ sy_code sy_graph_build(const float *xyz, size_t n, int k, double radius, uint32_
     for (size_t i = 0; i < n; i++)
         for (size_t t = G->start[i]; t < G->start[i + 1]; t++)
             G->len[t] = (float)sqrt(dist2(xyz + 3 * i, xyz + 3 * (size_t)G->adj[t]));
+    rc = SY_OK;
+fail: /* the scratch goes either way; the graph only on failure */
     free(J.nbr);
     free(J.cnt);
     free(J.pending);
@@ -519,16 +521,7 @@ sy_code sy_graph_build(const float *xyz, size_t n, int k, double radius, uint32_
     free(bridges);
     sy_grid_free(&g);
     sy_grid_free(&coarse);
-    return SY_OK;
-fail:
-    free(J.nbr);
-    free(J.cnt);
-    free(J.pending);
-    free(up);
-    free(bridges);
-    sy_grid_free(&g);
-    sy_grid_free(&coarse);
-    sy_graph_free(G);
+    if (rc) sy_graph_free(G);
     return rc;
 }
 
