@@ -435,6 +435,20 @@ typedef struct {
     double outside, dist, gain;
 } fit_geo;
 
+/* One sample of a patch (its own coordinates v) placed at the dock: adds
+ * whether it lands outside the lobe and how far from it to f; its cell. */
+static long fit_sample(const float v[3], const dock *d, const double R[9], double s, const lobe_grid *g, double far,
+                       fit_geo *f)
+{
+    double w[3];
+    rot_apply(R, v, w);
+    for (int k = 0; k < 3; k++) w[k] = d->pos[k] + s * w[k];
+    long c = grid_cell(g, w);
+    f->outside += c < 0 || !g->soft[c];
+    f->dist += c < 0 ? far : g->dist[c];
+    return c;
+}
+
 static fit_geo patch_fit(const sy_patch *p, const dock *d, const double R[9], double s, const lobe_grid *g)
 {
     fit_geo f = {0, 0, 0};
@@ -442,22 +456,12 @@ static fit_geo patch_fit(const sy_patch *p, const dock *d, const double R[9], do
     double far = g->h * (g->d[0] + g->d[1] + g->d[2]);
     size_t step = p->n_nodes > 24 ? p->n_nodes / 24 : 1;
     for (size_t i = 0; i < p->n_nodes; i += step) {
-        double w[3];
-        rot_apply(R, p->pos + 3 * i, w);
-        for (int k = 0; k < 3; k++) w[k] = d->pos[k] + s * w[k];
-        long c = grid_cell(g, w);
-        f.outside += c < 0 || !g->soft[c];
-        f.dist += c < 0 ? far : g->dist[c];
+        fit_sample(p->pos + 3 * i, d, R, s, g, far, &f);
         n++;
     }
     size_t lstep = p->n_leaves > 24 ? p->n_leaves / 24 : 1;
     for (size_t i = 0; i < p->n_leaves; i += lstep) {
-        double w[3];
-        rot_apply(R, p->leaf_pos + 3 * i, w);
-        for (int k = 0; k < 3; k++) w[k] = d->pos[k] + s * w[k];
-        long c = grid_cell(g, w);
-        f.outside += c < 0 || !g->soft[c];
-        f.dist += c < 0 ? far : g->dist[c];
+        long c = fit_sample(p->leaf_pos + 3 * i, d, R, s, g, far, &f);
         f.gain += c >= 0 && g->occupied[c] && g->block[block_of(g, c)] < g->block_cap[block_of(g, c)];
         n++, nl++;
     }
