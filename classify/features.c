@@ -23,6 +23,7 @@
 #include "stages/core/geometry.h"
 #include "stages/core/grid.h"
 #include "stages/core/progress.h"
+#include "stages/core/sort.h"
 #include "stages/core/voxel.h"
 #include "stages/skeleton/skeleton.h"
 
@@ -178,18 +179,12 @@ sy_code sy_features_options_check(const sy_features_options *o, sy_error *err)
 
 /* ------------------------------------------------------------ helpers */
 
-static int cmp_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 /* q-quantile of v (n > 0) by sorting a scratch copy. */
 static double quantile(const float *v, size_t n, double q, float *scratch)
 {
     if (n == 0) return NAN;
     memcpy(scratch, v, n * sizeof *v);
-    qsort(scratch, n, sizeof *scratch, cmp_float);
+    qsort(scratch, n, sizeof *scratch, sy_cmp_float);
     double pos = q * (double)(n - 1);
     size_t i = (size_t)pos;
     if (i + 1 >= n) return scratch[n - 1];

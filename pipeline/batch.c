@@ -722,26 +722,21 @@ sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void 
 }
 
 typedef struct {
-    const sy_batch_inputs *in;
-    const char *out_dir;
-    const sy_batch_options *o;
-    const size_t *todo;
-    const uint64_t *hash;
-    int threads;
+    sy_batch_jobs jobs;
     double mem_gb;
     sy_batch_summary *summary;
     progress *p;
     int nw;
-    pid_t parent;
 } tree_pool;
 
 static void tree_child(void *ctx, size_t job)
 {
     tree_pool *t = ctx;
-    const sy_batch_input *in = &t->in->items[t->todo[job]];
-    sy_batch_worker_setup(t->out_dir, in->id, t->threads, t->mem_gb, t->parent);
+    const sy_batch_jobs *b = &t->jobs;
+    const sy_batch_input *in = &b->in->items[b->todo[job]];
+    sy_batch_worker_setup(b->out_dir, in->id, b->threads, t->mem_gb, b->parent);
     sy_error err = {0};
-    sy_code rc = sy_batch_tree(in, t->out_dir, t->o, &err);
+    sy_code rc = sy_batch_tree(in, b->out_dir, b->o, &err);
     if (rc) fprintf(stderr, "sylva batch: %s\n", err.msg);
     fflush(NULL);
     _exit(rc);
@@ -750,18 +745,19 @@ static void tree_child(void *ctx, size_t job)
 static void tree_done(void *ctx, size_t job, int status, int timed_out, double secs)
 {
     tree_pool *t = ctx;
-    size_t j = t->todo[job];
-    const sy_batch_input *in = &t->in->items[j];
+    const sy_batch_jobs *b = &t->jobs;
+    size_t j = b->todo[job];
+    const sy_batch_input *in = &b->in->items[j];
     const char *st = "ok";
     if (WIFEXITED(status) && WEXITSTATUS(status) == 0 && !timed_out) {
         t->summary->done++;
     } else {
         char why[256];
-        sy_batch_death(status, timed_out, t->o->worker_timeout, why, sizeof why);
+        sy_batch_death(status, timed_out, b->o->worker_timeout, why, sizeof why);
         /* Bad input is recorded by the worker itself; a death is recorded here. */
-        if (!has_current_record(in, t->out_dir, t->o, t->hash[j]) || WIFSIGNALED(status) || timed_out) {
+        if (!has_current_record(in, b->out_dir, b->o, b->hash[j]) || WIFSIGNALED(status) || timed_out) {
             sy_error e2 = {0};
-            sy_batch_record_failure(in, t->out_dir, t->o, t->hash[j], why, secs, &e2);
+            sy_batch_record_failure(in, b->out_dir, b->o, b->hash[j], why, secs, &e2);
         }
         t->summary->failed++;
         st = "failed";
@@ -855,7 +851,7 @@ sy_code sy_batch_run(const sy_batch_inputs *all, const char *out_dir, const sy_b
         fprintf(stderr, "sylva batch: %zu tree%s, %zu kept from before, %zu to do on %d worker%s x %d thread%s\n", mine,
                 mine == 1 ? "" : "s", summary->skipped, n_todo, nw, nw == 1 ? "" : "s", threads, threads == 1 ? "" : "s");
     }
-    tree_pool tp = {in, out_dir, o, todo, hash, threads, mem_gb, summary, &p, nw, getpid()};
+    tree_pool tp = {{in, out_dir, o, todo, hash, threads, getpid()}, mem_gb, summary, &p, nw};
     rc = sy_batch_pool(n_todo, nw, o->worker_timeout, tree_child, tree_done, &tp, err);
     if (!n_todo) progress_draw(&p, nw, NULL, NULL, 0);
     free(kept);

@@ -125,6 +125,18 @@ void sy_batch_sweep(const char *out_dir);
 sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void *ctx, size_t job),
                       void (*done)(void *ctx, size_t job, int status, int timed_out, double seconds), void *ctx,
                       sy_error *err);
+/* What the tree pool and the plot pool both hand their workers: job j runs
+ * in->items[todo[j]] (its input's hash in hash[todo[j]]) into out_dir with
+ * o, on `threads` threads, and dies with `parent`. */
+typedef struct {
+    const sy_batch_inputs *in;
+    const char *out_dir;
+    const sy_batch_options *o;
+    const size_t *todo;
+    const uint64_t *hash;
+    int threads;
+    pid_t parent;
+} sy_batch_jobs;
 /* In a forked worker: dies with the parent, stdout to /dev/null, stderr to
  * out_dir/logs/ID.log, the memory cap, threads, quiet progress. */
 void sy_batch_worker_setup(const char *out_dir, const char *id, int threads, double mem_gb, pid_t parent);
@@ -155,6 +167,9 @@ typedef struct {
 } sy_slurm_options;
 
 sy_slurm_options sy_slurm_options_default(void);
+/* SY_EUSAGE naming the field: negative array_size or cpus, or a line break
+ * in partition, time or mem (each becomes one #SBATCH line of the script). */
+sy_code sy_slurm_options_check(const sy_slurm_options *o, sy_error *err);
 
 /* Writes out_dir/slurm/batch.sbatch (a job array whose task k runs
  * `sylva batch ARGS --slurm-task k --slurm-tasks N`, argv being this

@@ -142,19 +142,9 @@ static sy_code inspect(const sy_batch_input *in, const char *out_dir, const sy_b
     return rc;
 }
 
-typedef struct {
-    const sy_batch_inputs *in;
-    const char *out_dir;
-    const sy_batch_options *o;
-    const size_t *todo;
-    const uint64_t *hash;
-    int threads;
-    pid_t parent;
-} plot_pool;
-
 static void plot_child(void *ctx, size_t job)
 {
-    plot_pool *p = ctx;
+    const sy_batch_jobs *p = ctx;
     const sy_batch_input *in = &p->in->items[p->todo[job]];
     char log_id[300];
     snprintf(log_id, sizeof log_id, "%s.segment", in->id);
@@ -173,7 +163,7 @@ static void plot_child(void *ctx, size_t job)
 
 static void plot_done(void *ctx, size_t job, int status, int timed_out, double secs)
 {
-    plot_pool *p = ctx;
+    const sy_batch_jobs *p = ctx;
     const sy_batch_input *in = &p->in->items[p->todo[job]];
     if (!(WIFEXITED(status) && (WEXITSTATUS(status) == 0 || WEXITSTATUS(status) == SY_EINPUT)) || timed_out) {
         char why[256];
@@ -257,7 +247,7 @@ sy_code sy_batch_expand(const sy_batch_inputs *in, const char *out_dir, const sy
         if ((size_t)nw > n_todo) nw = (int)n_todo;
         int threads = o->threads ? o->threads : (int)sysconf(_SC_NPROCESSORS_ONLN) / nw;
         if (!o->quiet && !o->json) fprintf(stderr, "sylva batch: looking for plots in %zu input%s\n", n_todo, n_todo == 1 ? "" : "s");
-        plot_pool pp = {in, out_dir, o, todo, hash, threads < 1 ? 1 : threads, getpid()};
+        sy_batch_jobs pp = {in, out_dir, o, todo, hash, threads < 1 ? 1 : threads, getpid()};
         rc = sy_batch_pool(n_todo, nw, o->worker_timeout, plot_child, plot_done, &pp, err);
     }
     for (size_t i = 0; i < n && !rc; i++) {

@@ -22,6 +22,19 @@ sy_slurm_options sy_slurm_options_default(void)
     return o;
 }
 
+sy_code sy_slurm_options_check(const sy_slurm_options *o, sy_error *err)
+{
+    if (o->array_size < 0) return sy_fail(err, SY_EUSAGE, "slurm: array_size %d must be >= 0", o->array_size);
+    if (o->cpus < 0) return sy_fail(err, SY_EUSAGE, "slurm: cpus %d must be >= 0", o->cpus);
+    const struct {
+        const char *name, *v;
+    } lines[] = {{"partition", o->partition}, {"time", o->time}, {"mem", o->mem}};
+    for (size_t i = 0; i < sizeof lines / sizeof *lines; i++)
+        if (lines[i].v && lines[i].v[strcspn(lines[i].v, "\r\n")])
+            return sy_fail(err, SY_EUSAGE, "slurm: %s holds a line break", lines[i].name);
+    return SY_OK;
+}
+
 /* Single-quoted for sh: ' becomes '\''. */
 static void sh_quote(FILE *fp, const char *s)
 {
@@ -63,8 +76,9 @@ static void clear_markers(const char *dir)
 sy_code sy_slurm_submit(const sy_batch_inputs *in, const char *out_dir, const char *sylva_exe, int argc,
                         char **argv, const sy_slurm_options *so, char *job_id, size_t job_id_size, sy_error *err)
 {
-    sy_code rc = sy_batch_prepare_dir(out_dir, err);
+    sy_code rc = sy_slurm_options_check(so, err);
     if (rc) return rc;
+    if ((rc = sy_batch_prepare_dir(out_dir, err))) return rc;
     char abs_out[4096], cwd[4096], dir[8192], done[8300], script[8300];
     if (!getcwd(cwd, sizeof cwd)) return sy_fail(err, SY_EINTERNAL, "batch: getcwd: %s", strerror(errno));
     /* The tasks start in cwd (the script cds there), so out_dir as given works; the log path must be absolute. */

@@ -184,6 +184,20 @@ void sy_cli_apply_settings(const sy_cli *cli)
     sy_set_threads(cli->threads);
 }
 
+void sy_cli_json_open(sy_json *j, const char *input, const char *output)
+{
+    sy_json_begin(j, stdout, 0);
+    sy_json_object(j, NULL);
+    if (input) sy_json_string(j, "input", input);
+    if (output) sy_json_string(j, "output", output);
+}
+
+void sy_cli_json_close(sy_json *j)
+{
+    sy_json_end(j);
+    sy_json_finish(j);
+}
+
 int sy_cli_report(const sy_error *err)
 {
     /* Always one line: a path named in the message may hold a newline. */
@@ -207,6 +221,34 @@ int sy_cli_check_outputs(const char *const *outs, size_t n_out, const char *cons
         }
     }
     return 0;
+}
+
+int sy_cli_begin(const sy_cmd_spec *spec, int argc, char **argv, sy_cli *cli, const char **pos, int max, int *n_pos,
+                 sy_cli_out out, int *status)
+{
+    int rc = sy_cli_parse(spec, argc, argv, cli, pos, max, n_pos);
+    if (rc) {
+        *status = rc < 0 ? 0 : rc; /* -1: --help was printed */
+        return 0;
+    }
+    sy_cli_apply_settings(cli);
+    *status = 0;
+    if (out == SY_CLI_OUT_NONE) return 1;
+    const sy_opt *o = spec->opts;
+    while (o && o->name && strcmp(o->name, "-o") != 0) o++;
+    if (!o || !o->name || o->kind != OPT_STRING) {
+        fprintf(stderr, "sylva %s: no -o option to check (a bug)\n", spec->name);
+        *status = SY_EINTERNAL;
+        return 0;
+    }
+    const char *const *path = o->target;
+    if (!*path) {
+        fprintf(stderr, "sylva %s: -o %s is required\n", spec->name, o->metavar ? o->metavar : "OUT");
+        *status = SY_EUSAGE;
+        return 0;
+    }
+    if (out == SY_CLI_OUT_CHECKED) *status = sy_cli_check_outputs(path, 1, pos, (size_t)*n_pos);
+    return *status == 0;
 }
 
 int sy_cli_parse_all(const sy_cmd_spec *spec, int argc, char **argv, sy_cli *cli, const char ***pos, int *n_pos)

@@ -3,6 +3,7 @@
 #ifndef SYLVA_CLI_H
 #define SYLVA_CLI_H
 
+#include "stages/core/json.h"
 #include "stages/core/status.h"
 
 #ifdef __cplusplus
@@ -50,6 +51,23 @@ int sy_cli_parse(const sy_cmd_spec *spec, int argc, char **argv, sy_cli *cli, co
  * SY_EINTERNAL when out of memory. */
 int sy_cli_parse_all(const sy_cmd_spec *spec, int argc, char **argv, sy_cli *cli, const char ***pos, int *n_pos);
 
+/* What a command's opening asks of its -o (the "-o" entry of its option
+ * table: target and metavar). */
+typedef enum {
+    SY_CLI_OUT_NONE,     /* nothing: -o is optional, or the command checks more first */
+    SY_CLI_OUT_REQUIRED, /* -o must be given ("sylva NAME: -o META is required", exit 1) */
+    SY_CLI_OUT_CHECKED   /* ... and obey the output rule against the positional arguments */
+} sy_cli_out;
+
+/* The opening every command makes, so that a command reads: begin (parse,
+ * check), call, report. In this order: sy_cli_parse into spec's option
+ * targets and pos; sy_cli_apply_settings; then what `out` asks of -o
+ * (SY_CLI_OUT_CHECKED: sy_cli_check_outputs on it and the *n_pos inputs).
+ * Returns 1 to go on; 0 when the command is over: *status is then its exit
+ * status (0 after --help; otherwise the usage or output error, printed). */
+int sy_cli_begin(const sy_cmd_spec *spec, int argc, char **argv, sy_cli *cli, const char **pos, int max, int *n_pos,
+                 sy_cli_out out, int *status);
+
 /* The two process-wide settings a command makes once, after parsing:
  * sy_set_threads(--threads) and sy_progress_set_quiet(--quiet or --json).
  * They change speed and stderr, never output bytes. */
@@ -60,6 +78,12 @@ void sy_cli_apply_settings(const sy_cli *cli);
  * directory it must not replace, no input (n_in paths) and no other output.
  * Prints one line and returns its exit code (2), or 0. */
 int sy_cli_check_outputs(const char *const *outs, size_t n_out, const char *const *ins, size_t n_in);
+
+/* A command's --json report on stdout: one object that opens with "input"
+ * and "output" (each left out when NULL), the command's own fields after
+ * them; sy_cli_json_close ends the object and the line. */
+void sy_cli_json_open(sy_json *j, const char *input, const char *output);
+void sy_cli_json_close(sy_json *j);
 
 /* Prints "sylva: <msg>" on stderr and returns err->code (the exit status). */
 int sy_cli_report(const sy_error *err);

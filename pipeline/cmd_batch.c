@@ -106,7 +106,7 @@ int cmd_batch(int argc, char **argv, sy_cli *cli)
         }
     }
     sy_error err = {0};
-    if (sy_batch_options_check(&o, &err)) {
+    if (sy_batch_options_check(&o, &err) || sy_slurm_options_check(&so, &err)) {
         free(pos);
         return sy_cli_report(&err);
     }
@@ -143,12 +143,10 @@ int cmd_batch(int argc, char **argv, sy_cli *cli)
         if (rc) return sy_cli_report(&err);
         if (cli->json) {
             sy_json j;
-            sy_json_begin(&j, stdout, 0);
-            sy_json_object(&j, NULL);
+            sy_cli_json_open(&j, NULL, NULL);
             sy_json_string(&j, "event", "submitted");
             sy_json_string(&j, "job", job);
-            sy_json_end(&j);
-            sy_json_finish(&j);
+            sy_cli_json_close(&j);
         } else if (!cli->quiet) {
             fprintf(stderr, "sylva batch: %s/slurm/batch.sbatch %s%s\n", out_dir, so.no_submit ? "written, " : "submitted as job ",
                     job);
@@ -161,16 +159,14 @@ int cmd_batch(int argc, char **argv, sy_cli *cli)
     if (rc) return sy_cli_report(&err);
     if (cli->json) {
         sy_json j;
-        sy_json_begin(&j, stdout, 0);
-        sy_json_object(&j, NULL);
+        sy_cli_json_open(&j, NULL, NULL);
         sy_json_string(&j, "event", "done");
         sy_json_int(&j, "trees", (long long)s.trees);
         sy_json_int(&j, "made", (long long)s.done);
         sy_json_int(&j, "kept", (long long)s.skipped);
         sy_json_int(&j, "failed", (long long)s.failed);
         sy_json_number(&j, "seconds", s.seconds);
-        sy_json_end(&j);
-        sy_json_finish(&j);
+        sy_cli_json_close(&j);
     } else if (!cli->quiet) {
         fprintf(stderr, "sylva batch: %zu trees: %zu made, %zu kept, %zu failed in %.1f s; %s/report.html\n", s.trees, s.done,
                 s.skipped, s.failed, s.seconds, out_dir);

@@ -14,13 +14,9 @@ static void report(const sy_cli *cli, const char *in, const char *out, unsigned 
 {
     if (cli->json) {
         sy_json j;
-        sy_json_begin(&j, stdout, 0);
-        sy_json_object(&j, NULL);
-        sy_json_string(&j, "input", in);
-        sy_json_string(&j, "output", out);
+        sy_cli_json_open(&j, in, out);
         sy_json_int(&j, "point_count", (long long)n);
-        sy_json_end(&j);
-        sy_json_finish(&j);
+        sy_cli_json_close(&j);
     } else if (!cli->quiet) {
         fprintf(stderr, "wrote %llu points to %s\n", n, out);
     }
@@ -76,15 +72,8 @@ int cmd_convert(int argc, char **argv, sy_cli *cli)
         "cores LAZ chunks are coded on.",
         opts, 1, 1};
     const char *in[1];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
-    if (!out_path) {
-        fprintf(stderr, "sylva convert: -o OUT is required\n");
-        return SY_EUSAGE;
-    }
-    if ((rc = sy_cli_check_outputs(&out_path, 1, in, 1))) return rc;
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, in, 1, &n, SY_CLI_OUT_CHECKED, &rc)) return rc;
     sy_error err = {0};
     int transcoded = 0;
     if ((rc = transcode_las(in[0], out_path, cli, &transcoded, &err))) return sy_cli_report(&err);

@@ -27,10 +27,8 @@ int cmd_decode(int argc, char **argv, sy_cli *cli)
         "byte); -o OUT.ply/.csv/.obj writes the skeleton alone (docs/qsm-formats.md).",
         opts, 1, 1};
     const char *in[1];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, in, 1, &n, SY_CLI_OUT_NONE, &rc)) return rc;
     char ext[16] = "";
     if (out_path) sy_extension(out_path, ext, sizeof ext);
     if (out_path && strcmp(ext, "json") && strcmp(ext, "ply") && strcmp(ext, "csv") && strcmp(ext, "obj")) {

@@ -52,10 +52,8 @@ int cmd_encode(int argc, char **argv, sy_cli *cli)
         "without clusters. The seed of a skeleton file is --seed. See docs/sylva-format.md.",
         opts, 1, 1};
     const char *in[1];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, in, 1, &n, SY_CLI_OUT_NONE, &rc)) return rc;
     char ext[16];
     sy_extension(out_path ? out_path : "", ext, sizeof ext);
     if (!out_path || strcmp(ext, "sylva") != 0 || species < -1 || species > 65535) {
@@ -84,15 +82,12 @@ int cmd_encode(int argc, char **argv, sy_cli *cli)
     if (!rc) {
         if (cli->json) {
             sy_json j;
-            sy_json_begin(&j, stdout, 0);
-            sy_json_object(&j, NULL);
-            sy_json_string(&j, "output", out_path);
+            sy_cli_json_open(&j, NULL, out_path);
             sy_json_int(&j, "bytes", (long long)size);
             sy_json_int(&j, "nodes", (long long)s.n);
             sy_json_int(&j, "clusters", (long long)cl.n);
             sy_json_int(&j, "species_id", meta.species_id);
-            sy_json_end(&j);
-            sy_json_finish(&j);
+            sy_cli_json_close(&j);
         } else if (!cli->quiet) {
             printf("%s: %zu nodes, %zu clusters, %zu bytes\n", out_path, s.n, cl.n, size);
         }

@@ -388,10 +388,8 @@ int cmd_eval(int argc, char **argv, sy_cli *cli)
         "--json prints flat keys (only those that apply); exit 2 on bad input.",
         opts, 1, 2};
     const char *pos[2];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, pos, 2, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, pos, 2, &n, SY_CLI_OUT_NONE, &rc)) return rc;
     int modes = (a->truth_path != NULL) + (a->points_path != NULL) + a->segmentation_mode + a->species_mode;
     if (modes != 1) {
         fprintf(stderr, "sylva eval: choose exactly one of --truth, --points, --segmentation, --species\n");

@@ -26,10 +26,8 @@ int cmd_grow(int argc, char **argv, sy_cli *cli)
         "library's species instead. The same species and --seed give a byte-identical file.",
         opts, 0, 1};
     const char *pos[1];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, pos, 1, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, pos, 1, &n, SY_CLI_OUT_NONE, &rc)) return rc;
     if (!out_path || (n == 0) == (species_name == NULL)) {
         fprintf(stderr, "sylva grow: give one species (a file or --species NAME) and -o OUT.glb\n");
         return SY_EUSAGE;
@@ -60,9 +58,7 @@ int cmd_grow(int argc, char **argv, sy_cli *cli)
     if (rc == SY_OK) {
         if (cli->json) {
             sy_json j;
-            sy_json_begin(&j, stdout, 0);
-            sy_json_object(&j, NULL);
-            sy_json_string(&j, "output", out_path);
+            sy_cli_json_open(&j, NULL, out_path);
             sy_json_string(&j, "species", sp.name);
             sy_json_int(&j, "seed", (long long)cli->seed);
             sy_json_int(&j, "nodes", (long long)rep.nodes);
@@ -74,8 +70,7 @@ int cmd_grow(int argc, char **argv, sy_cli *cli)
             sy_json_number(&j, "seconds_grow", grow_s);
             sy_json_number(&j, "seconds_mesh", rep.seconds_mesh);
             sy_json_number(&j, "seconds_export", rep.seconds_export);
-            sy_json_end(&j);
-            sy_json_finish(&j);
+            sy_cli_json_close(&j);
         } else if (!cli->quiet) {
             fprintf(stderr, "grew %s (seed %llu) in %.3f s\n", sp.name, (unsigned long long)cli->seed, grow_s);
             sy_tree_asset_report_text(&rep, out_path);

@@ -74,10 +74,8 @@ static void print_text(const char *path, const sy_cloud *c, size_t n, const doub
 int cmd_info(int argc, char **argv, sy_cli *cli)
 {
     const char *files[1024];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, files, 1024, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, files, 1024, &n, SY_CLI_OUT_NONE, &rc)) return rc;
     sy_json j;
     if (cli->json) {
         sy_json_begin(&j, stdout, 0);

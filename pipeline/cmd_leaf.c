@@ -37,8 +37,7 @@ static sy_code load_photo(const char *path, sy_fimage *im, sy_error *err)
 {
     int depth;
     if (access(path, R_OK) != 0) return sy_fail(err, SY_EINPUT, "%s: cannot open (%s)", path, strerror(errno));
-    if (sy_lcv_read(path, &im->px, &im->w, &im->h, &im->c, &depth))
-        return sy_fail(err, SY_EINPUT, "%s: not an image this build can decode", path);
+    if (sy_lcv_read(path, &im->px, &im->w, &im->h, &im->c, &depth, err)) return err->code;
     if (depth != 8) {
         sy_fimage_free(im);
         return sy_fail(err, SY_EINPUT, "%s: a %d-bit image where an 8-bit sRGB photo is expected", path, depth);
@@ -138,8 +137,7 @@ static sy_code load_height(const char *path, double scale, sy_fimage *im, sy_err
         return SY_OK;
     }
     if (access(path, R_OK) != 0) return sy_fail(err, SY_EINPUT, "%s: cannot open (%s)", path, strerror(errno));
-    if (sy_lcv_read(path, &im->px, &im->w, &im->h, &im->c, &depth))
-        return sy_fail(err, SY_EINPUT, "%s: not an image this build can decode", path);
+    if (sy_lcv_read(path, &im->px, &im->w, &im->h, &im->c, &depth, err)) return err->code;
     if (depth != 16 || im->c != 1) {
         sy_fimage_free(im);
         return sy_fail(err, SY_EINPUT, "%s: a height scan must be a 16-bit grey PNG", path);
@@ -154,7 +152,7 @@ static sy_code write_png(const char *dir, const char *name, const float *px, int
 {
     unsigned char *png;
     size_t n;
-    if (sy_lcv_encode_png(px, w, h, c, bits, &png, &n)) return sy_fail(err, SY_EINTERNAL, "%s: PNG encoding failed", name);
+    if (sy_lcv_encode_png(px, w, h, c, bits, &png, &n, err)) return sy_error_prefix(err, name);
     char path[4096];
     snprintf(path, sizeof path, "%s/%s", dir, name);
     sy_code rc = sy_write_file_atomic(path, png, n, err);
@@ -220,12 +218,9 @@ static int make_synthetic(const leaf_args *a, sy_cli *cli)
                 s.white_reflectance);
     if (!rc && cli->json) {
         sy_json j;
-        sy_json_begin(&j, stdout, 0);
-        sy_json_object(&j, NULL);
-        sy_json_string(&j, "output", synthetic_dir);
+        sy_cli_json_open(&j, NULL, synthetic_dir);
         sy_json_number(&j, "texel_mm", s.texel_mm);
-        sy_json_end(&j);
-        sy_json_finish(&j);
+        sy_cli_json_close(&j);
     }
     sy_leaf_synthetic_free(&s);
     return rc ? sy_cli_report(&err) : 0;
@@ -273,10 +268,8 @@ int cmd_leaf(int argc, char **argv, sy_cli *cli)
         "leaf.material (docs/leafmaps.md); --species NAME installs them as NAME's leaf.",
         opts, 0, MAX_PHOTOS};
     const char *pos[MAX_PHOTOS];
-    int n_pos;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, pos, MAX_PHOTOS, &n_pos);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
+    int n_pos, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, pos, MAX_PHOTOS, &n_pos, SY_CLI_OUT_NONE, &rc)) return rc;
     const char *out_dir = a.out_dir, *species_name = a.species_name, *library_dir = a.library_dir, *white = a.white;
     double thickness = a.thickness, texel = a.texel, leaf_length = a.leaf_length, height_scale = a.height_scale;
     int size = a.size, directions = a.directions;
@@ -388,9 +381,7 @@ int cmd_leaf(int argc, char **argv, sy_cli *cli)
         const sy_leaf_maps *m = &maps[0];
         if (cli->json) {
             sy_json j;
-            sy_json_begin(&j, stdout, 0);
-            sy_json_object(&j, NULL);
-            if (out_dir) sy_json_string(&j, "output", out_dir);
+            sy_cli_json_open(&j, NULL, out_dir);
             if (species_name) sy_json_string(&j, "species", species_name), sy_json_string(&j, "installed", dest);
             sy_json_int(&j, "leaves", built);
             sy_json_int(&j, "size", m->w);
@@ -404,8 +395,7 @@ int cmd_leaf(int argc, char **argv, sy_cli *cli)
             sy_json_int(&j, "energy_clamped", (long long)m->energy_clamped);
             sy_json_number(&j, "seconds", m->seconds[5]);
             sy_json_number(&j, "cpu_seconds", m->cpu_seconds);
-            sy_json_end(&j);
-            sy_json_finish(&j);
+            sy_cli_json_close(&j);
         } else if (!cli->quiet) {
             fprintf(stderr, "leaf maps: %d leaf(s), %dx%d texels of %.4f mm, thickness %.3f mm median (%.3f..%.3f)\n",
                     built, m->w, m->h, m->texel_mm, m->thickness_median, m->thickness_min, m->thickness_max);

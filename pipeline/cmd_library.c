@@ -30,10 +30,8 @@ int cmd_library(int argc, char **argv, sy_cli *cli)
         "with id, name, scientific_name, kind, files and leaf_maps (null until a species has maps).",
         opts, 1, 2};
     const char *pos[2];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, pos, 2, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, pos, 2, &n, SY_CLI_OUT_NONE, &rc)) return rc;
     int list = strcmp(pos[0], "list") == 0, show = strcmp(pos[0], "show") == 0;
     if ((!list && !show) || (list && n != 1) || (show && n != 2)) {
         fprintf(stderr, "sylva library: usage: sylva library list | sylva library show NAME\n");

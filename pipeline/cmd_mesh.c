@@ -35,9 +35,7 @@ static void print_report(const sy_cli *cli, const char *out_path, const sy_tree_
 {
     if (cli->json) {
         sy_json j;
-        sy_json_begin(&j, stdout, 0);
-        sy_json_object(&j, NULL);
-        sy_json_string(&j, "input", f->model);
+        sy_cli_json_open(&j, f->model, NULL);
         sy_json_string(&j, "format", f->format);
         sy_json_string(&j, "output", out_path);
         if (sp) sy_json_string(&j, "species", sp->name);
@@ -56,8 +54,7 @@ static void print_report(const sy_cli *cli, const char *out_path, const sy_tree_
         sy_json_number(&j, "seconds_leaves", f->seconds_leaves);
         sy_json_number(&j, "seconds_mesh", rep->seconds_mesh);
         sy_json_number(&j, "seconds_export", rep->seconds_export);
-        sy_json_end(&j);
-        sy_json_finish(&j);
+        sy_cli_json_close(&j);
     } else if (!cli->quiet) {
         fprintf(stderr, "read %s (%s) in %.3f s; root %.3f %.3f %.3f moved to the origin\n", f->model, f->format,
                 f->seconds_read, f->origin[0], f->origin[1], f->origin[2]);
@@ -149,15 +146,8 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
         "(a model with hulls has its foliage already and gets none). See docs/qsm-formats.md.",
         opts, 1, 1};
     const char *pos[1];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, pos, 1, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
-    if (!out_path) {
-        fprintf(stderr, "sylva mesh: -o OUT.glb is required\n");
-        return SY_EUSAGE;
-    }
-    if ((rc = sy_cli_check_outputs(&out_path, 1, pos, 1))) return rc;
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, pos, 1, &n, SY_CLI_OUT_CHECKED, &rc)) return rc;
     if (tree_index < -1 || (leaf_density != -1 && !(leaf_density >= 0 && leaf_density <= 1e4))) {
         fprintf(stderr, "sylva mesh: --tree must be >= 0 and --leaf-density 0..10000\n");
         return SY_EUSAGE;

@@ -116,14 +116,8 @@ int cmd_photogrammetry(int argc, char **argv, sy_cli *cli)
         "models and log (colmap.log) stay in the workspace, OUT.colmap/ by default.",
         opts, 1, 1};
     const char *in[1];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
-    if (!out_path) {
-        fprintf(stderr, "sylva photogrammetry: -o OUT is required\n");
-        return SY_EUSAGE;
-    }
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, in, 1, &n, SY_CLI_OUT_REQUIRED, &rc)) return rc;
     sy_error err = {0};
     if (!sy_is_directory(in[0])) {
         sy_fail(&err, SY_EINPUT, "%s: not a folder of photos", in[0]);
@@ -135,10 +129,7 @@ int cmd_photogrammetry(int argc, char **argv, sy_cli *cli)
     rc = sy_write_cloud(out_path, &r.cloud, &err);
     if (rc == SY_OK && cli->json) {
         sy_json j;
-        sy_json_begin(&j, stdout, 0);
-        sy_json_object(&j, NULL);
-        sy_json_string(&j, "input", in[0]);
-        sy_json_string(&j, "output", out_path);
+        sy_cli_json_open(&j, in[0], out_path);
         sy_json_int(&j, "images", (long long)r.n_images);
         sy_json_int(&j, "registered", (long long)r.n_registered);
         sy_json_int(&j, "point_count", (long long)r.cloud.n);
@@ -148,8 +139,7 @@ int cmd_photogrammetry(int argc, char **argv, sy_cli *cli)
         sy_json_number(&j, "camera_up_spread_deg", r.up_spread_deg);
         sy_json_string(&j, "model", r.model_dir);
         sy_json_string(&j, "log", r.log_path);
-        sy_json_end(&j);
-        sy_json_finish(&j);
+        sy_cli_json_close(&j);
     } else if (rc == SY_OK && !cli->quiet) {
         fprintf(stderr, "wrote %zu points to %s\n", r.cloud.n, out_path);
     }

@@ -32,10 +32,7 @@ static void print_report(const sy_preprocess_result *r, const char *in, const ch
 {
     if (json) {
         sy_json j;
-        sy_json_begin(&j, stdout, 0);
-        sy_json_object(&j, NULL);
-        sy_json_string(&j, "input", in);
-        sy_json_string(&j, "output", out);
+        sy_cli_json_open(&j, in, out);
         sy_json_int(&j, "point_count_in", (long long)r->point_count_in);
         sy_json_int(&j, "point_count_out", (long long)r->point_count_out);
         sy_json_string(&j, "up_axis", sy_up_name(r->up_axis));
@@ -55,8 +52,7 @@ static void print_report(const sy_preprocess_result *r, const char *in, const ch
             sy_json_end(&j);
         }
         sy_json_end(&j);
-        sy_json_end(&j);
-        sy_json_finish(&j);
+        sy_cli_json_close(&j);
         return;
     }
     for (int i = 0; i < SY_PREPROCESS_STEPS; i++) {
@@ -98,16 +94,9 @@ int cmd_preprocess(int argc, char **argv, sy_cli *cli)
         "a \"steps\" array). Exit codes: 0 ok, 1 usage, 2 bad input.",
         opts, 1, 1};
     const char *in[1];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, in, 1, &n, SY_CLI_OUT_CHECKED, &rc)) return rc;
     sy_error err = {0};
-    if (!a.out_path) {
-        fprintf(stderr, "sylva preprocess: -o OUT is required\n");
-        return SY_EUSAGE;
-    }
-    if ((rc = sy_cli_check_outputs(&a.out_path, 1, in, 1))) return rc;
     if (build_opts(&a, &err)) {
         fprintf(stderr, "sylva preprocess: %s\n", err.msg);
         return SY_EUSAGE;

@@ -22,10 +22,7 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
 {
     const sy_skeleton_report *r = &res->skeleton;
     sy_json j;
-    sy_json_begin(&j, stdout, 0);
-    sy_json_object(&j, NULL);
-    sy_json_string(&j, "input", in);
-    sy_json_string(&j, "output", a->out_path);
+    sy_cli_json_open(&j, in, a->out_path);
     if (a->sylva_path) {
         sy_json_string(&j, "sylva", a->sylva_path);
         sy_json_int(&j, "sylva_bytes", (long long)res->sylva_size);
@@ -76,8 +73,7 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
     sy_json_number(&j, "mesh", res->asset.seconds_mesh);
     sy_json_number(&j, "export", res->asset.seconds_export);
     sy_json_end(&j);
-    sy_json_end(&j);
-    sy_json_finish(&j);
+    sy_cli_json_close(&j);
 }
 
 static void step_line(void *ctx, const char *step, double seconds, const char *detail)
@@ -134,14 +130,8 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
     "`sylva photogrammetry` does (give --scale-ref or --camera-spacing for metres).",
         opts, 1, 1};
     const char *in[1];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
-    if (!a.out_path) {
-        fprintf(stderr, "sylva run: -o OUT.glb is required\n");
-        return SY_EUSAGE;
-    }
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, in, 1, &n, SY_CLI_OUT_REQUIRED, &rc)) return rc;
     if (a.sylva_path && strcmp(a.sylva_path, a.out_path) == 0) {
         fprintf(stderr, "sylva run: -o and --sylva name the same file\n");
         return SY_EUSAGE;

@@ -129,9 +129,7 @@ static void print_report(const scan_args *a, const sy_cli *cli, const sy_scene *
     double wood_fraction = tree_pts ? (double)st->wood / tree_pts : 0;
     if (cli->json) {
         sy_json j;
-        sy_json_begin(&j, stdout, 0);
-        sy_json_object(&j, NULL);
-        sy_json_string(&j, "output", a->out_path);
+        sy_cli_json_open(&j, NULL, a->out_path);
         sy_json_string(&j, "truth", a->truth_path);
         sy_json_string(&j, "scanner", sy_scanner_kind_name(sc->kind));
         sy_json_int(&j, "seed", (long long)sc->seed);
@@ -147,8 +145,7 @@ static void print_report(const scan_args *a, const sy_cli *cli, const sy_scene *
         sy_json_number(&j, "wood_fraction", wood_fraction);
         sy_json_number(&j, "scan_seconds", st->seconds);
         sy_json_number(&j, "seconds", seconds);
-        sy_json_end(&j);
-        sy_json_finish(&j);
+        sy_cli_json_close(&j);
     } else if (!cli->quiet) {
         fprintf(stderr, "wrote %zu points (%zu pulses, %zu a->trees, wood fraction %.3f) to %s in %.2f s\n", st->points,
                 st->pulses, scene->n_trees, wood_fraction, a->out_path, seconds);
@@ -247,15 +244,9 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
         "seed gives the same bytes for any --threads. See docs/scan.md.",
         opts, 0, 1};
     const char *pos[1];
-    int n_pos;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, pos, 1, &n_pos);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
+    int n_pos, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, pos, 1, &n_pos, SY_CLI_OUT_REQUIRED, &rc)) return rc;
     sy_scanner_kind kind;
-    if (!a->out_path) {
-        fprintf(stderr, "sylva scan: -o OUT is required\n");
-        return SY_EUSAGE;
-    }
     if (!parse_kind(a->kind_name, &kind)) {
         fprintf(stderr, "sylva scan: --scanner must be terrestrial, mobile or airborne, got '%s'\n", a->kind_name);
         return SY_EUSAGE;
@@ -311,6 +302,11 @@ int cmd_scan(int argc, char **argv, sy_cli *cli)
         return SY_EUSAGE;
     }
     sy_error err = {0};
+    if (sy_scene_options_check(&so, &err)) {
+        free(list);
+        free(path);
+        return sy_cli_report(&err);
+    }
     /* Every species must load before any progress is printed: a bad name
      * makes exactly one line of output. */
     for (int i = 0; i < so.n_species; i++) {

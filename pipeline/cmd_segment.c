@@ -55,10 +55,7 @@ static void print_report(const sy_segmentation *s, const char *in, const char *o
     size_t tree_points = s->n_points - s->n_ground - s->n_unassigned;
     if (json) {
         sy_json j;
-        sy_json_begin(&j, stdout, 0);
-        sy_json_object(&j, NULL);
-        sy_json_string(&j, "input", in);
-        sy_json_string(&j, "output", out);
+        sy_cli_json_open(&j, in, out);
         sy_json_bool(&j, "split", split);
         sy_json_string(&j, "method", s->airborne ? "airborne" : "terrestrial");
         sy_json_int(&j, "point_count", (long long)s->n_points);
@@ -89,8 +86,7 @@ static void print_report(const sy_segmentation *s, const char *in, const char *o
             sy_json_end(&j);
         }
         sy_json_end(&j);
-        sy_json_end(&j);
-        sy_json_finish(&j);
+        sy_cli_json_close(&j);
         return;
     }
     printf("%s: %zu trees (%s), %zu points: %zu in trees, %zu ground, %zu unassigned\n", in, s->n_trees,
@@ -174,14 +170,8 @@ int cmd_segment(int argc, char **argv, sy_cli *cli)
         "with the point accounting and a \"trees\" array. Exit codes: 0 ok, 1 usage, 2 bad input.",
         opts, 1, 1};
     const char *in[1];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
-    if (!a.out_path) {
-        fprintf(stderr, "sylva segment: -o OUT is required\n");
-        return SY_EUSAGE;
-    }
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, in, 1, &n, SY_CLI_OUT_REQUIRED, &rc)) return rc;
     if (sy_segment_method_parse(a.method_text, &a.o.method)) {
         fprintf(stderr, "sylva segment: --method: expected auto, terrestrial or airborne, got '%s'\n", a.method_text);
         return SY_EUSAGE;

@@ -22,10 +22,7 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
 {
     if (cli->json) {
         sy_json j;
-        sy_json_begin(&j, stdout, 0);
-        sy_json_object(&j, NULL);
-        sy_json_string(&j, "input", in);
-        sy_json_string(&j, "output", out);
+        sy_cli_json_open(&j, in, out);
         sy_json_int(&j, "bytes", (long long)bytes);
         sy_json_int(&j, "points", (long long)r->points);
         sy_json_number(&j, "spacing", r->spacing);
@@ -56,8 +53,7 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
         sy_json_number(&j, "hulls", h->seconds);
         sy_json_number(&j, "total", r->t_total + h->seconds);
         sy_json_end(&j);
-        sy_json_end(&j);
-        sy_json_finish(&j);
+        sy_cli_json_close(&j);
         return;
     }
     printf("%s -> %s (%zu bytes)\n", in, out, bytes);
@@ -117,15 +113,8 @@ int cmd_skeleton(int argc, char **argv, sy_cli *cli)
         "clusters: every point stays on it) in the scan's own world coordinates (docs/qsm-formats.md).",
         opts, 1, 1};
     const char *in[1];
-    int n;
-    int rc = sy_cli_parse(&spec, argc, argv, cli, in, 1, &n);
-    if (rc) return rc < 0 ? 0 : rc;
-    sy_cli_apply_settings(cli);
-    if (!a.out_path) {
-        fprintf(stderr, "sylva skeleton: -o OUT is required\n");
-        return SY_EUSAGE;
-    }
-    if ((rc = sy_cli_check_outputs(&a.out_path, 1, in, 1))) return rc;
+    int n, rc;
+    if (!sy_cli_begin(&spec, argc, argv, cli, in, 1, &n, SY_CLI_OUT_CHECKED, &rc)) return rc;
     char ext[16];
     sy_extension(a.out_path, ext, sizeof ext);
     int sylva_file = strcmp(ext, "sylva") == 0;
@@ -142,7 +131,7 @@ int cmd_skeleton(int argc, char **argv, sy_cli *cli)
      * branches the hulls stand for (rTwig: recall 0.16 instead of 0.97). */
     a.o.clusters = !a.no_clusters && sylva_file;
     sy_error err = {0};
-    if (sy_reconstruct_options_check(&a.o, &err) || sy_hull_options_check(&a.hull, &err)) return sy_cli_report(&err);
+    if (sy_reconstruct_check(&a.o, &err) || sy_hull_options_check(&a.hull, &err)) return sy_cli_report(&err);
     sy_cloud c;
     if (sy_read_cloud(in[0], &c, &err)) return sy_cli_report(&err);
     sy_skeleton s;

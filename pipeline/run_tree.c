@@ -83,7 +83,7 @@ static sy_cut_options cut_options(const sy_skeleton_options *o)
     return c;
 }
 
-sy_code sy_reconstruct_options_check(const sy_skeleton_options *o, sy_error *err)
+sy_code sy_reconstruct_check(const sy_skeleton_options *o, sy_error *err)
 {
     sy_cut_options co = cut_options(o);
     sy_code rc = sy_skeleton_options_check(o, err);

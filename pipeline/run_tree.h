@@ -100,8 +100,11 @@ sy_code sy_run_tree_cloud(sy_cloud *c, const char *name, const sy_run_tree_optio
  * hold nothing to free. */
 sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, double alpha_scale, sy_skeleton *out,
                             sy_clusters *clusters, sy_skeleton_report *report, sy_hull_report *hulls, sy_error *err);
-/* The checks of both stages' options in o (SY_EUSAGE naming the field). */
-sy_code sy_reconstruct_options_check(const sy_skeleton_options *o, sy_error *err);
+/* The checks of both stages' options in o (SY_EUSAGE naming the field), the
+ * ones sy_reconstruct_tree makes, for a caller to run before it reads a cloud.
+ * Not an sy_X_options_check: a reconstruction has no options type of its
+ * own, it takes the skeleton stage's, which carry the cut's share. */
+sy_code sy_reconstruct_check(const sy_skeleton_options *o, sy_error *err);
 
 /* Writes r->glb to glb_path and, when sylva_path is not NULL, r->sylva there:
  * each atomically, both or neither. */

@@ -42,20 +42,31 @@ static void image_free(image *im)
 
 /* ------------------------------------------------------------ PNG bytes */
 
-/* Encodes pixels (comp channels) as PNG and appends it to the asset. */
-static int add_png(sy_asset *asset, const char *name, const unsigned char *pixels, int w, int h, int comp,
-                   sy_error *err)
+/* Appends an encoded PNG (png malloc'ed, taken over) to the asset as image
+ * `name`; its index, or -1 (png freed). */
+static int add_encoded(sy_asset *asset, const char *name, unsigned char *png, size_t size, sy_error *err)
 {
     sy_image img;
     memset(&img, 0, sizeof img);
-    if (sy_png_encode(pixels, w, h, comp, 8, &img.png, &img.size)) {
-        sy_fail(err, SY_EINTERNAL, "%s: PNG encoding failed", name);
-        return -1;
-    }
+    img.png = png;
+    img.size = size;
     snprintf(img.name, sizeof img.name, "%s", name);
     int idx = sy_asset_add_image(asset, &img, err);
     if (idx < 0) free(img.png);
     return idx;
+}
+
+/* Encodes pixels (comp channels) as PNG and appends it to the asset. */
+static int add_png(sy_asset *asset, const char *name, const unsigned char *pixels, int w, int h, int comp,
+                   sy_error *err)
+{
+    unsigned char *png;
+    size_t size;
+    if (sy_png_encode(pixels, w, h, comp, 8, &png, &size)) {
+        sy_fail(err, SY_EINTERNAL, "%s: PNG encoding failed", name);
+        return -1;
+    }
+    return add_encoded(asset, name, png, size, err);
 }
 
 /* --------------------------------------------------------- decode/resize */
@@ -346,7 +357,7 @@ static sy_code read_map(const char *path, int want_c, int want_bits, int side, f
 {
     float *px;
     int w, h, c, depth;
-    if (sy_lcv_read(path, &px, &w, &h, &c, &depth)) return sy_fail(err, SY_EINPUT, "%s: cannot read the leaf map", path);
+    if (sy_lcv_read(path, &px, &w, &h, &c, &depth, err)) return err->code;
     if (c != want_c || depth != want_bits || w != h || w < 1) {
         free(px);
         return sy_fail(err, SY_EINPUT, "%s: expected a square %d-bit %d-channel leaf map", path, want_bits, want_c);
@@ -356,9 +367,10 @@ static sy_code read_map(const char *path, int want_c, int want_bits, int side, f
         return SY_OK;
     }
     float *r = malloc((size_t)side * side * (size_t)c * sizeof *r);
-    if (!r || sy_lcv_resize(px, w, h, c, r, side, side)) {
+    sy_code rc = r ? sy_lcv_resize(px, w, h, c, r, side, side, err) : sy_fail(err, SY_EINTERNAL, "out of memory");
+    if (rc) {
         free(px), free(r);
-        return sy_fail(err, SY_EINTERNAL, "%s: resize failed", path);
+        return sy_error_prefix(err, path);
     }
     free(px);
     *out = r;
@@ -367,16 +379,13 @@ static sy_code read_map(const char *path, int want_c, int want_bits, int side, f
 
 static int add_png16(sy_asset *asset, const char *name, const float *px, int side, int c, int bits, sy_error *err)
 {
-    sy_image img;
-    memset(&img, 0, sizeof img);
-    if (sy_lcv_encode_png(px, side, side, c, bits, &img.png, &img.size)) {
-        sy_fail(err, SY_EINTERNAL, "%s: PNG encoding failed", name);
+    unsigned char *png;
+    size_t size;
+    if (sy_lcv_encode_png(px, side, side, c, bits, &png, &size, err)) {
+        sy_error_prefix(err, name);
         return -1;
     }
-    snprintf(img.name, sizeof img.name, "%s", name);
-    int idx = sy_asset_add_image(asset, &img, err);
-    if (idx < 0) free(img.png);
-    return idx;
+    return add_encoded(asset, name, png, size, err);
 }
 
 static float to_srgb(float v)

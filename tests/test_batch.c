@@ -174,6 +174,39 @@ static void options_text_tracks_outputs(void **state)
     assert_int_equal(sy_batch_options_check(&p, &err), SY_EUSAGE);
 }
 
+/* Out-of-range Slurm options are errors naming the field; a line break would
+ * end its #SBATCH line and start a command of the script. */
+static void slurm_options_are_checked(void **state)
+{
+    (void)state;
+    sy_error err = {0};
+    sy_slurm_options d = sy_slurm_options_default(), o;
+    d.partition = "short";
+    d.time = "01:00:00";
+    d.mem = "4G";
+    assert_int_equal(sy_slurm_options_check(&d, &err), SY_OK);
+    o = d;
+    o.array_size = -1;
+    assert_int_equal(sy_slurm_options_check(&o, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "array_size"));
+    o = d;
+    o.cpus = -2;
+    assert_int_equal(sy_slurm_options_check(&o, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "cpus"));
+    o = d;
+    o.partition = "short\nrm -rf x";
+    assert_int_equal(sy_slurm_options_check(&o, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "partition"));
+    o = d;
+    o.time = "1:00\r";
+    assert_int_equal(sy_slurm_options_check(&o, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "time"));
+    o = d;
+    o.mem = "4G\n";
+    assert_int_equal(sy_slurm_options_check(&o, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "mem"));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -182,6 +215,7 @@ int main(void)
         cmocka_unit_test(csv_manifest),
         cmocka_unit_test(json_manifest),
         cmocka_unit_test(options_text_tracks_outputs),
+        cmocka_unit_test(slurm_options_are_checked),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

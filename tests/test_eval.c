@@ -675,10 +675,47 @@ static void species_scores(void **state)
     assert_non_null(strstr(err.msg, "q.csv:1:"));
 }
 
+/* Out-of-range options are errors naming the field; the stage checks them
+ * too (no silent fallback to the default step). */
+static void skeleton_metrics_options_are_checked(void **state)
+{
+    (void)state;
+    sy_error err = {0};
+    sy_skeleton_metrics_options d = sy_skeleton_metrics_options_default(), o;
+    assert_int_equal(sy_skeleton_metrics_options_check(&d, &err), SY_OK);
+    static const struct {
+        size_t offset;
+        double value;
+        const char *field;
+    } bad[] = {
+        {offsetof(sy_skeleton_metrics_options, sample_step), 0, "sample_step"},
+        {offsetof(sy_skeleton_metrics_options, sample_step), NAN, "sample_step"},
+        {offsetof(sy_skeleton_metrics_options, min_tolerance), -0.01, "min_tolerance"},
+        {offsetof(sy_skeleton_metrics_options, radius_factor), INFINITY, "radius_factor"},
+        {offsetof(sy_skeleton_metrics_options, thick_radius), -1, "thick_radius"},
+        {offsetof(sy_skeleton_metrics_options, bifurcation_radius), NAN, "bifurcation_radius"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
+        o = d;
+        memcpy((char *)&o + bad[i].offset, &bad[i].value, sizeof(double));
+        assert_int_equal(sy_skeleton_metrics_options_check(&o, &err), SY_EUSAGE);
+        assert_non_null(strstr(err.msg, bad[i].field));
+    }
+    sy_forest t;
+    planar_tree(&t, 1, zero3, 0, NULL);
+    o = d;
+    o.sample_step = -1;
+    sy_skeleton_metrics m;
+    assert_int_equal(sy_skeleton_metrics_compute(&t, &t, &o, &m, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "sample_step"));
+    sy_forest_free(&t);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(skeleton_vs_itself_is_perfect),
+        cmocka_unit_test(skeleton_metrics_options_are_checked),
         cmocka_unit_test(long_edges_take_bounded_samples),
         cmocka_unit_test(shifted_copies),
         cmocka_unit_test(removed_branches_lower_recall_by_their_length),

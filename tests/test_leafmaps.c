@@ -123,7 +123,8 @@ typedef struct {
 static float *to_map_frame(const sy_fimage *im, const sy_leaf_maps *m)
 {
     float *out = calloc((size_t)m->w * m->h * im->c, sizeof *out);
-    assert_int_equal(sy_lcv_warp(im->px, im->w, im->h, im->c, m->photo_from_map, out, m->w, m->h, 1), 0);
+    sy_error err;
+    assert_int_equal(sy_lcv_warp(im->px, im->w, im->h, im->c, m->photo_from_map, out, m->w, m->h, 1, &err), SY_OK);
     return out;
 }
 
@@ -326,7 +327,8 @@ static void check_real_mask(const char *name)
 {
     float *px;
     int w, h, c, depth;
-    assert_int_equal(sy_lcv_read(data_path(name), &px, &w, &h, &c, &depth), 0);
+    sy_error err = {0};
+    assert_int_equal(sy_lcv_read(data_path(name), &px, &w, &h, &c, &depth, &err), SY_OK);
     assert_int_equal(c, 4);
     sy_fimage im = {w, h, 4, px};
     sy_leafmaps_options o = sy_leafmaps_options_default();
@@ -337,7 +339,6 @@ static void check_real_mask(const char *name)
     memset(&cap, 0, sizeof cap);
     cap.side[0].reflected = &im;
     sy_leaf_maps m;
-    sy_error err = {0};
     assert_int_equal(sy_leafmaps_build(&cap, &o, &m, &err), SY_OK);
     /* The photo's own alpha in the map frame is the truth. */
     sy_fimage a = {w, h, 1, malloc((size_t)w * h * sizeof(float))};

@@ -555,6 +555,71 @@ static void airborne_density_on_flat_ground(void **state)
     sy_scene_free(&s);
 }
 
+/* Out-of-range scene options are errors naming the field, before anything
+ * grows. */
+static void scene_options_are_checked(void **state)
+{
+    (void)state;
+    sy_error err = {0};
+    sy_scene_options d = sy_scene_options_default(), o;
+    d.species[0] = "quaking_aspen";
+    d.n_species = 1;
+    assert_int_equal(sy_scene_options_check(&d, &err), SY_OK);
+    o = d;
+    o.n_species = 0;
+    assert_int_equal(sy_scene_options_check(&o, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "n_species"));
+    o = d;
+    o.species[0] = "";
+    assert_int_equal(sy_scene_options_check(&o, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "species[0]"));
+    o = d;
+    o.plot_size = -5;
+    assert_int_equal(sy_scene_options_check(&o, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "plot_size"));
+    o = d;
+    o.plot_size = 20;
+    o.trees = 10001;
+    assert_int_equal(sy_scene_options_check(&o, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "trees"));
+    o = d;
+    o.neighbours = 13;
+    assert_int_equal(sy_scene_options_check(&o, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "neighbours"));
+    o = d;
+    o.plot_size = 20;
+    o.neighbours = 2;
+    assert_int_equal(sy_scene_options_check(&o, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "neighbours"));
+    o = d;
+    o.forest = 1.5;
+    assert_int_equal(sy_scene_options_check(&o, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "forest"));
+    o = d;
+    o.understory = NAN;
+    assert_int_equal(sy_scene_options_check(&o, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "understory"));
+    o = d;
+    o.slope_deg = 90;
+    assert_int_equal(sy_scene_options_check(&o, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "slope_deg"));
+    o = d;
+    o.aspect_deg = INFINITY;
+    assert_int_equal(sy_scene_options_check(&o, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "aspect_deg"));
+    o = d;
+    o.roughness = -0.1;
+    assert_int_equal(sy_scene_options_check(&o, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "roughness"));
+    /* The stage checks them itself. */
+    sy_scene s;
+    o = d;
+    o.forest = -1;
+    assert_int_equal(sy_scene_build(&s, &o, 0, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "forest"));
+    sy_scene_free(&s);
+}
+
 int main(void)
 {
     sy_progress_set_quiet(1);
@@ -569,6 +634,7 @@ int main(void)
         cmocka_unit_test(deterministic_across_threads_and_runs),
         cmocka_unit_test(truth_dbh_and_tree_ids),
         cmocka_unit_test(airborne_density_on_flat_ground),
+        cmocka_unit_test(scene_options_are_checked),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

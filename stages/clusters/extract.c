@@ -9,6 +9,7 @@
 
 #include "clusters.h"
 #include "stages/core/progress.h"
+#include "stages/core/sort.h"
 
 sy_cut_options sy_cut_options_default(void)
 {
@@ -103,12 +104,6 @@ static sy_code split_clusters(const sy_skeleton *full, const int32_t *cluster_of
     free(newid);
     free(cnt);
     return rc;
-}
-
-static int cmp_u32(const void *a, const void *b)
-{
-    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
-    return x < y ? -1 : x > y;
 }
 
 static int cmp_cluster_seed(const void *a, const void *b)
@@ -214,7 +209,7 @@ static sy_code attach_leaves(const sy_skeleton *full, const int32_t *cluster_of,
     out->support = support;
     out->support_start = start;
     support = NULL;
-    for (size_t c = 0; c < total; c++) qsort(items[c].points, items[c].n_points, sizeof(uint32_t), cmp_u32);
+    for (size_t c = 0; c < total; c++) qsort(items[c].points, items[c].n_points, sizeof(uint32_t), sy_cmp_u32);
     qsort(items, total, sizeof *items, cmp_cluster_seed);
     rc = SY_OK;
 done:
@@ -314,7 +309,7 @@ sy_code sy_clusters_extract(const sy_full_skeleton *f, const float *xyz, const s
          * order whatever the split did. */
         for (size_t c = 0; c < clusters->n; c++) {
             sy_cluster *C = &clusters->items[c];
-            qsort(C->points, C->n_points, sizeof *C->points, cmp_u32);
+            qsort(C->points, C->n_points, sizeof *C->points, sy_cmp_u32);
             rep->cluster_points += C->n_points;
         }
         rep->clusters = clusters->n;

@@ -146,18 +146,6 @@ sy_code sy_cloud_filter(sy_cloud *c, const uint8_t *keep, sy_error *err)
     return SY_OK;
 }
 
-static void *dup_array(const void *src, size_t bytes, sy_error *err, int *failed)
-{
-    if (!src || *failed) return NULL;
-    void *p = sy_calloc(bytes ? bytes : 1, 1, err, "point cloud copy");
-    if (!p) {
-        *failed = 1;
-        return NULL;
-    }
-    memcpy(p, src, bytes);
-    return p;
-}
-
 static char *dup_string(const char *s, int *failed)
 {
     if (!s || *failed) return NULL;
@@ -168,64 +156,36 @@ static char *dup_string(const char *s, int *failed)
     return p;
 }
 
-sy_code sy_cloud_copy(sy_cloud *dst, const sy_cloud *src, sy_error *err)
-{
-    int failed = 0;
-    size_t n = src->n;
-    memset(dst, 0, sizeof *dst);
-    dst->n = n;
-    memcpy(dst->origin, src->origin, sizeof dst->origin);
-    dst->meta = src->meta;
-    dst->meta.crs = dup_string(src->meta.crs, &failed);
-    dst->meta.vlr_summary = dup_string(src->meta.vlr_summary, &failed);
-    dst->meta.crs_wkt = dup_string(src->meta.crs_wkt, &failed);
-    dst->meta.geotiff = dup_array(src->meta.geotiff, src->meta.geotiff_len, err, &failed);
-    dst->xyz = dup_array(src->xyz, n * 3 * sizeof(float), err, &failed);
-    dst->normal = dup_array(src->normal, n * 3 * sizeof(float), err, &failed);
-    dst->intensity = dup_array(src->intensity, n * sizeof(uint16_t), err, &failed);
-    dst->rgb = dup_array(src->rgb, n * 3 * sizeof(uint16_t), err, &failed);
-    dst->nir = dup_array(src->nir, n * sizeof(uint16_t), err, &failed);
-    dst->classification = dup_array(src->classification, n, err, &failed);
-    dst->return_number = dup_array(src->return_number, n, err, &failed);
-    dst->num_returns = dup_array(src->num_returns, n, err, &failed);
-    dst->gps_time = dup_array(src->gps_time, n * sizeof(double), err, &failed);
-    if (src->n_attrs && !failed) {
-        dst->attrs = sy_calloc(src->n_attrs, sizeof(sy_attr), err, "attributes");
-        if (!dst->attrs) failed = 1;
-        for (size_t a = 0; a < src->n_attrs && !failed; a++) {
-            memcpy(dst->attrs[a].name, src->attrs[a].name, sizeof dst->attrs[a].name);
-            dst->attrs[a].values = dup_array(src->attrs[a].values, n * sizeof(double), err, &failed);
-            if (!failed) dst->n_attrs++;
-        }
-    }
-    if (failed) {
-        sy_cloud_free(dst);
-        return sy_fail(err, SY_EINTERNAL, "point cloud copy: out of memory");
-    }
-    return SY_OK;
-}
-
-/* The kept elements (each `size` bytes) of src into a new array. */
-static void *gather_array(const void *src, size_t n, size_t size, const uint8_t *keep, size_t kept, sy_error *err,
-                          int *failed)
+/* The elements (each `size` bytes, n of them) of src that keep marks, kept
+ * in all, into a new array; every element when keep is NULL (kept = n). */
+static void *gather_array(const void *src, size_t n, size_t size, const uint8_t *keep, size_t kept, const char *what,
+                          sy_error *err, int *failed)
 {
     if (!src || *failed) return NULL;
-    unsigned char *p = sy_calloc(kept ? kept : 1, size, err, "point cloud subset");
+    unsigned char *p = sy_calloc(kept ? kept : 1, size, err, what);
     if (!p) {
         *failed = 1;
         return NULL;
     }
     const unsigned char *s = src;
-    for (size_t i = 0, j = 0; i < n; i++)
-        if (keep[i]) memcpy(p + size * j++, s + size * i, size);
+    if (!keep) memcpy(p, s, n * size);
+    else
+        for (size_t i = 0, j = 0; i < n; i++)
+            if (keep[i]) memcpy(p + size * j++, s + size * i, size);
     return p;
 }
 
-sy_code sy_cloud_subset(sy_cloud *dst, const sy_cloud *src, const uint8_t *keep, sy_error *err)
+/* A new cloud of the points of src that keep marks (all of them when keep is
+ * NULL), every attribute and the metadata copied: what sy_cloud_copy and
+ * sy_cloud_subset both are. */
+static sy_code copy_points(sy_cloud *dst, const sy_cloud *src, const uint8_t *keep, const char *what, sy_error *err)
 {
     int failed = 0;
-    size_t n = src->n, kept = 0;
-    for (size_t i = 0; i < n; i++) kept += keep[i] != 0;
+    size_t n = src->n, kept = n;
+    if (keep) {
+        kept = 0;
+        for (size_t i = 0; i < n; i++) kept += keep[i] != 0;
+    }
     memset(dst, 0, sizeof *dst);
     dst->n = kept;
     memcpy(dst->origin, src->origin, sizeof dst->origin);
@@ -233,30 +193,41 @@ sy_code sy_cloud_subset(sy_cloud *dst, const sy_cloud *src, const uint8_t *keep,
     dst->meta.crs = dup_string(src->meta.crs, &failed);
     dst->meta.vlr_summary = dup_string(src->meta.vlr_summary, &failed);
     dst->meta.crs_wkt = dup_string(src->meta.crs_wkt, &failed);
-    dst->meta.geotiff = dup_array(src->meta.geotiff, src->meta.geotiff_len, err, &failed);
-    dst->xyz = gather_array(src->xyz, n, 3 * sizeof(float), keep, kept, err, &failed);
-    dst->normal = gather_array(src->normal, n, 3 * sizeof(float), keep, kept, err, &failed);
-    dst->intensity = gather_array(src->intensity, n, sizeof(uint16_t), keep, kept, err, &failed);
-    dst->rgb = gather_array(src->rgb, n, 3 * sizeof(uint16_t), keep, kept, err, &failed);
-    dst->nir = gather_array(src->nir, n, sizeof(uint16_t), keep, kept, err, &failed);
-    dst->classification = gather_array(src->classification, n, 1, keep, kept, err, &failed);
-    dst->return_number = gather_array(src->return_number, n, 1, keep, kept, err, &failed);
-    dst->num_returns = gather_array(src->num_returns, n, 1, keep, kept, err, &failed);
-    dst->gps_time = gather_array(src->gps_time, n, sizeof(double), keep, kept, err, &failed);
+    size_t gl = src->meta.geotiff_len;
+    dst->meta.geotiff = gather_array(src->meta.geotiff, gl, 1, NULL, gl, what, err, &failed);
+    dst->xyz = gather_array(src->xyz, n, 3 * sizeof(float), keep, kept, what, err, &failed);
+    dst->normal = gather_array(src->normal, n, 3 * sizeof(float), keep, kept, what, err, &failed);
+    dst->intensity = gather_array(src->intensity, n, sizeof(uint16_t), keep, kept, what, err, &failed);
+    dst->rgb = gather_array(src->rgb, n, 3 * sizeof(uint16_t), keep, kept, what, err, &failed);
+    dst->nir = gather_array(src->nir, n, sizeof(uint16_t), keep, kept, what, err, &failed);
+    dst->classification = gather_array(src->classification, n, 1, keep, kept, what, err, &failed);
+    dst->return_number = gather_array(src->return_number, n, 1, keep, kept, what, err, &failed);
+    dst->num_returns = gather_array(src->num_returns, n, 1, keep, kept, what, err, &failed);
+    dst->gps_time = gather_array(src->gps_time, n, sizeof(double), keep, kept, what, err, &failed);
     if (src->n_attrs && !failed) {
         dst->attrs = sy_calloc(src->n_attrs, sizeof(sy_attr), err, "attributes");
         if (!dst->attrs) failed = 1;
         for (size_t a = 0; a < src->n_attrs && !failed; a++) {
             memcpy(dst->attrs[a].name, src->attrs[a].name, sizeof dst->attrs[a].name);
-            dst->attrs[a].values = gather_array(src->attrs[a].values, n, sizeof(double), keep, kept, err, &failed);
+            dst->attrs[a].values = gather_array(src->attrs[a].values, n, sizeof(double), keep, kept, what, err, &failed);
             if (!failed) dst->n_attrs++;
         }
     }
     if (failed) {
         sy_cloud_free(dst);
-        return sy_fail(err, SY_EINTERNAL, "point cloud subset: out of memory");
+        return sy_fail(err, SY_EINTERNAL, "%s: out of memory", what);
     }
     return SY_OK;
+}
+
+sy_code sy_cloud_copy(sy_cloud *dst, const sy_cloud *src, sy_error *err)
+{
+    return copy_points(dst, src, NULL, "point cloud copy", err);
+}
+
+sy_code sy_cloud_subset(sy_cloud *dst, const sy_cloud *src, const uint8_t *keep, sy_error *err)
+{
+    return copy_points(dst, src, keep, "point cloud subset", err);
 }
 
 void sy_cloud_rebase(sy_cloud *c)

@@ -30,8 +30,10 @@ uint64_t sy_voxel_key_d(const double p[3], const double lo[3], double size);
 /* e[i] = {key of point i of xyz, i} for the n points, sorted by key and
  * then index: the points of one voxel end up adjacent, ascending. */
 void sy_voxel_sort(const float *xyz, size_t n, const float lo[3], double size, sy_voxel_entry *e);
-/* Sorts n entries of any keys by key and then index (a radix sort for large
- * sets, qsort when small or when its scratch memory cannot be had). */
+/* Sorts n entries of any 64-bit keys by key and then index (a radix sort for
+ * large sets, qsort when small or when its scratch memory cannot be had).
+ * The radix sort is stable, so the entries must enter in index order (as
+ * every caller fills them) for equal keys to come out by index. */
 void sy_voxel_entries_sort(sy_voxel_entry *e, size_t n);
 
 #ifdef __cplusplus

@@ -137,6 +137,9 @@ typedef struct {
 } sy_skeleton_metrics_options;
 
 sy_skeleton_metrics_options sy_skeleton_metrics_options_default(void);
+/* SY_EUSAGE naming the field: sample_step must be > 0, the rest >= 0, all
+ * finite. */
+sy_code sy_skeleton_metrics_options_check(const sy_skeleton_metrics_options *o, sy_error *err);
 
 typedef struct {
     double truth_length, model_length;

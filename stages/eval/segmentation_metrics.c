@@ -7,20 +7,9 @@
 
 #include "eval.h"
 #include "geometry.h"
+#include "stages/core/sort.h"
 
 static int assigned(double v) { return !isnan(v) && v != 0; }
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-static int cmp_u64(const void *a, const void *b)
-{
-    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-    return (x > y) - (x < y);
-}
 
 /* Sorted distinct assigned labels; returns their count. */
 static size_t distinct(const double *v, size_t n, double *out)
@@ -28,7 +17,7 @@ static size_t distinct(const double *v, size_t n, double *out)
     size_t m = 0;
     for (size_t i = 0; i < n; i++)
         if (assigned(v[i])) out[m++] = v[i];
-    qsort(out, m, sizeof *out, cmp_double);
+    qsort(out, m, sizeof *out, sy_cmp_double);
     size_t k = 0;
     for (size_t i = 0; i < m; i++)
         if (k == 0 || out[i] != out[k - 1]) out[k++] = out[i];
@@ -73,7 +62,7 @@ sy_code sy_segmentation_metrics_labels(const double *truth, const double *pred, 
         if (has_p) psize[pi]++;
         if (has_t && has_p) pairs[n_pairs++] = (uint64_t)ti * (uint64_t)np + pi;
     }
-    qsort(pairs, n_pairs, sizeof *pairs, cmp_u64);
+    qsort(pairs, n_pairs, sizeof *pairs, sy_cmp_u64);
     double iou_sum = 0;
     /* pieces[ti]: predicted trees mostly inside truth ti; merged[pi]: truth trees mostly inside pi. */
     size_t *pieces = sy_calloc(nt ? nt : 1, sizeof *pieces, err, "labels");

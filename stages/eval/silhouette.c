@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "stages/eval/eval.h"
+#include "stages/core/sort.h"
 
 #ifndef M_PI
 #define M_PI 3.14159265358979323846
@@ -16,12 +17,6 @@
 #define VIEWS 6
 #define RES 256
 #define BINS 40
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
 
 /* Median nearest-neighbour distance over up to 2000 evenly picked points, by
  * brute force over a hashed grid of cell ~ the bounding box / 64. */
@@ -84,7 +79,7 @@ static double median_spacing(const double *p, size_t n)
                     }
         best[s] = isfinite(bd) ? bd : cell;
     }
-    qsort(best, m, sizeof *best, cmp_double);
+    qsort(best, m, sizeof *best, sy_cmp_double);
     double med = best[m / 2];
     free(start), free(idx), free(cellof), free(best);
     return med > 0 ? med : 0.01;
@@ -168,7 +163,7 @@ static double *sample_triangles(const double *tri, size_t n_tri, double step, si
 static double percentile(double *v, size_t n, double q)
 {
     if (!n) return NAN;
-    qsort(v, n, sizeof *v, cmp_double);
+    qsort(v, n, sizeof *v, sy_cmp_double);
     double x = q * (double)(n - 1);
     size_t i = (size_t)x;
     double f = x - (double)i;

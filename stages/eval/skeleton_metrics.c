@@ -10,11 +10,29 @@
 #include "eval.h"
 #include "geometry.h"
 #include "stages/core/parallel.h"
+#include "stages/core/sort.h"
 
 sy_skeleton_metrics_options sy_skeleton_metrics_options_default(void)
 {
     sy_skeleton_metrics_options o = {0.01, 0.05, 2.0, 0.02, 0.25};
     return o;
+}
+
+sy_code sy_skeleton_metrics_options_check(const sy_skeleton_metrics_options *o, sy_error *err)
+{
+    if (!(o->sample_step > 0) || !isfinite(o->sample_step))
+        return sy_fail(err, SY_EUSAGE, "skeleton metrics: sample_step %g must be > 0", o->sample_step);
+    const struct {
+        const char *name;
+        double v;
+    } at_least_0[] = {{"min_tolerance", o->min_tolerance},
+                      {"radius_factor", o->radius_factor},
+                      {"thick_radius", o->thick_radius},
+                      {"bifurcation_radius", o->bifurcation_radius}};
+    for (size_t i = 0; i < sizeof at_least_0 / sizeof *at_least_0; i++)
+        if (!(at_least_0[i].v >= 0) || !isfinite(at_least_0[i].v))
+            return sy_fail(err, SY_EUSAGE, "skeleton metrics: %s %g must be >= 0", at_least_0[i].name, at_least_0[i].v);
+    return SY_OK;
 }
 
 /* Every edge of a forest in world coordinates. */
@@ -197,12 +215,6 @@ static void match_chunk(void *arg, size_t begin, size_t end, size_t chunk)
     }
 }
 
-static int cmp_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 /* Median of the non-NaN values among v[i] with keep(i); sorts a copy. */
 static double median_where(const float *v, const uint8_t *cls, int want, size_t n)
 {
@@ -213,7 +225,7 @@ static double median_where(const float *v, const uint8_t *cls, int want, size_t 
         if (!isnan(v[i]) && (want < 0 || cls[i] == want)) tmp[m++] = v[i];
     double med = NAN;
     if (m) {
-        qsort(tmp, m, sizeof *tmp, cmp_float);
+        qsort(tmp, m, sizeof *tmp, sy_cmp_float);
         med = m % 2 ? tmp[m / 2] : 0.5 * ((double)tmp[m / 2 - 1] + tmp[m / 2]);
     }
     free(tmp);
@@ -319,12 +331,6 @@ static sy_code branch_points(const sy_forest *f, point_set *out, sy_error *err)
     return SY_OK;
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
 static sy_code bifurcation_errors(const sy_forest *truth, const sy_forest *model, double radius,
                                   sy_skeleton_metrics *m, sy_error *err)
 {
@@ -353,7 +359,7 @@ static sy_code bifurcation_errors(const sy_forest *truth, const sy_forest *model
         m->bifurcations_truth = T.n;
         m->bifurcations_matched = matched;
         m->bifurcation_error_mean = matched ? sum / (double)matched : NAN;
-        qsort(d, matched, sizeof *d, cmp_double);
+        qsort(d, matched, sizeof *d, sy_cmp_double);
         m->bifurcation_error_median = !matched ? NAN : matched % 2 ? d[matched / 2] : 0.5 * (d[matched / 2 - 1] + d[matched / 2]);
     }
     sy_bvh_free(&bvh);
@@ -399,8 +405,9 @@ sy_code sy_skeleton_metrics_compute(const sy_forest *truth, const sy_forest *mod
                                     sy_skeleton_metrics *out, sy_error *err)
 {
     sy_skeleton_metrics_options o = opts ? *opts : sy_skeleton_metrics_options_default();
-    if (!(o.sample_step > 0)) o.sample_step = 0.01;
     memset(out, 0, sizeof *out);
+    sy_code checked = sy_skeleton_metrics_options_check(&o, err);
+    if (checked) return checked;
     segments T, M;
     sy_code rc = segments_build(truth, o.thick_radius, &T, err);
     if (rc) return rc;

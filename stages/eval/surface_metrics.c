@@ -10,6 +10,7 @@
 #include "stages/core/parallel.h"
 #include "stages/core/rng.h"
 #include "stages/core/array.h"
+#include "stages/core/sort.h"
 
 #define PI 3.14159265358979323846
 
@@ -179,15 +180,23 @@ static void dist_chunk(void *arg, size_t begin, size_t end, size_t chunk)
     }
 }
 
+/* The model's primitives, which must hold something to measure against. */
+static sy_code prims_to_measure(const sy_eval_model *m, prims *P, sy_error *err)
+{
+    sy_code rc = prims_build(m, P, err);
+    if (rc) return rc;
+    if (P->n_tri + P->n_cone == 0) {
+        prims_free(P);
+        return sy_fail(err, SY_EINPUT, "model: no triangles or skeleton edges to measure against");
+    }
+    return SY_OK;
+}
+
 sy_code sy_model_distances(const sy_eval_model *m, const double *pts, size_t n, double *dist, sy_error *err)
 {
     prims P;
-    sy_code rc = prims_build(m, &P, err);
+    sy_code rc = prims_to_measure(m, &P, err);
     if (rc) return rc;
-    if (P.n_tri + P.n_cone == 0) {
-        prims_free(&P);
-        return sy_fail(err, SY_EINPUT, "model: no triangles or skeleton edges to measure against");
-    }
     dist_job J = {&P, pts, dist};
     sy_parallel_for(n, 1024, dist_chunk, &J);
     prims_free(&P);
@@ -388,12 +397,6 @@ static sy_code model_to_points(const prims *P, const double *pts, size_t n, doub
     return rc;
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
 sy_code sy_surface_metrics_compute(const sy_eval_model *m, const double *pts, size_t n, double coverage_eps,
                                    double spacing, sy_surface_metrics *out, sy_error *err)
 {
@@ -401,12 +404,8 @@ sy_code sy_surface_metrics_compute(const sy_eval_model *m, const double *pts, si
     if (!n) return sy_fail(err, SY_EINPUT, "points: no points to measure");
     if (!(spacing > 0)) spacing = 0.01;
     prims P;
-    sy_code rc = prims_build(m, &P, err);
+    sy_code rc = prims_to_measure(m, &P, err);
     if (rc) return rc;
-    if (P.n_tri + P.n_cone == 0) {
-        prims_free(&P);
-        return sy_fail(err, SY_EINPUT, "model: no triangles or skeleton edges to measure against");
-    }
     /* Model -> points: samples need not be much denser than the points
      * themselves; four per point of mean point spacing, and never more than
      * ~20 million. */
@@ -431,7 +430,7 @@ sy_code sy_surface_metrics_compute(const sy_eval_model *m, const double *pts, si
     out->hausdorff = mx;
     out->coverage_eps = coverage_eps;
     out->coverage = sy_coverage(dist, n, coverage_eps);
-    qsort(dist, n, sizeof *dist, cmp_double);
+    qsort(dist, n, sizeof *dist, sy_cmp_double);
     /* Nearest-rank 95th percentile. */
     size_t rank = (size_t)ceil(0.95 * (double)n);
     out->p95_distance = dist[rank ? rank - 1 : 0];

@@ -15,6 +15,7 @@
 
 #include "../core/fileio.h"
 #include "../core/array.h"
+#include "../core/sort.h"
 
 /* COLMAP's camera model ids and parameter counts (src/base/camera_models.h);
  * the id is the index. */
@@ -56,12 +57,6 @@ static void model_free(colmap_model *m)
     memset(m, 0, sizeof *m);
 }
 
-static int cmp_u32(const void *a, const void *b)
-{
-    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
-    return (x > y) - (x < y);
-}
-
 static int cmp_camera(const void *a, const void *b)
 {
     uint32_t x = ((const colmap_camera *)a)->id, y = ((const colmap_camera *)b)->id;
@@ -83,7 +78,7 @@ static int has_image(const colmap_model *m, uint64_t id)
 {
     if (id > UINT32_MAX || m->nimages == 0) return 0;
     uint32_t key = (uint32_t)id;
-    return bsearch(&key, m->images, m->nimages, sizeof key, cmp_u32) != NULL;
+    return bsearch(&key, m->images, m->nimages, sizeof key, sy_cmp_u32) != NULL;
 }
 
 /* Appends to a growing array of elem-sized items. */
@@ -215,10 +210,16 @@ static sy_code camera_line(const char *path, size_t line, const char *p, const c
     return add_camera(m, cap, cid, model, path, "line", line, err);
 }
 
-/* A data line: neither blank nor a '#' comment. */
-static int data_line(const char *p, const char *e, sy_tok *first)
+/* The next data line of l, [*p, *e): neither blank nor a '#' comment (the
+ * three text files share the rule); 0 at the end. */
+static int next_data_line(sy_lines *l, const char **p, const char **e)
 {
-    return sy_tok_next(&p, e, first) && first->s[0] != '#';
+    while (sy_lines_next(l, p, e)) {
+        const char *q = *p;
+        sy_tok first;
+        if (sy_tok_next(&q, *e, &first) && first.s[0] != '#') return 1;
+    }
+    return 0;
 }
 
 static sy_code cameras_txt(const char *path, const unsigned char *d, size_t size, colmap_model *m, sy_error *err)
@@ -227,9 +228,7 @@ static sy_code cameras_txt(const char *path, const unsigned char *d, size_t size
     sy_lines_init(&l, d, size);
     const char *p, *e;
     size_t cap = 0;
-    sy_tok first;
-    while (sy_lines_next(&l, &p, &e)) {
-        if (!data_line(p, e, &first)) continue;
+    while (next_data_line(&l, &p, &e)) {
         sy_code rc = camera_line(path, l.line, p, e, m, &cap, err);
         if (rc) return rc;
     }
@@ -274,7 +273,7 @@ static sy_code add_image(colmap_model *m, size_t *cap, uint64_t id, uint64_t cam
 /* Sorts image ids for lookup and rejects duplicates. */
 static sy_code index_images(const char *path, colmap_model *m, sy_error *err)
 {
-    if (m->nimages) qsort(m->images, m->nimages, sizeof *m->images, cmp_u32);
+    if (m->nimages) qsort(m->images, m->nimages, sizeof *m->images, sy_cmp_u32);
     for (size_t i = 1; i < m->nimages; i++)
         if (m->images[i] == m->images[i - 1])
             return sy_fail(err, SY_EINPUT, "%s: duplicate image id %u", path, (unsigned)m->images[i]);
@@ -345,9 +344,7 @@ static sy_code images_txt(const char *path, const unsigned char *d, size_t size,
     sy_lines_init(&l, d, size);
     const char *p, *e;
     size_t cap = 0;
-    sy_tok first;
-    while (sy_lines_next(&l, &p, &e)) {
-        if (!data_line(p, e, &first)) continue;
+    while (next_data_line(&l, &p, &e)) {
         sy_code rc = image_line(path, l.line, p, e, m, &cap, err);
         /* The next line always holds the image's 2D points, even when empty. */
         if (!rc && sy_lines_next(&l, &p, &e)) rc = points2d_line(path, l.line, p, e, err);
@@ -464,13 +461,11 @@ static sy_code points_txt(point_sink *s, const unsigned char *d, size_t size, sy
     sy_lines l;
     sy_lines_init(&l, d, size);
     const char *p, *e;
-    sy_tok first;
     size_t n = 0;
-    while (sy_lines_next(&l, &p, &e)) n += (size_t)data_line(p, e, &first);
+    while (next_data_line(&l, &p, &e)) n++;
     sy_code rc = sink_open(s, n, err);
     sy_lines_init(&l, d, size);
-    while (!rc && sy_lines_next(&l, &p, &e))
-        if (data_line(p, e, &first)) rc = point_line(s, l.line, p, e, err);
+    while (!rc && next_data_line(&l, &p, &e)) rc = point_line(s, l.line, p, e, err);
     return rc;
 }
 

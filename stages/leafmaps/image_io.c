@@ -19,26 +19,26 @@
 #define MAX_SIDE 16384
 #define MAX_INFLATE 1032.0 /* deflate's largest expansion (RFC 1951) */
 
-int sy_lcv_read(const char *path, float **px, int *w, int *h, int *c, int *depth)
+sy_code sy_lcv_read(const char *path, float **px, int *w, int *h, int *c, int *depth, sy_error *err)
 {
     sy_buffer b;
-    sy_error err = {0};
-    if (sy_read_file(path, &b, &err)) return -1;
-    int iw, ih, ic, rc = -1;
+    if (sy_read_file(path, &b, err)) return err->code;
+    int iw, ih, ic;
     if (b.size == 0 || b.size > INT_MAX || !stbi_info_from_memory(b.data, (int)b.size, &iw, &ih, &ic) || iw <= 0 ||
         ih <= 0 || iw > MAX_SIDE || ih > MAX_SIDE || ic < 1 || ic > 4 ||
         (double)iw * ih * ic * 2 > MAX_INFLATE * (double)b.size + (1 << 20)) {
         sy_buffer_free(&b);
-        return -1;
+        return sy_fail(err, SY_EINPUT, "%s: not an image this build can decode", path);
     }
     int is16 = stbi_is_16_bit_from_memory(b.data, (int)b.size);
     void *raw = is16 ? (void *)stbi_load_16_from_memory(b.data, (int)b.size, &iw, &ih, &ic, 0)
                      : (void *)stbi_load_from_memory(b.data, (int)b.size, &iw, &ih, &ic, 0);
     sy_buffer_free(&b);
-    if (!raw) return -1;
+    if (!raw) return sy_fail(err, SY_EINPUT, "%s: not an image this build can decode", path);
     int oc = ic == 2 ? 4 : ic; /* grey + alpha: expanded to RGBA */
     size_t n = (size_t)iw * (size_t)ih;
-    float *out = malloc(n * (size_t)oc * sizeof *out);
+    float *out = sy_calloc(n, (size_t)oc * sizeof *out, err, path);
+    sy_code rc = out ? SY_OK : SY_EINTERNAL;
     if (out) {
         float scale = is16 ? 1.0f / 65535.0f : 1.0f / 255.0f;
         const uint16_t *s16 = raw;
@@ -57,18 +57,20 @@ int sy_lcv_read(const char *path, float **px, int *w, int *h, int *c, int *depth
         *h = ih;
         *c = oc;
         *depth = is16 ? 16 : 8;
-        rc = 0;
     }
     stbi_image_free(raw);
     return rc;
 }
 
-int sy_lcv_encode_png(const float *px, int w, int h, int c, int bits, unsigned char **png, size_t *size)
+sy_code sy_lcv_encode_png(const float *px, int w, int h, int c, int bits, unsigned char **png, size_t *size,
+                          sy_error *err)
 {
-    if ((c != 1 && c != 3 && c != 4) || w <= 0 || h <= 0 || (bits != 8 && bits != 16)) return -1;
+    if ((c != 1 && c != 3 && c != 4) || w <= 0 || h <= 0 || (bits != 8 && bits != 16))
+        return sy_fail(err, SY_EINTERNAL, "PNG encoding: %d x %d, %d channels of %d bits is no PNG this encodes", w, h,
+                       c, bits);
     size_t n = (size_t)w * (size_t)h * (size_t)c, bps = (size_t)bits / 8;
-    unsigned char *q = malloc(n * bps);
-    if (!q) return -1;
+    unsigned char *q = sy_calloc(n, bps, err, "PNG encoding");
+    if (!q) return SY_EINTERNAL;
     float maxv = bits == 16 ? 65535.0f : 255.0f;
     for (size_t i = 0; i < n; i++) {
         float v = px[i] * maxv;
@@ -80,7 +82,7 @@ int sy_lcv_encode_png(const float *px, int w, int h, int c, int bits, unsigned c
         } else
             q[i] = (unsigned char)s;
     }
-    int rc = sy_png_encode(q, w, h, c, bits, png, size);
+    int bad = sy_png_encode(q, w, h, c, bits, png, size);
     free(q);
-    return rc;
+    return bad ? sy_fail(err, SY_EINTERNAL, "PNG encoding: out of memory") : SY_OK;
 }

@@ -35,8 +35,7 @@ static sy_code add_file(sy_leaf_files *f, const char *name, const float *px, int
                         sy_error *err)
 {
     if (f->n >= SY_LEAF_MAX_FILES) return sy_fail(err, SY_EINTERNAL, "leaf material: too many files");
-    if (sy_lcv_encode_png(px, w, h, c, bits, &f->data[f->n], &f->size[f->n]))
-        return sy_fail(err, SY_EINTERNAL, "%s: PNG encoding failed", name);
+    if (sy_lcv_encode_png(px, w, h, c, bits, &f->data[f->n], &f->size[f->n], err)) return sy_error_prefix(err, name);
     snprintf(f->name[f->n], sizeof f->name[0], "%s", name);
     f->n++;
     return SY_OK;
@@ -141,8 +140,9 @@ sy_code sy_leaf_material_encode(const sy_leaf_maps *maps, int n, const char *con
             for (size_t i = 0; i < (size_t)aw * ah; i++) at[3 * i] = at[3 * i + 1] = 0.5f, at[3 * i + 2] = 1;
         for (int k = 0; !rc && k < n; k++) {
             float *px = image_of(&maps[k], atlas_kind[a], 0, tmax);
-            if (!px || sy_lcv_resize(px, maps[k].w, maps[k].h, c, cellpx, cell, cell))
-                rc = sy_fail(err, SY_EINTERNAL, "atlas: resize failed");
+            if (!px) rc = sy_fail(err, SY_EINTERNAL, "atlas: out of memory");
+            else if ((rc = sy_lcv_resize(px, maps[k].w, maps[k].h, c, cellpx, cell, cell, err)))
+                sy_error_prefix(err, "atlas");
             for (int y = 0; !rc && y < cell; y++)
                 memcpy(at + (((size_t)(k / cols) * cell + y) * aw + (size_t)(k % cols) * cell) * c,
                        cellpx + (size_t)y * cell * c, (size_t)cell * c * sizeof *at);

@@ -19,6 +19,7 @@
 #include <time.h>
 
 #include "stages/core/parallel.h"
+#include "stages/core/sort.h"
 #include "stages/leafmaps/leafmaps_cv.h"
 #include "stages/leafmaps/leafmaps_internal.h"
 
@@ -130,12 +131,6 @@ static void say(const sy_leafmaps_options *o, const char *what)
     if (o->progress) fprintf(stderr, "leaf: %s\n", what);
 }
 
-static int cmp_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 /* Median of v over mask (alpha >= 0.5); 0 if empty. */
 static double masked_median(const float *v, const float *alpha, size_t n, float *scratch)
 {
@@ -143,7 +138,7 @@ static double masked_median(const float *v, const float *alpha, size_t n, float 
     for (size_t i = 0; i < n; i++)
         if (alpha[i] >= 0.5f) scratch[k++] = v[i];
     if (!k) return 0;
-    qsort(scratch, k, sizeof *scratch, cmp_float);
+    qsort(scratch, k, sizeof *scratch, sy_cmp_float);
     return k % 2 ? scratch[k / 2] : 0.5 * (scratch[k / 2 - 1] + scratch[k / 2]);
 }
 
@@ -162,21 +157,10 @@ static void affine_compose(const double A[6], const double B[6], double out[6]) 
 
 /* ---------------------------------------------------------- segmentation */
 
-static sy_code cv_fail(sy_error *err, const char *what)
-{
-    return sy_fail(err, SY_EINTERNAL, "%s failed in OpenCV (out of memory?)", what);
-}
-
 /* Perceptual-ish coordinates for colour distances: linear -> gamma 1/2.2. */
 static float gamma_enc(float v)
 {
     return v > 0 ? powf(v, 1.0f / 2.2f) : 0.0f;
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
 }
 
 /* Leaf mask of a photo: its alpha when it has one that is not all opaque,
@@ -210,7 +194,7 @@ static sy_code photo_mask(const sy_fimage *im, unsigned char *mask, const char *
                 border[k++] = gamma_enc(im->px[((size_t)y * w) * im->c + c]);
                 border[k++] = gamma_enc(im->px[((size_t)y * w + w - 1) * im->c + c]);
             }
-            qsort(border, k, sizeof *border, cmp_double);
+            qsort(border, k, sizeof *border, sy_cmp_double);
             bg[c] = (float)border[k / 2];
         }
         for (size_t i = 0; i < n; i++) {
@@ -222,9 +206,12 @@ static sy_code photo_mask(const sy_fimage *im, unsigned char *mask, const char *
             dist[i] = sqrtf(d2);
         }
         double t;
-        if (sy_lcv_otsu(dist, NULL, w, h, &t)) {
+        sy_code rc = sy_lcv_otsu(dist, NULL, w, h, &t, err);
+        if (rc) {
             free(border), free(dist);
-            return sy_fail(err, SY_EINPUT, "%s: no leaf found (the image is all background)", what);
+            /* One colour everywhere: no leaf stands out of the background. */
+            if (rc == SY_EINPUT) return sy_fail(err, SY_EINPUT, "%s: no leaf found (the image is all background)", what);
+            return sy_error_prefix(err, what);
         }
         if (t < 0.04) t = 0.04; /* noise alone never makes a leaf */
         for (size_t i = 0; i < n; i++) mask[i] = dist[i] > t ? 255 : 0;
@@ -234,7 +221,7 @@ static sy_code photo_mask(const sy_fimage *im, unsigned char *mask, const char *
      * threshold also needs an opening (noise) and a closing (dark veins). */
     int r = alpha_used ? 0 : 1;
     int max_hole = alpha_used ? 2 : (int)(n / 2000) + 4; /* glints look like background */
-    if (sy_lcv_mask_clean(mask, w, h, r, alpha_used ? 0.0005 : 0.002, max_hole)) return cv_fail(err, what);
+    if (sy_lcv_mask_clean(mask, w, h, r, alpha_used ? 0.0005 : 0.002, max_hole, err)) return sy_error_prefix(err, what);
     size_t count = 0;
     for (size_t i = 0; i < n; i++) count += mask[i] != 0;
     if (count < 16) return sy_fail(err, SY_EINPUT, "%s: no leaf found (the image is all background)", what);
@@ -249,13 +236,14 @@ static sy_code transmit_mask(const sy_fimage *ratio, unsigned char *mask, const 
     if (!lum) return sy_fail(err, SY_EINTERNAL, "%s: out of memory", what);
     for (size_t i = 0; i < n; i++) lum[i] = sy_leaf_luma(ratio->px + 3 * i);
     double t;
-    int bad = sy_lcv_otsu(lum, NULL, ratio->w, ratio->h, &t);
-    if (!bad)
+    sy_code rc = sy_lcv_otsu(lum, NULL, ratio->w, ratio->h, &t, err);
+    if (!rc)
         for (size_t i = 0; i < n; i++) mask[i] = lum[i] < t ? 255 : 0;
     free(lum);
-    if (bad) return sy_fail(err, SY_EINPUT, "%s: no leaf found in the back-lit photo", what);
+    if (rc == SY_EINPUT) return sy_fail(err, SY_EINPUT, "%s: no leaf found in the back-lit photo", what);
+    if (rc) return sy_error_prefix(err, what);
     int r = (ratio->w < ratio->h ? ratio->w : ratio->h) / 300;
-    if (sy_lcv_mask_clean(mask, ratio->w, ratio->h, r, 0.02, (int)(n / 4000) + 4)) return cv_fail(err, what);
+    if (sy_lcv_mask_clean(mask, ratio->w, ratio->h, r, 0.02, (int)(n / 4000) + 4, err)) return sy_error_prefix(err, what);
     return SY_OK;
 }
 
@@ -399,9 +387,9 @@ static sy_code warp_into(const sy_fimage *src, int c_out, const double M[6], int
 {
     float *full = sy_calloc((size_t)size * size, (size_t)src->c * sizeof(float), err, "warp");
     if (!full) return SY_EINTERNAL;
-    if (sy_lcv_warp(src->px, src->w, src->h, src->c, M, full, size, size, replicate)) {
+    if (sy_lcv_warp(src->px, src->w, src->h, src->c, M, full, size, size, replicate, err)) {
         free(full);
-        return cv_fail(err, "warp");
+        return err->code;
     }
     if (c_out == src->c) {
         *dst = full;
@@ -434,12 +422,13 @@ static sy_code register_mask(const float *ref_small, int small, const unsigned c
     if (!m || !ws || !mv) rc = sy_fail(err, SY_EINTERNAL, "registration: out of memory");
     if (!rc) {
         for (size_t i = 0; i < n; i++) m[i] = mov_mask[i] ? 1.0f : 0.0f;
-        if (sy_lcv_warp(m, w, h, 1, M, ws, size, size, 0) || sy_lcv_resize(ws, size, size, 1, mv, small, small) ||
-            sy_lcv_blur(mv, small, small, 1, 2.0, mv))
-            rc = cv_fail(err, "registration");
+        if (sy_lcv_warp(m, w, h, 1, M, ws, size, size, 0, err) ||
+            sy_lcv_resize(ws, size, size, 1, mv, small, small, err) || sy_lcv_blur(mv, small, small, 1, 2.0, mv, err))
+            rc = sy_error_prefix(err, "registration");
     }
     double R[6] = {1, 0, 0, 0, 1, 0};
-    if (!rc && sy_lcv_register(ref_small, mv, small, small, R)) {
+    sy_error no_fit; /* a failed fit is no error of the stage: see below */
+    if (!rc && sy_lcv_register(ref_small, mv, small, small, R, &no_fit)) {
         /* No convergence: the captures are taken as aligned (thesis setup). */
         R[0] = 1, R[1] = 0, R[2] = 0, R[3] = 0, R[4] = 1, R[5] = 0;
     }
@@ -477,7 +466,7 @@ static sy_code remove_highlights(float *rgb, const float *alpha, int size, doubl
         a[2 * i + 1] = m;
     }
     sy_code rc = SY_OK;
-    if (sy_lcv_blur(a, size, size, 2, size / 96.0, a)) rc = cv_fail(err, "highlights");
+    if (sy_lcv_blur(a, size, size, 2, size / 96.0, a, err)) rc = sy_error_prefix(err, "highlights");
     size_t hits = 0;
     for (size_t i = 0; !rc && i < n; i++) {
         float local = a[2 * i + 1] > 1e-6f ? a[2 * i] / a[2 * i + 1] : 0;
@@ -488,7 +477,7 @@ static sy_code remove_highlights(float *rgb, const float *alpha, int size, doubl
         b[4 * i + 3] = keep;
     }
     if (!rc && hits) {
-        if (sy_lcv_blur(b, size, size, 4, size / 256.0 + 1, b)) rc = cv_fail(err, "highlights");
+        if (sy_lcv_blur(b, size, size, 4, size / 256.0 + 1, b, err)) rc = sy_error_prefix(err, "highlights");
         for (size_t i = 0; !rc && i < n; i++) {
             float local = a[2 * i + 1] > 1e-6f ? a[2 * i] / a[2 * i + 1] : 0;
             int glint = alpha[i] >= 0.5f && sy_leaf_luma(rgb + 3 * i) > ratio * local;
@@ -511,9 +500,9 @@ static sy_code masked_smooth(float *v, const float *alpha, int size, double sigm
         float m = alpha[i] >= 0.5f ? 1.0f : 0.0f;
         a[2 * i] = v[i] * m, a[2 * i + 1] = m;
     }
-    if (sy_lcv_blur(a, size, size, 2, sigma, a)) {
+    if (sy_lcv_blur(a, size, size, 2, sigma, a, err)) {
         free(a);
-        return cv_fail(err, "smoothing");
+        return sy_error_prefix(err, "smoothing");
     }
     for (size_t i = 0; i < n; i++)
         if (alpha[i] >= 0.5f && a[2 * i + 1] > 1e-6f) v[i] = a[2 * i] / a[2 * i + 1];
@@ -689,9 +678,9 @@ sy_code sy_leaf_convolve(const float *const *in, int n_out, const float *d, cons
                 if (wgt > 0) s[p] = (float)(in[i][p] * wgt);
             }
         }
-    if (!rc && sy_lcv_convolve_sum((const float *const *)split, n_out, bins, (const float *const *)kern, R, w, h, out,
-                                   sy_threads()))
-        rc = cv_fail(err, "FFT convolution");
+    if (!rc)
+        rc = sy_lcv_convolve_sum((const float *const *)split, n_out, bins, (const float *const *)kern, R, w, h, out,
+                                 sy_threads(), err);
     if (kern)
         for (int k = 0; k < bins; k++) free(kern[k]);
     if (split)
@@ -961,7 +950,7 @@ static sy_code build(const sy_leaf_capture *cap, const sy_leafmaps_options *o, s
             }
             for (int ch = 0; ch < 3; ch++) {
                 for (size_t i = 0; i < np; i++) tmp[i] = c->transmitted->px[i * c->transmitted->c + ch];
-                qsort(tmp, np, sizeof *tmp, cmp_float);
+                qsort(tmp, np, sizeof *tmp, sy_cmp_float);
                 level[ch] = tmp[(size_t)(0.95 * (double)(np - 1))];
                 if (level[ch] < 1e-4f) level[ch] = 1e-4f;
             }
@@ -999,10 +988,10 @@ static sy_code build(const sy_leaf_capture *cap, const sy_leafmaps_options *o, s
         if (!mf || !big || !ref_small) rc = sy_fail(err, SY_EINTERNAL, "registration: out of memory");
         if (!rc) {
             for (size_t i = 0; i < np; i++) mf[i] = mask[0][i] ? 1.0f : 0.0f;
-            if (sy_lcv_warp(mf, W, H, 1, M0, big, size, size, 0) ||
-                sy_lcv_resize(big, size, size, 1, ref_small, small, small) ||
-                sy_lcv_blur(ref_small, small, small, 1, 2.0, ref_small))
-                rc = cv_fail(err, "registration");
+            if (sy_lcv_warp(mf, W, H, 1, M0, big, size, size, 0, err) ||
+                sy_lcv_resize(big, size, size, 1, ref_small, small, small, err) ||
+                sy_lcv_blur(ref_small, small, small, 1, 2.0, ref_small, err))
+                rc = sy_error_prefix(err, "registration");
         }
         free(mf), free(big);
     }
@@ -1035,7 +1024,7 @@ static sy_code build(const sy_leaf_capture *cap, const sy_leafmaps_options *o, s
         if (!mf) rc = sy_fail(err, SY_EINTERNAL, "alpha: out of memory");
         else {
             for (size_t i = 0; i < np; i++) mf[i] = mask[0][i] ? 1.0f : 0.0f;
-            if (sy_lcv_warp(mf, W, H, 1, M0, m->alpha, size, size, 0)) rc = cv_fail(err, "alpha");
+            if (sy_lcv_warp(mf, W, H, 1, M0, m->alpha, size, size, 0, err)) rc = sy_error_prefix(err, "alpha");
             free(mf);
         }
     }

@@ -2,9 +2,12 @@
 #include "stages/leafmaps/leafmaps_cv.h"
 
 #include <algorithm>
-#include <atomic>
+#include <exception>
 #include <cstdlib>
 #include <cstring>
+#include <mutex>
+#include <new>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -14,13 +17,44 @@
 
 namespace {
 
-template <class F> int guarded(F &&f)
+// Why OpenCV threw, in one line: cv::Exception::what() ends in a newline and
+// repeats the source position; its err field is the reason alone.
+std::string reason_of(const std::exception_ptr &ep)
+{
+    try {
+        std::rethrow_exception(ep);
+    } catch (const cv::Exception &e) {
+        return "OpenCV: " + e.err;
+    } catch (const std::bad_alloc &) {
+        return "out of memory";
+    } catch (const std::exception &e) {
+        return e.what();
+    } catch (...) {
+        return "unknown failure";
+    }
+}
+
+sy_code cv_fail(sy_error *err, const char *what, const std::string &why)
+{
+    return sy_fail(err, SY_EINTERNAL, "%s: %s", what, why.c_str());
+}
+
+template <class F> sy_code guarded(sy_error *err, const char *what, F &&f)
 {
     try {
         return f();
     } catch (...) {
-        return -1;
+        return cv_fail(err, what, reason_of(std::current_exception()));
     }
+}
+
+// cv::Mat headers over the caller's buffer: OpenCV writes in place unless
+// the sizes or types disagree, when it would allocate a new matrix and the
+// caller's buffer would stay unwritten.
+sy_code in_place(const cv::Mat &d, const float *dst, sy_error *err, const char *what)
+{
+    if (d.data == (const unsigned char *)dst) return SY_OK;
+    return sy_fail(err, SY_EINTERNAL, "%s: OpenCV did not write into the output buffer", what);
 }
 
 // Runs fn(i) for i in [0, n) on up to `threads` threads; each index runs
@@ -42,9 +76,10 @@ template <class F> void run_parallel(int n, int threads, F &&fn)
 
 } // namespace
 
-extern "C" int sy_lcv_mask_clean(unsigned char *mask, int w, int h, int r, double min_frac, int max_hole)
+extern "C" sy_code sy_lcv_mask_clean(unsigned char *mask, int w, int h, int r, double min_frac, int max_hole,
+                                     sy_error *err)
 {
-    return guarded([&] {
+    return guarded(err, "mask cleanup", [&] {
         cv::Mat m(h, w, CV_8U, mask);
         if (r > 0) {
             cv::Mat disc = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * r + 1, 2 * r + 1));
@@ -75,13 +110,13 @@ extern "C" int sy_lcv_mask_clean(unsigned char *mask, int w, int h, int r, doubl
         for (int y = 0; y < h; y++)
             for (int x = 0; x < w; x++)
                 if (fill[(size_t)labels.at<int>(y, x)]) mask[(size_t)y * w + x] = 255;
-        return 0;
+        return SY_OK;
     });
 }
 
-extern "C" int sy_lcv_otsu(const float *v, const unsigned char *use, int w, int h, double *t)
+extern "C" sy_code sy_lcv_otsu(const float *v, const unsigned char *use, int w, int h, double *t, sy_error *err)
 {
-    return guarded([&] {
+    return guarded(err, "Otsu threshold", [&] {
         size_t n = (size_t)w * h;
         float lo = 1e30f, hi = -1e30f;
         for (size_t i = 0; i < n; i++)
@@ -89,7 +124,7 @@ extern "C" int sy_lcv_otsu(const float *v, const unsigned char *use, int w, int 
                 lo = std::min(lo, v[i]);
                 hi = std::max(hi, v[i]);
             }
-        if (!(hi > lo)) return -1;
+        if (!(hi > lo)) return sy_fail(err, SY_EINPUT, "Otsu threshold: every value is the same");
         // Otsu on a 1-D row of the selected values quantised to 16 bits.
         std::vector<unsigned char> q;
         q.reserve(n);
@@ -98,64 +133,74 @@ extern "C" int sy_lcv_otsu(const float *v, const unsigned char *use, int w, int 
         cv::Mat row(1, (int)q.size(), CV_8U, q.data()), dummy;
         double th = cv::threshold(row, dummy, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU);
         *t = lo + (th + 0.5) / 255.0 * (hi - lo);
-        return 0;
+        return SY_OK;
     });
 }
 
-extern "C" int sy_lcv_warp(const float *src, int w, int h, int c, const double M[6], float *dst, int dw, int dh,
-                           int replicate)
+extern "C" sy_code sy_lcv_warp(const float *src, int w, int h, int c, const double M[6], float *dst, int dw, int dh,
+                               int replicate, sy_error *err)
 {
-    return guarded([&] {
+    const char *what = "warp";
+    return guarded(err, what, [&] {
         cv::Mat s(h, w, CV_MAKETYPE(CV_32F, c), const_cast<float *>(src));
         cv::Mat d(dh, dw, CV_MAKETYPE(CV_32F, c), dst);
         cv::Mat A = (cv::Mat_<double>(2, 3) << M[0], M[1], M[2], M[3], M[4], M[5]);
         cv::warpAffine(s, d, A, d.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
                        replicate ? cv::BORDER_REPLICATE : cv::BORDER_CONSTANT, cv::Scalar::all(0));
-        return d.data == (unsigned char *)dst ? 0 : -1;
+        return in_place(d, dst, err, what);
     });
 }
 
-extern "C" int sy_lcv_register(const float *ref, const float *mov, int w, int h, double M[6])
+extern "C" sy_code sy_lcv_register(const float *ref, const float *mov, int w, int h, double M[6], sy_error *err)
 {
-    return guarded([&] {
+    return guarded(err, "ECC registration", [&] {
         cv::Mat r(h, w, CV_32F, const_cast<float *>(ref)), m(h, w, CV_32F, const_cast<float *>(mov));
         cv::Mat warp = (cv::Mat_<float>(2, 3) << (float)M[0], (float)M[1], (float)M[2], (float)M[3], (float)M[4],
                         (float)M[5]);
         cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 100, 1e-6);
         cv::findTransformECC(r, m, warp, cv::MOTION_EUCLIDEAN, crit, cv::noArray(), 5);
         for (int i = 0; i < 6; i++) M[i] = warp.at<float>(i / 3, i % 3);
-        return 0;
+        return SY_OK;
     });
 }
 
-extern "C" int sy_lcv_blur(const float *src, int w, int h, int c, double sigma, float *dst)
+extern "C" sy_code sy_lcv_blur(const float *src, int w, int h, int c, double sigma, float *dst, sy_error *err)
 {
-    return guarded([&] {
+    const char *what = "blur";
+    return guarded(err, what, [&] {
         cv::Mat s(h, w, CV_MAKETYPE(CV_32F, c), const_cast<float *>(src));
         cv::Mat d(h, w, CV_MAKETYPE(CV_32F, c), dst);
         cv::GaussianBlur(s, d, cv::Size(0, 0), sigma, sigma, cv::BORDER_REPLICATE);
-        return d.data == (unsigned char *)dst ? 0 : -1;
+        return in_place(d, dst, err, what);
     });
 }
 
-extern "C" int sy_lcv_resize(const float *src, int w, int h, int c, float *dst, int dw, int dh)
+extern "C" sy_code sy_lcv_resize(const float *src, int w, int h, int c, float *dst, int dw, int dh, sy_error *err)
 {
-    return guarded([&] {
+    const char *what = "resize";
+    return guarded(err, what, [&] {
         cv::Mat s(h, w, CV_MAKETYPE(CV_32F, c), const_cast<float *>(src));
         cv::Mat d(dh, dw, CV_MAKETYPE(CV_32F, c), dst);
         cv::resize(s, d, d.size(), 0, 0, dw <= w && dh <= h ? cv::INTER_AREA : cv::INTER_LINEAR);
-        return d.data == (unsigned char *)dst ? 0 : -1;
+        return in_place(d, dst, err, what);
     });
 }
 
-extern "C" int sy_lcv_convolve_sum(const float *const *in, int n_out, int n_k, const float *const *kernel, int r,
-                                   int w, int h, float *const *out, int threads)
+extern "C" sy_code sy_lcv_convolve_sum(const float *const *in, int n_out, int n_k, const float *const *kernel,
+                                       int r, int w, int h, float *const *out, int threads, sy_error *err)
 {
-    return guarded([&] {
+    const char *what = "FFT convolution";
+    return guarded(err, what, [&] {
         int pw = cv::getOptimalDFTSize(w + 2 * r), ph = cv::getOptimalDFTSize(h + 2 * r);
         int ks = 2 * r + 1;
         std::vector<cv::Mat> kspec((size_t)n_k);
-        std::atomic<bool> failed{false};
+        // The first worker to fail keeps its reason; the others only stop.
+        std::mutex first_lock;
+        std::exception_ptr first;
+        auto keep = [&] {
+            std::lock_guard<std::mutex> lock(first_lock);
+            if (!first) first = std::current_exception();
+        };
         // Kernels wrapped around the origin so the product gives 'same' output.
         run_parallel(n_k, threads, [&](int k) {
             try {
@@ -165,10 +210,10 @@ extern "C" int sy_lcv_convolve_sum(const float *const *in, int n_out, int n_k, c
                         z.at<float>((dy + ph) % ph, (dx + pw) % pw) = kernel[k][(size_t)(dy + r) * ks + (dx + r)];
                 cv::dft(z, kspec[(size_t)k], 0, ks);
             } catch (...) {
-                failed = true;
+                keep();
             }
         });
-        if (failed) return -1;
+        if (first) return cv_fail(err, what, reason_of(first));
         run_parallel(n_out, threads, [&](int i) {
             try {
                 cv::Mat acc = cv::Mat::zeros(ph, pw, CV_32F), spec, prod;
@@ -185,9 +230,9 @@ extern "C" int sy_lcv_convolve_sum(const float *const *in, int n_out, int n_k, c
                 for (int y = 0; y < h; y++)
                     std::memcpy(out[i] + (size_t)y * w, res.ptr<float>(y), (size_t)w * sizeof(float));
             } catch (...) {
-                failed = true;
+                keep();
             }
         });
-        return failed ? -1 : 0;
+        return first ? cv_fail(err, what, reason_of(first)) : SY_OK;
     });
 }

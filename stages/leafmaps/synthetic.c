@@ -205,9 +205,9 @@ sy_code sy_leaf_synthesize(int n, uint64_t seed, double shift, const sy_leafmaps
         sy_fimage *src = transmitted ? &trans_rgb[side] : &leaf_rgb[side];
         sy_fimage warped = {0};
         if ((rc = sy_fimage_alloc(&warped, n, n, 4, err))) break;
-        if (sy_lcv_warp(src->px, n, n, 4, A, warped.px, n, n, 0)) {
+        if ((rc = sy_lcv_warp(src->px, n, n, 4, A, warped.px, n, n, 0, err))) {
             sy_fimage_free(&warped);
-            rc = sy_fail(err, SY_EINTERNAL, "synthetic leaf: warp failed");
+            sy_error_prefix(err, "synthetic leaf");
             break;
         }
         float *hlw = NULL;
@@ -242,7 +242,7 @@ sy_code sy_leaf_synthesize(int n, uint64_t seed, double shift, const sy_leafmaps
             /* The abaxial scan lives in the abaxial photo's frame. */
             sy_fimage hw = {0};
             if ((rc = sy_fimage_alloc(&hw, n, n, 1, err))) break;
-            if (sy_lcv_warp(s->height[1].px, n, n, 1, A, hw.px, n, n, 1)) rc = sy_fail(err, SY_EINTERNAL, "warp failed");
+            if ((rc = sy_lcv_warp(s->height[1].px, n, n, 1, A, hw.px, n, n, 1, err))) sy_error_prefix(err, "synthetic leaf");
             sy_fimage_free(&s->height[1]);
             s->height[1] = hw;
         }

@@ -277,15 +277,17 @@ static sy_code card_mesh(const float lo[3], const float hi[3], float xc, float z
     return SY_OK;
 }
 
-int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
+/* The box around a level's meshes and every instance of its instanced
+ * meshes (empty: lo > hi). */
+static void lod_bounds(const sy_asset *a, const sy_lod *l, float lo[3], float hi[3])
 {
-    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (int k = 0; k < lod0->n_meshes; k++) {
-        const sy_mesh *m = &a->meshes[lod0->meshes[k]];
+    for (int k = 0; k < 3; k++) lo[k] = INFINITY, hi[k] = -INFINITY;
+    for (int k = 0; k < l->n_meshes; k++) {
+        const sy_mesh *m = &a->meshes[l->meshes[k]];
         for (size_t i = 0; i < m->n_vertices; i++) grow_box(lo, hi, m->position + 3 * i);
     }
-    for (int k = 0; k < lod0->n_instances; k++) {
-        const sy_instances *in = &lod0->instances[k];
+    for (int k = 0; k < l->n_instances; k++) {
+        const sy_instances *in = &l->instances[k];
         const sy_mesh *m = &a->meshes[in->mesh];
         for (size_t i = 0; i < in->n; i++)
             for (size_t j = 0; j < m->n_vertices; j++) {
@@ -294,6 +296,12 @@ int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
                 grow_box(lo, hi, p);
             }
     }
+}
+
+int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
+{
+    float lo[3], hi[3];
+    lod_bounds(a, lod0, lo, hi);
     if (!(lo[0] <= hi[0])) {
         sy_fail(err, SY_EINPUT, "mesh: impostor of an empty tree");
         return -1;
@@ -361,22 +369,7 @@ int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
 
 void sy_mesh_lod_bounds(const sy_asset *a, size_t lod, float lo[3], float hi[3])
 {
-    for (int k = 0; k < 3; k++) lo[k] = INFINITY, hi[k] = -INFINITY;
-    const sy_lod *l = &a->lods[lod];
-    for (int k = 0; k < l->n_meshes; k++) {
-        const sy_mesh *m = &a->meshes[l->meshes[k]];
-        for (size_t i = 0; i < m->n_vertices; i++) grow_box(lo, hi, m->position + 3 * i);
-    }
-    for (int k = 0; k < l->n_instances; k++) {
-        const sy_instances *in = &l->instances[k];
-        const sy_mesh *m = &a->meshes[in->mesh];
-        for (size_t i = 0; i < in->n; i++)
-            for (size_t j = 0; j < m->n_vertices; j++) {
-                float p[3];
-                instance_point(in, i, m->position + 3 * j, p);
-                grow_box(lo, hi, p);
-            }
-    }
+    lod_bounds(a, &a->lods[lod], lo, hi);
 }
 
 sy_code sy_mesh_silhouettes(const sy_asset *a, size_t lod, const float lo[3], const float hi[3], int size,

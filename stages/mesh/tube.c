@@ -688,24 +688,33 @@ typedef struct {
     uint16_t *wb;
 } strip_verts;
 
+/* Resizes the six arrays a bark vertex lives in (position 3, normal 3,
+ * tangent 4, uv 2, wind weights 4 floats, wind branch) to n vertices, the
+ * strip buffer's or the mesh's. Every array that could be resized is kept,
+ * so after a failure (0) each is still valid for its old size. */
+static int resize_vertices(float **pos, float **nrm, float **tan, float **uv, float **ww, uint16_t **wb, size_t n)
+{
+    float *a = realloc(*pos, 3 * n * sizeof *a);
+    if (a) *pos = a;
+    float *b = realloc(*nrm, 3 * n * sizeof *b);
+    if (b) *nrm = b;
+    float *c = realloc(*tan, 4 * n * sizeof *c);
+    if (c) *tan = c;
+    float *d = realloc(*uv, 2 * n * sizeof *d);
+    if (d) *uv = d;
+    float *e = realloc(*ww, 4 * n * sizeof *e);
+    if (e) *ww = e;
+    uint16_t *f = realloc(*wb, n * sizeof *f);
+    if (f) *wb = f;
+    return a && b && c && d && e && f;
+}
+
 static int strip_verts_grow(strip_verts *vb, size_t need)
 {
     if (vb->n + need <= vb->cap) return 1;
     size_t nc = vb->cap ? 2 * vb->cap : 4096;
     while (nc < vb->n + need) nc *= 2;
-    float *a = realloc(vb->pos, 3 * nc * sizeof *a);
-    if (a) vb->pos = a;
-    float *b = realloc(vb->nrm, 3 * nc * sizeof *b);
-    if (b) vb->nrm = b;
-    float *c = realloc(vb->tan, 4 * nc * sizeof *c);
-    if (c) vb->tan = c;
-    float *d = realloc(vb->uv, 2 * nc * sizeof *d);
-    if (d) vb->uv = d;
-    float *e = realloc(vb->ww, 4 * nc * sizeof *e);
-    if (e) vb->ww = e;
-    uint16_t *f = realloc(vb->wb, nc * sizeof *f);
-    if (f) vb->wb = f;
-    if (!a || !b || !c || !d || !e || !f) return 0;
+    if (!resize_vertices(&vb->pos, &vb->nrm, &vb->tan, &vb->uv, &vb->ww, &vb->wb, nc)) return 0;
     vb->cap = nc;
     return 1;
 }
@@ -1110,29 +1119,18 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
             rc = sy_fail(err, SY_EINPUT, "mesh: %zu vertices exceed 32-bit indices", nv);
             goto done;
         }
-        float *pos = realloc(out->position, 3 * nv * sizeof *pos);
-        if (pos) out->position = pos;
-        float *nrm = realloc(out->normal, 3 * nv * sizeof *nrm);
-        if (nrm) out->normal = nrm;
-        float *tan = realloc(out->tangent, 4 * nv * sizeof *tan);
-        if (tan) out->tangent = tan;
-        float *uv = realloc(out->uv, 2 * nv * sizeof *uv);
-        if (uv) out->uv = uv;
-        float *ww = realloc(out->wind_w, 4 * nv * sizeof *ww);
-        if (ww) out->wind_w = ww;
-        uint16_t *wb = realloc(out->wind_branch, nv * sizeof *wb);
-        if (wb) out->wind_branch = wb;
-        if (!pos || !nrm || !tan || !uv || !ww || !wb) {
+        if (!resize_vertices(&out->position, &out->normal, &out->tangent, &out->uv, &out->wind_w, &out->wind_branch,
+                             nv)) {
             rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
             goto done;
         }
         size_t v0 = out->n_vertices;
-        memcpy(out->position + 3 * v0, vb.pos, 3 * vb.n * sizeof *pos);
-        memcpy(out->normal + 3 * v0, vb.nrm, 3 * vb.n * sizeof *nrm);
-        memcpy(out->tangent + 4 * v0, vb.tan, 4 * vb.n * sizeof *tan);
-        memcpy(out->uv + 2 * v0, vb.uv, 2 * vb.n * sizeof *uv);
-        memcpy(out->wind_w + 4 * v0, vb.ww, 4 * vb.n * sizeof *ww);
-        memcpy(out->wind_branch + v0, vb.wb, vb.n * sizeof *wb);
+        memcpy(out->position + 3 * v0, vb.pos, 3 * vb.n * sizeof *vb.pos);
+        memcpy(out->normal + 3 * v0, vb.nrm, 3 * vb.n * sizeof *vb.nrm);
+        memcpy(out->tangent + 4 * v0, vb.tan, 4 * vb.n * sizeof *vb.tan);
+        memcpy(out->uv + 2 * v0, vb.uv, 2 * vb.n * sizeof *vb.uv);
+        memcpy(out->wind_w + 4 * v0, vb.ww, 4 * vb.n * sizeof *vb.ww);
+        memcpy(out->wind_branch + v0, vb.wb, vb.n * sizeof *vb.wb);
         out->n_vertices = nv;
     }
 done:

@@ -9,6 +9,7 @@
 #include "../core/progress.h"
 #include "../core/voxel.h"
 #include "pcl_filters.h"
+#include "stages/core/sort.h"
 
 /* ---------------------------------------------------------------- options */
 
@@ -89,12 +90,6 @@ const char *sy_up_name(int up)
 #define UP_K 16
 #define END_QUANTILE 0.03
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
 /* RMS distance, across axis a, of the points with normalised height in
  * [lo, hi] from their own centroid. */
 static double slab_spread(const float *p, size_t n, const double *h, int a, double lo, double hi)
@@ -126,7 +121,7 @@ static double normalise(double v, double lo, double hi)
 static int heights(const float *p, size_t n, int a, double *h, double *sorted)
 {
     for (size_t i = 0; i < n; i++) sorted[i] = p[3 * i + a];
-    qsort(sorted, n, sizeof *sorted, cmp_double);
+    qsort(sorted, n, sizeof *sorted, sy_cmp_double);
     double lo = sorted[n / 100], hi = sorted[n - 1 - n / 100];
     if (!(hi - lo > 1e-6)) return 0;
     for (size_t i = 0; i < n; i++) {
@@ -261,16 +256,23 @@ sy_code sy_crop(sy_cloud *c, const double box[6], sy_error *err)
     return rc;
 }
 
-sy_code sy_voxel_downsample(sy_cloud *c, double size, sy_error *err)
+/* The box of c's first `axes` coordinates, in its float frame; c->n > 0. */
+static void local_bounds(const sy_cloud *c, int axes, float *lo, float *hi)
 {
-    if (c->n == 0 || size <= 0) return SY_OK;
-    float lo[3] = {c->xyz[0], c->xyz[1], c->xyz[2]}, hi[3] = {lo[0], lo[1], lo[2]};
+    for (int k = 0; k < axes; k++) lo[k] = hi[k] = c->xyz[k];
     for (size_t i = 1; i < c->n; i++)
-        for (int k = 0; k < 3; k++) {
+        for (int k = 0; k < axes; k++) {
             float v = c->xyz[3 * i + k];
             if (v < lo[k]) lo[k] = v;
             if (v > hi[k]) hi[k] = v;
         }
+}
+
+sy_code sy_voxel_downsample(sy_cloud *c, double size, sy_error *err)
+{
+    if (c->n == 0 || size <= 0) return SY_OK;
+    float lo[3], hi[3];
+    local_bounds(c, 3, lo, hi);
     for (int k = 0; k < 3; k++)
         if ((hi[k] - lo[k]) / size >= (double)SY_VOXEL_AXIS_CELLS - 1)
             return sy_fail(err, SY_EUSAGE, "--voxel: %g m is too small for a cloud %.0f m wide (at most %u voxels per axis)",
@@ -334,13 +336,8 @@ sy_code sy_voxel_size_for_count(const sy_cloud *c, size_t target, double *size, 
 {
     *size = 0;
     if (c->n <= target || target == 0) return SY_OK;
-    float lo[3] = {c->xyz[0], c->xyz[1], c->xyz[2]}, hi[3] = {lo[0], lo[1], lo[2]};
-    for (size_t i = 1; i < c->n; i++)
-        for (int k = 0; k < 3; k++) {
-            float v = c->xyz[3 * i + k];
-            if (v < lo[k]) lo[k] = v;
-            if (v > hi[k]) hi[k] = v;
-        }
+    float lo[3], hi[3];
+    local_bounds(c, 3, lo, hi);
     double vol = 1, wide = 0;
     for (int k = 0; k < 3; k++) {
         vol *= fmax(hi[k] - lo[k], 1e-3);
@@ -432,12 +429,6 @@ static int cmp_point_cell(const void *a, const void *b)
     return (x->index > y->index) - (x->index < y->index);
 }
 
-static int cmp_u64(const void *a, const void *b)
-{
-    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-    return (x > y) - (x < y);
-}
-
 /* Finds key in the sorted keys; -1 when absent. */
 static long find_key(const uint64_t *keys, size_t n, uint64_t key)
 {
@@ -454,13 +445,8 @@ static sy_code grid_init(ground_grid *g, const sy_cloud *c, double cell, sy_erro
 {
     memset(g, 0, sizeof *g);
     if (c->n >= UINT32_MAX) return sy_fail(err, SY_EINPUT, "ground: %zu points exceed the 2^32 a cloud may hold", c->n);
-    float lo[2] = {c->xyz[0], c->xyz[1]}, hi[2] = {lo[0], lo[1]};
-    for (size_t i = 1; i < c->n; i++)
-        for (int k = 0; k < 2; k++) {
-            float v = c->xyz[3 * i + k];
-            if (v < lo[k]) lo[k] = v;
-            if (v > hi[k]) hi[k] = v;
-        }
+    float lo[2], hi[2];
+    local_bounds(c, 2, lo, hi);
     g->x0 = lo[0], g->y0 = lo[1], g->cell = cell;
     double nx = floor(((double)hi[0] - lo[0]) / cell) + 1, ny = floor(((double)hi[1] - lo[1]) / cell) + 1;
     /* Only the key width limits the span; no memory depends on it. */
@@ -605,7 +591,7 @@ static sy_code fill_cells(const ground_grid *g, const cell_heights *h, cell_heig
                 out->key[n++] = CELL_KEY(x, y);
             }
     }
-    qsort(out->key, n, sizeof *out->key, cmp_u64);
+    qsort(out->key, n, sizeof *out->key, sy_cmp_u64);
     size_t u = 0;
     for (size_t i = 0; i < n; i++)
         if (u == 0 || out->key[i] != out->key[u - 1]) out->key[u++] = out->key[i];
@@ -769,12 +755,6 @@ sy_code sy_classify_ground(sy_cloud *c, const sy_preprocess_options *o, size_t *
 
 /* ----------------------------------------------------------------- normals */
 
-static int cmp_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 /* Median x and median y of the cloud. */
 static sy_code median_xy(const sy_cloud *c, float centre[2], sy_error *err)
 {
@@ -782,7 +762,7 @@ static sy_code median_xy(const sy_cloud *c, float centre[2], sy_error *err)
     if (!v) return SY_EINTERNAL;
     for (int k = 0; k < 2; k++) {
         for (size_t i = 0; i < c->n; i++) v[i] = c->xyz[3 * i + k];
-        qsort(v, c->n, sizeof(float), cmp_float);
+        qsort(v, c->n, sizeof(float), sy_cmp_float);
         centre[k] = v[c->n / 2];
     }
     free(v);
@@ -889,15 +869,9 @@ static sy_code step_up(sy_cloud *c, const sy_preprocess_options *o, sy_preproces
 #define GROUND_PLANE_RESIDUAL 0.25
 #define GROUND_COVER 0.05
 
-static int cmp_u64_pp(const void *a, const void *b)
-{
-    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-    return (x > y) - (x < y);
-}
-
 static size_t distinct_cells(uint64_t *k, size_t m)
 {
-    qsort(k, m, sizeof *k, cmp_u64_pp);
+    qsort(k, m, sizeof *k, sy_cmp_u64);
     size_t d = 0;
     for (size_t i = 0; i < m; i++) d += i == 0 || k[i] != k[i - 1];
     return d;
@@ -944,7 +918,7 @@ static int ground_is_terrain(const sy_cloud *c, double cell, double *rms_out, do
         double x = c->xyz[3 * i] - mean[0], y = c->xyz[3 * i + 1] - mean[1], z = c->xyz[3 * i + 2] - mean[2];
         res[t++] = fabs(z - a * x - b * y);
     }
-    qsort(res, m, sizeof *res, cmp_double);
+    qsort(res, m, sizeof *res, sy_cmp_double);
     *rms_out = res[m / 2];
     free(res);
     size_t g = 0;

@@ -467,17 +467,40 @@ static void poisson_disk(grown_tree *g, int n, double size, rng *r)
     }
 }
 
+sy_code sy_scene_options_check(const sy_scene_options *o, sy_error *err)
+{
+    int max_species = (int)(sizeof o->species / sizeof *o->species);
+    if (o->n_species < 1 || o->n_species > max_species)
+        return sy_fail(err, SY_EUSAGE, "scan: n_species %d outside [1, %d]", o->n_species, max_species);
+    for (int i = 0; i < o->n_species; i++)
+        if (!o->species[i] || !o->species[i][0]) return sy_fail(err, SY_EUSAGE, "scan: species[%d] is empty", i);
+    if (!(o->plot_size >= 0) || !isfinite(o->plot_size))
+        return sy_fail(err, SY_EUSAGE, "scan: plot_size %g must be >= 0", o->plot_size);
+    int plot = o->plot_size > 0;
+    if (plot && (o->trees < 0 || o->trees > 10000))
+        return sy_fail(err, SY_EUSAGE, "scan: trees %d outside [0, 10000]", o->trees);
+    if (o->neighbours < 0 || o->neighbours > 12)
+        return sy_fail(err, SY_EUSAGE, "scan: neighbours %d outside [0, 12]", o->neighbours);
+    if (plot && o->neighbours > 0)
+        return sy_fail(err, SY_EUSAGE, "scan: neighbours is for a single tree (plot_size 0), not a plot");
+    if (!(o->forest >= 0 && o->forest <= 1)) return sy_fail(err, SY_EUSAGE, "scan: forest %g outside [0, 1]", o->forest);
+    /* Negative understory is the default (resolved by sy_scene_build); NaN is none. */
+    if (isnan(o->understory)) return sy_fail(err, SY_EUSAGE, "scan: understory is not a number");
+    /* tan(slope) lifts the ground: a vertical one has no height. */
+    if (!(fabs(o->slope_deg) < 90)) return sy_fail(err, SY_EUSAGE, "scan: slope_deg %g outside (-90, 90)", o->slope_deg);
+    if (!isfinite(o->aspect_deg)) return sy_fail(err, SY_EUSAGE, "scan: aspect_deg %g is not finite", o->aspect_deg);
+    if (!(o->roughness >= 0) || !isfinite(o->roughness))
+        return sy_fail(err, SY_EUSAGE, "scan: roughness %g must be >= 0", o->roughness);
+    return SY_OK;
+}
+
 sy_code sy_scene_build(sy_scene *s, const sy_scene_options *o, double reach, sy_error *err)
 {
     sy_scene_init(s);
+    sy_code checked = sy_scene_options_check(o, err);
+    if (checked) return checked;
     int plot = o->plot_size > 0;
-    if (o->neighbours < 0 || o->neighbours > 12)
-        return sy_fail(err, SY_EUSAGE, "scan: --neighbours %d is out of range 0..12", o->neighbours);
-    if (plot && o->neighbours > 0) return sy_fail(err, SY_EUSAGE, "scan: --neighbours is for a single tree, not --plot");
-    if (!(o->forest >= 0 && o->forest <= 1)) return sy_fail(err, SY_EUSAGE, "scan: --forest must be within 0..1");
     int n = plot ? o->trees : 1 + o->neighbours;
-    if (o->n_species < 1) return sy_fail(err, SY_EUSAGE, "scan: no species given");
-    if (n < 0 || n > 10000) return sy_fail(err, SY_EUSAGE, "scan: --trees %d is out of range 0..10000", n);
     grown_tree *g = sy_calloc(n ? (size_t)n : 1, sizeof *g, err, "trees");
     if (!g) return err->code;
     rng r = {mix64(o->seed ^ 0x504C4F54ull)};

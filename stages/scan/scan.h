@@ -168,6 +168,9 @@ typedef struct {
 } sy_scene_options;
 
 sy_scene_options sy_scene_options_default(void);
+/* SY_EUSAGE naming the field when a value is out of range (no species, too
+ * many trees, neighbours in a plot, a vertical slope, ...). */
+sy_code sy_scene_options_check(const sy_scene_options *o, sy_error *err);
 /* Grows the trees, lays the terrain (sized to cover `reach` metres around the
  * plot, so scanners standing out there are on ground) and the understory, and
  * finishes the scene. */

@@ -12,6 +12,7 @@
 #include <string.h>
 
 #include "segment_internal.h"
+#include "stages/core/voxel.h"
 
 /* The column over a stem that belongs to it (metres, at least). */
 #define COLUMN_RADIUS 0.5
@@ -19,22 +20,11 @@
  * the points, so a path the scan shows wins where both reach. */
 #define COLUMN_COST 3.0
 
-typedef struct {
-    uint64_t key;
-    uint32_t point;
-} keyed;
-
-static int cmp_keyed(const void *a, const void *b)
-{
-    const keyed *x = a, *y = b;
-    if (x->key != y->key) return x->key < y->key ? -1 : 1;
-    return (x->point > y->point) - (x->point < y->point);
-}
 
 /* The voxel graph: edges implicit between voxels up to R cells apart along
  * each axis, cost len * (len / voxel)^gap_penalty. */
 typedef struct {
-    const keyed *pts;
+    const sy_voxel_entry *pts;
     const uint32_t *start;
     const double *cen;
     double *dist;
@@ -119,7 +109,7 @@ sy_code seg_grow_crowns(const seg_frame *f, const sy_segment_options *o, const s
         if ((f->hi[k] - f->lo[k]) / v >= (double)(1u << 21) - 80)
             return sy_fail(err, SY_EINPUT, "segment: the plot spans %.0f m, too much for %.3g m voxels",
                            f->hi[k] - f->lo[k], v);
-    keyed *pts = sy_calloc(m, sizeof *pts, err, "crown voxels");
+    sy_voxel_entry *pts = sy_calloc(m, sizeof *pts, err, "crown voxels");
     if (!pts) return SY_EINTERNAL;
     m = 0;
     for (size_t i = 0; i < f->n; i++) {
@@ -127,9 +117,9 @@ sy_code seg_grow_crowns(const seg_frame *f, const sy_segment_options *o, const s
         uint32_t ix = (uint32_t)((f->xyz[3 * i] - f->lo[0]) / v), iy = (uint32_t)((f->xyz[3 * i + 1] - f->lo[1]) / v),
                  iz = (uint32_t)((f->xyz[3 * i + 2] - f->lo[2]) / v);
         pts[m].key = seg_key3(ix + 32, iy + 32, iz + 32); /* +32: neighbours of cell 0 need no sign */
-        pts[m++].point = (uint32_t)i;
+        pts[m++].index = i;
     }
-    qsort(pts, m, sizeof *pts, cmp_keyed);
+    sy_voxel_entries_sort(pts, m); /* by cell, then point */
     size_t nv = 0;
     for (size_t i = 0; i < m; i++) nv += i == 0 || pts[i].key != pts[i - 1].key;
     uint32_t *start = sy_calloc(nv + 1, sizeof *start, err, "crown voxels");
@@ -148,7 +138,7 @@ sy_code seg_grow_crowns(const seg_frame *f, const sy_segment_options *o, const s
                 seg_map_put(&map, pts[i].key, (uint32_t)c);
                 c++;
             }
-            size_t vi = c - 1, p = pts[i].point;
+            size_t vi = c - 1, p = pts[i].index;
             for (int k = 0; k < 3; k++) cen[3 * vi + k] += f->xyz[3 * p + k];
             vhag[vi] += f->hag[p];
         }
@@ -202,7 +192,7 @@ sy_code seg_grow_crowns(const seg_frame *f, const sy_segment_options *o, const s
      * leaning tree to its neighbour (measured: worse than leaving it). */
     if (rc == SY_OK)
         for (size_t i = 0; i < nv; i++)
-            for (uint32_t j = start[i]; j < start[i + 1]; j++) label[pts[j].point] = vlab[i];
+            for (uint32_t j = start[i]; j < start[i + 1]; j++) label[pts[j].index] = vlab[i];
     free(pts), free(start), free(cen), free(vhag), free(dist), free(vlab);
     seg_map_free(&map);
     seg_heap_free(&heap);

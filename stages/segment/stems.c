@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "segment_internal.h"
+#include "stages/core/voxel.h"
 #include "stages/skeleton/skeleton.h"
 
 #define PI 3.14159265358979323846
@@ -18,17 +19,6 @@
 /* Two stems closer than this bark to bark are one tree forking (metres). */
 #define FORK_GAP 0.6
 
-typedef struct {
-    uint64_t key;
-    uint32_t point;
-} keyed;
-
-static int cmp_keyed(const void *a, const void *b)
-{
-    const keyed *x = a, *y = b;
-    if (x->key != y->key) return x->key < y->key ? -1 : 1;
-    return (x->point > y->point) - (x->point < y->point);
-}
 
 static uint32_t uf_find(uint32_t *p, uint32_t a)
 {
@@ -168,7 +158,7 @@ static sy_code detect_band(const seg_frame *f, const sy_segment_options *o, doub
         mask[c] |= (uint16_t)(1u << (b < 0 ? 0 : b > 15 ? 15 : b));
     }
     size_t m = 0;
-    keyed *pts = sy_calloc(nb, sizeof *pts, err, "stem slice");
+    sy_voxel_entry *pts = sy_calloc(nb, sizeof *pts, err, "stem slice");
     if (!pts) {
         free(mask);
         seg_map_free(&cols);
@@ -184,7 +174,7 @@ static sy_code detect_band(const seg_frame *f, const sy_segment_options *o, doub
         if (filled < 6) continue;
         uint32_t ix = (uint32_t)((f->xyz[3 * i] - f->lo[0]) / g), iy = (uint32_t)((f->xyz[3 * i + 1] - f->lo[1]) / g);
         pts[m].key = ((uint64_t)ix << 32) | iy;
-        pts[m++].point = (uint32_t)i;
+        pts[m++].index = i;
     }
     free(mask);
     seg_map_free(&cols);
@@ -192,7 +182,7 @@ static sy_code detect_band(const seg_frame *f, const sy_segment_options *o, doub
         free(pts);
         return SY_OK;
     }
-    qsort(pts, m, sizeof *pts, cmp_keyed);
+    sy_voxel_entries_sort(pts, m); /* by cell, then point */
     /* Occupied cells and their connected components (8-neighbourhood). */
     size_t nc = 0;
     uint32_t *cell_start = sy_calloc(m + 1, sizeof *cell_start, err, "stem cells");
@@ -245,7 +235,7 @@ static sy_code detect_band(const seg_frame *f, const sy_segment_options *o, doub
             else {
                 memcpy(fill, count, (nc + 1) * sizeof *fill);
                 for (size_t c = 0; c < nc; c++)
-                    for (uint32_t j = cell_start[c]; j < cell_start[c + 1]; j++) order[fill[comp_of[c]]++] = pts[j].point;
+                    for (uint32_t j = cell_start[c]; j < cell_start[c + 1]; j++) order[fill[comp_of[c]]++] = (uint32_t)pts[j].index;
                 free(fill);
             }
             for (size_t c = 0; c < nc && rc == SY_OK; c++) {
@@ -276,8 +266,8 @@ static sy_code detect_band(const seg_frame *f, const sy_segment_options *o, doub
  * branch hanging through the band or a clump of leaves does not. */
 typedef struct {
     seg_map map;
-    keyed *pts;     /* sorted by cell */
-    uint32_t *start; /* per cell index: first point, cells in map order */
+    sy_voxel_entry *pts; /* sorted by cell */
+    uint32_t *start;     /* per cell index: first point, cells in map order */
     size_t n_cells;
     double cell;
 } low_index;
@@ -297,9 +287,9 @@ static sy_code low_index_build(const seg_frame *f, double top, low_index *ix, sy
         if (!f->ground[i] && f->hag[i] >= top) continue;
         uint32_t cx = (uint32_t)((f->xyz[3 * i] - f->lo[0]) / ix->cell), cy = (uint32_t)((f->xyz[3 * i + 1] - f->lo[1]) / ix->cell);
         ix->pts[m].key = ((uint64_t)cx << 32) | cy;
-        ix->pts[m++].point = (uint32_t)i;
+        ix->pts[m++].index = i;
     }
-    qsort(ix->pts, m, sizeof *ix->pts, cmp_keyed);
+    sy_voxel_entries_sort(ix->pts, m); /* by cell, then point */
     for (size_t i = 0; i < m; i++)
         if (i == 0 || ix->pts[i].key != ix->pts[i - 1].key) {
             ix->start[ix->n_cells] = (uint32_t)i;
@@ -316,6 +306,41 @@ static void low_index_free(low_index *ix)
     free(ix->start);
 }
 
+/* The points of the cells that the square of half-side reach around (x, y)
+ * touches, cell by cell (x outer, y inner), each cell's in index order. */
+typedef struct {
+    const low_index *ix;
+    long x1, y0, y1, cx, cy;
+    uint32_t j, end;
+} square_walk;
+
+static void square_begin(square_walk *w, const seg_frame *f, const low_index *ix, double x, double y, double reach)
+{
+    long x0 = (long)floor((x - reach - f->lo[0]) / ix->cell), y0 = (long)floor((y - reach - f->lo[1]) / ix->cell);
+    w->ix = ix;
+    w->x1 = (long)floor((x + reach - f->lo[0]) / ix->cell);
+    w->y1 = (long)floor((y + reach - f->lo[1]) / ix->cell);
+    w->y0 = y0 < 0 ? 0 : y0;
+    w->cx = x0 < 0 ? 0 : x0;
+    w->cy = w->y0 - 1; /* square_next steps to the first cell */
+    if (w->y0 > w->y1) w->cx = w->x1 + 1; /* no row: nothing to walk */
+    w->j = w->end = 0;
+}
+
+/* The next point of the walk into *p; 0 when it is over. */
+static int square_next(square_walk *w, uint32_t *p)
+{
+    while (w->j == w->end) {
+        if (++w->cy > w->y1) w->cx++, w->cy = w->y0;
+        if (w->cx > w->x1) return 0;
+        uint32_t c = seg_map_get(&w->ix->map, ((uint64_t)w->cx << 32) | (uint64_t)w->cy);
+        if (c == UINT32_MAX) continue;
+        w->j = w->ix->start[c], w->end = w->ix->start[c + 1];
+    }
+    *p = (uint32_t)w->ix->pts[w->j++].index;
+    return 1;
+}
+
 /* Fraction of the 10 cm height bins in [zlo, zhi) holding a point of the
  * disc of radius 1.5 r + 2 tolerances around (x, y). */
 static double base_support(const seg_frame *f, const low_index *ix, double x, double y, double r, double tol, double zlo,
@@ -326,22 +351,16 @@ static double base_support(const seg_frame *f, const low_index *ix, double x, do
     if (nbins > 64) nbins = 64;
     uint64_t seen = 0;
     double reach = 1.5 * r + 2 * tol; /* trunks flare towards their base */
-    long x0 = (long)floor((x - reach - f->lo[0]) / ix->cell), x1 = (long)floor((x + reach - f->lo[0]) / ix->cell);
-    long y0 = (long)floor((y - reach - f->lo[1]) / ix->cell), y1 = (long)floor((y + reach - f->lo[1]) / ix->cell);
-    for (long cx = x0 < 0 ? 0 : x0; cx <= x1; cx++)
-        for (long cy = y0 < 0 ? 0 : y0; cy <= y1; cy++) {
-            uint32_t c = seg_map_get(&ix->map, ((uint64_t)cx << 32) | (uint64_t)cy);
-            if (c == UINT32_MAX) continue;
-            for (uint32_t j = ix->start[c]; j < ix->start[c + 1]; j++) {
-                uint32_t p = ix->pts[j].point;
-                double h = f->hag[p];
-                if (f->ground[p] || h < zlo || h >= zhi) continue;
-                double dx = f->xyz[3 * p] - x, dy = f->xyz[3 * p + 1] - y;
-                if (dx * dx + dy * dy > reach * reach) continue;
-                int b = (int)((h - zlo) / 0.1);
-                if (b >= 0 && b < nbins) seen |= 1ULL << b;
-            }
-        }
+    square_walk w;
+    square_begin(&w, f, ix, x, y, reach);
+    for (uint32_t p; square_next(&w, &p);) {
+        double h = f->hag[p];
+        if (f->ground[p] || h < zlo || h >= zhi) continue;
+        double dx = f->xyz[3 * p] - x, dy = f->xyz[3 * p + 1] - y;
+        if (dx * dx + dy * dy > reach * reach) continue;
+        int b = (int)((h - zlo) / 0.1);
+        if (b >= 0 && b < nbins) seen |= 1ULL << b;
+    }
     int k = 0;
     for (int b = 0; b < nbins; b++) k += (int)((seen >> b) & 1);
     return (double)k / nbins;
@@ -352,18 +371,12 @@ static double base_support(const seg_frame *f, const low_index *ix, double x, do
 static size_t ground_near(const seg_frame *f, const low_index *ix, double x, double y, double radius)
 {
     size_t k = 0;
-    long x0 = (long)floor((x - radius - f->lo[0]) / ix->cell), x1 = (long)floor((x + radius - f->lo[0]) / ix->cell);
-    long y0 = (long)floor((y - radius - f->lo[1]) / ix->cell), y1 = (long)floor((y + radius - f->lo[1]) / ix->cell);
-    for (long cx = x0 < 0 ? 0 : x0; cx <= x1; cx++)
-        for (long cy = y0 < 0 ? 0 : y0; cy <= y1; cy++) {
-            uint32_t c = seg_map_get(&ix->map, ((uint64_t)cx << 32) | (uint64_t)cy);
-            if (c == UINT32_MAX) continue;
-            for (uint32_t j = ix->start[c]; j < ix->start[c + 1]; j++) {
-                uint32_t p = ix->pts[j].point;
-                double dx = f->xyz[3 * p] - x, dy = f->xyz[3 * p + 1] - y;
-                k += f->ground[p] && dx * dx + dy * dy <= radius * radius;
-            }
-        }
+    square_walk w;
+    square_begin(&w, f, ix, x, y, radius);
+    for (uint32_t p; square_next(&w, &p);) {
+        double dx = f->xyz[3 * p] - x, dy = f->xyz[3 * p + 1] - y;
+        k += f->ground[p] && dx * dx + dy * dy <= radius * radius;
+    }
     return k;
 }
 

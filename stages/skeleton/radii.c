@@ -7,6 +7,7 @@
 #include "skeleton_internal.h"
 #include "stages/core/parallel.h"
 #include "stages/core/rng.h"
+#include "stages/core/sort.h"
 
 /* ---- Circle fit ---- */
 
@@ -108,12 +109,6 @@ int sy_fit_circle(const double *xy, size_t n, double tol, unsigned long long see
 }
 
 /* ---- Radii ---- */
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
 
 /* The trunk node (branch 0) nearest height z. */
 static size_t trunk_node_near(const sy_skeleton *s, double z)
@@ -242,7 +237,7 @@ sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of
             double *v = malloc(k * sizeof *v);
             if (!v) break;
             for (size_t i = 0; i < k; i++) v[i] = xy[2 * i + a];
-            qsort(v, k, sizeof *v, cmp_double);
+            qsort(v, k, sizeof *v, sy_cmp_double);
             half = fmax(half, 0.5 * (v[k - 1 - k / 20] - v[k / 20]));
             free(v);
         }
@@ -293,7 +288,7 @@ static double largest_angle_gap(const double *xy, size_t n, const double c[2], d
         if (fabs(sqrt(dx * dx + dy * dy) - r) <= tol) ang[k++] = atan2(dy, dx);
     }
     if (k < 2) return TWO_PI;
-    qsort(ang, k, sizeof *ang, cmp_double);
+    qsort(ang, k, sizeof *ang, sy_cmp_double);
     double gap = ang[0] + TWO_PI - ang[k - 1];
     for (size_t i = 1; i < k; i++) gap = fmax(gap, ang[i] - ang[i - 1]);
     return gap;
@@ -475,7 +470,7 @@ sy_code sy_calibrate_radii(sy_skeleton *s, const float *fit, sy_error *err)
         size_t k = count[b];
         if (k >= 2) {
             double *v = ratio + start[b];
-            qsort(v, k, sizeof *v, cmp_double);
+            qsort(v, k, sizeof *v, sy_cmp_double);
             scale[b] = k % 2 ? v[k / 2] : 0.5 * (v[k / 2 - 1] + v[k / 2]);
         } else {
             scale[b] = 1;

@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "stages/skeleton/skeleton.h"
+#include "stages/core/sort.h"
 
 /* Below this many points nothing is judged: a sketch of a tree is all they hold. */
 #define JUDGE_MIN_POINTS 1000
@@ -23,12 +24,6 @@
 /* The neighbour graph's largest piece before bridging. */
 #define MIN_LARGEST_SHARE 0.2
 
-static int cmp_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 void sy_skeleton_judge(const sy_cloud *c, const sy_skeleton *s, const sy_skeleton_report *r,
                        sy_skeleton_verdict *v)
 {
@@ -40,7 +35,7 @@ void sy_skeleton_judge(const sy_cloud *c, const sy_skeleton *s, const sy_skeleto
     float *z = malloc(m * sizeof *z);
     if (!z) return; /* no verdict without memory: the reconstruction stands */
     for (size_t i = 0; i < m; i++) z[i] = c->xyz[3 * (i * stride) + 2];
-    qsort(z, m, sizeof *z, cmp_float);
+    qsort(z, m, sizeof *z, sy_cmp_float);
     v->cloud_height = (double)z[m - 1 - m / 100] - (double)z[m / 100];
     free(z);
     float lo = INFINITY, hi = -INFINITY;

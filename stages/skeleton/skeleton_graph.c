@@ -11,9 +11,11 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "stages/core/array.h"
 #include "stages/core/grid.h"
 #include "stages/core/kdtree.h"
 #include "stages/core/parallel.h"
+#include "stages/core/sort.h"
 
 static double dist2(const float *a, const float *b)
 {
@@ -127,6 +129,16 @@ typedef struct {
     uint8_t *pending; /* not settled by the fine grid: the coarse pass takes it */
 } knn_job;
 
+/* Appends the grid slots of cell nb's points to *near (*nn used, room for
+ * *cap, doubled as needed); 0 when out of memory, the list as it was. */
+static int gather_cell(const sy_grid *g, long nb, uint32_t **near, size_t *nn, size_t *cap)
+{
+    size_t s = g->cell_start[nb], e = g->cell_start[nb + 1];
+    if (sy_array_reserve(near, cap, *nn + (e - s), sizeof **near, *cap, NULL, "neighbours")) return 0;
+    for (size_t t = s; t < e; t++) (*near)[(*nn)++] = (uint32_t)t;
+    return 1;
+}
+
 /* Queries run cell by cell: the 27 cells around a cell are looked up once
  * and their points serve every point of the cell, which settles most queries
  * (all points within one cell edge are then known); the rest (sparse parts,
@@ -144,15 +156,7 @@ static void knn_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
         size_t nn = 0;
         int ok = near != NULL;
         FOR_RING(g, c, 1, nb, {
-            size_t cnt = g->cell_start[nb + 1] - g->cell_start[nb];
-            if (ok && nn + cnt > cap_near) {
-                while (nn + cnt > cap_near) cap_near *= 2;
-                uint32_t *q = realloc(near, cap_near * sizeof *q);
-                if (q) near = q;
-                else ok = 0;
-            }
-            if (ok)
-                for (size_t t = g->cell_start[nb]; t < g->cell_start[nb + 1]; t++) near[nn++] = (uint32_t)t;
+            if (ok) ok = gather_cell(g, nb, &near, &nn, &cap_near);
         })
         size_t own_start = g->cell_start[cell], own_end = g->cell_start[cell + 1];
         for (size_t t = own_start; t < own_end; t++) {
@@ -205,15 +209,7 @@ static void knn_coarse_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
         nn = 0;
         for (int r = 0; r <= 1; r++) {
             FOR_RING(g, c, r, nb, {
-                size_t cnt = g->cell_start[nb + 1] - g->cell_start[nb];
-                if (ok && nn + cnt > cap_near) {
-                    while (nn + cnt > cap_near) cap_near *= 2;
-                    uint32_t *q = realloc(near, cap_near * sizeof *q);
-                    if (q) near = q;
-                    else ok = 0;
-                }
-                if (ok)
-                    for (size_t t = g->cell_start[nb]; t < g->cell_start[nb + 1]; t++) near[nn++] = (uint32_t)t;
+                if (ok) ok = gather_cell(g, nb, &near, &nn, &cap_near);
             })
         }
         for (size_t t = own_start; t < own_end; t++) {
@@ -516,6 +512,8 @@ sy_code sy_graph_build(const float *xyz, size_t n, int k, double radius, uint32_
     for (size_t i = 0; i < n; i++)
         for (size_t t = G->start[i]; t < G->start[i + 1]; t++)
             G->len[t] = (float)sqrt(dist2(xyz + 3 * i, xyz + 3 * (size_t)G->adj[t]));
+    rc = SY_OK;
+fail: /* the scratch goes either way; the graph only on failure */
     free(J.nbr);
     free(J.cnt);
     free(J.pending);
@@ -523,16 +521,7 @@ sy_code sy_graph_build(const float *xyz, size_t n, int k, double radius, uint32_
     free(bridges);
     sy_grid_free(&g);
     sy_grid_free(&coarse);
-    return SY_OK;
-fail:
-    free(J.nbr);
-    free(J.cnt);
-    free(J.pending);
-    free(up);
-    free(bridges);
-    sy_grid_free(&g);
-    sy_grid_free(&coarse);
-    sy_graph_free(G);
+    if (rc) sy_graph_free(G);
     return rc;
 }
 
@@ -630,12 +619,6 @@ sy_code sy_graph_dijkstra(const sy_graph *g, const uint32_t *sources, size_t n_s
 
 /* ---- Root ---- */
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 uint32_t sy_find_root(const float *xyz, size_t n, double slab, double *z0_out)
 {
     if (z0_out) *z0_out = 0;
@@ -643,7 +626,7 @@ uint32_t sy_find_root(const float *xyz, size_t n, double slab, double *z0_out)
     double *z = malloc(n * sizeof *z);
     if (!z) return 0;
     for (size_t i = 0; i < n; i++) z[i] = xyz[3 * i + 2];
-    qsort(z, n, sizeof *z, cmp_double);
+    qsort(z, n, sizeof *z, sy_cmp_double);
     /* The 0.5th percentile ignores a few stray points below the base. */
     double z0 = z[n / 200];
     if (z0_out) *z0_out = z0;
@@ -659,8 +642,8 @@ uint32_t sy_find_root(const float *xyz, size_t n, double slab, double *z0_out)
                 xs[t] = xyz[3 * i];
                 ys[t++] = xyz[3 * i + 1];
             }
-        qsort(xs, m, sizeof *xs, cmp_double);
-        qsort(ys, m, sizeof *ys, cmp_double);
+        qsort(xs, m, sizeof *xs, sy_cmp_double);
+        qsort(ys, m, sizeof *ys, sy_cmp_double);
         /* The median centre resists leftover ground around the trunk. */
         double cx = xs[m / 2], cy = ys[m / 2], bd = INFINITY;
         for (size_t i = 0; i < n; i++) {

@@ -11,6 +11,7 @@
 
 #include "skeleton_internal.h"
 #include "stages/core/progress.h"
+#include "stages/core/sort.h"
 
 sy_skeleton_options sy_skeleton_options_default(void)
 {
@@ -95,12 +96,6 @@ static uint32_t uf_find(uint32_t *up, uint32_t a)
     return a;
 }
 
-static int cmp_u64(const void *a, const void *b)
-{
-    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-    return x < y ? -1 : x > y;
-}
-
 /* Level sets -> nodes. node_of[i] gets each point's node. With a wood mask
  * (NULL: every point is wood) only wood points form level-set pieces and
  * place the nodes; a leaf point takes the node of its nearest wood ancestor
@@ -180,7 +175,7 @@ static sy_code level_sets(const float *xyz, size_t n, const sy_graph *g, const i
         if (wood && (!wood[i] || node_bin[b] >= node_bin[a])) continue;
         if (a != b) votes[nv++] = ((uint64_t)(uint32_t)a << 32) | (uint32_t)b;
     }
-    qsort(votes, nv, sizeof *votes, cmp_u64);
+    qsort(votes, nv, sizeof *votes, sy_cmp_u64);
     for (size_t v = 0; v < m; v++) {
         N->parent[v] = -1;
         N->alias[v] = -1;
@@ -478,12 +473,6 @@ size_t sy_base_sources(const float *xyz, size_t n, const sy_graph *g, uint32_t r
 }
 
 /* Ascending doubles, for qsort. */
-static int cmp_double_asc(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 /* The ground under the tree's base when preprocessing classified it (the
  * "height_above_ground" attribute survives ground removal): the median of
  * z - height over the points of the lowest 30 cm. Removing the ground also
@@ -502,7 +491,7 @@ static double ground_under_base(const sy_cloud *c, double zbase)
     m = 0;
     for (size_t i = 0; i < c->n; i++)
         if (c->xyz[3 * i + 2] <= zbase + 0.3 && isfinite(hag[i])) g[m++] = c->xyz[3 * i + 2] - hag[i];
-    qsort(g, m, sizeof *g, cmp_double_asc);
+    qsort(g, m, sizeof *g, sy_cmp_double);
     double ground = g[m / 2];
     free(g);
     /* A base far above the ground is a tree whose foot the scan missed, not

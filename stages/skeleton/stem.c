@@ -18,6 +18,7 @@
 #include <string.h>
 
 #include "skeleton_internal.h"
+#include "stages/core/sort.h"
 
 #define STEM_SLABS 32
 #define STEM_TWO_PI 6.28318530717958647692
@@ -36,16 +37,10 @@
  * ground (the case that hides the stem) is an open-grown tree, so the low end. */
 #define STEM_SLENDERNESS 45.0
 
-static int cmp_dbl(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 static double median_of(double *v, size_t k)
 {
     if (!k) return 0;
-    qsort(v, k, sizeof *v, cmp_dbl);
+    qsort(v, k, sizeof *v, sy_cmp_double);
     return k % 2 ? v[k / 2] : 0.5 * (v[k / 2 - 1] + v[k / 2]);
 }
 
@@ -83,7 +78,7 @@ static void measure_stem(const float *xyz, size_t n, double z0, double H, const 
         }
         if (in < 6 || (double)in < 0.6 * (double)k || r >= band || rms > 0.3 * r) continue;
         if (hypot(c[0] - cxa, c[1] - cya) > fmax(0.5 * r, 0.1)) continue;
-        qsort(ang, in, sizeof *ang, cmp_dbl);
+        qsort(ang, in, sizeof *ang, sy_cmp_double);
         double gap = ang[0] + STEM_TWO_PI - ang[in - 1];
         for (size_t j = 1; j < in; j++) gap = fmax(gap, ang[j] - ang[j - 1]);
         if (gap > STEM_TWO_PI * 2.0 / 3.0) continue;
@@ -121,7 +116,7 @@ static void measure_stem(const float *xyz, size_t n, double z0, double H, const 
             if (di < best_r) d[k++] = di;
         }
         if (k < 3) continue;
-        qsort(d, k, sizeof *d, cmp_dbl);
+        qsort(d, k, sizeof *d, sy_cmp_double);
         for (size_t j = 0; j + 2 < k; j++)
             if (d[j + 2] - d[j] <= tol && d[j] > 0.3 * best_r) {
                 info->upper_r = d[j + 1];

@@ -27,8 +27,9 @@ uint64_t sy_synth_rand(uint64_t *state)
 
 double sy_synth_uniform(uint64_t *state) { return (double)(sy_synth_rand(state) >> 11) * (1.0 / 9007199254740992.0); }
 
-void sy_lsystem_defaults(sy_lsystem *ls)
+sy_lsystem sy_lsystem_default(void)
 {
+    sy_lsystem value_, *ls = &value_;
     memset(ls, 0, sizeof *ls);
     snprintf(ls->axiom, sizeof ls->axiom, "A");
     ls->rules[0] = (sy_lsys_rule){'A', "F[+LA]/F[-LA]/FA", 0.6f};
@@ -49,6 +50,7 @@ void sy_lsystem_defaults(sy_lsystem *ls)
     ls->patch_depth = 2;
     ls->leaf_density = 1.5f;
     ls->max_depth = 7;
+    return value_;
 }
 
 sy_code sy_lsystem_check(const sy_lsystem *ls, sy_error *err)
@@ -111,7 +113,7 @@ static int copy_word(const char *in, char *out, size_t cap)
 
 sy_code sy_lsystem_parse(const char *text, size_t size, const char *path, sy_lsystem *ls, sy_error *err)
 {
-    sy_lsystem_defaults(ls);
+    *ls = sy_lsystem_default();
     ls->n_rules = 0;
     int in_section = 0, axiom_seen = 0, line_no = 0;
     size_t pos = 0;

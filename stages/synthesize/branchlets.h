@@ -51,7 +51,7 @@ typedef struct {
 } sy_lsystem;
 
 /* Defaults of every field (a generic broadleaf). */
-void sy_lsystem_defaults(sy_lsystem *ls);
+sy_lsystem sy_lsystem_default(void);
 /* Checks ranges; the message names the field. */
 sy_code sy_lsystem_check(const sy_lsystem *ls, sy_error *err);
 /* Parses the [Branchlets] text ("key = value" lines, "rule = A -> WORD : W",

@@ -9,6 +9,7 @@
 
 #include "stages/core/geometry.h"
 #include "stages/core/progress.h"
+#include "stages/core/sort.h"
 
 #ifndef M_PI
 #define M_PI 3.14159265358979323846
@@ -127,12 +128,6 @@ static void quat_from_basis(const double X[3], const double Y[3], const double Z
 }
 
 /* ---- The lobe's grid ---- */
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 typedef struct {
     float lo[3], hi[3];  /* hull box */
     double h;            /* cell size */
@@ -255,7 +250,7 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
                 if (u < 0 || v < 0 || u + v > 1) continue;
                 hits[nh++] = a[2] + u * (b[2] - a[2]) + v * (e[2] - a[2]);
             }
-            qsort(hits, nh, sizeof *hits, cmp_double);
+            qsort(hits, nh, sizeof *hits, sy_cmp_double);
             for (int z = 0; z < g->d[2]; z++) {
                 double pz = g->lo[2] + (z + 0.5) * g->h;
                 size_t below = 0;
@@ -380,15 +375,18 @@ static double geom_scale(double rs)
     return s < 0.35 ? 0.35 : s > 2 ? 2 : s;
 }
 
+/* An index with the key it is ranked by (ascending, ties by index: a total
+ * order, so any sort gives the same result): the dock's candidate patches
+ * by cost, the leaves by their pruning key. */
 typedef struct {
     size_t idx;
-    double cost;
-} cand;
+    double key;
+} ranked;
 
-static int cmp_cand(const void *a, const void *b)
+static int cmp_ranked(const void *a, const void *b)
 {
-    const cand *x = a, *y = b;
-    if (x->cost != y->cost) return x->cost < y->cost ? -1 : 1;
+    const ranked *x = a, *y = b;
+    if (x->key != y->key) return x->key < y->key ? -1 : 1;
     return x->idx < y->idx ? -1 : x->idx > y->idx;
 }
 
@@ -415,17 +413,17 @@ static void placement_align(const sy_patch *p, const dock *d, const double Rz[9]
     mat_mul(A, Rz, T);
 }
 
-/* The best k of n candidates (cmp_cand order: cost, then index, a total
+/* The best k of n candidates (cmp_ranked order: cost, then index, a total
  * order) moved to the front of c in that order, as sorting all of them
  * would leave them, with k insertions instead of a sort of n. */
-static void best_k(cand *c, size_t n, size_t k)
+static void best_k(ranked *c, size_t n, size_t k)
 {
     size_t m = 0; /* c[0..m) holds the best so far, sorted */
     for (size_t i = 0; i < n; i++) {
-        cand x = c[i];
-        if (m == k && cmp_cand(&x, &c[m - 1]) >= 0) continue;
+        ranked x = c[i];
+        if (m == k && cmp_ranked(&x, &c[m - 1]) >= 0) continue;
         size_t j = m < k ? m++ : m - 1;
-        while (j > 0 && cmp_cand(&x, &c[j - 1]) < 0) {
+        while (j > 0 && cmp_ranked(&x, &c[j - 1]) < 0) {
             c[j] = c[j - 1];
             j--;
         }
@@ -437,6 +435,20 @@ typedef struct {
     double outside, dist, gain;
 } fit_geo;
 
+/* One sample of a patch (its own coordinates v) placed at the dock: adds
+ * whether it lands outside the lobe and how far from it to f; its cell. */
+static long fit_sample(const float v[3], const dock *d, const double R[9], double s, const lobe_grid *g, double far,
+                       fit_geo *f)
+{
+    double w[3];
+    rot_apply(R, v, w);
+    for (int k = 0; k < 3; k++) w[k] = d->pos[k] + s * w[k];
+    long c = grid_cell(g, w);
+    f->outside += c < 0 || !g->soft[c];
+    f->dist += c < 0 ? far : g->dist[c];
+    return c;
+}
+
 static fit_geo patch_fit(const sy_patch *p, const dock *d, const double R[9], double s, const lobe_grid *g)
 {
     fit_geo f = {0, 0, 0};
@@ -444,22 +456,12 @@ static fit_geo patch_fit(const sy_patch *p, const dock *d, const double R[9], do
     double far = g->h * (g->d[0] + g->d[1] + g->d[2]);
     size_t step = p->n_nodes > 24 ? p->n_nodes / 24 : 1;
     for (size_t i = 0; i < p->n_nodes; i += step) {
-        double w[3];
-        rot_apply(R, p->pos + 3 * i, w);
-        for (int k = 0; k < 3; k++) w[k] = d->pos[k] + s * w[k];
-        long c = grid_cell(g, w);
-        f.outside += c < 0 || !g->soft[c];
-        f.dist += c < 0 ? far : g->dist[c];
+        fit_sample(p->pos + 3 * i, d, R, s, g, far, &f);
         n++;
     }
     size_t lstep = p->n_leaves > 24 ? p->n_leaves / 24 : 1;
     for (size_t i = 0; i < p->n_leaves; i += lstep) {
-        double w[3];
-        rot_apply(R, p->leaf_pos + 3 * i, w);
-        for (int k = 0; k < 3; k++) w[k] = d->pos[k] + s * w[k];
-        long c = grid_cell(g, w);
-        f.outside += c < 0 || !g->soft[c];
-        f.dist += c < 0 ? far : g->dist[c];
+        long c = fit_sample(p->leaf_pos + 3 * i, d, R, s, g, far, &f);
         f.gain += c >= 0 && g->occupied[c] && g->block[block_of(g, c)] < g->block_cap[block_of(g, c)];
         n++, nl++;
     }
@@ -562,7 +564,7 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
 }
 
 static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_branchlets *lib, const sy_synth_options *o,
-                            double density, int max_depth, double max_thick, cand *cands, synth_out *so,
+                            double density, int max_depth, double max_thick, ranked *cands, synth_out *so,
                             sy_synth_report *rep, size_t *occupied, size_t cells[2], sy_error *err)
 {
     double leaf_area = 0.5 * o->leaf_size * o->leaf_size; /* a card about half as wide as long */
@@ -693,7 +695,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
                     const sy_patch *p = &lib->patches[i];
                     if (!(p->thickness > 0) || p->n_nodes == 0 || (p->n_docks == 0) != terminal) continue;
                     cands[nc].idx = i;
-                    cands[nc].cost = eq33(p, &d, ed, o->literal_eq33);
+                    cands[nc].key = eq33(p, &d, ed, o->literal_eq33);
                     nc++;
                 }
                 if (nc - n0 > half) {
@@ -724,7 +726,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
                         full = 1;
                         continue;
                     }
-                    double score = 0.25 * cands[ci].cost + f.outside + 2 * f.dist / (lobe_ext > 0 ? lobe_ext : 1) - f.gain;
+                    double score = 0.25 * cands[ci].key + f.outside + 2 * f.dist / (lobe_ext > 0 ? lobe_ext : 1) - f.gain;
                     if (score < best) best = score, best_i = cands[ci].idx, best_s = s, memcpy(bestR, R, sizeof R);
                 }
             }
@@ -759,18 +761,6 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     free(Q.q);
     grid_free(&g);
     return rc;
-}
-
-typedef struct {
-    float key;
-    uint32_t idx;
-} leaf_rank;
-
-static int cmp_rank(const void *a, const void *b)
-{
-    const leaf_rank *x = a, *y = b;
-    if (x->key != y->key) return x->key < y->key ? -1 : 1;
-    return x->idx < y->idx ? -1 : x->idx > y->idx;
 }
 
 static sy_code copy_skeleton(const sy_skeleton *s, sy_skeleton *out, sy_error *err)
@@ -809,7 +799,7 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
     double max_thick = 0;
     for (size_t i = 0; i < lib->n_patches; i++)
         if (lib->patches[i].thickness > max_thick) max_thick = lib->patches[i].thickness;
-    cand *cands = malloc((lib->n_patches + 1) * sizeof *cands);
+    ranked *cands = malloc((lib->n_patches + 1) * sizeof *cands);
     synth_out so = {out, leaves, NULL, 0, sy_skeleton_branch_count(skel)};
     if (!cands) rc = sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
     double density = o->leaf_density > 0 ? o->leaf_density : 1.5;
@@ -834,13 +824,13 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
     free(cands);
     /* Stochastic-pruning order: every prefix holds the same leading share of each patch's stored order. */
     if (!rc && leaves->n > 1) {
-        leaf_rank *rk = malloc(leaves->n * sizeof *rk);
+        ranked *rk = malloc(leaves->n * sizeof *rk);
         sy_leaves sorted = {0};
         if (!rk) rc = sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
-        for (size_t i = 0; !rc && i < leaves->n; i++) rk[i].key = so.leaf_key[i], rk[i].idx = (uint32_t)i;
-        if (!rc) qsort(rk, leaves->n, sizeof *rk, cmp_rank);
+        for (size_t i = 0; !rc && i < leaves->n; i++) rk[i].key = so.leaf_key[i], rk[i].idx = i; /* float to double: exact */
+        if (!rc) qsort(rk, leaves->n, sizeof *rk, cmp_ranked);
         for (size_t i = 0; !rc && i < leaves->n; i++) {
-            uint32_t j = rk[i].idx;
+            size_t j = rk[i].idx;
             rc = sy_leaves_add(&sorted, leaves->pos + 3 * j, leaves->rot + 4 * j, leaves->scale[j], leaves->node[j], err);
         }
         free(rk);

@@ -25,6 +25,6 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     sy_asset_free(&a);
     float *px = NULL;
     int w, h, c, depth;
-    if (sy_lcv_read(path, &px, &w, &h, &c, &depth) == 0) free(px);
+    if (sy_lcv_read(path, &px, &w, &h, &c, &depth, &err) == SY_OK) free(px);
     return 0;
 }
