@@ -97,7 +97,7 @@ static void print_surface(report *r, const sy_surface_metrics *s)
     put(r, "rms_distance", "RMS distance", s->rms_distance, " m");
     put(r, "p95_distance", "95th percentile distance", s->p95_distance, " m");
     put(r, "coverage", "coverage (share within eps)", s->coverage, "");
-    put(r, "a->coverage_eps", "coverage eps", s->coverage_eps, " m");
+    put(r, "coverage_eps", "coverage eps", s->coverage_eps, " m");
     put(r, "hausdorff", "Hausdorff point->model", s->hausdorff, " m");
     put(r, "hausdorff_model_to_points", "Hausdorff model->points", s->hausdorff_model_to_points, " m");
 }

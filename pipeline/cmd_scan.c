@@ -136,7 +136,7 @@ static void print_report(const scan_args *a, const sy_cli *cli, const sy_scene *
         sy_json_int(&j, "point_count", (long long)st->points);
         sy_json_int(&j, "pulses", (long long)st->pulses);
         sy_json_int(&j, "stations", st->stations);
-        sy_json_int(&j, "a->trees", (long long)scene->n_trees);
+        sy_json_int(&j, "trees", (long long)scene->n_trees);
         sy_json_int(&j, "primitives", (long long)scene->prims.n);
         sy_json_int(&j, "wood_points", (long long)st->wood);
         sy_json_int(&j, "leaf_points", (long long)st->leaf);

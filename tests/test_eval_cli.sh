@@ -49,7 +49,7 @@ grep -q 'recall' "$TMP/summary" || fail "summary lacks recall"
 
 # Points vs a skeleton model (the cones of the truth skeleton): every surface key present.
 json=$("$SYLVA" eval --json --points "$MC" "$TMP/truth.json") || fail "points vs skeleton exited $?"
-for key in mean_distance rms_distance p95_distance coverage hausdorff hausdorff_model_to_points; do
+for key in mean_distance rms_distance p95_distance coverage coverage_eps hausdorff hausdorff_model_to_points; do
   echo "$json" | grep -q "\"$key\":" || fail "key $key missing: $json"
 done
 

@@ -11,6 +11,7 @@ report=$("$SYLVA" scan quaking_aspen --seed 3 --step 0.3 -o "$TMP/a.las" --truth
     || fail "scan exited $?"
 count=$(echo "$report" | sed -n 's/.*"point_count":\([0-9]*\).*/\1/p')
 [ -n "$count" ] && [ "$count" -gt 1000 ] || fail "no point_count in report: $report"
+echo "$report" | grep -q '"trees":1,' || fail "report lacks \"trees\":1: $report"
 info=$("$SYLVA" info --json "$TMP/a.las") || fail "info exited $?"
 echo "$info" | grep -q "\"point_count\":$count," || fail "info count differs from scan's $count: $info"
 for a in treeID speciesID isWood branchID; do

@@ -17,7 +17,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     const char *path = fuzz_file("png", data, size);
-    sy_material_spec spec = {path, size & 1 ? path : NULL, 0.4f, 32};
+    sy_material_spec spec = {.bark_image = path, .leaf_image = size & 1 ? path : NULL, .leaf_translucency = 0.4f,
+                             .max_size = 32, .cache_dir = NULL};
     sy_asset a = {0};
     int bark, leaf;
     sy_error err = {0};
