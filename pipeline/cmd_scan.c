@@ -147,7 +147,7 @@ static void print_report(const scan_args *a, const sy_cli *cli, const sy_scene *
         sy_json_number(&j, "seconds", seconds);
         sy_cli_json_close(&j);
     } else if (!cli->quiet) {
-        fprintf(stderr, "wrote %zu points (%zu pulses, %zu a->trees, wood fraction %.3f) to %s in %.2f s\n", st->points,
+        fprintf(stderr, "wrote %zu points (%zu pulses, %zu trees, wood fraction %.3f) to %s in %.2f s\n", st->points,
                 st->pulses, scene->n_trees, wood_fraction, a->out_path, seconds);
     }
 }
