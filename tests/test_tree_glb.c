@@ -22,13 +22,16 @@ typedef struct {
     sy_leaves lv;
     uint64_t seed;
     char path[2][4200];
-    /* Per wind entry (= stem): its branch's first node, Weber-Penn order and
-     * depth in the stem hierarchy (split clones are children of the stem they split from,
+    /* Per stem: its branch's first node, Weber-Penn order and depth in the
+     * stem hierarchy (split clones are children of the stem they split from,
      * so their depth exceeds their order). */
     int32_t nb;
-    int32_t *first, *rank; /* rank: the stem (wind entry) of each branch id */
+    int32_t *first, *rank; /* rank: the stem of each branch id */
     int32_t *ride;         /* per stem: the wind entry its vertices carry */
     int *order, *depth;
+    /* The wind table holds the stems of levels 0-3, in stem order
+     * (docs/wind.md): entry e is stem stem_of[e]. */
+    int32_t entries, *stem_of;
 } grown;
 
 static void grow_and_write(const char *species, uint64_t seed, grown *g)
@@ -83,12 +86,20 @@ static void grow_and_write(const char *species, uint64_t seed, grown *g)
     /* Stems deeper than level 3 ride rigidly on their level-3 ancestor and
      * carry its entry (docs/wind.md). */
     g->ride = malloc((size_t)g->nb * sizeof *g->ride);
-    assert_non_null(g->ride);
+    g->stem_of = malloc((size_t)g->nb * sizeof *g->stem_of);
+    int32_t *entry = malloc((size_t)g->nb * sizeof *entry);
+    assert_true(g->ride && g->stem_of && entry);
+    g->entries = 0;
+    for (int32_t k = 0; k < g->nb; k++) {
+        entry[k] = g->depth[k] <= 3 ? g->entries : -1;
+        if (g->depth[k] <= 3) g->stem_of[g->entries++] = k;
+    }
     for (int32_t k = 0; k < g->nb; k++) {
         int32_t a = k;
         while (g->depth[a] > 3) a = rank[sk->branch[sk->parent[g->first[a]]]];
-        g->ride[k] = a;
+        g->ride[k] = entry[a];
     }
+    free(entry);
     g->rank = rank;
     free(base);
 }
@@ -98,7 +109,7 @@ static void grown_free(grown *g)
     sy_species_params_free(&g->sp);
     sy_skeleton_free(&g->sk);
     sy_leaves_free(&g->lv);
-    free(g->first), free(g->rank), free(g->ride), free(g->order), free(g->depth);
+    free(g->first), free(g->rank), free(g->ride), free(g->order), free(g->depth), free(g->stem_of);
 }
 
 static const float *float_accessor(const sy_gltf_file *f, int acc, size_t n, int components)
@@ -124,17 +135,18 @@ static const float *float_accessor(const sy_gltf_file *f, int acc, size_t n, int
 static void check_element(const grown *g, const sy_gltf_file *f, int root, unsigned b, const float anchor[3],
                           const float ls[2], int no_clones)
 {
-    assert_true((int32_t)b < g->nb);
+    assert_true((int32_t)b < g->entries);
+    int32_t k = g->stem_of[b];
     for (int c = 0; c < 3; c++)
         assert_true(anchor[c] == (float)glb_num(f, "/nodes/%d/extras/sylva_wind/anchor/%u", root, 3 * b + (unsigned)c));
     int level = (int)glb_num(f, "/nodes/%d/extras/sylva_wind/level/%u", root, b);
     assert_true(ls[0] == (float)level);
     assert_true(ls[1] == (float)glb_num(f, "/nodes/%d/extras/sylva_wind/stiffness/%u", root, b));
     assert_true(ls[1] >= 0 && ls[1] <= 1);
-    assert_int_equal(level, g->depth[b] < 3 ? g->depth[b] : 3);
-    if (no_clones) assert_int_equal(level, g->order[b]);
+    assert_int_equal(level, g->depth[k] < 3 ? g->depth[k] : 3);
+    if (no_clones) assert_int_equal(level, g->order[k]);
     const sy_skeleton *sk = &g->sk;
-    int32_t n = g->first[b], p = sk->parent[n] >= 0 ? sk->parent[n] : n;
+    int32_t n = g->first[k], p = sk->parent[n] >= 0 ? sk->parent[n] : n;
     const float *base = sk->pos + 3 * n, *par = sk->pos + 3 * p;
     /* glTF (x, y, z) is Sylva's (x, -z, y). */
     float zup[3] = {anchor[0], -anchor[2], anchor[1]};
@@ -244,7 +256,7 @@ static void check_wind(grown *gp, int no_clones)
         sy_error err = {0};
         assert_int_equal(sy_gltf_open(g.path[v], &f, &err), SY_OK);
         int root = (int)glb_num(f, "/scenes/0/nodes/0");
-        assert_int_equal((int)glb_num(f, "/nodes/%d/extras/sylva_wind/count", root), g.nb);
+        assert_int_equal((int)glb_num(f, "/nodes/%d/extras/sylva_wind/count", root), g.entries);
         int meshes = check_mesh_wind(&g, f, root, no_clones), sets = check_instance_wind(&g, f, root, no_clones);
         /* Bark in each of the 3 mesh levels; leaves as instance sets, or as
          * baked meshes carrying the same attributes per vertex. */
@@ -424,6 +436,8 @@ static void split_clones_sway_as_children(void **state)
     (void)state;
     grown g;
     grow_and_write("european_pine", 3, &g);
+    /* Its clones reach below level 3: those stems have no entry of their own. */
+    assert_true(g.entries < g.nb);
     check_wind(&g, 0);
     grown_free(&g);
 }
