@@ -9,7 +9,7 @@ APT_PACKAGES=(
   build-essential cmake pkg-config ccache clang libclang-rt-14-dev
   # geometry and images
   libpcl-dev libcgal-dev libgmp-dev libmpfr-dev libeigen3-dev
-  libopencv-core-dev libopencv-imgproc-dev libopencv-video-dev
+  libopencv-core-dev libopencv-imgproc-dev
   libtinygltf-dev libmeshoptimizer-dev nlohmann-json3-dev libstb-dev
   # GL preview and headless rendering
   libglfw3-dev libepoxy-dev libegl-dev libegl-mesa0 libgl1-mesa-dri xvfb xauth

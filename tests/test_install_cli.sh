@@ -16,6 +16,13 @@ inst="$tmp/prefix/bin/sylva"
 [ -f "$tmp/prefix/share/sylva/species/textures/bark.png" ] || no "textures not installed"
 [ -f "$tmp/prefix/share/doc/sylva/architecture.md" ] || no "docs not installed"
 ls "$tmp/prefix/share/sylva/species/"*.c > /dev/null 2>&1 && no "sources installed into the library"
+# Small fixed costs: no OpenCV module beyond core and imgproc (opencv_video
+# alone brought dnn, calib3d, features2d, flann and protobuf into every
+# process), no imgcodecs (GDAL, DICOM, HEIF, ...), no VTK.
+libs=$(ldd "$inst" 2>/dev/null)
+for l in opencv_video opencv_dnn opencv_imgcodecs libprotobuf libvtk; do
+    case $libs in *"$l"*) no "bin/sylva loads $l" ;; esac
+done
 
 cd /
 "$inst" library list > "$tmp/list.txt" 2>&1 || no "installed sylva library list failed: $(cat "$tmp/list.txt")"

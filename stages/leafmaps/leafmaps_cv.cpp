@@ -2,6 +2,7 @@
 #include "stages/leafmaps/leafmaps_cv.h"
 
 #include <algorithm>
+#include <cmath>
 #include <exception>
 #include <cstdlib>
 #include <cstring>
@@ -13,7 +14,6 @@
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
-#include <opencv2/video/tracking.hpp>
 
 namespace {
 
@@ -151,14 +151,89 @@ extern "C" sy_code sy_lcv_warp(const float *src, int w, int h, int c, const doub
     });
 }
 
+// ECC image alignment (Evangelidis & Psarakis 2008, "Parametric Image
+// Alignment Using Enhanced Correlation Coefficient Maximization"), the
+// Euclidean motion (rotation theta, shift tx, ty), on OpenCV's image
+// operations and in the steps of OpenCV's findTransformECC. That one lives in
+// opencv_video, which brings dnn, calib3d, features2d, flann and protobuf
+// (six shared libraries) into every sylva process for this one call: a
+// quarter of `sylva --version`'s start-up. Gauss-Newton on the correlation of
+// the zero-mean template and warped image over the pixels the warp covers:
+// each step solves for the warp increment with the Jacobian's Hessian, scaled
+// by lambda so the correlation, not the squared error, is maximised.
+// Returns the final correlation rho; throws cv::Exception when it cannot
+// converge (lambda_d <= 0: the images are uncorrelated or do not overlap).
+static double ecc_euclidean(const cv::Mat &tmpl_in, const cv::Mat &img_in, cv::Mat &warp, int iterations, double eps,
+                            int gauss)
+{
+    const int w = tmpl_in.cols, h = tmpl_in.rows;
+    cv::Mat tmpl, img, gx, gy;
+    cv::GaussianBlur(tmpl_in, tmpl, cv::Size(gauss, gauss), 0, 0);
+    cv::GaussianBlur(img_in, img, cv::Size(gauss, gauss), 0, 0);
+    const cv::Mat dx = (cv::Mat_<float>(1, 3) << -0.5f, 0.0f, 0.5f);
+    cv::filter2D(img, gx, -1, dx);
+    cv::filter2D(img, gy, -1, dx.t());
+    cv::Mat X(h, w, CV_32F), Y(h, w, CV_32F);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) X.at<float>(y, x) = (float)x, Y.at<float>(y, x) = (float)y;
+    const cv::Mat all = cv::Mat::ones(h, w, CV_8U);
+    const int flags = cv::INTER_LINEAR + cv::WARP_INVERSE_MAP, mask_flags = cv::INTER_NEAREST + cv::WARP_INVERSE_MAP;
+    cv::Mat iw, gxw, gyw, mask, tzm, J[3], err;
+    double rho = -1, last_rho = -eps;
+    for (int it = 1; it <= iterations && std::fabs(rho - last_rho) >= eps; it++) {
+        cv::warpAffine(img, iw, warp, tmpl.size(), flags);
+        cv::warpAffine(gx, gxw, warp, tmpl.size(), flags);
+        cv::warpAffine(gy, gyw, warp, tmpl.size(), flags);
+        cv::warpAffine(all, mask, warp, tmpl.size(), mask_flags);
+        cv::Scalar im, is, tm, ts;
+        cv::meanStdDev(iw, im, is, mask);
+        cv::meanStdDev(tmpl, tm, ts, mask);
+        cv::subtract(iw, im, iw, mask);
+        tzm = cv::Mat::zeros(h, w, CV_32F);
+        cv::subtract(tmpl, tm, tzm, mask);
+        const double covered = cv::countNonZero(mask);
+        const double tmp_norm = std::sqrt(covered * ts[0] * ts[0]), img_norm = std::sqrt(covered * is[0] * is[0]);
+        // The Jacobian of the warped image in theta, tx, ty.
+        const float c = warp.at<float>(0, 0), s = warp.at<float>(1, 0);
+        cv::Mat hat_x = -(X * s) - (Y * c), hat_y = (X * c) - (Y * s);
+        J[0] = gxw.mul(hat_x) + gyw.mul(hat_y);
+        J[1] = gxw;
+        J[2] = gyw;
+        cv::Matx33d H;
+        for (int a = 0; a < 3; a++)
+            for (int b = a; b < 3; b++) H(a, b) = H(b, a) = J[a].dot(J[b]);
+        const cv::Matx33d Hinv = H.inv();
+        const double corr = tzm.dot(iw);
+        last_rho = rho;
+        rho = corr / (img_norm * tmp_norm);
+        if (std::isnan(rho)) CV_Error(cv::Error::StsNoConv, "ECC: NaN encountered");
+        cv::Vec3d ip, tp, ep;
+        for (int a = 0; a < 3; a++) ip[a] = J[a].dot(iw), tp[a] = J[a].dot(tzm);
+        const cv::Vec3d iph = Hinv * ip;
+        const double lambda_n = img_norm * img_norm - ip.dot(iph), lambda_d = corr - tp.dot(iph);
+        if (lambda_d <= 0.0)
+            CV_Error(cv::Error::StsNoConv, "ECC: the correlation would be minimised (the images are uncorrelated or "
+                                           "do not overlap)");
+        err = (lambda_n / lambda_d) * tzm - iw;
+        for (int a = 0; a < 3; a++) ep[a] = J[a].dot(err);
+        const cv::Vec3d dp = Hinv * ep;
+        const double theta = dp[0] + std::asin(warp.at<float>(1, 0));
+        warp.at<float>(0, 2) += (float)dp[1];
+        warp.at<float>(1, 2) += (float)dp[2];
+        warp.at<float>(0, 0) = warp.at<float>(1, 1) = (float)std::cos(theta);
+        warp.at<float>(1, 0) = (float)std::sin(theta);
+        warp.at<float>(0, 1) = -warp.at<float>(1, 0);
+    }
+    return rho;
+}
+
 extern "C" sy_code sy_lcv_register(const float *ref, const float *mov, int w, int h, double M[6], sy_error *err)
 {
     return guarded(err, "ECC registration", [&] {
         cv::Mat r(h, w, CV_32F, const_cast<float *>(ref)), m(h, w, CV_32F, const_cast<float *>(mov));
         cv::Mat warp = (cv::Mat_<float>(2, 3) << (float)M[0], (float)M[1], (float)M[2], (float)M[3], (float)M[4],
                         (float)M[5]);
-        cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 100, 1e-6);
-        cv::findTransformECC(r, m, warp, cv::MOTION_EUCLIDEAN, crit, cv::noArray(), 5);
+        ecc_euclidean(r, m, warp, 100, 1e-6, 5);
         for (int i = 0; i < 6; i++) M[i] = warp.at<float>(i / 3, i % 3);
         return SY_OK;
     });
