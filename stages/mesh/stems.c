@@ -402,9 +402,11 @@ static int attach_on_parent(const sy_stem *p, sy_stem *s)
 static void initial_normal(const sy_stem *s, float r0[3])
 {
     const float *t0 = s->st;
-    float down[3] = {0, 0, -1}, back[3] = {0, 1, 0};
+    /* x_axis lives as long as ref: a compound literal in the if's body
+     * would end with that body (C11 6.8.4), and ref would dangle. */
+    float down[3] = {0, 0, -1}, back[3] = {0, 1, 0}, x_axis[3] = {1, 0, 0};
     const float *ref = (s->parent >= 0 && fabsf(sy_dot3(t0, down)) < 0.95f) ? down : back;
-    if (fabsf(sy_dot3(t0, ref)) > 0.95f) ref = fabsf(t0[0]) < 0.9f ? (const float[3]){1, 0, 0} : back;
+    if (fabsf(sy_dot3(t0, ref)) > 0.95f) ref = fabsf(t0[0]) < 0.9f ? x_axis : back;
     float d = sy_dot3(ref, t0);
     for (int k = 0; k < 3; k++) r0[k] = ref[k] - d * t0[k];
     sy_normalize3(r0);
