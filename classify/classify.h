@@ -68,7 +68,7 @@ sy_code sy_features_compute(const sy_cloud *tree, const sy_features_options *o, 
 /* --------------------------------------------------------------- JointBoost */
 
 #define SY_JB_MAX_CLASSES 64
-#define SY_JB_FORMAT_VERSION 2
+#define SY_JB_FORMAT_VERSION 3
 
 typedef struct {
     int rounds;           /* most boosting rounds (600) */
@@ -114,6 +114,14 @@ typedef struct {
     double nov_cap;                /* cap of one feature's squared deviation */
     double nov_trim;               /* share of the largest deviations left out */
     double nov_threshold;          /* scores above it are novel */
+    /* The planar-surface test (classify/novelty.c): the planarity features
+     * (eigen_P_*) of the trainer's features, their training range and robust
+     * spread; a tree beyond the range by more than planar_threshold spreads
+     * is no tree (walls and roofs). n_planar 0: no such test. */
+    size_t n_planar;
+    int32_t *planar_feature;
+    float *planar_lo, *planar_hi, *planar_s;
+    double planar_threshold;
     /* What training measured, kept in the file for `sylva classify --info`. */
     size_t train_samples;
     double holdout_accuracy; /* NaN without a held-out set */
@@ -148,14 +156,21 @@ void sy_jb_predict(const sy_jb_model *m, const float *x, double *prob);
  * the held-out training trees do (a house, not a tree). 0 for a model
  * without the test. */
 double sy_jb_novelty_score(const sy_jb_model *m, const float *x);
+/* The planar-surface test's score of x: how far, in robust spreads, its
+ * planarity lies beyond the training trees' range (0 inside it). */
+double sy_jb_planar_score(const sy_jb_model *m, const float *x);
+/* The larger of the two tests' scores over their thresholds: above 1, x is
+ * not a tree like the training trees. 0 for a model without either test. */
 double sy_jb_novelty(const sy_jb_model *m, const float *x);
 /* Fits the test's statistics on the samples idx[0..n_idx) of X (n x d) into m
  * (m->n_features, m->n_classes set; allocates the arrays). */
 sy_code sy_jb_novelty_fit(sy_jb_model *m, const float *X, const int *y, const uint32_t *idx, size_t n_idx,
                           sy_error *err);
-/* Fits on all n samples and calibrates the threshold: `folds`-fold scores of
- * every sample against statistics fitted without its fold (stratified by
- * seed), threshold = factor x the quantile q of those scores. */
+/* Fits on all n samples and calibrates both thresholds: `folds`-fold scores
+ * of every sample against statistics fitted without its fold (stratified by
+ * seed), threshold = factor x the quantile q of those scores. The planar test
+ * is made when m->features_version is this build's (the feature names are
+ * known). */
 sy_code sy_jb_novelty_train(sy_jb_model *m, const float *X, size_t n, const int *y, int folds, double q,
                             double factor, uint64_t seed, sy_error *err);
 

@@ -81,6 +81,7 @@ void sy_jb_model_free(sy_jb_model *m)
     free(m->classes);
     free(m->feature), free(m->threshold), free(m->a), free(m->b), free(m->mask), free(m->k);
     free(m->nov_center), free(m->nov_scale), free(m->nov_mean), free(m->nov_sd);
+    free(m->planar_feature), free(m->planar_lo), free(m->planar_hi), free(m->planar_s);
     memset(m, 0, sizeof *m);
 }
 

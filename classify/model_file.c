@@ -4,7 +4,7 @@
  * an FNV-1a 64-bit hash of every byte before it, so a damaged or truncated
  * file is refused rather than predicting nonsense.
  *
- *   sylva-jointboost 2
+ *   sylva-jointboost 3
  *   features <count> <features-version>
  *   classes <count>
  *   class <name>                       (one per class, in index order)
@@ -12,6 +12,8 @@
  *   trained <samples> <held-out accuracy or nan>
  *   novelty <threshold> <cap> <trim>   (the joint novelty test, classify/novelty.c)
  *   stat <center> <scale> <mean_0> <sd_0> ... <mean_C-1> <sd_C-1>   (one per feature)
+ *   planar <threshold> <count>         (the planar-surface test, novelty.c; 0 0: none)
+ *   range <feature> <lo> <hi> <spread> (one per planarity feature)
  *   rounds <count>
  *   stump <feature> <threshold> <a> <b> <mask hex> <k_0> ... <k_C-1>
  *   end <fnv1a64 hex>
@@ -101,6 +103,10 @@ sy_code sy_jb_serialize(const sy_jb_model *m, char **text, size_t *len, sy_error
                       m->nov_center ? m->nov_sd[c * m->n_features + f] : 1.0f);
         sb_printf(&b, "\n");
     }
+    sb_printf(&b, "planar %.9g %zu\n", m->n_planar ? m->planar_threshold : 0.0, m->n_planar);
+    for (size_t k = 0; k < m->n_planar; k++)
+        sb_printf(&b, "range %d %.9g %.9g %.9g\n", m->planar_feature[k], m->planar_lo[k], m->planar_hi[k],
+                  m->planar_s[k]);
     sb_printf(&b, "rounds %zu\n", m->n_rounds);
     for (size_t r = 0; r < m->n_rounds; r++) {
         sb_printf(&b, "stump %d %.9g %.9g %.9g %llx", m->feature[r], m->threshold[r], m->a[r], m->b[r],
@@ -298,6 +304,39 @@ sy_code sy_jb_parse(const char *name, const char *text, size_t len, sy_jb_model 
         if (!ok || !at_end(s)) {
             sy_jb_model_free(m);
             return bad(&r, "expected \"stat <center> <scale> <mean> <sd> ...\" (one mean and sd per class, scale and sd > 0)");
+        }
+    }
+    {
+        float th;
+        size_t np;
+        if (!(s = expect(&r, "planar")) || !parse_float(&s, &th, 0) || *s++ != ' ' || !parse_size(&s, &np, nf) ||
+            !at_end(s) ||
+            th < 0 || (np && !(th > 0))) {
+            sy_jb_model_free(m);
+            return bad(&r, "expected \"planar <threshold> <count>\" (threshold > 0 with a count, at most one per feature)");
+        }
+        m->planar_threshold = th;
+        m->n_planar = np;
+        if (np) {
+            m->planar_feature = sy_calloc(np, sizeof *m->planar_feature, err, "model");
+            m->planar_lo = sy_calloc(np, sizeof *m->planar_lo, err, "model");
+            m->planar_hi = sy_calloc(np, sizeof *m->planar_hi, err, "model");
+            m->planar_s = sy_calloc(np, sizeof *m->planar_s, err, "model");
+            if (!m->planar_feature || !m->planar_lo || !m->planar_hi || !m->planar_s) {
+                sy_jb_model_free(m);
+                return err->code;
+            }
+        }
+        for (size_t k = 0; k < np; k++) {
+            size_t f;
+            int ok = (s = expect(&r, "range")) && parse_size(&s, &f, nf - 1) && parse_float(&s, &m->planar_lo[k], 0) &&
+                     parse_float(&s, &m->planar_hi[k], 0) && parse_float(&s, &m->planar_s[k], 0) && at_end(s) &&
+                     m->planar_lo[k] <= m->planar_hi[k] && m->planar_s[k] > 0;
+            if (!ok) {
+                sy_jb_model_free(m);
+                return bad(&r, "expected \"range <feature> <lo> <hi> <spread>\" (a feature index, lo <= hi, spread > 0)");
+            }
+            m->planar_feature[k] = (int32_t)f;
         }
     }
     size_t nr;
