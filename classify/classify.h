@@ -46,6 +46,8 @@ sy_code sy_features_options_check(const sy_features_options *o, sy_error *err);
  * written to name and returned; NULL past the last feature (or out of memory). */
 #define SY_FEATURE_NAME_MAX 40
 size_t sy_feature_count(void);
+/* The fewest points sy_features_compute takes (fewer: SY_EINPUT). */
+#define SY_FEATURES_MIN_POINTS 32
 const char *sy_feature_name(size_t i, char name[SY_FEATURE_NAME_MAX]);
 
 typedef struct {

@@ -492,7 +492,8 @@ sy_code sy_features_compute(const sy_cloud *tree, const sy_features_options *o, 
     double t_start = sy_now();
     sy_code rc = sy_features_options_check(o, err);
     if (rc) return rc;
-    if (tree->n < 32) return sy_fail(err, SY_EINPUT, "features: %zu points, at least 32 are needed", tree->n);
+    if (tree->n < SY_FEATURES_MIN_POINTS)
+        return sy_fail(err, SY_EINPUT, "features: %zu points, at least %d are needed", tree->n, SY_FEATURES_MIN_POINTS);
     size_t n = tree->n;
     work w;
     memset(&w, 0, sizeof w);

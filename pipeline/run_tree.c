@@ -189,9 +189,13 @@ static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_opti
         if ((rc = sy_classify_cloud(c, o->model, &r->guess, err))) return rc;
         r->classified = 1;
         char line[200];
-        snprintf(line, sizeof line, "%s (%s; best %s p %.2f)", r->guess.name,
-                 r->guess.confident ? "confident" : r->guess.novel ? "unlike the training trees" : "not confident",
-                 r->guess.best, r->guess.probability);
+        if (r->guess.too_few)
+            snprintf(line, sizeof line, "unknown (%zu points: too few to classify, at least %d)", r->guess.too_few,
+                     SY_FEATURES_MIN_POINTS);
+        else
+            snprintf(line, sizeof line, "%s (%s; best %s p %.2f)", r->guess.name,
+                     r->guess.confident ? "confident" : r->guess.novel ? "unlike the training trees" : "not confident",
+                     r->guess.best, r->guess.probability);
         step(o, "species", r->guess.seconds, line);
         if (r->guess.species.id >= 0) {
             if ((rc = sy_species_params_find(r->guess.name, &guessed, err))) return rc;

@@ -244,6 +244,17 @@ sy_code sy_classify_cloud(const sy_cloud *tree, const char *model_path, sy_speci
 {
     double t0 = sy_now();
     memset(out, 0, sizeof *out);
+    /* A tree of a few airborne returns (a plot's smallest) is too small to
+     * classify, not bad input: it stays unknown and is reconstructed with
+     * the default parameters, as a tree of no confident species is. */
+    if (tree->n < SY_FEATURES_MIN_POINTS) {
+        out->too_few = tree->n;
+        snprintf(out->name, sizeof out->name, "unknown");
+        snprintf(out->best, sizeof out->best, "unknown");
+        sy_code r0 = sy_species_init(&out->species, 0, err);
+        out->seconds = sy_now() - t0;
+        return r0;
+    }
     char def[4200];
     const char *mp = model_path;
     sy_code rc;

@@ -76,6 +76,7 @@ typedef struct {
     double probability; /* of best */
     double novelty;
     int confident, novel;
+    size_t too_few;     /* the cloud's points when fewer than SY_FEATURES_MIN_POINTS: not classified, unknown */
     double seconds;
 } sy_species_guess;
 

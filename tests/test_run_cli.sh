@@ -58,4 +58,11 @@ awk -v v="$(key mean_distance "$ev")" 'BEGIN { exit !(v + 0 <= 0.03) }' || fail 
   fail "second run"
 cmp -s "$tmp/aspen.sylva" "$tmp/again.sylva" || fail "two runs differ (.sylva)"
 cmp -s "$tmp/aspen.glb" "$tmp/again.glb" || fail "two runs differ (.glb)"
+# A tree of a few airborne returns (a plot's smallest: 28 points) is too
+# small to classify: it stays unknown and is still reconstructed, not failed.
+awk 'BEGIN { srand(5); for (i = 0; i < 20; i++) { z = i * 0.15; a = rand() * 6.283; print 0.05 * cos(a), 0.05 * sin(a), z }
+  for (i = 0; i < 10; i++) { t = i * 0.1; print t, 0.02 * rand(), 2 + t } }' > "$tmp/tiny.xyz"
+"$SYLVA" run "$tmp/tiny.xyz" -o "$tmp/tiny.glb" --lods 1 --no-impostor 2> "$tmp/tiny.err" || fail "a 28-point tree failed: $(cat "$tmp/tiny.err")"
+grep -q "too few to classify" "$tmp/tiny.err" || fail "the tiny tree's species line: $(grep species "$tmp/tiny.err")"
+[ -s "$tmp/tiny.glb" ] || fail "no glb for the tiny tree"
 echo "all run CLI checks passed"

@@ -303,7 +303,7 @@ int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
     float lo[3], hi[3];
     lod_bounds(a, lod0, lo, hi);
     if (!(lo[0] <= hi[0])) {
-        sy_fail(err, SY_EINPUT, "mesh: impostor of an empty tree");
+        sy_fail(err, SY_EINPUT, "mesh: nothing to draw (no branch of two distinct points, no leaf)");
         return -1;
     }
     for (int k = 0; k < 3; k++) {
