@@ -711,6 +711,70 @@ static void skeleton_metrics_options_are_checked(void **state)
     sy_forest_free(&t);
 }
 
+/* The silhouette of a 4 m x 3 m x 2 m box against points on its faces: with
+ * a dense scan (2 cm: splats of a pixel or so, drawn point by point) and a
+ * sparse one (0.5 m, an airborne spacing: 30-pixel splats, drawn at once by
+ * the distance transform), both views agree with the model (IoU >= 0.85),
+ * and the wide splats cover the union of the model's disks. */
+static void box_faces(double step, double **pts, size_t *n)
+{
+    const double L[3] = {4, 3, 2};
+    size_t cap = 0, k = 0;
+    for (int ax = 0; ax < 3; ax++) {
+        int a = (ax + 1) % 3, b = (ax + 2) % 3;
+        cap += 2 * (size_t)(L[a] / step + 1) * (size_t)(L[b] / step + 1);
+    }
+    double *p = malloc(3 * cap * sizeof *p);
+    assert_non_null(p);
+    for (int ax = 0; ax < 3; ax++) {
+        int a = (ax + 1) % 3, b = (ax + 2) % 3;
+        for (int side = 0; side < 2; side++)
+            for (double u = 0; u <= L[a] + 1e-9; u += step)
+                for (double w = 0; w <= L[b] + 1e-9; w += step) {
+                    p[3 * k + ax] = side * L[ax], p[3 * k + a] = u, p[3 * k + b] = w;
+                    k++;
+                }
+    }
+    *pts = p;
+    *n = k;
+}
+
+static void silhouette_of_dense_and_sparse_scans(void **state)
+{
+    (void)state;
+    const double L[3] = {4, 3, 2};
+    double tri[12 * 9];
+    size_t nt = 0;
+    for (int ax = 0; ax < 3; ax++) {
+        int a = (ax + 1) % 3, b = (ax + 2) % 3;
+        for (int side = 0; side < 2; side++) {
+            double q[4][3];
+            for (int c = 0; c < 4; c++) {
+                q[c][ax] = side * L[ax];
+                q[c][a] = (c == 1 || c == 2) ? L[a] : 0;
+                q[c][b] = (c >= 2) ? L[b] : 0;
+            }
+            const int t[2][3] = {{0, 1, 2}, {0, 2, 3}};
+            for (int h = 0; h < 2; h++, nt++)
+                for (int c = 0; c < 3; c++) memcpy(tri + 9 * nt + 3 * c, q[t[h][c]], sizeof q[0]);
+        }
+    }
+    const double steps[2] = {0.02, 0.5};
+    for (int k = 0; k < 2; k++) {
+        double *pts;
+        size_t n;
+        box_faces(steps[k], &pts, &n);
+        sy_silhouette_metrics m;
+        sy_error err = {0};
+        assert_int_equal(sy_silhouette_metrics_compute(tri, nt, pts, n, &m, &err), SY_OK);
+        printf("box, scan spacing %.2f m: splat %.3f m, IoU mean %.4f min %.4f\n", steps[k], m.splat_radius, m.iou_mean,
+               m.iou_min);
+        assert_float_equal(m.splat_radius, steps[k], 0.01 * steps[k]);
+        assert_true(m.iou_min >= 0.85 && m.iou_mean <= 1.0);
+        free(pts);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -729,6 +793,7 @@ int main(void)
         cmocka_unit_test(glb_instances_and_axes),
         cmocka_unit_test(mixedconifer_instances),
         cmocka_unit_test(species_scores),
+        cmocka_unit_test(silhouette_of_dense_and_sparse_scans),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
