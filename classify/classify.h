@@ -161,6 +161,8 @@ double sy_jb_novelty_score(const sy_jb_model *m, const float *x);
 /* The planar-surface test's score of x: how far, in robust spreads, its
  * planarity lies beyond the training trees' range (0 inside it). */
 double sy_jb_planar_score(const sy_jb_model *m, const float *x);
+/* Room for n planar-test features in m (n_planar = n; any earlier ones go). */
+sy_code sy_jb_planar_alloc(sy_jb_model *m, size_t n, sy_error *err);
 /* The larger of the two tests' scores over their thresholds: above 1, x is
  * not a tree like the training trees. 0 for a model without either test. */
 double sy_jb_novelty(const sy_jb_model *m, const float *x);

@@ -28,14 +28,10 @@
 
 #include "classify/classify.h"
 #include "stages/core/fileio.h"
+#include "stages/core/hash.h"
 #include "stages/core/lines.h"
 
-static uint64_t fnv1a(const char *s, size_t n)
-{
-    uint64_t h = 0xcbf29ce484222325ull;
-    for (size_t i = 0; i < n; i++) h = (h ^ (unsigned char)s[i]) * 0x100000001b3ull;
-    return h;
-}
+static uint64_t fnv1a(const char *s, size_t n) { return sy_fnv1a64(SY_FNV1A64_INIT, s, n); }
 
 typedef struct {
     char *buf;
@@ -316,16 +312,9 @@ sy_code sy_jb_parse(const char *name, const char *text, size_t len, sy_jb_model 
             return bad(&r, "expected \"planar <threshold> <count>\" (threshold > 0 with a count, at most one per feature)");
         }
         m->planar_threshold = th;
-        m->n_planar = np;
-        if (np) {
-            m->planar_feature = sy_calloc(np, sizeof *m->planar_feature, err, "model");
-            m->planar_lo = sy_calloc(np, sizeof *m->planar_lo, err, "model");
-            m->planar_hi = sy_calloc(np, sizeof *m->planar_hi, err, "model");
-            m->planar_s = sy_calloc(np, sizeof *m->planar_s, err, "model");
-            if (!m->planar_feature || !m->planar_lo || !m->planar_hi || !m->planar_s) {
-                sy_jb_model_free(m);
-                return err->code;
-            }
+        if (sy_jb_planar_alloc(m, np, err)) {
+            sy_jb_model_free(m);
+            return err->code;
         }
         for (size_t k = 0; k < np; k++) {
             size_t f;

@@ -218,21 +218,27 @@ static sy_code planar_fit(sy_jb_model *m, const float *X, const uint32_t *idx, s
     return SY_OK;
 }
 
-static sy_code planar_alloc(sy_jb_model *m, sy_error *err)
+sy_code sy_jb_planar_alloc(sy_jb_model *m, size_t n, sy_error *err)
 {
     planar_free(m);
-    size_t np = planar_features(m, NULL);
-    if (!np) return SY_OK;
-    m->planar_feature = sy_calloc(np, sizeof *m->planar_feature, err, "novelty");
-    m->planar_lo = sy_calloc(np, sizeof *m->planar_lo, err, "novelty");
-    m->planar_hi = sy_calloc(np, sizeof *m->planar_hi, err, "novelty");
-    m->planar_s = sy_calloc(np, sizeof *m->planar_s, err, "novelty");
+    if (!n) return SY_OK;
+    m->planar_feature = sy_calloc(n, sizeof *m->planar_feature, err, "novelty");
+    m->planar_lo = sy_calloc(n, sizeof *m->planar_lo, err, "novelty");
+    m->planar_hi = sy_calloc(n, sizeof *m->planar_hi, err, "novelty");
+    m->planar_s = sy_calloc(n, sizeof *m->planar_s, err, "novelty");
     if (!m->planar_feature || !m->planar_lo || !m->planar_hi || !m->planar_s) {
         planar_free(m);
         return err->code;
     }
-    m->n_planar = planar_features(m, m->planar_feature);
+    m->n_planar = n;
     return SY_OK;
+}
+
+static sy_code planar_alloc(sy_jb_model *m, sy_error *err)
+{
+    sy_code rc = sy_jb_planar_alloc(m, planar_features(m, NULL), err);
+    if (!rc && m->n_planar) planar_features(m, m->planar_feature);
+    return rc;
 }
 
 /* The q-quantile of v[0..n) (sorted here), linear between neighbours. */

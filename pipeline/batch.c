@@ -19,6 +19,7 @@
 
 #include "pipeline/batch.h"
 #include "stages/core/fileio.h"
+#include "stages/core/hash.h"
 #include "stages/core/json.h"
 #include "stages/core/json_read.h"
 #include "stages/core/parallel.h"
@@ -36,10 +37,7 @@
  * detector, not a defence against crafted collisions). */
 uint64_t sy_batch_hash(const void *data, size_t size)
 {
-    const unsigned char *p = data;
-    uint64_t h = 14695981039346656037ull;
-    for (size_t i = 0; i < size; i++) h = (h ^ p[i]) * 1099511628211ull;
-    return h;
+    return sy_fnv1a64(SY_FNV1A64_INIT, data, size);
 }
 
 sy_batch_options sy_batch_options_default(void)

@@ -28,18 +28,14 @@
 #include <time.h>
 
 #include "stages/core/fileio.h"
+#include "stages/core/hash.h"
 #include "stages/leafmaps/leaf_material.h"
 
 #define MAGIC "SYMCACHE"
 /* Entries not used for this long are removed when a new one is written. */
 #define STALE_SECONDS (30.0 * 86400.0)
 
-static uint64_t fnv(uint64_t h, const void *data, size_t n)
-{
-    const unsigned char *p = data;
-    for (size_t i = 0; i < n; i++) h = (h ^ p[i]) * 1099511628211ull;
-    return h;
-}
+static uint64_t fnv(uint64_t h, const void *data, size_t n) { return sy_fnv1a64(h, data, n); }
 
 static uint64_t fnv_str(uint64_t h, const char *s)
 {
@@ -65,7 +61,7 @@ static int fnv_file(uint64_t *h, const char *path)
 
 int sy_material_cache_key(const sy_material_spec *spec, int max_size, float translucency, uint64_t *key)
 {
-    uint64_t h = 14695981039346656037ull;
+    uint64_t h = SY_FNV1A64_INIT;
     h = fnv_str(h, MAGIC SYLVA_VERSION);
     struct stat st;
     if (stat("/proc/self/exe", &st) != 0) return 0;
