@@ -31,8 +31,12 @@
 /* Junctions welded into the parent, not capped inside it: a ring still
  * capped wraps most of its parent, stands partly off the parent's tube
  * (a child at its parent's base) or its strip would fold. */
-#define WELDED_LOD0 0.72 /* measured >= 74 % (weeping willow), aspen >= 92 %, oak >= 89 % */
-#define WELDED_ANY 0.33  /* coarser levels, measured >= 36 % (sugar maple LOD3) */
+#define WELDED_LOD0 0.74 /* measured >= 75.5 % (weeping willow), aspen >= 93 %, oak >= 90 % */
+#define WELDED_ANY 0.33  /* coarser levels, measured >= 36 % (one LOD3 of 36 junctions) */
+/* Over the whole library (both seeds): the capped ones are mostly children
+ * on a branch's first, skewed quads (docs/mesh.md, "Welding"). */
+#define WELDED_LIBRARY_LOD0 0.96 /* measured 96.6 % (95.7 % before the Steiner points) */
+#define WELDED_LIBRARY_ANY 0.87  /* coarser levels, measured 88.0 % (84.7 % before) */
 #define LEAF_GAP_MAX 1.0        /* petiole to LOD0 bark, in leaf lengths */
 #define RATIO_MIN 0.25          /* each level's triangles over the previous level's */
 #define RATIO_MAX 0.5
@@ -40,7 +44,12 @@
                                    its LOD1 drops the thin hanging twigs) */
 #define IOU_ANY 0.5             /* (measured >= 0.54) */
 
-static void check_asset(const char *name, const sy_tree_asset_report *rep)
+/* Junctions and welds over every species, LOD0 and the coarser levels. */
+typedef struct {
+    size_t junctions[2], welded[2];
+} weld_tally;
+
+static void check_asset(const char *name, const sy_tree_asset_report *rep, weld_tally *tally)
 {
     const sy_mesh_check_report *c = &rep->check;
     assert_true(c->n_levels >= 3);
@@ -69,6 +78,7 @@ static void check_asset(const char *name, const sy_tree_asset_report *rep)
         double welded = nj ? (double)nw / (double)nj : 1;
         printf("  LOD%zu: %zu of %zu junctions welded (%.1f %%)\n", v->lod, nw, nj, 100 * welded);
         assert_true(welded >= (l == 0 ? WELDED_LOD0 : WELDED_ANY));
+        tally->junctions[l > 0] += nj, tally->welded[l > 0] += nw;
         assert_int_equal(v->below_ground, 0);
         assert_int_equal(v->leaves_below_ground, 0);
         assert_int_equal(v->misoriented_edges, 0);
@@ -80,6 +90,8 @@ static void check_asset(const char *name, const sy_tree_asset_report *rep)
         assert_true(v->silhouette_iou >= (l == 1 ? IOU_LOD1 : IOU_ANY));
     }
 }
+
+static weld_tally library_tally;
 
 static void species_assets_survive_a_close_look(void **state)
 {
@@ -99,12 +111,25 @@ static void species_assets_survive_a_close_look(void **state)
         sy_asset a;
         sy_tree_asset_report rep;
         if (sy_tree_asset_build(&sk, &lv, &sp, &o, &a, &rep, &err) != SY_OK) fail_msg("%s: %s", name, err.msg);
-        check_asset(name, &rep);
+        check_asset(name, &rep, &library_tally);
         sy_asset_free(&a);
         sy_skeleton_free(&sk);
         sy_leaves_free(&lv);
     }
     sy_species_params_free(&sp);
+}
+
+/* Runs after every species (cmocka keeps the order). */
+static void library_welds(void **state)
+{
+    (void)state;
+    const weld_tally *t = &library_tally;
+    assert_true(t->junctions[0] > 0 && t->junctions[1] > 0);
+    double lod0 = (double)t->welded[0] / (double)t->junctions[0], any = (double)t->welded[1] / (double)t->junctions[1];
+    printf("library: LOD0 %zu of %zu junctions welded (%.1f %%), coarser levels %zu of %zu (%.1f %%)\n", t->welded[0],
+           t->junctions[0], 100 * lod0, t->welded[1], t->junctions[1], 100 * any);
+    assert_true(lod0 >= WELDED_LIBRARY_LOD0);
+    assert_true(any >= WELDED_LIBRARY_ANY);
 }
 
 int main(void)
@@ -114,10 +139,11 @@ int main(void)
     sy_error err = {0};
     if (sy_library_load(NULL, &lib, &err) != SY_OK) return fprintf(stderr, "%s\n", err.msg), 1;
     size_t n = lib.n < 64 ? lib.n : 64;
-    struct CMUnitTest tests[64];
+    struct CMUnitTest tests[65];
     for (size_t i = 0; i < n; i++)
         tests[i] = (struct CMUnitTest){lib.entries[i].name, species_assets_survive_a_close_look, NULL, NULL,
                                        (void *)lib.entries[i].name};
+    tests[n++] = (struct CMUnitTest){"library_welds", library_welds, NULL, NULL, NULL};
     int rc = _cmocka_run_group_tests("mesh_quality", tests, n, NULL, NULL);
     sy_library_free(&lib);
     return rc;

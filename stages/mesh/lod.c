@@ -104,7 +104,7 @@ int sy_lod_restore(const sy_stems *st, const uint8_t *prev_keep, sy_lod_params *
     return 1;
 }
 
-#define WELD_MARGIN 0.47
+#define WELD_MARGIN 0.43
 
 int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris, sy_lod_params *lp, size_t *tris)
 {
@@ -117,9 +117,10 @@ int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris
         lp->keep[i] = prev_keep[i] && big && (s->parent < 0 || lp->keep[s->parent]);
     }
     /* Half the previous level's bark, less the share the junction strips may
-     * add after selection (welding a level adds up to ~6 % of its
-     * triangles, the caps it replaces fewer): the level's drawn triangles stay
-     * within half of the previous level's. */
+     * add after selection (welding a level adds up to ~8 % of its
+     * triangles with the Steiner points of a wide ring, the caps it replaces
+     * fewer): the level's drawn triangles stay within half of the previous
+     * level's. */
     size_t count = sy_lod_bark_triangles(st, lp), budget = (size_t)(WELD_MARGIN * (double)prev_tris);
     if (count > budget && !sy_lod_fit_budget(st, lp, &count, budget)) return 0;
     /* No cliffs: when the thresholds dropped so much that the level has under

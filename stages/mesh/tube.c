@@ -410,6 +410,21 @@ static void grid_coords(const sy_stem *p, const int32_t *pidx, size_t np, int P,
     *R_out = R;
 }
 
+/* Arc length of the parent's grid vertex at position xy (glTF frame) in
+ * ring r: the ring's own, but a junction's first ring was pushed along its
+ * tangent onto its own parent, each vertex by its own distance, so its
+ * vertices sit that far along the stem (the quads above them are drawn from
+ * there; a hole measured from the ring's arc length folded in a third of the
+ * junctions on a branch's first quads). */
+static float grid_vertex_s(const sy_stem *p, const int32_t *pidx, long r, const float xy[3])
+{
+    size_t k = (size_t)pidx[r];
+    if (r != 0 || !p->junction) return p->ss[k];
+    float x[3] = {xy[0], -xy[2], xy[1]}, w[3];
+    for (int c = 0; c < 3; c++) w[c] = x[c] - p->sp[3 * k + c];
+    return p->ss[k] + sy_dot3(w, p->st + 3 * k);
+}
+
 /* Unwraps column c about the reference column ref into (ref - P/2, ref + P/2]. */
 static float unwrap_col(float c, float ref, int P)
 {
@@ -570,7 +585,9 @@ static size_t ear_clip(weld_poly *poly, uint32_t *tri)
         }
         if (!clipped) return 0;
     }
-    if (orient2(&v[0], &v[1], &v[2]) > 0) tri[3 * t] = v[0].id, tri[3 * t + 1] = v[1].id, tri[3 * t + 2] = v[2].id, t++;
+    /* The last triangle too, or none: dropping it left three open edges. */
+    if (!(orient2(&v[0], &v[1], &v[2]) > 0)) return 0;
+    tri[3 * t] = v[0].id, tri[3 * t + 1] = v[1].id, tri[3 * t + 2] = v[2].id, t++;
     return t;
 }
 
@@ -585,6 +602,20 @@ static const weld_pt *weld_find(const weld_pt *pts, size_t n, uint32_t id)
     for (size_t i = 0; i < n; i++)
         if (pts[i].id == id) return &pts[i];
     return NULL;
+}
+
+/* Should edge ab of the counter-clockwise triangles (a, b, c) and (b, a, d)
+ * flip to cd? When d lies inside the circle through a, b, c and the quad
+ * a d b c is convex, so (a, d, c) and (d, b, c) are counter-clockwise. */
+static int flips_to_delaunay(const weld_pt *pa, const weld_pt *pb, const weld_pt *pc, const weld_pt *pd)
+{
+    double ax = pa->u - pd->u, ay = pa->s - pd->s, bx = pb->u - pd->u, by = pb->s - pd->s;
+    double cx = pc->u - pd->u, cy = pc->s - pd->s;
+    double det = (ax * ax + ay * ay) * (bx * cy - cx * by) - (bx * bx + by * by) * (ax * cy - cx * ay) +
+                 (cx * cx + cy * cy) * (ax * by - bx * ay);
+    double scale = ax * ax + ay * ay + bx * bx + by * by + cx * cx + cy * cy;
+    if (!(det > 1e-9 * scale * scale)) return 0;
+    return orient2(pa, pd, pc) > 0 && orient2(pd, pb, pc) > 0;
 }
 
 static void delaunay_flips(uint32_t *tri, size_t t, const weld_pt *pts, size_t n)
@@ -605,15 +636,7 @@ static void delaunay_flips(uint32_t *tri, size_t t, const weld_pt *pts, size_t n
                          * of one loop could repeat an edge of the tube or of
                          * the neighbouring quads that the strip cannot see. */
                         if (!pa || !pb || !pc || !pd || d == c || pc->loop == pd->loop) continue;
-                        /* d inside the circle through a, b, c (counter-clockwise)? */
-                        double ax = pa->u - pd->u, ay = pa->s - pd->s, bx = pb->u - pd->u, by = pb->s - pd->s;
-                        double cx = pc->u - pd->u, cy = pc->s - pd->s;
-                        double det = (ax * ax + ay * ay) * (bx * cy - cx * by) - (bx * bx + by * by) * (ax * cy - cx * ay) +
-                                     (cx * cx + cy * cy) * (ax * by - bx * ay);
-                        double scale = ax * ax + ay * ay + bx * bx + by * by + cx * cx + cy * cy;
-                        if (!(det > 1e-9 * scale * scale)) continue;
-                        /* The quad a d b c must be convex for (a, d, c), (d, b, c). */
-                        if (!(orient2(pa, pd, pc) > 0) || !(orient2(pd, pb, pc) > 0)) continue;
+                        if (!flips_to_delaunay(pa, pb, pc, pd)) continue;
                         /* Never duplicate an edge (c, d) the strip already has. */
                         int exists = 0;
                         for (size_t h = 0; h < t && !exists; h++)
@@ -633,27 +656,274 @@ static void delaunay_flips(uint32_t *tri, size_t t, const weld_pt *pts, size_t n
     }
 }
 
+/* ---- Steiner points on the parent's ridges ----
+ * Ear clipping and the flips triangulate the hole with the polygon's own
+ * vertices: the parent's grid corners round the rectangle and the rings.
+ * Where a ring is nearly as wide as its parent (a fork-like junction, or a
+ * six-sided parent at a coarse level) a triangle can then join points half
+ * the parent's girth apart and cut through the parent: the fold the check
+ * below refuses, and a capped junction. Points on the parent's ridges (its
+ * drawn columns) inside the hole, about one column apart, keep every
+ * triangle within about one face of the parent. They are inserted one at a
+ * time into the triangulation and the edges round each are legalised by
+ * Lawson flips (the incremental Delaunay insertion of Guibas & Stolfi
+ * 1985; Ruppert 1995 refines with Steiner points the same way). */
+
+#define WELD_MAX_STEINER 192
+/* Steiner vertices' ids: above every mesh vertex id. */
+#define WELD_STEINER_ID0 (UINT32_MAX - 2u * WELD_MAX_STEINER)
+
+typedef struct {
+    size_t n;
+    float pos[3 * WELD_MAX_STEINER]; /* glTF frame */
+    float ww[4 * WELD_MAX_STEINER];
+    uint16_t wb[WELD_MAX_STEINER];
+} weld_steiner;
+
+/* Position of strip vertex id: a mesh vertex or a Steiner point. */
+static const float *strip_pos(const sy_mesh *m, const weld_steiner *sp, uint32_t id)
+{
+    if (sp && id >= WELD_STEINER_ID0) return sp->pos + 3 * (size_t)(id - WELD_STEINER_ID0);
+    return m->position + 3 * (size_t)id;
+}
+
+/* Is (u, s) inside ring h (nh points) by the crossing rule? */
+static int inside_ring(const weld_pt *h, size_t nh, float u, float s)
+{
+    int in = 0;
+    for (size_t i = 0, j = nh - 1; i < nh; j = i++)
+        if ((h[i].s > s) != (h[j].s > s) && u < h[j].u + (h[i].u - h[j].u) * (s - h[j].s) / (h[i].s - h[j].s)) in = !in;
+    return in;
+}
+
+/* Squared distance from (u, s) to segment ab of the plane. */
+static float seg_dist2(const weld_pt *a, const weld_pt *b, float u, float s)
+{
+    float du = b->u - a->u, ds = b->s - a->s, l2 = du * du + ds * ds;
+    float t = l2 > 0 ? ((u - a->u) * du + (s - a->s) * ds) / l2 : 0;
+    t = t < 0 ? 0 : t > 1 ? 1 : t;
+    float x = a->u + t * du - u, y = a->s + t * ds - s;
+    return x * x + y * y;
+}
+
+/* The triangle holding the directed edge (b, a), or -1 (a boundary edge). */
+static long edge_twin(const uint32_t *loc, size_t t, uint32_t a, uint32_t b)
+{
+    for (size_t g = 0; g < t; g++)
+        for (int k = 0; k < 3; k++)
+            if (loc[3 * g + k] == b && loc[3 * g + (k + 1) % 3] == a) return (long)g;
+    return -1;
+}
+
+/* Lawson's legalisation of edge (a, b) of triangle f = (a, b, p), p the
+ * point just inserted: flips it when the twin's far vertex lies inside the
+ * circle through a, b, p, then legalises the two edges that face p anew.
+ * loc holds plane indices into pts. */
+static void legalise(uint32_t *loc, size_t t, const weld_pt *pts, size_t f, int depth)
+{
+    if (depth > 64) return;
+    uint32_t a = loc[3 * f], b = loc[3 * f + 1], p = loc[3 * f + 2];
+    long g = edge_twin(loc, t, a, b);
+    if (g < 0) return;
+    int k = 0;
+    while (!(loc[3 * g + k] == b && loc[3 * g + (k + 1) % 3] == a)) k++;
+    uint32_t d = loc[3 * g + (k + 2) % 3];
+    const weld_pt *pa = &pts[a], *pb = &pts[b], *pp = &pts[p], *pd = &pts[d];
+    if (!flips_to_delaunay(pa, pb, pp, pd)) return;
+    /* (a, b, p) + (b, a, d) -> (a, d, p) + (d, b, p). */
+    loc[3 * f] = a, loc[3 * f + 1] = d, loc[3 * f + 2] = p;
+    loc[3 * g] = d, loc[3 * g + 1] = b, loc[3 * g + 2] = p;
+    legalise(loc, t, pts, f, depth + 1);
+    legalise(loc, t, pts, (size_t)g, depth + 1);
+}
+
+/* Puts triangle f's vertex v last (its edges keep their direction). */
+static void rotate_last(uint32_t *loc, size_t f, uint32_t v)
+{
+    while (loc[3 * f + 2] != v) {
+        uint32_t x = loc[3 * f];
+        loc[3 * f] = loc[3 * f + 1], loc[3 * f + 1] = loc[3 * f + 2], loc[3 * f + 2] = x;
+    }
+}
+
+/* Inserts plane point q (index iq into pts) into the triangulation loc (t
+ * triangles, room for cap): the triangle holding it is split in three, or
+ * the two on an edge it lies on in four; then the edges round it are
+ * legalised. Returns the new count (t when q lies on no triangle, on a
+ * vertex or on the hole's boundary). */
+static size_t insert_point(uint32_t *loc, size_t t, size_t cap, const weld_pt *pts, uint32_t iq)
+{
+    const weld_pt *q = &pts[iq];
+    if (t + 2 > cap) return t;
+    for (size_t f = 0; f < t; f++) {
+        uint32_t v[3] = {loc[3 * f], loc[3 * f + 1], loc[3 * f + 2]};
+        float o[3], sc = 0;
+        for (int e = 0; e < 3; e++) {
+            const weld_pt *a = &pts[v[e]], *b = &pts[v[(e + 1) % 3]];
+            o[e] = orient2(a, b, q);
+            sc = fmaxf(sc, fabsf(b->u - a->u) + fabsf(b->s - a->s));
+        }
+        float eps = 1e-6f * sc * sc;
+        if (o[0] < -eps || o[1] < -eps || o[2] < -eps) continue;
+        int on = -1, n_on = 0;
+        for (int e = 0; e < 3; e++)
+            if (o[e] <= eps) on = e, n_on++;
+        if (n_on > 1) return t; /* on a vertex */
+        if (on < 0) {
+            loc[3 * f + 2] = iq;
+            uint32_t *x = loc + 3 * t;
+            x[0] = v[1], x[1] = v[2], x[2] = iq, x[3] = v[2], x[4] = v[0], x[5] = iq;
+            size_t n = t + 2;
+            legalise(loc, n, pts, f, 0);
+            for (size_t h = t; h < n; h++) rotate_last(loc, h, iq), legalise(loc, n, pts, h, 0);
+            return n;
+        }
+        uint32_t a = v[on], b = v[(on + 1) % 3], c = v[(on + 2) % 3];
+        long g = edge_twin(loc, t, a, b);
+        if (g < 0) return t; /* on the hole's boundary */
+        int k = 0;
+        while (loc[3 * g + k] == a || loc[3 * g + k] == b) k++;
+        uint32_t d = loc[3 * g + k];
+        loc[3 * f] = a, loc[3 * f + 1] = iq, loc[3 * f + 2] = c;
+        loc[3 * (size_t)g] = b, loc[3 * (size_t)g + 1] = iq, loc[3 * (size_t)g + 2] = d;
+        uint32_t *x = loc + 3 * t;
+        x[0] = iq, x[1] = b, x[2] = c, x[3] = iq, x[4] = a, x[5] = d;
+        size_t n = t + 2, tris[4] = {f, (size_t)g, t, t + 1};
+        for (int h = 0; h < 4; h++) rotate_last(loc, tris[h], iq), legalise(loc, n, pts, tris[h], 0);
+        return n;
+    }
+    return t;
+}
+
+/* Refines the strip (t triangles of vertex ids in extra, room for
+ * extra_cap ids) of the hole [q0, q1] x [c0, c1] with Steiner points on the
+ * parent's interior ridges, about one column apart along the parent, none
+ * inside a ring or closer than half a column to one. pts[0..n_poly) is the
+ * hole's polygon (its bridges doubled); the points are appended after it
+ * (room for pts_cap) with their positions in sp. Returns the new triangle
+ * count; *n_all is the points' count then. */
+static size_t weld_refine(uint32_t *extra, size_t t, size_t extra_cap, weld_pt *pts, size_t n_poly, size_t pts_cap,
+                          size_t *n_all, const weld_pt *const *hp, const size_t *hn, size_t ng, const sy_stem *ps,
+                          const int32_t *pidx, const sy_mesh *m, size_t vbase, int P, long q0, long q1, int c0, int c1,
+                          float arc, weld_steiner *sp, size_t np)
+{
+    *n_all = n_poly;
+    sp->n = 0;
+    if (m->n_vertices >= WELD_STEINER_ID0) return t;
+    /* The plane's distinct points: the polygon's (a bridge repeats two). */
+    weld_pt *up = malloc((n_poly + WELD_MAX_STEINER) * sizeof *up);
+    uint32_t *loc = malloc((3 * t + 6 * WELD_MAX_STEINER) * sizeof *loc);
+    if (!up || !loc) {
+        free(up), free(loc);
+        return 0;
+    }
+    size_t nu = 0;
+    for (size_t i = 0; i < n_poly; i++) {
+        size_t k = 0;
+        while (k < nu && up[k].id != pts[i].id) k++;
+        if (k == nu) up[nu++] = pts[i];
+    }
+    for (size_t f = 0; f < 3 * t; f++) {
+        size_t k = 0;
+        while (k < nu && up[k].id != extra[f]) k++;
+        if (k == nu) {
+            free(up), free(loc);
+            return 0;
+        }
+        loc[f] = (uint32_t)k;
+    }
+    size_t row = (size_t)P + 1, nt = t, cap = t + 2 * WELD_MAX_STEINER;
+    if (3 * cap > extra_cap) cap = extra_cap / 3;
+    /* Only the band of the parent the rings stand on (and a column beyond)
+     * needs them: away from the rings the hole's triangles join the
+     * parent's own corners, one column apart. */
+    float s_lo = INFINITY, s_hi = -INFINITY;
+    for (size_t g = 0; g < ng; g++)
+        for (size_t e = 0; e < hn[g]; e++) s_lo = fminf(s_lo, hp[g][e].s), s_hi = fmaxf(s_hi, hp[g][e].s);
+    float s_min = ps->ss[pidx[q0]], s_max = ps->ss[pidx[q1 + 1]];
+    s_lo = fmaxf(s_lo - arc, s_min), s_hi = fminf(s_hi + arc, s_max);
+    /* About a column apart; wider when that would be more points than the
+     * room (the count falls as the spacing grows). */
+    float spacing = arc, keep = 0.5f * arc;
+    for (int pass = 0; pass < 3; pass++) {
+        size_t n = 0;
+        int k = (int)ceilf((s_hi - s_lo) / spacing);
+        for (int j = c0 + 1; j <= c1; j++) {
+            int jj = ((j % P) + P) % P;
+            float u = (float)j * arc;
+            for (int i = 0; i <= k; i++) {
+                float s = s_lo + (s_hi - s_lo) * (float)i / (float)(k > 0 ? k : 1);
+                /* Clear of the hole's top and bottom rows and of every ring. */
+                int clear = s - s_min >= keep && s_max - s >= keep;
+                for (size_t g = 0; g < ng && clear; g++) {
+                    clear = !inside_ring(hp[g], hn[g], u, s);
+                    for (size_t e = 0; e < hn[g] && clear; e++)
+                        clear = seg_dist2(&hp[g][e], &hp[g][(e + 1) % hn[g]], u, s) >= keep * keep;
+                }
+                if (!clear) continue;
+                if (pass == 2 && n < WELD_MAX_STEINER) {
+                    /* On the parent's section at s, as the rings' plane
+                     * positions are measured (grid_coords), not on the drawn
+                     * quad's edge: a parent's first ring is moved onto its
+                     * own parent, so its first quads leave the sections. */
+                    long r = q0;
+                    while (r < q1 && ps->ss[pidx[r + 1]] <= s) r++;
+                    float sa = ps->ss[pidx[r]], sb = ps->ss[pidx[r + 1]], f = sb > sa ? (s - sa) / (sb - sa) : 0;
+                    size_t va = vbase + (size_t)r * row + (size_t)jj, vb = va + row;
+                    float c3[3], T[3], N[3], B[3], R, v2[2], x[3];
+                    sy_stem_frame_at(ps, pidx, np, s, c3, T, N, &R);
+                    sy_cross3(T, N, B);
+                    section_vertex(ps, P, R, jj, v2);
+                    for (int c = 0; c < 3; c++) x[c] = c3[c] + v2[0] * N[c] + v2[1] * B[c];
+                    sy_to_yup(x, sp->pos + 3 * n);
+                    for (int c = 0; c < 4; c++)
+                        sp->ww[4 * n + c] = m->wind_w[4 * va + c] + f * (m->wind_w[4 * vb + c] - m->wind_w[4 * va + c]);
+                    sp->wb[n] = m->wind_branch[va];
+                    up[nu] = (weld_pt){u, s, WELD_STEINER_ID0 + (uint32_t)n, -1 - (int)n};
+                    nt = insert_point(loc, nt, cap, up, (uint32_t)nu);
+                    nu++;
+                }
+                n++;
+            }
+        }
+        if (pass == 2) sp->n = n < WELD_MAX_STEINER ? n : WELD_MAX_STEINER;
+        else if (n > WELD_MAX_STEINER) spacing *= 1.25f * (float)n / (float)WELD_MAX_STEINER;
+        else pass = 1; /* the spacing holds: place them */
+    }
+    /* Back to vertex ids; the points join pts after the polygon. */
+    int ok = n_poly + sp->n <= pts_cap;
+    for (size_t f = 0; ok && f < 3 * nt; f++) extra[f] = up[loc[f]].id;
+    for (size_t k = 0; ok && k < sp->n; k++) pts[n_poly + k] = up[nu - sp->n + k];
+    free(up), free(loc);
+    if (!ok) return 0;
+    *n_all = n_poly + sp->n;
+    return nt;
+}
+
 /* A strip fills its polygon exactly once: every directed edge occurs once,
  * and each is either on the polygon's boundary (pts, in order, its bridges
  * included) or matched by its reverse. Vertices compare by position (the
  * seams' copies are distinct vertices at one place). */
-static int same_at(const float *pos, uint32_t a, uint32_t b)
+static int same_at(const sy_mesh *m, const weld_steiner *sp, uint32_t a, uint32_t b)
 {
-    return a == b || (pos[3 * a] == pos[3 * b] && pos[3 * a + 1] == pos[3 * b + 1] && pos[3 * a + 2] == pos[3 * b + 2]);
+    if (a == b) return 1;
+    const float *x = strip_pos(m, sp, a), *y = strip_pos(m, sp, b);
+    return x[0] == y[0] && x[1] == y[1] && x[2] == y[2];
 }
 
-static int strip_valid(const uint32_t *tri, size_t t, const weld_pt *pts, size_t n, const float *pos)
+static int strip_valid(const uint32_t *tri, size_t t, const weld_pt *pts, size_t n, const sy_mesh *m,
+                       const weld_steiner *sp)
 {
     for (size_t f = 0; f < 3 * t; f++) {
         size_t base = f - f % 3;
         uint32_t x = tri[f], y = tri[base + (f - base + 1) % 3];
-        if (same_at(pos, x, y)) return 0;
+        if (same_at(m, sp, x, y)) return 0;
         int twice = 0, reverse = 0, boundary = 0;
         for (size_t g = 0; g < 3 * t; g++) {
             size_t gb = g - g % 3;
             uint32_t u = tri[g], v = tri[gb + (g - gb + 1) % 3];
-            twice += g != f && same_at(pos, u, x) && same_at(pos, v, y);
-            reverse += same_at(pos, u, y) && same_at(pos, v, x);
+            twice += g != f && same_at(m, sp, u, x) && same_at(m, sp, v, y);
+            reverse += same_at(m, sp, u, y) && same_at(m, sp, v, x);
         }
         for (size_t i = 0; i < n && !boundary; i++) boundary = pts[i].id == x && pts[(i + 1) % n].id == y;
         if (twice || reverse > 1 || !(reverse || boundary)) return 0;
@@ -726,7 +996,8 @@ static void strip_verts_free(strip_verts *vb)
 
 static int strip_copies(const sy_stems *st, const int32_t *g, size_t ng, const sy_lod_params *lp, const sy_mesh *m,
                         const size_t *vo, const sy_stem *ps, const int32_t *pidx, size_t np, float s_mid, float arc,
-                        int P, const weld_pt *pts, size_t n_pts, uint32_t *tri, size_t t, strip_verts *vb)
+                        int P, const weld_pt *pts, size_t n_pts, const weld_steiner *sp, uint32_t *tri, size_t t,
+                        strip_verts *vb)
 {
     uint32_t *made = malloc((n_pts + 1) * sizeof *made);
     if (!made || !strip_verts_grow(vb, n_pts)) {
@@ -751,15 +1022,20 @@ static int strip_copies(const sy_stems *st, const int32_t *g, size_t ng, const s
         if (made[i] == UINT32_MAX) {
             size_t w = vb->n++;
             const weld_pt *q = &pts[i];
-            memcpy(vb->pos + 3 * w, m->position + 3 * id, 3 * sizeof(float));
-            memcpy(vb->ww + 4 * w, m->wind_w + 4 * id, 4 * sizeof(float));
-            vb->wb[w] = m->wind_branch[id];
+            memcpy(vb->pos + 3 * w, strip_pos(m, sp, id), 3 * sizeof(float));
+            if (id >= WELD_STEINER_ID0) {
+                memcpy(vb->ww + 4 * w, sp->ww + 4 * (size_t)(id - WELD_STEINER_ID0), 4 * sizeof(float));
+                vb->wb[w] = sp->wb[id - WELD_STEINER_ID0];
+            } else {
+                memcpy(vb->ww + 4 * w, m->wind_w + 4 * id, 4 * sizeof(float));
+                vb->wb[w] = m->wind_branch[id];
+            }
             vb->uv[2 * w] = q->u / arc / (float)P, vb->uv[2 * w + 1] = q->s * vscale;
             if (q->loop == 0) {
                 memcpy(vb->nrm + 3 * w, m->normal + 3 * id, 3 * sizeof(float));
                 memcpy(vb->tan + 4 * w, m->tangent + 4 * id, 4 * sizeof(float));
             } else {
-                const float *y = m->position + 3 * id;
+                const float *y = strip_pos(m, sp, id);
                 float x[3] = {y[0], -y[2], y[1]}, c[3], T[3], N[3], R, s = q->s;
                 sy_stem_frame_at(ps, pidx, np, s, c, T, N, &R);
                 float r[3] = {x[0] - c[0], x[1] - c[1], x[2] - c[2]}, d = sy_dot3(r, T), e[3];
@@ -782,6 +1058,27 @@ static int strip_copies(const sy_stems *st, const int32_t *g, size_t ng, const s
 
 #define WELD_MAX_GROUP 64
 
+
+/* Does the strip fold? Every triangle must face away from the parent's
+ * axis (the outward radial at its centroid). Comparing with the normals of
+ * its corners on the parent's boundary instead refused sound triangles
+ * that span a wide hole on a six-sided parent (a corner normal is 30
+ * degrees off each face), and let triangles between ring vertices alone go
+ * unchecked. */
+static int strip_folds(const uint32_t *tri, size_t t, const sy_mesh *m, const weld_steiner *sp, const sy_stem *ps,
+                       const int32_t *pidx, size_t np, float s_mid)
+{
+    for (size_t f = 0; f < t; f++) {
+        const uint32_t *x = tri + 3 * f;
+        const float *a = strip_pos(m, sp, x[0]), *b = strip_pos(m, sp, x[1]), *c = strip_pos(m, sp, x[2]);
+        float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]}, gn[3];
+        sy_cross3(e1, e2, gn);
+        float g[3] = {(a[0] + b[0] + c[0]) / 3, (a[1] + b[1] + c[1]) / 3, (a[2] + b[2] + c[2]) / 3}, ref_n[3];
+        parent_radial(ps, pidx, np, g, s_mid, ref_n);
+        if (!(sy_dot3(gn, ref_n) > 0)) return 1;
+    }
+    return 0;
+}
 
 /* Welds the group of children g[0..ng) of one parent into the parent's
  * quads [q0, q1] x [c0, c1] (columns unwrapped about the rectangle): cuts them (marked in cut; NULL
@@ -811,7 +1108,9 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
 #define PUSH(r, j)                                                                                          \
     do {                                                                                                    \
         poly.v[poly.n].id = (uint32_t)(vo[p] + (size_t)(r) * row + (size_t)((((j) % P) + P) % P));          \
-        poly.v[poly.n].u = (float)(j) * arc, poly.v[poly.n].s = ps->ss[pidx[r]], poly.v[poly.n++].loop = 0;  \
+        poly.v[poly.n].u = (float)(j) * arc;                                                                \
+        poly.v[poly.n].s = grid_vertex_s(ps, pidx, r, m->position + 3 * (size_t)poly.v[poly.n].id);         \
+        poly.v[poly.n++].loop = 0;                                                                          \
     } while (0)
     for (int j = c0; j < c1 + 1; j++) PUSH(q0, j);
     for (long r = q0; r < q1 + 1; r++) PUSH(r, c1 + 1);
@@ -884,8 +1183,17 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
     if (!clipped) return 0;
     memcpy(clipped, extra, 3 * t * sizeof *clipped);
     delaunay_flips(extra, t, pts, n_pts);
-    if (!strip_valid(extra, t, pts, n_pts, m->position)) memcpy(extra, clipped, 3 * t * sizeof *clipped);
+    if (!strip_valid(extra, t, pts, n_pts, m, NULL)) memcpy(extra, clipped, 3 * t * sizeof *clipped);
     free(clipped);
+    size_t n_all = n_pts;
+    weld_steiner sp;
+    sp.n = 0;
+    if (strip_folds(extra, t, m, NULL, ps, pidx, np, s_mid)) {
+        t = weld_refine(extra, t, extra_cap, pts, n_pts, scratch_cap - (size_t)(pts - scratch), &n_all, hp, hn, ng, ps,
+                        pidx, m, vo[p], P, q0, q1, c0, c1, arc, &sp, np);
+        if (!t || !strip_valid(extra, t, pts, n_pts, m, &sp) || strip_folds(extra, t, m, &sp, ps, pidx, np, s_mid))
+            return 0;
+    }
     /* A ring's last vertex pairs with its seam copy, not with vertex 0. */
     for (size_t f = 0; f < t; f++)
         for (size_t k = 0; k < ng; k++) {
@@ -895,22 +1203,7 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
                 for (int c = 0; c < 3; c++)
                     if (x[c] == r0) x[c] = r0 + (uint32_t)hn[k];
         }
-    /* No folds: every strip triangle faces away from the parent's axis
-     * (the outward radial at its centroid). Comparing with the normals of
-     * its corners on the parent's boundary instead refused sound triangles
-     * that span a wide hole on a six-sided parent (a corner normal is 30
-     * degrees off each face), and let triangles between ring vertices
-     * alone go unchecked. */
-    for (size_t f = 0; f < t; f++) {
-        const uint32_t *x = extra + 3 * f;
-        const float *a = m->position + 3 * x[0], *b = m->position + 3 * x[1], *c = m->position + 3 * x[2];
-        float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]}, gn[3];
-        sy_cross3(e1, e2, gn);
-        float g[3] = {(a[0] + b[0] + c[0]) / 3, (a[1] + b[1] + c[1]) / 3, (a[2] + b[2] + c[2]) / 3}, ref_n[3];
-        parent_radial(ps, pidx, np, g, s_mid, ref_n);
-        if (!(sy_dot3(gn, ref_n) > 0)) return 0;
-    }
-    if (vb && !strip_copies(st, g, ng, lp, m, vo, ps, pidx, np, s_mid, arc, P, pts, n_pts, extra, t, vb)) return 0;
+    if (vb && !strip_copies(st, g, ng, lp, m, vo, ps, pidx, np, s_mid, arc, P, pts, n_all, &sp, extra, t, vb)) return 0;
     if (cut)
         for (long r = q0; r <= q1; r++)
             for (int j = c0; j <= c1; j++) {
