@@ -25,6 +25,7 @@
 #include "stages/core/json.h"
 #include "stages/core/progress.h"
 #include "stages/encode/encode.h"
+#include "stages/core/sort.h"
 #include "stages/eval/eval.h"
 #include "stages/gltf/gltf_read.h"
 #include "stages/ingest/ingest.h"
@@ -88,12 +89,6 @@ sy_code sy_batch_record_failure(const sy_batch_input *in, const char *out_dir, c
 
 /* 5-95 % extent along x and y, averaged: the crown width as the silhouette
  * metric measures it (docs/eval.md). */
-static int cmp_d(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
 static double crown_width(const double *pts, size_t n)
 {
     if (n < 10) return NAN;
@@ -102,8 +97,8 @@ static double crown_width(const double *pts, size_t n)
     double w = 0;
     for (int axis = 0; axis < 2; axis++) {
         for (size_t i = 0; i < n; i++) v[i] = pts[3 * i + axis];
-        qsort(v, n, sizeof *v, cmp_d);
-        w += v[(size_t)(0.95 * (double)(n - 1))] - v[(size_t)(0.05 * (double)(n - 1))];
+        double hi = sy_select_double(v, n, (size_t)(0.95 * (double)(n - 1)));
+        w += hi - sy_select_double(v, n, (size_t)(0.05 * (double)(n - 1)));
     }
     free(v);
     return w / 2;

@@ -10,6 +10,8 @@
 #include "stages/core/fileio.h"
 #include "stages/core/json.h"
 #include "stages/core/parallel.h"
+#include "stages/core/rng.h"
+#include "stages/core/sort.h"
 
 static void filter_keeps_every_array_aligned(void **state)
 {
@@ -141,6 +143,42 @@ typedef struct {
     double partial[64];
 } sum_ctx;
 
+/* The selection gives the sorted array's k-th value, with the rest split
+ * round it, and the quantile what a sort gives, on runs of equal values,
+ * sorted and reversed input and small arrays. */
+static void select_matches_a_sort(void **state)
+{
+    (void)state;
+    uint64_t rng = 7;
+    for (int trial = 0; trial < 60; trial++) {
+        size_t n = trial < 20 ? (size_t)trial + 1 : 100 + 37 * (size_t)trial;
+        double *v = malloc(n * sizeof *v), *w = malloc(n * sizeof *w), *x = malloc(n * sizeof *x);
+        for (size_t i = 0; i < n; i++) {
+            double r = (double)(sy_splitmix64(&rng) % 1000);
+            v[i] = trial % 4 == 1 ? (double)i : trial % 4 == 2 ? (double)(n - i) : trial % 4 == 3 ? r / 100 : floor(r / 250);
+        }
+        memcpy(w, v, n * sizeof *v);
+        qsort(w, n, sizeof *w, sy_cmp_double);
+        size_t ks[] = {0, n / 20, n / 2, (19 * n) / 20, n - 1};
+        for (int q = 0; q < 5; q++) {
+            memcpy(x, v, n * sizeof *v);
+            size_t k = ks[q];
+            assert_true(sy_select_double(x, n, k) == w[k]);
+            assert_true(x[k] == w[k]);
+            for (size_t i = 0; i < n; i++) assert_true(i < k ? x[i] <= x[k] : i > k ? x[i] >= x[k] : 1);
+        }
+        for (double qq = 0; qq <= 1.0; qq += 0.05) {
+            memcpy(x, v, n * sizeof *v);
+            double pos = qq * (double)(n - 1), f = pos - floor(pos);
+            size_t i = (size_t)pos;
+            double want = i + 1 < n ? w[i] * (1 - f) + w[i + 1] * f : w[i];
+            assert_true(sy_quantile_double(x, n, qq) == want);
+        }
+        free(v), free(w), free(x);
+    }
+    assert_true(isnan(sy_quantile_double(NULL, 0, 0.5)));
+}
+
 static void sum_chunk(void *ctx, size_t b, size_t e, size_t chunk)
 {
     double s = 0;
@@ -172,6 +210,7 @@ int main(void)
         cmocka_unit_test(atomic_write_leaves_nothing_on_abort),
         cmocka_unit_test(json_nests_and_escapes),
         cmocka_unit_test(parallel_result_independent_of_threads),
+        cmocka_unit_test(select_matches_a_sort),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

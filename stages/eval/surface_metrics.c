@@ -430,10 +430,9 @@ sy_code sy_surface_metrics_compute(const sy_eval_model *m, const double *pts, si
     out->hausdorff = mx;
     out->coverage_eps = coverage_eps;
     out->coverage = sy_coverage(dist, n, coverage_eps);
-    qsort(dist, n, sizeof *dist, sy_cmp_double);
     /* Nearest-rank 95th percentile. */
     size_t rank = (size_t)ceil(0.95 * (double)n);
-    out->p95_distance = dist[rank ? rank - 1 : 0];
+    out->p95_distance = sy_select_double(dist, n, rank ? rank - 1 : 0);
     free(dist);
     rc = model_to_points(&P, pts, n, spacing, &out->hausdorff_model_to_points, &out->n_model_samples, err);
     prims_free(&P);
