@@ -121,16 +121,19 @@ if [[ $only == all || $only == kills ]]; then
     rm -rf "$work/kref" "$work/kkill"
     t0=$(date +%s%N)
     nice -n "$niceness" "$sylva" batch "$kin" -o "$work/kref" --workers 2 --no-eval --no-thumbnails --quiet
-    # Each run resumes the last: a kill drawn in 0.1 s .. 2 x (the uninterrupted run's wall time) /
-    # kills lets the batch get on by about 1/kills of its work, so the kills spread over the whole
-    # run (every phase of every tree) instead of the first few finishing it.
+    # Each run resumes the last, killed at a moment drawn over the whole of an uninterrupted run,
+    # so the kills land in every phase: start-up, a tree's stages, a record's commit, and (once
+    # the batch is complete) a resume with nothing to do. A killed tree starts again on resume.
     span=$((($(date +%s%N) - t0) / 1000000))
-    reach=$((2 * span / kills > 200 ? 2 * span / kills : 200))
-    echo "  uninterrupted run: $((span / 1000)) s wall (load $(cut -d' ' -f1 /proc/loadavg)); kills drawn in 0.1 .. $reach ms after each start"
+    total=$(ls "$work"/kref/trees/*.json | wc -l)
+    echo "  uninterrupted run: $((span / 1000)) s wall (load $(cut -d' ' -f1 /proc/loadavg)), $total trees; kills drawn in 0.1 .. $((span / 1000)) s after each start"
+    mid=0
     RANDOM=20
     moments=()
     for ((k = 0; k < kills; k++)); do
-        ms=$((100 + RANDOM % (reach - 99)))
+        ms=$((100 + (RANDOM * 32768 + RANDOM) % (span - 99)))
+        before=$(ls "$work"/kkill/trees/*.json 2> /dev/null | wc -l)
+        [[ $before -lt $total ]] && mid=$((mid + 1))
         moments+=("$ms")
         nice -n "$niceness" "$sylva" batch "$kin" -o "$work/kkill" --workers 2 --no-eval --no-thumbnails --quiet &
         pid=$!
@@ -140,6 +143,7 @@ if [[ $only == all || $only == kills ]]; then
         done_now=$(ls "$work"/kkill/trees/*.json 2> /dev/null | wc -l)
         echo "  kill $((k + 1)) at $ms ms: $done_now records so far"
     done
+    echo "  $mid of $kills kills landed while trees were still to run"
     # The resume starts at once: the killed workers may still be unreaped (sy_process_gone).
     nice -n "$niceness" "$sylva" batch "$kin" -o "$work/kkill" --workers 2 --no-eval --no-thumbnails --quiet
     same() {

@@ -91,11 +91,11 @@ int main(int argc, char **argv)
     for (size_t k = 0; k < sizeof cases / sizeof *cases; k++) {
         const plot_case *pc = &cases[k];
         sy_scene_options so = sy_scene_options_default();
-        if (pc->mix == 0) {
-            so.species[0] = "quaking_aspen";
-            so.species[1] = "european_pine";
-            so.n_species = 2;
-        }
+        /* The scene options name no species by default: each case names its mix. */
+        so.species[0] = "quaking_aspen";
+        so.species[1] = "european_pine";
+        so.n_species = 2;
+        if (pc->mix == 1) so.species[2] = "black_oak", so.n_species = 3;
         so.plot_size = pc->size;
         so.trees = pc->trees;
         so.seed = pc->seed;
