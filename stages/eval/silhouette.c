@@ -233,8 +233,8 @@ static double *sample_triangles(const double *tri, size_t n_tri, double step, si
         double area = 0.5 * sqrt(cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]);
         double height = len[e] > 0 ? 2 * area / len[e] : 0;
         long rows = (long)ceil(height / step), per = (long)ceil(len[e] / step);
-        if (rows > 400) rows = 400;
-        if (per > 400) per = 400;
+        if (rows > 200) rows = 200;
+        if (per > 200) per = 200;
         size_t need = (size_t)((rows + 1) * (per + 2));
         if (n + need > cap) {
             while (n + need > cap) cap *= 2;
@@ -251,6 +251,7 @@ static double *sample_triangles(const double *tri, size_t n_tri, double step, si
             double f = rows ? (double)r / (double)rows : 0, p0[3], p1[3];
             for (int k = 0; k < 3; k++) p0[k] = a[k] + f * (c[k] - a[k]), p1[k] = b[k] + f * (c[k] - b[k]);
             long m = (long)ceil((1 - f) * len[e] / step);
+            if (m > per) m = per;
             if (m < 1) m = 1;
             if (r == rows && rows > 0) m = 0;
             for (long i = 0; i <= m; i++) {
