@@ -25,7 +25,12 @@
 #include "viewer/shaders.h"
 #include "viewer/sky.h"
 
-#define SHADOW_SIZE 2048
+/* The shadow map: twice the image's larger side, a power of two from 512 to
+ * 2048 (the thesis's 2048 for a window or a 1280 x 720 shot; a 256-pixel
+ * batch thumbnail drew and sampled 16 times the texels it could show, most of
+ * its software-rendered frame). The shaders read its size (textureSize). */
+#define SHADOW_MIN 512
+#define SHADOW_MAX 2048
 #define LOD_BAND 0.1 /* cross-fade over +-10 % of each MSFT_screencoverage threshold */
 #define FOVY_DEG 45.0
 
@@ -191,6 +196,7 @@ typedef struct {
     sy_motion motion;
     sy_sky sky;
     GLuint shadow_fbo, shadow_depth;
+    int shadow_size;
     mat4 shadow_matrix;
     GLuint fbo, fbo_color, fbo_depth;
     GLuint ground_vao, ground_vbo, empty_vao;
@@ -477,9 +483,13 @@ static int setup_targets(renderer *r)
 
 static void setup_shadow(renderer *r)
 {
+    int side = r->width > r->height ? r->width : r->height;
+    r->shadow_size = SHADOW_MIN;
+    while (r->shadow_size < 2 * side && r->shadow_size < SHADOW_MAX) r->shadow_size *= 2;
     glGenTextures(1, &r->shadow_depth);
     glBindTexture(GL_TEXTURE_2D, r->shadow_depth);
-    glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT24, SHADOW_SIZE, SHADOW_SIZE, 0, GL_DEPTH_COMPONENT, GL_FLOAT, NULL);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT24, r->shadow_size, r->shadow_size, 0, GL_DEPTH_COMPONENT, GL_FLOAT,
+                 NULL);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
@@ -903,7 +913,7 @@ static void shadow_pass(renderer *r, double time)
     bias.m[12] = bias.m[13] = bias.m[14] = 0.5f;
     r->shadow_matrix = m4_mul(bias, vp);
     glBindFramebuffer(GL_FRAMEBUFFER, r->shadow_fbo);
-    glViewport(0, 0, SHADOW_SIZE, SHADOW_SIZE);
+    glViewport(0, 0, r->shadow_size, r->shadow_size);
     glClear(GL_DEPTH_BUFFER_BIT);
     glEnable(GL_DEPTH_TEST);
     glEnable(GL_POLYGON_OFFSET_FILL);
