@@ -414,8 +414,8 @@ static void grid_coords(const sy_stem *p, const int32_t *pidx, size_t np, int P,
  * ring r: the ring's own, but a junction's first ring was pushed along its
  * tangent onto its own parent, each vertex by its own distance, so its
  * vertices sit that far along the stem (the quads above them are drawn from
- * there; a hole measured from the ring's arc length folded in a third of the
- * junctions on a branch's first quads). */
+ * there; measured at the ring's own arc length, a hole's corners there were
+ * centimetres off the drawn quads in the plane). */
 static float grid_vertex_s(const sy_stem *p, const int32_t *pidx, long r, const float xy[3])
 {
     size_t k = (size_t)pidx[r];
