@@ -843,9 +843,10 @@ static size_t weld_refine(uint32_t *extra, size_t t, size_t extra_cap, weld_pt *
     float s_min = ps->ss[pidx[q0]], s_max = ps->ss[pidx[q1 + 1]];
     s_lo = fmaxf(s_lo - arc, s_min), s_hi = fminf(s_hi + arc, s_max);
     /* About a column apart; wider when that would be more points than the
-     * room (the count falls as the spacing grows). */
+     * room (the count falls as the spacing grows). A pass counts them, the
+     * last places them. */
     float spacing = arc, keep = 0.5f * arc;
-    for (int pass = 0; pass < 3; pass++) {
+    for (int pass = 0, placing = 0;; pass++) {
         size_t n = 0;
         int k = (int)ceilf((s_hi - s_lo) / spacing);
         for (int j = c0 + 1; j <= c1; j++) {
@@ -861,7 +862,7 @@ static size_t weld_refine(uint32_t *extra, size_t t, size_t extra_cap, weld_pt *
                         clear = seg_dist2(&hp[g][e], &hp[g][(e + 1) % hn[g]], u, s) >= keep * keep;
                 }
                 if (!clear) continue;
-                if (pass == 2 && n < WELD_MAX_STEINER) {
+                if (placing && n < WELD_MAX_STEINER) {
                     /* On the parent's section at s, as the rings' plane
                      * positions are measured (grid_coords), not on the drawn
                      * quad's edge: a parent's first ring is moved onto its
@@ -886,9 +887,13 @@ static size_t weld_refine(uint32_t *extra, size_t t, size_t extra_cap, weld_pt *
                 n++;
             }
         }
-        if (pass == 2) sp->n = n < WELD_MAX_STEINER ? n : WELD_MAX_STEINER;
-        else if (n > WELD_MAX_STEINER) spacing *= 1.25f * (float)n / (float)WELD_MAX_STEINER;
-        else pass = 1; /* the spacing holds: place them */
+        if (placing) {
+            sp->n = n < WELD_MAX_STEINER ? n : WELD_MAX_STEINER;
+            break;
+        }
+        /* Counted: place them at this spacing, or widen it (twice at most). */
+        if (n > WELD_MAX_STEINER && pass < 2) spacing *= 1.25f * (float)n / (float)WELD_MAX_STEINER;
+        else placing = 1;
     }
     /* Back to vertex ids; the points join pts after the polygon. */
     int ok = n_poly + sp->n <= pts_cap;
