@@ -11,7 +11,10 @@
 
 #include <cmocka.h>
 
+#define PI 3.14159265358979323846
+
 #include "stages/core/parallel.h"
+#include "stages/core/rng.h"
 #include "stages/eval/eval.h"
 #include "stages/scan/scan.h"
 #include "stages/segment/segment.h"
@@ -240,6 +243,58 @@ static void hostile_clouds(void **state)
     sy_cloud_free(&c);
 }
 
+/* A trunk, and beside it a column of leaves hanging to the ground (an oak's
+ * drooping limb): leaves 20 cm across facing every way, their centres on a
+ * 0.25 m cylinder. The column's outside fits a circle and passes every test
+ * of a trunk's section (full arc, empty inside, upright, standing on the
+ * ground) but the bark test: it is no thin sheet facing away from the
+ * centre. */
+static void leaf_columns_are_not_stems(void **state)
+{
+    (void)state;
+    const size_t ground = 200 * 200, trunk = 180 * 200, leaves = 120, per_leaf = 80;
+    sy_cloud c;
+    sy_error err = {0};
+    assert_int_equal(sy_cloud_init(&c, ground + trunk + leaves * per_leaf, &err), SY_OK);
+    float *p = c.xyz;
+    for (size_t i = 0; i < ground; i++, p += 3) p[0] = (float)(i % 200) * 0.05f, p[1] = (float)(i / 200) * 0.05f, p[2] = 0;
+    for (size_t i = 0; i < trunk; i++, p += 3) {
+        double a = (double)(i % 180) * 2 * PI / 180, z = (double)(i / 180) * 0.02;
+        p[0] = (float)(3 + 0.2 * cos(a)), p[1] = (float)(3 + 0.2 * sin(a)), p[2] = (float)z;
+    }
+    uint64_t rng = 11;
+    for (size_t k = 0; k < leaves; k++) {
+        double a = 2 * PI * sy_unit53(sy_splitmix64(&rng)), z = 0.2 + 2.3 * sy_unit53(sy_splitmix64(&rng));
+        double centre[3] = {7 + 0.25 * cos(a), 7 + 0.25 * sin(a), z};
+        /* A random unit normal and two axes in the leaf's plane. */
+        double nz = 2 * sy_unit53(sy_splitmix64(&rng)) - 1, phi = 2 * PI * sy_unit53(sy_splitmix64(&rng));
+        double n[3] = {sqrt(1 - nz * nz) * cos(phi), sqrt(1 - nz * nz) * sin(phi), nz};
+        double u[3] = {-n[1], n[0], 0}, lu = hypot(u[0], u[1]);
+        if (lu < 1e-6) u[0] = 1, u[1] = 0, lu = 1;
+        u[0] /= lu, u[1] /= lu;
+        double v[3] = {n[1] * u[2] - n[2] * u[1], n[2] * u[0] - n[0] * u[2], n[0] * u[1] - n[1] * u[0]};
+        for (size_t j = 0; j < per_leaf; j++, p += 3) {
+            double r = 0.1 * sqrt(sy_unit53(sy_splitmix64(&rng))), t = 2 * PI * sy_unit53(sy_splitmix64(&rng));
+            for (int d = 0; d < 3; d++) p[d] = (float)(centre[d] + r * (cos(t) * u[d] + sin(t) * v[d]));
+        }
+    }
+    sy_segment_options o = sy_segment_options_default();
+    o.method = SY_SEGMENT_TERRESTRIAL;
+    sy_segmentation s;
+    assert_int_equal(sy_segment(&c, &o, &s, &err), SY_OK);
+    check_accounting(&s);
+    assert_int_equal(s.n_trees, 1);
+    assert_true(hypot(s.trees[0].stem[0] - 3, s.trees[0].stem[1] - 3) < 0.05);
+    assert_true(fabs(s.trees[0].dbh - 0.4) < 0.02);
+    sy_segmentation_free(&s);
+    /* Without the bark test the column is a second stem: the test sees it. */
+    o.min_facing = 0;
+    assert_int_equal(sy_segment(&c, &o, &s, &err), SY_OK);
+    assert_int_equal(s.n_trees, 2);
+    sy_segmentation_free(&s);
+    sy_cloud_free(&c);
+}
+
 static void options_are_checked(void **state)
 {
     (void)state;
@@ -256,6 +311,13 @@ static void options_are_checked(void **state)
     o.chm_cell = NAN;
     assert_int_equal(sy_segment_options_check(&o, &err), SY_EUSAGE);
     o = sy_segment_options_default();
+    o.min_facing = 1.5;
+    assert_int_equal(sy_segment_options_check(&o, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "min_facing"));
+    o = sy_segment_options_default();
+    o.single_band_arc = -0.1;
+    assert_int_equal(sy_segment_options_check(&o, &err), SY_EUSAGE);
+    o = sy_segment_options_default();
     o.method = (sy_segment_method)7;
     assert_int_equal(sy_segment_options_check(&o, &err), SY_EUSAGE);
     sy_segment_method m;
@@ -269,6 +331,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(options_are_checked),
         cmocka_unit_test(hostile_clouds),
+        cmocka_unit_test(leaf_columns_are_not_stems),
         cmocka_unit_test(terrestrial_plot_scores),
         cmocka_unit_test(airborne_plot_scores),
         cmocka_unit_test(single_tree_is_not_a_plot),

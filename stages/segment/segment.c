@@ -44,6 +44,8 @@ sy_segment_options sy_segment_options_default(void)
     o.stem_min_points = 30;
     o.stem_cluster_gap = 0.1;
     o.min_arc = 0.35;
+    o.single_band_arc = 0.5;
+    o.min_facing = 0.5;
     o.voxel = 0.15;
     o.graph_reach = 2;
     o.gap_penalty = 1.0;
@@ -82,6 +84,8 @@ sy_code sy_segment_options_check(const sy_segment_options *o, sy_error *err)
     else if (o->stem_min_points < 5 || o->stem_min_points > 100000) bad = "stem_min_points: must be 5..100000";
     else if (!positive(o->stem_cluster_gap) || o->stem_cluster_gap > 2) bad = "stem_cluster_gap: must be in (0, 2] metres";
     else if (!(o->min_arc >= 0 && o->min_arc <= 1)) bad = "min_arc: must be in [0, 1]";
+    else if (!(o->single_band_arc >= 0 && o->single_band_arc <= 1)) bad = "single_band_arc: must be in [0, 1]";
+    else if (!(o->min_facing >= 0 && o->min_facing <= 1)) bad = "min_facing: must be in [0, 1]";
     else if (!(o->voxel >= 0.01 && o->voxel <= 5)) bad = "voxel: must be in [0.01, 5] metres";
     else if (o->graph_reach < 1 || o->graph_reach > 4) bad = "graph_reach: must be 1..4 voxels";
     else if (!(o->gap_penalty >= 0 && o->gap_penalty <= 8)) bad = "gap_penalty: must be in [0, 8]";

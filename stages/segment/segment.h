@@ -51,6 +51,8 @@ typedef struct {
     size_t stem_min_points;    /* points a stem circle needs within the tolerance (30) */
     double stem_cluster_gap;   /* slice points closer than this join one stem candidate, metres (0.1) */
     double min_arc;            /* fraction of the circle the inliers must surround (0.35) */
+    double single_band_arc;    /* ... when only one of the two bands shows the circle (0.5) */
+    double min_facing;         /* share of inliers whose local surface faces away from the centre (0.5) */
     /* crowns (terrestrial) */
     double voxel;              /* graph voxel edge, metres (0.15) */
     int graph_reach;           /* neighbours up to this many voxels away along each axis (2) */

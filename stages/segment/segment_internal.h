@@ -25,6 +25,8 @@ typedef struct {
     int band;          /* 0: the band under breast height, 1: breast height */
     double dbh;        /* diameter of the breast-height circle, else of this one */
     double ground_z;   /* local z of the ground under it */
+    double arc;        /* fraction of the circle its inliers surround */
+    int both_bands;    /* a circle of the other band agrees with it */
 } seg_stem;
 
 /* Stems as circles in the breast-height band; *stems malloc'd, sorted by

@@ -11,11 +11,15 @@
 #include <string.h>
 
 #include "segment_internal.h"
+#include "stages/core/geometry.h"
 #include "stages/core/voxel.h"
 #include "stages/skeleton/skeleton.h"
 
 #define PI 3.14159265358979323846
 #define ARC_BINS 16
+/* Bark is a thin sheet at the scale the normals are taken on: its spread
+ * across the surface at most this fraction of the spread along it. */
+#define BARK_THIN 0.5
 /* Two stems closer than this bark to bark are one tree forking (metres). */
 #define FORK_GAP 0.6
 
@@ -66,6 +70,48 @@ static sy_code stem_push(stem_list *l, const seg_stem *s, sy_error *err)
     return SY_OK;
 }
 
+/* Share of a circle's inliers that look like bark: the local surface (the
+ * principal axes of the cluster's points within `reach` in 3-D, x, y and
+ * height) is a thin sheet whose normal, the least-spread axis, points away
+ * from the circle's centre. A trunk's section is such a surface; the
+ * outside of a column of hanging leaves is opaque too and fits a circle
+ * just as well, but its leaves face every way and lie several deep. Up to
+ * 64 inliers, evenly spread, are asked; those with fewer than 6 neighbours
+ * cannot answer. Returns 1 when fewer than 8 can (a sparse scan: no
+ * evidence either way). */
+static double bark_share(const double *xy, const double *hz, size_t m, const double c[2], double r, double tol,
+                             double reach)
+{
+    size_t inl = 0;
+    for (size_t i = 0; i < m; i++) inl += fabs(hypot(xy[2 * i] - c[0], xy[2 * i + 1] - c[1]) - r) <= tol;
+    size_t step = inl > 64 ? inl / 64 : 1, seen = 0, asked = 0, facing = 0;
+    for (size_t i = 0; i < m; i++) {
+        double rx = xy[2 * i] - c[0], ry = xy[2 * i + 1] - c[1], d = hypot(rx, ry);
+        if (fabs(d - r) > tol || seen++ % step || d <= 0) continue;
+        double mean[3] = {0, 0, 0}, cov[6] = {0};
+        size_t k = 0;
+        for (size_t j = 0; j < m; j++) {
+            double q[3] = {xy[2 * j] - xy[2 * i], xy[2 * j + 1] - xy[2 * i + 1], hz[j] - hz[i]};
+            if (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] > reach * reach) continue;
+            for (int a = 0; a < 3; a++) mean[a] += q[a];
+            cov[0] += q[0] * q[0], cov[1] += q[0] * q[1], cov[2] += q[0] * q[2];
+            cov[3] += q[1] * q[1], cov[4] += q[1] * q[2], cov[5] += q[2] * q[2];
+            k++;
+        }
+        if (k < 6) continue;
+        for (int a = 0; a < 3; a++) mean[a] /= (double)k;
+        cov[0] = cov[0] / (double)k - mean[0] * mean[0], cov[1] = cov[1] / (double)k - mean[0] * mean[1];
+        cov[2] = cov[2] / (double)k - mean[0] * mean[2], cov[3] = cov[3] / (double)k - mean[1] * mean[1];
+        cov[4] = cov[4] / (double)k - mean[1] * mean[2], cov[5] = cov[5] / (double)k - mean[2] * mean[2];
+        double l[3], v[9];
+        sy_sym3_eigen(cov, l, v);
+        /* The normal: the eigenvector of the smallest eigenvalue (column 2). */
+        asked++;
+        facing += fabs(v[2] * rx + v[5] * ry) / d >= 0.8 && sqrt(l[2]) <= BARK_THIN * sqrt(l[1]);
+    }
+    return asked < 8 ? 1.0 : (double)facing / (double)asked;
+}
+
 /* Tries circles in one cluster's points (xy pairs, z-ground below) until
  * none fits; accepted ones are appended. */
 static sy_code fit_cluster(double *xy, double *gz, double *hz, size_t m, double centre, const sy_segment_options *o,
@@ -101,8 +147,10 @@ static sy_code fit_cluster(double *xy, double *gz, double *hz, size_t m, double 
         int ok = r >= o->stem_min_radius && r <= o->stem_max_radius && inl >= o->stem_min_points &&
                  (double)arc / ARC_BINS >= o->min_arc && (double)inside <= 0.25 * (double)inl &&
                  drift <= 0.05 + 0.5 * r;
+        if (ok) ok = bark_share(xy, hz, m, c, r, tol, fmin(fmax(0.7 * r, 0.03), 0.08)) >= o->min_facing;
         if (ok) {
-            seg_stem s = {.x = c[0], .y = c[1], .r = r, .inliers = inl, .band = 0, .dbh = 2 * r, .ground_z = gsum / (double)inl};
+            seg_stem s = {.x = c[0], .y = c[1], .r = r, .inliers = inl, .band = 0, .dbh = 2 * r,
+                          .ground_z = gsum / (double)inl, .arc = (double)arc / ARC_BINS};
             sy_code rc = stem_push(out, &s, err);
             if (rc) return rc;
         }
@@ -434,12 +482,22 @@ sy_code seg_find_stems(const seg_frame *f, const sy_segment_options *o, seg_stem
                 if (out[j].band == band) dup = d < c->r + out[j].r + FORK_GAP;
                 else if (d < out[j].r + c->r + FORK_GAP) {
                     dup = 1;
+                    /* Confirmed when the circles overlap (a fork's stems stand on the trunk). */
+                    if (d < out[j].r + c->r) out[j].both_bands = 1;
                     /* The trunk itself (not a fork) when the circles agree. */
                     if (d < 0.5 * out[j].r && c->r < 1.25 * out[j].r) out[j].dbh = 2 * c->r;
                 }
             }
             if (!dup) out[kept++] = *c;
         }
+    /* A trunk shows in both bands. A circle in one only (a trunk forking or
+     * leafy at breast height, or a section of something that is no trunk:
+     * a hanging limb, a column of leaves) stays a stem when it is seen well,
+     * around at least o->single_band_arc of it. */
+    size_t confirmed = 0;
+    for (size_t i = 0; i < kept; i++)
+        if (out[i].both_bands || out[i].arc >= o->single_band_arc) out[confirmed++] = out[i];
+    kept = confirmed;
     free(list.v);
     list.v = out;
     if (kept) qsort(list.v, kept, sizeof *list.v, cmp_stem);
