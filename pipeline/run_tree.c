@@ -13,6 +13,8 @@
 #include "stages/core/fileio.h"
 #include "stages/core/progress.h"
 #include "stages/encode/encode.h"
+#include "stages/eval/eval.h"
+#include "stages/grow/grow.h"
 #include "stages/ingest/ingest.h"
 #include "stages/preprocess/preprocess.h"
 
@@ -209,12 +211,26 @@ static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_opti
     return rc;
 }
 
+/* The species' allometry: DBH over height of its nominal tree (Weber-Penn,
+ * seed 1; a few milliseconds), 0 when it cannot be grown or measured. Height
+ * -diameter curves by species are how inventories fill in a stem the
+ * survey could not measure. */
+static double species_dbh_per_height(const sy_species_params *sp)
+{
+    sy_skeleton t;
+    sy_error err = {0};
+    if (sy_grow_tree(sp, 1, &t, NULL, &err)) return 0;
+    double h = sy_skeleton_height(&t), d = sy_skeleton_dbh(&t);
+    sy_skeleton_free(&t);
+    return h > 1.3 && d > 0 && d / h < 1 ? d / h : 0;
+}
+
 static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree_options *o,
                                 const sy_species_params *sp, sy_run_tree_result *r, sy_error *err)
 {
     sy_code rc;
     sy_skeleton_options so = sy_skeleton_options_default();
-    if (sp) so.beta = sp->beta, so.gamma = sp->gamma;
+    if (sp) so.beta = sp->beta, so.gamma = sp->gamma, so.dbh_per_height = species_dbh_per_height(sp);
     if (!isnan(o->beta)) so.beta = o->beta;
     if (!isnan(o->gamma)) so.gamma = o->gamma;
     so.fs = o->fs;

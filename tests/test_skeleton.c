@@ -394,6 +394,74 @@ static void real_trees_reconstruct(void **state)
     }
 }
 
+/* With the ground removed a trunk's foot is a tiny share of the points: the
+ * base is the lowest height with company, not a percentile (the 0.5th of a
+ * 100k-point plane tree sat 1.25 m up its trunk). */
+static void base_is_found_under_a_dense_crown(void **state)
+{
+    (void)state;
+    const size_t trunk = 400, crown = 100000, n = trunk + crown;
+    float *xyz = malloc(3 * n * sizeof *xyz);
+    assert_non_null(xyz);
+    uint64_t rng = 5;
+    for (size_t i = 0; i < n; i++) {
+        double a = 2 * 3.14159265358979323846 * syn_uniform(&rng);
+        double z = i < trunk ? 0.3 + 7.7 * (double)i / trunk : 8 + 6 * syn_uniform(&rng);
+        double r = i < trunk ? 0.2 : 3 * sqrt(syn_uniform(&rng));
+        xyz[3 * i] = (float)(r * cos(a)), xyz[3 * i + 1] = (float)(r * sin(a)), xyz[3 * i + 2] = (float)z;
+    }
+    xyz[2] = -2; /* one stray below the base */
+    double z0;
+    uint32_t root = sy_find_root(xyz, n, 0.2, &z0);
+    printf("base %.3f, root at z %.3f\n", z0, xyz[3 * root + 2]);
+    assert_true(z0 > 0.29 && z0 < 0.35);
+    assert_true(xyz[3 * root + 2] < 0.6);
+    free(xyz);
+}
+
+/* A trunk the scan does not show at breast height (a conifer's needles, a
+ * leafy crown to the ground): the DBH comes from the species' allometry
+ * when the caller knows it, marked as not fitted. */
+static void hidden_trunk_takes_the_species_allometry(void **state)
+{
+    (void)state;
+    syn_tree t;
+    syn_tree_make(&t, 0, 0);
+    sy_cloud c;
+    sy_error err = {0};
+    assert_int_equal(syn_sample(&t, 30000, 0, 0.002, 3, &c, &err), SY_OK);
+    size_t m = 0; /* nothing within 0.4 m of the axis between 0.4 and 2.4 m */
+    for (size_t i = 0; i < c.n; i++) {
+        double x = c.origin[0] + c.xyz[3 * i], y = c.origin[1] + c.xyz[3 * i + 1], z = c.origin[2] + c.xyz[3 * i + 2];
+        if (z > 0.4 && z < 2.4 && hypot(x, y) < 0.4) continue;
+        memmove(&c.xyz[3 * m], &c.xyz[3 * i], 3 * sizeof *c.xyz);
+        m++;
+    }
+    c.n = m;
+    sy_skeleton_options o = sy_skeleton_options_default();
+    sy_skeleton s;
+    sy_clusters cl;
+    sy_skeleton_report plain, allometric;
+    assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, &plain, NULL, &err), SY_OK);
+    sy_skeleton_free(&s);
+    sy_clusters_free(&cl);
+    o.dbh_per_height = 0.03;
+    assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, &allometric, NULL, &err), SY_OK);
+    printf("hidden trunk: DBH %.4f without the allometry, %.4f with (height %.2f)\n", plain.dbh, allometric.dbh,
+           allometric.height);
+    assert_int_equal(plain.dbh_fitted, 0);
+    assert_int_equal(allometric.dbh_fitted, 0);
+    assert_true(fabs(allometric.dbh - 0.03 * allometric.height) < 1e-9);
+    assert_true(fabs(plain.dbh - allometric.dbh) > 0.01);
+    assert_radii_taper(&s);
+    sy_skeleton_free(&s);
+    sy_clusters_free(&cl);
+    o.dbh_per_height = 1.5;
+    assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, NULL, NULL, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "dbh_per_height"));
+    sy_cloud_free(&c);
+}
+
 static void rejects_tiny_and_bad_options(void **state)
 {
     (void)state;
@@ -431,6 +499,8 @@ int main(void)
         cmocka_unit_test(dbh_ignores_low_limbs),
         cmocka_unit_test(low_limbs_do_not_swell_the_butt),
         cmocka_unit_test(real_trees_reconstruct),
+        cmocka_unit_test(base_is_found_under_a_dense_crown),
+        cmocka_unit_test(hidden_trunk_takes_the_species_allometry),
         cmocka_unit_test(rejects_tiny_and_bad_options),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -39,6 +39,9 @@ typedef struct {
     int smooth_iters;     /* Laplacian passes along chains (3) */
     double dbh_height;    /* breast height above the base in metres (1.3) */
     double dbh_slab;      /* slab thickness for the DBH circle fit in metres (0.10) */
+    double dbh_per_height; /* the species' allometry, DBH over height of its nominal tree: the DBH
+                              where no trunk circle stands at breast height (0: unknown, then the
+                              slab's extent or the stem's slenderness) */
     double wood_share;    /* wood/leaf separation: wood = shortest-path subtrees holding at least this
                              share of the points, plus their neighbours; 0 = off, all wood (default:
                              on leafy TLS scans it gained little and hurt leafless trees, docs/skeleton.md) */
@@ -143,7 +146,8 @@ int sy_fit_circle(const double *xy, size_t n, double inlier_tol, unsigned long l
                   double *radius, double *rms);
 
 /* Root of the tree: the point of the lowest slab nearest its robust centre.
- * The slab starts at the 0.5th percentile of z (stray points below ignored);
+ * The slab starts at the lowest z with 8 more points within a slab above
+ * it (a few stray points below the base are ignored);
  * *z0 (may be NULL) receives that height. */
 uint32_t sy_find_root(const float *xyz, size_t n, double slab, double *z0);
 

@@ -10,16 +10,21 @@ extern "C" {
 
 typedef struct {
     double dbh, rms, d_root, height, dbh_z;
+    double centre[2]; /* the breast-height circle's centre, when fitted */
+    size_t inliers;   /* the slab points it was fitted to */
+    double allometric_dbh; /* the species' allometry at this height (0: unknown) */
     int fitted;
 } sy_radii_info;
 
 /* Radii by the allometry d(u) = d_root * (l(u) / l(root))^(1/gamma), with
  * d_root chosen so the trunk node at breast height gets the fitted DBH.
  * node_of[i] is the node supporting point i. Breast height and the tree's
- * height are measured from ground_z when it is finite, else from the root. */
+ * height are measured from ground_z when it is finite, else from the root.
+ * Where no circle stands, dbh_per_height > 0 (the species' allometry) gives
+ * the DBH from the height, else the slab's extent does. */
 sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of, size_t n, double gamma,
-                        double spacing, double ground_z, double dbh_height, double slab, sy_radii_info *info,
-                        sy_error *err);
+                        double spacing, double ground_z, double dbh_height, double slab, double dbh_per_height,
+                        sy_radii_info *info, sy_error *err);
 
 /* Measured radii: for each node a circle fitted across its local branch axis
  * to its own points and its neighbours' on the branch. fit[i] is the radius

@@ -53,6 +53,8 @@ sy_code sy_skeleton_options_check(const sy_skeleton_options *o, sy_error *err)
         return sy_fail(err, SY_EUSAGE, "skeleton: prune_factor >= 0, merge_cos in [-1, 1], smooth_iters >= 0");
     if (!(o->dbh_height > 0) || !(o->dbh_slab > 0))
         return sy_fail(err, SY_EUSAGE, "skeleton: dbh_height and dbh_slab must be > 0");
+    if (!(o->dbh_per_height >= 0 && o->dbh_per_height < 1))
+        return sy_fail(err, SY_EUSAGE, "skeleton: dbh_per_height must be in [0, 1)");
     if (!(o->wood_share >= 0 && o->wood_share < 1))
         return sy_fail(err, SY_EUSAGE, "skeleton: wood_share %g outside [0, 1)", o->wood_share);
     return SY_OK;
@@ -622,7 +624,9 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     rep->stem_excursion = stem.excursion;
     rep->crown_radius = stem.crown_radius;
     sy_radii_info ri;
-    if (!rc) rc = sy_assign_radii(full, xyz, point_node, n, o->gamma, s, ground, o->dbh_height, o->dbh_slab, &ri, err);
+    if (!rc)
+        rc = sy_assign_radii(full, xyz, point_node, n, o->gamma, s, ground, o->dbh_height, o->dbh_slab,
+                             o->dbh_per_height, &ri, err);
     if (!rc) sy_apply_stem_radius(full, &stem, o->gamma, s, &ri);
     free(l);
     if (rc) goto done;
