@@ -152,6 +152,9 @@ static sy_code clean(sy_cloud *c, const char *name, const sy_run_tree_options *o
     if (rc) return rc;
     r->t_preprocess = sy_now() - t;
     r->points_clean = c->n;
+    r->top_z = pr.top_z;
+    r->clean_top_z = -INFINITY;
+    for (size_t i = 0; i < c->n; i++) r->clean_top_z = fmax(r->clean_top_z, c->origin[2] + c->xyz[3 * i + 2]);
     char line[160];
     snprintf(line, sizeof line, "%zu points left (up %s, %zu ground removed%s)", c->n, sy_up_name(pr.up_axis),
              pr.ground_points, budget_voxel > 0 ? ", thinned to the point budget first" : "");
@@ -243,6 +246,9 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
     rc = sy_reconstruct_tree_checked(c, name, &so, 0, o->max_points, &s, &cl, sr, &r->hulls, &r->checks, err);
     sy_cloud_free(c);
     if (rc) return name_input(rc, name, err);
+    /* Height to the crown's top as scanned, not as the outlier filter left it. */
+    if (isfinite(r->top_z) && isfinite(r->clean_top_z) && r->top_z > r->clean_top_z)
+        sr->height += r->top_z - r->clean_top_z;
     char line[512];
     report_checks(o, &r->checks);
     snprintf(line, sizeof line, "%zu nodes, %zu branches, DBH %.3f m, height %.2f m", sr->nodes, sr->branches,

@@ -69,6 +69,8 @@ typedef struct {
     int classified;       /* 1: the species came from the classifier (guess holds its answer) */
     sy_species_guess guess;
     size_t points_in, points_clean; /* after ingest, after preprocessing */
+    double top_z, clean_top_z;      /* world z: the highest supported point before the outlier filter, the
+                                       highest left after preprocessing (height is measured to the first) */
     sy_skeleton_report skeleton;
     sy_hull_report hulls;
     sy_tree_checks checks; /* thinning, retries and the verdict (pipeline/tree_checks.h) */

@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "stages/core/parallel.h"
+#include "stages/core/rng.h"
 #include "stages/preprocess/preprocess.h"
 
 #ifndef M_PI
@@ -537,6 +538,40 @@ static void test_pipeline(void **state)
     sy_cloud_free(&s.c);
 }
 
+/* The top a height is measured to: the highest point with company, before
+ * the outlier filter, which strips a sparse crown top along with the strays. */
+static void test_top_before_outliers(void **state)
+{
+    (void)state;
+    const size_t dense = 20000, tufts = 12;
+    sy_cloud c;
+    sy_error err = {0};
+    assert_int_equal(sy_cloud_init(&c, dense + 4 * tufts + 1, &err), SY_OK);
+    uint64_t rng = 3;
+    size_t i = 0;
+    for (; i < dense; i++) { /* a 2 m cube of crown, 1 to 3 m up */
+        for (int a = 0; a < 3; a++) c.xyz[3 * i + a] = (float)(2 * sy_unit53(sy_splitmix64(&rng)) + (a == 2));
+    }
+    for (size_t t = 0; t < tufts; t++) /* sparse tufts of four returns, rising to 5.5 m */
+        for (int k = 0; k < 4; k++, i++) {
+            c.xyz[3 * i] = (float)(1 + 0.05 * k), c.xyz[3 * i + 1] = (float)(1 + 0.6 * (double)t);
+            c.xyz[3 * i + 2] = (float)(3.2 + 0.2 * (double)t + 0.03 * k);
+        }
+    c.xyz[3 * i] = c.xyz[3 * i + 1] = 1, c.xyz[3 * i + 2] = 9; /* one stray high above */
+    sy_preprocess_options o = sy_preprocess_options_default();
+    o.up = SY_UP_Z;
+    o.ground = 0;
+    o.normals = 0;
+    sy_preprocess_result r;
+    assert_int_equal(sy_preprocess(&c, &o, &r, &err), SY_OK);
+    double min[3], max[3];
+    sy_cloud_bounds(&c, min, max);
+    printf("top %.3f, after the outlier filter %.3f\n", r.top_z, max[2]);
+    assert_true(fabs(r.top_z - (3.2 + 0.2 * (double)(tufts - 1) + 0.09)) < 1e-4);
+    assert_true(max[2] < r.top_z - 0.5); /* the filter took the tufts' top with the stray */
+    sy_cloud_free(&c);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -545,6 +580,7 @@ int main(void)
         cmocka_unit_test(test_normals),      cmocka_unit_test(test_crop),
         cmocka_unit_test(test_rotations_are_proper), cmocka_unit_test(test_up_synthetic),
         cmocka_unit_test(test_up_real),      cmocka_unit_test(test_pipeline),
+        cmocka_unit_test(test_top_before_outliers),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

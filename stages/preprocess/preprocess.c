@@ -364,6 +364,41 @@ sy_code sy_voxel_size_for_count(const sy_cloud *c, size_t target, double *size, 
 
 /* ---------------------------------------------------------------- outliers */
 
+typedef struct {
+    float z, x, y;
+} z_point;
+
+static int cmp_z_down(const void *a, const void *b)
+{
+    float za = ((const z_point *)a)->z, zb = ((const z_point *)b)->z;
+    return (za < zb) - (za > zb);
+}
+
+/* The highest point of c with at least `company` others within `reach` (3-D),
+ * world z; NaN when none. The statistical filter judges a point by how far
+ * its neighbours are against the whole cloud's spread, so on a terrestrial
+ * scan it strips the sparse top of a crown with the strays (a 100k-point
+ * beech lost 2.3 m of its 26 m). A stray has no company; a crown top has. */
+static double supported_top(const sy_cloud *c, double reach, size_t company)
+{
+    if (c->n == 0) return NAN;
+    z_point *p = malloc(c->n * sizeof *p);
+    if (!p) return NAN;
+    for (size_t i = 0; i < c->n; i++) p[i] = (z_point){c->xyz[3 * i + 2], c->xyz[3 * i], c->xyz[3 * i + 1]};
+    qsort(p, c->n, sizeof *p, cmp_z_down);
+    double top = NAN;
+    for (size_t i = 0; i < c->n && isnan(top); i++) {
+        size_t k = 0;
+        for (size_t j = i; j-- > 0 && p[j].z - p[i].z <= reach && k < company;)
+            k += hypot(hypot(p[j].x - p[i].x, p[j].y - p[i].y), p[j].z - p[i].z) <= reach;
+        for (size_t j = i + 1; j < c->n && p[i].z - p[j].z <= reach && k < company; j++)
+            k += hypot(hypot(p[j].x - p[i].x, p[j].y - p[i].y), p[j].z - p[i].z) <= reach;
+        if (k >= company) top = c->origin[2] + (double)p[i].z;
+    }
+    free(p);
+    return top;
+}
+
 sy_code sy_remove_outliers(sy_cloud *c, int k, double std_mul, sy_error *err)
 {
     uint8_t *keep = sy_calloc(c->n ? c->n : 1, 1, err, "outlier mask");
@@ -957,6 +992,7 @@ sy_code sy_preprocess(sy_cloud *c, const sy_preprocess_options *o, sy_preprocess
     }
     step_end(s, c->n);
 
+    r->top_z = rc == SY_OK ? supported_top(c, 0.5, 3) : NAN;
     s = step_begin(r, 3, "outliers", o->sor, c->n);
     if (rc == SY_OK && o->sor) {
         sy_progress_begin(&p, "outliers", c->n);

@@ -60,6 +60,8 @@ typedef struct {
     int up_axis;         /* the axis the input had as up (signed code) */
     int up_detected;     /* 1 when auto detection chose it */
     size_t ground_points;
+    double top_z;        /* world z of the highest point with at least 3 others within 0.5 m, taken
+                            before the outlier filter (which strips a sparse crown top); NaN: none */
 } sy_preprocess_result;
 
 /* Runs the enabled steps on c in place. */
