@@ -196,6 +196,8 @@ sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of
      * height (nor, for small trees, than a metre). Foliage hanging down to
      * breast height around the trunk otherwise joins the slab and RANSAC can
      * prefer a metres-wide circle through it (black oak: 9 m). */
+    /* The allometry needs the tree's height: only a base on the ground gives it. */
+    if (!isfinite(ground_z)) dbh_per_height = 0;
     trunk_slab q = {s, xyz, node_of, n, slab, fmax(0.01, spacing), fmax(0.5, 0.05 * info->height),
                     {s->pos[3 * ub], s->pos[3 * ub + 1]}};
     double c[2], r = 0, rms = 0;

@@ -146,10 +146,17 @@ int sy_fit_circle(const double *xy, size_t n, double inlier_tol, unsigned long l
                   double *radius, double *rms);
 
 /* Root of the tree: the point of the lowest slab nearest its robust centre.
- * The slab starts at the lowest z with 8 more points within a slab above
- * it (a few stray points below the base are ignored);
- * *z0 (may be NULL) receives that height. */
+ * The slab starts at the base (sy_base_height); *z0 (may be NULL) receives
+ * that height. */
 uint32_t sy_find_root(const float *xyz, size_t n, double slab, double *z0);
+/* The tree's base: the 0.5th percentile of z, or lower, the lowest z with 8
+ * more points within `slab` above it. With the ground removed a trunk's foot
+ * is a tiny share of the points: on a 100k-point plane tree the percentile
+ * sat 1.25 m up the trunk, too far above the ground to trust the ground
+ * found under it, so breast height was measured from there, at 2.5 m. (Not
+ * the rule alone: an airborne tree's trunk is a few scattered returns under
+ * its crown, each a "stray" by it.) */
+double sy_base_height(const float *xyz, size_t n, double slab);
 
 #ifdef __cplusplus
 }

@@ -622,25 +622,32 @@ sy_code sy_graph_dijkstra(const sy_graph *g, const uint32_t *sources, size_t n_s
 /* Points a stretch of `slab` above the base holds at least (more than a stray). */
 #define STRAY_RUN 8
 
+double sy_base_height(const float *xyz, size_t n, double slab)
+{
+    if (n == 0) return 0;
+    double *z = malloc(n * sizeof *z);
+    if (!z) return NAN;
+    for (size_t i = 0; i < n; i++) z[i] = xyz[3 * i + 2];
+    qsort(z, n, sizeof *z, sy_cmp_double);
+    double base = z[n / 200];
+    for (size_t i = 0; i + STRAY_RUN < n && z[i] < base; i++)
+        if (z[i + STRAY_RUN] - z[i] <= slab) {
+            base = z[i];
+            break;
+        }
+    free(z);
+    return base;
+}
+
 uint32_t sy_find_root(const float *xyz, size_t n, double slab, double *z0_out)
 {
     if (z0_out) *z0_out = 0;
     if (n == 0) return 0;
-    double *z = malloc(n * sizeof *z);
-    if (!z) return 0;
-    for (size_t i = 0; i < n; i++) z[i] = xyz[3 * i + 2];
-    qsort(z, n, sizeof *z, sy_cmp_double);
-    /* The base: the lowest height with STRAY_RUN more points within a slab
-     * above it, which skips a few stray points below the base. (A
-     * percentile does not: with the ground removed, a trunk's foot is a tiny
-     * share of the points, and the 0.5th percentile of a 100k-point plane
-     * tree sat 1.25 m up its trunk, so breast height was measured at 2.5 m.) */
-    double z0 = z[n / 200];
-    for (size_t i = 0; i + STRAY_RUN < n; i++)
-        if (z[i + STRAY_RUN] - z[i] <= slab) {
-            z0 = z[i];
-            break;
-        }
+    /* The root's slab starts at the base (sy_base_height): from the 0.5th
+     * percentile the trunk's lowest metre was not the root's on a
+     * ground-removed plane tree. */
+    double z0 = sy_base_height(xyz, n, slab);
+    if (!isfinite(z0)) return 0;
     if (z0_out) *z0_out = z0;
     size_t m = 0;
     for (size_t i = 0; i < n; i++)
@@ -670,6 +677,5 @@ uint32_t sy_find_root(const float *xyz, size_t n, double slab, double *z0_out)
     }
     free(xs);
     free(ys);
-    free(z);
     return best;
 }

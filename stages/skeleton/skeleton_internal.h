@@ -21,7 +21,7 @@ typedef struct {
  * node_of[i] is the node supporting point i. Breast height and the tree's
  * height are measured from ground_z when it is finite, else from the root.
  * Where no circle stands, dbh_per_height > 0 (the species' allometry) gives
- * the DBH from the height, else the slab's extent does. */
+ * the DBH from the height when ground_z is known, else the slab's extent. */
 sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of, size_t n, double gamma,
                         double spacing, double ground_z, double dbh_height, double slab, double dbh_per_height,
                         sy_radii_info *info, sy_error *err);
