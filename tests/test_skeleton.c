@@ -464,6 +464,57 @@ static void hidden_trunk_takes_the_species_allometry(void **state)
     sy_cloud_free(&c);
 }
 
+/* A conifer's whorl hides the trunk at breast height and rings it: the
+ * circle through the whorl is a fit, but over twice the species' norm, so
+ * with the allometry known it gives way. */
+static void whorl_is_not_the_trunk(void **state)
+{
+    (void)state;
+    syn_tree t;
+    syn_tree_make(&t, 0, 0);
+    sy_cloud c;
+    sy_error err = {0};
+    assert_int_equal(syn_sample(&t, 30000, 0, 0.002, 3, &c, &err), SY_OK);
+    size_t m = 0;
+    for (size_t i = 0; i < c.n; i++) {
+        double x = c.origin[0] + c.xyz[3 * i], y = c.origin[1] + c.xyz[3 * i + 1], z = c.origin[2] + c.xyz[3 * i + 2];
+        if (z > 0.4 && z < 2.4 && hypot(x, y) < 0.4) continue;
+        memmove(&c.xyz[3 * m], &c.xyz[3 * i], 3 * sizeof *c.xyz);
+        m++;
+    }
+    const size_t ring = 2400; /* the whorl's outside, 0.3 m out, 0.45-2.35 m up */
+    float *xyz = realloc(c.xyz, 3 * (m + ring) * sizeof *xyz);
+    assert_non_null(xyz);
+    c.xyz = xyz;
+    for (size_t k = 0; k < ring; k++) {
+        double a = 2 * 3.14159265358979323846 * (double)k / 60, z = 0.45 + 1.9 * (double)(k % 60) / 60;
+        c.xyz[3 * (m + k)] = (float)(0.3 * cos(a) - c.origin[0]);
+        c.xyz[3 * (m + k) + 1] = (float)(0.3 * sin(a) - c.origin[1]);
+        c.xyz[3 * (m + k) + 2] = (float)(z - c.origin[2]);
+    }
+    c.n = m + ring;
+    double *hag = sy_cloud_add_attr(&c, "height_above_ground", &err);
+    assert_non_null(hag);
+    for (size_t i = 0; i < c.n; i++) hag[i] = c.origin[2] + c.xyz[3 * i + 2];
+    sy_skeleton_options o = sy_skeleton_options_default();
+    sy_skeleton s;
+    sy_clusters cl;
+    sy_skeleton_report plain, allometric;
+    assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, &plain, NULL, &err), SY_OK);
+    sy_skeleton_free(&s);
+    sy_clusters_free(&cl);
+    o.dbh_per_height = 0.03;
+    assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, &allometric, NULL, &err), SY_OK);
+    printf("whorl: DBH %.4f fitted %d without the allometry, %.4f fitted %d with\n", plain.dbh, plain.dbh_fitted,
+           allometric.dbh, allometric.dbh_fitted);
+    assert_true(plain.dbh_fitted && fabs(plain.dbh - 0.6) < 0.02);
+    assert_false(allometric.dbh_fitted);
+    assert_true(fabs(allometric.dbh - 0.03 * allometric.height) < 1e-9);
+    sy_skeleton_free(&s);
+    sy_clusters_free(&cl);
+    sy_cloud_free(&c);
+}
+
 static void rejects_tiny_and_bad_options(void **state)
 {
     (void)state;
@@ -503,6 +554,7 @@ int main(void)
         cmocka_unit_test(real_trees_reconstruct),
         cmocka_unit_test(base_is_found_under_a_dense_crown),
         cmocka_unit_test(hidden_trunk_takes_the_species_allometry),
+        cmocka_unit_test(whorl_is_not_the_trunk),
         cmocka_unit_test(rejects_tiny_and_bad_options),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -240,6 +240,15 @@ sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of
             }
         }
     }
+    /* With the species' allometry to fall back on, a fit must be a clean
+     * trunk section: a circle over twice the species' norm at this height is
+     * a conifer's whorl of branches around the trunk (balsam fir, 1M points:
+     * 1.06 m for 0.38 m), and one whose residual exceeds a tenth of its
+     * radius runs through branch stubs (the same fir preprocessed: 0.21 m,
+     * residual 16 mm on 0.11 m). Stems thinner than the norm are otherwise
+     * left alone: trees grown in a stand are slender. */
+    if (info->fitted && dbh_per_height > 0 && (2 * r > 2 * dbh_per_height * info->height || rms > 0.1 * r))
+        info->fitted = 0;
     if (!info->fitted && dbh_per_height > 0) {
         /* No trunk circle (a conifer's needles or a leafy crown hide it):
          * the species' nominal tree, scaled to this one's height. */
