@@ -175,6 +175,8 @@ sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of
                         sy_radii_info *info, sy_error *err)
 {
     memset(info, 0, sizeof *info);
+    /* The allometry needs the tree's height: only a base on the ground gives it. */
+    if (!isfinite(ground_z)) dbh_per_height = 0;
     size_t m = s->n;
     double *l = sy_calloc(m ? m : 1, sizeof *l, err, "radii");
     double *xy = sy_calloc(n ? n : 1, 2 * sizeof *xy, err, "radii");
@@ -196,8 +198,6 @@ sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of
      * height (nor, for small trees, than a metre). Foliage hanging down to
      * breast height around the trunk otherwise joins the slab and RANSAC can
      * prefer a metres-wide circle through it (black oak: 9 m). */
-    /* The allometry needs the tree's height: only a base on the ground gives it. */
-    if (!isfinite(ground_z)) dbh_per_height = 0;
     trunk_slab q = {s, xyz, node_of, n, slab, fmax(0.01, spacing), fmax(0.5, 0.05 * info->height),
                     {s->pos[3 * ub], s->pos[3 * ub + 1]}};
     double c[2], r = 0, rms = 0;
@@ -222,7 +222,7 @@ sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of
             near.reach = 1.3 * rl;
             double cn[2], rn, rmsn;
             size_t kn;
-                    /* Between the two heights a trunk tapers little: a circle much
+            /* Between the two heights a trunk tapers little: a circle much
              * narrower than the lower one is a limb beside it. */
             if (fit_trunk_slab(&near, zb, xy, &kn, cn, &rn, &rmsn) && rn <= 1.2 * rl && rn >= 0.7 * rl) {
                 r = rn;
@@ -230,10 +230,8 @@ sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of
             } else if (kl < 20 && dbh_per_height > 0) {
                 /* Neither circle is the trunk, and the lower one rests on a
                  * few returns (balsam fir: 11, 37% under the truth; weeping
-                 * willow: 13, 45% under): the species' allometry instead. */
+                 * willow: 13, 45% under): the species' allometry, below. */
                 info->fitted = 0;
-                r = 0.5 * dbh_per_height * info->height;
-                rms = 0;
             } else {
                 r = rl; /* the lower trunk's radius: tapering makes it an upper bound */
                 rms = rmsl;
