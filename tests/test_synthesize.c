@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "stages/core/parallel.h"
 #include "stages/synthesize/branchlets.h"
 #include "stages/synthesize/synthesize.h"
 #include "testutil.h"
@@ -255,6 +256,82 @@ static void texturing_fills_the_lobe(void **state)
     sy_skeleton_free(&s);
 }
 
+/* Lobes are textured in parallel and merged in order: several lobes (one of
+ * them degenerate, so bare) give the same skeleton, branch ids, leaves and
+ * report on one thread and on two. */
+static void lobes_in_parallel_give_the_same_tree(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_clusters one = {0};
+    make_tree(&s, &one, 0.6, 0);
+    const sy_cluster *box = &one.items[0];
+    sy_clusters cl = {0};
+    cl.n = 5;
+    cl.items = calloc(cl.n, sizeof *cl.items);
+    assert_non_null(cl.items);
+    for (size_t k = 0; k < cl.n; k++) {
+        sy_cluster *c = &cl.items[k];
+        c->seed = (int32_t)(4 + 2 * (k % 4));
+        c->n_verts = box->n_verts;
+        c->n_tris = k == 2 ? 2 : box->n_tris; /* lobe 2 is degenerate */
+        c->verts = malloc(3 * box->n_verts * sizeof(float));
+        c->tris = malloc(3 * box->n_tris * sizeof(uint32_t));
+        assert_non_null(c->verts);
+        assert_non_null(c->tris);
+        for (size_t v = 0; v < box->n_verts; v++) {
+            c->verts[3 * v] = box->verts[3 * v] + (float)(1.5 * cos((double)k));
+            c->verts[3 * v + 1] = box->verts[3 * v + 1] + (float)(1.5 * sin((double)k));
+            c->verts[3 * v + 2] = box->verts[3 * v + 2] - 4.6f + 0.8f * (float)c->seed * 0.4f;
+        }
+        memcpy(c->tris, box->tris, 3 * box->n_tris * sizeof(uint32_t));
+    }
+    sy_branchlets lib;
+    sy_lsystem ls;
+    load_lib("quaking_aspen", &lib, &ls);
+    sy_synth_options o = sy_synth_options_default();
+    o.leaf_size = ls.leaf_size;
+    o.leaf_density = ls.leaf_density;
+    o.max_depth = ls.max_depth;
+    sy_skeleton out[2];
+    sy_leaves lv[2];
+    sy_synth_report rep[2];
+    sy_error err = {0};
+    for (int t = 0; t < 2; t++) {
+        sy_set_threads(t + 1);
+        assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out[t], &lv[t], &rep[t], &err), SY_OK);
+    }
+    sy_set_threads(0);
+    printf("%zu lobes: %zu patches, %zu nodes, %zu leaves, %zu bare (lobe %d)\n", cl.n, rep[0].patches, out[0].n,
+           lv[0].n, rep[0].lobes_bare, rep[0].bare_lobe[0]);
+    assert_true(rep[0].patches > 10 && lv[0].n > 100);
+    assert_int_equal(rep[0].lobes_bare, 1);
+    assert_int_equal(rep[0].bare_lobe[0], 2);
+    assert_int_equal(out[1].n, out[0].n);
+    assert_memory_equal(out[1].pos, out[0].pos, 3 * out[0].n * sizeof(float));
+    assert_memory_equal(out[1].radius, out[0].radius, out[0].n * sizeof(float));
+    assert_memory_equal(out[1].parent, out[0].parent, out[0].n * sizeof(int32_t));
+    assert_memory_equal(out[1].branch, out[0].branch, out[0].n * sizeof(int32_t));
+    assert_int_equal(lv[1].n, lv[0].n);
+    assert_memory_equal(lv[1].pos, lv[0].pos, 3 * lv[0].n * sizeof(float));
+    assert_memory_equal(lv[1].node, lv[0].node, lv[0].n * sizeof(int32_t));
+    assert_int_equal(rep[1].patches, rep[0].patches);
+    assert_true(rep[1].coverage == rep[0].coverage);
+    assert_int_equal(sy_skeleton_validate(&out[0], &err), SY_OK);
+    /* Every branch id from 0 to the count is used: the lobes' ids follow on. */
+    int32_t nb = sy_skeleton_branch_count(&out[0]);
+    uint8_t *used = calloc((size_t)nb, 1);
+    assert_non_null(used);
+    for (size_t i = 0; i < out[0].n; i++) used[out[0].branch[i]] = 1;
+    for (int32_t b = 0; b < nb; b++) assert_true(used[b]);
+    free(used);
+    for (int t = 0; t < 2; t++) sy_skeleton_free(&out[t]), sy_leaves_free(&lv[t]);
+    sy_branchlets_free(&lib);
+    sy_clusters_free(&cl);
+    sy_clusters_free(&one);
+    sy_skeleton_free(&s);
+}
+
 /* A flat lobe, a tiny one and a single point: reported bare, never a crash. */
 static void lobes_without_room_are_reported(void **state)
 {
@@ -320,6 +397,7 @@ int main(void)
         cmocka_unit_test(grammar_errors_name_the_line),
         cmocka_unit_test(texturing_fills_the_lobe),
         cmocka_unit_test(lobes_without_room_are_reported),
+        cmocka_unit_test(lobes_in_parallel_give_the_same_tree),
         cmocka_unit_test(winding_number_of_a_box),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "stages/core/geometry.h"
+#include "stages/core/parallel.h"
 #include "stages/core/progress.h"
 #include "stages/core/sort.h"
 
@@ -775,6 +776,99 @@ static sy_code copy_skeleton(const sy_skeleton *s, sy_skeleton *out, sy_error *e
     return SY_OK;
 }
 
+/* One lobe textured on its own: its seed node alone (index 0) plus the
+ * nodes and leaves it adds, branch ids counted from the skeleton's. Lobes
+ * only read their seed and their own bark, so they run in parallel and are
+ * merged in order: the bytes do not depend on the thread count. */
+typedef struct {
+    sy_skeleton out;
+    sy_leaves leaves;
+    float *leaf_key;
+    int32_t next_branch;
+    sy_synth_report rep;
+    size_t occupied, cells[2];
+    int skipped; /* a degenerate hull: bare, not textured */
+    sy_code rc;
+    sy_error err;
+} lobe_work;
+
+typedef struct {
+    const sy_skeleton *skel;
+    const sy_clusters *lobes;
+    const sy_branchlets *lib;
+    const sy_synth_options *o;
+    double max_thick;
+    int32_t base_branches;
+    lobe_work *work;
+} lobe_ctx;
+
+static void lobe_work_free(lobe_work *w)
+{
+    sy_skeleton_free(&w->out);
+    sy_leaves_free(&w->leaves);
+    free(w->leaf_key);
+}
+
+static void texture_lobes(void *vctx, size_t begin, size_t end, size_t chunk)
+{
+    (void)chunk;
+    const lobe_ctx *x = vctx;
+    double density = x->o->leaf_density > 0 ? x->o->leaf_density : 1.5;
+    int max_depth = x->o->max_depth > 0 ? x->o->max_depth : 7;
+    for (size_t c = begin; c < end; c++) {
+        lobe_work *w = &x->work[c];
+        const sy_cluster *C = &x->lobes->items[c];
+        if (C->n_tris < 4 || C->n_verts < 4) {
+            w->skipped = 1;
+            continue;
+        }
+        const sy_skeleton *k = x->skel;
+        int32_t seed = C->seed;
+        ranked *cands = malloc((x->lib->n_patches + 1) * sizeof *cands);
+        w->rc = cands ? sy_skeleton_init(&w->out, 0, &w->err) : sy_fail(&w->err, SY_EINTERNAL, "synthesize: out of memory");
+        if (!w->rc) {
+            memcpy(w->out.origin, k->origin, sizeof w->out.origin);
+            if (sy_skeleton_add(&w->out, k->pos + 3 * seed, k->radius[seed], -1, k->order[seed], k->branch[seed],
+                                &w->err) < 0)
+                w->rc = SY_EINTERNAL;
+        }
+        if (!w->rc) {
+            sy_cluster local = *C;
+            local.seed = 0;
+            synth_out so = {&w->out, &w->leaves, NULL, 0, x->base_branches};
+            w->rc = texture_lobe(&local, (int32_t)c, x->lib, x->o, density, max_depth, x->max_thick, cands, &so,
+                                 &w->rep, &w->occupied, w->cells, &w->err);
+            w->leaf_key = so.leaf_key;
+            w->next_branch = so.next_branch;
+        }
+        free(cands);
+    }
+}
+
+/* Appends lobe w to so: its node 0 is the skeleton's node seed, its other
+ * nodes follow so's, and its own branch ids follow so's count. */
+static sy_code merge_lobe(const lobe_work *w, int32_t seed, int32_t base_branches, synth_out *so, sy_error *err)
+{
+    const sy_skeleton *l = &w->out;
+    int32_t n0 = (int32_t)so->out->n, shift = so->next_branch - base_branches;
+    for (size_t i = 1; i < l->n; i++) {
+        int32_t p = l->parent[i], b = l->branch[i];
+        if (sy_skeleton_add(so->out, l->pos + 3 * i, l->radius[i], p == 0 ? seed : n0 + p - 1, l->order[i],
+                            b >= base_branches ? b + shift : b, err) < 0)
+            return SY_EINTERNAL;
+    }
+    so->next_branch += w->next_branch - base_branches;
+    if (!keys_reserve(so, so->leaves->n + w->leaves.n)) return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+    for (size_t i = 0; i < w->leaves.n; i++) {
+        int32_t v = w->leaves.node[i];
+        so->leaf_key[so->leaves->n] = w->leaf_key[i];
+        if (sy_leaves_add(so->leaves, w->leaves.pos + 3 * i, w->leaves.rot + 4 * i, w->leaves.scale[i],
+                          v == 0 ? seed : n0 + v - 1, err))
+            return SY_EINTERNAL;
+    }
+    return SY_OK;
+}
+
 sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const sy_branchlets *lib,
                       const sy_synth_options *o, sy_skeleton *out, sy_leaves *leaves, sy_synth_report *rep_out,
                       sy_error *err)
@@ -799,21 +893,42 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
     double max_thick = 0;
     for (size_t i = 0; i < lib->n_patches; i++)
         if (lib->patches[i].thickness > max_thick) max_thick = lib->patches[i].thickness;
-    ranked *cands = malloc((lib->n_patches + 1) * sizeof *cands);
     synth_out so = {out, leaves, NULL, 0, sy_skeleton_branch_count(skel)};
-    if (!cands) rc = sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
-    double density = o->leaf_density > 0 ? o->leaf_density : 1.5;
-    int max_depth = o->max_depth > 0 ? o->max_depth : 7;
     size_t occupied = 0, cells[2] = {0, 0};
-    for (size_t c = 0; !rc && lobes && c < lobes->n; c++) {
-        const sy_cluster *C = &lobes->items[c];
-        if (C->n_tris < 4 || C->n_verts < 4) {
+    size_t n_lobes = lobes ? lobes->n : 0;
+    lobe_work *work = n_lobes ? calloc(n_lobes, sizeof *work) : NULL;
+    if (n_lobes && !work) rc = sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+    const int32_t ctx_branches = so.next_branch;
+    if (!rc) {
+        lobe_ctx ctx = {skel, lobes, lib, o, max_thick, ctx_branches, work};
+        sy_parallel_for(n_lobes, 1, texture_lobes, &ctx);
+    }
+    /* The lobes in order, as if textured one after another into out. */
+    for (size_t c = 0; !rc && c < n_lobes; c++) {
+        lobe_work *w = &work[c];
+        if (w->skipped) {
             if (rep.lobes_bare < 8) rep.bare_lobe[rep.lobes_bare] = (int32_t)c, rep.bare_reason[rep.lobes_bare] = 0;
             rep.lobes_bare++;
             continue;
         }
-        rc = texture_lobe(C, (int32_t)c, lib, o, density, max_depth, max_thick, cands, &so, &rep, &occupied, cells, err);
+        if (w->rc) {
+            rc = w->rc;
+            *err = w->err;
+            break;
+        }
+        rc = merge_lobe(w, lobes->items[c].seed, ctx_branches, &so, err);
+        const sy_synth_report *r = &w->rep;
+        if (r->lobes_bare) {
+            if (rep.lobes_bare < 8) rep.bare_lobe[rep.lobes_bare] = r->bare_lobe[0], rep.bare_reason[rep.lobes_bare] = r->bare_reason[0];
+            rep.lobes_bare++;
+        }
+        rep.patches += r->patches, rep.docks_filled += r->docks_filled, rep.docks_outside += r->docks_outside;
+        rep.docks_depth += r->docks_depth, rep.docks_full += r->docks_full, rep.docks_rejected += r->docks_rejected;
+        rep.nodes_added += r->nodes_added, rep.leaves_in_hull += r->leaves_in_hull, rep.coverage += r->coverage;
+        occupied += w->occupied, cells[0] += w->cells[0], cells[1] += w->cells[1];
     }
+    for (size_t c = 0; c < n_lobes; c++) lobe_work_free(&work[c]);
+    free(work);
     rep.lobes = lobes ? lobes->n : 0;
     rep.coverage = occupied ? rep.coverage / (double)occupied : 0;
     /* How much of the hulls the scan's points fill: thin bare limbs leave
@@ -821,7 +936,6 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
      * AdTree scans it does not separate leaf-off from leaf-on, 0.35-0.57). */
     rep.fill = cells[0] ? (double)cells[1] / (double)cells[0] : 1;
     rep.leaves = leaves->n;
-    free(cands);
     /* Stochastic-pruning order: every prefix holds the same leading share of each patch's stored order. */
     if (!rc && leaves->n > 1) {
         ranked *rk = malloc(leaves->n * sizeof *rk);
