@@ -417,6 +417,38 @@ static void base_is_found_under_a_dense_crown(void **state)
     free(xyz);
 }
 
+/* The synthetic tree with nothing within 0.4 m of its axis between 0.4 and
+ * 2.4 m (a trunk hidden at breast height), on flat ground at z = 0 (the
+ * "height_above_ground" attribute), plus `whorl` points on a 0.3 m ring
+ * from 0.45 to 2.35 m up (a conifer's whorls seen from outside). */
+static void hidden_trunk_cloud(sy_cloud *c, size_t whorl)
+{
+    syn_tree t;
+    syn_tree_make(&t, 0, 0);
+    sy_error err = {0};
+    assert_int_equal(syn_sample(&t, 30000, 0, 0.002, 3, c, &err), SY_OK);
+    size_t m = 0;
+    for (size_t i = 0; i < c->n; i++) {
+        double x = c->origin[0] + c->xyz[3 * i], y = c->origin[1] + c->xyz[3 * i + 1], z = c->origin[2] + c->xyz[3 * i + 2];
+        if (z > 0.4 && z < 2.4 && hypot(x, y) < 0.4) continue;
+        memmove(&c->xyz[3 * m], &c->xyz[3 * i], 3 * sizeof *c->xyz);
+        m++;
+    }
+    float *xyz = realloc(c->xyz, 3 * (m + whorl + 1) * sizeof *xyz);
+    assert_non_null(xyz);
+    c->xyz = xyz;
+    for (size_t k = 0; k < whorl; k++) {
+        double a = 2 * 3.14159265358979323846 * (double)k / 60, z = 0.45 + 1.9 * (double)(k % 60) / 60;
+        c->xyz[3 * (m + k)] = (float)(0.3 * cos(a) - c->origin[0]);
+        c->xyz[3 * (m + k) + 1] = (float)(0.3 * sin(a) - c->origin[1]);
+        c->xyz[3 * (m + k) + 2] = (float)(z - c->origin[2]);
+    }
+    c->n = m + whorl;
+    double *hag = sy_cloud_add_attr(c, "height_above_ground", &err);
+    assert_non_null(hag);
+    for (size_t i = 0; i < c->n; i++) hag[i] = c->origin[2] + c->xyz[3 * i + 2];
+}
+
 /* A trunk the scan does not show at breast height (a conifer's needles, a
  * leafy crown to the ground): the DBH comes from the species' allometry
  * when the caller knows it and the ground is known (the height is
@@ -424,22 +456,9 @@ static void base_is_found_under_a_dense_crown(void **state)
 static void hidden_trunk_takes_the_species_allometry(void **state)
 {
     (void)state;
-    syn_tree t;
-    syn_tree_make(&t, 0, 0);
     sy_cloud c;
     sy_error err = {0};
-    assert_int_equal(syn_sample(&t, 30000, 0, 0.002, 3, &c, &err), SY_OK);
-    size_t m = 0; /* nothing within 0.4 m of the axis between 0.4 and 2.4 m */
-    for (size_t i = 0; i < c.n; i++) {
-        double x = c.origin[0] + c.xyz[3 * i], y = c.origin[1] + c.xyz[3 * i + 1], z = c.origin[2] + c.xyz[3 * i + 2];
-        if (z > 0.4 && z < 2.4 && hypot(x, y) < 0.4) continue;
-        memmove(&c.xyz[3 * m], &c.xyz[3 * i], 3 * sizeof *c.xyz);
-        m++;
-    }
-    c.n = m;
-    double *hag = sy_cloud_add_attr(&c, "height_above_ground", &err); /* the ground, flat at z = 0 */
-    assert_non_null(hag);
-    for (size_t i = 0; i < c.n; i++) hag[i] = c.origin[2] + c.xyz[3 * i + 2];
+    hidden_trunk_cloud(&c, 0);
     sy_skeleton_options o = sy_skeleton_options_default();
     sy_skeleton s;
     sy_clusters cl;
@@ -470,32 +489,9 @@ static void hidden_trunk_takes_the_species_allometry(void **state)
 static void whorl_is_not_the_trunk(void **state)
 {
     (void)state;
-    syn_tree t;
-    syn_tree_make(&t, 0, 0);
     sy_cloud c;
     sy_error err = {0};
-    assert_int_equal(syn_sample(&t, 30000, 0, 0.002, 3, &c, &err), SY_OK);
-    size_t m = 0;
-    for (size_t i = 0; i < c.n; i++) {
-        double x = c.origin[0] + c.xyz[3 * i], y = c.origin[1] + c.xyz[3 * i + 1], z = c.origin[2] + c.xyz[3 * i + 2];
-        if (z > 0.4 && z < 2.4 && hypot(x, y) < 0.4) continue;
-        memmove(&c.xyz[3 * m], &c.xyz[3 * i], 3 * sizeof *c.xyz);
-        m++;
-    }
-    const size_t ring = 2400; /* the whorl's outside, 0.3 m out, 0.45-2.35 m up */
-    float *xyz = realloc(c.xyz, 3 * (m + ring) * sizeof *xyz);
-    assert_non_null(xyz);
-    c.xyz = xyz;
-    for (size_t k = 0; k < ring; k++) {
-        double a = 2 * 3.14159265358979323846 * (double)k / 60, z = 0.45 + 1.9 * (double)(k % 60) / 60;
-        c.xyz[3 * (m + k)] = (float)(0.3 * cos(a) - c.origin[0]);
-        c.xyz[3 * (m + k) + 1] = (float)(0.3 * sin(a) - c.origin[1]);
-        c.xyz[3 * (m + k) + 2] = (float)(z - c.origin[2]);
-    }
-    c.n = m + ring;
-    double *hag = sy_cloud_add_attr(&c, "height_above_ground", &err);
-    assert_non_null(hag);
-    for (size_t i = 0; i < c.n; i++) hag[i] = c.origin[2] + c.xyz[3 * i + 2];
+    hidden_trunk_cloud(&c, 2400);
     sy_skeleton_options o = sy_skeleton_options_default();
     sy_skeleton s;
     sy_clusters cl;

@@ -156,6 +156,18 @@ static void load_lib(const char *name, sy_branchlets *b, sy_lsystem *ls)
     assert_int_equal(sy_branchlets_generate(ls, 3, b, &err), SY_OK);
 }
 
+/* The aspen's branchlets and the texturing options its grammar names. */
+static sy_synth_options aspen_options(sy_branchlets *lib)
+{
+    sy_lsystem ls;
+    load_lib("quaking_aspen", lib, &ls);
+    sy_synth_options o = sy_synth_options_default();
+    o.leaf_size = ls.leaf_size;
+    o.leaf_density = ls.leaf_density;
+    o.max_depth = ls.max_depth;
+    return o;
+}
+
 static void texturing_fills_the_lobe(void **state)
 {
     (void)state;
@@ -163,12 +175,7 @@ static void texturing_fills_the_lobe(void **state)
     sy_clusters cl = {0};
     make_tree(&s, &cl, 1.0, 0);
     sy_branchlets lib;
-    sy_lsystem ls;
-    load_lib("quaking_aspen", &lib, &ls);
-    sy_synth_options o = sy_synth_options_default();
-    o.leaf_size = ls.leaf_size;
-    o.leaf_density = ls.leaf_density;
-    o.max_depth = ls.max_depth;
+    sy_synth_options o = aspen_options(&lib);
     o.seed = 42;
     sy_skeleton out, out2;
     sy_leaves lv, lv2;
@@ -287,12 +294,7 @@ static void lobes_in_parallel_give_the_same_tree(void **state)
         memcpy(c->tris, box->tris, 3 * box->n_tris * sizeof(uint32_t));
     }
     sy_branchlets lib;
-    sy_lsystem ls;
-    load_lib("quaking_aspen", &lib, &ls);
-    sy_synth_options o = sy_synth_options_default();
-    o.leaf_size = ls.leaf_size;
-    o.leaf_density = ls.leaf_density;
-    o.max_depth = ls.max_depth;
+    sy_synth_options o = aspen_options(&lib);
     sy_skeleton out[2];
     sy_leaves lv[2];
     sy_synth_report rep[2];
