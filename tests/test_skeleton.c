@@ -449,6 +449,20 @@ static void hidden_trunk_cloud(sy_cloud *c, size_t whorl)
     for (size_t i = 0; i < c->n; i++) hag[i] = c->origin[2] + c->xyz[3 * i + 2];
 }
 
+/* Reconstructs c without the species' allometry (report in plain) and with
+ * 0.03 DBH per metre of height (allometric; its tree in s and cl). */
+static void without_and_with_allometry(const sy_cloud *c, sy_skeleton *s, sy_clusters *cl, sy_skeleton_report *plain,
+                                       sy_skeleton_report *allometric)
+{
+    sy_error err = {0};
+    sy_skeleton_options o = sy_skeleton_options_default();
+    assert_int_equal(sy_reconstruct_tree(c, &o, 0, s, cl, plain, NULL, &err), SY_OK);
+    sy_skeleton_free(s);
+    sy_clusters_free(cl);
+    o.dbh_per_height = 0.03;
+    assert_int_equal(sy_reconstruct_tree(c, &o, 0, s, cl, allometric, NULL, &err), SY_OK);
+}
+
 /* A trunk the scan does not show at breast height (a conifer's needles, a
  * leafy crown to the ground): the DBH comes from the species' allometry
  * when the caller knows it and the ground is known (the height is
@@ -459,15 +473,10 @@ static void hidden_trunk_takes_the_species_allometry(void **state)
     sy_cloud c;
     sy_error err = {0};
     hidden_trunk_cloud(&c, 0);
-    sy_skeleton_options o = sy_skeleton_options_default();
     sy_skeleton s;
     sy_clusters cl;
     sy_skeleton_report plain, allometric;
-    assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, &plain, NULL, &err), SY_OK);
-    sy_skeleton_free(&s);
-    sy_clusters_free(&cl);
-    o.dbh_per_height = 0.03;
-    assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, &allometric, NULL, &err), SY_OK);
+    without_and_with_allometry(&c, &s, &cl, &plain, &allometric);
     printf("hidden trunk: DBH %.4f without the allometry, %.4f with (height %.2f)\n", plain.dbh, allometric.dbh,
            allometric.height);
     assert_int_equal(plain.dbh_fitted, 0);
@@ -477,6 +486,7 @@ static void hidden_trunk_takes_the_species_allometry(void **state)
     assert_radii_taper(&s);
     sy_skeleton_free(&s);
     sy_clusters_free(&cl);
+    sy_skeleton_options o = sy_skeleton_options_default();
     o.dbh_per_height = 1.5;
     assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, NULL, NULL, &err), SY_EUSAGE);
     assert_non_null(strstr(err.msg, "dbh_per_height"));
@@ -490,17 +500,11 @@ static void whorl_is_not_the_trunk(void **state)
 {
     (void)state;
     sy_cloud c;
-    sy_error err = {0};
     hidden_trunk_cloud(&c, 2400);
-    sy_skeleton_options o = sy_skeleton_options_default();
     sy_skeleton s;
     sy_clusters cl;
     sy_skeleton_report plain, allometric;
-    assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, &plain, NULL, &err), SY_OK);
-    sy_skeleton_free(&s);
-    sy_clusters_free(&cl);
-    o.dbh_per_height = 0.03;
-    assert_int_equal(sy_reconstruct_tree(&c, &o, 0, &s, &cl, &allometric, NULL, &err), SY_OK);
+    without_and_with_allometry(&c, &s, &cl, &plain, &allometric);
     printf("whorl: DBH %.4f fitted %d without the allometry, %.4f fitted %d with\n", plain.dbh, plain.dbh_fitted,
            allometric.dbh, allometric.dbh_fitted);
     assert_true(plain.dbh_fitted && fabs(plain.dbh - 0.6) < 0.02);
