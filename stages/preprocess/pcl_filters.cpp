@@ -23,6 +23,7 @@
 #include "pcl_filters.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <exception>
 #include <vector>
@@ -31,7 +32,6 @@
 #include <pcl/common/centroid.h>
 #include <pcl/console/print.h>
 #include <pcl/features/normal_3d_omp.h>
-#include <pcl/filters/statistical_outlier_removal.h>
 #include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
@@ -70,7 +70,8 @@ sy_code fail(sy_error *err, const char *what, const char *why)
 
 } // namespace
 
-extern "C" sy_code sy_pcl_outliers(const float *xyz, size_t n, int k, double std_mul, uint8_t *keep, sy_error *err)
+extern "C" sy_code sy_pcl_outliers(const float *xyz, size_t n, int k, double std_mul, int threads, uint8_t *keep,
+                                   sy_error *err)
 {
     try {
         std::fill(keep, keep + n, uint8_t{0});
@@ -80,13 +81,42 @@ extern "C" sy_code sy_pcl_outliers(const float *xyz, size_t n, int k, double std
             return SY_OK;
         }
         Cloud::Ptr c = to_pcl(xyz, n);
-        pcl::StatisticalOutlierRemoval<pcl::PointXYZ> sor;
-        sor.setInputCloud(c);
-        sor.setMeanK(k);
-        sor.setStddevMulThresh(std_mul);
-        pcl::Indices kept;
-        sor.filter(kept);
-        for (auto i : kept) keep[i] = 1;
+        // pcl::StatisticalOutlierRemoval::applyFilterIndices (PCL 1.13), its
+        // neighbour pass spread over threads as NormalEstimationOMP does: the
+        // same unsorted KdTree, the same per-point float means, then the
+        // mean and deviation summed in point order, so the same mask.
+        pcl::search::KdTree<pcl::PointXYZ> tree(false);
+        tree.setInputCloud(c);
+        const int searcher_k = k + 1; // the query point comes back first
+        std::vector<float> distances(n);
+        std::vector<uint8_t> valid(n, 0);
+        const long long count = static_cast<long long>(n);
+#pragma omp parallel num_threads(threads > 0 ? threads : 1)
+        {
+            pcl::Indices nn_indices(searcher_k);
+            std::vector<float> nn_dists(searcher_k);
+#pragma omp for schedule(dynamic, 4096)
+            for (long long i = 0; i < count; i++) {
+                const pcl::PointXYZ &p = (*c)[static_cast<size_t>(i)];
+                distances[i] = 0.0f;
+                if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
+                if (tree.nearestKSearch(static_cast<pcl::index_t>(i), searcher_k, nn_indices, nn_dists) == 0) continue;
+                double dist_sum = 0.0;
+                for (int j = 1; j < searcher_k; ++j) dist_sum += std::sqrt(nn_dists[j]);
+                distances[i] = static_cast<float>(dist_sum / k);
+                valid[i] = 1;
+            }
+        }
+        double sum = 0, sq_sum = 0, valid_distances = 0;
+        for (size_t i = 0; i < n; i++) {
+            sum += distances[i];
+            sq_sum += distances[i] * distances[i];
+            valid_distances += valid[i];
+        }
+        double mean = sum / valid_distances;
+        double variance = (sq_sum - sum * sum / valid_distances) / (valid_distances - 1);
+        double threshold = mean + std_mul * std::sqrt(variance);
+        for (size_t i = 0; i < n; i++) keep[i] = !(distances[i] > threshold);
         return SY_OK;
     } catch (const std::exception &e) {
         return fail(err, "outlier removal", e.what());

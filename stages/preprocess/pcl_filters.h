@@ -15,10 +15,12 @@
 extern "C" {
 #endif
 
-/* Statistical outlier removal (pcl::StatisticalOutlierRemoval): keep[i] = 1
- * when the mean distance of point i to its k nearest neighbours is within
- * std_mul standard deviations of the cloud-wide mean. */
-sy_code sy_pcl_outliers(const float *xyz, size_t n, int k, double std_mul, uint8_t *keep, sy_error *err);
+/* Statistical outlier removal, pcl::StatisticalOutlierRemoval's rule on
+ * `threads` threads: keep[i] = 1 when the mean distance of point i to its k
+ * nearest neighbours is within std_mul standard deviations of the
+ * cloud-wide mean. The same mask for any thread count. */
+sy_code sy_pcl_outliers(const float *xyz, size_t n, int k, double std_mul, int threads, uint8_t *keep,
+                        sy_error *err);
 
 /* Called between chunks of a long computation with the points done so far. */
 typedef void (*sy_pcl_progress_fn)(void *ctx, size_t done);

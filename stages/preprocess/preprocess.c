@@ -403,7 +403,7 @@ sy_code sy_remove_outliers(sy_cloud *c, int k, double std_mul, sy_error *err)
 {
     uint8_t *keep = sy_calloc(c->n ? c->n : 1, 1, err, "outlier mask");
     if (!keep) return SY_EINTERNAL;
-    sy_code rc = sy_pcl_outliers(c->xyz, c->n, k, std_mul, keep, err);
+    sy_code rc = sy_pcl_outliers(c->xyz, c->n, k, std_mul, sy_threads(), keep, err);
     if (rc == SY_OK) rc = sy_cloud_filter(c, keep, err);
     free(keep);
     return rc;
