@@ -156,6 +156,7 @@ static void test_outliers(void **state)
     scene s;
     make_scene(&s, 11, 1);
     sy_error err;
+    sy_set_threads(2);
     assert_int_equal(sy_remove_outliers(&s.c, 16, 2.0, &err), SY_OK);
     size_t left[4];
     count_labels(&s.c, left);
@@ -165,6 +166,15 @@ static void test_outliers(void **state)
                   s.counts[OUTLIER] - left[OUTLIER], s.counts[OUTLIER], inliers - inliers_left, inliers);
     assert_true(s.counts[OUTLIER] - left[OUTLIER] >= 0.90 * s.counts[OUTLIER]);
     assert_true(inliers - inliers_left < 0.02 * inliers);
+    /* The neighbour pass runs on all threads: one and two keep the same points. */
+    scene t;
+    make_scene(&t, 11, 1);
+    sy_set_threads(1);
+    assert_int_equal(sy_remove_outliers(&t.c, 16, 2.0, &err), SY_OK);
+    sy_set_threads(0);
+    assert_int_equal(t.c.n, s.c.n);
+    assert_memory_equal(t.c.xyz, s.c.xyz, 3 * s.c.n * sizeof(float));
+    sy_cloud_free(&t.c);
     sy_cloud_free(&s.c);
 }
 
