@@ -992,7 +992,8 @@ sy_code sy_preprocess(sy_cloud *c, const sy_preprocess_options *o, sy_preprocess
     }
     step_end(s, c->n);
 
-    r->top_z = rc == SY_OK ? supported_top(c, 0.5, 3) : NAN;
+    /* Only the outlier filter strips a top: without it the output's highest point is the top. */
+    r->top_z = rc == SY_OK && o->sor ? supported_top(c, 0.5, 3) : NAN;
     s = step_begin(r, 3, "outliers", o->sor, c->n);
     if (rc == SY_OK && o->sor) {
         sy_progress_begin(&p, "outliers", c->n);

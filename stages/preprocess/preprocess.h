@@ -61,7 +61,8 @@ typedef struct {
     int up_detected;     /* 1 when auto detection chose it */
     size_t ground_points;
     double top_z;        /* world z of the highest point with at least 3 others within 0.5 m, taken
-                            before the outlier filter (which strips a sparse crown top); NaN: none */
+                            before the outlier filter (which strips a sparse crown top); NaN: none,
+                            or the filter is off */
 } sy_preprocess_result;
 
 /* Runs the enabled steps on c in place. */

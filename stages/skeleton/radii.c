@@ -242,15 +242,15 @@ sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of
      * trunk section: a circle over twice the species' norm at this height is
      * a conifer's whorl of branches around the trunk (balsam fir, 1M points:
      * 1.06 m for 0.38 m), and one whose residual exceeds a tenth of its
-     * radius runs through branch stubs (the same fir preprocessed: 0.21 m,
+     * radius runs through the bases of branches (the same fir preprocessed: 0.21 m,
      * residual 16 mm on 0.11 m). Stems thinner than the norm are otherwise
      * left alone: trees grown in a stand are slender. */
-    if (info->fitted && dbh_per_height > 0 && (2 * r > 2 * dbh_per_height * info->height || rms > 0.1 * r))
-        info->fitted = 0;
+    info->allometric_dbh = dbh_per_height * info->height;
+    if (info->fitted && dbh_per_height > 0 && (2 * r > 2 * info->allometric_dbh || rms > 0.1 * r)) info->fitted = 0;
     if (!info->fitted && dbh_per_height > 0) {
         /* No trunk circle (a conifer's needles or a leafy crown hide it):
          * the species' nominal tree, scaled to this one's height. */
-        r = 0.5 * dbh_per_height * info->height;
+        r = 0.5 * info->allometric_dbh;
         rms = 0;
     } else if (!info->fitted && k >= 3) {
         /* Fallback (AdTree's): half the wider of the x and y extents of the
@@ -270,7 +270,6 @@ sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of
     }
     if (!(r > 0)) r = fmax(spacing, 0.01);
     info->dbh = 2 * r;
-    info->allometric_dbh = dbh_per_height * info->height;
     info->rms = rms;
     /* Eq. 3.1 anchored at the breast-height node: r_i = r_ub (l_i / l_ub)^(1/gamma).
      * Below it the pipe model alone can run away: limbs or hanging foliage

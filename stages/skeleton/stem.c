@@ -329,6 +329,7 @@ void sy_apply_stem_radius(sy_skeleton *s, const sy_stem_info *stem, double gamma
         if (fabs(s->pos[3 * i + 2] - zb) < fabs(s->pos[3 * ub + 2] - zb)) ub = i;
     }
     double inv = 1.0 / gamma, l0 = l[0] > 0 ? l[0] : 1;
+    double at_ub = pow(fmax(l[ub] / l0, 1e-9), inv); /* breast height's share of the root's diameter */
     /* A clean circle at breast height on the rebuilt axis, no wider than the
      * stem measured below it, is the trunk itself: it stands (sassafras: a
      * 53-point circle, 4 mm residual, gave the DBH within 1%, and the taper
@@ -337,7 +338,7 @@ void sy_apply_stem_radius(sy_skeleton *s, const sy_stem_info *stem, double gamma
     if (ri->fitted && ri->inliers >= 20 && ri->rms <= 0.05 * bh_r &&
         hypot(ri->centre[0] - s->pos[3 * ub], ri->centre[1] - s->pos[3 * ub + 1]) <= fmax(0.5 * bh_r, 0.15) &&
         (!(stem->measured_r > 0) || bh_r <= 1.1 * stem->measured_r)) {
-        d_root = ri->dbh / pow(fmax(l[ub] / l0, 1e-9), inv);
+        d_root = ri->dbh / at_ub;
     } else if (ri->allometric_dbh > 0 && (!(stem->measured_r > 0) || fabs(stem->measured_z - zb) > 1.0)) {
         /* No stem circle near breast height: the pipe model from a circle
          * metres away (balsam fir: a ring of branches at 3 m, DBH 2.1x the
@@ -345,19 +346,19 @@ void sy_apply_stem_radius(sy_skeleton *s, const sy_stem_info *stem, double gamma
         ri->fitted = 0;
         ri->rms = 0;
         ri->dbh = ri->allometric_dbh;
-        d_root = ri->dbh / pow(fmax(l[ub] / l0, 1e-9), inv);
+        d_root = ri->dbh / at_ub;
     } else {
         double r = stem->measured_r > 0 ? stem->measured_r : stem->fallback_r;
         /* The pipe model from the measured slab to the root, then to breast height. */
         d_root = 2 * r / pow(fmax(l[um] / l0, 1e-9), inv);
         ri->fitted = 0;
-        ri->dbh = d_root * pow(fmax(l[ub] / l0, 1e-9), inv);
+        ri->dbh = d_root * at_ub;
         if (stem->measured_r > 0 && stem->upper_r > 0 && stem->upper_z > stem->measured_z) {
             /* Two stem measurements: the taper between them, to breast height. */
             double t = (zb - stem->measured_z) / (stem->upper_z - stem->measured_z);
             ri->dbh = 2 * (stem->measured_r + t * (stem->upper_r - stem->measured_r));
             ri->fitted = zb >= stem->measured_z - 0.3 && zb <= stem->upper_z + 0.3;
-            d_root = ri->dbh / pow(fmax(l[ub] / l0, 1e-9), inv);
+            d_root = ri->dbh / at_ub;
         }
         ri->fitted = ri->fitted || (stem->measured_r > 0 && fabs(stem->measured_z - zb) < 0.3);
         ri->rms = stem->measured_r > 0 ? stem->measured_rms : 0;
