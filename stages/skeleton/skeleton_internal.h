@@ -56,6 +56,7 @@ sy_code sy_classify_wood(const sy_graph *g, const int32_t *spt, const double *di
 typedef struct {
     int rebuilt;         /* 1: the trunk chain left the crown's axis and was rebuilt on it */
     int excurrent;       /* the crown narrows upward */
+    int crown_to_ground; /* the crown's radius at the foot is at least half its median: no bole in view */
     double excursion;    /* the trunk chain's largest horizontal distance from the axis, metres */
     double crown_radius; /* median over height slabs of the points' mean distance from the axis */
     double axis_rms;     /* RMS distance of the slab centroids from the axis */

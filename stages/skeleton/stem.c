@@ -31,6 +31,13 @@
 #define STEM_AXIS_RMS_SHARE 0.35
 /* Excurrent: the upper third's crown radius below this share of the lower half's. */
 #define STEM_EXCURRENT_SHARE 0.8
+/* The stem is hidden only where the crown reaches the ground: the lowest
+ * slabs' crown radius at least this share of the median. Below a crown that
+ * starts higher up the scanner sees the bole, the shortest paths start on
+ * it, and a trunk chain that then strays among the limbs is a decurrent
+ * crown's trunk dividing, not a stem lost in foliage (sassafras: 0.3-0.4 m
+ * at the foot under a 3.9 m crown, rebuilt into a pole with spokes). */
+#define STEM_FOOT_SHARE 0.5
 /* Height-to-diameter ratio of an excurrent stem whose bark the scan never
  * shows. The slenderness coefficient of conifers runs from about 40 for
  * open-grown trees to 100 and more in dense stands; a crown that reaches the
@@ -194,6 +201,11 @@ sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int
     info->crown_radius = Rmed;
     info->axis_rms = sqrt(ss / (double)k);
     info->excurrent = upper / nu < STEM_EXCURRENT_SHARE * (lower / nl);
+    /* The foot: the two lowest slabs with points (a slab needs 10 to count). */
+    double foot = 0;
+    for (int b = 0, got = 0; b < STEM_SLABS && got < 2; b++)
+        if (cnt[b] >= 10) foot += 0.5 * R[b], got++;
+    info->crown_to_ground = foot >= STEM_FOOT_SHARE * Rmed;
     /* The trunk chain's largest horizontal distance from the axis. */
     for (size_t i = 0; i < m; i++) {
         if (s->branch[i] != 0) continue;
@@ -201,7 +213,7 @@ sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int
         double d = hypot(p[0] - root[0] - ax[0] * (p[2] - z0), p[1] - root[1] - ax[1] * (p[2] - z0));
         info->excursion = fmax(info->excursion, d);
     }
-    if (!(Rmed > 0) || info->axis_rms > STEM_AXIS_RMS_SHARE * Rmed || !info->excurrent ||
+    if (!(Rmed > 0) || info->axis_rms > STEM_AXIS_RMS_SHARE * Rmed || !info->excurrent || !info->crown_to_ground ||
         info->excursion <= STEM_EXCURSION_SHARE * Rmed || info->excursion <= STEM_EXCURSION_HEIGHT * H ||
         hypot(ax[0], ax[1]) > 0.25)
         return SY_OK;
