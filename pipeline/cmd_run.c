@@ -57,6 +57,7 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
     sy_json_int(&j, "lod0_leaf_instances", (long long)res->asset.leaf_cards[0]);
     sy_json_int(&j, "patches", (long long)res->synth.patches);
     sy_json_int(&j, "leaves", (long long)res->synth.leaves);
+    sy_json_number(&j, "leaf_size", res->synth.leaf_size);
     sy_json_int(&j, "lobes_bare", (long long)res->synth.lobes_bare);
     sy_json_number(&j, "lobe_coverage", res->synth.coverage);
     sy_json_number(&j, "lobe_fill", res->synth.fill);

@@ -9,6 +9,9 @@
 #include "species/library.h"
 #include "stages/core/progress.h"
 
+/* The share of a tree's height a scan is sure to show (sy_species_leaf_fit). */
+#define SCAN_HEIGHT_SEEN 0.8
+
 void sy_decoded_tree_free(sy_decoded_tree *t)
 {
     sy_skeleton_free(&t->skel);
@@ -51,8 +54,21 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
     sy_synth_options so = sy_synth_options_default();
     so.seed = t->meta.seed;
     so.leaf_size = ls.leaf_size;
-    if (species && species->leaf_scale > 0)
-        so.leaf_size = (float)(species->leaf_scale / sqrt(species->leaf_quality > 0 ? species->leaf_quality : 1));
+    if (species && species->leaf_scale > 0) {
+        /* The species' cards fit its grown tree; a shorter tree takes them
+         * shrunk (the lobes' leaf area stays: synthesis fills each cell to
+         * an area, so smaller cards come more of them). The height: the
+         * highest node or hull vertex above the root, now at the origin. A
+         * scan can miss a tall tree's top (the simulated beech at 100k
+         * points: 14% of its height), so only trees under SCAN_HEIGHT_SEEN
+         * of the species' size count as smaller. */
+        double top = 0;
+        for (size_t i = 0; i < t->skel.n; i++) top = fmax(top, t->skel.pos[3 * i + 2]);
+        for (size_t c = 0; c < t->lobes.n; c++)
+            for (size_t i = 0; i < t->lobes.items[c].n_verts; i++) top = fmax(top, t->lobes.items[c].verts[3 * i + 2]);
+        so.leaf_size = (float)(species->leaf_scale / sqrt(species->leaf_quality > 0 ? species->leaf_quality : 1) *
+                               sy_species_leaf_fit(species, top, SCAN_HEIGHT_SEEN));
+    }
     so.leaf_density = ls.leaf_density;
     so.max_depth = ls.max_depth;
     rc = sy_synthesize(&t->skel, &t->lobes, &lib, &so, &t->grown, &t->leaves, &t->synth, err);

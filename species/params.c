@@ -105,6 +105,13 @@ static const key_def sylva_keys[] = {
 #define N_LEVEL (sizeof level_keys / sizeof level_keys[0])
 #define N_SYLVA (sizeof sylva_keys / sizeof sylva_keys[0])
 
+double sy_species_leaf_fit(const sy_species_params *sp, double tree_height, double seen)
+{
+    double full = sp->scale * (seen > 0 && seen <= 1 ? seen : 1);
+    if (!(full > 0) || !(tree_height > 0) || tree_height >= full) return 1;
+    return fmax(tree_height / full, 0.25);
+}
+
 sy_species_params sy_species_params_default(void)
 {
     sy_species_params s, *sp = &s;

@@ -63,6 +63,16 @@ typedef struct {
 
 /* Fills every parameter with its Weber-Penn default (docs/species.md). */
 sy_species_params sy_species_params_default(void);
+
+/* The share of the species' leaf size a tree tree_height metres tall takes:
+ * a species' cards are sized for its grown tree (Scale metres tall), so a
+ * shorter tree takes them shrunk by k = tree_height / (seen * Scale), at
+ * most 1 and never below a quarter (1 for unknown sizes). seen in (0, 1] is
+ * the share of a tree's height the measurement is sure to show: 1 for a QSM,
+ * less for a scan that may miss the top (so a full-grown tree whose top the
+ * scanner did not reach keeps full-size cards). Keeping the leaf area along
+ * a twig means 1/k^2 as many. */
+double sy_species_leaf_fit(const sy_species_params *sp, double tree_height, double seen);
 /* Parses INI text; `path` names the file in messages, `base_dir` resolves
  * relative texture paths (NULL: keep as written). Unknown keys, keys whose
  * level does not match their section, malformed or out-of-range values fail

@@ -518,10 +518,28 @@ static void every_library_species_grows(void **state)
     assert_true(count >= 10);
 }
 
+/* A species' cards fit a shorter tree: shrunk by height / (seen x Scale),
+ * never below a quarter, never grown; unknown sizes keep them. */
+static void leaf_fit_follows_the_tree_height(void **state)
+{
+    (void)state;
+    sy_species_params sp = sy_species_params_default();
+    sp.scale = 20;
+    assert_float_equal(sy_species_leaf_fit(&sp, 10, 1), 0.5, 1e-12);
+    assert_float_equal(sy_species_leaf_fit(&sp, 8, 0.8), 0.5, 1e-12);   /* a scan may miss the top */
+    assert_float_equal(sy_species_leaf_fit(&sp, 17, 0.8), 1, 0);          /* within the unseen share */
+    assert_float_equal(sy_species_leaf_fit(&sp, 30, 1), 1, 0);            /* taller: full size */
+    assert_float_equal(sy_species_leaf_fit(&sp, 1, 1), 0.25, 0);          /* floor */
+    assert_float_equal(sy_species_leaf_fit(&sp, 0, 1), 1, 0);             /* unknown height */
+    sp.scale = 0;
+    assert_float_equal(sy_species_leaf_fit(&sp, 10, 1), 1, 0);            /* unknown size */
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(shape_ratio_known_values),
+        cmocka_unit_test(leaf_fit_follows_the_tree_height),
         cmocka_unit_test(radius_profiles),
         cmocka_unit_test(appendix_c_typo_is_reported_then_parses),
         cmocka_unit_test(parser_errors_name_file_and_line),

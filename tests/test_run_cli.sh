@@ -65,4 +65,17 @@ awk 'BEGIN { srand(5); for (i = 0; i < 20; i++) { z = i * 0.15; a = rand() * 6.2
 "$SYLVA" run "$tmp/tiny.xyz" -o "$tmp/tiny.glb" --lods 1 --no-impostor 2> "$tmp/tiny.err" || fail "a 28-point tree failed: $(cat "$tmp/tiny.err")"
 grep -q "too few to classify" "$tmp/tiny.err" || fail "the tiny tree's species line: $(grep species "$tmp/tiny.err")"
 [ -s "$tmp/tiny.glb" ] || fail "no glb for the tiny tree"
+# Leaf cards fit the tree's size (sy_species_leaf_fit): a species' cards are
+# sized for its grown tree, so AdTree's 5.4 m tree1 grown as a silver birch
+# (0.7 m cards on an 18 m tree) takes them shrunk by its height over 0.8 x 18 m
+# (0.7 m cards there: the asset stood 10% over the scan, IoU 0.32), while
+# the 13 m aspen sample keeps the aspen's full 0.55 m.
+data=${SYLVA_DATA_DIR:-$src/../shared/data}
+r=$("$SYLVA" run "$data/real/adtree/tree1.xyz" --species silver_birch -o "$tmp/t1.glb" --json --quiet) || fail "run tree1"
+ls1=$(key leaf_size "$r"); h1=$(key height "$r")
+awk -v s="$ls1" -v h="$h1" 'BEGIN { w = 0.7 * h / (0.8 * 18); exit !(s > 0.9 * w && s < 1.1 * w && s < 0.35) }' ||
+  fail "tree1 leaf size $ls1 m for a $h1 m tree (0.7 x h / 14.4 m wanted)"
+r=$("$SYLVA" run "$scan" --species quaking_aspen -o "$tmp/a.glb" --json --quiet) || fail "run aspen"
+la=$(key leaf_size "$r")
+awk -v s="$la" 'BEGIN { exit !(s > 0.5499 && s < 0.5501) }' || fail "aspen leaf size $la m, not its full 0.55 m"
 echo "all run CLI checks passed"

@@ -31,8 +31,7 @@ sy_leaf_placement sy_leaf_placement_from_species(const sy_species_params *sp, ui
 
 void sy_leaf_placement_fit_tree(sy_leaf_placement *p, const sy_species_params *sp, double tree_height)
 {
-    if (!(sp->scale > 0) || !(tree_height > 0) || tree_height >= sp->scale) return;
-    double k = fmax(tree_height / sp->scale, 0.25);
+    double k = sy_species_leaf_fit(sp, tree_height, 1); /* a QSM's height is its own */
     p->size = (float)(p->size * k);
     p->per_metre /= k * k;
 }

@@ -876,6 +876,7 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
     double t0 = sy_now();
     sy_synth_report rep;
     memset(&rep, 0, sizeof rep);
+    rep.leaf_size = o->leaf_size;
     memset(leaves, 0, sizeof *leaves);
     memset(out, 0, sizeof *out);
     sy_code rc = sy_synth_options_check(o, err);

@@ -53,6 +53,7 @@ typedef struct {
     size_t leaves_in_hull;      /* leaves inside their lobe's hull or within 5 cm of it (exact test) */
     double coverage;            /* share of the lobes' occupied blocks (2 x 2 x 2 grid cells) holding a leaf */
     double fill;                /* share of the lobes' inside cells holding scan points (all lobes) */
+    double leaf_size;           /* the leaf card length used, metres (the option's) */
     double seconds;
 } sy_synth_report;
 
