@@ -526,7 +526,6 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
         X[0] = Y[1] * Z[2] - Y[2] * Z[1], X[1] = Y[2] * Z[0] - Y[0] * Z[2], X[2] = Y[0] * Z[1] - Y[1] * Z[0];
         float pos[3], q[4];
         for (int k = 0; k < 3; k++) w[k] = d->pos[k] + s * w[k], pos[k] = (float)w[k];
-        quat_from_basis(X, Y, Z, q);
         long c = grid_cell(g, w);
         /* Leaves outside the hull (the bark may leave it by a cell, leaves
          * not), or where the lobe is already as dense as the species' leaf
@@ -534,11 +533,29 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
         if (c < 0 || !g->inside[c]) continue;
         size_t b = block_of(g, c);
         if (g->block[b] >= g->block_cap[b]) continue;
+        /* The card reaches leaf_size along Y from its stem: a card whose tip
+         * would stick out of the lobe turns about its normal to point into
+         * it, else is halved (either way), and is left out when even that
+         * sticks out (a hull's skin of full-size cards stood out from the
+         * crown by a card length: the TreeLS pine +30% wide). */
+        float size = 0;
+        static const float fit_size[4] = {1, 1, 0.5f, 0.5f};
+        for (int t = 0; t < 4 && !(size > 0); t++) {
+            double sgn = t % 2 ? -1 : 1, tip[3];
+            for (int k = 0; k < 3; k++) tip[k] = w[k] + sgn * fit_size[t] * leaf_size * Y[k];
+            long ct = grid_cell(g, tip);
+            if (ct < 0 || !g->soft[ct]) continue;
+            size = fit_size[t] * (float)leaf_size;
+            if (sgn < 0)
+                for (int k = 0; k < 3; k++) X[k] = -X[k], Y[k] = -Y[k];
+        }
+        if (!(size > 0)) continue;
+        quat_from_basis(X, Y, Z, q);
         rep->leaves_in_hull += near_hull(g->hull, w, 0.05);
         if (g->occupied[c]) g->leaves[c]++;
         if (g->block[b]++ == 0) g->n_filled++;
         so->leaf_key[so->leaves->n] = (float)((i + 0.5) / (double)p->n_leaves);
-        if (sy_leaves_add(so->leaves, pos, q, (float)leaf_size, ids[p->leaf_node[i]], err)) {
+        if (sy_leaves_add(so->leaves, pos, q, size, ids[p->leaf_node[i]], err)) {
             free(ids);
             return SY_EINTERNAL;
         }
