@@ -535,19 +535,26 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
         if (g->block[b] >= g->block_cap[b]) continue;
         /* The card reaches leaf_size along Y from its stem: a card whose tip
          * would stick out of the lobe turns about its normal to point into
-         * it, else is halved (either way), and is left out when even that
-         * sticks out (a hull's skin of full-size cards stood out from the
-         * crown by a card length: the TreeLS pine +30% wide). */
+         * it, else slides back along its axis by half its length (its stem
+         * then stands off the twig by at most that), else is halved, and is
+         * left out when even that sticks out. Before, the cards on a hull's
+         * skin stood out from the crown by a card length (the TreeLS pine
+         * +30% wide). Each try: direction, slide back, size (in card lengths). */
+        static const float fit[6][3] = {{1, 0, 1}, {-1, 0, 1}, {1, 0.5f, 1}, {-1, 0.5f, 1}, {1, 0, 0.5f}, {-1, 0, 0.5f}};
         float size = 0;
-        static const float fit_size[4] = {1, 1, 0.5f, 0.5f};
-        for (int t = 0; t < 4 && !(size > 0); t++) {
-            double sgn = t % 2 ? -1 : 1, tip[3];
-            for (int k = 0; k < 3; k++) tip[k] = w[k] + sgn * fit_size[t] * leaf_size * Y[k];
-            long ct = grid_cell(g, tip);
-            if (ct < 0 || !g->soft[ct]) continue;
-            size = fit_size[t] * (float)leaf_size;
-            if (sgn < 0)
-                for (int k = 0; k < 3; k++) X[k] = -X[k], Y[k] = -Y[k];
+        for (int t = 0; t < 6 && !(size > 0); t++) {
+            double stem[3], tip[3];
+            for (int k = 0; k < 3; k++) {
+                stem[k] = w[k] - fit[t][0] * fit[t][1] * leaf_size * Y[k];
+                tip[k] = stem[k] + fit[t][0] * fit[t][2] * leaf_size * Y[k];
+            }
+            long cs = grid_cell(g, stem), ct = grid_cell(g, tip);
+            if (cs < 0 || !g->soft[cs] || ct < 0 || !g->soft[ct]) continue;
+            size = fit[t][2] * (float)leaf_size;
+            for (int k = 0; k < 3; k++) {
+                pos[k] = (float)stem[k];
+                if (fit[t][0] < 0) X[k] = -X[k], Y[k] = -Y[k];
+            }
         }
         if (!(size > 0)) continue;
         quat_from_basis(X, Y, Z, q);
