@@ -56,9 +56,11 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
     so.leaf_size = ls.leaf_size;
     if (species && species->leaf_scale > 0) {
         /* The species' cards fit its grown tree; a shorter tree takes them
-         * shrunk (the lobes' leaf area stays: synthesis fills each cell to
-         * an area, so smaller cards come more of them). The height: the
-         * highest node or hull vertex above the root, now at the origin. A
+         * shrunk. Synthesis places a patch's leaves as its branchlet carries
+         * them, so the leaf area falls with the square of the shrink (QSM
+         * twigs get more leaves instead; patches have no such knob). The
+         * height: the highest node or hull vertex above the root, now at the
+         * origin. A
          * scan can miss a tall tree's top (the simulated beech at 100k
          * points: 14% of its height), so only trees under SCAN_HEIGHT_SEEN
          * of the species' size count as smaller. */
