@@ -14,7 +14,9 @@ command -v "${CHROMIUM:-chromium}" >/dev/null || { echo "FAIL: chromium missing 
 for cam in 30,10 120,35; do
   "$SYLVA" view "$tmp/tree.glb" --mask --lod 0 --no-wind --size 320x240 --camera "$cam" --json \
       --screenshot "$tmp/viewer.png" >"$tmp/view.json"
-  node "$here/three_render.mjs" "$tmp/tree.glb" "$tmp/view.json" "$tmp/three.png"
+  rm -f "$tmp/three.png"
+  node "$here/three_render.mjs" "$tmp/tree.glb" "$tmp/view.json" "$tmp/three.png" ||
+    { echo "FAIL: three.js render from $cam (headless Chromium)"; fail=1; continue; }
   check "viewer and three.js silhouettes agree from $cam (IoU >= 0.9)" "node '$here/check.mjs' iou '$tmp/viewer.png' '$tmp/three.png' 0.9"
 done
 exit $fail
