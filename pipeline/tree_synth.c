@@ -64,8 +64,7 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
          * scan can miss a tall tree's top (the simulated beech at 100k
          * points: 14% of its height), so only trees under SCAN_HEIGHT_SEEN
          * of the species' size count as smaller. */
-        double top = 0;
-        for (size_t i = 0; i < t->skel.n; i++) top = fmax(top, t->skel.pos[3 * i + 2]);
+        double top = sy_skeleton_height(&t->skel);
         for (size_t c = 0; c < t->lobes.n; c++)
             for (size_t i = 0; i < t->lobes.items[c].n_verts; i++) top = fmax(top, t->lobes.items[c].verts[3 * i + 2]);
         so.leaf_size = (float)(species->leaf_scale / sqrt(species->leaf_quality > 0 ? species->leaf_quality : 1) *
