@@ -32,6 +32,12 @@ dev=$(jq -r '[.nodes[] | select(.order == 0)] as $t | ($t | min_by(.z)) as $a | 
 top=$(jq -r '[.nodes[] | select(.order == 0) | .z] | (max - min)' "$tmp/fir.json")
 check "fir_tls trunk straight: largest excursion $dev m <= 2% of the $H m height" "$dev <= 0.02 * $H"
 check "fir_tls trunk spans $top m of the $H m tree (>= 85%)" "$top >= 0.85 * $H"
+# The limbs grow from the stem into the crown's returns (space colonisation),
+# one short step at a time: the geodesic branches hung from the rebuilt stem
+# at their own heights were spokes across the crown (longest edge 2.99 m).
+edge=$(jq -r '.nodes as $n | [$n[] | select(.parent >= 0) | . as $c | $n[$c.parent] as $p |
+  (($c.x - $p.x) * ($c.x - $p.x) + ($c.y - $p.y) * ($c.y - $p.y) + ($c.z - $p.z) * ($c.z - $p.z)) | sqrt] | max' "$tmp/fir.json")
+check "fir_tls no spokes: longest skeleton edge $edge m <= 1.5 m" "$edge <= 1.5"
 check "fir_tls skeleton DBH $dbh m within 25% of the true $D m" "$dbh >= 0.75 * $D && $dbh <= 1.25 * $D"
 
 # The airborne scan of the same fir sees the crown from above and no stem:

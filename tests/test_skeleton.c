@@ -10,6 +10,8 @@
 #include "stages/core/fileio.h"
 #include "pipeline/run_tree.h"
 #include "stages/skeleton/skeleton.h"
+#include "stages/skeleton/skeleton_internal.h"
+#include "stages/core/rng.h"
 #include "synthetic_tree.h"
 #include "xyz_text.h"
 
@@ -515,6 +517,61 @@ static void whorl_is_not_the_trunk(void **state)
     sy_cloud_free(&c);
 }
 
+/* Space colonisation into a crown the scan shows only as foliage: a stem
+ * of 11 nodes inside a shell of returns 2-3.5 m out from it (no points in
+ * between to lead growth). Every foliage point must be reached (a node
+ * within the kill distance of its voxel, plus the voxel's half-diagonal),
+ * every grown edge is one step long (no spokes across the crown), the limbs
+ * reach the shell, and two runs give the same nodes. */
+static void limbs_grow_into_an_unseen_crown(void **state)
+{
+    (void)state;
+    float stem[33];
+    for (int t = 0; t < 11; t++) stem[3 * t] = stem[3 * t + 1] = 0, stem[3 * t + 2] = (float)t;
+    size_t n = 6000;
+    float *pts = malloc(n * 3 * sizeof *pts);
+    assert_non_null(pts);
+    uint64_t rng = 5;
+    for (size_t i = 0; i < n; i++) {
+        double a = 6.28318530717958647692 * sy_unit53(sy_splitmix64(&rng)), r = 2.0 + 1.5 * sy_unit53(sy_splitmix64(&rng)), z = 2 + 7 * sy_unit53(sy_splitmix64(&rng));
+        pts[3 * i] = (float)(r * cos(a)), pts[3 * i + 1] = (float)(r * sin(a)), pts[3 * i + 2] = (float)z;
+    }
+    const double step = 0.3, kill = 0.6;
+    float *pos[2];
+    int32_t *par[2];
+    size_t m[2];
+    sy_error err = {0};
+    for (int run = 0; run < 2; run++)
+        assert_int_equal(sy_colonize(stem, 11, pts, n, step, kill, 20000, &pos[run], &par[run], &m[run], &err), SY_OK);
+    assert_int_equal(m[0], m[1]);
+    assert_memory_equal(pos[0], pos[1], m[0] * 3 * sizeof *pos[0]);
+    assert_memory_equal(par[0], par[1], m[0] * sizeof *par[0]);
+    assert_memory_equal(pos[0], stem, sizeof stem);
+    double reach = 0, longest = 0;
+    for (size_t v = 11; v < m[0]; v++) {
+        const float *a = pos[0] + 3 * v, *b = pos[0] + 3 * (size_t)par[0][v];
+        assert_true(par[0][v] >= 0 && (size_t)par[0][v] < v);
+        longest = fmax(longest, sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2])));
+        reach = fmax(reach, hypot(a[0], a[1]));
+    }
+    size_t unreached = 0;
+    for (size_t i = 0; i < n; i++) {
+        double best = INFINITY;
+        for (size_t v = 0; v < m[0]; v++) {
+            double dx = pos[0][3 * v] - pts[3 * i], dy = pos[0][3 * v + 1] - pts[3 * i + 1], dz = pos[0][3 * v + 2] - pts[3 * i + 2];
+            best = fmin(best, dx * dx + dy * dy + dz * dz);
+        }
+        unreached += sqrt(best) > kill + 0.87 * step;
+    }
+    printf("colonised: %zu nodes, longest edge %.3f m, reach %.2f m, %zu of %zu points unreached\n", m[0], longest, reach,
+           unreached, n);
+    assert_true(fabs(longest - step) < 1e-4);
+    assert_true(reach > 3.0);
+    assert_int_equal(unreached, 0);
+    for (int run = 0; run < 2; run++) free(pos[run]), free(par[run]);
+    free(pts);
+}
+
 static void rejects_tiny_and_bad_options(void **state)
 {
     (void)state;
@@ -555,6 +612,7 @@ int main(void)
         cmocka_unit_test(base_is_found_under_a_dense_crown),
         cmocka_unit_test(hidden_trunk_takes_the_species_allometry),
         cmocka_unit_test(whorl_is_not_the_trunk),
+        cmocka_unit_test(limbs_grow_into_an_unseen_crown),
         cmocka_unit_test(rejects_tiny_and_bad_options),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

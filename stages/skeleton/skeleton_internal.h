@@ -61,6 +61,7 @@ typedef struct {
     double crown_radius; /* median over height slabs of the points' mean distance from the axis */
     double axis_rms;     /* RMS distance of the slab centroids from the axis */
     double axis[4];      /* x, y at the root and dx/dz, dy/dz */
+    int root_moved;      /* the root was off the axis (low crown, not stem) and moved onto it */
     double measured_r, measured_z, measured_rms; /* a stem circle fit (radius 0: none stood) */
     double upper_r, upper_z; /* a run of stem returns higher up on that circle's centre (0: none) */
     double fallback_r;   /* radius at breast height when no stem fit stood (slenderness) */
@@ -73,6 +74,13 @@ typedef struct {
  * info->rebuilt says whether it changed anything. */
 sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int32_t *point_node,
                                  const uint8_t *wood, double w, double spacing, sy_stem_info *info, sy_error *err);
+/* Space colonisation (colonize.c, Runions et al. 2007): from the n_seed
+ * nodes at seed, grows nodes one step at a time toward the attraction points
+ * (pts thinned to one per step-sized voxel) until each is within kill of a
+ * node, no node grows, or max_nodes exist. Returns all nodes (the seeds
+ * first, unchanged) and their parents (-1 for the seeds), malloc'ed. */
+sy_code sy_colonize(const float *seed, size_t n_seed, const float *pts, size_t n_pts, double step, double kill,
+                    size_t max_nodes, float **pos_out, int32_t **parent_out, size_t *n_out, sy_error *err);
 /* After sy_assign_radii on a rebuilt stem: the allometry runs from the
  * measured stem circle (or the slenderness estimate) instead of the
  * breast-height slab fit, which on such scans rings the lowest branches. */

@@ -18,6 +18,7 @@
 #include <string.h>
 
 #include "skeleton_internal.h"
+#include "stages/core/kdtree.h"
 #include "stages/core/sort.h"
 
 #define STEM_SLABS 32
@@ -43,6 +44,15 @@
  * open-grown trees to 100 and more in dense stands; a crown that reaches the
  * ground (the case that hides the stem) is an open-grown tree, so the low end. */
 #define STEM_SLENDERNESS 45.0
+/* The limbs' growth step as a share of the crown radius (at least two
+ * level-set widths), the colonisation's kill distance in steps, and a cap on
+ * the nodes it may add (a 20 m crown at a 0.6 m step needs 2-4 thousand). */
+#define STEM_LIMB_STEP 0.1
+#define STEM_LIMB_KILL 2.0
+#define STEM_LIMB_NODES 20000
+/* The root is on the stem when it lies within this many times the slab
+ * centroids' RMS scatter of their free line. */
+#define STEM_ROOT_ON_AXIS 2.0
 
 static double median_of(double *v, size_t k)
 {
@@ -160,18 +170,53 @@ sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int
         sy[b] += p[1];
         sz[b] += p[2];
     }
-    /* The axis through the root (the base is where the stem is seen), its
-     * lean fitted to the centroids weighted by their points. */
-    double root[2] = {s->pos[0], s->pos[1]}, num[2] = {0, 0}, den = 0;
+    /* The axis: a line through the slab centroids weighted by their points,
+     * its foot free; and the same through the root. The root is where the
+     * stem is seen when it lies on the free line (within twice the
+     * centroids' scatter about it), and then the axis goes through it.
+     * Otherwise the base slab holds only low crown (a spruce's skirt: the
+     * root 2.4 m off a vertical stem, and the axis through it leaning 0.25),
+     * and the free line is the stem. */
+    double root[2] = {s->pos[0], s->pos[1]}, ax[2];
+    double W = 0, Z = 0, ZZ = 0, X[2] = {0, 0}, XZ[2] = {0, 0}, num[2] = {0, 0}, den = 0;
     for (int b = 0; b < STEM_SLABS; b++) {
         if (cnt[b] < 10) continue;
         double dz = sz[b] / cnt[b] - z0;
-        num[0] += cnt[b] * dz * (sx[b] / cnt[b] - root[0]);
-        num[1] += cnt[b] * dz * (sy[b] / cnt[b] - root[1]);
+        W += cnt[b];
+        Z += cnt[b] * dz;
+        ZZ += cnt[b] * dz * dz;
+        for (int k = 0; k < 2; k++) {
+            double c = (k ? sy[b] : sx[b]) / cnt[b];
+            X[k] += cnt[b] * c;
+            XZ[k] += cnt[b] * c * dz;
+            num[k] += cnt[b] * dz * (c - root[k]);
+        }
         den += cnt[b] * dz * dz;
     }
-    if (!(den > 0)) return SY_OK;
-    double ax[2] = {num[0] / den, num[1] / den};
+    double det = W * ZZ - Z * Z;
+    if (!(den > 0) || !(det > 0)) return SY_OK;
+    double free_foot[2], free_lean[2], scatter = 0;
+    for (int k = 0; k < 2; k++) {
+        free_lean[k] = (W * XZ[k] - Z * X[k]) / det;
+        free_foot[k] = (X[k] - free_lean[k] * Z) / W;
+    }
+    for (int b = 0; b < STEM_SLABS; b++) {
+        if (cnt[b] < 10) continue;
+        double dz = sz[b] / cnt[b] - z0;
+        scatter += cnt[b] * (pow(sx[b] / cnt[b] - free_foot[0] - free_lean[0] * dz, 2) +
+                             pow(sy[b] / cnt[b] - free_foot[1] - free_lean[1] * dz, 2));
+    }
+    scatter = sqrt(scatter / W);
+    if (hypot(free_foot[0] - root[0], free_foot[1] - root[1]) <= STEM_ROOT_ON_AXIS * scatter) {
+        ax[0] = num[0] / den;
+        ax[1] = num[1] / den;
+    } else {
+        for (int k = 0; k < 2; k++) {
+            root[k] = free_foot[k];
+            ax[k] = free_lean[k];
+        }
+        info->root_moved = 1;
+    }
     info->axis[0] = root[0];
     info->axis[1] = root[1];
     info->axis[2] = ax[0];
@@ -218,63 +263,48 @@ sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int
         hypot(ax[0], ax[1]) > 0.25)
         return SY_OK;
 
-    /* Rebuild: stem nodes on the axis from the root to the top; trunk nodes
-     * go, their points join the stem node at their height; every branch that
-     * left the trunk leaves the stem at its own first node's height. */
+    /* Rebuild: stem nodes on the axis from the root to the top, and limbs
+     * grown from them into the crown's returns by space colonisation
+     * (colonize.c). The geodesic nodes off the stem go: they trace the
+     * shell, and hung from the stem at their own heights they were spokes
+     * across the crown. Every point joins its nearest new node. */
     double step = fmax(w, H / 48);
-    size_t K = (size_t)ceil(H / step) + 1, kept = 0;
+    size_t K = (size_t)ceil(H / step) + 1;
     step = H / (double)(K - 1);
-    int32_t *newid = malloc(m * sizeof *newid);
-    size_t M0 = K + m;
-    int32_t *tpar = malloc(M0 * sizeof *tpar), *first = malloc(M0 * sizeof *first), *next = malloc(M0 * sizeof *next);
-    int32_t *order = malloc(M0 * sizeof *order), *final = malloc(M0 * sizeof *final);
-    float *tpos = malloc(M0 * 3 * sizeof *tpos);
+    double grow = fmax(2 * w, STEM_LIMB_STEP * Rmed);
+    float *tpos = malloc(K * 3 * sizeof *tpos), *cpos = NULL;
+    int32_t *cpar = NULL, *first = NULL, *next = NULL, *order = NULL, *final = NULL;
+    uint32_t *label = NULL;
+    size_t M = 0;
     sy_skeleton out = {0};
+    sy_kdtree kd = {0};
     sy_code rc = SY_OK;
-    if (!newid || !tpar || !first || !next || !order || !final || !tpos) {
+    if (!tpos) {
         rc = sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
         goto done;
     }
-#define STEM_AT(z) ((int32_t)fmin((double)(K - 1), fmax(0.0, floor(((z) - z0) / step + 0.5))))
     for (size_t t = 0; t < K; t++) {
         double z = z0 + step * (double)t;
         tpos[3 * t] = (float)(root[0] + ax[0] * (z - z0));
         tpos[3 * t + 1] = (float)(root[1] + ax[1] * (z - z0));
         tpos[3 * t + 2] = (float)z;
-        tpar[t] = t ? (int32_t)t - 1 : -1;
     }
-    /* The trunk chain's nodes off the axis are real returns of the crown: each
-     * becomes a limb from the stem at its own height out to where the chain
-     * passed (the whorls of an excurrent crown), keeping its side branches.
-     * Those within reach of the axis are the stem itself and merge into it. */
-    for (size_t i = 0; i < m; i++) {
-        const float *p = s->pos + 3 * i;
-        double d = hypot(p[0] - root[0] - ax[0] * (p[2] - z0), p[1] - root[1] - ax[1] * (p[2] - z0));
-        newid[i] = i == 0 || (s->branch[i] == 0 && d < 2 * w) ? -1 : (int32_t)(K + kept++);
+    if ((rc = sy_colonize(tpos, K, xyz, n, grow, STEM_LIMB_KILL * grow, K + STEM_LIMB_NODES, &cpos, &cpar, &M, err)))
+        goto done;
+    for (size_t t = 1; t < K; t++) cpar[t] = (int32_t)t - 1;
+    first = malloc(M * sizeof *first);
+    next = malloc(M * sizeof *next);
+    order = malloc(M * sizeof *order);
+    final = malloc(M * sizeof *final);
+    label = calloc(M, sizeof *label);
+    if (!first || !next || !order || !final || !label) {
+        rc = sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
+        goto done;
     }
-    for (size_t i = 0; i < m; i++) {
-        if (newid[i] < 0) continue;
-        int32_t p = s->parent[i], v = newid[i];
-        memcpy(tpos + 3 * (size_t)v, s->pos + 3 * i, 3 * sizeof *tpos);
-        tpar[v] = newid[p] >= 0 && s->branch[i] != 0 ? newid[p] : STEM_AT(s->pos[3 * i + 2]);
-        /* Side chains trace the shell the same way (arcs around the axis, not
-         * limbs out from it): an edge that runs more around the axis than
-         * away from it is cut, and the node hangs from the stem instead. */
-        if (newid[p] >= 0 && s->branch[i] != 0) {
-            const float *a = s->pos + 3 * (size_t)p, *c = s->pos + 3 * i;
-            double ra[2] = {a[0] - root[0] - ax[0] * (a[2] - z0), a[1] - root[1] - ax[1] * (a[2] - z0)};
-            double rc_[2] = {c[0] - root[0] - ax[0] * (c[2] - z0), c[1] - root[1] - ax[1] * (c[2] - z0)};
-            double da = hypot(ra[0], ra[1]), dc = hypot(rc_[0], rc_[1]);
-            double e[2] = {rc_[0] - ra[0], rc_[1] - ra[1]}, el = hypot(e[0], e[1]);
-            double radial = fabs(dc - da), around = sqrt(fmax(0, el * el - radial * radial));
-            if (around > radial && around > w && da > 2 * w) tpar[v] = STEM_AT(c[2]);
-        }
-    }
-    size_t M = K + kept;
     for (size_t v = 0; v < M; v++) first[v] = next[v] = -1;
     for (size_t v = M; v-- > 1;) {
-        next[v] = first[tpar[v]];
-        first[tpar[v]] = (int32_t)v;
+        next[v] = first[cpar[v]];
+        first[cpar[v]] = (int32_t)v;
     }
     size_t head = 0, tail = 0;
     order[tail++] = 0;
@@ -287,26 +317,28 @@ sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int
     for (size_t t = 0; t < M; t++) final[order[t]] = (int32_t)t;
     for (size_t t = 0; t < M; t++) {
         int32_t u = order[t];
-        memcpy(out.pos + 3 * t, tpos + 3 * (size_t)u, 3 * sizeof *tpos);
-        out.parent[t] = t ? final[tpar[u]] : -1;
+        memcpy(out.pos + 3 * t, cpos + 3 * (size_t)u, 3 * sizeof *cpos);
+        out.parent[t] = t ? final[cpar[u]] : -1;
         out.radius[t] = 1;
     }
     out.support_start = calloc(M + 1, sizeof *out.support_start);
     out.support = calloc(n ? n : 1, sizeof *out.support);
-    if (!out.support_start || !out.support) {
-        rc = sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
+    if (!out.support_start || !out.support || (rc = sy_kdtree_build(&kd, out.pos, M, err))) {
+        if (!rc) rc = sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
         goto done;
     }
+    sy_kdtree_relabel(&kd, label); /* all 0: the nearest node of any label but 1 */
     for (size_t i = 0; i < n; i++) {
-        int32_t v = newid[point_node[i]];
-        point_node[i] = final[v >= 0 ? v : STEM_AT(xyz[3 * i + 2])];
-        if (!wood || wood[i]) out.support_start[point_node[i] + 1]++;
+        double d2 = INFINITY;
+        uint32_t j = 0;
+        sy_kdtree_nearest_foreign(&kd, xyz + 3 * i, 1, &d2, &j);
+        point_node[i] = (int32_t)j;
+        if (!wood || wood[i]) out.support_start[j + 1]++;
     }
     for (size_t t = 0; t < M; t++) out.support_start[t + 1] += out.support_start[t];
     for (size_t t = 0; t < M; t++) order[t] = (int32_t)out.support_start[t];
     for (size_t i = 0; i < n; i++)
         if (!wood || wood[i]) out.support[order[point_node[i]]++] = (uint32_t)i;
-#undef STEM_AT
     sy_skeleton_free(s);
     *s = out;
     memset(&out, 0, sizeof out);
@@ -315,13 +347,15 @@ sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int
     if (!(info->measured_r > 0)) info->fallback_r = 0.5 * H / STEM_SLENDERNESS;
 done:
     sy_skeleton_free(&out);
-    free(newid);
-    free(tpar);
+    sy_kdtree_free(&kd);
+    free(tpos);
+    free(cpos);
+    free(cpar);
     free(first);
     free(next);
     free(order);
     free(final);
-    free(tpos);
+    free(label);
     return rc;
 }
 
