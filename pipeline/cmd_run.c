@@ -98,7 +98,7 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
         {"--proxy", OPT_FLAG, &a.run.proxy, NULL, "also draw the lobe hulls as a semi-transparent foliage_proxy mesh"},
         {"--leaf-off", OPT_FLAG, &a.run.leaf_off, NULL, "a leaf-off scan (bare branches): the synthesised branches without leaf cards"},
         {"--lobe-size", OPT_DOUBLE, &a.run.lobe_size, "F",
-         "largest lobe as a share of the tree's extent, in [0,1]; 0: one cluster per cut (default 0.25)"},
+         "largest lobe as a share of the tree's extent, in [0,1]; 0: one cluster per cut (default 0.1)"},
         {"--model", OPT_STRING, &a.run.model, "MODEL.sjb", "species classifier used without --species (default: the shipped one)"},
         {"--no-classify", OPT_FLAG, &no_classify, NULL, "without --species, keep the default parameters and materials"},
         {"--beta", OPT_DOUBLE, &a.run.beta, "B", "Dijkstra edge weight |u-v|^B (default: species, else 1)"},

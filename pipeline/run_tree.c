@@ -25,7 +25,7 @@ sy_run_tree_options sy_run_tree_options_default(void)
     o.beta = o.gamma = NAN;
     o.fs = 1;
     o.seed = 1;
-    o.lobe_size = 0.25;
+    o.lobe_size = 0.1;
     o.classify = 1;
     o.max_points = SY_POINT_BUDGET;
     o.asset = sy_tree_asset_options_default();

@@ -613,8 +613,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     size_t lobe_node0 = sk->n; /* nodes from here on are this lobe's bark */
     double min_start = sk->radius[seed] * 0.9 < max_thick ? sk->radius[seed] * 0.9 : max_thick;
     size_t lobe_patches = 0;
-    while (!rc && bare_reason < 0 && starts < max_starts && lobe_patches < (size_t)o->max_patches &&
-           g.n_filled < g.n_blocks) {
+    while (!rc && bare_reason < 0 && starts < max_starts && lobe_patches < (size_t)o->max_patches) {
         /* A new start from the seed toward the occupied cells still empty:
          * a carrier limb (the part of the limb the scan does not resolve)
          * runs from the seed to the nearest of them when it lies farther
@@ -626,7 +625,8 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
             for (int y = 0; y < g.d[1]; y++)
                 for (int x = 0; x < g.d[0]; x++) {
                     size_t i = (size_t)x + (size_t)g.d[0] * ((size_t)y + (size_t)g.d[1] * (size_t)z);
-                    if (!g.occupied[i] || g.leaves[i] || tried[i]) continue;
+                    if (!g.occupied[i] || tried[i]) continue;
+                    if (g.block[block_of(&g, (long)i)] >= g.block_cap[block_of(&g, (long)i)]) continue;
                     double c[3] = {g.lo[0] + (x + 0.5) * g.h, g.lo[1] + (y + 0.5) * g.h, g.lo[2] + (z + 0.5) * g.h};
                     double dd = (c[0] - ss[0]) * (c[0] - ss[0]) + (c[1] - ss[1]) * (c[1] - ss[1]) + (c[2] - ss[2]) * (c[2] - ss[2]);
                     if (dd < near_d) near_d = dd, memcpy(near, c, sizeof near), near_i = (long)i;
