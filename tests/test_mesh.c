@@ -633,6 +633,37 @@ static void bent_trunk_branches_sit_on_the_parent(void **state)
     sy_skeleton_free(&s);
 }
 
+/* Over its leaf budget LOD0 keeps a prefix of the seeded order, grown to
+ * the same total leaf area; LOD1 halves that prefix. */
+static void leaf_budget_keeps_the_leaf_area(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_leaves lv;
+    assert_int_equal(tg_tree(7, 3, 11, 1, 8.0f, &s, &lv), 0);
+    assert_true(lv.n > 300);
+    sy_mesh_options o = sy_mesh_options_default();
+    o.impostor = 0;
+    o.lod0_max_leaves = 100;
+    sy_asset a;
+    mesh_tree(&s, &lv, &o, &a);
+    const sy_instances *l0 = &a.lods[0].instances[0];
+    double all = 0, kept = 0;
+    for (size_t i = 0; i < lv.n; i++) all += (double)lv.scale[i] * lv.scale[i];
+    for (size_t i = 0; i < l0->n; i++) kept += (double)l0->scale[3 * i] * l0->scale[3 * i];
+    printf("leaf budget 100 of %zu: LOD0 keeps %zu, area %.4f of %.4f m^2 (card length squared)\n", lv.n, l0->n, kept,
+           all);
+    assert_true(l0->n <= 100 && l0->n >= 95); /* a few enlarged cards may reach under the ground */
+    assert_true(fabs(kept / all - 1) < 0.06);
+    assert_true(a.lods[1].n_instances == 1 && 2 * a.lods[1].instances[0].n <= l0->n);
+    sy_asset_free(&a);
+    o.lod0_max_leaves = -1;
+    sy_error err;
+    assert_int_equal(sy_mesh_options_check(&o, &err), SY_EUSAGE);
+    sy_skeleton_free(&s);
+    sy_leaves_free(&lv);
+}
+
 static void random_tree_meets_every_property(void **state)
 {
     (void)state;
@@ -924,6 +955,7 @@ int main(void)
         cmocka_unit_test(bent_trunk_branches_sit_on_the_parent),
         cmocka_unit_test(curved_branch_keeps_its_curve_at_every_level),
         cmocka_unit_test(random_tree_meets_every_property),
+        cmocka_unit_test(leaf_budget_keeps_the_leaf_area),
         cmocka_unit_test(wind_table_keeps_levels_0_to_3),
         cmocka_unit_test(bad_input_is_refused_with_a_message),
     };

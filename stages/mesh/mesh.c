@@ -17,6 +17,7 @@ sy_mesh_options sy_mesh_options_default(void)
     o.segment_length = 0;
     o.n_lods = 4;
     o.lod0_max_triangles = 55000;
+    o.lod0_max_leaves = 30000;
     o.impostor = 1;
     o.impostor_size = 512;
     o.min_radius = 0.0015f;
@@ -36,6 +37,7 @@ sy_code sy_mesh_options_check(const sy_mesh_options *o, sy_error *err)
         return sy_fail(err, SY_EUSAGE, "mesh: segment_length %g is not >= 0", o->segment_length);
     if (o->n_lods < 1 || o->n_lods > 7)
         return sy_fail(err, SY_EUSAGE, "mesh: n_lods %d outside [1, 7]", o->n_lods);
+    if (o->lod0_max_leaves < 0) return sy_fail(err, SY_EUSAGE, "mesh: lod0_max_leaves %d is negative", o->lod0_max_leaves);
     if (o->impostor && (o->impostor_size < 16 || o->impostor_size > 4096))
         return sy_fail(err, SY_EUSAGE, "mesh: impostor_size %d outside [16, 4096]", o->impostor_size);
     if (!(o->min_radius >= 0) || !isfinite(o->min_radius))
@@ -243,6 +245,20 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
     all.n = kept;
     memcpy(cur.list, all.list, kept * sizeof(uint32_t));
     cur.n = kept;
+    /* Over the leaf budget LOD0 keeps a prefix of the seeded order (stochastic
+     * pruning, Cook et al. 2007), grown to the total area of all leaves. */
+    float grow0 = 1.0f;
+    if (opt->lod0_max_leaves > 0 && cur.n > (size_t)opt->lod0_max_leaves) {
+        double ref = 0, kept_area = 0;
+        for (size_t i = 0; i < all.n; i++) ref += (double)lv->scale[all.list[i]] * lv->scale[all.list[i]];
+        cur.n = (size_t)opt->lod0_max_leaves;
+        for (size_t i = 0; i < cur.n; i++) kept_area += (double)lv->scale[cur.list[i]] * lv->scale[cur.list[i]];
+        grow0 = kept_area > 0 ? (float)fmin(4.0, sqrt(ref / kept_area)) : 1.0f;
+        size_t n = 0;
+        for (size_t i = 0; i < cur.n; i++)
+            if (!card_below(lv, cur.list[i], opt->leaf_aspect, grow0, st.ground)) cur.list[n++] = cur.list[i];
+        cur.n = n;
+    }
     sy_lod_params lp = {0, 1, keep, 1};
     memset(keep, 1, st.n);
     size_t tris = sy_lod_bark_triangles(&st, &lp);
@@ -253,7 +269,7 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
     }
     size_t first_lod = out->n_lods;
     float coverage = 0.5f;
-    if ((rc = add_level(out, &st, lv, &lp, bark, card, opt->leaf_aspect, &cur, 1.0f, coverage, opt->weld_stats, err)) != SY_OK) goto done;
+    if ((rc = add_level(out, &st, lv, &lp, bark, card, opt->leaf_aspect, &cur, grow0, coverage, opt->weld_stats, err)) != SY_OK) goto done;
     for (int level = 1; level < opt->n_lods; level++) {
         memcpy(keep_prev, keep, st.n);
         sy_lod_params next = {level, 1 << level, keep, 0};

@@ -33,6 +33,9 @@ typedef struct {
                                   its strips: LOD0 bark stays under 60k; 0 = none):
                                   the least important twigs (r^2 L) go first, as the
                                   twig leaf cards depict them */
+    int lod0_max_leaves;       /* leaf instance budget of LOD0 (default 30,000; 0 = none): past it LOD0
+                                  keeps a prefix of the seeded order, grown to the same total leaf
+                                  area, as the coarser levels do */
     int n_lods;                /* mesh levels before the impostor (default 4); each halves
                                   rings and segments and drops thin branches */
     int impostor;              /* add the final cross-card impostor level (default 1) */
