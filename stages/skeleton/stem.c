@@ -8,8 +8,8 @@
  * (Hackenberg et al. 2015, SimpleTree: the stem axis from the crown's slab
  * centroids where the stem is not seen; Raumonen et al. 2013 for circle fits
  * where it is): when the trunk chain wanders far from that axis while the
- * centroids stay on it, the stem is rebuilt on the axis, the chain's nodes
- * and the geodesic branches hang from it at their own height, and its radius comes
+ * centroids stay on it, the stem is rebuilt on the axis, its limbs grow from
+ * it into the crown's returns by space colonisation (colonize.c), and its radius comes
  * from circle fits to the few stem returns there are (checked by residual,
  * arc coverage, centring on the axis and taper), the pipe-model allometry
  * carrying it to breast height. */
