@@ -60,8 +60,7 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
          * them, so the leaf area falls with the square of the shrink (QSM
          * twigs get more leaves instead; patches have no such knob). The
          * height: the highest node or hull vertex above the root, now at the
-         * origin. A
-         * scan can miss a tall tree's top (the simulated beech at 100k
+         * origin. A scan can miss a tall tree's top (the simulated beech at 100k
          * points: 14% of its height), so only trees under SCAN_HEIGHT_SEEN
          * of the species' size count as smaller. */
         double top = sy_skeleton_height(&t->skel);

@@ -118,30 +118,37 @@ typedef struct {
     size_t n;
 } leaf_level;
 
+/* Grows the cards of list so that their total area matches all of level 0's
+ * (at most 4x), keeping the crown's coverage roughly constant as leaves are
+ * pruned; cards that would then reach below the ground are left out.
+ * Returns the growth. */
+static float grow_to_full_area(const sy_leaves *lv, const leaf_level *all, float aspect, float ground,
+                               leaf_level *list)
+{
+    double ref = 0, kept = 0;
+    for (size_t i = 0; i < all->n; i++) ref += (double)lv->scale[all->list[i]] * lv->scale[all->list[i]];
+    for (size_t i = 0; i < list->n; i++) kept += (double)lv->scale[list->list[i]] * lv->scale[list->list[i]];
+    double g = kept > 0 ? sqrt(ref / kept) : 1;
+    float grow = (float)(g < 1 ? 1 : g > 4 ? 4 : g);
+    size_t n = 0;
+    for (size_t i = 0; i < list->n; i++)
+        if (!card_below(lv, list->list[i], aspect, grow, ground)) list->list[n++] = list->list[i];
+    list->n = n;
+    return grow;
+}
+
 /* The next level keeps the first half of the previous level's leaves (a
- * prefix of the stored seeded order). Leaves of twigs the level drops stay:
- * at a distance they stand in for the twig's foliage, and they keep swaying
- * with it because every wind entry survives. Dropping them instead left the
- * coarse levels bare (LOD3 of a 20k-leaf tree kept none). Returns how much the
- * kept cards grow (at most 4x) so their total area matches all level-0
- * leaves, keeping the crown's coverage roughly constant; cards that would
- * then reach below the ground are left out. */
+ * prefix of the stored seeded order), grown to level 0's leaf area. Leaves
+ * of twigs the level drops stay: at a distance they stand in for the twig's
+ * foliage, and they keep swaying with it because every wind entry survives.
+ * Dropping them instead left the coarse levels bare (LOD3 of a 20k-leaf tree
+ * kept none). Returns the growth. */
 static float next_leaf_level(const sy_leaves *lv, const leaf_level *prev, const leaf_level *all, float aspect,
                              float ground, leaf_level *next)
 {
     next->n = 0;
     for (size_t i = 0; i < prev->n / 2; i++) next->list[next->n++] = prev->list[i];
-    double ref = 0, kept = 0;
-    for (size_t i = 0; i < all->n; i++) ref += (double)lv->scale[all->list[i]] * lv->scale[all->list[i]];
-    for (size_t i = 0; i < next->n; i++) kept += (double)lv->scale[next->list[i]] * lv->scale[next->list[i]];
-    double g = kept > 0 ? sqrt(ref / kept) : 1;
-    float grow = (float)(g < 1 ? 1 : g > 4 ? 4 : g);
-    /* Enlarged cards near the ground would reach under it. */
-    size_t n = 0;
-    for (size_t i = 0; i < next->n; i++)
-        if (!card_below(lv, next->list[i], aspect, grow, ground)) next->list[n++] = next->list[i];
-    next->n = n;
-    return grow;
+    return grow_to_full_area(lv, all, aspect, ground, next);
 }
 
 static sy_code add_level(sy_asset *a, const sy_stems *st, const sy_leaves *lv, sy_lod_params *lp, int bark,
@@ -249,15 +256,8 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
      * pruning, Cook et al. 2007), grown to the total area of all leaves. */
     float grow0 = 1.0f;
     if (opt->lod0_max_leaves > 0 && cur.n > (size_t)opt->lod0_max_leaves) {
-        double ref = 0, kept_area = 0;
-        for (size_t i = 0; i < all.n; i++) ref += (double)lv->scale[all.list[i]] * lv->scale[all.list[i]];
         cur.n = (size_t)opt->lod0_max_leaves;
-        for (size_t i = 0; i < cur.n; i++) kept_area += (double)lv->scale[cur.list[i]] * lv->scale[cur.list[i]];
-        grow0 = kept_area > 0 ? (float)fmin(4.0, sqrt(ref / kept_area)) : 1.0f;
-        size_t n = 0;
-        for (size_t i = 0; i < cur.n; i++)
-            if (!card_below(lv, cur.list[i], opt->leaf_aspect, grow0, st.ground)) cur.list[n++] = cur.list[i];
-        cur.n = n;
+        grow0 = grow_to_full_area(lv, &all, opt->leaf_aspect, st.ground, &cur);
     }
     sy_lod_params lp = {0, 1, keep, 1};
     memset(keep, 1, st.n);

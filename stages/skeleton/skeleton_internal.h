@@ -61,7 +61,6 @@ typedef struct {
     double crown_radius; /* median over height slabs of the points' mean distance from the axis */
     double axis_rms;     /* RMS distance of the slab centroids from the axis */
     double axis[4];      /* x, y at the root and dx/dz, dy/dz */
-    int root_moved;      /* the root was off the axis (low crown, not stem) and moved onto it */
     double measured_r, measured_z, measured_rms; /* a stem circle fit (radius 0: none stood) */
     double upper_r, upper_z; /* a run of stem returns higher up on that circle's centre (0: none) */
     double fallback_r;   /* radius at breast height when no stem fit stood (slenderness) */

@@ -215,7 +215,6 @@ sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int
             root[k] = free_foot[k];
             ax[k] = free_lean[k];
         }
-        info->root_moved = 1;
     }
     info->axis[0] = root[0];
     info->axis[1] = root[1];

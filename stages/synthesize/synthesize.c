@@ -161,6 +161,13 @@ static size_t block_of(const lobe_grid *g, long c)
     return x / 2 + (size_t)g->bd[0] * (y / 2 + (size_t)g->bd[1] * (z / 2));
 }
 
+/* Cell c's block holds fewer leaves than the species' leaf area density allows. */
+static int block_has_room(const lobe_grid *g, long c)
+{
+    size_t b = block_of(g, c);
+    return g->block[b] < g->block_cap[b];
+}
+
 static long grid_cell(const lobe_grid *g, const double p[3])
 {
     int q[3];
@@ -463,7 +470,7 @@ static fit_geo patch_fit(const sy_patch *p, const dock *d, const double R[9], do
     size_t lstep = p->n_leaves > 24 ? p->n_leaves / 24 : 1;
     for (size_t i = 0; i < p->n_leaves; i += lstep) {
         long c = fit_sample(p->leaf_pos + 3 * i, d, R, s, g, far, &f);
-        f.gain += c >= 0 && g->occupied[c] && g->block[block_of(g, c)] < g->block_cap[block_of(g, c)];
+        f.gain += c >= 0 && g->occupied[c] && block_has_room(g, c);
         n++, nl++;
     }
     f.outside /= (double)(n ? n : 1);
@@ -614,7 +621,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     double min_start = sk->radius[seed] * 0.9 < max_thick ? sk->radius[seed] * 0.9 : max_thick;
     size_t lobe_patches = 0;
     while (!rc && bare_reason < 0 && starts < max_starts && lobe_patches < (size_t)o->max_patches) {
-        /* A new start from the seed toward the occupied cells still empty:
+        /* A new start from the seed toward the occupied cells with room:
          * a carrier limb (the part of the limb the scan does not resolve)
          * runs from the seed to the nearest of them when it lies farther
          * than a cell, and the first patch docks at its end. */
@@ -625,8 +632,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
             for (int y = 0; y < g.d[1]; y++)
                 for (int x = 0; x < g.d[0]; x++) {
                     size_t i = (size_t)x + (size_t)g.d[0] * ((size_t)y + (size_t)g.d[1] * (size_t)z);
-                    if (!g.occupied[i] || tried[i]) continue;
-                    if (g.block[block_of(&g, (long)i)] >= g.block_cap[block_of(&g, (long)i)]) continue;
+                    if (!g.occupied[i] || tried[i] || !block_has_room(&g, (long)i)) continue;
                     double c[3] = {g.lo[0] + (x + 0.5) * g.h, g.lo[1] + (y + 0.5) * g.h, g.lo[2] + (z + 0.5) * g.h};
                     double dd = (c[0] - ss[0]) * (c[0] - ss[0]) + (c[1] - ss[1]) * (c[1] - ss[1]) + (c[2] - ss[2]) * (c[2] - ss[2]);
                     if (dd < near_d) near_d = dd, memcpy(near, c, sizeof near), near_i = (long)i;
