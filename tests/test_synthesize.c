@@ -236,22 +236,31 @@ static void texturing_fills_the_lobe(void **state)
         c->occ_dims[0] = c->occ_dims[1] = c->occ_dims[2] = 0;
         sy_synth_options oc = o;
         oc.grid = 4;
-        sy_skeleton oc_out;
-        sy_leaves oc_lv;
-        sy_synth_report oc_rep;
-        assert_int_equal(sy_synthesize(&os, &oct, &lib, &oc, &oc_out, &oc_lv, &oc_rep, &err), SY_OK);
-        size_t inside = 0, far = 0;
-        for (size_t i = 0; i < oc_lv.n; i++) {
-            const float *p = oc_lv.pos + 3 * i;
-            double l1 = fabs(p[0]) + fabs(p[1]) + fabs(p[2] - 5.0);
-            inside += l1 <= 1.0;
-            far += (l1 - 1.0) / sqrt(3.0) > 0.05;
+        /* Leaves reach the cube's corners past the faces only with some
+         * seeds (a lobe this small takes a handful of patches): every seed's
+         * report must be right, and some seed must put leaves out. */
+        size_t far_all = 0;
+        for (uint64_t seed = 1; seed <= 4; seed++) {
+            oc.seed = seed;
+            sy_skeleton oc_out;
+            sy_leaves oc_lv;
+            sy_synth_report oc_rep;
+            assert_int_equal(sy_synthesize(&os, &oct, &lib, &oc, &oc_out, &oc_lv, &oc_rep, &err), SY_OK);
+            size_t inside = 0, far = 0;
+            for (size_t i = 0; i < oc_lv.n; i++) {
+                const float *p = oc_lv.pos + 3 * i;
+                double l1 = fabs(p[0]) + fabs(p[1]) + fabs(p[2] - 5.0);
+                inside += l1 <= 1.0;
+                far += (l1 - 1.0) / sqrt(3.0) > 0.05;
+            }
+            if (!(oc_rep.leaves_in_hull >= inside && oc_rep.leaves_in_hull <= oc_lv.n - far))
+                fail_msg("octahedron, seed %d: %zu leaves, %zu inside, %zu past 5 cm, reported within 5 cm %zu", (int)seed,
+                         oc_lv.n, inside, far, oc_rep.leaves_in_hull);
+            far_all += far;
+            sy_skeleton_free(&oc_out);
+            sy_leaves_free(&oc_lv);
         }
-        if (!(far > 0 && oc_rep.leaves_in_hull >= inside && oc_rep.leaves_in_hull <= oc_lv.n - far))
-            fail_msg("octahedron: %zu leaves, %zu inside, %zu past 5 cm, reported within 5 cm %zu", oc_lv.n, inside,
-                     far, oc_rep.leaves_in_hull);
-        sy_skeleton_free(&oc_out);
-        sy_leaves_free(&oc_lv);
+        if (!(far_all > 0)) fail_msg("octahedron: no seed put a leaf past 5 cm of the faces; the report went untested");
         sy_clusters_free(&oct);
         sy_skeleton_free(&os);
     }
@@ -348,6 +357,42 @@ static void lobes_in_parallel_give_the_same_tree(void **state)
     sy_skeleton_free(&s);
 }
 
+/* The leaf area a lobe gets follows the species' leaf area density: a 2 m
+ * box lobe, fully occupied (no occupancy grid), takes about density x 8 m3 of
+ * cards, and twice the density twice the area. Before, any block with a
+ * share of a card took a whole one: at density 1 the lobe got 512 leaves,
+ * one per 2 x 2 x 2 block, 23 m2 of cards (2.9 x). */
+static void leaf_area_follows_the_density(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_clusters cl = {0};
+    make_tree(&s, &cl, 1.0, 0);
+    sy_branchlets lib;
+    sy_synth_options o = aspen_options(&lib);
+    o.seed = 42;
+    double area[3];
+    const double density[3] = {1, 2, 4};
+    for (int k = 0; k < 3; k++) {
+        o.leaf_density = density[k];
+        sy_skeleton out;
+        sy_leaves lv;
+        sy_error err = {0};
+        assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out, &lv, NULL, &err), SY_OK);
+        area[k] = 0;
+        for (size_t i = 0; i < lv.n; i++) area[k] += 0.5 * lv.scale[i] * lv.scale[i]; /* the card's area */
+        printf("density %.0f: %zu leaves, %.2f m2 of cards, %.2f m2 per m3 of lobe\n", density[k], lv.n, area[k],
+               area[k] / 8);
+        if (!(area[k] >= 0.75 * 8 * density[k] && area[k] <= 1.25 * 8 * density[k]))
+            fail_msg("density %.0f: %.2f m2 of cards in 8 m3 (expected %.0f +- 25%%)", density[k], area[k], 8 * density[k]);
+        sy_skeleton_free(&out);
+        sy_leaves_free(&lv);
+    }
+    sy_branchlets_free(&lib);
+    sy_skeleton_free(&s);
+    sy_clusters_free(&cl);
+}
+
 /* A flat lobe, a tiny one and a single point: reported bare, never a crash. */
 static void lobes_without_room_are_reported(void **state)
 {
@@ -412,6 +457,7 @@ int main(void)
         cmocka_unit_test(every_species_grows_branchlets),
         cmocka_unit_test(grammar_errors_name_the_line),
         cmocka_unit_test(texturing_fills_the_lobe),
+        cmocka_unit_test(leaf_area_follows_the_density),
         cmocka_unit_test(lobes_without_room_are_reported),
         cmocka_unit_test(lobes_in_parallel_give_the_same_tree),
         cmocka_unit_test(winding_number_of_a_box),

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "stages/core/rng.h"
 #include "stages/core/geometry.h"
 #include "stages/core/parallel.h"
 #include "stages/core/progress.h"
@@ -139,12 +140,13 @@ typedef struct {
     float *dist;         /* distance (metres) to the nearest occupied cell */
     uint16_t *leaves;    /* leaves placed per cell */
     uint8_t *soft;       /* inside, or next to an inside cell: the hull as a soft constraint */
-    int bd[3];           /* blocks of 2 x 2 x 2 cells, where fullness is counted */
+    int bk;              /* a block's edge in cells: about a card's length */
+    int bd[3];           /* blocks of bk x bk x bk cells, where fullness is counted */
     uint32_t *block;     /* leaves per block */
-    float *block_cap;    /* leaves a block holds: capacity x its occupied cells */
+    float *block_cap;    /* whole leaves a block holds (0 when it has no occupied cell) */
     size_t n_occupied, n_blocks, n_filled; /* occupied cells; blocks with room; blocks holding a leaf */
     size_t n_inside;     /* cells inside the hull */
-    double capacity;     /* leaves a cell holds before docking there stops */
+    double capacity;     /* leaves an occupied block holds on average */
     float centroid[3];   /* of the occupied cells */
     const sy_cluster *hull; /* the lobe's hull itself (leaves' distance to it) */
 } lobe_grid;
@@ -158,7 +160,8 @@ static size_t block_of(const lobe_grid *g, long c)
 {
     size_t x = (size_t)c % (size_t)g->d[0], y = ((size_t)c / (size_t)g->d[0]) % (size_t)g->d[1],
            z = (size_t)c / ((size_t)g->d[0] * (size_t)g->d[1]);
-    return x / 2 + (size_t)g->bd[0] * (y / 2 + (size_t)g->bd[1] * (z / 2));
+    size_t k = (size_t)g->bk;
+    return x / k + (size_t)g->bd[0] * (y / k + (size_t)g->bd[1] * (z / k));
 }
 
 /* Cell c's block holds fewer leaves than the species' leaf area density allows. */
@@ -207,7 +210,8 @@ static int occ_bit(const sy_cluster *c, const float lo[3], const float hi[3], co
     return (c->occupancy[bit >> 3] >> (bit & 7)) & 1;
 }
 
-static sy_code grid_build(const sy_cluster *c, int cells, double density, double leaf_area, lobe_grid *g, sy_error *err)
+static sy_code grid_build(const sy_cluster *c, int cells, double density, double leaf_area, uint64_t key, lobe_grid *g,
+                          sy_error *err)
 {
     memset(g, 0, sizeof *g);
     g->hull = c;
@@ -233,7 +237,9 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
     g->dist = sy_calloc(g->n, sizeof *g->dist, err, "synthesis grid");
     g->leaves = sy_calloc(g->n, sizeof *g->leaves, err, "synthesis grid");
     g->soft = sy_calloc(g->n, 1, err, "synthesis grid");
-    for (int k = 0; k < 3; k++) g->bd[k] = (g->d[k] + 1) / 2;
+    g->bk = (int)lround(sqrt(2 * leaf_area) / g->h); /* the card's length */
+    if (g->bk < 2) g->bk = 2;
+    for (int k = 0; k < 3; k++) g->bd[k] = (g->d[k] + g->bk - 1) / g->bk;
     g->block = sy_calloc((size_t)g->bd[0] * g->bd[1] * g->bd[2], sizeof *g->block, err, "synthesis grid");
     g->block_cap = sy_calloc((size_t)g->bd[0] * g->bd[1] * g->bd[2], sizeof *g->block_cap, err, "synthesis grid");
     if (!g->inside || !g->occupied || !g->dist || !g->leaves || !g->soft || !g->block || !g->block_cap)
@@ -317,11 +323,23 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
                         }
                 g->soft[(size_t)x + (size_t)g->d[0] * ((size_t)y + (size_t)g->d[1] * (size_t)z)] = (uint8_t)any;
             }
-    /* A block is full when its leaves reach `density` square metres of leaf
-     * per cubic metre of its occupied cells. */
-    g->capacity = density * g->h * g->h * g->h / (leaf_area > 1e-6 ? leaf_area : 1e-6); /* per occupied cell */
+    /* A block is full when its leaves reach `density` square metres of card
+     * per cubic metre of the block. Blocks are about a card long, the scale
+     * at which a crown's volume is counted (a block holding a return is
+     * crown; a finer count shrinks with the cells round a sparse scan's
+     * points), and their share of cards, rarely a whole number, is rounded
+     * up or down at random with the odds of its fraction (keyed by the lobe
+     * and the block), so the expected leaf area is the density's. Before,
+     * 2 x 2 x 2 blocks took a card for any share: the leaf area followed the
+     * lobe grid, whatever the density (sassafras 3.6 x its true area). */
+    double bh = g->bk * g->h;
+    g->capacity = density * bh * bh * bh / (leaf_area > 1e-6 ? leaf_area : 1e-6); /* per occupied block */
     for (size_t i = 0; i < g->n; i++)
-        if (g->occupied[i]) g->block_cap[block_of(g, (long)i)] += (float)g->capacity;
+        if (g->occupied[i]) g->block_cap[block_of(g, (long)i)] = (float)g->capacity;
+    for (size_t b = 0; b < (size_t)g->bd[0] * g->bd[1] * g->bd[2]; b++) {
+        double u = (double)(sy_mix64(key ^ ((uint64_t)b + 1) * 0xD1B54A32D192ED03ull) >> 11) * 0x1p-53;
+        g->block_cap[b] = g->block_cap[b] > 0 ? (float)floor(g->block_cap[b] + u) : 0;
+    }
     for (size_t b = 0; b < (size_t)g->bd[0] * g->bd[1] * g->bd[2]; b++) g->n_blocks += g->block_cap[b] > 0;
     return SY_OK;
 }
@@ -601,13 +619,13 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
                             sy_synth_report *rep, size_t *occupied, size_t cells[2], sy_error *err)
 {
     double leaf_area = 0.5 * o->leaf_size * o->leaf_size; /* a card about half as wide as long */
+    uint64_t rng = o->seed * 0x9E3779B97F4A7C15ull ^ ((uint64_t)lobe_index + 1) * 0xD1B54A32D192ED03ull;
     lobe_grid g;
-    sy_code rc = grid_build(c, o->grid, density, leaf_area, &g, err);
+    sy_code rc = grid_build(c, o->grid, density, leaf_area, sy_mix64(rng ^ 0x5851F42D4C957F2Dull), &g, err);
     size_t placed0 = rep->patches;
     int bare_reason = -1;
     if (!rc && g.n_occupied == 0) bare_reason = 0;
     dock_queue Q = {0};
-    uint64_t rng = o->seed * 0x9E3779B97F4A7C15ull ^ ((uint64_t)lobe_index + 1) * 0xD1B54A32D192ED03ull;
     const sy_skeleton *sk = so->out;
     int32_t seed = c->seed;
     double lobe_ext = g.h * (g.d[0] > g.d[1] ? (g.d[0] > g.d[2] ? g.d[0] : g.d[2]) : (g.d[1] > g.d[2] ? g.d[1] : g.d[2]));
@@ -782,8 +800,8 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
         rep->lobes_bare++;
     }
     if (getenv("SYLVA_SYNTH_DEBUG"))
-        fprintf(stderr, "lobe %d seed %d: grid %dx%dx%d h %.3f occupied %zu filled %zu patches %zu starts %d | out %zu rej %zu full %zu depth %zu\n",
-                (int)lobe_index, (int)c->seed, g.d[0], g.d[1], g.d[2], g.h, g.n_occupied, g.n_filled,
+        fprintf(stderr, "lobe %d seed %d: cap %.3f grid %dx%dx%d h %.3f occupied %zu filled %zu patches %zu starts %d | out %zu rej %zu full %zu depth %zu\n",
+                (int)lobe_index, (int)c->seed, g.capacity, g.d[0], g.d[1], g.d[2], g.h, g.n_occupied, g.n_filled,
                 rep->patches - placed0, starts, rep->docks_outside, rep->docks_rejected, rep->docks_full, rep->docks_depth);
     /* Summed over lobes; the caller divides by all occupied cells. */
     if (!rc) rep->coverage += (double)g.n_filled;
