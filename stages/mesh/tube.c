@@ -592,11 +592,7 @@ static size_t ear_clip(weld_poly *poly, uint32_t *tri)
 }
 
 
-/* Lawson's flips towards the Delaunay triangulation of the ear-clipped
- * strip in the parameter plane (edges of the outer loop and of the rings
- * occur once and never flip): ear clipping leaves fans of long, thin
- * triangles that fold over a curved or lobed parent. pts[0..n) are the
- * plane positions by vertex id. */
+/* The plane position of vertex id: its first copy in pts[0..n). */
 static const weld_pt *weld_find(const weld_pt *pts, size_t n, uint32_t id)
 {
     for (size_t i = 0; i < n; i++)
@@ -618,42 +614,101 @@ static int flips_to_delaunay(const weld_pt *pa, const weld_pt *pb, const weld_pt
     return orient2(pa, pd, pc) > 0 && orient2(pd, pb, pc) > 0;
 }
 
-static void delaunay_flips(uint32_t *tri, size_t t, const weld_pt *pts, size_t n)
+/* The strip's directed edges, hashed: entry k holds a triangle corner
+ * (3 f + e, the edge from corner e to corner e + 1). A flip rewrites two
+ * triangles and appends their six corners again; stale entries, whose
+ * corner no longer holds the edge they were filed under, are skipped. A
+ * strip of t triangles then finds an edge's twin in constant time, where
+ * scanning the strip made each pass O(t^2) (the 1M black oak's stem with a
+ * hundred limbs: most of its meshing time). */
+typedef struct {
+    uint32_t *head, *next, *corner; /* bucket heads and chains hold entry index + 1; 0 ends */
+    size_t mask, n, cap;
+} edge_index;
+
+static size_t edge_bucket(const edge_index *ix, uint32_t a, uint32_t b)
 {
-    for (size_t pass = 0, flipped = 1; flipped && pass < 4 * t + 8; pass++) {
+    return (size_t)(((uint64_t)a * 0x9E3779B97F4A7C15ull ^ (uint64_t)b * 0xC2B2AE3D27D4EB4Full) >> 20) & ix->mask;
+}
+
+static int edge_file(edge_index *ix, const uint32_t *tri, uint32_t corner)
+{
+    if (ix->n == ix->cap) {
+        size_t cap = 2 * ix->cap;
+        uint32_t *nx = realloc(ix->next, cap * sizeof *nx), *co = nx ? realloc(ix->corner, cap * sizeof *co) : NULL;
+        if (nx) ix->next = nx;
+        if (!co) return 0;
+        ix->corner = co, ix->cap = cap;
+    }
+    uint32_t f = corner / 3, e = corner % 3;
+    size_t b = edge_bucket(ix, tri[3 * f + e], tri[3 * f + (e + 1) % 3]);
+    ix->corner[ix->n] = corner, ix->next[ix->n] = ix->head[b], ix->head[b] = (uint32_t)++ix->n;
+    return 1;
+}
+
+/* The lowest triangle above `after` holding directed edge ab (SIZE_MAX: none). */
+static size_t edge_face(const edge_index *ix, const uint32_t *tri, uint32_t a, uint32_t b, size_t after)
+{
+    size_t best = SIZE_MAX;
+    for (uint32_t k = ix->head[edge_bucket(ix, a, b)]; k; k = ix->next[k - 1]) {
+        uint32_t f = ix->corner[k - 1] / 3, e = ix->corner[k - 1] % 3;
+        if (tri[3 * f + e] == a && tri[3 * f + (e + 1) % 3] == b && (after == SIZE_MAX || f > after) && f < best)
+            best = f;
+    }
+    return best;
+}
+
+static void edge_index_free(edge_index *ix) { free(ix->head), free(ix->next), free(ix->corner); }
+
+/* Lawson's flips towards the Delaunay triangulation of the ear-clipped
+ * strip in the parameter plane (edges of the outer loop and of the rings
+ * occur once and never flip): ear clipping leaves fans of long, thin
+ * triangles that fold over a curved or lobed parent. pts[0..n) are the
+ * plane positions by vertex id. Returns 0 when out of memory (the strip is
+ * then partly flipped, still a valid triangulation). */
+static int delaunay_flips(uint32_t *tri, size_t t, const weld_pt *pts, size_t n)
+{
+    edge_index ix = {0};
+    size_t buckets = 16;
+    while (buckets < 6 * t) buckets *= 2;
+    ix.mask = buckets - 1, ix.cap = 3 * t + 64;
+    ix.head = calloc(buckets, sizeof *ix.head), ix.next = malloc(ix.cap * sizeof *ix.next);
+    ix.corner = malloc(ix.cap * sizeof *ix.corner);
+    int ok = ix.head && ix.next && ix.corner;
+    for (size_t k = 0; ok && k < 3 * t; k++) ok = edge_file(&ix, tri, (uint32_t)k);
+    for (size_t pass = 0, flipped = 1; ok && flipped && pass < 4 * t + 8; pass++) {
         flipped = 0;
-        for (size_t f = 0; f < t; f++)
+        for (size_t f = 0; f < t && ok; f++)
             for (int e = 0; e < 3; e++) {
                 uint32_t a = tri[3 * f + e], b = tri[3 * f + (e + 1) % 3], c = tri[3 * f + (e + 2) % 3];
-                for (size_t g = f + 1; g < t; g++)
-                    for (int k = 0; k < 3; k++) {
-                        if (tri[3 * g + k] != b || tri[3 * g + (k + 1) % 3] != a) continue;
-                        uint32_t d = tri[3 * g + (k + 2) % 3];
-                        const weld_pt *pa = weld_find(pts, n, a), *pb = weld_find(pts, n, b), *pc = weld_find(pts, n, c),
-                                      *pd = weld_find(pts, n, d);
-                        /* Only edges between two loops (the parent's and a
-                         * ring, or two rings): a chord between two vertices
-                         * of one loop could repeat an edge of the tube or of
-                         * the neighbouring quads that the strip cannot see. */
-                        if (!pa || !pb || !pc || !pd || d == c || pc->loop == pd->loop) continue;
-                        if (!flips_to_delaunay(pa, pb, pc, pd)) continue;
-                        /* Never duplicate an edge (c, d) the strip already has. */
-                        int exists = 0;
-                        for (size_t h = 0; h < t && !exists; h++)
-                            for (int q = 0; q < 3; q++) {
-                                uint32_t x = tri[3 * h + q], y = tri[3 * h + (q + 1) % 3];
-                                exists |= (x == c && y == d) || (x == d && y == c);
-                            }
-                        if (exists) continue;
-                        tri[3 * f] = a, tri[3 * f + 1] = d, tri[3 * f + 2] = c;
-                        tri[3 * g] = d, tri[3 * g + 1] = b, tri[3 * g + 2] = c;
-                        flipped = 1;
-                        goto next_triangle;
-                    }
+                size_t g = edge_face(&ix, tri, b, a, f);
+                if (g == SIZE_MAX) continue;
+                int k = 0;
+                while (tri[3 * g + k] != b || tri[3 * g + (k + 1) % 3] != a) k++;
+                uint32_t d = tri[3 * g + (k + 2) % 3];
+                const weld_pt *pa = weld_find(pts, n, a), *pb = weld_find(pts, n, b), *pc = weld_find(pts, n, c),
+                              *pd = weld_find(pts, n, d);
+                /* Only edges between two loops (the parent's and a ring, or
+                 * two rings): a chord between two vertices of one loop could
+                 * repeat an edge of the tube or of the neighbouring quads
+                 * that the strip cannot see. */
+                if (!pa || !pb || !pc || !pd || d == c || pc->loop == pd->loop) continue;
+                if (!flips_to_delaunay(pa, pb, pc, pd)) continue;
+                /* Never duplicate an edge (c, d) the strip already has. */
+                if (edge_face(&ix, tri, c, d, SIZE_MAX) != SIZE_MAX || edge_face(&ix, tri, d, c, SIZE_MAX) != SIZE_MAX)
+                    continue;
+                tri[3 * f] = a, tri[3 * f + 1] = d, tri[3 * f + 2] = c;
+                tri[3 * g] = d, tri[3 * g + 1] = b, tri[3 * g + 2] = c;
+                for (int q = 0; q < 3 && ok; q++)
+                    ok = edge_file(&ix, tri, (uint32_t)(3 * f) + (uint32_t)q) &&
+                         edge_file(&ix, tri, (uint32_t)(3 * g) + (uint32_t)q);
+                flipped = 1;
+                goto next_pass; /* one flip a pass, from the first triangle again */
             }
-    next_triangle:;
-        (void)0;
+    next_pass:;
     }
+    edge_index_free(&ix);
+    return ok;
 }
 
 /* ---- Steiner points on the parent's ridges ----
@@ -1187,8 +1242,8 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
     uint32_t *clipped = malloc(3 * t * sizeof *clipped);
     if (!clipped) return 0;
     memcpy(clipped, extra, 3 * t * sizeof *clipped);
-    delaunay_flips(extra, t, pts, n_pts);
-    if (!strip_valid(extra, t, pts, n_pts, m, NULL)) memcpy(extra, clipped, 3 * t * sizeof *clipped);
+    if (!delaunay_flips(extra, t, pts, n_pts) || !strip_valid(extra, t, pts, n_pts, m, NULL))
+        memcpy(extra, clipped, 3 * t * sizeof *clipped);
     free(clipped);
     size_t n_all = n_pts;
     weld_steiner sp;
