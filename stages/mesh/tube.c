@@ -592,12 +592,42 @@ static size_t ear_clip(weld_poly *poly, uint32_t *tri)
 }
 
 
-/* The plane position of vertex id: its first copy in pts[0..n). */
-static const weld_pt *weld_find(const weld_pt *pts, size_t n, uint32_t id)
+typedef struct {
+    uint32_t a, b;
+} id_pair;
+
+static int cmp_id_pair(const void *x, const void *y)
 {
-    for (size_t i = 0; i < n; i++)
-        if (pts[i].id == id) return &pts[i];
-    return NULL;
+    const id_pair *p = x, *q = y;
+    if (p->a != q->a) return p->a < q->a ? -1 : 1;
+    return (p->b > q->b) - (p->b < q->b);
+}
+
+/* How many of the sorted pairs s[0..n) equal key. */
+static size_t pair_count(const id_pair *s, size_t n, id_pair key)
+{
+    size_t lo = 0, hi = n;
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (cmp_id_pair(&s[mid], &key) < 0) lo = mid + 1;
+        else hi = mid;
+    }
+    size_t c = 0;
+    while (lo + c < n && !cmp_id_pair(&s[lo + c], &key)) c++;
+    return c;
+}
+
+/* The plane position of vertex id: its first copy in pts[0..n), found
+ * through by_id, the pairs (id, index) sorted. */
+static const weld_pt *weld_find(const weld_pt *pts, const id_pair *by_id, size_t n, uint32_t id)
+{
+    size_t lo = 0, hi = n;
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (by_id[mid].a < id) lo = mid + 1;
+        else hi = mid;
+    }
+    return lo < n && by_id[lo].a == id ? &pts[by_id[lo].b] : NULL;
 }
 
 /* Should edge ab of the counter-clockwise triangles (a, b, c) and (b, a, d)
@@ -674,7 +704,10 @@ static int delaunay_flips(uint32_t *tri, size_t t, const weld_pt *pts, size_t n)
     ix.mask = buckets - 1, ix.cap = 3 * t + 64;
     ix.head = calloc(buckets, sizeof *ix.head), ix.next = malloc(ix.cap * sizeof *ix.next);
     ix.corner = malloc(ix.cap * sizeof *ix.corner);
-    int ok = ix.head && ix.next && ix.corner;
+    id_pair *by_id = malloc((n + 1) * sizeof *by_id);
+    int ok = ix.head && ix.next && ix.corner && by_id;
+    for (size_t i = 0; ok && i < n; i++) by_id[i] = (id_pair){pts[i].id, (uint32_t)i};
+    if (ok) qsort(by_id, n, sizeof *by_id, cmp_id_pair);
     for (size_t k = 0; ok && k < 3 * t; k++) ok = edge_file(&ix, tri, (uint32_t)k);
     for (size_t pass = 0, flipped = 1; ok && flipped && pass < 4 * t + 8; pass++) {
         flipped = 0;
@@ -686,8 +719,8 @@ static int delaunay_flips(uint32_t *tri, size_t t, const weld_pt *pts, size_t n)
                 int k = 0;
                 while (tri[3 * g + k] != b || tri[3 * g + (k + 1) % 3] != a) k++;
                 uint32_t d = tri[3 * g + (k + 2) % 3];
-                const weld_pt *pa = weld_find(pts, n, a), *pb = weld_find(pts, n, b), *pc = weld_find(pts, n, c),
-                              *pd = weld_find(pts, n, d);
+                const weld_pt *pa = weld_find(pts, by_id, n, a), *pb = weld_find(pts, by_id, n, b),
+                              *pc = weld_find(pts, by_id, n, c), *pd = weld_find(pts, by_id, n, d);
                 /* Only edges between two loops (the parent's and a ring, or
                  * two rings): a chord between two vertices of one loop could
                  * repeat an edge of the tube or of the neighbouring quads
@@ -708,6 +741,7 @@ static int delaunay_flips(uint32_t *tri, size_t t, const weld_pt *pts, size_t n)
     next_pass:;
     }
     edge_index_free(&ix);
+    free(by_id);
     return ok;
 }
 
@@ -960,35 +994,72 @@ static size_t weld_refine(uint32_t *extra, size_t t, size_t extra_cap, weld_pt *
     return nt;
 }
 
+/* A strip corner (3 f + e) and where it lies. */
+typedef struct {
+    float p[3];
+    uint32_t corner;
+} corner_at;
+
+static int cmp_place(const corner_at *a, const corner_at *b)
+{
+    for (int k = 0; k < 3; k++)
+        if (a->p[k] != b->p[k]) return a->p[k] < b->p[k] ? -1 : 1;
+    return 0;
+}
+
+static int cmp_corner_at(const void *x, const void *y)
+{
+    const corner_at *a = x, *b = y;
+    int c = cmp_place(a, b);
+    return c ? c : (a->corner > b->corner) - (a->corner < b->corner);
+}
+
 /* A strip fills its polygon exactly once: every directed edge occurs once,
  * and each is either on the polygon's boundary (pts, in order, its bridges
  * included) or matched by its reverse. Vertices compare by position (the
- * seams' copies are distinct vertices at one place). */
-static int same_at(const sy_mesh *m, const weld_steiner *sp, uint32_t a, uint32_t b)
-{
-    if (a == b) return 1;
-    const float *x = strip_pos(m, sp, a), *y = strip_pos(m, sp, b);
-    return x[0] == y[0] && x[1] == y[1] && x[2] == y[2];
-}
-
+ * seams' copies are distinct vertices at one place): the corners are
+ * numbered by place (sorted by position) and the edges sorted, O(t log t)
+ * where comparing every edge with every other was O(t^2) per strip. Out of
+ * memory: not valid (the caller keeps the ear-clipped strip, or caps the
+ * junction). */
 static int strip_valid(const uint32_t *tri, size_t t, const weld_pt *pts, size_t n, const sy_mesh *m,
                        const weld_steiner *sp)
 {
-    for (size_t f = 0; f < 3 * t; f++) {
-        size_t base = f - f % 3;
-        uint32_t x = tri[f], y = tri[base + (f - base + 1) % 3];
-        if (same_at(m, sp, x, y)) return 0;
-        int twice = 0, reverse = 0, boundary = 0;
-        for (size_t g = 0; g < 3 * t; g++) {
-            size_t gb = g - g % 3;
-            uint32_t u = tri[g], v = tri[gb + (g - gb + 1) % 3];
-            twice += g != f && same_at(m, sp, u, x) && same_at(m, sp, v, y);
-            reverse += same_at(m, sp, u, y) && same_at(m, sp, v, x);
+    size_t nc = 3 * t;
+    corner_at *at = malloc((nc + 1) * sizeof *at);
+    uint32_t *place = malloc((nc + 1) * sizeof *place);
+    id_pair *edge = malloc((nc + 1) * sizeof *edge), *sorted = malloc((nc + 1) * sizeof *sorted);
+    id_pair *boundary = malloc((n + 1) * sizeof *boundary);
+    int ok = at && place && edge && sorted && boundary;
+    if (ok) {
+        for (size_t k = 0; k < nc; k++) {
+            memcpy(at[k].p, strip_pos(m, sp, tri[k]), sizeof at[k].p);
+            at[k].corner = (uint32_t)k;
         }
-        for (size_t i = 0; i < n && !boundary; i++) boundary = pts[i].id == x && pts[(i + 1) % n].id == y;
-        if (twice || reverse > 1 || !(reverse || boundary)) return 0;
+        qsort(at, nc, sizeof *at, cmp_corner_at);
+        for (size_t i = 0, c = 0; i < nc; i++) {
+            if (i && cmp_place(&at[i], &at[i - 1])) c++;
+            place[at[i].corner] = (uint32_t)c;
+        }
+        for (size_t f = 0; f < nc; f++) {
+            size_t next = f - f % 3 + (f % 3 + 1) % 3;
+            edge[f] = (id_pair){place[f], place[next]};
+            ok &= edge[f].a != edge[f].b; /* a degenerate edge */
+        }
+        memcpy(sorted, edge, nc * sizeof *edge);
+        qsort(sorted, nc, sizeof *sorted, cmp_id_pair);
+        for (size_t i = 0; i < n; i++) boundary[i] = (id_pair){pts[i].id, pts[(i + 1) % n].id};
+        qsort(boundary, n, sizeof *boundary, cmp_id_pair);
+        for (size_t f = 0; f < nc && ok; f++) {
+            size_t next = f - f % 3 + (f % 3 + 1) % 3;
+            size_t twice = pair_count(sorted, nc, edge[f]) - 1;
+            size_t reverse = pair_count(sorted, nc, (id_pair){edge[f].b, edge[f].a});
+            int on_boundary = pair_count(boundary, n, (id_pair){tri[f], tri[next]}) > 0;
+            ok = !(twice || reverse > 1 || !(reverse || on_boundary));
+        }
     }
-    return 1;
+    free(at), free(place), free(edge), free(sorted), free(boundary);
+    return ok;
 }
 /* Outward radial of parent p (glTF frame) at the point xy near its
  * surface: xy minus its closest point on the axis (rings pidx). */
