@@ -51,6 +51,9 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
     sy_json_bool(&j, "dbh_fitted", r->dbh_fitted);
     sy_json_bool(&j, "stem_rebuilt", r->stem_rebuilt);
     sy_json_number(&j, "stem_excursion", r->stem_excursion);
+    sy_json_bool(&j, "crown_regrown", r->crown_regrown);
+    sy_json_number(&j, "trunk_meander", r->trunk_meander);
+    sy_json_number(&j, "crown_fill", r->crown_fill);
     sy_json_number(&j, "height", r->height);
     sy_json_int(&j, "hull_triangles", (long long)res->asset.hull_triangles);
     sy_json_int(&j, "lod0_bark_triangles", (long long)(res->asset.bark_triangles[0] - res->asset.hull_triangles));

@@ -43,6 +43,9 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
         sy_json_bool(&j, "dbh_fitted", r->dbh_fitted);
         sy_json_bool(&j, "stem_rebuilt", r->stem_rebuilt);
         sy_json_number(&j, "stem_excursion", r->stem_excursion);
+        sy_json_bool(&j, "crown_regrown", r->crown_regrown);
+        sy_json_number(&j, "trunk_meander", r->trunk_meander);
+        sy_json_number(&j, "crown_fill", r->crown_fill);
         sy_json_number(&j, "height", r->height);
         sy_json_object(&j, "seconds");
         sy_json_number(&j, "graph", r->t_graph);
@@ -67,6 +70,10 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
     if (r->stem_rebuilt)
         printf("  stem       rebuilt on the crown's axis (the trunk chain strayed %.2f m from it, crown radius %.2f m)\n",
                r->stem_excursion, r->crown_radius);
+    if (r->crown_regrown)
+        printf("  crown      regrown above the trunk's %.2f m (the trunk chain meandered %.2f x its reach through a "
+               "foliage crown, fill %.2f)\n",
+               r->crown_base, r->trunk_meander, r->crown_fill);
     printf("  time       %.3f s (graph %.3f, dijkstra %.3f, level sets %.3f, radii %.3f, clusters %.3f, hulls %.3f)\n",
            r->t_total + h->seconds, r->t_graph, r->t_dijkstra, r->t_levels, r->t_radii, r->t_clusters, h->seconds);
 }

@@ -80,6 +80,10 @@ typedef struct {
     int stem_rebuilt;     /* 1: the trunk chain circled the crown's axis (an occluded conifer stem) and
                              the stem was rebuilt on the axis of the crown's slab centroids */
     double stem_excursion, crown_radius; /* the trunk chain's largest distance from that axis; the crown's radius */
+    int crown_regrown;    /* 1: the trunk chain meandered through a foliage crown (a decurrent crown's
+                             shell) and the crown above its base was regrown by space colonisation */
+    double trunk_meander, crown_fill, crown_base; /* path over chord of the trunk chain; the crown's
+                             median/95th-percentile radius; the kept trunk's top above the root, metres */
     double t_graph, t_dijkstra, t_levels, t_radii, t_clusters, t_total; /* seconds */
 } sy_skeleton_report;
 

@@ -52,7 +52,8 @@ size_t sy_base_sources(const float *xyz, size_t n, const sy_graph *g, uint32_t r
 sy_code sy_classify_wood(const sy_graph *g, const int32_t *spt, const double *dist, double min_share, uint8_t *wood,
                          uint32_t *order, size_t *n_wood, sy_error *err);
 
-/* The occluded stem of an excurrent crown (stem.c). */
+/* The occluded stem of an excurrent crown and the meandering chains of a
+ * decurrent one (stem.c). */
 typedef struct {
     int rebuilt;         /* 1: the trunk chain left the crown's axis and was rebuilt on it */
     int excurrent;       /* the crown narrows upward */
@@ -64,6 +65,10 @@ typedef struct {
     double measured_r, measured_z, measured_rms; /* a stem circle fit (radius 0: none stood) */
     double upper_r, upper_z; /* a run of stem returns higher up on that circle's centre (0: none) */
     double fallback_r;   /* radius at breast height when no stem fit stood (slenderness) */
+    double meander;      /* the trunk chain's path length over its root-to-end distance */
+    double crown_fill;   /* the crown slabs' median / 95th-percentile radius (CROWN_FOLIAGE_RATIO) */
+    int crown_regrown;   /* 1: a meandering chain in a foliage crown; the crown above its base regrown */
+    double crown_base;   /* that crown base's height above the root, metres */
 } sy_stem_info;
 
 /* Rebuilds the trunk of s (branch ids assigned, breadth-first, support
@@ -73,6 +78,15 @@ typedef struct {
  * info->rebuilt says whether it changed anything. */
 sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int32_t *point_node,
                                  const uint8_t *wood, double w, double spacing, sy_stem_info *info, sy_error *err);
+/* A decurrent crown's occluded limbs (stem.c): when the trunk chain of s
+ * meanders (its path over CROWN_MEANDER times its root-to-end distance: it
+ * follows the shell of a leaf-on crown, down one limb and up the next) and
+ * the crown's returns are foliage (CROWN_FOLIAGE_RATIO), keeps the trunk up
+ * to its crown base and regrows the crown above it by space colonisation;
+ * s comes back as from sy_rebuild_occluded_stem. info->crown_regrown says
+ * whether it changed anything. */
+sy_code sy_regrow_meandering_crown(sy_skeleton *s, const float *xyz, size_t n, int32_t *point_node,
+                                   const uint8_t *wood, double w, sy_stem_info *info, sy_error *err);
 /* Space colonisation (colonize.c, Runions et al. 2007): from the n_seed
  * nodes at seed, grows nodes one step at a time toward the attraction points
  * (pts thinned to one per step-sized voxel) until each is within kill of a

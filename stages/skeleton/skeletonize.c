@@ -611,7 +611,10 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
      * occluded conifer, not its stem: rebuild the stem on the axis. */
     sy_stem_info stem;
     rc = sy_rebuild_occluded_stem(full, xyz, n, point_node, wood, w, s, &stem, err);
-    if (!rc && stem.rebuilt) {
+    /* A decurrent crown's chain that follows its foliage shell: regrow the
+     * crown from the trunk's top. */
+    if (!rc && !stem.rebuilt) rc = sy_regrow_meandering_crown(full, xyz, n, point_node, wood, w, &stem, err);
+    if (!rc && (stem.rebuilt || stem.crown_regrown)) {
         double *l2 = realloc(l, (full->n ? full->n : 1) * sizeof *l2);
         if (!l2) rc = sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
         else {
@@ -621,6 +624,10 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
         }
     }
     rep->stem_rebuilt = stem.rebuilt;
+    rep->crown_regrown = stem.crown_regrown;
+    rep->trunk_meander = stem.meander;
+    rep->crown_fill = stem.crown_fill;
+    rep->crown_base = stem.crown_base;
     rep->stem_excursion = stem.excursion;
     rep->crown_radius = stem.crown_radius;
     sy_radii_info ri;

@@ -12,7 +12,13 @@
  * it into the crown's returns by space colonisation (colonize.c), and its radius comes
  * from circle fits to the few stem returns there are (checked by residual,
  * arc coverage, centring on the axis and taper), the pipe-model allometry
- * carrying it to breast height. */
+ * carrying it to breast height.
+ *
+ * Decurrent leaf-on crowns hide their limbs the same way: the chains follow
+ * the foliage shell, down one limb's side and up the next. When the trunk
+ * chain meanders and the crown's returns are foliage, the trunk is kept to
+ * its crown base and the crown above it regrown by the same colonisation
+ * (sy_regrow_meandering_crown, docs/skeleton.md step 8c). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -53,6 +59,22 @@
 /* The root is on the stem when it lies within this many times the slab
  * centroids' RMS scatter of their free line. */
 #define STEM_ROOT_ON_AXIS 2.0
+/* A trunk chain meanders when its path is this many times as long as the
+ * straight line from the root to its end: a real trunk, however crooked,
+ * stays near 1; chains that follow a leaf-on crown's shell, down one limb's
+ * curtain and up the next, reach 1.9-4.6 on the simulated willow, maple and
+ * plane (and 2.3-2.7 on two leaf-off scans whose limbs the scan does show). */
+#define CROWN_MEANDER 1.8
+/* The trunk is kept up to its crown base: the last node before the chain's
+ * path from the root exceeds this many times the straight distance, or a
+ * step rises less than half its length. */
+#define CROWN_BASE_PATH 1.15
+/* A crown of foliage: over height slabs of its upper 60 %, the median of
+ * (median / 95th percentile) of the returns' distance from the slab
+ * centroid exceeds this. A filled disc gives 0.73, a shell more; returns on
+ * limbs crowd the middle (the nine real scans: 0.44-0.58; the simulated
+ * leaf-on crowns: 0.66-0.82). */
+#define CROWN_FOLIAGE_RATIO 0.62
 
 static double median_of(double *v, size_t k)
 {
@@ -145,6 +167,104 @@ static void measure_stem(const float *xyz, size_t n, double z0, double H, const 
 done:
     free(xy);
     free(ang);
+}
+
+/* Replaces s by the M nodes at cpos whose parents are cpar (node 0 the
+ * root, -1; every other node reaches it); every point joins its nearest node
+ * (point_node remapped). s comes back breadth-first with support, radii 1
+ * and branch ids to reassign. */
+static sy_code adopt_tree(sy_skeleton *s, const float *cpos, const int32_t *cpar, size_t M, const float *xyz, size_t n,
+                          int32_t *point_node, const uint8_t *wood, sy_error *err)
+{
+    int32_t *first = NULL, *next = NULL, *order = NULL, *final = NULL;
+    uint32_t *label = NULL;
+    sy_skeleton out = {0};
+    sy_kdtree kd = {0};
+    sy_code rc = SY_OK;
+    first = malloc(M * sizeof *first);
+    next = malloc(M * sizeof *next);
+    order = malloc(M * sizeof *order);
+    final = malloc(M * sizeof *final);
+    label = calloc(M, sizeof *label);
+    if (!first || !next || !order || !final || !label) {
+        rc = sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
+        goto done;
+    }
+    for (size_t v = 0; v < M; v++) first[v] = next[v] = -1;
+    for (size_t v = M; v-- > 1;) {
+        next[v] = first[cpar[v]];
+        first[cpar[v]] = (int32_t)v;
+    }
+    size_t head = 0, tail = 0;
+    order[tail++] = 0;
+    while (head < tail) {
+        int32_t u = order[head++];
+        for (int32_t c = first[u]; c >= 0; c = next[c]) order[tail++] = c;
+    }
+    if ((rc = sy_skeleton_init(&out, M, err))) goto done;
+    memcpy(out.origin, s->origin, sizeof out.origin);
+    for (size_t t = 0; t < M; t++) final[order[t]] = (int32_t)t;
+    for (size_t t = 0; t < M; t++) {
+        int32_t u = order[t];
+        memcpy(out.pos + 3 * t, cpos + 3 * (size_t)u, 3 * sizeof *cpos);
+        out.parent[t] = t ? final[cpar[u]] : -1;
+        out.radius[t] = 1;
+    }
+    out.support_start = calloc(M + 1, sizeof *out.support_start);
+    out.support = calloc(n ? n : 1, sizeof *out.support);
+    if (!out.support_start || !out.support || (rc = sy_kdtree_build(&kd, out.pos, M, err))) {
+        if (!rc) rc = sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
+        goto done;
+    }
+    sy_kdtree_relabel(&kd, label); /* all 0: the nearest node of any label but 1 */
+    for (size_t i = 0; i < n; i++) {
+        double d2 = INFINITY;
+        uint32_t j = 0;
+        sy_kdtree_nearest_foreign(&kd, xyz + 3 * i, 1, &d2, &j);
+        point_node[i] = (int32_t)j;
+        if (!wood || wood[i]) out.support_start[j + 1]++;
+    }
+    for (size_t t = 0; t < M; t++) out.support_start[t + 1] += out.support_start[t];
+    for (size_t t = 0; t < M; t++) order[t] = (int32_t)out.support_start[t];
+    for (size_t i = 0; i < n; i++)
+        if (!wood || wood[i]) out.support[order[point_node[i]]++] = (uint32_t)i;
+    sy_skeleton_free(s);
+    *s = out;
+    memset(&out, 0, sizeof out);
+done:
+    sy_skeleton_free(&out);
+    sy_kdtree_free(&kd);
+    free(first);
+    free(next);
+    free(order);
+    free(final);
+    free(label);
+    return rc;
+}
+
+/* Replaces s by a chain of K trunk nodes (root first) and the limbs that
+ * space colonisation (colonize.c) grows from them into the returns above
+ * height z_from, step `grow`, kill distance STEM_LIMB_KILL steps
+ * (adopt_tree; every point joins its nearest node). */
+static sy_code regrow_from_trunk(sy_skeleton *s, const float *trunk, size_t K, const float *xyz, size_t n,
+                                 double z_from, int32_t *point_node, const uint8_t *wood, double grow, sy_error *err)
+{
+    float *cpos = NULL, *attract = malloc((n ? n : 1) * 3 * sizeof *attract);
+    int32_t *cpar = NULL;
+    size_t M = 0, na = 0;
+    if (!attract) return sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
+    for (size_t i = 0; i < n; i++)
+        if (xyz[3 * i + 2] > z_from) memcpy(attract + 3 * na++, xyz + 3 * i, 3 * sizeof *attract);
+    sy_code rc = sy_colonize(trunk, K, attract, na, grow, STEM_LIMB_KILL * grow, K + STEM_LIMB_NODES, &cpos, &cpar, &M,
+                             err);
+    free(attract);
+    if (!rc) {
+        for (size_t t = 1; t < K; t++) cpar[t] = (int32_t)t - 1;
+        rc = adopt_tree(s, cpos, cpar, M, xyz, n, point_node, wood, err);
+    }
+    free(cpos);
+    free(cpar);
+    return rc;
 }
 
 sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int32_t *point_node,
@@ -271,91 +391,21 @@ sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int
     size_t K = (size_t)ceil(H / step) + 1;
     step = H / (double)(K - 1);
     double grow = fmax(2 * w, STEM_LIMB_STEP * Rmed);
-    float *tpos = malloc(K * 3 * sizeof *tpos), *cpos = NULL;
-    int32_t *cpar = NULL, *first = NULL, *next = NULL, *order = NULL, *final = NULL;
-    uint32_t *label = NULL;
-    size_t M = 0;
-    sy_skeleton out = {0};
-    sy_kdtree kd = {0};
-    sy_code rc = SY_OK;
-    if (!tpos) {
-        rc = sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
-        goto done;
-    }
+    float *tpos = malloc(K * 3 * sizeof *tpos);
+    if (!tpos) return sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
     for (size_t t = 0; t < K; t++) {
         double z = z0 + step * (double)t;
         tpos[3 * t] = (float)(root[0] + ax[0] * (z - z0));
         tpos[3 * t + 1] = (float)(root[1] + ax[1] * (z - z0));
         tpos[3 * t + 2] = (float)z;
     }
-    if ((rc = sy_colonize(tpos, K, xyz, n, grow, STEM_LIMB_KILL * grow, K + STEM_LIMB_NODES, &cpos, &cpar, &M, err)))
-        goto done;
-    for (size_t t = 1; t < K; t++) cpar[t] = (int32_t)t - 1;
-    first = malloc(M * sizeof *first);
-    next = malloc(M * sizeof *next);
-    order = malloc(M * sizeof *order);
-    final = malloc(M * sizeof *final);
-    label = calloc(M, sizeof *label);
-    if (!first || !next || !order || !final || !label) {
-        rc = sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
-        goto done;
-    }
-    for (size_t v = 0; v < M; v++) first[v] = next[v] = -1;
-    for (size_t v = M; v-- > 1;) {
-        next[v] = first[cpar[v]];
-        first[cpar[v]] = (int32_t)v;
-    }
-    size_t head = 0, tail = 0;
-    order[tail++] = 0;
-    while (head < tail) {
-        int32_t u = order[head++];
-        for (int32_t c = first[u]; c >= 0; c = next[c]) order[tail++] = c;
-    }
-    if ((rc = sy_skeleton_init(&out, M, err))) goto done;
-    memcpy(out.origin, s->origin, sizeof out.origin);
-    for (size_t t = 0; t < M; t++) final[order[t]] = (int32_t)t;
-    for (size_t t = 0; t < M; t++) {
-        int32_t u = order[t];
-        memcpy(out.pos + 3 * t, cpos + 3 * (size_t)u, 3 * sizeof *cpos);
-        out.parent[t] = t ? final[cpar[u]] : -1;
-        out.radius[t] = 1;
-    }
-    out.support_start = calloc(M + 1, sizeof *out.support_start);
-    out.support = calloc(n ? n : 1, sizeof *out.support);
-    if (!out.support_start || !out.support || (rc = sy_kdtree_build(&kd, out.pos, M, err))) {
-        if (!rc) rc = sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
-        goto done;
-    }
-    sy_kdtree_relabel(&kd, label); /* all 0: the nearest node of any label but 1 */
-    for (size_t i = 0; i < n; i++) {
-        double d2 = INFINITY;
-        uint32_t j = 0;
-        sy_kdtree_nearest_foreign(&kd, xyz + 3 * i, 1, &d2, &j);
-        point_node[i] = (int32_t)j;
-        if (!wood || wood[i]) out.support_start[j + 1]++;
-    }
-    for (size_t t = 0; t < M; t++) out.support_start[t + 1] += out.support_start[t];
-    for (size_t t = 0; t < M; t++) order[t] = (int32_t)out.support_start[t];
-    for (size_t i = 0; i < n; i++)
-        if (!wood || wood[i]) out.support[order[point_node[i]]++] = (uint32_t)i;
-    sy_skeleton_free(s);
-    *s = out;
-    memset(&out, 0, sizeof out);
+    sy_code rc = regrow_from_trunk(s, tpos, K, xyz, n, -INFINITY, point_node, wood, grow, err);
+    free(tpos);
+    if (rc) return rc;
     info->rebuilt = 1;
     measure_stem(xyz, n, z0, H, root, ax, fmax(0.15, 0.2 * Rmed), spacing, info);
     if (!(info->measured_r > 0)) info->fallback_r = 0.5 * H / STEM_SLENDERNESS;
-done:
-    sy_skeleton_free(&out);
-    sy_kdtree_free(&kd);
-    free(tpos);
-    free(cpos);
-    free(cpar);
-    free(first);
-    free(next);
-    free(order);
-    free(final);
-    free(label);
-    return rc;
+    return SY_OK;
 }
 
 void sy_apply_stem_radius(sy_skeleton *s, const sy_stem_info *stem, double gamma, double spacing, sy_radii_info *ri)
@@ -414,4 +464,114 @@ void sy_apply_stem_radius(sy_skeleton *s, const sy_stem_info *stem, double gamma
     for (size_t i = 1; i < m; i++)
         if (s->parent[i] >= 0 && s->radius[i] > s->radius[s->parent[i]]) s->radius[i] = s->radius[s->parent[i]];
     free(l);
+}
+
+static double dist3f(const float a[3], const float b[3])
+{
+    return sqrt(((double)a[0] - b[0]) * ((double)a[0] - b[0]) + ((double)a[1] - b[1]) * ((double)a[1] - b[1]) +
+                ((double)a[2] - b[2]) * ((double)a[2] - b[2]));
+}
+
+/* Over height slabs of the upper 60 % of the tree (z0 the root, H the
+ * height): the median of each slab's (median / 95th percentile) distance of
+ * its returns from their centroid (0 when no slab has 50 returns). */
+static double crown_fill_ratio(const float *xyz, size_t n, double z0, double H, sy_error *err, sy_code *rc)
+{
+    enum { SLABS = 10, MIN_PTS = 50 };
+    double cx[SLABS] = {0}, cy[SLABS] = {0}, ratio[SLABS];
+    size_t cnt[SLABS] = {0}, at[SLABS + 1] = {0};
+    double lo = z0 + 0.4 * H, hs = 0.6 * H / SLABS;
+    *rc = SY_OK;
+    if (!(hs > 0)) return 0;
+    for (size_t i = 0; i < n; i++) {
+        long b = (long)floor((xyz[3 * i + 2] - lo) / hs);
+        if (b < 0 || b >= SLABS) continue;
+        cx[b] += xyz[3 * i], cy[b] += xyz[3 * i + 1], cnt[b]++;
+    }
+    for (int b = 0; b < SLABS; b++) at[b + 1] = at[b] + cnt[b];
+    double *r = malloc((at[SLABS] + 1) * sizeof *r);
+    if (!r) {
+        *rc = sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
+        return 0;
+    }
+    size_t fill[SLABS];
+    memcpy(fill, at, sizeof fill);
+    for (int b = 0; b < SLABS; b++)
+        if (cnt[b]) cx[b] /= (double)cnt[b], cy[b] /= (double)cnt[b];
+    for (size_t i = 0; i < n; i++) {
+        long b = (long)floor((xyz[3 * i + 2] - lo) / hs);
+        if (b < 0 || b >= SLABS) continue;
+        r[fill[b]++] = hypot(xyz[3 * i] - cx[b], xyz[3 * i + 1] - cy[b]);
+    }
+    size_t k = 0;
+    for (int b = 0; b < SLABS; b++) {
+        if (cnt[b] < MIN_PTS) continue;
+        double *v = r + at[b];
+        qsort(v, cnt[b], sizeof *v, sy_cmp_double);
+        double p95 = v[(size_t)(0.95 * (double)cnt[b])];
+        ratio[k++] = p95 > 0 ? v[cnt[b] / 2] / p95 : 0;
+    }
+    free(r);
+    return median_of(ratio, k);
+}
+
+sy_code sy_regrow_meandering_crown(sy_skeleton *s, const float *xyz, size_t n, int32_t *point_node,
+                                   const uint8_t *wood, double w, sy_stem_info *info, sy_error *err)
+{
+    if (s->n < 3 || n == 0 || s->parent[0] >= 0) return SY_OK;
+    /* The trunk chain: from the root (node 0, breadth-first) through the
+     * children of its branch. */
+    int32_t *chain = malloc(s->n * sizeof *chain), *child = malloc(s->n * sizeof *child);
+    if (!chain || !child) {
+        free(chain), free(child);
+        return sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
+    }
+    for (size_t i = 0; i < s->n; i++) child[i] = -1;
+    for (size_t i = 1; i < s->n; i++) {
+        int32_t p = s->parent[i];
+        if (p >= 0 && s->branch[i] == s->branch[p] && child[p] < 0) child[p] = (int32_t)i;
+    }
+    size_t K = 0;
+    for (int32_t v = 0; v >= 0 && K < s->n; v = child[v]) chain[K++] = v;
+    free(child);
+    const float *r0 = s->pos;
+    double path = 0, chord = 0, top_z = r0[2];
+    size_t base = 0;
+    int past_base = 0;
+    for (size_t k = 1; k < K; k++) {
+        const float *a = s->pos + 3 * (size_t)chain[k - 1], *b = s->pos + 3 * (size_t)chain[k];
+        path += dist3f(a, b);
+        chord = dist3f(r0, b);
+        if (!past_base && (path > CROWN_BASE_PATH * chord || b[2] - a[2] < 0.5 * dist3f(a, b))) past_base = 1;
+        if (!past_base) base = k;
+    }
+    for (size_t i = 0; i < n; i++) top_z = fmax(top_z, xyz[3 * i + 2]);
+    info->meander = chord > 0 ? path / chord : 0;
+    sy_code rc = SY_OK;
+    if (info->meander > CROWN_MEANDER) info->crown_fill = crown_fill_ratio(xyz, n, r0[2], top_z - r0[2], err, &rc);
+    if (rc || !(info->meander > CROWN_MEANDER) || !(info->crown_fill > CROWN_FOLIAGE_RATIO)) {
+        free(chain);
+        return rc;
+    }
+    /* The crown's mean radius about the trunk's top over the returns above
+     * it: the limbs grow in steps of a share of it, as the occluded stem's. */
+    float top[3];
+    memcpy(top, s->pos + 3 * (size_t)chain[base], sizeof top);
+    double sum = 0;
+    size_t cnt = 0;
+    for (size_t i = 0; i < n; i++)
+        if (xyz[3 * i + 2] > top[2]) sum += hypot(xyz[3 * i] - top[0], xyz[3 * i + 1] - top[1]), cnt++;
+    float *trunk = malloc((base + 1) * 3 * sizeof *trunk);
+    if (!trunk) {
+        free(chain);
+        return sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
+    }
+    for (size_t k = 0; k <= base; k++) memcpy(trunk + 3 * k, s->pos + 3 * (size_t)chain[k], 3 * sizeof *trunk);
+    free(chain);
+    double crown_r = cnt ? sum / (double)cnt : 0;
+    rc = regrow_from_trunk(s, trunk, base + 1, xyz, n, top[2], point_node, wood, fmax(2 * w, STEM_LIMB_STEP * crown_r),
+                           err);
+    free(trunk);
+    if (!rc) info->crown_regrown = 1, info->crown_base = top[2] - r0[2];
+    return rc;
 }
