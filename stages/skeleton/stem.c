@@ -534,7 +534,8 @@ sy_code sy_regrow_meandering_crown(sy_skeleton *s, const float *xyz, size_t n, i
     size_t K = 0;
     for (int32_t v = 0; v >= 0 && K < s->n; v = child[v]) chain[K++] = v;
     free(child);
-    const float *r0 = s->pos;
+    float r0[3]; /* the root: s is replaced below */
+    memcpy(r0, s->pos, sizeof r0);
     double path = 0, chord = 0, top_z = r0[2];
     size_t base = 0;
     int past_base = 0;
