@@ -603,8 +603,8 @@ static int cmp_id_pair(const void *x, const void *y)
     return (p->b > q->b) - (p->b < q->b);
 }
 
-/* How many of the sorted pairs s[0..n) equal key. */
-static size_t pair_count(const id_pair *s, size_t n, id_pair key)
+/* The first of the sorted pairs s[0..n) not below key. */
+static size_t pair_lower_bound(const id_pair *s, size_t n, id_pair key)
 {
     size_t lo = 0, hi = n;
     while (lo < hi) {
@@ -612,7 +612,13 @@ static size_t pair_count(const id_pair *s, size_t n, id_pair key)
         if (cmp_id_pair(&s[mid], &key) < 0) lo = mid + 1;
         else hi = mid;
     }
-    size_t c = 0;
+    return lo;
+}
+
+/* How many of the sorted pairs s[0..n) equal key. */
+static size_t pair_count(const id_pair *s, size_t n, id_pair key)
+{
+    size_t lo = pair_lower_bound(s, n, key), c = 0;
     while (lo + c < n && !cmp_id_pair(&s[lo + c], &key)) c++;
     return c;
 }
@@ -621,12 +627,7 @@ static size_t pair_count(const id_pair *s, size_t n, id_pair key)
  * through by_id, the pairs (id, index) sorted. */
 static const weld_pt *weld_find(const weld_pt *pts, const id_pair *by_id, size_t n, uint32_t id)
 {
-    size_t lo = 0, hi = n;
-    while (lo < hi) {
-        size_t mid = lo + (hi - lo) / 2;
-        if (by_id[mid].a < id) lo = mid + 1;
-        else hi = mid;
-    }
+    size_t lo = pair_lower_bound(by_id, n, (id_pair){id, 0});
     return lo < n && by_id[lo].a == id ? &pts[by_id[lo].b] : NULL;
 }
 

@@ -339,8 +339,8 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
     for (size_t b = 0; b < (size_t)g->bd[0] * g->bd[1] * g->bd[2]; b++) {
         double u = (double)(sy_mix64(key ^ ((uint64_t)b + 1) * 0xD1B54A32D192ED03ull) >> 11) * 0x1p-53;
         g->block_cap[b] = g->block_cap[b] > 0 ? (float)floor(g->block_cap[b] + u) : 0;
+        g->n_blocks += g->block_cap[b] > 0;
     }
-    for (size_t b = 0; b < (size_t)g->bd[0] * g->bd[1] * g->bd[2]; b++) g->n_blocks += g->block_cap[b] > 0;
     return SY_OK;
 }
 
