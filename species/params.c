@@ -97,6 +97,7 @@ static const key_def sylva_keys[] = {
     GEN("bark", K_STRING, bark_texture, 0, 0),
     GEN("leaf", K_STRING, leaf_texture, 0, 0),
     GEN("translucency", K_FLOAT, leaf_translucency, 0, 1),
+    GEN("leaf_fill", K_FLOAT, leaf_fill, 0.01, 1),
     GEN("beta", K_FLOAT, beta, 0, 10),
     GEN("gamma", K_FLOAT, gamma, 0.1, 5),
 };
@@ -143,6 +144,7 @@ sy_species_params sy_species_params_default(void)
     sp->prune_power_high = 0.5f;
     memcpy(sp->level, lv, sizeof lv);
     sp->leaf_translucency = 0.4f;
+    sp->leaf_fill = 1;
     sp->beta = 1;
     sp->gamma = 2;
     return s;

@@ -57,6 +57,7 @@ typedef struct {
     char *bark_texture;     /* absolute path (resolved against the file's dir) or NULL */
     char *leaf_texture;     /* idem */
     float leaf_translucency; /* 0..1, default 0.4 */
+    float leaf_fill;        /* share of a leaf card a scanner's beam meets: 1 (default) a leaf, less a needle shoot */
     float beta;             /* edge-weight exponent for skeleton reconstruction, default 1 */
     float gamma;            /* allometry exponent (pipe model r^gamma), default 2 */
 } sy_species_params;

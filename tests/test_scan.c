@@ -90,6 +90,29 @@ static void ray_quad_analytic(void **state)
     assert_float_equal(t, 3.0, 1e-9);
 }
 
+/* A needle shoot's card (leaf_fill 0.2) stops about a fifth of the rays that
+ * cross it, each ray always the same way; a solid card stops them all. */
+static void needle_card_stops_its_fill(void **state)
+{
+    (void)state;
+    float base[3] = {0, 0, 0}, xa[3] = {1, 0, 0}, ya[3] = {0, 1, 0};
+    sy_prim card = sy_prim_quad(base, xa, ya, 0.8f, 0.6f, 0), solid = card;
+    sy_prim_quad_gaps(&card, 0.2);
+    sy_prim_quad_gaps(&solid, 1);
+    assert_int_equal(solid.gaps, 0);
+    int stopped = 0, n = 0;
+    double t;
+    for (int i = 0; i < 100; i++)
+        for (int j = 0; j < 100; j++, n++) {
+            double x = -0.29 + 0.58 * i / 99.0, y = 0.01 + 0.78 * j / 99.0;
+            int hit = hits(&card, x, y, 5, 0, 0, -1, &t);
+            stopped += hit;
+            assert_int_equal(hit, hits(&card, x, y, 5, 0, 0, -1, &t));
+            assert_true(hits(&solid, x, y, 5, 0, 0, -1, &t));
+        }
+    assert_float_equal((double)stopped / n, 0.2, 0.03);
+}
+
 static void ray_terrain_analytic(void **state)
 {
     (void)state;
@@ -208,7 +231,7 @@ static void cylinder_scene(sy_scene *s)
     assert_int_equal(sy_skeleton_add(&sk, b, CYL_R, 0, 0, 0, &err), 1);
     sy_scene_init(s);
     double pos[3] = {0, 0, 0};
-    assert_int_equal(sy_scene_add_tree(s, &sk, NULL, 0.5f, 1, "cylinder", -1, 1, pos, 0, &err), SY_OK);
+    assert_int_equal(sy_scene_add_tree(s, &sk, NULL, NULL, "cylinder", -1, 1, pos, 0, &err), SY_OK);
     s->area_lo[0] = s->area_lo[1] = -5;
     s->area_hi[0] = s->area_hi[1] = 5;
     assert_int_equal(sy_scene_finish(s, &err), SY_OK);
@@ -319,10 +342,11 @@ static void leaves_occlude_wood(void **state)
     assert_int_equal(sy_grow_tree(&sp, 1, &sk, &lv, &err), SY_OK);
     size_t wood[2];
     double pos[3] = {0, 0, 0};
+    sy_card_form cards = {sp.leaf_scale_x, 1, 1};
     for (int with = 0; with < 2; with++) {
         sy_scene s;
         sy_scene_init(&s);
-        assert_int_equal(sy_scene_add_tree(&s, &sk, with ? &lv : NULL, sp.leaf_scale_x, 1, sp.name, 6, 1, pos, 0, &err),
+        assert_int_equal(sy_scene_add_tree(&s, &sk, with ? &lv : NULL, &cards, sp.name, 6, 1, pos, 0, &err),
                          SY_OK);
         assert_int_equal(sy_scene_finish(&s, &err), SY_OK);
         sy_scan_options sc;
@@ -480,7 +504,7 @@ static void truth_dbh_and_tree_ids(void **state)
     sy_scene s;
     sy_scene_init(&s);
     double pos[3] = {2, 3, 1};
-    assert_int_equal(sy_scene_add_tree(&s, &sk, NULL, 0.5f, 1, "cone", -1, 9, pos, 30, &err), SY_OK);
+    assert_int_equal(sy_scene_add_tree(&s, &sk, NULL, NULL, "cone", -1, 9, pos, 30, &err), SY_OK);
     sy_scan_options sc;
     plot_scanner(&sc, 1);
     char *text = truth_text(&s, &sc);
@@ -626,6 +650,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(ray_cone_analytic),
         cmocka_unit_test(ray_quad_analytic),
+        cmocka_unit_test(needle_card_stops_its_fill),
         cmocka_unit_test(ray_terrain_analytic),
         cmocka_unit_test(bvh_matches_brute_force),
         cmocka_unit_test(cylinder_surface_and_coverage),

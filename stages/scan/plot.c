@@ -206,7 +206,7 @@ static size_t prune_below_ground(const sy_scene *s, sy_skeleton *world, int32_t 
 }
 
 static sy_code add_leaves(sy_scene *s, const sy_leaves *lv, const sy_skeleton *world, const int32_t *map,
-                          const placement *pl, float leaf_width, int elliptic, int tree_id, int species_id, extent *ext,
+                          const placement *pl, const sy_card_form *form, int tree_id, int species_id, extent *ext,
                           size_t *added, sy_error *err)
 {
     *added = 0;
@@ -224,8 +224,9 @@ static sy_code add_leaves(sy_scene *s, const sy_leaves *lv, const sy_skeleton *w
         float fx[3], fy[3], fb[3] = {(float)base[0], (float)base[1], (float)base[2]};
         place_dir(pl, lx, fx);
         place_dir(pl, ly, fy);
-        float len = lv->scale[i], width = len * leaf_width;
-        sy_prim c = sy_prim_quad(fb, fx, fy, len, width, elliptic);
+        float len = lv->scale[i], width = len * form->width;
+        sy_prim c = sy_prim_quad(fb, fx, fy, len, width, form->elliptic);
+        sy_prim_quad_gaps(&c, form->fill);
         c.tree_id = tree_id;
         c.species_id = species_id;
         c.branch_id = node >= 0 && (size_t)node < world->n ? world->branch[node] : -1;
@@ -241,8 +242,8 @@ static sy_code add_leaves(sy_scene *s, const sy_leaves *lv, const sy_skeleton *w
     return SY_OK;
 }
 
-sy_code sy_scene_add_tree(sy_scene *s, const sy_skeleton *local, const sy_leaves *leaves, float leaf_width,
-                          int elliptic, const char *species, int species_id, uint64_t seed, const double pos[3],
+sy_code sy_scene_add_tree(sy_scene *s, const sy_skeleton *local, const sy_leaves *leaves, const sy_card_form *cards,
+                          const char *species, int species_id, uint64_t seed, const double pos[3],
                           double yaw_deg, sy_error *err)
 {
     sy_scan_tree *grown = realloc(s->trees, (s->n_trees + 1) * sizeof *grown);
@@ -289,7 +290,7 @@ sy_code sy_scene_add_tree(sy_scene *s, const sy_skeleton *local, const sy_leaves
         for (size_t i = 0; lp && i < leaves->n; i++)
             for (int k = 0; k < 3; k++) lp[3 * i + k] = (float)((double)leaves->pos[3 * i + k] + local->origin[k] - shift[k]);
         moved.pos = lp;
-        if (lp) rc = add_leaves(s, &moved, &t->skel, map, &pl, leaf_width, elliptic, t->tree_id, species_id, &ext,
+        if (lp) rc = add_leaves(s, &moved, &t->skel, map, &pl, cards, t->tree_id, species_id, &ext,
                                 &t->leaf_count, err);
         free(lp);
     }
@@ -394,7 +395,7 @@ sy_scene_options sy_scene_options_default(void)
 typedef struct {
     sy_skeleton skel;
     sy_leaves leaves;
-    float leaf_width;
+    float leaf_width, leaf_fill;
     char name[64];
     int species_id;
     uint64_t seed;
@@ -432,6 +433,7 @@ static sy_code grow_one(grown_tree *g, const char *species, uint64_t seed, int l
     forest_habit(&sp, forest);
     sy_code rc = sy_grow_tree(&sp, seed, &g->skel, leaves ? &g->leaves : NULL, err);
     g->leaf_width = sp.leaf_scale_x;
+    g->leaf_fill = sp.leaf_fill;
     snprintf(g->name, sizeof g->name, "%s", sp.name ? sp.name : species);
     g->species_id = sy_library_id(g->name);
     g->seed = seed;
@@ -555,7 +557,8 @@ sy_code sy_scene_build(sy_scene *s, const sy_scene_options *o, double reach, sy_
     sy_code rc = SY_OK;
     for (int i = 0; i < n && !rc; i++) {
         double pos[3] = {g[i].x, g[i].y, ground_z(s, g[i].x, g[i].y)};
-        rc = sy_scene_add_tree(s, &g[i].skel, o->leaves ? &g[i].leaves : NULL, g[i].leaf_width, o->elliptic, g[i].name,
+        sy_card_form cards = {g[i].leaf_width, g[i].leaf_fill, o->elliptic};
+        rc = sy_scene_add_tree(s, &g[i].skel, o->leaves ? &g[i].leaves : NULL, &cards, g[i].name,
                                g[i].species_id, g[i].seed, pos, g[i].yaw, err);
     }
     free_grown(g, (size_t)n);

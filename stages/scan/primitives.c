@@ -8,6 +8,7 @@
 #include "scan.h"
 #include "stages/core/vec3.h"
 #include "stages/core/array.h"
+#include "stages/core/rng.h"
 
 sy_code sy_prims_push(sy_prims *list, const sy_prim *p, sy_error *err)
 {
@@ -61,6 +62,12 @@ sy_prim sy_prim_quad(const float base[3], const float x_axis[3], const float y_a
     p.material = SY_MAT_LEAF;
     p.elliptic = (uint8_t)(elliptic != 0);
     return p;
+}
+
+void sy_prim_quad_gaps(sy_prim *quad, double fill)
+{
+    double open = fill > 0 && fill < 1 ? 1 - fill : 0;
+    quad->gaps = (uint8_t)lround(fmin(open * 256, 255));
 }
 
 sy_prim sy_prim_tri(const float a[3], const float b[3], const float c[3])
@@ -136,6 +143,20 @@ static int hit_cone(const sy_prim *p, const double o[3], const double d[3], doub
     return 0;
 }
 
+/* Whether the card's cell at (x, y) (card coordinates of hit_quad) is a gap
+ * between needles: a hash of the cell and of the card's base, so neighbouring
+ * cards' patterns are independent and every ray sees the same pattern. */
+static int card_cell_open(const sy_prim *p, double x, double y, double uu, double vv)
+{
+    int64_t cx = (int64_t)floor((x + 1) * sqrt(uu) / SY_CARD_GAP_CELL);
+    int64_t cy = (int64_t)floor(y * sqrt(vv) / SY_CARD_GAP_CELL);
+    uint32_t b[3];
+    memcpy(b, p->v, sizeof b);
+    uint64_t card = sy_mix64(((uint64_t)b[0] << 32 | b[1]) ^ sy_mix64(b[2]));
+    uint64_t h = sy_mix64(card ^ ((uint64_t)cx << 32) ^ (uint64_t)(uint32_t)cy);
+    return (h >> 56) < p->gaps;
+}
+
 static int hit_quad(const sy_prim *p, const double o[3], const double d[3], double tmin, double tmax, double *t)
 {
     double base[3], u[3], v[3], n[3];
@@ -158,6 +179,7 @@ static int hit_quad(const sy_prim *p, const double o[3], const double d[3], doub
     } else if (x < -1 || x > 1 || y < 0 || y > 1) {
         return 0;
     }
+    if (p->gaps && card_cell_open(p, x, y, uu, vv)) return 0;
     *t = s;
     return 1;
 }

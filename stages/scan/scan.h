@@ -31,6 +31,8 @@ enum { SY_MAT_WOOD, SY_MAT_LEAF, SY_MAT_GROUND };
  * quad: v[0..2] leaf base, v[3..5] half-width vector (local +X), v[6..8] length
  *       vector (local +Y), v[9..11] unit normal (+Z); the card spans
  *       base + s*u + t*v for s in [-1,1], t in [0,1] (elliptic: the inscribed ellipse);
+ *       gaps > 0: a needle shoot's card, open in that share (gaps/256) of its
+ *       SY_CARD_GAP_CELL cells (sy_prim_quad_gaps);
  * tri:  v[0..2], v[3..5], v[6..8] the corners. */
 typedef struct {
     float v[12];
@@ -38,7 +40,16 @@ typedef struct {
     int32_t species_id; /* -1: ground and understory */
     int32_t branch_id;  /* -1 unless tree wood or leaf */
     uint8_t kind, material, elliptic, understory;
+    uint8_t gaps; /* quads: the open share of the card in 1/256 (0: solid) */
 } sy_prim;
+
+/* A conifer's leaf card stands for a shoot of needles: a beam meets needles on
+ * only part of its area (the species' leaf_fill, docs/species.md). The card is
+ * cut into cells of this size (1 cm, a few needles' width), each open or
+ * needled by a hash of the cell and the card, so a beam's sub-rays that fall
+ * in different cells pass or stop independently and the same ray always does
+ * the same. */
+#define SY_CARD_GAP_CELL 0.01
 
 typedef struct {
     sy_prim *p;
@@ -53,6 +64,9 @@ sy_prim sy_prim_cone(const float a[3], float ra, const float b[3], float rb);
 sy_prim sy_prim_quad(const float base[3], const float x_axis[3], const float y_axis[3], float length, float width,
                      int elliptic);
 sy_prim sy_prim_tri(const float a[3], const float b[3], const float c[3]);
+/* Makes a quad a shoot card that a beam meets on the share fill in (0, 1] of
+ * its area (1: a solid leaf). */
+void sy_prim_quad_gaps(sy_prim *quad, double fill);
 
 /* Exact intersection of the ray o + t d (|d| = 1) with tmin < t < tmax:
  * returns 1 and sets *t, else 0. */
@@ -125,12 +139,21 @@ typedef struct {
 
 void sy_scene_init(sy_scene *s);
 void sy_scene_free(sy_scene *s);
+/* How a tree's leaf cards are traced: width over length (the species'
+ * leaf_scale_x), the inscribed ellipse or the whole quad, and the share of a
+ * card's area a beam meets (the species' leaf_fill: 1 a solid leaf, less a
+ * needle shoot; sy_prim_quad_gaps). */
+typedef struct {
+    float width, fill;
+    int elliptic;
+} sy_card_form;
+
 /* Adds a tree grown in its local frame (trunk base at the origin), rotated by
- * yaw about Z and moved to pos. leaves may be NULL; leaf_width is the card
- * width over its length (the species' leaf_scale_x). The skeleton is copied. */
-sy_code sy_scene_add_tree(sy_scene *s, const sy_skeleton *local, const sy_leaves *leaves, float leaf_width,
-                          int elliptic, const char *species, int species_id, uint64_t seed, const double pos[3],
-                          double yaw_deg, sy_error *err);
+ * yaw about Z and moved to pos. leaves may be NULL (then cards is unused).
+ * The skeleton is copied. */
+sy_code sy_scene_add_tree(sy_scene *s, const sy_skeleton *local, const sy_leaves *leaves, const sy_card_form *cards,
+                          const char *species, int species_id, uint64_t seed, const double pos[3], double yaw_deg,
+                          sy_error *err);
 /* Triangulates the terrain into the scene. */
 sy_code sy_scene_add_terrain(sy_scene *s, const sy_terrain *t, sy_error *err);
 /* Small random shrubs (stems and leaf blobs) over the area, `density` per m^2,
