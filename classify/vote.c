@@ -20,7 +20,7 @@ sy_vote_options sy_vote_options_default(void)
 
 sy_code sy_vote_options_check(const sy_vote_options *o, sy_error *err)
 {
-    if (!(o->ratio >= 1 && o->ratio < 1e6)) return sy_fail(err, SY_EUSAGE, "vote: ratio must be >= 1");
+    if (!(o->ratio >= 1 && isfinite(o->ratio))) return sy_fail(err, SY_EUSAGE, "vote: ratio must be a finite number >= 1");
     if (!(o->radius >= 0 && o->radius < 1e7)) return sy_fail(err, SY_EUSAGE, "vote: radius must be >= 0 metres");
     if (!(o->novelty_max > 0 && o->novelty_max < 1e6)) return sy_fail(err, SY_EUSAGE, "vote: novelty_max must be > 0");
     return SY_OK;

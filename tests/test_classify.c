@@ -394,6 +394,12 @@ static void voting_reads_confident_neighbours_within_the_radius(void **state)
     assert_int_equal(d[0].species, -1);
     o.ratio = 0.5;
     assert_int_equal(sy_vote(3, 3, p, NULL, xy, &o, d, &err), SY_EUSAGE);
+    o.ratio = INFINITY;
+    assert_int_equal(sy_vote(3, 3, p, NULL, xy, &o, d, &err), SY_EUSAGE);
+    /* A model sure of its trees gives ratios of 1e11 and more (p2 ~ 1e-12):
+     * a ratio between two of them is a valid option, not a usage error. */
+    o.ratio = 1.6e11;
+    assert_int_equal(sy_vote(3, 3, p, NULL, xy, &o, d, &err), SY_OK);
 }
 
 int main(void)
