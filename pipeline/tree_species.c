@@ -12,10 +12,10 @@
 #include "stages/ingest/ingest.h"
 #include "stages/preprocess/preprocess.h"
 
-sy_code sy_classify_preprocess(sy_cloud *c, const char *path, sy_error *err)
+sy_code sy_classify_preprocess(sy_cloud *c, const char *path, double voxel, sy_error *err)
 {
     sy_preprocess_options po = sy_preprocess_options_default();
-    po.voxel = 0.02;
+    po.voxel = voxel;
     po.sor = 0;
     po.remove_ground = 1;
     po.normals = 0;
@@ -49,7 +49,7 @@ sy_code sy_scan_features(const char *path, const sy_features_options *fo, float 
     int sid = sy_cloud_majority_species(&c);
     if (sid >= 0) sy_species_name_at(sid, r->label, sizeof r->label);
     r->georeferenced = strcmp(c.meta.format, "LAS") == 0;
-    if ((rc = sy_classify_preprocess(&c, path, err))) {
+    if ((rc = sy_classify_preprocess(&c, path, SY_CLASSIFY_VOXEL, err))) {
         sy_cloud_free(&c);
         return rc;
     }

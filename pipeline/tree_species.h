@@ -26,10 +26,12 @@ typedef struct {
     sy_features_info info;
 } sy_scan_features_result;
 
-/* Preprocessing for classification: up axis, a 2 cm voxel thinning, ground
- * classified and removed; no outlier removal (the features are quantile-based
- * voxel statistics) and no normals (the features fit their own). */
-sy_code sy_classify_preprocess(sy_cloud *c, const char *path, sy_error *err);
+/* Preprocessing for classification: up axis, a voxel thinning (voxel metres:
+ * SY_CLASSIFY_VOXEL, as the training scans had), ground classified and
+ * removed; no outlier removal (the features are quantile-based voxel
+ * statistics) and no normals (the features fit their own). */
+#define SY_CLASSIFY_VOXEL 0.02
+sy_code sy_classify_preprocess(sy_cloud *c, const char *path, double voxel, sy_error *err);
 
 /* Reads path, preprocesses it and computes the features into f
  * (sy_feature_count() floats). */

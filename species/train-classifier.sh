@@ -3,7 +3,7 @@
 # simulated scans of every species in the library (docs/classify.md):
 #   species/train-classifier.sh [--trees N] [--work DIR] [--unseen] [--jobs J] [--sylva BIN] [--out MODEL]
 #                               [--reuse-features]
-# Every library species gets N trees (default 40), each grown from its own seed
+# Every library species gets N trees (default 180), each grown from its own seed
 # and scanned with one of twelve settings in turn: terrestrial with 4, 3 and 2
 # stations (occlusion), coarse and fine steps, extra range noise, leaf-off;
 # mobile leaf-on and leaf-off; airborne at 50 and 20 pulses/m^2; and four
@@ -21,7 +21,7 @@
 # Add a species (a new species/*.ini) and rerun this: nothing else changes.
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
-trees=40 work="" unseen=0 jobs=2 sylva="" out="$here/classifier.sjb" reuse=0
+trees=180 work="" unseen=0 jobs=2 sylva="" out="$here/classifier.sjb" reuse=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --trees) trees=$2; shift 2 ;;

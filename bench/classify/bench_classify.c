@@ -508,7 +508,7 @@ static void speed(const char *model_path, const char *scan)
     sy_cloud c;
     sy_error err = {0};
     sy_progress_set_quiet(1);
-    if (sy_read_cloud(scan, &c, &err) || sy_classify_preprocess(&c, scan, &err)) {
+    if (sy_read_cloud(scan, &c, &err) || sy_classify_preprocess(&c, scan, SY_CLASSIFY_VOXEL, &err)) {
         printf("\nspeed: %s\n", err.msg);
         return;
     }
