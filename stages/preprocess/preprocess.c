@@ -1,6 +1,7 @@
 #include "preprocess.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -311,24 +312,70 @@ sy_code sy_voxel_downsample(sy_cloud *c, double size, sy_error *err)
 }
 
 /* Occupied voxels of edge size, counted up to limit (then limit + 1). */
-static size_t occupied_voxels(const sy_cloud *c, const float lo[3], double size, size_t limit, uint64_t *table,
-                              size_t mask)
+/* Distinct voxels of edge `size` among the points, counted up to a little
+ * past `limit`: the points are split among the threads, which insert their
+ * keys into one open-addressing table by compare-and-swap (an insert that
+ * wins an empty slot is a new voxel; one that finds its key there is not),
+ * so the count is exact whatever the split and the search below ends on the
+ * same size for any thread count. Each thread publishes its count every
+ * VOXEL_COUNT_BATCH new voxels and stops once the published total passes
+ * the limit, which keeps the table (twice the limit) from filling. */
+#define VOXEL_COUNT_BATCH 1024
+typedef struct {
+    const sy_cloud *c;
+    const float *lo;
+    double size;
+    size_t limit, mask;
+    _Atomic uint64_t *table;
+    _Atomic size_t published;
+    size_t *counts; /* per chunk */
+} voxel_count_job;
+
+static void clear_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
 {
-    memset(table, 0, (mask + 1) * sizeof *table);
-    size_t count = 0;
-    for (size_t i = 0; i < c->n && count <= limit; i++) {
+    (void)chunk;
+    voxel_count_job *J = ctx;
+    for (size_t i = begin; i < end; i++) atomic_store_explicit(&J->table[i], 0, memory_order_relaxed);
+}
+
+static void count_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
+{
+    voxel_count_job *J = ctx;
+    size_t count = 0, pending = 0;
+    for (size_t i = begin; i < end; i++) {
+        if (pending == VOXEL_COUNT_BATCH) {
+            if (atomic_fetch_add_explicit(&J->published, pending, memory_order_relaxed) + pending > J->limit) break;
+            pending = 0;
+        }
         /* The core key uses 63 bits; a leading 1 keeps 0 free as the empty slot. */
-        uint64_t key = 1ull << 63 | sy_voxel_key(c->xyz + 3 * i, lo, size);
+        uint64_t key = 1ull << 63 | sy_voxel_key(J->c->xyz + 3 * i, J->lo, J->size);
         uint64_t h = key * 0x9E3779B97F4A7C15ull;
-        for (size_t slot = (size_t)(h >> 20) & mask;; slot = (slot + 1) & mask) {
-            if (table[slot] == key) break;
-            if (!table[slot]) {
-                table[slot] = key;
-                count++;
-                break;
+        for (size_t slot = (size_t)(h >> 20) & J->mask;; slot = (slot + 1) & J->mask) {
+            uint64_t seen = atomic_load_explicit(&J->table[slot], memory_order_relaxed);
+            if (seen == key) break;
+            if (!seen) {
+                if (atomic_compare_exchange_strong_explicit(&J->table[slot], &seen, key, memory_order_relaxed,
+                                                            memory_order_relaxed)) {
+                    count++;
+                    pending++;
+                    break;
+                }
+                if (seen == key) break; /* another thread put this key there first */
             }
         }
     }
+    atomic_fetch_add_explicit(&J->published, pending, memory_order_relaxed);
+    J->counts[chunk] = count;
+}
+
+static size_t occupied_voxels(voxel_count_job *J, double size, size_t chunk, size_t chunks)
+{
+    J->size = size;
+    atomic_store(&J->published, 0);
+    sy_parallel_for(J->mask + 1, 1 << 16, clear_chunk, J);
+    sy_parallel_for(J->c->n, chunk, count_chunk, J);
+    size_t count = 0;
+    for (size_t k = 0; k < chunks; k++) count += J->counts[k];
     return count;
 }
 
@@ -347,17 +394,26 @@ sy_code sy_voxel_size_for_count(const sy_cloud *c, size_t target, double *size, 
     double big = cbrt(vol / (double)target), small = fmax(big / 64, wide / ((double)SY_VOXEL_AXIS_CELLS - 2));
     size_t tsize = 16;
     while (tsize < 2 * (target + 1)) tsize *= 2;
-    uint64_t *table = sy_calloc(tsize, sizeof *table, err, "voxel count");
-    if (!table) return SY_EINTERNAL;
-    if (occupied_voxels(c, lo, small, target, table, tsize - 1) <= target) big = small;
+    /* Chunks of points: as many as the threads could use, fixed by n. */
+    size_t chunk = c->n / 64 + 1, chunks = (c->n + chunk - 1) / chunk;
+    voxel_count_job J = {c, lo, 0, target, tsize - 1, NULL, 0, NULL};
+    J.table = sy_calloc(tsize, sizeof *J.table, err, "voxel count");
+    J.counts = sy_calloc(chunks, sizeof *J.counts, err, "voxel count");
+    if (!J.table || !J.counts) {
+        free((void *)J.table);
+        free(J.counts);
+        return SY_EINTERNAL;
+    }
+    if (occupied_voxels(&J, small, chunk, chunks) <= target) big = small;
     else
         /* Bisection in log size: the count falls as the edge grows. */
         for (int it = 0; it < 10; it++) {
             double mid = sqrt(small * big);
-            if (occupied_voxels(c, lo, mid, target, table, tsize - 1) <= target) big = mid;
+            if (occupied_voxels(&J, mid, chunk, chunks) <= target) big = mid;
             else small = mid;
         }
-    free(table);
+    free((void *)J.table);
+    free(J.counts);
     *size = big;
     return SY_OK;
 }
