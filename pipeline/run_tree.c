@@ -11,6 +11,7 @@
 #include "pipeline/tree_synth.h"
 #include "species/library.h"
 #include "stages/core/fileio.h"
+#include "stages/core/parallel.h"
 #include "stages/core/progress.h"
 #include "stages/core/voxel.h"
 #include "stages/encode/encode.h"
@@ -189,37 +190,78 @@ static void report_checks(const sy_run_tree_options *o, const sy_tree_checks *k)
  * from the points as read, not from the run's cleaned cloud: the outlier
  * filter strips the sparse crown edge and twigs the features measure (the
  * TreeLS pine is european_pine p 1.00 from its file, and was sugar_maple p
- * 0.89 from the run's cloud). Only the positions and the format (the up
- * axis) are copied. A scan beyond the point budget is thinned with the
- * budget's voxel instead, when coarser (the features' own sample is 4 cm
- * voxels and up; the ground filter on 1 M points cost 0.5 s). */
-static sy_code classify_as_read(const sy_cloud *raw, const char *name, const sy_run_tree_options *o, double voxel,
-                                sy_species_guess *guess, sy_error *err)
+ * 0.89 from the run's cloud). It works on a copy of the positions and the
+ * format (the up axis), made before the run cleans its cloud. A scan beyond
+ * the point budget is thinned with the budget's voxel instead, when coarser
+ * (the features' own sample is 4 cm voxels and up; the ground filter on 1 M
+ * points cost 0.5 s), and a cloud too wide for 2 cm voxels (two trees 100 km
+ * apart) with the finest voxel its extent allows. */
+typedef struct {
+    sy_cloud copy;
+    const char *name;
+    const sy_run_tree_options *o;
+    double voxel;
+    sy_species_guess *guess;
+    sy_code rc;
+    sy_error err;
+} classify_job;
+
+static sy_code classify_job_init(classify_job *J, const sy_cloud *raw, const char *name, const sy_run_tree_options *o,
+                                 double voxel, sy_species_guess *guess, sy_error *err)
+{
+    memset(J, 0, sizeof *J);
+    sy_code rc = sy_cloud_init(&J->copy, raw->n, err);
+    if (rc) return rc;
+    sy_cloud *t = &J->copy;
+    memcpy(t->xyz, raw->xyz, raw->n * 3 * sizeof *t->xyz);
+    memcpy(t->origin, raw->origin, sizeof t->origin);
+    memcpy(t->meta.format, raw->meta.format, sizeof t->meta.format);
+    memcpy(t->meta.version, raw->meta.version, sizeof t->meta.version);
+    t->meta.point_format = raw->meta.point_format;
+    double lo[3], hi[3], wide = 0;
+    sy_cloud_bounds(t, lo, hi);
+    for (int k = 0; k < 3; k++) wide = fmax(wide, hi[k] - lo[k]);
+    J->voxel = fmax(SY_CLASSIFY_VOXEL, fmax(voxel, wide / ((double)SY_VOXEL_AXIS_CELLS - 2)));
+    J->name = name, J->o = o, J->guess = guess;
+    return SY_OK;
+}
+
+static void classify_job_run(classify_job *J)
 {
     double t0 = sy_now();
-    sy_cloud t;
-    sy_code rc = sy_cloud_init(&t, raw->n, err);
-    if (rc) return rc;
-    memcpy(t.xyz, raw->xyz, raw->n * 3 * sizeof *t.xyz);
-    memcpy(t.origin, raw->origin, sizeof t.origin);
-    memcpy(t.meta.format, raw->meta.format, sizeof t.meta.format);
-    memcpy(t.meta.version, raw->meta.version, sizeof t.meta.version);
-    t.meta.point_format = raw->meta.point_format;
-    /* A cloud too wide for 2 cm voxels (two trees 100 km apart) takes the
-     * finest voxel its extent allows. */
-    double lo[3], hi[3], wide = 0;
-    sy_cloud_bounds(&t, lo, hi);
-    for (int k = 0; k < 3; k++) wide = fmax(wide, hi[k] - lo[k]);
-    voxel = fmax(voxel, wide / ((double)SY_VOXEL_AXIS_CELLS - 2));
-    rc = sy_classify_preprocess(&t, name, fmax(SY_CLASSIFY_VOXEL, voxel), err);
-    if (rc == SY_EINPUT && t.n < SY_FEATURES_MIN_POINTS) {
-        *err = (sy_error){0};
-        rc = SY_OK; /* a handful of returns: sy_classify_cloud reports it too few, unknown */
+    J->rc = sy_classify_preprocess(&J->copy, J->name, J->voxel, &J->err);
+    if (J->rc == SY_EINPUT && J->copy.n < SY_FEATURES_MIN_POINTS) {
+        J->err = (sy_error){0};
+        J->rc = SY_OK; /* a handful of returns: sy_classify_cloud reports it too few, unknown */
     }
-    if (!rc) rc = sy_classify_cloud(&t, o->model, guess, err);
-    sy_cloud_free(&t);
-    if (!rc) guess->seconds = sy_now() - t0;
-    return rc;
+    if (!J->rc) J->rc = sy_classify_cloud(&J->copy, J->o->model, J->guess, &J->err);
+    if (!J->rc) J->guess->seconds = sy_now() - t0;
+    sy_cloud_free(&J->copy);
+}
+
+/* The classification of the copy and the run's own cleaning are
+ * independent; each spends much of its time on one thread (PCL's ground
+ * filter, the voxel sort), so they run side by side. */
+typedef struct {
+    classify_job *classify;
+    sy_cloud *c;
+    const char *name;
+    const sy_run_tree_options *o;
+    double voxel;
+    sy_run_tree_result *r;
+    sy_code rc;
+    sy_error err;
+} prepare_job;
+
+static sy_code clean(sy_cloud *c, const char *name, const sy_run_tree_options *o, double budget_voxel,
+                     sy_run_tree_result *r, sy_error *err);
+
+static void prepare_part(void *ctx, size_t begin, size_t end, size_t chunk)
+{
+    (void)end, (void)chunk;
+    prepare_job *P = ctx;
+    if (begin == 1) classify_job_run(P->classify);
+    else P->rc = clean(P->c, P->name, P->o, P->voxel, P->r, &P->err);
 }
 
 static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_options *o,
@@ -230,10 +272,21 @@ static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_opti
     int classify = !sp && !o->species && o->classify;
     double voxel;
     sy_code rc = budget_voxel(c, o, &voxel, err);
-    if (!rc && classify) rc = classify_as_read(c, name, o, voxel, &r->guess, err);
+    classify_job cj;
+    if (!rc && classify) rc = classify_job_init(&cj, c, name, o, voxel, &r->guess, err);
     if (rc) return rc;
-    r->classified = classify;
-    if ((rc = clean(c, name, o, voxel, r, err))) return rc;
+    prepare_job P = {&cj, c, name, o, voxel, r, SY_OK, {0}};
+    sy_parallel_for(classify ? 2 : 1, 1, prepare_part, &P);
+    r->classified = classify && cj.rc == SY_OK; /* the guess is freed with the result */
+    /* The classification's error first, as when it ran before the cleaning. */
+    if (classify && cj.rc) {
+        *err = cj.err;
+        return cj.rc;
+    }
+    if (P.rc) {
+        *err = P.err;
+        return P.rc;
+    }
     sy_species_params guessed;
     int have_guess = 0;
     if (classify) {
