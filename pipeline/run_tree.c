@@ -272,7 +272,7 @@ static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_opti
     int classify = !sp && !o->species && o->classify;
     double voxel;
     sy_code rc = budget_voxel(c, o, &voxel, err);
-    classify_job cj;
+    classify_job cj = {.rc = SY_OK};
     if (!rc && classify) rc = classify_job_init(&cj, c, name, o, voxel, &r->guess, err);
     if (rc) return rc;
     prepare_job P = {&cj, c, name, o, voxel, r, SY_OK, {0}};
