@@ -13,7 +13,6 @@
 #include "stages/core/fileio.h"
 #include "stages/core/parallel.h"
 #include "stages/core/progress.h"
-#include "stages/core/voxel.h"
 #include "stages/encode/encode.h"
 #include "stages/eval/eval.h"
 #include "stages/grow/grow.h"
@@ -218,10 +217,7 @@ static sy_code classify_job_init(classify_job *J, const sy_cloud *raw, const cha
     memcpy(t->meta.format, raw->meta.format, sizeof t->meta.format);
     memcpy(t->meta.version, raw->meta.version, sizeof t->meta.version);
     t->meta.point_format = raw->meta.point_format;
-    double lo[3], hi[3], wide = 0;
-    sy_cloud_bounds(t, lo, hi);
-    for (int k = 0; k < 3; k++) wide = fmax(wide, hi[k] - lo[k]);
-    J->voxel = fmax(SY_CLASSIFY_VOXEL, fmax(voxel, wide / ((double)SY_VOXEL_AXIS_CELLS - 2)));
+    J->voxel = fmax(SY_CLASSIFY_VOXEL, fmax(voxel, sy_voxel_finest(t)));
     J->name = name, J->o = o, J->guess = guess;
     return SY_OK;
 }
@@ -252,9 +248,6 @@ typedef struct {
     sy_code rc;
     sy_error err;
 } prepare_job;
-
-static sy_code clean(sy_cloud *c, const char *name, const sy_run_tree_options *o, double budget_voxel,
-                     sy_run_tree_result *r, sy_error *err);
 
 static void prepare_part(void *ctx, size_t begin, size_t end, size_t chunk)
 {

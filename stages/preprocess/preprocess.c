@@ -311,7 +311,6 @@ sy_code sy_voxel_downsample(sy_cloud *c, double size, sy_error *err)
     return rc;
 }
 
-/* Occupied voxels of edge size, counted up to limit (then limit + 1). */
 /* Distinct voxels of edge `size` among the points, counted up to a little
  * past `limit`: the points are split among the threads, which insert their
  * keys into one open-addressing table by compare-and-swap (an insert that
@@ -328,7 +327,8 @@ typedef struct {
     size_t limit, mask;
     _Atomic uint64_t *table;
     _Atomic size_t published;
-    size_t *counts; /* per chunk */
+    size_t chunk, chunks; /* points per chunk (fixed by n), and their count */
+    size_t *counts;       /* per chunk */
 } voxel_count_job;
 
 static void clear_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
@@ -368,15 +368,29 @@ static void count_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
     J->counts[chunk] = count;
 }
 
-static size_t occupied_voxels(voxel_count_job *J, double size, size_t chunk, size_t chunks)
+static size_t occupied_voxels(voxel_count_job *J, double size)
 {
     J->size = size;
     atomic_store(&J->published, 0);
     sy_parallel_for(J->mask + 1, 1 << 16, clear_chunk, J);
-    sy_parallel_for(J->c->n, chunk, count_chunk, J);
+    sy_parallel_for(J->c->n, J->chunk, count_chunk, J);
     size_t count = 0;
-    for (size_t k = 0; k < chunks; k++) count += J->counts[k];
+    for (size_t k = 0; k < J->chunks; k++) count += J->counts[k];
     return count;
+}
+
+/* The finest voxel edge over a span of `wide` metres: keys of
+ * SY_VOXEL_AXIS_CELLS cells per axis, two kept spare for rounding. */
+static double finest_for_width(double wide) { return wide / ((double)SY_VOXEL_AXIS_CELLS - 2); }
+
+double sy_voxel_finest(const sy_cloud *c)
+{
+    if (c->n == 0) return 0;
+    float lo[3], hi[3];
+    local_bounds(c, 3, lo, hi);
+    double wide = 0;
+    for (int k = 0; k < 3; k++) wide = fmax(wide, hi[k] - lo[k]);
+    return finest_for_width(wide);
 }
 
 sy_code sy_voxel_size_for_count(const sy_cloud *c, size_t target, double *size, sy_error *err)
@@ -391,25 +405,25 @@ sy_code sy_voxel_size_for_count(const sy_cloud *c, size_t target, double *size, 
         wide = fmax(wide, hi[k] - lo[k]);
     }
     /* With edge cbrt(volume / target) the box holds at most target voxels. */
-    double big = cbrt(vol / (double)target), small = fmax(big / 64, wide / ((double)SY_VOXEL_AXIS_CELLS - 2));
+    double big = cbrt(vol / (double)target), small = fmax(big / 64, finest_for_width(wide));
     size_t tsize = 16;
     while (tsize < 2 * (target + 1)) tsize *= 2;
     /* Chunks of points: as many as the threads could use, fixed by n. */
-    size_t chunk = c->n / 64 + 1, chunks = (c->n + chunk - 1) / chunk;
-    voxel_count_job J = {c, lo, 0, target, tsize - 1, NULL, 0, NULL};
+    size_t chunk = c->n / 64 + 1;
+    voxel_count_job J = {c, lo, 0, target, tsize - 1, NULL, 0, chunk, (c->n + chunk - 1) / chunk, NULL};
     J.table = sy_calloc(tsize, sizeof *J.table, err, "voxel count");
-    J.counts = sy_calloc(chunks, sizeof *J.counts, err, "voxel count");
+    J.counts = sy_calloc(J.chunks, sizeof *J.counts, err, "voxel count");
     if (!J.table || !J.counts) {
         free((void *)J.table);
         free(J.counts);
         return SY_EINTERNAL;
     }
-    if (occupied_voxels(&J, small, chunk, chunks) <= target) big = small;
+    if (occupied_voxels(&J, small) <= target) big = small;
     else
         /* Bisection in log size: the count falls as the edge grows. */
         for (int it = 0; it < 10; it++) {
             double mid = sqrt(small * big);
-            if (occupied_voxels(&J, mid, chunk, chunks) <= target) big = mid;
+            if (occupied_voxels(&J, mid) <= target) big = mid;
             else small = mid;
         }
     free((void *)J.table);

@@ -100,6 +100,8 @@ sy_code sy_voxel_downsample(sy_cloud *c, double size, sy_error *err);
  * by bisection in log size to within 0.5%; 0 when c has target points or
  * fewer. O(n) a step, ten steps. */
 sy_code sy_voxel_size_for_count(const sy_cloud *c, size_t target, double *size, sy_error *err);
+/* The finest voxel edge (metres) the voxel keys allow over c's extent. */
+double sy_voxel_finest(const sy_cloud *c);
 
 /* Removes statistical outliers (PCL). */
 sy_code sy_remove_outliers(sy_cloud *c, int k, double std_mul, sy_error *err);
