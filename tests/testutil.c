@@ -21,18 +21,55 @@ const char *data_path(const char *rel)
     return b;
 }
 
+static char tmpdir_path[4096];
+
+/* Removes path and, when it is a folder, everything under it (links are
+ * removed, never followed). */
+static void remove_tree(const char *path)
+{
+    struct stat st;
+    if (lstat(path, &st) != 0) return;
+    if (S_ISDIR(st.st_mode)) {
+        DIR *d = opendir(path);
+        if (d) {
+            struct dirent *e;
+            char child[4096];
+            while ((e = readdir(d)))
+                if (strcmp(e->d_name, ".") && strcmp(e->d_name, "..") &&
+                    snprintf(child, sizeof child, "%s/%s", path, e->d_name) < (int)sizeof child)
+                    remove_tree(child);
+            closedir(d);
+        }
+        rmdir(path);
+    } else {
+        unlink(path);
+    }
+}
+
+/* Each test process's folder goes when it exits (SYLVA_KEEP_TEST_TMP=1 keeps
+ * it for a look): a suite run used to leave 18 folders in /tmp. */
+static void remove_tmpdir(void)
+{
+    const char *keep = getenv("SYLVA_KEEP_TEST_TMP");
+    if (keep && *keep && strcmp(keep, "0")) {
+        fprintf(stderr, "test files kept in %s\n", tmpdir_path);
+        return;
+    }
+    remove_tree(tmpdir_path);
+}
+
 const char *test_tmpdir(void)
 {
-    static char dir[4096];
-    if (!dir[0]) {
+    if (!tmpdir_path[0]) {
         const char *base = getenv("TMPDIR");
-        snprintf(dir, sizeof dir, "%s/sylva-test-XXXXXX", base && *base ? base : "/tmp");
-        if (!mkdtemp(dir)) {
+        snprintf(tmpdir_path, sizeof tmpdir_path, "%s/sylva-test-XXXXXX", base && *base ? base : "/tmp");
+        if (!mkdtemp(tmpdir_path)) {
             perror("mkdtemp");
             exit(1);
         }
+        atexit(remove_tmpdir);
     }
-    return dir;
+    return tmpdir_path;
 }
 
 const char *tmp_path(const char *name)

@@ -10,7 +10,7 @@
 // impostor_iou, ...}. Exit 0 when every page finished, 3 when the browser failed.
 import { spawn } from 'node:child_process';
 import { createServer } from 'node:http';
-import { readFileSync, writeFileSync, mkdtempSync, statSync } from 'node:fs';
+import { readFileSync, writeFileSync, mkdtempSync, rmSync, statSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join, resolve, basename, dirname } from 'node:path';
 import { fileURLToPath } from 'node:url';
@@ -34,9 +34,12 @@ const server = createServer((req, res) => {
 });
 await new Promise(r => server.listen(0, '127.0.0.1', r));
 const port = server.address().port;
+// Chromium's profile goes when this process exits, however it exits.
+const profile = mkdtempSync(join(tmpdir(), 'sylva-three-'));
+process.on('exit', () => { try { rmSync(profile, { recursive: true, force: true, maxRetries: 3 }); } catch { /* chromium still writing: left to /tmp's cleaner */ } });
 const browser = spawn('chromium', ['--headless', '--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
   '--hide-scrollbars', '--mute-audio', '--no-first-run', '--disable-extensions', '--remote-debugging-port=0',
-  `--user-data-dir=${mkdtempSync(join(tmpdir(), 'sylva-three-'))}`, 'about:blank'], { stdio: ['ignore', 'ignore', 'pipe'] });
+  `--user-data-dir=${profile}`, 'about:blank'], { stdio: ['ignore', 'ignore', 'pipe'] });
 const fail = (msg) => { console.error(`render_glb: ${msg}`); browser.kill(); server.close(); process.exit(3); };
 const wsUrl = await new Promise((res, rej) => {
   let buf = '';

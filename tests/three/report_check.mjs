@@ -7,7 +7,7 @@
 // --png: a screenshot of the page with the preview of --preview (default: the first tree) open.
 // Exit 0 when the page answered, 3 when the browser failed.
 import { spawn } from 'node:child_process';
-import { writeFileSync, mkdtempSync } from 'node:fs';
+import { writeFileSync, mkdtempSync, rmSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join, resolve } from 'node:path';
 
@@ -18,9 +18,12 @@ for (let i = 0; i < args.length; i++) {
   if (args[i].startsWith('--')) opt[args[i].slice(2)] = args[++i];
   else page = resolve(args[i]);
 }
+// Chromium's profile goes when this process exits, however it exits.
+const profile = mkdtempSync(join(tmpdir(), 'sylva-report-'));
+process.on('exit', () => { try { rmSync(profile, { recursive: true, force: true, maxRetries: 3 }); } catch { /* chromium still writing: left to /tmp's cleaner */ } });
 const browser = spawn('chromium', ['--headless', '--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
   '--hide-scrollbars', '--mute-audio', '--no-first-run', '--disable-extensions', '--remote-debugging-port=0',
-  `--user-data-dir=${mkdtempSync(join(tmpdir(), 'sylva-report-'))}`, 'about:blank'], { stdio: ['ignore', 'ignore', 'pipe'] });
+  `--user-data-dir=${profile}`, 'about:blank'], { stdio: ['ignore', 'ignore', 'pipe'] });
 const fail = (msg) => { console.error(`report_check: ${msg}`); browser.kill(); process.exit(3); };
 const wsUrl = await new Promise((res, rej) => {
   let buf = '';
