@@ -633,6 +633,52 @@ static void bent_trunk_branches_sit_on_the_parent(void **state)
     sy_skeleton_free(&s);
 }
 
+/* A whorl: four limbs, each 0.59 of the trunk's radius, leave one trunk
+ * node about a quarter turn apart. At LOD1 the trunk has eight sides and
+ * the limbs' holes overlap all round it, yet one column boundary between
+ * two rings stays clear: they weld as one band of whole rows with its seam
+ * there. A hole wrapping its parent used to cap the limb that closed the
+ * ring inside the trunk (3 of 4 welded). The bark stays closed and
+ * oriented. */
+static void whorl_welds_as_a_band(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_error err;
+    memset(&s, 0, sizeof s);
+    int32_t prev = -1, at = -1;
+    for (int i = 0; i <= 8; i++) {
+        float p[3] = {0, 0, 0.5f * (float)i};
+        prev = sy_skeleton_add(&s, p, 0.2f - 0.01f * (float)i, prev, 0, 0, &err);
+        if (i == 4) at = prev;
+    }
+    static const float azimuth_deg[4] = {20, 106, 198, 288};
+    for (int k = 0; k < 4; k++) {
+        float az = azimuth_deg[k] * 0.01745329f, r = 0.59f * s.radius[at];
+        prev = at;
+        for (int i = 1; i <= 3; i++) {
+            float p[3] = {s.pos[3 * at] + 0.35f * (float)i * cosf(az), s.pos[3 * at + 1] + 0.35f * (float)i * sinf(az),
+                          s.pos[3 * at + 2] + 0.3f * (float)i};
+            prev = sy_skeleton_add(&s, p, r * (1 - 0.2f * (float)i), prev, 1, 1 + k, &err);
+        }
+    }
+    sy_mesh_options o = sy_mesh_options_default();
+    o.impostor_size = 64;
+    sy_mesh_weld_stats ws;
+    o.weld_stats = &ws;
+    sy_asset a;
+    mesh_tree(&s, NULL, &o, &a);
+    check_mesh_basics_share(bark0(&a), WELD_FOLD_SHARE);
+    assert_int_equal(check_branches(&s, &a), 4);
+    assert_true(ws.levels >= 2);
+    for (size_t l = 0; l < 2; l++) {
+        assert_int_equal(ws.junctions[l], 4);
+        assert_int_equal(ws.welded[l], 4);
+    }
+    sy_asset_free(&a);
+    sy_skeleton_free(&s);
+}
+
 /* Over its leaf budget LOD0 keeps a prefix of the seeded order, grown to
  * the same total leaf area; LOD1 halves that prefix. */
 static void leaf_budget_keeps_the_leaf_area(void **state)
@@ -953,6 +999,7 @@ int main(void)
         cmocka_unit_test(lobed_trunk_ripples_with_lobes_and_depth),
         cmocka_unit_test(branches_sit_on_a_lobed_trunk),
         cmocka_unit_test(bent_trunk_branches_sit_on_the_parent),
+        cmocka_unit_test(whorl_welds_as_a_band),
         cmocka_unit_test(curved_branch_keeps_its_curve_at_every_level),
         cmocka_unit_test(random_tree_meets_every_property),
         cmocka_unit_test(leaf_budget_keeps_the_leaf_area),

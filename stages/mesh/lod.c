@@ -104,7 +104,7 @@ int sy_lod_restore(const sy_stems *st, const uint8_t *prev_keep, sy_lod_params *
     return 1;
 }
 
-#define WELD_MARGIN 0.43
+#define WELD_MARGIN 0.42
 
 int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris, sy_lod_params *lp, size_t *tris)
 {

@@ -16,7 +16,7 @@ sy_mesh_options sy_mesh_options_default(void)
     o.radial_segments = 16;
     o.segment_length = 0;
     o.n_lods = 4;
-    o.lod0_max_triangles = 55000;
+    o.lod0_max_triangles = 54000;
     o.lod0_max_leaves = 30000;
     o.impostor = 1;
     o.impostor_size = 512;

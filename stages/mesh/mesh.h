@@ -29,7 +29,7 @@ typedef struct {
                                   branches use fewer, never below 3 */
     float segment_length;      /* target metres between rings along a branch at LOD0
                                   (default: adaptive to curvature and radius) */
-    int lod0_max_triangles;    /* bark triangle budget of LOD0 (default 55,000 before welding, which adds
+    int lod0_max_triangles;    /* bark triangle budget of LOD0 (default 54,000 before welding, which adds
                                   its strips: LOD0 bark stays under 60k; 0 = none):
                                   the least important twigs (r^2 L) go first, as the
                                   twig leaf cards depict them */

@@ -358,6 +358,7 @@ static int cmp_weld(const void *x, const void *y)
 }
 
 #define WELD_MAX_LOOP 1024
+#define WELD_MAX_GROUP 64 /* children in one hole */
 
 /* The hole child c's ring needs in its parent's grid at this level. */
 typedef struct {
@@ -770,11 +771,19 @@ typedef struct {
     uint16_t wb[WELD_MAX_STEINER];
 } weld_steiner;
 
+/* A band's second copy of its seam column (see weld_group) is labelled
+ * with this bit: the same mesh vertex at the other end of the band, so the
+ * plane's predicates tell the two apart. Steiner ids lie above both. */
+#define WELD_SEAM_BIT 0x80000000u
+
+/* The mesh vertex behind a label that is not a Steiner point. */
+static uint32_t seam_vertex(uint32_t id) { return id & ~WELD_SEAM_BIT; }
+
 /* Position of strip vertex id: a mesh vertex or a Steiner point. */
 static const float *strip_pos(const sy_mesh *m, const weld_steiner *sp, uint32_t id)
 {
     if (sp && id >= WELD_STEINER_ID0) return sp->pos + 3 * (size_t)(id - WELD_STEINER_ID0);
-    return m->position + 3 * (size_t)id;
+    return m->position + 3 * (size_t)seam_vertex(id);
 }
 
 /* Is (u, s) inside ring h (nh points) by the crossing rule? */
@@ -927,9 +936,12 @@ static size_t weld_refine(uint32_t *extra, size_t t, size_t extra_cap, weld_pt *
     /* Only the band of the parent the rings stand on (and a column beyond)
      * needs them: away from the rings the hole's triangles join the
      * parent's own corners, one column apart. */
-    float s_lo = INFINITY, s_hi = -INFINITY;
-    for (size_t g = 0; g < ng; g++)
-        for (size_t e = 0; e < hn[g]; e++) s_lo = fminf(s_lo, hp[g][e].s), s_hi = fmaxf(s_hi, hp[g][e].s);
+    float s_lo = INFINITY, s_hi = -INFINITY, ring_lo[WELD_MAX_GROUP], ring_hi[WELD_MAX_GROUP];
+    for (size_t g = 0; g < ng; g++) {
+        ring_lo[g] = INFINITY, ring_hi[g] = -INFINITY;
+        for (size_t e = 0; e < hn[g]; e++) ring_lo[g] = fminf(ring_lo[g], hp[g][e].s), ring_hi[g] = fmaxf(ring_hi[g], hp[g][e].s);
+        s_lo = fminf(s_lo, ring_lo[g]), s_hi = fmaxf(s_hi, ring_hi[g]);
+    }
     float s_min = ps->ss[pidx[q0]], s_max = ps->ss[pidx[q1 + 1]];
     s_lo = fmaxf(s_lo - arc, s_min), s_hi = fminf(s_hi + arc, s_max);
     /* About a column apart; wider when that would be more points than the
@@ -944,8 +956,12 @@ static size_t weld_refine(uint32_t *extra, size_t t, size_t extra_cap, weld_pt *
             float u = (float)j * arc;
             for (int i = 0; i <= k; i++) {
                 float s = s_lo + (s_hi - s_lo) * (float)i / (float)(k > 0 ? k : 1);
-                /* Clear of the hole's top and bottom rows and of every ring. */
-                int clear = s - s_min >= keep && s_max - s >= keep;
+                /* Within a column of a ring's rows (a band holds rings
+                 * metres apart along a long thin parent), clear of the
+                 * hole's top and bottom rows and of every ring. */
+                int clear = s - s_min >= keep && s_max - s >= keep, near = 0;
+                for (size_t g = 0; g < ng && !near; g++) near = s >= ring_lo[g] - arc && s <= ring_hi[g] + arc;
+                clear = clear && near;
                 for (size_t g = 0; g < ng && clear; g++) {
                     clear = !inside_ring(hp[g], hn[g], u, s);
                     for (size_t e = 0; e < hn[g] && clear; e++)
@@ -1159,13 +1175,13 @@ static int strip_copies(const sy_stems *st, const int32_t *g, size_t ng, const s
                 memcpy(vb->ww + 4 * w, sp->ww + 4 * (size_t)(id - WELD_STEINER_ID0), 4 * sizeof(float));
                 vb->wb[w] = sp->wb[id - WELD_STEINER_ID0];
             } else {
-                memcpy(vb->ww + 4 * w, m->wind_w + 4 * id, 4 * sizeof(float));
-                vb->wb[w] = m->wind_branch[id];
+                memcpy(vb->ww + 4 * w, m->wind_w + 4 * (size_t)seam_vertex(id), 4 * sizeof(float));
+                vb->wb[w] = m->wind_branch[seam_vertex(id)];
             }
             vb->uv[2 * w] = q->u / arc / (float)P, vb->uv[2 * w + 1] = q->s * vscale;
             if (q->loop == 0) {
-                memcpy(vb->nrm + 3 * w, m->normal + 3 * id, 3 * sizeof(float));
-                memcpy(vb->tan + 4 * w, m->tangent + 4 * id, 4 * sizeof(float));
+                memcpy(vb->nrm + 3 * w, m->normal + 3 * (size_t)seam_vertex(id), 3 * sizeof(float));
+                memcpy(vb->tan + 4 * w, m->tangent + 4 * (size_t)seam_vertex(id), 4 * sizeof(float));
             } else {
                 const float *y = strip_pos(m, sp, id);
                 float x[3] = {y[0], -y[2], y[1]}, c[3], T[3], N[3], R, s = q->s;
@@ -1188,7 +1204,6 @@ static int strip_copies(const sy_stems *st, const int32_t *g, size_t ng, const s
     return 1;
 }
 
-#define WELD_MAX_GROUP 64
 
 
 /* Does the strip fold? Every triangle must face away from the parent's
@@ -1235,13 +1250,20 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
     for (size_t k = 0; k < ng; k++) n_ring += (size_t)sy_stem_radial(&st->s[g[k]], lp);
     size_t need = 2 * (n_out + n_ring + 2 * ng) + n_ring;
     if (need > scratch_cap || 3 * (n_out + n_ring + 2 * ng) > extra_cap) return 0;
+    /* A band: the hole runs once round the parent, its first column c0
+     * (the seam) bounding it on both sides, the second time as labelled
+     * copies (WELD_SEAM_BIT). Parent rows the rings of a whorl cover all
+     * round were capped whole before. */
+    int band = c1 - c0 + 1 == P;
+    if (band && m->n_vertices >= WELD_SEAM_BIT - 2u * WELD_MAX_STEINER) return 0;
     weld_poly poly = {scratch, 0, n_out + n_ring + 2 * ng};
     weld_pt *holes = scratch + poly.cap;
 #define PUSH(r, j)                                                                                          \
     do {                                                                                                    \
-        poly.v[poly.n].id = (uint32_t)(vo[p] + (size_t)(r) * row + (size_t)((((j) % P) + P) % P));          \
+        uint32_t vid = (uint32_t)(vo[p] + (size_t)(r) * row + (size_t)((((j) % P) + P) % P));               \
+        poly.v[poly.n].id = band && (j) == c1 + 1 ? vid | WELD_SEAM_BIT : vid;                              \
         poly.v[poly.n].u = (float)(j) * arc;                                                                \
-        poly.v[poly.n].s = grid_vertex_s(ps, pidx, r, m->position + 3 * (size_t)poly.v[poly.n].id);         \
+        poly.v[poly.n].s = grid_vertex_s(ps, pidx, r, m->position + 3 * (size_t)vid);                       \
         poly.v[poly.n++].loop = 0;                                                                          \
     } while (0)
     for (int j = c0; j < c1 + 1; j++) PUSH(q0, j);
@@ -1402,6 +1424,28 @@ static int append_strip(uint32_t **strips, size_t *n, size_t *cap, const uint32_
     return 1;
 }
 
+/* A group whose rectangles wrap its parent becomes a band of whole rows.
+ * Its seam is the column boundary that no ring crosses and that lies
+ * farthest from every ring (ties: the lowest); the band's columns run once
+ * round from there. 0 when every boundary is crossed. */
+static int band_seam(const weld_rect *rect, const size_t *member, size_t ng, int P, weld_rect *u)
+{
+    int best = -1, best_gap = -1;
+    for (int b = 0; b < P; b++) {
+        int gap = P;
+        for (size_t k = 0; k < ng && gap >= 0; k++) {
+            const weld_rect *r = &rect[member[k]];
+            int span = r->c1 - r->c0 + 1, off = ((b - r->c0) % P + P) % P;
+            int g = off == 0 ? 0 : off < span ? -1 : (off - span < P - off ? off - span : P - off);
+            if (g < gap) gap = g;
+        }
+        if (gap > best_gap) best_gap = gap, best = b;
+    }
+    if (best < 0) return 0;
+    u->c0 = best, u->c1 = best + P - 1;
+    return 1;
+}
+
 /* Welds every junction of the level: the children of a parent whose
  * footprints overlap (and any the grown rectangle reaches) share one hole
  * and one strip; a group that cannot be welded has its rings capped. Then
@@ -1446,6 +1490,7 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
         weld_footprint(st, (size_t)jobs[j].stem, lp, out, vo, idx, &rect[j]);
     }
     int32_t members[WELD_MAX_GROUP];
+    size_t member_job[WELD_MAX_GROUP];
     for (size_t a = 0; a < nj;) {
         size_t b = a;
         int32_t parent = st->s[jobs[a].stem].parent;
@@ -1466,6 +1511,7 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
             if (ok) {
                 weld_rect u = rect[j];
                 size_t ng = 0;
+                member_job[ng] = j;
                 members[ng++] = jobs[j].stem;
                 int *joined = weld_joined;
                 for (size_t q = a; q < j; q++) joined[q - a] = 0;
@@ -1482,12 +1528,13 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
                         u.c1 = box[k].c1 + sh > u.c1 ? box[k].c1 + sh : u.c1;
                         for (size_t q = a; q < j; q++)
                             if (group[q] == (int)k) {
-                                if (ng < WELD_MAX_GROUP) members[ng] = jobs[q].stem;
+                                if (ng < WELD_MAX_GROUP) members[ng] = jobs[q].stem, member_job[ng] = q;
                                 ng++;
                             }
                     }
                 }
-                ok = ok && ng <= WELD_MAX_GROUP && u.c1 - u.c0 + 1 <= P - 1 && u.q1 <= (long)np - 2 &&
+                if (ok && ng <= WELD_MAX_GROUP && u.c1 - u.c0 + 1 > P - 1) ok = band_seam(rect, member_job, ng, P, &u);
+                ok = ok && ng <= WELD_MAX_GROUP && u.c1 - u.c0 + 1 <= P && u.q1 <= (long)np - 2 &&
                      2 * ((size_t)(u.q1 - u.q0 + 1) + (size_t)(u.c1 - u.c0 + 1)) <= WELD_MAX_LOOP;
                 if (ok)
                     ok = weld_group(st, members, ng, u.q0, u.q1, u.c0, u.c1, lp, out, vo, io, NULL, extra, extra_cap,
