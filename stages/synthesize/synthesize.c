@@ -313,9 +313,10 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
                     int x = pass ? g->d[0] - 1 - xx : xx, y = pass ? g->d[1] - 1 - yy : yy, z = pass ? g->d[2] - 1 - zz : zz;
                     size_t i = (size_t)x * sx + (size_t)y * sy + (size_t)z * sz;
                     float best = g->dist[i];
+                    int inner = x > 0 && y > 0 && z > 0 && x + 1 < g->d[0] && y + 1 < g->d[1] && z + 1 < g->d[2];
                     for (int k = 0; k < n_nb; k++) {
                         int X = x + s * nb[k][0], Y = y + s * nb[k][1], Z = z + s * nb[k][2];
-                        if (X < 0 || Y < 0 || Z < 0 || X >= g->d[0] || Y >= g->d[1] || Z >= g->d[2]) continue;
+                        if (!inner && (X < 0 || Y < 0 || Z < 0 || X >= g->d[0] || Y >= g->d[1] || Z >= g->d[2])) continue;
                         float c = g->dist[(size_t)X * sx + (size_t)Y * sy + (size_t)Z * sz] + nb_w[k];
                         if (c < best) best = c;
                     }
@@ -662,10 +663,24 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     double lobe_ext = g.h * (g.d[0] > g.d[1] ? (g.d[0] > g.d[2] ? g.d[0] : g.d[2]) : (g.d[1] > g.d[2] ? g.d[1] : g.d[2]));
     int starts = 0, max_starts = 96, failed = 0;
     uint8_t *tried = calloc(g.n + 1, 1); /* cells a start aimed at already */
+    /* The occupied cells in index order, with their centres: every start
+     * looks only at them. */
+    size_t n_occ = 0, *occ = malloc((g.n + 1) * sizeof *occ);
+    double *occ_c = malloc((g.n + 1) * 3 * sizeof *occ_c);
+    if (occ && occ_c && !rc)
+        for (int z = 0; z < g.d[2]; z++)
+            for (int y = 0; y < g.d[1]; y++)
+                for (int x = 0; x < g.d[0]; x++) {
+                    size_t i = (size_t)x + (size_t)g.d[0] * ((size_t)y + (size_t)g.d[1] * (size_t)z);
+                    if (!g.occupied[i]) continue;
+                    occ_c[3 * n_occ] = g.lo[0] + (x + 0.5) * g.h, occ_c[3 * n_occ + 1] = g.lo[1] + (y + 0.5) * g.h;
+                    occ_c[3 * n_occ + 2] = g.lo[2] + (z + 0.5) * g.h;
+                    occ[n_occ++] = i;
+                }
     double reach = 0;
     for (size_t i = 0; i < lib->n_patches; i++)
         if (lib->patches[i].extent > reach) reach = lib->patches[i].extent;
-    if (!tried) rc = sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+    if (!tried || !occ || !occ_c) rc = sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
     size_t lobe_node0 = sk->n; /* nodes from here on are this lobe's bark */
     double min_start = sk->radius[seed] * 0.9 < max_thick ? sk->radius[seed] * 0.9 : max_thick;
     size_t lobe_patches = 0;
@@ -677,30 +692,25 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
         double target[3] = {0, 0, 0}, cnt = 0, near[3] = {0, 0, 0}, near_d = INFINITY;
         const float ss[3] = {sk->pos[3 * seed], sk->pos[3 * seed + 1], sk->pos[3 * seed + 2]};
         long near_i = -1;
-        for (int z = 0; z < g.d[2]; z++)
-            for (int y = 0; y < g.d[1]; y++)
-                for (int x = 0; x < g.d[0]; x++) {
-                    size_t i = (size_t)x + (size_t)g.d[0] * ((size_t)y + (size_t)g.d[1] * (size_t)z);
-                    if (!g.occupied[i] || tried[i] || !block_has_room(&g, (long)i)) continue;
-                    double c[3] = {g.lo[0] + (x + 0.5) * g.h, g.lo[1] + (y + 0.5) * g.h, g.lo[2] + (z + 0.5) * g.h};
-                    double dd = (c[0] - ss[0]) * (c[0] - ss[0]) + (c[1] - ss[1]) * (c[1] - ss[1]) + (c[2] - ss[2]) * (c[2] - ss[2]);
-                    if (dd < near_d) near_d = dd, memcpy(near, c, sizeof near), near_i = (long)i;
-                }
+        for (size_t o = 0; o < n_occ; o++) {
+            size_t i = occ[o];
+            if (tried[i] || !block_has_room(&g, (long)i)) continue;
+            const double *c = occ_c + 3 * o;
+            double dd = (c[0] - ss[0]) * (c[0] - ss[0]) + (c[1] - ss[1]) * (c[1] - ss[1]) + (c[2] - ss[2]) * (c[2] - ss[2]);
+            if (dd < near_d) near_d = dd, memcpy(near, c, sizeof near), near_i = (long)i;
+        }
         if (near_i < 0) break;
         tried[near_i] = 1;
         /* Aim at the empty occupied cells around it (within a large patch's reach). */
-        for (int z = 0; z < g.d[2]; z++)
-            for (int y = 0; y < g.d[1]; y++)
-                for (int x = 0; x < g.d[0]; x++) {
-                    size_t i = (size_t)x + (size_t)g.d[0] * ((size_t)y + (size_t)g.d[1] * (size_t)z);
-                    if (!g.occupied[i] || g.leaves[i]) continue;
-                    double c[3] = {g.lo[0] + (x + 0.5) * g.h, g.lo[1] + (y + 0.5) * g.h, g.lo[2] + (z + 0.5) * g.h};
-                    double dd = (c[0] - near[0]) * (c[0] - near[0]) + (c[1] - near[1]) * (c[1] - near[1]) +
-                                (c[2] - near[2]) * (c[2] - near[2]);
-                    if (dd > reach * reach) continue;
-                    for (int k = 0; k < 3; k++) target[k] += c[k];
-                    cnt++;
-                }
+        for (size_t o = 0; o < n_occ; o++) {
+            if (g.leaves[occ[o]]) continue;
+            const double *c = occ_c + 3 * o;
+            double dd = (c[0] - near[0]) * (c[0] - near[0]) + (c[1] - near[1]) * (c[1] - near[1]) +
+                        (c[2] - near[2]) * (c[2] - near[2]);
+            if (dd > reach * reach) continue;
+            for (int k = 0; k < 3; k++) target[k] += c[k];
+            cnt++;
+        }
         for (int k = 0; k < 3; k++) target[k] /= cnt;
         /* From the nearest bark this lobe has so far (or its seed). */
         int32_t from = seed;
@@ -839,7 +849,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     if (!rc) rep->coverage += (double)g.n_filled;
     if (!rc) cells[0] += g.n_inside, cells[1] += g.n_occupied;
     *occupied += g.n_blocks;
-    free(tried);
+    free(tried), free(occ), free(occ_c);
     free(Q.q);
     grid_free(&g);
     return rc;
