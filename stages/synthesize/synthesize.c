@@ -519,9 +519,14 @@ static int patch_fit(const sy_patch *p, const dock *d, const double R[9], double
             f.gain += c >= 0 && g->occupied[c] && block_has_room(g, c);
         }
         if (f.outside >= reject) return 0;
-        if ((k & 7) == 7 && 0.25 * key + f.outside / n + 2 * (f.dist / n) / ext - 1.0 >= best) return 0;
+        if ((k & 3) == 3 && isfinite(best)) {
+            /* The most gain the leaves still to come can bring. */
+            double left = (double)(k < n_nodes ? nl : n_nodes + nl - 1 - k);
+            double gain_max = nl ? (f.gain + left) / (double)nl : 0;
+            if (gain_max < 0.15 || 0.25 * key + f.outside / n + 2 * (f.dist / n) / ext - gain_max >= best) return 0;
+        }
     }
-    if (0.25 * key + f.outside / n + 2 * (f.dist / n) / ext - 1.0 >= best) return 0;
+    if (0.25 * key + f.outside / n + 2 * (f.dist / n) / ext - f.gain / (double)(nl ? nl : 1) >= best) return 0;
     f.outside /= n;
     f.dist /= n;
     f.gain /= (double)(nl ? nl : 1);
