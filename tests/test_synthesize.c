@@ -216,10 +216,10 @@ static void texturing_fills_the_lobe(void **state)
         fail_msg("reported %zu leaves within 5 cm of the hull, measured %zu", rep.leaves_in_hull, near);
     /* An octahedron lobe |x| + |y| + |z - c| <= 1 on a coarse grid (4 cells a
      * side): cells whose centre is inside reach well past its slanted faces,
-     * so leaves land outside it, and the report must count them out. A
-     * leaf's distance is at least its offset from its octant's face plane,
-     * (L1 - 1) / sqrt(3): inside leaves count, leaves past 5 cm by that bound
-     * do not. */
+     * and before the exact hull test leaves landed there (some seeds put
+     * leaves more than 5 cm out). Now every leaf's stem stands inside or
+     * within 5 cm, and the report counts every one. A leaf's distance is at
+     * least its offset from its octant's face plane, (L1 - 1) / sqrt(3). */
     {
         sy_clusters oct = {0};
         sy_skeleton os;
@@ -236,10 +236,7 @@ static void texturing_fills_the_lobe(void **state)
         c->occ_dims[0] = c->occ_dims[1] = c->occ_dims[2] = 0;
         sy_synth_options oc = o;
         oc.grid = 4;
-        /* Leaves reach the cube's corners past the faces only with some
-         * seeds (a lobe this small takes a handful of patches): every seed's
-         * report must be right, and some seed must put leaves out. */
-        size_t far_all = 0;
+        size_t placed = 0;
         for (uint64_t seed = 1; seed <= 4; seed++) {
             oc.seed = seed;
             sy_skeleton oc_out;
@@ -253,14 +250,14 @@ static void texturing_fills_the_lobe(void **state)
                 inside += l1 <= 1.0;
                 far += (l1 - 1.0) / sqrt(3.0) > 0.05;
             }
-            if (!(oc_rep.leaves_in_hull >= inside && oc_rep.leaves_in_hull <= oc_lv.n - far))
+            if (far || oc_rep.leaves_in_hull != oc_lv.n || inside == 0)
                 fail_msg("octahedron, seed %d: %zu leaves, %zu inside, %zu past 5 cm, reported within 5 cm %zu", (int)seed,
                          oc_lv.n, inside, far, oc_rep.leaves_in_hull);
-            far_all += far;
+            placed += oc_lv.n;
             sy_skeleton_free(&oc_out);
             sy_leaves_free(&oc_lv);
         }
-        if (!(far_all > 0)) fail_msg("octahedron: no seed put a leaf past 5 cm of the faces; the report went untested");
+        if (!(placed > 20)) fail_msg("octahedron: %zu leaves over four seeds", placed);
         sy_clusters_free(&oct);
         sy_skeleton_free(&os);
     }
