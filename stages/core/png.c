@@ -54,24 +54,45 @@ static int paeth(int a, int b, int c)
     return pa <= pb && pa <= pc ? a : pb <= pc ? b : c;
 }
 
-/* Filters one row with filter type f into out (1 + stride bytes). bpp: bytes
- * per pixel; prev is NULL for the first row. */
-static void filter_row(int f, const unsigned char *row, const unsigned char *prev, size_t stride, int bpp,
-                       unsigned char *out)
+/* Filters one row with filter type f into out (1 + stride bytes) and
+ * returns the sum of its filtered bytes' absolute values as signed bytes.
+ * bpp: bytes per pixel; prev is NULL for the first row (a zero row). One
+ * loop per type: a switch per byte made encoding a fifth of a tree's
+ * meshing (its impostor). */
+static unsigned long filter_row(int f, const unsigned char *row, const unsigned char *prev, size_t stride, int bpp,
+                                unsigned char *out)
 {
+    unsigned char *o = out + 1;
+    size_t lead = (size_t)bpp < stride ? (size_t)bpp : stride; /* bytes with no left neighbour */
     out[0] = (unsigned char)f;
-    for (size_t i = 0; i < stride; i++) {
-        int a = i >= (size_t)bpp ? row[i - (size_t)bpp] : 0, b = prev ? prev[i] : 0;
-        int c = prev && i >= (size_t)bpp ? prev[i - (size_t)bpp] : 0, x = row[i], p = 0;
-        switch (f) {
-        case 1: p = a; break;
-        case 2: p = b; break;
-        case 3: p = (a + b) / 2; break;
-        case 4: p = paeth(a, b, c); break;
-        default: p = 0;
+    switch (f) {
+    case 1:
+        memcpy(o, row, lead);
+        for (size_t i = lead; i < stride; i++) o[i] = (unsigned char)(row[i] - row[i - (size_t)bpp]);
+        break;
+    case 2:
+        for (size_t i = 0; i < stride; i++) o[i] = (unsigned char)(row[i] - (prev ? prev[i] : 0));
+        break;
+    case 3:
+        for (size_t i = 0; i < lead; i++) o[i] = (unsigned char)(row[i] - (prev ? prev[i] : 0) / 2);
+        for (size_t i = lead; i < stride; i++)
+            o[i] = (unsigned char)(row[i] - (row[i - (size_t)bpp] + (prev ? prev[i] : 0)) / 2);
+        break;
+    case 4:
+        if (!prev) { /* Paeth of (a, 0, 0) is a: the Sub filter */
+            memcpy(o, row, lead);
+            for (size_t i = lead; i < stride; i++) o[i] = (unsigned char)(row[i] - row[i - (size_t)bpp]);
+            break;
         }
-        out[i + 1] = (unsigned char)(x - p);
+        for (size_t i = 0; i < lead; i++) o[i] = (unsigned char)(row[i] - prev[i]); /* Paeth of (0, b, 0) is b */
+        for (size_t i = lead; i < stride; i++)
+            o[i] = (unsigned char)(row[i] - paeth(row[i - (size_t)bpp], prev[i], prev[i - (size_t)bpp]));
+        break;
+    default: memcpy(o, row, stride);
     }
+    unsigned long sum = 0;
+    for (size_t i = 0; i < stride; i++) sum += (unsigned long)abs((int)(signed char)o[i]);
+    return sum;
 }
 
 /* PNG of 8- or 16-bit samples (big-endian, as PNG stores them). Filters by
@@ -83,24 +104,20 @@ int sy_png_encode(const unsigned char *samples, int w, int h, int c, int bits, u
     if (w <= 0 || h <= 0 || (c < 1 || c > 4) || (bits != 8 && bits != 16)) return -1;
     int bpp = c * bits / 8;
     size_t stride = (size_t)w * (size_t)bpp, raw_n = (stride + 1) * (size_t)h;
-    unsigned char *raw = malloc(raw_n), *cand = malloc(stride + 1);
+    unsigned char *raw = malloc(raw_n), *cand = malloc(5 * (stride + 1));
     if (!raw || !cand) {
         free(raw), free(cand);
         return -1;
     }
     for (int y = 0; y < h; y++) {
         const unsigned char *row = samples + (size_t)y * stride, *prev = y ? row - stride : NULL;
-        unsigned char *dst = raw + (size_t)y * (stride + 1);
         unsigned long best = ULONG_MAX;
+        int pick = 0;
         for (int f = 0; f < 5; f++) {
-            filter_row(f, row, prev, stride, bpp, cand);
-            unsigned long s = 0;
-            for (size_t i = 1; i <= stride; i++) s += (unsigned long)abs((int)(signed char)cand[i]);
-            if (s < best) {
-                best = s;
-                memcpy(dst, cand, stride + 1);
-            }
+            unsigned long s = filter_row(f, row, prev, stride, bpp, cand + (size_t)f * (stride + 1));
+            if (s < best) best = s, pick = f; /* the first of equal sums, as before */
         }
+        memcpy(raw + (size_t)y * (stride + 1), cand + (size_t)pick * (stride + 1), stride + 1);
     }
     free(cand);
     uLongf zn = compressBound((uLong)raw_n);
