@@ -499,9 +499,11 @@ static long fit_sample(const float v[3], const dock *d, const double R[9], doubl
  * samples (up to 24 nodes and 24 leaves) outside the lobe, their mean
  * distance from it, and the share of its leaves landing in occupied cells
  * with room. Returns 0, stopping early, once the patch cannot be taken:
- * more than max_out of its samples outside, or a score
- * (0.25 key + outside + 2 dist / ext - gain, the gain at most 1) that
- * cannot fall below best. Both only grow as samples are added, so the
+ * more than max_out of its samples outside, or, with a patch already in
+ * hand (best finite), a score (0.25 key + outside + 2 dist / ext - gain)
+ * that cannot fall below best or a gain that cannot reach the full-lobe
+ * floor of 0.15, the gain counted as if every leaf still to come had
+ * room. Outside and distance only grow as samples are added, so the
  * patches taken, and the bytes, are those of a full fit (on the TreeLS
  * pine a fit reads 15 of its up to 48 samples on average). */
 static int patch_fit(const sy_patch *p, const dock *d, const double R[9], double s, const lobe_grid *g, double max_out,
