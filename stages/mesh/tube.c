@@ -711,9 +711,19 @@ static int delaunay_flips(uint32_t *tri, size_t t, const weld_pt *pts, size_t n)
     for (size_t i = 0; ok && i < n; i++) by_id[i] = (id_pair){pts[i].id, (uint32_t)i};
     if (ok) qsort(by_id, n, sizeof *by_id, cmp_id_pair);
     for (size_t k = 0; ok && k < 3 * t; k++) ok = edge_file(&ix, tri, (uint32_t)k);
+    /* clean[f]: no edge of f flips as things stand. Each pass flips the
+     * first flippable edge from the first triangle on, so a pass may skip
+     * the clean ones; a flip of (a, b) into (c, d) can only change what
+     * triangles touching a, b, c or d can do (their neighbours across the
+     * two triangles' edges, and the flips that would recreate (a, b)), so
+     * those become unclean. The flips, and so the strip, are the same as
+     * rescanning every triangle each pass (quadratic in a band's strip). */
+    uint8_t *clean = calloc(t + 1, 1);
+    ok = ok && clean;
     for (size_t pass = 0, flipped = 1; ok && flipped && pass < 4 * t + 8; pass++) {
         flipped = 0;
-        for (size_t f = 0; f < t && ok; f++)
+        for (size_t f = 0; f < t && ok; clean[f] = !flipped, f++) {
+            if (clean[f]) continue;
             for (int e = 0; e < 3; e++) {
                 uint32_t a = tri[3 * f + e], b = tri[3 * f + (e + 1) % 3], c = tri[3 * f + (e + 2) % 3];
                 size_t g = edge_face(&ix, tri, b, a, f);
@@ -737,13 +747,16 @@ static int delaunay_flips(uint32_t *tri, size_t t, const weld_pt *pts, size_t n)
                 for (int q = 0; q < 3 && ok; q++)
                     ok = edge_file(&ix, tri, (uint32_t)(3 * f) + (uint32_t)q) &&
                          edge_file(&ix, tri, (uint32_t)(3 * g) + (uint32_t)q);
+                for (size_t h = 0; h < 3 * t; h++)
+                    if (tri[h] == a || tri[h] == b || tri[h] == c || tri[h] == d) clean[h / 3] = 0;
                 flipped = 1;
                 goto next_pass; /* one flip a pass, from the first triangle again */
             }
+        }
     next_pass:;
     }
     edge_index_free(&ix);
-    free(by_id);
+    free(by_id), free(clean);
     return ok;
 }
 
