@@ -359,6 +359,7 @@ static int cmp_weld(const void *x, const void *y)
 
 #define WELD_MAX_LOOP 1024
 #define WELD_MAX_GROUP 64 /* children in one hole */
+#define WELD_MAX_BAND_ROWS 64 /* rows of a band whose seam may step between rows */
 
 /* The hole child c's ring needs in its parent's grid at this level. */
 typedef struct {
@@ -917,7 +918,7 @@ static size_t insert_point(uint32_t *loc, size_t t, size_t cap, const weld_pt *p
 static size_t weld_refine(uint32_t *extra, size_t t, size_t extra_cap, weld_pt *pts, size_t n_poly, size_t pts_cap,
                           size_t *n_all, const weld_pt *const *hp, const size_t *hn, size_t ng, const sy_stem *ps,
                           const int32_t *pidx, const sy_mesh *m, size_t vbase, int P, long q0, long q1, int c0, int c1,
-                          float arc, weld_steiner *sp, size_t np)
+                          const int *seam, float arc, weld_steiner *sp, size_t np)
 {
     *n_all = n_poly;
     sp->n = 0;
@@ -964,11 +965,24 @@ static size_t weld_refine(uint32_t *extra, size_t t, size_t extra_cap, weld_pt *
     for (int pass = 0, placing = 0;; pass++) {
         size_t n = 0;
         int k = (int)ceilf((s_hi - s_lo) / spacing);
-        for (int j = c0 + 1; j <= c1; j++) {
-            int jj = ((j % P) + P) % P;
-            float u = (float)j * arc;
+        for (int j0 = c0 + 1; j0 <= c1; j0++) {
             for (int i = 0; i <= k; i++) {
                 float s = s_lo + (s_hi - s_lo) * (float)i / (float)(k > 0 ? k : 1);
+                /* On a band whose seam steps, the ridge's place in this row's
+                 * span, and clear of the row lines the seam moves along. */
+                long r = q0;
+                while (r < q1 && ps->ss[pidx[r + 1]] <= s) r++;
+                int j = j0, on_step = 0;
+                if (seam) {
+                    int rel = ((j0 - seam[r - q0]) % P + P) % P;
+                    if (rel == 0) continue;
+                    j = seam[r - q0] + rel;
+                    for (long e = q0 + 1; e <= q1 && !on_step; e++)
+                        on_step = seam[e - q0] != seam[e - 1 - q0] && fabsf(s - ps->ss[pidx[e]]) < keep;
+                    if (on_step) continue;
+                }
+                int jj = ((j % P) + P) % P;
+                float u = (float)j * arc;
                 /* Within a column of a ring's rows (a band holds rings
                  * metres apart along a long thin parent), clear of the
                  * hole's top and bottom rows and of every ring. */
@@ -986,8 +1000,6 @@ static size_t weld_refine(uint32_t *extra, size_t t, size_t extra_cap, weld_pt *
                      * positions are measured (grid_coords), not on the drawn
                      * quad's edge: a parent's first ring is moved onto its
                      * own parent, so its first quads leave the sections. */
-                    long r = q0;
-                    while (r < q1 && ps->ss[pidx[r + 1]] <= s) r++;
                     float sa = ps->ss[pidx[r]], sb = ps->ss[pidx[r + 1]], f = sb > sa ? (s - sa) / (sb - sa) : 0;
                     size_t va = vbase + (size_t)r * row + (size_t)jj, vb = va + row;
                     float c3[3], T[3], N[3], B[3], R, v2[2], x[3];
@@ -1245,9 +1257,9 @@ static int strip_folds(const uint32_t *tri, size_t t, const sy_mesh *m, const we
  * only tries) and writes the strip to extra. Returns the strip's triangles, 0 when the rings do
  * not fit (crossing rings, a ring that winds the wrong way, a fold). */
 static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q0, long q1, int c0, int c1,
-                         const sy_lod_params *lp, const sy_mesh *m, const size_t *vo, const size_t *io, uint8_t *cut,
-                         uint32_t *extra, size_t extra_cap, int32_t *pidx, weld_pt *scratch, size_t scratch_cap,
-                         strip_verts *vb)
+                         const int *seam, const sy_lod_params *lp, const sy_mesh *m, const size_t *vo, const size_t *io,
+                         uint8_t *cut, uint32_t *extra, size_t extra_cap, int32_t *pidx, weld_pt *scratch,
+                         size_t scratch_cap, strip_verts *vb)
 {
     size_t p = (size_t)st->s[g[0]].parent;
     const sy_stem *ps = &st->s[p];
@@ -1256,39 +1268,58 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
     float cmid[3], T0[3], N0[3], R;
     float s_mid = 0.5f * (ps->ss[pidx[q0]] + ps->ss[pidx[q1 + 1]]);
     sy_stem_frame_at(ps, pidx, np, s_mid, cmid, T0, N0, &R);
-    float arc = 2 * SY_PI * R / (float)P, ref = 0.5f * (float)(c0 + c1 + 1);
+    float arc = 2 * SY_PI * R / (float)P;
+    /* A band (seam given): the hole runs once round the parent between its
+     * seam, one column boundary a row (seam[r - q0], stepping along the
+     * row lines between rows), and the seam one turn on; that second seam
+     * is the same mesh vertices, labelled (WELD_SEAM_BIT). Parent rows the
+     * rings of a whorl cover all round were capped whole before. A
+     * rectangle is a band whose seam stands still, c0 to c1 + 1. */
+    int band = seam != NULL, rect_seam = c0, right = band ? P : c1 - c0 + 1;
+    const int *L = band ? seam : &rect_seam;
+#define SEAM(r) (L[band ? (r) - q0 : 0])
+    if (band && m->n_vertices >= WELD_SEAM_BIT - 2u * WELD_MAX_STEINER) return 0;
+    size_t moves = 0;
+    for (long r = q0; band && r < q1; r++) moves += (size_t)abs(SEAM(r + 1) - SEAM(r));
     /* Outer boundary, counter-clockwise in (around, along): along row q0,
-     * up column c1 + 1, back along row q1 + 1, down column c0. */
-    size_t n_out = 2 * ((size_t)(q1 - q0 + 1) + (size_t)(c1 - c0 + 1)), n_ring = 0;
+     * up the right side, back along row q1 + 1, down the left side. */
+    size_t n_out = 2 * ((size_t)(q1 - q0 + 1) + (size_t)right + moves), n_ring = 0;
     for (size_t k = 0; k < ng; k++) n_ring += (size_t)sy_stem_radial(&st->s[g[k]], lp);
     size_t need = 2 * (n_out + n_ring + 2 * ng) + n_ring;
     if (need > scratch_cap || 3 * (n_out + n_ring + 2 * ng) > extra_cap) return 0;
-    /* A band: the hole runs once round the parent, its first column c0
-     * (the seam) bounding it on both sides, the second time as labelled
-     * copies (WELD_SEAM_BIT). Parent rows the rings of a whorl cover all
-     * round were capped whole before. */
-    int band = c1 - c0 + 1 == P;
-    if (band && m->n_vertices >= WELD_SEAM_BIT - 2u * WELD_MAX_STEINER) return 0;
     weld_poly poly = {scratch, 0, n_out + n_ring + 2 * ng};
     weld_pt *holes = scratch + poly.cap;
-#define PUSH(r, j)                                                                                          \
+#define PUSH(r, j, second)                                                                                  \
     do {                                                                                                    \
         uint32_t vid = (uint32_t)(vo[p] + (size_t)(r) * row + (size_t)((((j) % P) + P) % P));               \
-        poly.v[poly.n].id = band && (j) == c1 + 1 ? vid | WELD_SEAM_BIT : vid;                              \
+        poly.v[poly.n].id = band && (second) ? vid | WELD_SEAM_BIT : vid;                                   \
         poly.v[poly.n].u = (float)(j) * arc;                                                                \
         poly.v[poly.n].s = grid_vertex_s(ps, pidx, r, m->position + 3 * (size_t)vid);                       \
         poly.v[poly.n++].loop = 0;                                                                          \
     } while (0)
-    for (int j = c0; j < c1 + 1; j++) PUSH(q0, j);
-    for (long r = q0; r < q1 + 1; r++) PUSH(r, c1 + 1);
-    for (int j = c1 + 1; j > c0; j--) PUSH(q1 + 1, j);
-    for (long r = q1 + 1; r > q0; r--) PUSH(r, c0);
+    for (int j = SEAM(q0); j < SEAM(q0) + right; j++) PUSH(q0, j, 0);
+    /* Right side, up: each row's edge, then along the next row line to
+     * that row's seam. */
+    for (long r = q0; r <= q1; r++) {
+        int j = SEAM(r) + right;
+        PUSH(r, j, 1);
+        if (r == q1) break;
+        for (int to = SEAM(r + 1) + right, d = to > j ? 1 : -1; j != to; j += d) PUSH(r + 1, j, 1);
+    }
+    for (int j = SEAM(q1) + right; j > SEAM(q1); j--) PUSH(q1 + 1, j, j == SEAM(q1) + right);
+    /* Left side, down: the same path the other way. */
+    for (long r = q1; r >= q0; r--) {
+        int j = SEAM(r);
+        PUSH(r + 1, j, 0);
+        if (r == q0) break;
+        for (int to = SEAM(r - 1), d = to > j ? 1 : -1; j != to; j += d) PUSH(r, j, 0);
+    }
 #undef PUSH
     /* Rings, clockwise (reversed): their edges then run against the child
      * tubes', so the strip is oriented with them. */
     const weld_pt *hp[WELD_MAX_GROUP];
     size_t hn[WELD_MAX_GROUP], at = 0;
-    float umin = (float)c0 * arc, umax = (float)(c1 + 1) * arc, smin = ps->ss[pidx[q0]], smax = ps->ss[pidx[q1 + 1]];
+    float smin = ps->ss[pidx[q0]], smax = ps->ss[pidx[q1 + 1]];
     for (size_t k = 0; k < ng; k++) {
         const sy_stem *s = &st->s[g[k]];
         int Pc = sy_stem_radial(s, lp);
@@ -1299,7 +1330,10 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
             float rw, cl, sx, Rx;
             grid_coords(ps, pidx, np, P, ring + 3 * v, s->attach_s, &sx, &rw, &cl, &Rx);
             weld_pt *q = &h[Pc - 1 - v];
-            q->u = unwrap_col(cl, ref, P) * arc, q->s = sx;
+            /* Unwrapped into its row's span (the seam may step between rows). */
+            long rr = rw < (float)q0 ? q0 : rw >= (float)(q1 + 1) ? q1 : (long)rw;
+            float umin = (float)SEAM(rr) * arc, umax = (float)(SEAM(rr) + right) * arc;
+            q->u = unwrap_col(cl, (float)SEAM(rr) + 0.5f * (float)right, P) * arc, q->s = sx;
             /* The seam copy keeps the strip's u continuous at the seam. */
             q->id = (uint32_t)(vo[g[k]] + (size_t)v);
             q->loop = (int)k + 1;
@@ -1357,7 +1391,7 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
     sp.n = 0;
     if (strip_folds(extra, t, m, NULL, ps, pidx, np, s_mid)) {
         t = weld_refine(extra, t, extra_cap, pts, n_pts, scratch_cap - (size_t)(pts - scratch), &n_all, hp, hn, ng, ps,
-                        pidx, m, vo[p], P, q0, q1, c0, c1, arc, &sp, np);
+                        pidx, m, vo[p], P, q0, q1, c0, c1, band ? seam : NULL, arc, &sp, np);
         if (!t || !strip_valid(extra, t, pts, n_pts, m, &sp) || strip_folds(extra, t, m, &sp, ps, pidx, np, s_mid))
             return 0;
     }
@@ -1377,6 +1411,7 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
                 size_t q = quad_tri(io, p, P, r, j, 0);
                 cut[q] = cut[q + 1] = 1;
             }
+#undef SEAM
     return t;
 }
 
@@ -1437,13 +1472,29 @@ static int append_strip(uint32_t **strips, size_t *n, size_t *cap, const uint32_
     return 1;
 }
 
+/* Is column boundary b (mod P) inside ring footprint r's columns, where its
+ * ring crosses it? */
+static int seam_crosses(const weld_rect *r, int b, int P)
+{
+    int span = r->c1 - r->c0 + 1, off = ((b - r->c0) % P + P) % P;
+    return off > 0 && off < span;
+}
+
 /* A group whose rectangles wrap its parent becomes a band of whole rows.
  * Its seam is the column boundary that no ring crosses and that lies
  * farthest from every ring (ties: the lowest); the band's columns run once
- * round from there. 0 when every boundary is crossed. */
-static int band_seam(const weld_rect *rect, const size_t *member, size_t ng, int P, weld_rect *u)
+ * round from there: seam[r - q0] = that column for every row. When every
+ * boundary is crossed somewhere, the seam may instead step from row to row
+ * (a staircase): in each row a boundary no ring of that row crosses, and
+ * between two rows a move along their common row line over columns no
+ * ring standing on both rows covers; the path with the fewest columns of
+ * moves (ties: the lowest boundaries). seam[] holds unwrapped columns, each
+ * within half a turn of the one before. 0 when there is no such path. */
+static int band_seam(const weld_rect *rect, const size_t *member, size_t ng, int P, weld_rect *u, int *seam)
 {
+    long rows = u->q1 - u->q0 + 1;
     int best = -1, best_gap = -1;
+    if (rows < 1 || rows > WELD_MAX_LOOP / 2) return 0;
     for (int b = 0; b < P; b++) {
         int gap = P;
         for (size_t k = 0; k < ng && gap >= 0; k++) {
@@ -1454,8 +1505,59 @@ static int band_seam(const weld_rect *rect, const size_t *member, size_t ng, int
         }
         if (gap > best_gap) best_gap = gap, best = b;
     }
-    if (best < 0) return 0;
-    u->c0 = best, u->c1 = best + P - 1;
+    if (best >= 0) {
+        for (long r = 0; r < rows; r++) seam[r] = best;
+        u->c0 = best, u->c1 = best + P - 1;
+        return 1;
+    }
+    if (rows < 2 || rows > WELD_MAX_BAND_ROWS || P > 64) return 0;
+    /* cost[r][b]: fewest columns of moves reaching boundary b in row r
+     * (-1: unreachable); from[r][b]: the boundary before it. */
+    int cost[WELD_MAX_BAND_ROWS][64], from[WELD_MAX_BAND_ROWS][64];
+    for (long r = 0; r < rows; r++) {
+        long row = u->q0 + r;
+        for (int b = 0; b < P; b++) {
+            cost[r][b] = -1, from[r][b] = -1;
+            int free_b = 1;
+            for (size_t k = 0; k < ng && free_b; k++) {
+                const weld_rect *w = &rect[member[k]];
+                free_b = row < w->q0 || row > w->q1 || !seam_crosses(w, b, P);
+            }
+            if (!free_b) continue;
+            if (r == 0) {
+                cost[r][b] = 0;
+                continue;
+            }
+            for (int a = 0; a < P; a++) {
+                if (cost[r - 1][a] < 0) continue;
+                /* The shorter way round from a to b along row line `row`. */
+                int d = ((b - a) % P + P) % P;
+                if (2 * d > P) d -= P;
+                int lo = d < 0 ? a + d : a, n = d < 0 ? -d : d, clear = 1;
+                for (size_t k = 0; k < ng && clear && n > 0; k++) {
+                    const weld_rect *w = &rect[member[k]];
+                    if (w->q0 > row - 1 || w->q1 < row) continue; /* not on both rows */
+                    for (int c = lo; c < lo + n && clear; c++) {
+                        int off = ((c - w->c0) % P + P) % P;
+                        clear = off > w->c1 - w->c0;
+                    }
+                }
+                int cst = cost[r - 1][a] + n;
+                if (clear && (cost[r][b] < 0 || cst < cost[r][b])) cost[r][b] = cst, from[r][b] = a;
+            }
+        }
+    }
+    int end = -1;
+    for (int b = 0; b < P; b++)
+        if (cost[rows - 1][b] >= 0 && (end < 0 || cost[rows - 1][b] < cost[rows - 1][end])) end = b;
+    if (end < 0) return 0;
+    for (long r = rows - 1, b = end; r >= 0; r--) seam[r] = (int)b, b = from[r][b];
+    for (long r = 1; r < rows; r++) {
+        int d = ((seam[r] - seam[r - 1]) % P + P) % P;
+        if (2 * d > P) d -= P;
+        seam[r] = seam[r - 1] + d;
+    }
+    u->c0 = seam[0], u->c1 = seam[0] + P - 1;
     return 1;
 }
 
@@ -1504,6 +1606,7 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
     }
     int32_t members[WELD_MAX_GROUP];
     size_t member_job[WELD_MAX_GROUP];
+    int seam[WELD_MAX_LOOP / 2]; /* a band's seam column, row by row */
     for (size_t a = 0; a < nj;) {
         size_t b = a;
         int32_t parent = st->s[jobs[a].stem].parent;
@@ -1546,12 +1649,13 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
                             }
                     }
                 }
-                if (ok && ng <= WELD_MAX_GROUP && u.c1 - u.c0 + 1 > P - 1) ok = band_seam(rect, member_job, ng, P, &u);
+                int band = ok && ng <= WELD_MAX_GROUP && u.c1 - u.c0 + 1 > P - 1;
+                if (band) ok = band_seam(rect, member_job, ng, P, &u, seam);
                 ok = ok && ng <= WELD_MAX_GROUP && u.c1 - u.c0 + 1 <= P && u.q1 <= (long)np - 2 &&
                      2 * ((size_t)(u.q1 - u.q0 + 1) + (size_t)(u.c1 - u.c0 + 1)) <= WELD_MAX_LOOP;
                 if (ok)
-                    ok = weld_group(st, members, ng, u.q0, u.q1, u.c0, u.c1, lp, out, vo, io, NULL, extra, extra_cap,
-                                    idx, scratch, scratch_cap, NULL) > 0;
+                    ok = weld_group(st, members, ng, u.q0, u.q1, u.c0, u.c1, band ? seam : NULL, lp, out, vo, io, NULL,
+                                    extra, extra_cap, idx, scratch, scratch_cap, NULL) > 0;
                 if (ok) {
                     for (size_t k = a; k < j; k++)
                         if (group[k] >= 0 && joined[group[k] - (int)a]) group[k] = (int)j;
@@ -1570,12 +1674,14 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
         }
         for (size_t j = a; j < b; j++) {
             if (group[j] != (int)j) continue;
-            const weld_rect *u = &box[j];
+            weld_rect u = box[j];
             size_t ng = 0;
             for (size_t k = a; k < b; k++)
-                if (group[k] == (int)j) members[ng++] = jobs[k].stem;
-            size_t t = weld_group(st, members, ng, u->q0, u->q1, u->c0, u->c1, lp, out, vo, io, cut, extra, extra_cap,
-                                  idx, scratch, scratch_cap, &vb);
+                if (group[k] == (int)j) member_job[ng] = k, members[ng++] = jobs[k].stem;
+            /* A band's seam again, as its trial found it. */
+            int band = u.c1 - u.c0 + 1 == P && band_seam(rect, member_job, ng, P, &u, seam);
+            size_t t = weld_group(st, members, ng, u.q0, u.q1, u.c0, u.c1, band ? seam : NULL, lp, out, vo, io, cut,
+                                  extra, extra_cap, idx, scratch, scratch_cap, &vb);
             *n_welded += ng;
             if (!t || !append_strip(&strips, &n_strips, &cap_strips, extra, t)) {
                 rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
