@@ -360,6 +360,7 @@ static int cmp_weld(const void *x, const void *y)
 #define WELD_MAX_LOOP 1024
 #define WELD_MAX_GROUP 64 /* children in one hole */
 #define WELD_MAX_BAND_ROWS 64 /* rows of a band whose seam may step between rows */
+#define WELD_MAX_BAND_COLS 64 /* ... and the parent's columns there */
 
 /* The hole child c's ring needs in its parent's grid at this level. */
 typedef struct {
@@ -1500,7 +1501,8 @@ static int band_seam(const weld_rect *rect, const size_t *member, size_t ng, int
         for (size_t k = 0; k < ng && gap >= 0; k++) {
             const weld_rect *r = &rect[member[k]];
             int span = r->c1 - r->c0 + 1, off = ((b - r->c0) % P + P) % P;
-            int g = off == 0 ? 0 : off < span ? -1 : (off - span < P - off ? off - span : P - off);
+            /* Crossed: -1; else the columns between b and the ring's footprint. */
+            int g = seam_crosses(r, b, P) ? -1 : off == 0 ? 0 : (off - span < P - off ? off - span : P - off);
             if (g < gap) gap = g;
         }
         if (gap > best_gap) best_gap = gap, best = b;
@@ -1510,10 +1512,10 @@ static int band_seam(const weld_rect *rect, const size_t *member, size_t ng, int
         u->c0 = best, u->c1 = best + P - 1;
         return 1;
     }
-    if (rows < 2 || rows > WELD_MAX_BAND_ROWS || P > 64) return 0;
+    if (rows < 2 || rows > WELD_MAX_BAND_ROWS || P > WELD_MAX_BAND_COLS) return 0;
     /* cost[r][b]: fewest columns of moves reaching boundary b in row r
      * (-1: unreachable); from[r][b]: the boundary before it. */
-    int cost[WELD_MAX_BAND_ROWS][64], from[WELD_MAX_BAND_ROWS][64];
+    int cost[WELD_MAX_BAND_ROWS][WELD_MAX_BAND_COLS], from[WELD_MAX_BAND_ROWS][WELD_MAX_BAND_COLS];
     for (long r = 0; r < rows; r++) {
         long row = u->q0 + r;
         for (int b = 0; b < P; b++) {

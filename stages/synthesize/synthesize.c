@@ -639,8 +639,7 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
         }
         if (!(size > 0)) continue;
         quat_from_basis(X, Y, Z, q);
-        const double stem_at[3] = {pos[0], pos[1], pos[2]};
-        rep->leaves_in_hull += near_hull(g->hull, stem_at, LEAF_HULL_TOL);
+        rep->leaves_in_hull++; /* its stem passed the exact hull test above */
         if (g->occupied[c]) g->leaves[c]++;
         if (g->block[b]++ == 0) g->n_filled++;
         so->leaf_key[so->leaves->n] = (float)((i + 0.5) / (double)p->n_leaves);
