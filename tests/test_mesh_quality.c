@@ -33,11 +33,13 @@
  * (a child at its parent's base) or its strip would fold. */
 #define WELDED_LOD0 0.77 /* measured >= 78.5 % (weeping willow; 75.5 % before the bands), aspen >= 95 %, oak >= 90 % */
 #define WELDED_ANY 0.33  /* coarser levels, measured >= 47 % (one LOD3 of a few dozen junctions) */
-/* Over the whole library (both seeds): the capped ones are mostly children
- * on a branch's first, skewed quads (docs/mesh.md, "Welding"). */
-#define WELDED_LIBRARY_LOD0 0.975 /* measured 97.6 % (97.2 % before the stepped seams, 96.5 % before the bands) */
-#define WELDED_LIBRARY_ANY 0.913 /* coarser levels, measured 91.6 % (91.0 % before the stepped seams, 88.0 % before the
-                                    bands) */
+/* Over the whole library (both seeds): the capped ones are mostly rings that
+ * cross, rectangles that wrap their parent and strips that fold
+ * (docs/mesh.md, "Welding"). */
+#define WELDED_LIBRARY_LOD0 0.979 /* measured 98.0 % (97.4 % before the unfolding flips and the wider
+                                     rectangles, 96.5 % before the bands) */
+#define WELDED_LIBRARY_ANY 0.933  /* coarser levels, measured 93.5 % (91.9 % before the unfolding flips
+                                     and the wider rectangles, 88.0 % before the bands) */
 #define LEAF_GAP_MAX 1.0        /* petiole to LOD0 bark, in leaf lengths */
 #define RATIO_MIN 0.25          /* each level's triangles over the previous level's */
 #define RATIO_MAX 0.5

@@ -437,11 +437,17 @@ static float unwrap_col(float c, float ref, int P)
 }
 
 #define WELD_MAX_RING 256
+/* A ring vertex a hair inside its rectangle's side leaves a sliver between
+ * it and the side, which in space faces any way (a fold). A junction that
+ * fails to weld tries once more with its rectangle a column wider on a side
+ * its ring comes this near (in columns). Widening every rectangle instead
+ * put the aspen over its LOD0 budget and drew sails across long rows. */
+#define WELD_SIDE_MARGIN 0.2f
 
 /* The quads the ring covers: rows floor(min) .. floor(max) of its vertices'
  * fractional rows, columns likewise about the ring's mean column. */
 static void weld_footprint(const sy_stems *st, size_t c, const sy_lod_params *lp, const sy_mesh *m,
-                           const size_t *vo, int32_t *pidx, weld_rect *w)
+                           const size_t *vo, int32_t *pidx, float margin, weld_rect *w)
 {
     const sy_stem *s = &st->s[c], *ps = &st->s[s->parent];
     int P = sy_stem_radial(ps, lp), Pc = sy_stem_radial(s, lp);
@@ -474,6 +480,11 @@ static void weld_footprint(const sy_stems *st, size_t c, const sy_lod_params *lp
     w->q0 = rmin <= rmax ? (long)floorf(rmin) : -1;
     w->q1 = rmin <= rmax ? (long)floorf(rmax) : -2;
     w->c0 = (int)floorf(cmin), w->c1 = (int)floorf(cmax);
+    /* margin: a ring vertex nearer than this (in columns) to the
+     * rectangle's side makes it take the next column too, while it still
+     * leaves a band. */
+    if (cmin - floorf(cmin) < margin && w->c1 - w->c0 + 2 <= P - 1) w->c0--;
+    if (ceilf(cmax) - cmax < margin && w->c1 - w->c0 + 2 <= P - 1) w->c1++;
     if (w->q1 > (long)np - 2) w->q1 = (long)np - 2;
     w->ok = inside && w->c1 - w->c0 + 1 <= P - 1;
 }
@@ -1253,6 +1264,57 @@ static int strip_folds(const uint32_t *tri, size_t t, const sy_mesh *m, const we
     return 0;
 }
 
+/* Plane place of vertex id among the strip's points (the first copy: a
+ * bridge repeats two points at one place). */
+static const weld_pt *strip_pt(const weld_pt *pts, size_t n, uint32_t id)
+{
+    for (size_t i = 0; i < n; i++)
+        if (pts[i].id == id) return &pts[i];
+    return NULL;
+}
+
+#define UNFOLD_PASSES 8
+
+/* Flips edges of folded strip triangles while that unfolds more triangles
+ * than it folds. Near a parent's ridge the plane's thin triangles along it
+ * (a ring vertex a few millimetres across the ridge from a grid corner or a
+ * Steiner point) can face into the parent in space; the other diagonal of
+ * the quad they form with a neighbour usually does not. A flip is taken only
+ * where the quad is convex in the plane, so the strip still tiles its
+ * polygon (strip_valid checks it again). Each flip lowers the count of
+ * folded triangles, so the passes end. */
+static void unfold_flips(uint32_t *tri, size_t t, const weld_pt *pts, size_t n, const sy_mesh *m,
+                         const weld_steiner *sp, const sy_stem *ps, const int32_t *pidx, size_t np, float s_mid)
+{
+    for (int pass = 0, changed = 1; changed && pass < UNFOLD_PASSES; pass++) {
+        changed = 0;
+        for (size_t f = 0; f < t; f++) {
+            if (!strip_folds(tri + 3 * f, 1, m, sp, ps, pidx, np, s_mid)) continue;
+            for (int e = 0; e < 3; e++) {
+                uint32_t a = tri[3 * f + e], b = tri[3 * f + (e + 1) % 3], c = tri[3 * f + (e + 2) % 3], d = 0;
+                size_t g = 0;
+                int found = 0;
+                for (; g < t && !found; g++)
+                    for (int k = 0; k < 3 && !found; k++)
+                        if (g != f && tri[3 * g + k] == b && tri[3 * g + (k + 1) % 3] == a)
+                            d = tri[3 * g + (k + 2) % 3], found = 1;
+                if (!found) continue;
+                g--;
+                const weld_pt *pa = strip_pt(pts, n, a), *pb = strip_pt(pts, n, b), *pc = strip_pt(pts, n, c),
+                              *pd = strip_pt(pts, n, d);
+                if (!pa || !pb || !pc || !pd || !(orient2(pa, pd, pc) > 0 && orient2(pd, pb, pc) > 0)) continue;
+                uint32_t nf[3] = {a, d, c}, ng[3] = {d, b, c};
+                int before = 1 + strip_folds(tri + 3 * g, 1, m, sp, ps, pidx, np, s_mid);
+                int after = strip_folds(nf, 1, m, sp, ps, pidx, np, s_mid) + strip_folds(ng, 1, m, sp, ps, pidx, np, s_mid);
+                if (after >= before) continue;
+                memcpy(tri + 3 * f, nf, sizeof nf), memcpy(tri + 3 * g, ng, sizeof ng);
+                changed = 1;
+                break;
+            }
+        }
+    }
+}
+
 /* Welds the group of children g[0..ng) of one parent into the parent's
  * quads [q0, q1] x [c0, c1] (columns unwrapped about the rectangle): cuts them (marked in cut; NULL
  * only tries) and writes the strip to extra. Returns the strip's triangles, 0 when the rings do
@@ -1393,6 +1455,7 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
     if (strip_folds(extra, t, m, NULL, ps, pidx, np, s_mid)) {
         t = weld_refine(extra, t, extra_cap, pts, n_pts, scratch_cap - (size_t)(pts - scratch), &n_all, hp, hn, ng, ps,
                         pidx, m, vo[p], P, q0, q1, c0, c1, band ? seam : NULL, arc, &sp, np);
+        if (t && strip_folds(extra, t, m, &sp, ps, pidx, np, s_mid)) unfold_flips(extra, t, pts, n_all, m, &sp, ps, pidx, np, s_mid);
         if (!t || !strip_valid(extra, t, pts, n_pts, m, &sp) || strip_folds(extra, t, m, &sp, ps, pidx, np, s_mid))
             return 0;
     }
@@ -1604,7 +1667,7 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
             jobs[b] = jobs[b - 1], jobs[b - 1] = tmp;
         }
     for (size_t j = 0; j < nj; j++) {
-        weld_footprint(st, (size_t)jobs[j].stem, lp, out, vo, idx, &rect[j]);
+        weld_footprint(st, (size_t)jobs[j].stem, lp, out, vo, idx, 0.0f, &rect[j]);
     }
     int32_t members[WELD_MAX_GROUP];
     size_t member_job[WELD_MAX_GROUP];
@@ -1625,9 +1688,15 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
          * anywhere capped all its rings (a quarter of an aspen's junctions). */
         for (size_t j = a; j < b; j++) group[j] = -1;
         for (size_t j = a; j < b; j++) {
-            int ok = rect[j].ok && rect[j].q0 >= 0;
-            if (ok) {
+            int ok = 0;
+            for (int wide = 0; wide < 2 && !ok; wide++) {
                 weld_rect u = rect[j];
+                if (wide) {
+                    weld_footprint(st, (size_t)jobs[j].stem, lp, out, vo, idx, WELD_SIDE_MARGIN, &u);
+                    if (u.c0 == rect[j].c0 && u.c1 == rect[j].c1) break;
+                }
+                ok = u.ok && u.q0 >= 0;
+                if (!ok) break;
                 size_t ng = 0;
                 member_job[ng] = j;
                 members[ng++] = jobs[j].stem;
