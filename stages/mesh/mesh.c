@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "mesh_internal.h"
+#include "stages/core/parallel.h"
 #include "stages/core/rng.h"
 
 sy_mesh_options sy_mesh_options_default(void)
@@ -151,36 +152,73 @@ static float next_leaf_level(const sy_leaves *lv, const leaf_level *prev, const 
     return grow_to_full_area(lv, all, aspect, ground, next);
 }
 
-static sy_code add_level(sy_asset *a, const sy_stems *st, const sy_leaves *lv, sy_lod_params *lp, int bark,
-                         int card, float aspect, const leaf_level *leaves, float grow, float coverage,
-                         sy_mesh_weld_stats *ws, sy_error *err)
+/* One level of the chain: chosen in order (each level's stems and leaves
+ * follow from the previous level's), then meshed on its own (the levels in
+ * parallel), then appended to the asset in order, so the asset is the same
+ * for any thread count. */
+typedef struct {
+    sy_lod_params lp; /* lp.keep: this level's own copy */
+    leaf_level leaves;
+    float grow, coverage;
+    sy_mesh bark;
+    sy_instances cards;
+    int built, has_cards;
+    size_t junctions, welded;
+    sy_code rc;
+    sy_error err;
+} level_job;
+
+typedef struct {
+    level_job *jobs;
+    const sy_stems *st;
+    const sy_leaves *lv;
+    int bark, card;
+    float aspect;
+} level_build;
+
+static void build_levels(void *ctx, size_t begin, size_t end, size_t chunk)
+{
+    (void)chunk;
+    const level_build *b = ctx;
+    for (size_t l = begin; l < end; l++) {
+        level_job *j = &b->jobs[l];
+        j->rc = sy_bark_mesh_welds(b->st, &j->lp, b->bark, &j->bark, &j->junctions, &j->welded, &j->err);
+        if (j->rc != SY_OK) continue;
+        j->built = 1;
+        snprintf(j->bark.name, sizeof j->bark.name, "bark_lod%d", j->lp.level);
+        if (b->card >= 0 && j->leaves.n > 0) {
+            j->rc = sy_leaf_instances(b->lv, b->st, j->lp.level == 0 ? j->lp.keep : NULL, b->aspect, j->leaves.list,
+                                      j->leaves.n, j->grow, b->card, &j->cards, &j->err);
+            j->has_cards = j->rc == SY_OK;
+        }
+    }
+}
+
+/* Appends a built level to the asset; its mesh and cards move there. */
+static sy_code append_level(sy_asset *a, level_job *j, sy_mesh_weld_stats *ws, sy_error *err)
 {
     sy_lod lod;
     memset(&lod, 0, sizeof lod);
-    lod.screen_coverage = coverage;
-    sy_mesh m;
-    size_t nj = 0, nw = 0;
-    sy_code rc = sy_bark_mesh_welds(st, lp, bark, &m, &nj, &nw, err);
-    if (rc != SY_OK) return rc;
+    lod.screen_coverage = j->coverage;
     if (ws && ws->levels < SY_MESH_MAX_LEVELS) {
-        ws->junctions[ws->levels] = nj, ws->welded[ws->levels] = nw;
+        ws->junctions[ws->levels] = j->junctions, ws->welded[ws->levels] = j->welded;
         ws->levels++;
     }
-    snprintf(m.name, sizeof m.name, "bark_lod%d", lp->level);
-    if (m.n_vertices > 0) {
-        int mi = sy_asset_add_mesh(a, &m, err);
+    j->built = 0;
+    if (j->bark.n_vertices > 0) {
+        int mi = sy_asset_add_mesh(a, &j->bark, err);
         if (mi < 0) {
-            sy_mesh_free(&m);
+            sy_mesh_free(&j->bark);
             return SY_EINTERNAL;
         }
         lod.meshes[lod.n_meshes++] = mi;
     } else {
-        sy_mesh_free(&m);
+        sy_mesh_free(&j->bark);
     }
-    if (card >= 0 && leaves->n > 0) {
-        rc = sy_leaf_instances(lv, st, lp->level == 0 ? lp->keep : NULL, aspect, leaves->list, leaves->n, grow, card, &lod.instances[0], err);
-        if (rc != SY_OK) return rc;
+    if (j->has_cards) {
+        lod.instances[0] = j->cards;
         lod.n_instances = 1;
+        j->has_cards = 0;
     }
     if (sy_asset_add_lod(a, &lod, err) < 0) {
         for (int k = 0; k < lod.n_instances; k++) sy_instances_free(&lod.instances[k]);
@@ -219,6 +257,8 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
     sy_stems st;
     if ((rc = sy_stems_build(skel, opt, &st, err)) != SY_OK) return rc;
     uint8_t *keep_prev = malloc(st.n + 1), *keep = malloc(st.n + 1);
+    level_job *jobs = NULL;
+    int n_levels = 0;
     leaf_level all = {malloc((lv->n + 1) * sizeof(uint32_t)), lv->n}, cur = {malloc((lv->n + 1) * sizeof(uint32_t)), 0},
                nxt = {malloc((lv->n + 1) * sizeof(uint32_t)), 0};
     if (!keep_prev || !keep || !all.list || !cur.list || !nxt.list) {
@@ -267,26 +307,63 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
         rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
         goto done;
     }
-    size_t first_lod = out->n_lods;
-    float coverage = 0.5f;
-    if ((rc = add_level(out, &st, lv, &lp, bark, card, opt->leaf_aspect, &cur, grow0, coverage, opt->weld_stats, err)) != SY_OK) goto done;
-    for (int level = 1; level < opt->n_lods; level++) {
-        memcpy(keep_prev, keep, st.n);
-        sy_lod_params next = {level, 1 << level, keep, 0};
-        size_t next_tris;
-        if (!sy_lod_select(&st, keep_prev, tris, &next, &next_tris)) {
-            memcpy(keep, keep_prev, st.n);
-            break; /* no coarser level can halve the triangles: the chain ends */
+    /* The chain, level by level: each keeps a subset of the previous one's
+     * stems and half its leaves. */
+    jobs = calloc((size_t)opt->n_lods, sizeof *jobs);
+    if (!jobs) {
+        rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
+        goto done;
+    }
+    float coverage = 0.5f, grow = grow0;
+    for (int level = 0; level < opt->n_lods; level++) {
+        level_job *jb = &jobs[n_levels];
+        size_t next_tris = tris;
+        if (level > 0) {
+            sy_lod_params next = {level, 1 << level, keep, 0};
+            memcpy(keep_prev, keep, st.n);
+            if (!sy_lod_select(&st, keep_prev, tris, &next, &next_tris)) {
+                memcpy(keep, keep_prev, st.n);
+                break; /* no coarser level can halve the triangles: the chain ends */
+            }
+            grow = next_leaf_level(lv, &cur, &all, opt->leaf_aspect, st.ground, &nxt);
+            leaf_level t = cur;
+            cur = nxt, nxt = t;
+            coverage *= 0.5f;
+            lp = next;
         }
-        float grow = next_leaf_level(lv, &cur, &all, opt->leaf_aspect, st.ground, &nxt);
-        coverage *= 0.5f;
-        if ((rc = add_level(out, &st, lv, &next, bark, card, opt->leaf_aspect, &nxt, grow, coverage, opt->weld_stats, err)) != SY_OK) goto done;
-        leaf_level t = cur;
-        cur = nxt, nxt = t;
+        jb->lp = lp;
+        jb->lp.keep = malloc(st.n + 1);
+        jb->leaves.list = malloc((cur.n + 1) * sizeof(uint32_t));
+        n_levels++;
+        if (!jb->lp.keep || !jb->leaves.list) {
+            rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
+            goto done;
+        }
+        memcpy(jb->lp.keep, keep, st.n);
+        memcpy(jb->leaves.list, cur.list, cur.n * sizeof(uint32_t));
+        jb->leaves.n = cur.n;
+        jb->grow = grow, jb->coverage = coverage;
         tris = next_tris;
+    }
+    level_build lb = {jobs, &st, lv, bark, card, opt->leaf_aspect};
+    sy_parallel_for((size_t)n_levels, 1, build_levels, &lb);
+    size_t first_lod = out->n_lods;
+    for (int l = 0; l < n_levels; l++) {
+        if (jobs[l].rc != SY_OK) {
+            if (err) *err = jobs[l].err;
+            rc = jobs[l].rc;
+            goto done;
+        }
+        if ((rc = append_level(out, &jobs[l], opt->weld_stats, err)) != SY_OK) goto done;
     }
     if (opt->impostor) rc = sy_mesh_add_impostor(out, first_lod, opt->impostor_size, err);
 done:
+    for (int l = 0; jobs && l < n_levels; l++) {
+        if (jobs[l].built) sy_mesh_free(&jobs[l].bark);
+        if (jobs[l].has_cards) sy_instances_free(&jobs[l].cards);
+        free(jobs[l].lp.keep), free(jobs[l].leaves.list);
+    }
+    free(jobs);
     free(keep_prev), free(keep), free(all.list), free(cur.list), free(nxt.list);
     sy_stems_free(&st);
     return rc;
