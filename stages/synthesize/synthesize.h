@@ -34,7 +34,7 @@ typedef struct {
                                cell is full; 0: 1.5 */
     int max_depth;          /* docking generations per lobe; 0: library's */
     int max_patches;        /* per lobe (default 3000) */
-    int candidates;         /* best patches by eq. 3.3 tried against the lobe geometry (default 6) */
+    int candidates;         /* best patches by eq. 3.3 tried against the lobe geometry (default 12) */
     int rolls;              /* roll angles tried per candidate (default 4) */
     float outside_max;      /* reject a patch with more than this share of its samples outside the hull (0.2) */
     int grid;               /* lobe grid cells along its longest side (default 16) */
