@@ -68,7 +68,8 @@ int sy_material_cache_key(const sy_material_spec *spec, int max_size, float tran
     int64_t exe[3] = {(int64_t)st.st_size, (int64_t)st.st_mtim.tv_sec, (int64_t)st.st_mtim.tv_nsec};
     h = fnv(h, exe, sizeof exe);
     int32_t ints[2] = {max_size, (int32_t)sizeof(sy_material)};
-    float floats[2] = {translucency, spec->leaf_length_m};
+    float floats[5] = {translucency, spec->leaf_length_m, -1, -1, -1};
+    if (spec->bark_color) memcpy(floats + 2, spec->bark_color, 3 * sizeof(float));
     h = fnv(fnv(h, ints, sizeof ints), floats, sizeof floats);
     h = fnv_str(fnv_str(fnv_str(h, spec->bark_image), spec->leaf_image), spec->leaf_maps);
     if (!fnv_file(&h, spec->bark_image) || !fnv_file(&h, spec->leaf_image) || !fnv_file(&h, spec->leaf_maps))

@@ -247,9 +247,30 @@ static void leaf_transmission_color(const image *im, float out[3])
     for (int c = 0; c < 3; c++) out[c] = m > 0 ? out[c] / m : 1.0f;
 }
 
-/* Adds the colour and normal images of im; returns 0 or -1 (err set). */
-static int add_maps(sy_asset *asset, const char *prefix, const image *im, int rgba, float strength, int wrap,
-                    int *color_idx, int *normal_idx, sy_error *err)
+/* Luminance of an sRGB texel (Rec. 709 weights on the encoded values). */
+static float texel_luma(const unsigned char *p) { return 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2]; }
+
+/* The RGB of im recoloured to mean colour c (sRGB 0..255): each texel is c
+ * times its luminance over the image's mean luminance, clamped. */
+static void recolor(const image *im, const float c[3], unsigned char *rgb)
+{
+    size_t n = (size_t)im->w * (size_t)im->h;
+    double sum = 0;
+    for (size_t i = 0; i < n; i++) sum += texel_luma(im->rgba + 4 * i);
+    float mean = n && sum > 0 ? (float)(sum / (double)n) : 1.0f;
+    for (size_t i = 0; i < n; i++) {
+        float k = texel_luma(im->rgba + 4 * i) / mean;
+        for (int ch = 0; ch < 3; ch++) {
+            float v = c[ch] * k + 0.5f;
+            rgb[3 * i + ch] = (unsigned char)(v < 0 ? 0 : v > 255 ? 255 : v);
+        }
+    }
+}
+
+/* Adds the colour and normal images of im (its RGB recoloured to tint when
+ * given, RGB images only); returns 0 or -1 (err set). */
+static int add_maps(sy_asset *asset, const char *prefix, const image *im, int rgba, const float *tint, float strength,
+                    int wrap, int *color_idx, int *normal_idx, sy_error *err)
 {
     size_t n = (size_t)im->w * (size_t)im->h;
     unsigned char *buf = malloc(n * 3);
@@ -263,7 +284,9 @@ static int add_maps(sy_asset *asset, const char *prefix, const image *im, int rg
         snprintf(name, sizeof name, "%s_color", prefix);
         *color_idx = add_png(asset, name, im->rgba, im->w, im->h, 4, err);
     } else {
-        for (size_t i = 0; i < n; i++) memcpy(buf + 3 * i, im->rgba + 4 * i, 3);
+        if (tint) recolor(im, tint, buf);
+        else
+            for (size_t i = 0; i < n; i++) memcpy(buf + 3 * i, im->rgba + 4 * i, 3);
         snprintf(name, sizeof name, "%s_color", prefix);
         *color_idx = add_png(asset, name, buf, im->w, im->h, 3, err);
     }
@@ -289,7 +312,8 @@ static sy_code make_bark(const sy_material_spec *spec, int max_size, sy_asset *a
                                   : procedural_bark(is_pow2_floor(max_size), &im, err);
     if (rc == SY_OK && spec->bark_image) rc = resize_to(&im, max_size, spec->bark_image, err);
     int color = -1, normal = -1;
-    if (rc == SY_OK && add_maps(asset, "bark", &im, 0, BARK_NORMAL_STRENGTH, 1, &color, &normal, err)) rc = err->code;
+    if (rc == SY_OK && add_maps(asset, "bark", &im, 0, spec->bark_color, BARK_NORMAL_STRENGTH, 1, &color, &normal, err))
+        rc = err->code;
     image_free(&im);
     if (rc) return rc;
     sy_material m = sy_material_default("bark");
@@ -311,7 +335,8 @@ static sy_code make_leaf(const sy_material_spec *spec, int max_size, float trans
         rc = sy_error_prefix(err, spec->leaf_image);
     if (rc == SY_OK && spec->leaf_image) rc = resize_to(&im, max_size, spec->leaf_image, err);
     int color = -1, normal = -1;
-    if (rc == SY_OK && add_maps(asset, "leaf", &im, 1, LEAF_NORMAL_STRENGTH, 0, &color, &normal, err)) rc = err->code;
+    if (rc == SY_OK && add_maps(asset, "leaf", &im, 1, NULL, LEAF_NORMAL_STRENGTH, 0, &color, &normal, err))
+        rc = err->code;
     sy_material m = sy_material_default("leaf");
     if (rc == SY_OK) leaf_transmission_color(&im, m.diffuse_transmission_color);
     image_free(&im);

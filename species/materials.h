@@ -23,6 +23,12 @@ typedef struct {
     /* A folder for the materials cache (material_cache.c: the encoded images
      * of this spec, read back by later trees instead of made again), or NULL. */
     const char *cache_dir;
+    /* The bark's colour, sRGB 0..255, or NULL for the photo's own: the photo
+     * is recoloured so its mean is this colour and each texel keeps its
+     * brightness relative to the mean (the pattern, and the normal map,
+     * stay the photo's). One bark photo serves the library; a birch is
+     * white and a Scots pine's upper bark orange. */
+    const float *bark_color;
 } sy_material_spec;
 
 /* The absolute path of the library species' leaf material (its manifest's

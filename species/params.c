@@ -100,6 +100,7 @@ static const key_def sylva_keys[] = {
     GEN("leaf_fill", K_FLOAT, leaf_fill, 0.01, 1),
     GEN("beta", K_FLOAT, beta, 0, 10),
     GEN("gamma", K_FLOAT, gamma, 0.1, 5),
+    GEN("bark_color", K_VEC3, bark_color, 0, 255),
 };
 
 #define N_GENERAL (sizeof general_keys / sizeof general_keys[0])
@@ -144,6 +145,7 @@ sy_species_params sy_species_params_default(void)
     sp->prune_power_high = 0.5f;
     memcpy(sp->level, lv, sizeof lv);
     sp->leaf_translucency = 0.4f;
+    sp->bark_color[0] = sp->bark_color[1] = sp->bark_color[2] = -1;
     sp->leaf_fill = 1;
     sp->beta = 1;
     sp->gamma = 2;
@@ -193,6 +195,8 @@ static void write_keys(sy_json *j, const char *section, const key_def *keys, siz
         case K_FLOAT: sy_json_float(j, k->name, *(const float *)field); break;
         case K_INT: sy_json_int(j, k->name, *(const int *)field); break;
         case K_VEC3:
+            /* An unset bark colour (negative) is left out, as the file leaves it out. */
+            if (keys == sylva_keys && ((const float *)field)[0] < 0) break;
             sy_json_array(j, k->name);
             for (int c = 0; c < 3; c++) sy_json_float(j, NULL, ((const float *)field)[c]);
             sy_json_end(j);
@@ -328,6 +332,12 @@ static sy_code set_value(parser *p, const key_def *k, void *base, char *value, i
             snprintf(detail, sizeof detail, "%s expects {r, g, b}", k->name);
             return perr(p, "malformed value: ", detail);
         }
+        for (int c = 0; c < 3; c++)
+            if (!(((float *)field)[c] >= k->lo && ((float *)field)[c] <= k->hi)) {
+                snprintf(detail, sizeof detail, "%s component %g is outside [%g, %g]", k->name,
+                         (double)((float *)field)[c], k->lo, k->hi);
+                return perr(p, "out of range: ", detail);
+            }
         return SY_OK;
     case K_INT:
         if (!parse_int(value, &d)) {

@@ -60,6 +60,7 @@ typedef struct {
     float leaf_fill;        /* share of a leaf card a scanner's beam meets: 1 (default) a leaf, less a needle shoot */
     float beta;             /* edge-weight exponent for skeleton reconstruction, default 1 */
     float gamma;            /* allometry exponent (pipe model r^gamma), default 2 */
+    float bark_color[3];    /* sRGB 0..255 the bark photo is recoloured to (its pattern kept); negative: its own */
 } sy_species_params;
 
 /* Fills every parameter with its Weber-Penn default (docs/species.md). */

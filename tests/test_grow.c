@@ -170,9 +170,12 @@ static void parser_errors_name_file_and_line(void **state)
     parse_fails_at("[General]\nKa={1,2}\n", 2, "{r, g, b}");
     parse_fails_at("[General]\nShape 4\n", 2, "expected key = value");
     parse_fails_at("[Sylva]\ntranslucency=1.5\n", 2, "outside");
+    parse_fails_at("[Sylva]\nname = x\nbark_color = {226, 300, 212}\n", 3, "bark_color component 300 is outside [0, 255]");
+    parse_fails_at("[Sylva]\nbark_color = {226, 222}\n", 2, "{r, g, b}");
     parse_fails_at("[ParamLevel7]\n", 1, "unknown section");
     sy_species_params ok = parse_ok("[ParamLevel0]\n0Scale=1.5\n");
     assert_float_equal(ok.scale0, 1.5f, 0);
+    assert_true(ok.bark_color[0] < 0); /* unset: the photo's own colour */
     sy_species_params_free(&ok);
     parse_fails_at("[ParamLevel1]\n0Scale=1.5\n", 2, "misplaced key 0Scale");
     /* Whole-file consistency has no line. */

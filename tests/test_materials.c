@@ -115,7 +115,7 @@ static void library_textures_become_materials(void **state)
 {
     (void)state;
     sy_material_spec spec = {SYLVA_SPECIES_DIR "/textures/bark.png", SYLVA_SPECIES_DIR "/textures/ash_color.png",
-                             0.45f, 128, NULL, 0, NULL};
+                             0.45f, 128, NULL, 0, NULL, NULL};
     sy_asset asset;
     memset(&asset, 0, sizeof asset);
     sy_error err = {0};
@@ -169,12 +169,50 @@ static void library_textures_become_materials(void **state)
     sy_asset_free(&asset);
 }
 
+/* A species' bark colour: the photo recoloured to that mean, its pattern
+ * (each texel's brightness over the mean) and its normal map kept. */
+static void bark_takes_the_species_colour(void **state)
+{
+    (void)state;
+    static const float birch[3] = {226, 222, 212};
+    sy_material_spec plain = {SYLVA_SPECIES_DIR "/textures/bark.png", NULL, 0.4f, 64, NULL, 0, NULL, NULL};
+    sy_material_spec white = plain;
+    white.bark_color = birch;
+    sy_asset a, b;
+    memset(&a, 0, sizeof a), memset(&b, 0, sizeof b);
+    sy_error err = {0};
+    int bark, leaf;
+    assert_int_equal(sy_materials_add(&plain, &a, &bark, &leaf, &err), SY_OK);
+    assert_int_equal(sy_materials_add(&white, &b, &bark, &leaf, &err), SY_OK);
+    int w, h, comp, w2, h2, comp2;
+    unsigned char *p = decode(image_named(&a, "bark_color"), &w, &h, &comp);
+    unsigned char *q = decode(image_named(&b, "bark_color"), &w2, &h2, &comp2);
+    assert_int_equal(w * h, w2 * h2);
+    double mean[3] = {0, 0, 0}, sp = 0, sq = 0, spp = 0, sqq = 0, spq = 0;
+    int n = w * h;
+    for (int i = 0; i < n; i++) {
+        for (int c = 0; c < 3; c++) mean[c] += q[3 * i + c];
+        double lp = 0.2126 * p[3 * i] + 0.7152 * p[3 * i + 1] + 0.0722 * p[3 * i + 2];
+        double lq = 0.2126 * q[3 * i] + 0.7152 * q[3 * i + 1] + 0.0722 * q[3 * i + 2];
+        sp += lp, sq += lq, spp += lp * lp, sqq += lq * lq, spq += lp * lq;
+    }
+    /* Bright texels clip at 255, so the mean may fall a little short. */
+    for (int c = 0; c < 3; c++) assert_true(fabs(mean[c] / n - birch[c]) < 8);
+    double r = (n * spq - sp * sq) / sqrt((n * spp - sp * sp) * (n * sqq - sq * sq));
+    assert_true(r > 0.97);
+    free(p), free(q);
+    const sy_image *na = image_named(&a, "bark_normal"), *nb = image_named(&b, "bark_normal");
+    assert_int_equal(na->size, nb->size);
+    assert_memory_equal(na->png, nb->png, na->size);
+    sy_asset_free(&a), sy_asset_free(&b);
+}
+
 static void cards_keep_a_power_of_two_aspect(void **state)
 {
     (void)state;
     /* oak_leaf.png is 171 x 256: the long side becomes 128, the short side
      * the nearest power of two to 85.5, 64. */
-    sy_material_spec spec = {NULL, SYLVA_SPECIES_DIR "/textures/oak_leaf.png", 0.3f, 128, NULL, 0, NULL};
+    sy_material_spec spec = {NULL, SYLVA_SPECIES_DIR "/textures/oak_leaf.png", 0.3f, 128, NULL, 0, NULL, NULL};
     sy_asset asset;
     memset(&asset, 0, sizeof asset);
     sy_error err = {0};
@@ -191,7 +229,7 @@ static void cards_keep_a_power_of_two_aspect(void **state)
 static void procedural_fallbacks_are_deterministic(void **state)
 {
     (void)state;
-    sy_material_spec spec = {NULL, NULL, 0.4f, 64, NULL, 0, NULL};
+    sy_material_spec spec = {NULL, NULL, 0.4f, 64, NULL, 0, NULL, NULL};
     sy_asset a, b;
     memset(&a, 0, sizeof a);
     memset(&b, 0, sizeof b);
@@ -243,7 +281,7 @@ static void leaf_without_alpha_is_cut_from_its_background(void **state)
         }
     const char *path = tmp_path("leaf_rgb.png");
     assert_int_equal(stbi_write_png(path, n, n, 3, rgb, n * 3) != 0, 1);
-    sy_material_spec spec = {NULL, path, 0.5f, 64, NULL, 0, NULL};
+    sy_material_spec spec = {NULL, path, 0.5f, 64, NULL, 0, NULL, NULL};
     sy_asset asset;
     memset(&asset, 0, sizeof asset);
     sy_error err = {0};
@@ -262,7 +300,7 @@ static void leaf_without_alpha_is_cut_from_its_background(void **state)
 static void unreadable_images_are_input_errors(void **state)
 {
     (void)state;
-    sy_material_spec spec = {"/nonexistent/bark.png", NULL, 0.4f, 64, NULL, 0, NULL};
+    sy_material_spec spec = {"/nonexistent/bark.png", NULL, 0.4f, 64, NULL, 0, NULL, NULL};
     sy_asset asset;
     memset(&asset, 0, sizeof asset);
     sy_error err = {0};
@@ -288,7 +326,7 @@ static void leaf_maps_become_the_leaf_material(void **state)
 {
     (void)state;
     const char *lm = SYLVA_SPECIES_DIR "/leafmaps/quaking_aspen/leaf.material";
-    sy_material_spec spec = {NULL, NULL, -1.0f, 128, lm, 0.3f, NULL};
+    sy_material_spec spec = {NULL, NULL, -1.0f, 128, lm, 0.3f, NULL, NULL};
     sy_asset asset;
     memset(&asset, 0, sizeof asset);
     sy_error err = {0};
@@ -394,7 +432,7 @@ static void cache_gives_the_same_materials(void **state)
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
     assert_int_equal(system(cmd), 0);
     const char *lm = SYLVA_SPECIES_DIR "/leafmaps/quaking_aspen/leaf.material";
-    sy_material_spec plain = {SYLVA_SPECIES_DIR "/textures/bark.png", NULL, -1.0f, 64, lm, 0.3f, NULL};
+    sy_material_spec plain = {SYLVA_SPECIES_DIR "/textures/bark.png", NULL, -1.0f, 64, lm, 0.3f, NULL, NULL};
     sy_material_spec cached = plain;
     cached.cache_dir = dir;
     sy_error err = {0};
@@ -439,6 +477,7 @@ int main(void)
         cmocka_unit_test(flat_image_gives_straight_up_normals),
         cmocka_unit_test(ramps_tilt_the_normal_downhill),
         cmocka_unit_test(library_textures_become_materials),
+        cmocka_unit_test(bark_takes_the_species_colour),
         cmocka_unit_test(cards_keep_a_power_of_two_aspect),
         cmocka_unit_test(procedural_fallbacks_are_deterministic),
         cmocka_unit_test(leaf_without_alpha_is_cut_from_its_background),
