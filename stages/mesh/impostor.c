@@ -34,6 +34,8 @@ typedef struct {
     float color[4];
     float cutoff;
     int masked;
+    int exact;     /* cover only the pixels whose centre the triangle holds */
+    int fill_only; /* write only pixels nothing else covers */
 } shade_src;
 
 static const float light[3] = {0.32f, 0.83f, 0.45f};
@@ -65,10 +67,10 @@ static void raster(view *v, const float a[3], const float b[3], const float c[3]
     /* Conservative coverage: a pixel counts when the triangle touches its
      * square (each edge pushed out by half a pixel in the L1 sense), so
      * twigs thinner than a pixel still show in the silhouette. */
-    float aa = fabsf(area);
-    float t0 = 0.5f * (fabsf(pb[1] - pc[1]) + fabsf(pc[0] - pb[0])) / aa;
-    float t1 = 0.5f * (fabsf(pc[1] - pa[1]) + fabsf(pa[0] - pc[0])) / aa;
-    float t2 = 0.5f * (fabsf(pa[1] - pb[1]) + fabsf(pb[0] - pa[0])) / aa;
+    float aa = fabsf(area), widen = src->exact ? 0.0f : 0.5f;
+    float t0 = widen * (fabsf(pb[1] - pc[1]) + fabsf(pc[0] - pb[0])) / aa;
+    float t1 = widen * (fabsf(pc[1] - pa[1]) + fabsf(pa[0] - pc[0])) / aa;
+    float t2 = widen * (fabsf(pa[1] - pb[1]) + fabsf(pb[0] - pa[0])) / aa;
     /* The barycentric weights are affine in the pixel: w(x, y) = c + gx x +
      * gy y, stepped along a row instead of evaluated with two divisions a
      * pixel (most pixels of a twig's bounding box lie outside it). */
@@ -90,7 +92,7 @@ static void raster(view *v, const float a[3], const float b[3], const float c[3]
             }
             float z = w0 * pa[2] + w1 * pb[2] + w2 * pc[2];
             size_t i = (size_t)y * (size_t)v->W + (size_t)x;
-            if (z <= v->depth[i]) continue;
+            if (z <= v->depth[i] || (src->fill_only && v->rgba[4 * i + 3])) continue;
             float col[4] = {src->color[0], src->color[1], src->color[2], 1};
             if (src->px) {
                 float tu = w0 * uv[0] + w1 * uv[2] + w2 * uv[4], tv = w0 * uv[1] + w1 * uv[3] + w2 * uv[5];
@@ -168,7 +170,7 @@ static void grow_box(float lo[3], float hi[3], const float p[3])
 }
 
 /* Draws everything of lod into view v. */
-static void render_view(const sy_asset *a, const sy_lod *lod, view *v, const shade_src *src_mesh)
+static void render_view(const sy_asset *a, const sy_lod *lod, view *v, const shade_src *src_mesh, int meshes_only)
 {
     for (int k = 0; k < lod->n_meshes; k++) {
         const sy_mesh *m = &a->meshes[lod->meshes[k]];
@@ -178,7 +180,7 @@ static void render_view(const sy_asset *a, const sy_lod *lod, view *v, const sha
             raster(v, m->position + 3 * ix[0], m->position + 3 * ix[1], m->position + 3 * ix[2], uv, &src_mesh[k]);
         }
     }
-    for (int k = 0; k < lod->n_instances; k++) {
+    for (int k = 0; k < lod->n_instances && !meshes_only; k++) {
         const sy_instances *in = &lod->instances[k];
         const sy_mesh *m = &a->meshes[in->mesh];
         const shade_src *src = &src_mesh[SY_LOD_MAX_PARTS + k];
@@ -200,14 +202,17 @@ typedef struct {
     const sy_asset *a;
     const sy_lod *lod;
     view *views[2];
-    const shade_src *src;
+    const shade_src *src, *fill; /* fill: the bark again, after everything, where nothing is drawn */
 } view_job;
 
 static void render_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
 {
     (void)chunk;
     view_job *j = ctx;
-    for (size_t k = begin; k < end; k++) render_view(j->a, j->lod, j->views[k], j->src);
+    for (size_t k = begin; k < end; k++) {
+        render_view(j->a, j->lod, j->views[k], j->src, 0);
+        if (j->fill) render_view(j->a, j->lod, j->views[k], j->fill, 1);
+    }
 }
 
 /* Spreads colour into uncovered texels (alpha stays 0) so filtering at the
@@ -333,7 +338,15 @@ int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
     view side = {rgba, depth, W, H, W / 2, W - W / 2, {0, 0, -1}, {1, 0, 0}, -hi[2], -lo[2], lo[1], hi[1]};
     /* The two views fill disjoint halves of the atlas and its depth: one a
      * thread, the same texels either way. */
-    view_job job = {a, lod0, {&front, &side}, src};
+    /* Colour from the bark at the pixels it holds; twigs thinner than a
+     * pixel only where nothing else is drawn. Covering every pixel a twig
+     * touches (as the silhouettes do) let the limbs' colour take the crown:
+     * the orange-barked pine's impostor came out red-brown. The coverage,
+     * and so the silhouette, is the same either way. */
+    shade_src fill[2 * SY_LOD_MAX_PARTS];
+    memcpy(fill, src, sizeof fill);
+    for (int k = 0; k < lod0->n_meshes; k++) src[k].exact = 1, fill[k].fill_only = 1;
+    view_job job = {a, lod0, {&front, &side}, src, fill};
     sy_parallel_for(2, 1, render_chunk, &job);
     for (int k = 0; k < 2 * SY_LOD_MAX_PARTS; k++) stbi_image_free(src[k].px);
     free(depth);
@@ -392,8 +405,8 @@ sy_code sy_mesh_silhouettes(const sy_asset *a, size_t lod, const float lo[3], co
         material_source(a, a->meshes[l->instances[k].mesh].material, 1, &src[SY_LOD_MAX_PARTS + k]);
     view f = {rgba, depth, W, H, 0, size, {1, 0, 0}, {0, 0, 1}, lo[0], hi[0], lo[1], hi[1]};
     view s = {rgba, depth, W, H, size, size, {0, 0, -1}, {1, 0, 0}, -hi[2], -lo[2], lo[1], hi[1]};
-    render_view(a, l, &f, src);
-    render_view(a, l, &s, src);
+    render_view(a, l, &f, src, 0);
+    render_view(a, l, &s, src, 0);
     for (int k = 0; k < 2 * SY_LOD_MAX_PARTS; k++) stbi_image_free(src[k].px);
     for (int y = 0; y < H; y++)
         for (int x = 0; x < size; x++) {
