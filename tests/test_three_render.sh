@@ -15,6 +15,13 @@ source "$SYLVA_SOURCE_DIR/tests/glb_cli_common.sh"
 [[ -f $SYLVA_SOURCE_DIR/node_modules/three/package.json ]] || { echo "FAIL: npm three missing (run scripts/install-deps.sh)"; exit 1; }
 command -v chromium > /dev/null || { echo "FAIL: chromium missing (run scripts/install-deps.sh)"; exit 1; }
 IOU_MIN=0.85
+# The atlas's mean colour against LOD0's in three.js (supersampled as for the
+# IoU: at the atlas's size the GPU keeps mostly bark), as chromaticity
+# (r, g) / (r + g + b), so the two renderers' lighting levels drop out.
+# Measured 0.011-0.066 (quaking aspen: three.js lights its yellow cards bluer).
+CHROMA_MAX=0.08
+CHROMA='def ch($c): [$c[0], $c[1]] | map(. / ($c[0] + $c[1] + $c[2] + 1e-9));
+  (ch(.impostor_colour)) as $a | (ch(.lod0_colour)) as $b | (($a[0] - $b[0]) * ($a[0] - $b[0]) + ($a[1] - $b[1]) * ($a[1] - $b[1])) | sqrt'
 files=()
 for ini in "$SYLVA_SOURCE_DIR"/species/*.ini; do
     sp=$(basename "$ini" .ini)
@@ -34,5 +41,8 @@ while read -r line; do
         "jq -e '.coverage >= 0.02 and .levels >= 3 and (.triangles | length) == .levels' '$tmp/v.json' > /dev/null"
     check "$f: three.js's silhouette agrees with the atlas (IoU $(jq .impostor_iou "$tmp/v.json") >= $IOU_MIN)" \
         "jq -e '.impostor_iou >= $IOU_MIN' '$tmp/v.json' > /dev/null"
+    d=$(jq "$CHROMA" "$tmp/v.json")
+    check "$f: the atlas's colour is LOD0's (chromaticity distance $d <= $CHROMA_MAX)" \
+        "jq -e '($CHROMA) <= $CHROMA_MAX' '$tmp/v.json' > /dev/null"
 done < "$tmp/verdicts.jsonl"
 exit $fail

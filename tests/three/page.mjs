@@ -129,6 +129,9 @@ async function main() {
     const ip = cx.getImageData(0, 0, aw, ah).data, mi = mask(ip, aw, ah, 128);
     verdict.impostor_iou = iou(mg, mi);
     verdict.impostor_colour = meanColour(ip, mi);
+    // LOD0's colour at the same supersampling: at the atlas's own size the
+    // GPU keeps mostly bark (it drops cards thinner than a pixel).
+    verdict.lod0_colour = meanColour(hi.px, hi.m);
     verdict.atlas_coverage = mi.reduce((a, b) => a + b, 0) / (aw * ah);
   }
   const lo = readMask(w, h);
