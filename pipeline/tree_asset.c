@@ -256,8 +256,8 @@ sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, co
                            species ? species->leaf_translucency : -1.0f, opt->texture_size, NULL, 0,
                            opt->texture_cache, NULL};
     char leaf_maps[4096];
-    if (species && species->bark_color[0] >= 0) ms.bark_color = species->bark_color;
     if (species) {
+        if (species->bark_color[0] >= 0) ms.bark_color = species->bark_color;
         /* A species' leaf maps from `sylva leaf`, when the library has them. */
         ms.leaf_maps = sy_species_leaf_maps(species->name, leaf_maps, sizeof leaf_maps);
         ms.leaf_length_m = species->leaf_scale > 0 ? species->leaf_scale : 0.1f;

@@ -195,8 +195,9 @@ static void write_keys(sy_json *j, const char *section, const key_def *keys, siz
         case K_FLOAT: sy_json_float(j, k->name, *(const float *)field); break;
         case K_INT: sy_json_int(j, k->name, *(const int *)field); break;
         case K_VEC3:
-            /* An unset bark colour (negative) is left out, as the file leaves it out. */
-            if (keys == sylva_keys && ((const float *)field)[0] < 0) break;
+            /* A default below the key's range means unset (bark_color): left
+             * out, as the file leaves it out. */
+            if (((const float *)field)[0] < k->lo) break;
             sy_json_array(j, k->name);
             for (int c = 0; c < 3; c++) sy_json_float(j, NULL, ((const float *)field)[c]);
             sy_json_end(j);

@@ -256,12 +256,16 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
     if (opt->weld_stats) memset(opt->weld_stats, 0, sizeof *opt->weld_stats);
     sy_stems st;
     if ((rc = sy_stems_build(skel, opt, &st, err)) != SY_OK) return rc;
-    uint8_t *keep_prev = malloc(st.n + 1), *keep = malloc(st.n + 1);
-    level_job *jobs = NULL;
+    /* The chain's levels; level 0's stems and leaves are filled below. */
+    level_job *jobs = calloc((size_t)opt->n_lods, sizeof *jobs);
     int n_levels = 0;
-    leaf_level all = {malloc((lv->n + 1) * sizeof(uint32_t)), lv->n}, cur = {malloc((lv->n + 1) * sizeof(uint32_t)), 0},
-               nxt = {malloc((lv->n + 1) * sizeof(uint32_t)), 0};
-    if (!keep_prev || !keep || !all.list || !cur.list || !nxt.list) {
+    leaf_level all = {malloc((lv->n + 1) * sizeof(uint32_t)), lv->n};
+    if (jobs) {
+        jobs[0].lp = (sy_lod_params){0, 1, malloc(st.n + 1), 1};
+        jobs[0].leaves.list = malloc((lv->n + 1) * sizeof(uint32_t));
+        n_levels = 1;
+    }
+    if (!jobs || !all.list || !jobs[0].lp.keep || !jobs[0].leaves.list) {
         rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
         goto done;
     }
@@ -290,59 +294,43 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
     for (size_t i = 0; i < lv->n; i++)
         if (!card_below(lv, all.list[i], opt->leaf_aspect, 1, st.ground)) all.list[kept++] = all.list[i];
     all.n = kept;
-    memcpy(cur.list, all.list, kept * sizeof(uint32_t));
-    cur.n = kept;
+    level_job *l0 = &jobs[0];
+    memcpy(l0->leaves.list, all.list, kept * sizeof(uint32_t));
+    l0->leaves.n = kept;
     /* Over the leaf budget LOD0 keeps a prefix of the seeded order (stochastic
      * pruning, Cook et al. 2007), grown to the total area of all leaves. */
-    float grow0 = 1.0f;
-    if (opt->lod0_max_leaves > 0 && cur.n > (size_t)opt->lod0_max_leaves) {
-        cur.n = (size_t)opt->lod0_max_leaves;
-        grow0 = grow_to_full_area(lv, &all, opt->leaf_aspect, st.ground, &cur);
+    l0->grow = 1.0f, l0->coverage = 0.5f;
+    if (opt->lod0_max_leaves > 0 && l0->leaves.n > (size_t)opt->lod0_max_leaves) {
+        l0->leaves.n = (size_t)opt->lod0_max_leaves;
+        l0->grow = grow_to_full_area(lv, &all, opt->leaf_aspect, st.ground, &l0->leaves);
     }
-    sy_lod_params lp = {0, 1, keep, 1};
-    memset(keep, 1, st.n);
-    size_t tris = sy_lod_bark_triangles(&st, &lp);
+    memset(l0->lp.keep, 1, st.n);
+    size_t tris = sy_lod_bark_triangles(&st, &l0->lp);
     if (opt->lod0_max_triangles > 0 && tris > (size_t)opt->lod0_max_triangles &&
-        !sy_lod_fit_budget(&st, &lp, &tris, (size_t)opt->lod0_max_triangles)) {
+        !sy_lod_fit_budget(&st, &l0->lp, &tris, (size_t)opt->lod0_max_triangles)) {
         rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
         goto done;
     }
     /* The chain, level by level: each keeps a subset of the previous one's
      * stems and half its leaves. */
-    jobs = calloc((size_t)opt->n_lods, sizeof *jobs);
-    if (!jobs) {
-        rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
-        goto done;
-    }
-    float coverage = 0.5f, grow = grow0;
-    for (int level = 0; level < opt->n_lods; level++) {
-        level_job *jb = &jobs[n_levels];
-        size_t next_tris = tris;
-        if (level > 0) {
-            sy_lod_params next = {level, 1 << level, keep, 0};
-            memcpy(keep_prev, keep, st.n);
-            if (!sy_lod_select(&st, keep_prev, tris, &next, &next_tris)) {
-                memcpy(keep, keep_prev, st.n);
-                break; /* no coarser level can halve the triangles: the chain ends */
-            }
-            grow = next_leaf_level(lv, &cur, &all, opt->leaf_aspect, st.ground, &nxt);
-            leaf_level t = cur;
-            cur = nxt, nxt = t;
-            coverage *= 0.5f;
-            lp = next;
-        }
-        jb->lp = lp;
-        jb->lp.keep = malloc(st.n + 1);
-        jb->leaves.list = malloc((cur.n + 1) * sizeof(uint32_t));
-        n_levels++;
+    for (int level = 1; level < opt->n_lods; level++) {
+        const level_job *prev = &jobs[level - 1];
+        level_job *jb = &jobs[level];
+        jb->lp = (sy_lod_params){level, 1 << level, malloc(st.n + 1), 0};
+        jb->leaves.list = malloc((prev->leaves.n / 2 + 1) * sizeof(uint32_t));
         if (!jb->lp.keep || !jb->leaves.list) {
+            free(jb->lp.keep), free(jb->leaves.list);
             rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
             goto done;
         }
-        memcpy(jb->lp.keep, keep, st.n);
-        memcpy(jb->leaves.list, cur.list, cur.n * sizeof(uint32_t));
-        jb->leaves.n = cur.n;
-        jb->grow = grow, jb->coverage = coverage;
+        size_t next_tris;
+        if (!sy_lod_select(&st, prev->lp.keep, tris, &jb->lp, &next_tris)) {
+            free(jb->lp.keep), free(jb->leaves.list);
+            break; /* no coarser level can halve the triangles: the chain ends */
+        }
+        jb->grow = next_leaf_level(lv, &prev->leaves, &all, opt->leaf_aspect, st.ground, &jb->leaves);
+        jb->coverage = 0.5f * prev->coverage;
+        n_levels++;
         tris = next_tris;
     }
     level_build lb = {jobs, &st, lv, bark, card, opt->leaf_aspect};
@@ -364,7 +352,7 @@ done:
         free(jobs[l].lp.keep), free(jobs[l].leaves.list);
     }
     free(jobs);
-    free(keep_prev), free(keep), free(all.list), free(cur.list), free(nxt.list);
+    free(all.list);
     sy_stems_free(&st);
     return rc;
 }

@@ -1291,15 +1291,13 @@ static void unfold_flips(uint32_t *tri, size_t t, const weld_pt *pts, size_t n, 
         for (size_t f = 0; f < t; f++) {
             if (!strip_folds(tri + 3 * f, 1, m, sp, ps, pidx, np, s_mid)) continue;
             for (int e = 0; e < 3; e++) {
-                uint32_t a = tri[3 * f + e], b = tri[3 * f + (e + 1) % 3], c = tri[3 * f + (e + 2) % 3], d = 0;
-                size_t g = 0;
-                int found = 0;
-                for (; g < t && !found; g++)
-                    for (int k = 0; k < 3 && !found; k++)
-                        if (g != f && tri[3 * g + k] == b && tri[3 * g + (k + 1) % 3] == a)
-                            d = tri[3 * g + (k + 2) % 3], found = 1;
-                if (!found) continue;
-                g--;
+                uint32_t a = tri[3 * f + e], b = tri[3 * f + (e + 1) % 3], c = tri[3 * f + (e + 2) % 3];
+                long tw = edge_twin(tri, t, a, b);
+                if (tw < 0) continue;
+                size_t g = (size_t)tw;
+                int k = 0;
+                while (tri[3 * g + k] != b) k++; /* the twin runs (b, a, d) */
+                uint32_t d = tri[3 * g + (k + 2) % 3];
                 const weld_pt *pa = strip_pt(pts, n, a), *pb = strip_pt(pts, n, b), *pc = strip_pt(pts, n, c),
                               *pd = strip_pt(pts, n, d);
                 if (!pa || !pb || !pc || !pd || !(orient2(pa, pd, pc) > 0 && orient2(pd, pb, pc) > 0)) continue;
