@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "stages/core/fileio.h"
 #include "stages/core/parallel.h"
@@ -262,4 +263,35 @@ int sy_cli_parse_all(const sy_cmd_spec *spec, int argc, char **argv, sy_cli *cli
         *pos = NULL;
     }
     return rc;
+}
+
+static int executable(const char *p) { return access(p, X_OK) == 0; }
+
+int sy_find_executable(const char *name, const char *env, char *out, size_t size)
+{
+    const char *given = env ? getenv(env) : NULL;
+    if (given && *given) {
+        snprintf(out, size, "%s", given);
+        return executable(out);
+    }
+    char self[PATH_MAX];
+    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (n > 0) {
+        self[n] = 0;
+        char *slash = strrchr(self, '/');
+        if (slash) {
+            *slash = 0;
+            snprintf(out, size, "%s/%s", self, name);
+            if (executable(out)) return 1;
+        }
+    }
+    const char *path = getenv("PATH");
+    for (const char *p = path; p && *p;) {
+        const char *e = strchr(p, ':');
+        size_t len = e ? (size_t)(e - p) : strlen(p);
+        snprintf(out, size, "%.*s/%s", (int)len, p, name);
+        if (len && executable(out)) return 1;
+        p = e ? e + 1 : p + len;
+    }
+    return 0;
 }

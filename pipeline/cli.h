@@ -85,6 +85,11 @@ int sy_cli_check_outputs(const char *const *outs, size_t n_out, const char *cons
 void sy_cli_json_open(sy_json *j, const char *input, const char *output);
 void sy_cli_json_close(sy_json *j);
 
+/* Another of Sylva's executables (sylva-pipeline, sylva-view): $env when
+ * set and non-empty, else the one beside the running executable, else the
+ * first `name` on PATH. Writes its path to out; 1 when it is executable. */
+int sy_find_executable(const char *name, const char *env, char *out, size_t size);
+
 /* Prints "sylva: <msg>" on stderr and returns err->code (the exit status). */
 int sy_cli_report(const sy_error *err);
 

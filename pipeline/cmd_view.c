@@ -10,36 +10,7 @@
 
 #include "pipeline/commands.h"
 
-static int executable(const char *p) { return access(p, X_OK) == 0; }
-
-int sy_find_viewer(char *out, size_t size)
-{
-    const char *env = getenv("SYLVA_VIEW");
-    if (env && *env) {
-        snprintf(out, size, "%s", env);
-        return executable(out);
-    }
-    char self[PATH_MAX];
-    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
-    if (n > 0) {
-        self[n] = 0;
-        char *slash = strrchr(self, '/');
-        if (slash) {
-            *slash = 0;
-            snprintf(out, size, "%s/sylva-view", self);
-            if (executable(out)) return 1;
-        }
-    }
-    const char *path = getenv("PATH");
-    for (const char *p = path; p && *p;) {
-        const char *e = strchr(p, ':');
-        size_t len = e ? (size_t)(e - p) : strlen(p);
-        snprintf(out, size, "%.*s/sylva-view", (int)len, p);
-        if (len && executable(out)) return 1;
-        p = e ? e + 1 : p + len;
-    }
-    return 0;
-}
+int sy_find_viewer(char *out, size_t size) { return sy_find_executable("sylva-view", "SYLVA_VIEW", out, size); }
 
 int cmd_view(int argc, char **argv, sy_cli *cli)
 {

@@ -19,8 +19,14 @@ ls "$tmp/prefix/share/sylva/species/"*.c > /dev/null 2>&1 && no "sources install
 # Small fixed costs: no OpenCV module beyond core and imgproc (opencv_video
 # alone brought dnn, calib3d, features2d, flann and protobuf into every
 # process), no imgcodecs (GDAL, DICOM, HEIF, ...), no VTK.
-libs=$(ldd "$inst" 2>/dev/null)
+[ -x "$tmp/prefix/bin/sylva-pipeline" ] || no "no installed bin/sylva-pipeline"
+libs=$(ldd "$tmp/prefix/bin/sylva-pipeline" 2>/dev/null)
 for l in opencv_video opencv_dnn opencv_imgcodecs libprotobuf libvtk; do
+    case $libs in *"$l"*) no "bin/sylva-pipeline loads $l" ;; esac
+done
+# The front runs --version and info without PCL, CGAL, OpenCV or C++.
+libs=$(ldd "$inst" 2>/dev/null)
+for l in libpcl libopencv libgmp libstdc++ libgomp libtinygltf; do
     case $libs in *"$l"*) no "bin/sylva loads $l" ;; esac
 done
 
@@ -45,8 +51,8 @@ PY
 [ $rc = 2 ] && grep -q "no_such_tree" "$tmp/err" || no "show of an unknown species: exit $rc, $(cat "$tmp/err")"
 "$inst" library frobnicate > /dev/null 2>&1; [ $? = 1 ] || no "library frobnicate is not a usage error"
 
-# A binary alone: SYLVA_LIBRARY, else a one-line error naming where it looked.
-mkdir -p "$tmp/lonely" && cp "$inst" "$tmp/lonely/sylva"
+# The binaries alone: SYLVA_LIBRARY, else a one-line error naming where it looked.
+mkdir -p "$tmp/lonely" && cp "$inst" "$tmp/prefix/bin/sylva-pipeline" "$tmp/lonely/"
 SYLVA_LIBRARY="$tmp/prefix/share/sylva/species" "$tmp/lonely/sylva" library show quaking_aspen > "$tmp/show.txt" 2>&1 ||
   no "SYLVA_LIBRARY not used: $(cat "$tmp/show.txt")"
 if [ ! -e /usr/local/share/sylva/species/library.tsv ]; then
@@ -60,5 +66,11 @@ if [ -f "$SYLVA_SOURCE_DIR/node_modules/three/build/three.module.js" ]; then
     [ -f "$tmp/prefix/share/sylva/three/$f" ] || no "three.js file $f not installed"
   done
 fi
+# Without sylva-pipeline, the front says so in one line (exit 3); info still works.
+mkdir -p "$tmp/front" && cp "$inst" "$tmp/front/sylva"
+env PATH=/usr/bin:/bin "$tmp/front/sylva" library list > /dev/null 2> "$tmp/err"; rc=$?
+[ $rc = 3 ] && grep -q "sylva-pipeline" "$tmp/err" && [ "$(wc -l < "$tmp/err")" = 1 ] || no "front alone: exit $rc, $(cat "$tmp/err")"
+"$tmp/front/sylva" info "$SYLVA_SOURCE_DIR/samples/aspen_tls.las" > "$tmp/info.txt" 2>&1 && grep -q "points" "$tmp/info.txt" ||
+  no "front alone: info failed: $(cat "$tmp/info.txt")"
 [ $fail = 0 ] && echo "ok: installed sylva finds its library from /, SYLVA_LIBRARY works, library list/show print the manifest"
 exit $fail
