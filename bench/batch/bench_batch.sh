@@ -25,6 +25,7 @@ data=$here/../shared/data/real
 mkdir -p "$work/bin"
 # A private copy of the executables, so that a rebuild during the bench changes nothing.
 cp "$build/sylva" "$work/bin/sylva"
+cp "$build/sylva-pipeline" "$work/bin/sylva-pipeline"
 [[ -x $build/sylva-view ]] && cp "$build/sylva-view" "$work/bin/sylva-view"
 sylva=$work/bin/sylva
 export SYLVA_VIEW=$work/bin/sylva-view SYLVA_LIBRARY=$here/species SYLVA_THREE=$here/node_modules/three
