@@ -145,6 +145,7 @@ typedef struct {
     uint32_t *block;     /* leaves per block */
     uint32_t *cell_block; /* each cell's block */
     float *block_cap;    /* whole leaves a block holds (0 when it has no occupied cell) */
+    uint8_t *room;       /* occupied, and its block holds fewer leaves than its cap (block_has_room) */
     size_t n_occupied, n_blocks, n_filled; /* occupied cells; blocks with room; blocks holding a leaf */
     size_t n_inside;     /* cells inside the hull */
     double capacity;     /* leaves an occupied block holds on average */
@@ -155,7 +156,7 @@ typedef struct {
 static void grid_free(lobe_grid *g)
 {
     free(g->inside), free(g->occupied), free(g->dist), free(g->leaves), free(g->soft), free(g->block), free(g->block_cap);
-    free(g->cell_block);
+    free(g->cell_block), free(g->room);
 }
 
 static size_t block_of(const lobe_grid *g, long c) { return g->cell_block[c]; }
@@ -245,8 +246,9 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
     g->block = sy_calloc((size_t)g->bd[0] * g->bd[1] * g->bd[2], sizeof *g->block, err, "synthesis grid");
     g->block_cap = sy_calloc((size_t)g->bd[0] * g->bd[1] * g->bd[2], sizeof *g->block_cap, err, "synthesis grid");
     g->cell_block = sy_calloc(g->n, sizeof *g->cell_block, err, "synthesis grid");
+    g->room = sy_calloc(g->n, 1, err, "synthesis grid");
     if (!g->inside || !g->occupied || !g->dist || !g->leaves || !g->soft || !g->block || !g->block_cap ||
-        !g->cell_block)
+        !g->cell_block || !g->room)
         return SY_EINTERNAL;
     for (int z = 0, i = 0; z < g->d[2]; z++)
         for (int y = 0; y < g->d[1]; y++)
@@ -257,12 +259,30 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
      * cell (the hull is closed and outward, so parity and winding agree). The
      * rays are nudged off the cell centres so they miss edges and vertices. */
     double *hits = malloc((c->n_tris + 1) * sizeof *hits);
-    if (!hits) return sy_fail(err, SY_EINTERNAL, "synthesis grid: out of memory");
+    /* Each triangle's xy box, a little wider than the triangle, so a column
+     * outside it skips the barycentric test (which would reject it too). */
+    float *box = malloc((c->n_tris + 1) * 4 * sizeof *box);
+    if (!hits || !box) {
+        free(hits), free(box);
+        return sy_fail(err, SY_EINTERNAL, "synthesis grid: out of memory");
+    }
+    for (size_t t = 0; t < c->n_tris; t++) {
+        float *bx = box + 4 * t;
+        bx[0] = bx[2] = INFINITY, bx[1] = bx[3] = -INFINITY;
+        for (int j = 0; j < 3; j++) {
+            const float *v = c->verts + 3 * c->tris[3 * t + j];
+            bx[0] = fminf(bx[0], v[0]), bx[1] = fmaxf(bx[1], v[0]), bx[2] = fminf(bx[2], v[1]), bx[3] = fmaxf(bx[3], v[1]);
+        }
+        float pad = 1e-4f * (bx[1] - bx[0] + bx[3] - bx[2]) + 1e-6f;
+        bx[0] -= pad, bx[1] += pad, bx[2] -= pad, bx[3] += pad;
+    }
     for (int y = 0; y < g->d[1]; y++)
         for (int x = 0; x < g->d[0]; x++) {
             double px = g->lo[0] + (x + 0.5) * g->h + 1.3e-7 * g->h, py = g->lo[1] + (y + 0.5) * g->h + 2.9e-7 * g->h;
             size_t nh = 0;
             for (size_t t = 0; t < c->n_tris; t++) {
+                const float *bx = box + 4 * t;
+                if (px < bx[0] || px > bx[1] || py < bx[2] || py > bx[3]) continue;
                 const float *a = c->verts + 3 * c->tris[3 * t], *b = c->verts + 3 * c->tris[3 * t + 1],
                             *e = c->verts + 3 * c->tris[3 * t + 2];
                 double d = (b[0] - a[0]) * (e[1] - a[1]) - (e[0] - a[0]) * (b[1] - a[1]);
@@ -280,7 +300,7 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
                 g->inside[(size_t)x + (size_t)g->d[0] * ((size_t)y + (size_t)g->d[1] * (size_t)z)] = (uint8_t)(below & 1);
             }
         }
-    free(hits);
+    free(hits), free(box);
     double cs[3] = {0, 0, 0};
     for (int z = 0; z < g->d[2]; z++)
         for (int y = 0; y < g->d[1]; y++)
@@ -304,11 +324,13 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
     const size_t sx = 1, sy = (size_t)g->d[0], sz = (size_t)g->d[0] * (size_t)g->d[1];
     int nb[13][3], n_nb = 0;
     float nb_w[13];
+    ptrdiff_t nb_off[13]; /* the forward pass's index step to each */
     for (int dz = -1; dz <= 0; dz++)
         for (int dy = -1; dy <= 1; dy++)
             for (int dx = -1; dx <= 1; dx++) {
                 if (dz == 0 && (dy > 0 || (dy == 0 && dx >= 0))) continue;
                 nb[n_nb][0] = dx, nb[n_nb][1] = dy, nb[n_nb][2] = dz;
+                nb_off[n_nb] = (ptrdiff_t)dx * (ptrdiff_t)sx + (ptrdiff_t)dy * (ptrdiff_t)sy + (ptrdiff_t)dz * (ptrdiff_t)sz;
                 nb_w[n_nb++] = (float)(g->h * sqrt((double)(dx * dx + dy * dy + dz * dz)));
             }
     for (int pass = 0; pass < 2; pass++) {
@@ -319,12 +341,18 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
                     int x = pass ? g->d[0] - 1 - xx : xx, y = pass ? g->d[1] - 1 - yy : yy, z = pass ? g->d[2] - 1 - zz : zz;
                     size_t i = (size_t)x * sx + (size_t)y * sy + (size_t)z * sz;
                     float best = g->dist[i];
-                    int inner = x > 0 && y > 0 && z > 0 && x + 1 < g->d[0] && y + 1 < g->d[1] && z + 1 < g->d[2];
-                    for (int k = 0; k < n_nb; k++) {
-                        int X = x + s * nb[k][0], Y = y + s * nb[k][1], Z = z + s * nb[k][2];
-                        if (!inner && (X < 0 || Y < 0 || Z < 0 || X >= g->d[0] || Y >= g->d[1] || Z >= g->d[2])) continue;
-                        float c = g->dist[(size_t)X * sx + (size_t)Y * sy + (size_t)Z * sz] + nb_w[k];
-                        if (c < best) best = c;
+                    if (x > 0 && y > 0 && z > 0 && x + 1 < g->d[0] && y + 1 < g->d[1] && z + 1 < g->d[2]) {
+                        for (int k = 0; k < n_nb; k++) {
+                            float c = g->dist[(ptrdiff_t)i + s * nb_off[k]] + nb_w[k];
+                            if (c < best) best = c;
+                        }
+                    } else {
+                        for (int k = 0; k < n_nb; k++) {
+                            int X = x + s * nb[k][0], Y = y + s * nb[k][1], Z = z + s * nb[k][2];
+                            if (X < 0 || Y < 0 || Z < 0 || X >= g->d[0] || Y >= g->d[1] || Z >= g->d[2]) continue;
+                            float c = g->dist[(size_t)X * sx + (size_t)Y * sy + (size_t)Z * sz] + nb_w[k];
+                            if (c < best) best = c;
+                        }
                     }
                     g->dist[i] = best;
                 }
@@ -336,11 +364,13 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
     const size_t stride[3] = {sx, sy, sz};
     for (int a = 0; a < 3; a++) {
         memcpy(tmp, g->soft, g->n);
-        for (size_t i = 0; i < g->n; i++) {
-            size_t q = i / stride[a] % (size_t)g->d[a];
-            if (q > 0) g->soft[i] |= tmp[i - stride[a]];
-            if (q + 1 < (size_t)g->d[a]) g->soft[i] |= tmp[i + stride[a]];
-        }
+        for (int z = 0, i = 0; z < g->d[2]; z++)
+            for (int y = 0; y < g->d[1]; y++)
+                for (int x = 0; x < g->d[0]; x++, i++) {
+                    int q = a == 0 ? x : a == 1 ? y : z;
+                    if (q > 0) g->soft[i] |= tmp[(size_t)i - stride[a]];
+                    if (q + 1 < g->d[a]) g->soft[i] |= tmp[(size_t)i + stride[a]];
+                }
     }
     free(tmp);
     /* A block is full when its leaves reach `density` square metres of card
@@ -361,7 +391,23 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
         g->block_cap[b] = g->block_cap[b] > 0 ? (float)floor(g->block_cap[b] + u) : 0;
         g->n_blocks += g->block_cap[b] > 0;
     }
+    for (size_t i = 0; i < g->n; i++) g->room[i] = g->occupied[i] && block_has_room(g, (long)i);
     return SY_OK;
+}
+
+/* A leaf counted in cell c's block; once the block is full, none of its
+ * cells has room. */
+static void block_add_leaf(lobe_grid *g, long c)
+{
+    size_t b = block_of(g, c);
+    if (g->block[b]++ == 0) g->n_filled++;
+    if (g->block[b] < g->block_cap[b]) return;
+    int bx = (int)(b % (size_t)g->bd[0]), by = (int)(b / (size_t)g->bd[0] % (size_t)g->bd[1]),
+        bz = (int)(b / ((size_t)g->bd[0] * (size_t)g->bd[1]));
+    for (int z = bz * g->bk; z < (bz + 1) * g->bk && z < g->d[2]; z++)
+        for (int y = by * g->bk; y < (by + 1) * g->bk && y < g->d[1]; y++)
+            for (int x = bx * g->bk; x < (bx + 1) * g->bk && x < g->d[0]; x++)
+                g->room[(size_t)x + (size_t)g->d[0] * ((size_t)y + (size_t)g->d[1] * (size_t)z)] = 0;
 }
 
 /* ---- Texturing ---- */
@@ -481,36 +527,54 @@ typedef struct {
     double outside, dist, gain;
 } fit_geo;
 
-/* One sample of a patch (its own coordinates v) placed at the dock: adds
- * whether it lands outside the lobe and how far from it to f; its cell. */
-static long fit_sample(const float v[3], const dock *d, const double R[9], double s, const lobe_grid *g, double far,
-                       fit_geo *f)
+/* A patch's placement at a dock in lobe-grid units: the cell coordinates
+ * of its point v are t = b + A v (A = s R / h, b = (pos - lo) / h), so a
+ * sample costs nine multiply-adds and no division. */
+typedef struct {
+    double A[9], b[3];
+} grid_placement;
+
+static void grid_placement_of(const dock *d, const double R[9], double s, const lobe_grid *g, grid_placement *gp)
 {
-    double w[3];
-    rot_apply(R, v, w);
-    for (int k = 0; k < 3; k++) w[k] = d->pos[k] + s * w[k];
-    long c = grid_cell(g, w);
-    f->outside += c < 0 || !g->soft[c];
-    f->dist += c < 0 ? far : g->dist[c];
+    double inv_h = 1 / g->h;
+    for (int k = 0; k < 9; k++) gp->A[k] = s * R[k] * inv_h;
+    for (int k = 0; k < 3; k++) gp->b[k] = (d->pos[k] - g->lo[k]) * inv_h;
+}
+
+/* The lobe cell of a patch's point v (its own coordinates) placed by gp;
+ * -1 outside the grid. */
+static inline long placed_cell(const float v[3], const grid_placement *gp, const lobe_grid *g)
+{
+    long c = 0, stride = 1;
+    for (int k = 0; k < 3; k++) {
+        double t = gp->b[k] + gp->A[3 * k] * v[0] + gp->A[3 * k + 1] * v[1] + gp->A[3 * k + 2] * v[2];
+        if (!(t >= 0) || t >= g->d[k]) return -1;
+        c += (long)t * stride;
+        stride *= g->d[k];
+    }
     return c;
 }
 
 /* How patch p fits placed at d (transform R, scale s): the shares of its
  * samples (up to 24 nodes and 24 leaves) outside the lobe, their mean
  * distance from it, and the share of its leaves landing in occupied cells
- * with room. Returns 0, stopping early, once the patch cannot be taken:
- * more than max_out of its samples outside, or, with a patch already in
- * hand (best finite), a score (0.25 key + outside + 2 dist / ext - gain)
- * that cannot fall below best or a gain that cannot reach the full-lobe
- * floor of 0.15, the gain counted as if every leaf still to come had
- * room. Outside and distance only grow as samples are added, so the
- * patches taken, and the bytes, are those of a full fit (on the TreeLS
- * pine a fit reads 15 of its up to 48 samples on average). */
+ * with room. Returns 1 when it may be taken; 0, stopping early, once it
+ * cannot: more than max_out of its samples outside, or, with a patch
+ * already in hand (best finite), a score (0.25 key + outside + 2 dist /
+ * ext - gain) that cannot fall below best; 2, stopping early, when its
+ * gain cannot reach the full-lobe floor of 0.15 (the lobe is full where it
+ * would go), whether or not a patch is in hand: the gain is counted as if
+ * every leaf still to come had room. Outside and distance only grow as
+ * samples are added, so the patches taken, and the bytes, are those of a
+ * full fit (on the TreeLS pine a fit reads 15 of its up to 48 samples on
+ * average). A dock none of whose candidates fits is counted full when one
+ * stopped on its gain, else rejected. */
 static int patch_fit(const sy_patch *p, const dock *d, const double R[9], double s, const lobe_grid *g, double max_out,
                      double key, double ext, double best, fit_geo *out)
 {
-    fit_geo f = {0, 0, 0};
     double far = g->h * (g->d[0] + g->d[1] + g->d[2]);
+    grid_placement gp;
+    grid_placement_of(d, R, s, g, &gp);
     size_t step = p->n_nodes > 24 ? p->n_nodes / 24 : 1, lstep = p->n_leaves > 24 ? p->n_leaves / 24 : 1;
     size_t n_nodes = (p->n_nodes + step - 1) / step, nl = (p->n_leaves + lstep - 1) / lstep;
     double n = (double)(n_nodes + nl ? n_nodes + nl : 1);
@@ -519,26 +583,29 @@ static int patch_fit(const sy_patch *p, const dock *d, const double R[9], double
     double reject = floor(max_out * n);
     while (reject > 0 && (reject - 1) / n > max_out) reject--;
     while (!(reject / n > max_out)) reject++;
+    /* The running check multiplies where the final one divides: it only
+     * stops early, and a patch it lets through meets the exact test below. */
+    const double inv_n = 1 / n, inv_nl = nl ? 1 / (double)nl : 0, dist_w = 2 / (n * ext);
+    double outside = 0, dist = 0, gain = 0;
     for (size_t k = 0; k < n_nodes + nl; k++) {
-        if (k < n_nodes) {
-            fit_sample(p->pos + 3 * (k * step), d, R, s, g, far, &f);
-        } else {
-            long c = fit_sample(p->leaf_pos + 3 * ((k - n_nodes) * lstep), d, R, s, g, far, &f);
-            f.gain += c >= 0 && g->occupied[c] && block_has_room(g, c);
-        }
-        if (f.outside >= reject) return 0;
-        if ((k & 3) == 3 && isfinite(best)) {
+        long c = k < n_nodes ? placed_cell(p->pos + 3 * (k * step), &gp, g)
+                             : placed_cell(p->leaf_pos + 3 * ((k - n_nodes) * lstep), &gp, g);
+        outside += c < 0 || !g->soft[c];
+        dist += c < 0 ? far : g->dist[c];
+        if (k >= n_nodes) gain += c >= 0 && g->room[c];
+        if (outside >= reject) return 0;
+        if ((k & 3) == 3) {
             /* The most gain the leaves still to come can bring. */
             double left = (double)(k < n_nodes ? nl : n_nodes + nl - 1 - k);
-            double gain_max = nl ? (f.gain + left) / (double)nl : 0;
-            if (gain_max < 0.15 || 0.25 * key + f.outside / n + 2 * (f.dist / n) / ext - gain_max >= best) return 0;
+            double gain_max = (gain + left) * inv_nl;
+            if (gain_max < 0.15) return 2;
+            if (isfinite(best) && 0.25 * key + outside * inv_n + dist * dist_w - gain_max >= best) return 0;
         }
     }
-    if (0.25 * key + f.outside / n + 2 * (f.dist / n) / ext - f.gain / (double)(nl ? nl : 1) >= best) return 0;
-    f.outside /= n;
-    f.dist /= n;
-    f.gain /= (double)(nl ? nl : 1);
-    *out = f;
+    if (0.25 * key + outside / n + 2 * (dist / n) / ext - gain / (double)(nl ? nl : 1) >= best) return 0;
+    out->outside = outside / n;
+    out->dist = dist / n;
+    out->gain = gain / (double)(nl ? nl : 1);
     return 1;
 }
 
@@ -641,7 +708,7 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
         quat_from_basis(X, Y, Z, q);
         rep->leaves_in_hull++; /* its stem passed the exact hull test above */
         if (g->occupied[c]) g->leaves[c]++;
-        if (g->block[b]++ == 0) g->n_filled++;
+        block_add_leaf(g, c);
         so->leaf_key[so->leaves->n] = (float)((i + 0.5) / (double)p->n_leaves);
         if (sy_leaves_add(so->leaves, pos, q, size, ids[p->leaf_node[i]], err)) {
             free(ids);
@@ -836,9 +903,9 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
                     fit_geo f;
                     if (d.pos[2] + s * p->extent > ceiling && rises_above(p, &d, R, s, ceiling)) continue;
                     /* A start may leave from a seed outside the hull: half of it may lie out. */
-                    if (!patch_fit(p, &d, R, s, &g, d.depth > 0 ? o->outside_max : 0.5, cands[ci].key, ext, best, &f))
-                        continue;
-                    if (f.gain < 0.15) { /* the lobe is full where it would go */
+                    int fit = patch_fit(p, &d, R, s, &g, d.depth > 0 ? o->outside_max : 0.5, cands[ci].key, ext, best, &f);
+                    if (fit == 0) continue;
+                    if (fit == 2 || f.gain < 0.15) { /* the lobe is full where it would go */
                         full = 1;
                         continue;
                     }
