@@ -545,14 +545,13 @@ static void grid_placement_of(const dock *d, const double R[9], double s, const 
  * -1 outside the grid. */
 static inline long placed_cell(const float v[3], const grid_placement *gp, const lobe_grid *g)
 {
-    long c = 0, stride = 1;
-    for (int k = 0; k < 3; k++) {
-        double t = gp->b[k] + gp->A[3 * k] * v[0] + gp->A[3 * k + 1] * v[1] + gp->A[3 * k + 2] * v[2];
-        if (!(t >= 0) || t >= g->d[k]) return -1;
-        c += (long)t * stride;
-        stride *= g->d[k];
-    }
-    return c;
+    double t0 = gp->b[0] + gp->A[0] * v[0] + gp->A[1] * v[1] + gp->A[2] * v[2];
+    double t1 = gp->b[1] + gp->A[3] * v[0] + gp->A[4] * v[1] + gp->A[5] * v[2];
+    double t2 = gp->b[2] + gp->A[6] * v[0] + gp->A[7] * v[1] + gp->A[8] * v[2];
+    /* One branch for all three axes (NaN fails every comparison). */
+    int in = (t0 >= 0) & (t0 < g->d[0]) & (t1 >= 0) & (t1 < g->d[1]) & (t2 >= 0) & (t2 < g->d[2]);
+    if (!in) return -1;
+    return (long)t0 + (long)g->d[0] * ((long)t1 + (long)g->d[1] * (long)t2);
 }
 
 /* How patch p fits placed at d (transform R, scale s): the shares of its
