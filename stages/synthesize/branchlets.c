@@ -504,6 +504,7 @@ static sy_code partition(const sy_lsystem *ls, const raw_branchlet *b, uint64_t 
         RF(P->dir, dir);
         v_norm(P->dir);
         P->elevation = (float)asin(P->dir[2] > 1 ? 1 : P->dir[2] < -1 ? -1 : P->dir[2]);
+        P->elevation_cos = cos(P->elevation), P->elevation_sin = sin(P->elevation);
         P->thickness = b->radius[f];
         double ext = 0;
         for (size_t i = 0; i < b->n; i++) {

@@ -69,6 +69,7 @@ typedef struct {
     float thickness;      /* root radius, metres */
     float dir[3];         /* root direction, azimuth 0 */
     float elevation;      /* angle of dir above the horizontal, radians */
+    double elevation_cos, elevation_sin; /* of elevation, for eq. 3.3 at every dock */
     size_t n_nodes;
     float *pos;           /* 3 n_nodes, root at the origin (the root itself is not a node) */
     float *radius;        /* n_nodes, never above thickness, never increasing along a stem */

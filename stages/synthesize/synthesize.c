@@ -448,12 +448,14 @@ typedef struct {
  * The literal form multiplies the ratio by the dot product. */
 static double dock_elevation(const dock *d) { return asin(d->dir[2] > 1 ? 1 : d->dir[2] < -1 ? -1 : d->dir[2]); }
 
-/* ed: dock_elevation(d), once per dock. */
-static double eq33(const sy_patch *p, const dock *d, double ed, int literal)
+/* ce, se: the cosine and sine of dock_elevation(d), once per dock; the
+ * cosine of the difference by its sum formula, so a dock costs no
+ * trigonometry per patch. */
+static double eq33(const sy_patch *p, const dock *d, double ce, double se, int literal)
 {
     double tr = p->thickness, td = d->thickness;
     double ratio = (tr > td ? tr : td) / (tr < td ? tr : td);
-    double dot = cos(p->elevation - ed);
+    double dot = p->elevation_cos * ce + p->elevation_sin * se;
     return literal ? ratio * dot : ratio * (1 - dot + 0.05);
 }
 
@@ -868,14 +870,14 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
              * in open space can continue the structure and one in a full
              * region can end it. */
             size_t nc = 0, half = (size_t)(o->candidates + 1) / 2;
-            double ed = dock_elevation(&d);
+            double ed = dock_elevation(&d), ce = cos(ed), se = sin(ed);
             for (int terminal = 0; terminal < 2; terminal++) {
                 size_t n0 = nc;
                 for (size_t i = 0; i < lib->n_patches; i++) {
                     const sy_patch *p = &lib->patches[i];
                     if (!(p->thickness > 0) || p->n_nodes == 0 || (p->n_docks == 0) != terminal) continue;
                     cands[nc].idx = i;
-                    cands[nc].key = eq33(p, &d, ed, o->literal_eq33);
+                    cands[nc].key = eq33(p, &d, ce, se, o->literal_eq33);
                     nc++;
                 }
                 if (nc - n0 > half) {
