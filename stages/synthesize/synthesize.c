@@ -316,21 +316,29 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
             }
     if (g->n_occupied)
         for (int k = 0; k < 3; k++) g->centroid[k] = (float)(cs[k] / (double)g->n_occupied);
-    /* Chamfer distance to the occupied cells (two passes, 26 neighbours). */
+    /* Chamfer distance to the occupied cells (two passes, 26 neighbours), on
+     * a copy of the grid with a border of unreached cells, so every cell
+     * reads its neighbours without bounds tests (a border cell never wins:
+     * big plus a step rounds to big). */
     const float big = 1e9f;
-    for (size_t i = 0; i < g->n; i++) g->dist[i] = g->occupied[i] ? 0 : big;
+    const ptrdiff_t px = 1, py = g->d[0] + 2, pz = (ptrdiff_t)(g->d[0] + 2) * (g->d[1] + 2);
+    float *pad = malloc((size_t)pz * (size_t)(g->d[2] + 2) * sizeof *pad);
+    if (!pad) return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+    for (ptrdiff_t i = 0; i < pz * (g->d[2] + 2); i++) pad[i] = big;
+    for (int z = 0, i = 0; z < g->d[2]; z++)
+        for (int y = 0; y < g->d[1]; y++)
+            for (int x = 0; x < g->d[0]; x++, i++)
+                if (g->occupied[i]) pad[(x + 1) * px + (y + 1) * py + (z + 1) * pz] = 0;
     /* The 13 neighbours a forward pass has visited before a cell (the
-     * backward pass mirrors them): offsets and the step to each. */
-    const size_t sx = 1, sy = (size_t)g->d[0], sz = (size_t)g->d[0] * (size_t)g->d[1];
-    int nb[13][3], n_nb = 0;
+     * backward pass mirrors them): the index step and the distance to each. */
+    int n_nb = 0;
     float nb_w[13];
-    ptrdiff_t nb_off[13]; /* the forward pass's index step to each */
+    ptrdiff_t nb_off[13];
     for (int dz = -1; dz <= 0; dz++)
         for (int dy = -1; dy <= 1; dy++)
             for (int dx = -1; dx <= 1; dx++) {
                 if (dz == 0 && (dy > 0 || (dy == 0 && dx >= 0))) continue;
-                nb[n_nb][0] = dx, nb[n_nb][1] = dy, nb[n_nb][2] = dz;
-                nb_off[n_nb] = (ptrdiff_t)dx * (ptrdiff_t)sx + (ptrdiff_t)dy * (ptrdiff_t)sy + (ptrdiff_t)dz * (ptrdiff_t)sz;
+                nb_off[n_nb] = dx * px + dy * py + dz * pz;
                 nb_w[n_nb++] = (float)(g->h * sqrt((double)(dx * dx + dy * dy + dz * dz)));
             }
     for (int pass = 0; pass < 2; pass++) {
@@ -339,24 +347,20 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
             for (int yy = 0; yy < g->d[1]; yy++)
                 for (int xx = 0; xx < g->d[0]; xx++) {
                     int x = pass ? g->d[0] - 1 - xx : xx, y = pass ? g->d[1] - 1 - yy : yy, z = pass ? g->d[2] - 1 - zz : zz;
-                    size_t i = (size_t)x * sx + (size_t)y * sy + (size_t)z * sz;
-                    float best = g->dist[i];
-                    if (x > 0 && y > 0 && z > 0 && x + 1 < g->d[0] && y + 1 < g->d[1] && z + 1 < g->d[2]) {
-                        for (int k = 0; k < n_nb; k++) {
-                            float c = g->dist[(ptrdiff_t)i + s * nb_off[k]] + nb_w[k];
-                            if (c < best) best = c;
-                        }
-                    } else {
-                        for (int k = 0; k < n_nb; k++) {
-                            int X = x + s * nb[k][0], Y = y + s * nb[k][1], Z = z + s * nb[k][2];
-                            if (X < 0 || Y < 0 || Z < 0 || X >= g->d[0] || Y >= g->d[1] || Z >= g->d[2]) continue;
-                            float c = g->dist[(size_t)X * sx + (size_t)Y * sy + (size_t)Z * sz] + nb_w[k];
-                            if (c < best) best = c;
-                        }
+                    ptrdiff_t i = (x + 1) * px + (y + 1) * py + (z + 1) * pz;
+                    float best = pad[i];
+                    for (int k = 0; k < n_nb; k++) {
+                        float c = pad[i + s * nb_off[k]] + nb_w[k];
+                        if (c < best) best = c;
                     }
-                    g->dist[i] = best;
+                    pad[i] = best;
                 }
     }
+    for (int z = 0, i = 0; z < g->d[2]; z++)
+        for (int y = 0; y < g->d[1]; y++)
+            for (int x = 0; x < g->d[0]; x++, i++) g->dist[i] = pad[(x + 1) * px + (y + 1) * py + (z + 1) * pz];
+    free(pad);
+    const size_t sx = 1, sy = (size_t)g->d[0], sz = (size_t)g->d[0] * (size_t)g->d[1];
     /* soft: inside dilated by the 3 x 3 x 3 cube, one axis at a time. */
     uint8_t *tmp = malloc(g->n);
     if (!tmp) return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
