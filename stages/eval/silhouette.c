@@ -334,17 +334,6 @@ sy_code sy_silhouette_metrics_compute(const double *tri, size_t n_tri, const dou
         size_t inter = 0, uni = 0;
         for (size_t i = 0; i < RES * RES; i++) inter += ma[i] && mb[i], uni += ma[i] || mb[i];
         out->iou[v] = uni ? (double)inter / (double)uni : 0;
-        if (getenv("SYMASK")) {
-            char fn[512]; snprintf(fn, sizeof fn, "%s_%d.ppm", getenv("SYMASK"), v);
-            FILE *fo = fopen(fn, "wb"); size_t a_only = 0, b_only = 0;
-            fprintf(fo, "P6 %d %d 255\n", RES, RES);
-            for (int yy = RES - 1; yy >= 0; yy--) for (int xx = 0; xx < RES; xx++) { size_t i = (size_t)yy * RES + xx;
-                unsigned char c[3] = {255, 255, 255};
-                if (ma[i] && mb[i]) c[0] = c[1] = c[2] = 90; else if (ma[i]) { c[0] = 230; c[1] = 40; c[2] = 40; a_only++; } else if (mb[i]) { c[0] = 40; c[1] = 160; c[2] = 40; b_only++; }
-                fwrite(c, 1, 3, fo); }
-            fclose(fo);
-            fprintf(stderr, "view %d iou %.3f scan-only %zu model-only %zu both %zu\n", v, out->iou[v], a_only, b_only, inter);
-        }
         out->iou_mean += out->iou[v] / VIEWS;
         out->iou_min = fmin(out->iou_min, out->iou[v]);
     }
