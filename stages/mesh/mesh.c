@@ -256,6 +256,10 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
     if (opt->weld_stats) memset(opt->weld_stats, 0, sizeof *opt->weld_stats);
     sy_stems st;
     if ((rc = sy_stems_build(skel, opt, &st, err)) != SY_OK) return rc;
+    if ((rc = sy_stems_reach(&st, lv, err)) != SY_OK) {
+        sy_stems_free(&st);
+        return rc;
+    }
     /* The chain's levels; level 0's stems and leaves are filled below. */
     level_job *jobs = calloc((size_t)opt->n_lods, sizeof *jobs);
     int n_levels = 0;

@@ -89,10 +89,14 @@ typedef struct {
     float trunk_radius; /* base radius of the root stem */
     float height;       /* extent of the skeleton along Z */
     float ground;       /* Z of the root node: nothing is drawn below it */
+    float *reach;       /* per stem: how far its subtree (polylines and leaves) reaches from
+                           its base, what dropping it moves (sy_stems_reach; NULL until then) */
 } sy_stems;
 
 sy_code sy_stems_build(const sy_skeleton *skel, const sy_mesh_options *opt, sy_stems *out, sy_error *err);
 void sy_stems_free(sy_stems *st);
+/* Fills st->reach from the stems' polylines and the leaves lv (may be NULL). */
+sy_code sy_stems_reach(sy_stems *st, const sy_leaves *lv, sy_error *err);
 
 /* Frame of stem s at arc length q, interpolated between the rings listed in
  * idx[0..n_idx) (a LOD's ring selection): centre c, unit tangent T, unit

@@ -40,7 +40,31 @@ void sy_stems_free(sy_stems *st)
     free(st->by_depth);
     free(st->node_stem);
     free(st->node_s);
+    free(st->reach);
     memset(st, 0, sizeof *st);
+}
+
+/* Point p raises the reach of stem k and of each of its ancestors to its
+ * distance from that stem's base. */
+static void reach_point(sy_stems *st, int32_t k, const float p[3])
+{
+    for (; k >= 0; k = st->s[k].parent) {
+        const float *b = st->s[k].pts;
+        if (!b) continue;
+        float d = sqrtf((p[0] - b[0]) * (p[0] - b[0]) + (p[1] - b[1]) * (p[1] - b[1]) + (p[2] - b[2]) * (p[2] - b[2]));
+        if (d > st->reach[k]) st->reach[k] = d;
+    }
+}
+
+sy_code sy_stems_reach(sy_stems *st, const sy_leaves *lv, sy_error *err)
+{
+    free(st->reach);
+    st->reach = sy_calloc(st->n + 1, sizeof *st->reach, err, "mesh");
+    if (!st->reach) return SY_EINTERNAL;
+    for (size_t i = 0; i < st->n; i++)
+        for (size_t j = 0; j < st->s[i].n_pts; j++) reach_point(st, (int32_t)i, st->s[i].pts + 3 * j);
+    for (size_t l = 0; lv && l < lv->n; l++) reach_point(st, st->node_stem[lv->node[l]], lv->pos + 3 * l);
+    return SY_OK;
 }
 
 /* ---- chains ---- */
