@@ -186,6 +186,24 @@ static long grid_cell(const lobe_grid *g, const double p[3])
  * out of their hull). */
 #define LEAF_HULL_TOL 0.05
 
+/* Where the vertical line through (px, py) meets hull triangle t: 1 and
+ * its height in *z, or 0 (outside the triangle's padded box included). */
+static int vertical_hit(const lobe_grid *g, size_t t, double px, double py, double *z)
+{
+    const sy_cluster *c = g->hull;
+    const float *bx = g->tri_box + 6 * t;
+    if (px < bx[0] || px > bx[1] || py < bx[2] || py > bx[3]) return 0;
+    const float *a = c->verts + 3 * c->tris[3 * t], *b = c->verts + 3 * c->tris[3 * t + 1],
+                *e = c->verts + 3 * c->tris[3 * t + 2];
+    double d = (b[0] - a[0]) * (e[1] - a[1]) - (e[0] - a[0]) * (b[1] - a[1]);
+    if (fabs(d) < 1e-18) return 0;
+    double u = ((px - a[0]) * (e[1] - a[1]) - (e[0] - a[0]) * (py - a[1])) / d;
+    double v = ((b[0] - a[0]) * (py - a[1]) - (px - a[0]) * (b[1] - a[1])) / d;
+    if (u < 0 || v < 0 || u + v > 1) return 0;
+    *z = a[2] + u * (b[2] - a[2]) + v * (e[2] - a[2]);
+    return 1;
+}
+
 /* 1 when p lies inside the hull or within tol of its surface: the exact
  * test behind the grid's cell-centre one, which lets a leaf sit up to half
  * a cell diagonal outside. Inside by the parity of an upward ray's
@@ -200,18 +218,9 @@ static int near_hull(const lobe_grid *g, const double p[3], double tol)
     const sy_cluster *c = g->hull;
     const double px = p[0] + 1.3e-7, py = p[1] + 2.9e-7; /* off the edges and vertices, as the columns */
     size_t crossings = 0;
-    for (size_t t = 0; t < c->n_tris; t++) {
-        const float *bx = g->tri_box + 6 * t;
-        if (px < bx[0] || px > bx[1] || py < bx[2] || py > bx[3] || p[2] > bx[5]) continue;
-        const float *a = c->verts + 3 * c->tris[3 * t], *b = c->verts + 3 * c->tris[3 * t + 1],
-                    *e = c->verts + 3 * c->tris[3 * t + 2];
-        double d = (b[0] - a[0]) * (e[1] - a[1]) - (e[0] - a[0]) * (b[1] - a[1]);
-        if (fabs(d) < 1e-18) continue;
-        double u = ((px - a[0]) * (e[1] - a[1]) - (e[0] - a[0]) * (py - a[1])) / d;
-        double v = ((b[0] - a[0]) * (py - a[1]) - (px - a[0]) * (b[1] - a[1])) / d;
-        if (u < 0 || v < 0 || u + v > 1) continue;
-        crossings += a[2] + u * (b[2] - a[2]) + v * (e[2] - a[2]) > p[2];
-    }
+    double z;
+    for (size_t t = 0; t < c->n_tris; t++)
+        crossings += p[2] <= g->tri_box[6 * t + 5] && vertical_hit(g, t, px, py, &z) && z > p[2];
     if (crossings & 1) return 1;
     for (size_t t = 0; t < c->n_tris; t++) {
         const float *bx = g->tri_box + 6 * t;
@@ -306,18 +315,7 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
         for (int x = 0; x < g->d[0]; x++) {
             double px = g->lo[0] + (x + 0.5) * g->h + 1.3e-7 * g->h, py = g->lo[1] + (y + 0.5) * g->h + 2.9e-7 * g->h;
             size_t nh = 0;
-            for (size_t t = 0; t < c->n_tris; t++) {
-                const float *bx = g->tri_box + 6 * t;
-                if (px < bx[0] || px > bx[1] || py < bx[2] || py > bx[3]) continue;
-                const float *a = c->verts + 3 * c->tris[3 * t], *b = c->verts + 3 * c->tris[3 * t + 1],
-                            *e = c->verts + 3 * c->tris[3 * t + 2];
-                double d = (b[0] - a[0]) * (e[1] - a[1]) - (e[0] - a[0]) * (b[1] - a[1]);
-                if (fabs(d) < 1e-18) continue;
-                double u = ((px - a[0]) * (e[1] - a[1]) - (e[0] - a[0]) * (py - a[1])) / d;
-                double v = ((b[0] - a[0]) * (py - a[1]) - (px - a[0]) * (b[1] - a[1])) / d;
-                if (u < 0 || v < 0 || u + v > 1) continue;
-                hits[nh++] = a[2] + u * (b[2] - a[2]) + v * (e[2] - a[2]);
-            }
+            for (size_t t = 0; t < c->n_tris; t++) nh += vertical_hit(g, t, px, py, hits + nh);
             qsort(hits, nh, sizeof *hits, sy_cmp_double);
             for (int z = 0; z < g->d[2]; z++) {
                 double pz = g->lo[2] + (z + 0.5) * g->h;
