@@ -24,9 +24,10 @@ libs=$(ldd "$tmp/prefix/bin/sylva-pipeline" 2>/dev/null)
 for l in opencv_video opencv_dnn opencv_imgcodecs libprotobuf libvtk; do
     case $libs in *"$l"*) no "bin/sylva-pipeline loads $l" ;; esac
 done
-# The front runs --version and info without PCL, CGAL, OpenCV or C++.
+# The front runs --version and info without PCL, CGAL, OpenCV, OpenMP or tinygltf (the
+# sanitizer runtimes of the ASan build bring libstdc++ themselves, so it is not listed).
 libs=$(ldd "$inst" 2>/dev/null)
-for l in libpcl libopencv libgmp libstdc++ libgomp libtinygltf; do
+for l in libpcl libopencv libgmp libgomp libtinygltf libmeshoptimizer liblapack; do
     case $libs in *"$l"*) no "bin/sylva loads $l" ;; esac
 done
 
