@@ -45,7 +45,7 @@ load() { cut -d' ' -f1-3 /proc/loadavg; }
 # cpu OUTFILE CMD...: runs CMD, writes "user+sys maxrss_kB wall" to OUTFILE; CMD's status.
 cpu() { local o=$1; shift; /usr/bin/time -f '%U %S %M %e' -o "$o.t" "$@"; local rc=$?
   tail -1 "$o.t" | awk '{ printf "%.2f %d %.2f\n", $1 + $2, $3, $4 }' > "$o"; return $rc; }
-f3() { awk -v v="$1" 'BEGIN { if (v == "nan" || v == "") print "—"; else printf "%.3f", v }'; }
+f3() { awk -v v="$1" 'BEGIN { if (v == "nan" || v == "" || v == "—") print "—"; else printf "%.3f", v }'; }
 pct() { awk -v v="$1" 'BEGIN { if (v == "nan" || v == "") print "—"; else printf "%+.1f%%", 100 * v }'; }
 declare -A run_cpu
 
