@@ -49,6 +49,7 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
     sy_json_int(&j, "cluster_points", (long long)r->cluster_points);
     sy_json_number(&j, "dbh", r->dbh);
     sy_json_bool(&j, "dbh_fitted", r->dbh_fitted);
+    sy_json_int(&j, "hairpins", (long long)r->hairpins);
     sy_json_bool(&j, "stem_rebuilt", r->stem_rebuilt);
     sy_json_number(&j, "stem_excursion", r->stem_excursion);
     sy_json_bool(&j, "crown_regrown", r->crown_regrown);
@@ -114,6 +115,9 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
         {"--voxel", OPT_DOUBLE, &a.run.voxel, "SIZE", "thin the scan to one point per SIZE-metre voxel (default off)"},
         {"--spread-around", OPT_FLAG, &a.run.spread_around, NULL,
          "judge a level set's spread from the skeleton around its node, not its edge (leaf-off scans)"},
+        {"--keep-hairpins", OPT_FLAG, &a.run.keep_hairpins, NULL,
+         "leave chains that climb one limb and come down another as they are (default: turn them to grow up "
+         "from the wood below)"},
         SY_GLB_OPTIONS(a.glb),
         SY_PHOTO_OPTIONS(photo),
         {NULL, 0, NULL, NULL, NULL},

@@ -41,7 +41,9 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
         sy_json_end(&j);
         sy_json_number(&j, "dbh", r->dbh);
         sy_json_bool(&j, "dbh_fitted", r->dbh_fitted);
-        sy_json_bool(&j, "stem_rebuilt", r->stem_rebuilt);
+        sy_json_int(&j, "hairpins", (long long)r->hairpins);
+        sy_json_int(&j, "hairpins", (long long)r->hairpins);
+    sy_json_bool(&j, "stem_rebuilt", r->stem_rebuilt);
         sy_json_number(&j, "stem_excursion", r->stem_excursion);
         sy_json_bool(&j, "crown_regrown", r->crown_regrown);
         sy_json_number(&j, "trunk_meander", r->trunk_meander);
@@ -67,6 +69,9 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
            h->convex, h->box, r->cluster_points);
     printf("  DBH        %.3f m (%s), height %.2f m\n", r->dbh, r->dbh_fitted ? "circle fit" : "fallback estimate",
            r->height);
+    if (r->hairpins)
+        printf("  hairpins   %zu chains that came down another limb turned to grow up from the wood below\n",
+               r->hairpins);
     if (r->stem_rebuilt)
         printf("  stem       rebuilt on the crown's axis (the trunk chain strayed %.2f m from it, crown radius %.2f m)\n",
                r->stem_excursion, r->crown_radius);
@@ -81,14 +86,14 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
 typedef struct {
     const char *out_path;
     double voxel;
-    int species, no_clusters, max_points;
+    int species, no_clusters, max_points, keep_hairpins;
     sy_skeleton_options o;
     sy_hull_options hull;
 } skeleton_args;
 
 int cmd_skeleton(int argc, char **argv, sy_cli *cli)
 {
-    skeleton_args a = {NULL, 0, 0, 0, SY_POINT_BUDGET, sy_skeleton_options_default(), sy_hull_options_default()};
+    skeleton_args a = {NULL, 0, 0, 0, SY_POINT_BUDGET, 0, sy_skeleton_options_default(), sy_hull_options_default()};
     const sy_opt opts[] = {
         {"-o", OPT_STRING, &a.out_path, "OUT", "output: .sylva (skeleton + hulls), or the skeleton as .ply .csv .json .obj"},
         {"--beta", OPT_DOUBLE, &a.o.beta, "B", "Dijkstra edge weight |u-v|^B (default 1)"},
@@ -107,6 +112,9 @@ int cmd_skeleton(int argc, char **argv, sy_cli *cli)
         {"--species", OPT_INT, &a.species, "ID", "species id stored in the file (default 0: unknown)"},
         {"--spread-around", OPT_FLAG, &a.o.spread_around, NULL,
          "judge a level set's spread from the skeleton around its node, not its edge (leaf-off scans)"},
+        {"--keep-hairpins", OPT_FLAG, &a.keep_hairpins, NULL,
+         "leave chains that climb one limb and come down another as they are (default: turn them to grow up "
+         "from the wood below)"},
         {"--no-clusters", OPT_FLAG, &a.no_clusters, NULL, "keep every point on the skeleton"},
         {NULL, 0, NULL, NULL, NULL},
     };
@@ -137,6 +145,7 @@ int cmd_skeleton(int argc, char **argv, sy_cli *cli)
     /* Interchange formats hold no hulls: clustering would drop the fine
      * branches the hulls stand for (rTwig: recall 0.16 instead of 0.97). */
     a.o.clusters = !a.no_clusters && sylva_file;
+    a.o.unfold_hairpins = !a.keep_hairpins;
     sy_error err = {0};
     if (sy_reconstruct_check(&a.o, &err) || sy_hull_options_check(&a.hull, &err)) return sy_cli_report(&err);
     sy_cloud c;

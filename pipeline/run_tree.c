@@ -329,6 +329,7 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
     so.fs = o->fs;
     so.wood_share = o->wood_share;
     so.spread_around = o->spread_around;
+    so.unfold_hairpins = !o->keep_hairpins;
     so.lobe_size = o->lobe_size;
     sy_skeleton s;
     sy_clusters cl;

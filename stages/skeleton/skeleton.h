@@ -42,6 +42,8 @@ typedef struct {
     double dbh_per_height; /* the species' allometry, DBH over height of its nominal tree: the DBH
                               where no trunk circle stands at breast height (0: unknown, then the
                               slab's extent or the stem's slenderness) */
+    int unfold_hairpins;  /* turn round chains that climb one limb and come down another (1;
+                             skeletonize.c, unfold_hairpins) */
     double wood_share;    /* wood/leaf separation: wood = shortest-path subtrees holding at least this
                              share of the points, plus their neighbours; 0 = off, all wood (default:
                              on leafy TLS scans it gained little and hurt leafless trees, docs/skeleton.md) */
@@ -69,6 +71,7 @@ typedef struct {
     size_t wood_points;   /* points classified wood (all of them with wood_share 0) */
     double spacing, bin_width;
     size_t raw_nodes, pruned_nodes, merged_nodes;
+    size_t hairpins;      /* descending chains turned round to grow up from the wood below them */
     /* After the stage: the full skeleton's; after sy_reconstruct_tree: the
      * main skeleton's and the clusters' (the clusters stage's cut). */
     size_t nodes, branches;

@@ -35,6 +35,7 @@ sy_skeleton_options sy_skeleton_options_default(void)
     o->wood_share = 0;
     o->spread_around = 0;
     o->lobe_size = 0.25;
+    o->unfold_hairpins = 1;
     return value_;
 }
 
@@ -372,6 +373,103 @@ static size_t merge_siblings(nodes *N, int32_t root, double merge_cos, double w,
     return merged;
 }
 
+/* Hairpins: where a scan misses a limb's lower part (occlusion, a gap in the
+ * neighbour graph), the shortest paths reach that limb over its top from a
+ * neighbouring one, and the level sets chain up the one limb and down the
+ * other. The allometry then draws the descending limb as thick as the stem
+ * below the turn, and the tree grows limbs that climb and fall back (seen on
+ * AdTree's tree7 and tree33: stems that climb 2.6 m and come down 1.4-2.5 m).
+ * A tip whose chain falls at least max(drop_min, drop_share * height) from
+ * its apex (the highest node reached climbing from the tip; dips of a
+ * quarter of drop_min allowed), and whose node lies within the fall and
+ * within gap_share * height of wood outside the apex's subtree and not above
+ * the tip, is turned round: the apex cut from its parent, the chain reversed
+ * to grow up from that wood. Only subtrees holding share_min of the
+ * skeleton's length are turned: a weeping twig hangs from its apex by nature
+ * and weighs little. Largest falls first, one at a time, at most max_turns.
+ * Returns how many were turned. */
+typedef struct {
+    double drop_min, drop_share, gap_share, share_min;
+    int max_turns;
+} hairpin_rule;
+
+static size_t unfold_hairpins(nodes *N, int32_t root, const hairpin_rule *r, int32_t *order, int32_t *stack,
+                              double *sub)
+{
+    int32_t *mark = malloc(N->n * sizeof *mark), *path = malloc(N->n * sizeof *path);
+    size_t turned = 0;
+    if (!mark || !path) goto done; /* an unturned skeleton is still valid */
+    for (size_t i = 0; i < N->n; i++) mark[i] = -1;
+    int32_t stamp = 0;
+    for (int turn = 0; turn < r->max_turns; turn++) {
+        size_t m = bfs_order(N, root, order);
+        double zlo = INFINITY, zhi = -INFINITY;
+        for (size_t t = m; t-- > 0;) {
+            int32_t u = order[t];
+            sub[u] = 0;
+            for (int32_t c = N->first_child[u]; c >= 0; c = N->next_sibling[c]) sub[u] += ndist(N, u, c) + sub[c];
+            zlo = fmin(zlo, N->pos[3 * u + 2]);
+            zhi = fmax(zhi, N->pos[3 * u + 2]);
+        }
+        double H = zhi - zlo, drop_min = fmax(r->drop_min, r->drop_share * H), best_drop = 0;
+        int32_t best_tip = -1, best_apex = -1, best_q = -1;
+        for (size_t t = 0; t < m; t++) {
+            int32_t v = order[t];
+            if (N->first_child[v] >= 0) continue;
+            double zv = N->pos[3 * v + 2], zmax = zv;
+            int32_t apex = v;
+            for (int32_t u = v; N->parent[u] >= 0;) {
+                int32_t p = N->parent[u];
+                if (N->pos[3 * p + 2] < zmax - r->drop_min / 4) break;
+                u = p;
+                if (N->pos[3 * p + 2] > zmax) zmax = N->pos[3 * p + 2], apex = p;
+            }
+            double drop = zmax - zv;
+            if (apex == root || drop < drop_min || drop <= best_drop || sub[apex] < r->share_min * sub[root]) continue;
+            /* Wood below the tip outside the apex's subtree. */
+            stamp++;
+            size_t top = 0;
+            stack[top++] = apex;
+            while (top) {
+                int32_t u = stack[--top];
+                mark[u] = stamp;
+                for (int32_t c = N->first_child[u]; c >= 0; c = N->next_sibling[c]) stack[top++] = c;
+            }
+            double gap = fmin(r->gap_share * H, drop);
+            int32_t q = -1;
+            for (size_t k = 0; k < m; k++) {
+                int32_t u = order[k];
+                if (mark[u] == stamp || N->pos[3 * u + 2] > zv + r->drop_min / 4) continue;
+                double d = ndist(N, u, v);
+                if (d <= gap) gap = d, q = u;
+            }
+            if (q < 0) continue;
+            best_drop = drop, best_tip = v, best_apex = apex, best_q = q;
+        }
+        if (best_tip < 0) break;
+        size_t k = 0;
+        for (int32_t u = best_tip;; u = N->parent[u]) {
+            path[k++] = u;
+            if (u == best_apex) break;
+        }
+        unlink_child(N, N->parent[best_apex], best_apex);
+        for (size_t i = 1; i < k; i++) unlink_child(N, path[i], path[i - 1]);
+        for (size_t i = 1; i < k; i++) {
+            N->parent[path[i]] = path[i - 1];
+            N->next_sibling[path[i]] = N->first_child[path[i - 1]];
+            N->first_child[path[i - 1]] = path[i];
+        }
+        N->parent[path[0]] = best_q;
+        N->next_sibling[path[0]] = N->first_child[best_q];
+        N->first_child[best_q] = path[0];
+        turned++;
+    }
+done:
+    free(mark);
+    free(path);
+    return turned;
+}
+
 /* Laplacian smoothing of chain nodes (one parent, one child); the root,
  * junctions and tips stay where they are. Needs breadth-first order. */
 static void smooth(sy_skeleton *s, int iters)
@@ -594,6 +692,10 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     rep->merged_nodes = merge_siblings(&N, nroot, o->merge_cos, w, order);
     /* Merging can leave new short spurs beside the merged stems. */
     rep->pruned_nodes += prune(&N, nroot, o->prune_factor, w, order, stack, reach);
+    if (o->unfold_hairpins) {
+        hairpin_rule hr = {fmax(6 * w, 0.1), 0.05, 0.25, 0.03, 64};
+        rep->hairpins = unfold_hairpins(&N, nroot, &hr, order, stack, reach);
+    }
     rc = compact(&N, nroot, node_of, wood, n, cloud->origin, full, point_node, err);
     if (rc) goto done;
     smooth(full, o->smooth_iters);

@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# Hairpins: where a scan misses a limb's lower part, the shortest paths reach
+# it over its top from the next limb, and the trunk chain of AdTree's leaf-off
+# tree7 climbs 2.6 m and comes 2.1 m back down another limb, as thick as the
+# trunk (6.5 x its reach). The skeleton stage turns such chains round to grow
+# up from the wood below them (skeletonize.c, unfold_hairpins): the trunk
+# then never falls more than 0.25 m below its highest node and winds under
+# 1.8 x its reach; --keep-hairpins leaves them, and the same measures fail.
+set -u
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fail=0
+check() { # message, awk condition
+  if awk "BEGIN { exit !($2) }"; then echo "ok: $1"; else echo "FAIL: $1"; fail=1; fi
+}
+data=${SYLVA_DATA_DIR:-$SYLVA_SOURCE_DIR/../shared/data}
+# The trunk's fall: its highest node's z minus its last node's.
+trunk_fall() { jq -r '[.nodes[] | select(.branch == 0) | .z] | (max - .[-1])' "$1"; }
+for mode in turned kept; do
+  flag=; [ $mode = kept ] && flag=--keep-hairpins
+  "$SYLVA" skeleton "$data/real/adtree/tree7.xyz" -o "$tmp/$mode.json" --json --quiet $flag > "$tmp/$mode.report" ||
+    { echo "FAIL: sylva skeleton tree7.xyz $flag"; exit 1; }
+done
+n=$(jq -r .hairpins "$tmp/turned.report"); m=$(jq -r .trunk_meander "$tmp/turned.report")
+fall=$(trunk_fall "$tmp/turned.json")
+check "tree7: $n hairpins turned" "$n >= 1"
+check "tree7: the trunk falls $fall m below its highest node (<= 0.25)" "$fall <= 0.25"
+check "tree7: the trunk winds $m x its reach (<= 1.8)" "$m <= 1.8"
+n=$(jq -r .hairpins "$tmp/kept.report"); m=$(jq -r .trunk_meander "$tmp/kept.report")
+fall=$(trunk_fall "$tmp/kept.json")
+check "tree7 --keep-hairpins: none turned ($n)" "$n == 0"
+check "tree7 --keep-hairpins: the trunk falls $fall m, winds $m x (the measures above fail)" "$fall > 0.25 && $m > 1.8"
+# Same nodes either way: turning re-links them, it adds and drops none.
+a=$(jq '.nodes | length' "$tmp/turned.json"); b=$(jq '.nodes | length' "$tmp/kept.json")
+check "tree7: $a nodes turned, $b kept (no node added or dropped)" "$a == $b"
+exit $fail
