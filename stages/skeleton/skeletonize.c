@@ -385,8 +385,9 @@ static size_t merge_siblings(nodes *N, int32_t root, double merge_cos, double w,
  * within gap_share * height of wood outside the apex's subtree and not above
  * the tip, is turned round: the apex cut from its parent, the chain reversed
  * to grow up from that wood. Only subtrees holding share_min of the
- * skeleton's length are turned: a weeping twig hangs from its apex by nature
- * and weighs little. Largest falls first, one at a time, at most max_turns.
+ * skeleton's length, and none whose apex has a heavier child rising above
+ * it: a weeping twig, or a limb drooping from a stem that goes on above it,
+ * hangs from its apex by nature. Largest falls first, one at a time, at most max_turns.
  * Returns how many were turned. */
 typedef struct {
     double drop_min, drop_share, gap_share, share_min;
@@ -397,8 +398,9 @@ static size_t unfold_hairpins(nodes *N, int32_t root, const hairpin_rule *r, int
                               double *sub)
 {
     int32_t *mark = malloc(N->n * sizeof *mark), *path = malloc(N->n * sizeof *path);
+    double *top = malloc(N->n * sizeof *top); /* highest z in each node's subtree */
     size_t turned = 0;
-    if (!mark || !path) goto done; /* an unturned skeleton is still valid */
+    if (!mark || !path || !top) goto done; /* an unturned skeleton is still valid */
     for (size_t i = 0; i < N->n; i++) mark[i] = -1;
     int32_t stamp = 0;
     for (int turn = 0; turn < r->max_turns; turn++) {
@@ -407,7 +409,11 @@ static size_t unfold_hairpins(nodes *N, int32_t root, const hairpin_rule *r, int
         for (size_t t = m; t-- > 0;) {
             int32_t u = order[t];
             sub[u] = 0;
-            for (int32_t c = N->first_child[u]; c >= 0; c = N->next_sibling[c]) sub[u] += ndist(N, u, c) + sub[c];
+            top[u] = N->pos[3 * u + 2];
+            for (int32_t c = N->first_child[u]; c >= 0; c = N->next_sibling[c]) {
+                sub[u] += ndist(N, u, c) + sub[c];
+                top[u] = fmax(top[u], top[c]);
+            }
             zlo = fmin(zlo, N->pos[3 * u + 2]);
             zhi = fmax(zhi, N->pos[3 * u + 2]);
         }
@@ -417,15 +423,23 @@ static size_t unfold_hairpins(nodes *N, int32_t root, const hairpin_rule *r, int
             int32_t v = order[t];
             if (N->first_child[v] >= 0) continue;
             double zv = N->pos[3 * v + 2], zmax = zv;
-            int32_t apex = v;
+            int32_t apex = v, via = -1; /* via: the apex's child on the way down to the tip */
             for (int32_t u = v; N->parent[u] >= 0;) {
                 int32_t p = N->parent[u];
                 if (N->pos[3 * p + 2] < zmax - r->drop_min / 4) break;
+                if (N->pos[3 * p + 2] > zmax) zmax = N->pos[3 * p + 2], apex = p, via = u;
                 u = p;
-                if (N->pos[3 * p + 2] > zmax) zmax = N->pos[3 * p + 2], apex = p;
             }
             double drop = zmax - zv;
             if (apex == root || drop < drop_min || drop <= best_drop || sub[apex] < r->share_min * sub[root]) continue;
+            /* A limb drooping from a stem that goes on above the apex is no
+             * hairpin: the way down must be the apex's heaviest child, or the
+             * others must not rise above the apex. */
+            int side = 0;
+            double via_len = ndist(N, apex, via) + sub[via];
+            for (int32_t c = N->first_child[apex]; c >= 0; c = N->next_sibling[c])
+                if (c != via && ndist(N, apex, c) + sub[c] > via_len && top[c] > zmax + drop_min) side = 1;
+            if (side) continue;
             /* Wood below the tip outside the apex's subtree. */
             stamp++;
             size_t top = 0;
@@ -467,6 +481,7 @@ static size_t unfold_hairpins(nodes *N, int32_t root, const hairpin_rule *r, int
 done:
     free(mark);
     free(path);
+    free(top);
     return turned;
 }
 
