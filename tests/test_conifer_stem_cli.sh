@@ -5,15 +5,9 @@
 # skeleton alone spiralled up the shell: 2.6 m off the axis, DBH 1.31 m for
 # 0.376 m), with a DBH near the truth; the other samples, whose trunks the
 # scan does show, keep their stems and stay within their current errors.
-set -u
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
+. "$SYLVA_SOURCE_DIR/tests/measure_cli_common.sh"
 s="$SYLVA_SOURCE_DIR/samples"
-fail=0
 truth() { jq -r ".trees[0].$2" "$s/$1.json"; }
-check() { # message, awk condition on $1..
-  if awk "BEGIN { exit !($2) }"; then echo "ok: $1"; else echo "FAIL: $1"; fail=1; fi
-}
 
 # The skeleton stage on the fir: rebuilt stem, straight order-0 chain, DBH.
 "$SYLVA" skeleton "$s/fir_tls.las" -o "$tmp/fir.json" --json --quiet > "$tmp/fir.report" ||

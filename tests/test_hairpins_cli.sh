@@ -7,13 +7,7 @@
 # then never falls more than 0.25 m below its highest node and winds under
 # 1.8 x its reach; --keep-hairpins leaves them, and the same measures fail.
 # Limbs that droop from a stem going on above them are left as they are.
-set -u
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail=0
-check() { # message, awk condition
-  if awk "BEGIN { exit !($2) }"; then echo "ok: $1"; else echo "FAIL: $1"; fail=1; fi
-}
+. "$SYLVA_SOURCE_DIR/tests/measure_cli_common.sh"
 data=${SYLVA_DATA_DIR:-$SYLVA_SOURCE_DIR/../shared/data}
 # The trunk's fall: its highest node's z minus its last node's.
 trunk_fall() { jq -r '[.nodes[] | select(.branch == 0) | .z] | (max - .[-1])' "$1"; }

@@ -9,13 +9,7 @@
 # leaf-off real scan whose trunk chain meanders too (AdTree tree7: 6.5 x with
 # its hairpins kept; turned round by default, test_hairpins_cli.sh) has its
 # returns on its limbs, not in a foliage shell, and keeps its skeleton.
-set -u
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail=0
-check() { # message, awk condition
-  if awk "BEGIN { exit !($2) }"; then echo "ok: $1"; else echo "FAIL: $1"; fail=1; fi
-}
+. "$SYLVA_SOURCE_DIR/tests/measure_cli_common.sh"
 
 "$SYLVA" scan london_plane --seed 1 --step 0.45 -o "$tmp/plane.las" --truth "$tmp/truth.json" --quiet ||
   { echo "FAIL: sylva scan london_plane"; exit 1; }
