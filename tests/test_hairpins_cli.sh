@@ -31,7 +31,7 @@ a=$(jq '.nodes | length' "$tmp/turned.json"); b=$(jq '.nodes | length' "$tmp/kep
 check "tree7: $a nodes turned, $b kept (no node added or dropped)" "$a == $b"
 # The TreeLS pine's lower crown droops from a stem that goes on 6 m above:
 # none of it is a hairpin (a rule without that guard hung the upper stem from
-# the tips of three drooping limbs, and the trunk detoured 1.2 m out).
+# the tips of three drooping limbs, and the trunk detoured 1.3 m out).
 "$SYLVA" run "$data/real/treels/pine.las" -o "$tmp/pine.glb" --json --quiet > "$tmp/pine.report" ||
   { echo "FAIL: sylva run pine.las"; exit 1; }
 n=$(jq -r .hairpins "$tmp/pine.report")
