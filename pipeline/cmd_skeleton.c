@@ -42,8 +42,7 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
         sy_json_number(&j, "dbh", r->dbh);
         sy_json_bool(&j, "dbh_fitted", r->dbh_fitted);
         sy_json_int(&j, "hairpins", (long long)r->hairpins);
-        sy_json_int(&j, "hairpins", (long long)r->hairpins);
-    sy_json_bool(&j, "stem_rebuilt", r->stem_rebuilt);
+        sy_json_bool(&j, "stem_rebuilt", r->stem_rebuilt);
         sy_json_number(&j, "stem_excursion", r->stem_excursion);
         sy_json_bool(&j, "crown_regrown", r->crown_regrown);
         sy_json_number(&j, "trunk_meander", r->trunk_meander);

@@ -275,6 +275,14 @@ static void unlink_child(nodes *N, int32_t p, int32_t c)
     N->next_sibling[c] = -1;
 }
 
+/* c (unlinked) becomes p's first child. */
+static void link_child(nodes *N, int32_t p, int32_t c)
+{
+    N->parent[c] = p;
+    N->next_sibling[c] = N->first_child[p];
+    N->first_child[p] = c;
+}
+
 /* Every node of c's subtree (c included) becomes an alias of into. */
 static size_t absorb_subtree(nodes *N, int32_t c, int32_t into, int32_t *stack)
 {
@@ -349,9 +357,7 @@ static size_t merge_siblings(nodes *N, int32_t root, double merge_cos, double w,
                     while (N->first_child[drop] >= 0) {
                         int32_t c = N->first_child[drop];
                         N->first_child[drop] = N->next_sibling[c];
-                        N->next_sibling[c] = N->first_child[keep];
-                        N->first_child[keep] = c;
-                        N->parent[c] = keep;
+                        link_child(N, keep, c);
                     }
                     double gap = ndist(N, a, b);
                     size_t cnt = N->count[keep] + N->count[drop];
@@ -387,8 +393,8 @@ static size_t merge_siblings(nodes *N, int32_t root, double merge_cos, double w,
  * to grow up from that wood. Only subtrees holding share_min of the
  * skeleton's length, and none whose apex has a heavier child rising above
  * it: a weeping twig, or a limb drooping from a stem that goes on above it,
- * hangs from its apex by nature. Largest falls first, one at a time, at most max_turns.
- * Returns how many were turned. */
+ * hangs from its apex by nature. Largest falls first, one at a time, at most
+ * max_turns. Returns how many were turned. */
 typedef struct {
     double drop_min, drop_share, gap_share, share_min;
     int max_turns;
@@ -442,12 +448,12 @@ static size_t unfold_hairpins(nodes *N, int32_t root, const hairpin_rule *r, int
             if (side) continue;
             /* Wood below the tip outside the apex's subtree. */
             stamp++;
-            size_t top = 0;
-            stack[top++] = apex;
-            while (top) {
-                int32_t u = stack[--top];
+            size_t sp = 0;
+            stack[sp++] = apex;
+            while (sp) {
+                int32_t u = stack[--sp];
                 mark[u] = stamp;
-                for (int32_t c = N->first_child[u]; c >= 0; c = N->next_sibling[c]) stack[top++] = c;
+                for (int32_t c = N->first_child[u]; c >= 0; c = N->next_sibling[c]) stack[sp++] = c;
             }
             double gap = fmin(r->gap_share * H, drop);
             int32_t q = -1;
@@ -468,14 +474,8 @@ static size_t unfold_hairpins(nodes *N, int32_t root, const hairpin_rule *r, int
         }
         unlink_child(N, N->parent[best_apex], best_apex);
         for (size_t i = 1; i < k; i++) unlink_child(N, path[i], path[i - 1]);
-        for (size_t i = 1; i < k; i++) {
-            N->parent[path[i]] = path[i - 1];
-            N->next_sibling[path[i]] = N->first_child[path[i - 1]];
-            N->first_child[path[i - 1]] = path[i];
-        }
-        N->parent[path[0]] = best_q;
-        N->next_sibling[path[0]] = N->first_child[best_q];
-        N->first_child[best_q] = path[0];
+        for (size_t i = 1; i < k; i++) link_child(N, path[i - 1], path[i]);
+        link_child(N, best_q, path[0]);
         turned++;
     }
 done:

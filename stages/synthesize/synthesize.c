@@ -707,9 +707,7 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
         /* Leaves outside the hull (the bark may leave it by a cell, leaves
          * not), or where the lobe is already as dense as the species' leaf
          * area density, are pruned. */
-        if (c < 0 || !g->inside[c]) continue;
-        size_t b = block_of(g, c);
-        if (g->block[b] >= g->block_cap[b]) continue;
+        if (c < 0 || !g->inside[c] || !block_has_room(g, c)) continue;
         /* The card reaches leaf_size along Y from its stem: a card whose tip
          * would stick out of the lobe turns about its normal to point into
          * it, else slides back along its axis by half its length (its stem
@@ -813,7 +811,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
         long near_i = -1;
         for (size_t o = 0; o < n_occ; o++) {
             size_t i = occ[o];
-            if (tried[i] || !block_has_room(&g, (long)i)) continue;
+            if (tried[i] || !g.room[i]) continue; /* occ: occupied cells */
             const double *c = occ_c + 3 * o;
             double dd = (c[0] - ss[0]) * (c[0] - ss[0]) + (c[1] - ss[1]) * (c[1] - ss[1]) + (c[2] - ss[2]) * (c[2] - ss[2]);
             if (dd < near_d) near_d = dd, memcpy(near, c, sizeof near), near_i = (long)i;
