@@ -347,8 +347,10 @@ static void skeleton_features(const float *P, size_t m, double z0, double H, dou
     c.xyz = (float *)P; /* read only: the stage takes a const cloud */
     sy_skeleton_options so = sy_skeleton_options_default();
     /* The features of SY_FEATURES_VERSION 2, on which the shipped model was
-     * trained, come from skeletons with their hairpins left as they are. */
+     * trained, come from skeletons with their hairpins left as they are and
+     * occluded stems rebuilt to the crown's top. */
     so.unfold_hairpins = 0;
+    so.fork_domed_stems = 0;
     sy_cut_options co = sy_cut_options_default();
     co.clusters = 0; /* the skeleton alone, every point on it */
     sy_full_skeleton full;

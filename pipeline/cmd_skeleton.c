@@ -44,6 +44,7 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
         sy_json_int(&j, "hairpins", (long long)r->hairpins);
         sy_json_bool(&j, "stem_rebuilt", r->stem_rebuilt);
         sy_json_number(&j, "stem_excursion", r->stem_excursion);
+        sy_json_number(&j, "stem_fork", r->stem_fork);
         sy_json_bool(&j, "crown_regrown", r->crown_regrown);
         sy_json_number(&j, "trunk_meander", r->trunk_meander);
         sy_json_number(&j, "crown_fill", r->crown_fill);
@@ -74,6 +75,9 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
     if (r->stem_rebuilt)
         printf("  stem       rebuilt on the crown's axis (the trunk chain strayed %.2f m from it, crown radius %.2f m)\n",
                r->stem_excursion, r->crown_radius);
+    if (r->stem_rebuilt && r->stem_fork > 0)
+        printf("  stem       ends at %.2f m, where the domed crown's widest part ends (dome %.2f): the limbs spread from there\n",
+               r->stem_fork, r->crown_dome);
     if (r->crown_regrown)
         printf("  crown      regrown above the trunk's %.2f m (the trunk chain meandered %.2f x its reach through a "
                "foliage crown, fill %.2f)\n",

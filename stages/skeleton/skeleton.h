@@ -44,6 +44,8 @@ typedef struct {
                               slab's extent or the stem's slenderness) */
     int unfold_hairpins;  /* turn round chains that climb one limb and come down another (1;
                              skeletonize.c, unfold_hairpins) */
+    int fork_domed_stems; /* an occluded stem rebuilt under a domed crown ends where the crown's widest
+                             part ends, and the limbs spread from there (1; stem.c) */
     double wood_share;    /* wood/leaf separation: wood = shortest-path subtrees holding at least this
                              share of the points, plus their neighbours; 0 = off, all wood (default:
                              on leafy TLS scans it gained little and hurt leafless trees, docs/skeleton.md) */
@@ -83,6 +85,8 @@ typedef struct {
     int stem_rebuilt;     /* 1: the trunk chain circled the crown's axis (an occluded conifer stem) and
                              the stem was rebuilt on the axis of the crown's slab centroids */
     double stem_excursion, crown_radius; /* the trunk chain's largest distance from that axis; the crown's radius */
+    double crown_dome;    /* above the crown's widest slab, its mean radius over the widest (a cone 0.6) */
+    double stem_fork;     /* a domed crown's rebuilt stem ends this high above the root, metres (0: at the top) */
     int crown_regrown;    /* 1: the trunk chain meandered through a foliage crown (a decurrent crown's
                              shell) and the crown above its base was regrown by space colonisation */
     double trunk_meander, crown_fill, crown_base; /* path over chord of the trunk chain; the crown's

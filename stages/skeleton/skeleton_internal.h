@@ -57,6 +57,8 @@ sy_code sy_classify_wood(const sy_graph *g, const int32_t *spt, const double *di
 typedef struct {
     int rebuilt;         /* 1: the trunk chain left the crown's axis and was rebuilt on it */
     int excurrent;       /* the crown narrows upward */
+    double dome;         /* above the widest slab, the mean crown radius over the widest (a cone 0.5-0.65) */
+    double fork;         /* a domed crown's rebuilt stem ends this high above the root (0: at the top) */
     int crown_to_ground; /* the crown's radius at the foot is at least half its median: no bole in view */
     double excursion;    /* the trunk chain's largest horizontal distance from the axis, metres */
     double crown_radius; /* median over height slabs of the points' mean distance from the axis */
@@ -75,9 +77,11 @@ typedef struct {
  * filled) on the crown's slab-centroid axis when the trunk chain wanders off
  * it (see stem.c); point_node is remapped to the new nodes. s comes back in
  * breadth-first order with support, radii 1 and branch ids to reassign.
- * info->rebuilt says whether it changed anything. */
+ * info->rebuilt says whether it changed anything. With fork_domes, the stem
+ * of a domed crown stops where its widest part ends (info->fork). */
 sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int32_t *point_node,
-                                 const uint8_t *wood, double w, double spacing, sy_stem_info *info, sy_error *err);
+                                 const uint8_t *wood, double w, double spacing, int fork_domes, sy_stem_info *info,
+                                 sy_error *err);
 /* A decurrent crown's occluded limbs (stem.c): when the trunk chain of s
  * meanders (its path over CROWN_MEANDER times its root-to-end distance: it
  * follows the shell of a leaf-on crown, down one limb and up the next) and

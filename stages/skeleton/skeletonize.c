@@ -36,6 +36,7 @@ sy_skeleton_options sy_skeleton_options_default(void)
     o->spread_around = 0;
     o->lobe_size = 0.25;
     o->unfold_hairpins = 1;
+    o->fork_domed_stems = 1;
     return value_;
 }
 
@@ -723,7 +724,7 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     /* A trunk chain that circles the crown's axis is the shell of an
      * occluded conifer, not its stem: rebuild the stem on the axis. */
     sy_stem_info stem;
-    rc = sy_rebuild_occluded_stem(full, xyz, n, point_node, wood, w, s, &stem, err);
+    rc = sy_rebuild_occluded_stem(full, xyz, n, point_node, wood, w, s, o->fork_domed_stems, &stem, err);
     /* A decurrent crown's chain that follows its foliage shell: regrow the
      * crown from the trunk's top. */
     if (!rc && !stem.rebuilt) rc = sy_regrow_meandering_crown(full, xyz, n, point_node, wood, w, &stem, err);
@@ -756,6 +757,8 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     rep->crown_base = stem.crown_base;
     rep->stem_excursion = stem.excursion;
     rep->crown_radius = stem.crown_radius;
+    rep->crown_dome = stem.dome;
+    rep->stem_fork = stem.fork;
     sy_radii_info ri;
     if (!rc)
         rc = sy_assign_radii(full, xyz, point_node, n, o->gamma, s, ground, o->dbh_height, o->dbh_slab,

@@ -43,6 +43,14 @@
 #define STEM_AXIS_RMS_SHARE 0.35
 /* Excurrent: the upper third's crown radius below this share of the lower half's. */
 #define STEM_EXCURRENT_SHARE 0.8
+/* A domed crown: above its widest slab, the mean radius at least this share
+ * of the widest (cones 0.60-0.63, domes 0.70-0.77); its stem stops at the
+ * highest slab within STEM_FORK_SHARE of the widest, kept within
+ * STEM_FORK_MIN-STEM_FORK_MAX of the height. */
+#define STEM_DOME_SHARE 0.69
+#define STEM_FORK_SHARE 0.9
+#define STEM_FORK_MIN 0.25
+#define STEM_FORK_MAX 0.5
 /* The stem is hidden only where the crown reaches the ground: the lowest
  * slabs' crown radius at least this share of the median. Below a crown that
  * starts higher up the scanner sees the bole, the shortest paths start on
@@ -273,7 +281,8 @@ static sy_code regrow_from_trunk(sy_skeleton *s, const float *trunk, size_t K, c
 }
 
 sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int32_t *point_node,
-                                 const uint8_t *wood, double w, double spacing, sy_stem_info *info, sy_error *err)
+                                 const uint8_t *wood, double w, double spacing, int fork_domes, sy_stem_info *info,
+                                 sy_error *err)
 {
     memset(info, 0, sizeof *info);
     size_t m = s->n;
@@ -387,14 +396,39 @@ sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int
         hypot(ax[0], ax[1]) > 0.25)
         return SY_OK;
 
+    /* A cone or a dome. Above its widest slab a cone's radius falls about
+     * linearly to the top, a dome's holds near its widest and rounds off:
+     * the mean radius over those slabs, as a share of the widest, is 0.60
+     * and 0.63 on the simulated balsam fir and Norway spruce, 0.70-0.77 on
+     * the black oak, the sassafras and the airborne ahn3_delft (a half
+     * ellipse gives pi/4 = 0.79, a cone 0.5). A domed crown is decurrent:
+     * its occluded trunk divides inside the crown, so the rebuilt stem stops
+     * at the top of the crown's widest part (the highest slab within 0.9 of
+     * the widest, kept in 0.25-0.5 of the height) and the colonised limbs
+     * spread from there. Run to the top, it was a pole through the dome with
+     * a comb of straight limbs: an oak drawn as a spruce. */
+    double Rmax = 0, dome = 0, stem_top = H;
+    int bmax = -1, nd = 0, bfork = -1;
+    for (int b = 0; b < STEM_SLABS; b++)
+        if (cnt[b] >= 10 && R[b] > Rmax) Rmax = R[b], bmax = b;
+    for (int b = bmax + 1; b < STEM_SLABS; b++)
+        if (cnt[b] >= 10) dome += R[b] / Rmax, nd++;
+    for (int b = bmax; b < STEM_SLABS && b >= 0; b++)
+        if (cnt[b] >= 10 && R[b] >= STEM_FORK_SHARE * Rmax) bfork = b;
+    info->dome = nd > 0 ? dome / nd : 0;
+    if (fork_domes && info->dome >= STEM_DOME_SHARE) {
+        stem_top = fmin(fmax((bfork + 1) * hs, STEM_FORK_MIN * H), STEM_FORK_MAX * H);
+        info->fork = stem_top;
+    }
+
     /* Rebuild: stem nodes on the axis from the root to the top, and limbs
      * grown from them into the crown's returns by space colonisation
      * (colonize.c). The geodesic nodes off the stem go: they trace the
      * shell, and hung from the stem at their own heights they were spokes
      * across the crown. Every point joins its nearest new node. */
     double step = fmax(w, H / 48);
-    size_t K = (size_t)ceil(H / step) + 1;
-    step = H / (double)(K - 1);
+    size_t K = (size_t)ceil(stem_top / step) + 1;
+    step = stem_top / (double)(K - 1);
     double grow = fmax(2 * w, STEM_LIMB_STEP * Rmed);
     float *tpos = malloc(K * 3 * sizeof *tpos);
     if (!tpos) return sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
