@@ -227,15 +227,19 @@ static void quat_mul(const float a[4], const float b[4], float out[4])
 
 /* The ring centre of stem s nearest p: where a leaf of a dropped twig moves
  * so that it still hangs on drawn bark. */
-static void nearest_centre(const sy_stem *s, const float p[3], float out[3])
+static void nearest_centre(const sy_stem *s, const float p[3], float out[3], float *radius)
 {
     float best = INFINITY;
     for (size_t k = 0; k < s->n_samp; k++) {
         const float *c = s->sp + 3 * k;
         float d[3] = {p[0] - c[0], p[1] - c[1], p[2] - c[2]}, dd = sy_dot3(d, d);
-        if (dd < best) best = dd, memcpy(out, c, 3 * sizeof(float));
+        if (dd < best) best = dd, memcpy(out, c, 3 * sizeof(float)), *radius = s->sr[k];
     }
 }
+/* A moved leaf's petiole stands at most this many leaf lengths plus half
+ * the ring radius from the ring centre: within a leaf length of the drawn
+ * bark even on a three-sided tube, whose faces stand half a radius in. */
+#define LEAF_REACH 0.75f
 
 sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint8_t *keep, float aspect,
                           const uint32_t *list, size_t n, float grow, int mesh, sy_instances *out, sy_error *err)
@@ -263,7 +267,15 @@ sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint8_t
             int32_t k = st->node_stem[lv->node[l]];
             while (k >= 0 && !(keep[k] && st->s[k].has_geometry)) k = st->s[k].parent;
             if (k >= 0 && k != st->node_stem[lv->node[l]]) {
-                nearest_centre(&st->s[k], lv->pos + 3 * l, at);
+                float c[3], cr = 0;
+                nearest_centre(&st->s[k], lv->pos + 3 * l, c, &cr);
+                /* Only as far as it must: a leaf within a leaf length of the
+                 * drawn bark stays, the cards depicting the twig; farther ones
+                 * come in to that distance. */
+                float d[3] = {at[0] - c[0], at[1] - c[1], at[2] - c[2]}, dl = sqrtf(sy_dot3(d, d));
+                float reach = 0.5f * cr + LEAF_REACH * lv->scale[l] * grow;
+                if (dl > reach)
+                    for (int q = 0; q < 3; q++) at[q] = c[q] + d[q] * (reach / dl);
                 /* Moved near the ground, the card may not reach under it. */
                 const float *q = lv->rot + 4 * l;
                 float qn = sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
