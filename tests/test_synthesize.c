@@ -354,6 +354,79 @@ static void lobes_in_parallel_give_the_same_tree(void **state)
     sy_skeleton_free(&s);
 }
 
+/* Lobes tile a crown: a card's tip may reach from its own lobe into the
+ * next one (the crown is the union of the hulls), while its stem stays in
+ * its own. Held inside its own lobe, every card near the border turned
+ * inward and a card-wide seam of bare bark ran between the lobes (the
+ * bundled aspen's crown drew as a lattice of leaf blocks). Two 1.2 m boxes
+ * share the face x = 0; the tips of cards whose stems stand in one box must
+ * reach more than a lobe cell into the other, and no tip may leave the two
+ * boxes by more than a lobe cell and a crown cell. */
+static void cards_reach_across_lobe_borders(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_clusters one = {0};
+    make_tree(&s, &one, 0.6, 0);
+    const sy_cluster *box = &one.items[0];
+    sy_clusters cl = {0};
+    cl.n = 2;
+    cl.items = calloc(cl.n, sizeof *cl.items);
+    assert_non_null(cl.items);
+    for (size_t k = 0; k < cl.n; k++) {
+        sy_cluster *c = &cl.items[k];
+        c->seed = 10;
+        c->n_verts = box->n_verts;
+        c->n_tris = box->n_tris;
+        c->verts = malloc(3 * box->n_verts * sizeof(float));
+        c->tris = malloc(3 * box->n_tris * sizeof(uint32_t));
+        assert_non_null(c->verts);
+        assert_non_null(c->tris);
+        for (size_t v = 0; v < box->n_verts; v++) {
+            c->verts[3 * v] = box->verts[3 * v] + (k ? 0.6f : -0.6f); /* x in [-1.2, 0] and [0, 1.2] */
+            c->verts[3 * v + 1] = box->verts[3 * v + 1];
+            c->verts[3 * v + 2] = box->verts[3 * v + 2];
+        }
+        memcpy(c->tris, box->tris, 3 * box->n_tris * sizeof(uint32_t));
+    }
+    sy_branchlets lib;
+    sy_synth_options o = aspen_options(&lib);
+    sy_skeleton out;
+    sy_leaves lv;
+    sy_synth_report rep;
+    sy_error err = {0};
+    assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out, &lv, &rep, &err), SY_OK);
+    const double cell = 1.2 / 16, crown_cell = 2.4 / 64; /* a lobe's grid: 16 cells on 1.2 m; the crown's: 64 on 2.4 m */
+    size_t across = 0, out_far = 0;
+    double worst = 0;
+    for (size_t i = 0; i < lv.n; i++) {
+        const float *p = lv.pos + 3 * i, *q = lv.rot + 4 * i;
+        /* The card's axis: local +Y turned by the unit quaternion (x, y, z, w). */
+        double x = q[0], y = q[1], z = q[2], w = q[3];
+        double Y[3] = {2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x)};
+        double tip[3] = {p[0] + lv.scale[i] * Y[0], p[1] + lv.scale[i] * Y[1], p[2] + lv.scale[i] * Y[2]};
+        if ((p[0] < 0 && tip[0] > cell) || (p[0] > 0 && tip[0] < -cell)) across++;
+        double lo[3] = {-1.2, -0.6, 4.0}, hi[3] = {1.2, 0.6, 5.2}, d2 = 0;
+        for (int k = 0; k < 3; k++) {
+            double e = tip[k] < lo[k] ? lo[k] - tip[k] : tip[k] > hi[k] ? tip[k] - hi[k] : 0;
+            d2 += e * e;
+        }
+        worst = fmax(worst, sqrt(d2));
+        out_far += sqrt(d2) > cell + 2 * crown_cell;
+    }
+    printf("two lobes: %zu leaves, %zu reach more than a lobe cell across the border, tips at most %.3f m out\n",
+           lv.n, across, worst);
+    assert_true(lv.n > 100);
+    assert_true(across >= 10);
+    assert_int_equal(out_far, 0);
+    sy_skeleton_free(&out);
+    sy_leaves_free(&lv);
+    sy_branchlets_free(&lib);
+    sy_clusters_free(&cl);
+    sy_clusters_free(&one);
+    sy_skeleton_free(&s);
+}
+
 /* The leaf area a lobe gets follows the species' leaf area density: a 2 m
  * box lobe, fully occupied (no occupancy grid), takes about density x 8 m3 of
  * cards, and twice the density twice the area. Before, any block with a
@@ -457,6 +530,7 @@ int main(void)
         cmocka_unit_test(leaf_area_follows_the_density),
         cmocka_unit_test(lobes_without_room_are_reported),
         cmocka_unit_test(lobes_in_parallel_give_the_same_tree),
+        cmocka_unit_test(cards_reach_across_lobe_borders),
         cmocka_unit_test(winding_number_of_a_box),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -463,12 +463,129 @@ static int queue_push(dock_queue *Q, const dock *d)
     return 1;
 }
 
+/* The crown: the union of every lobe's hull on one coarse grid, read by all
+ * lobes (built before they are textured, read only while they run). A
+ * card's tip must stay in its own lobe (below) or in the crown: the lobes
+ * tile the crown, and a tip held inside its own lobe alone turned every
+ * card near a border between two lobes inward, leaving a card-wide seam of
+ * bare bark between them (the bundled aspen's crown drawn as a lattice of
+ * leaf blocks once the mesher kept the leaves where synthesis put them). */
+#define CROWN_CELLS 64
+typedef struct {
+    double lo[3], h;
+    int d[3];
+    uint8_t *inside; /* a cell whose centre lies inside some lobe's hull, gaps of one cell closed */
+} crown_grid;
+
+/* Inside cells of the crown grid: a cell whose centre lies inside some
+ * lobe's hull by the parity of a vertical ray (as the lobe grids), then a
+ * closing by one cell (dilate, then erode) that fills the narrow seams
+ * between neighbouring hulls and keeps the crown's outer surface. */
+static sy_code crown_build(const sy_clusters *lobes, crown_grid *cg, sy_error *err)
+{
+    memset(cg, 0, sizeof *cg);
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    size_t max_tris = 0;
+    for (size_t c = 0; lobes && c < lobes->n; c++) {
+        const sy_cluster *C = &lobes->items[c];
+        for (size_t v = 0; v < C->n_verts; v++)
+            for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], C->verts[3 * v + k]), hi[k] = fmax(hi[k], C->verts[3 * v + k]);
+        if (C->n_tris > max_tris) max_tris = C->n_tris;
+    }
+    double ext = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
+    if (!(ext > 1e-3)) return SY_OK; /* no lobes: every tip test falls back on its own lobe */
+    cg->h = ext / CROWN_CELLS;
+    size_t n = 1;
+    for (int k = 0; k < 3; k++) {
+        cg->lo[k] = lo[k] - cg->h; /* a border cell each side for the closing */
+        cg->d[k] = (int)ceil((hi[k] - lo[k]) / cg->h - 1e-9) + 2;
+        n *= (size_t)cg->d[k];
+    }
+    uint8_t *in = sy_calloc(n, 1, err, "synthesis crown"), *tmp = sy_calloc(n, 1, err, "synthesis crown");
+    double *hits = malloc((max_tris + 1) * sizeof *hits);
+    if (!in || !tmp || !hits) {
+        free(in), free(tmp), free(hits);
+        return sy_fail(err, SY_EINTERNAL, "synthesis crown: out of memory");
+    }
+    const int dx = cg->d[0], dy = cg->d[1], dz = cg->d[2];
+    for (size_t c = 0; c < lobes->n; c++) {
+        const sy_cluster *C = &lobes->items[c];
+        if (C->n_tris < 4) continue;
+        double blo[3] = {INFINITY, INFINITY, INFINITY}, bhi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        for (size_t v = 0; v < C->n_verts; v++)
+            for (int k = 0; k < 3; k++)
+                blo[k] = fmin(blo[k], C->verts[3 * v + k]), bhi[k] = fmax(bhi[k], C->verts[3 * v + k]);
+        int x0 = (int)floor((blo[0] - cg->lo[0]) / cg->h), x1 = (int)floor((bhi[0] - cg->lo[0]) / cg->h);
+        int y0 = (int)floor((blo[1] - cg->lo[1]) / cg->h), y1 = (int)floor((bhi[1] - cg->lo[1]) / cg->h);
+        for (int y = y0; y <= y1; y++)
+            for (int x = x0; x <= x1; x++) {
+                if (x < 0 || y < 0 || x >= dx || y >= dy) continue;
+                double px = cg->lo[0] + (x + 0.5) * cg->h + 1.3e-7 * cg->h, py = cg->lo[1] + (y + 0.5) * cg->h + 2.9e-7 * cg->h;
+                size_t nh = 0;
+                for (size_t t = 0; t < C->n_tris; t++) {
+                    const float *a = C->verts + 3 * C->tris[3 * t], *b = C->verts + 3 * C->tris[3 * t + 1],
+                                *e = C->verts + 3 * C->tris[3 * t + 2];
+                    double d = (b[0] - a[0]) * (e[1] - a[1]) - (e[0] - a[0]) * (b[1] - a[1]);
+                    if (fabs(d) < 1e-18) continue;
+                    double u = ((px - a[0]) * (e[1] - a[1]) - (e[0] - a[0]) * (py - a[1])) / d;
+                    double v = ((b[0] - a[0]) * (py - a[1]) - (px - a[0]) * (b[1] - a[1])) / d;
+                    if (u < 0 || v < 0 || u + v > 1) continue;
+                    hits[nh++] = a[2] + u * (b[2] - a[2]) + v * (e[2] - a[2]);
+                }
+                if (nh < 2) continue;
+                qsort(hits, nh, sizeof *hits, sy_cmp_double);
+                for (int z = 0; z < dz; z++) {
+                    double pz = cg->lo[2] + (z + 0.5) * cg->h;
+                    size_t below = 0;
+                    while (below < nh && hits[below] < pz) below++;
+                    if (below & 1) in[(size_t)x + (size_t)dx * ((size_t)y + (size_t)dy * (size_t)z)] = 1;
+                }
+            }
+    }
+    free(hits);
+    /* Closing by one cell, 6-neighbourhood: dilate into tmp, erode into in. */
+    for (int pass = 0; pass < 2; pass++) {
+        const uint8_t *src = pass ? tmp : in;
+        uint8_t *dst = pass ? in : tmp;
+        for (int z = 0; z < dz; z++)
+            for (int y = 0; y < dy; y++)
+                for (int x = 0; x < dx; x++) {
+                    size_t i = (size_t)x + (size_t)dx * ((size_t)y + (size_t)dy * (size_t)z);
+                    int any = src[i], all = src[i];
+                    const int nb[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
+                    for (int k = 0; k < 6; k++) {
+                        int X = x + nb[k][0], Y = y + nb[k][1], Z = z + nb[k][2];
+                        int v = X >= 0 && Y >= 0 && Z >= 0 && X < dx && Y < dy && Z < dz &&
+                                src[(size_t)X + (size_t)dx * ((size_t)Y + (size_t)dy * (size_t)Z)];
+                        any |= v, all &= v;
+                    }
+                    dst[i] = (uint8_t)(pass ? all : any);
+                }
+    }
+    free(tmp);
+    cg->inside = in;
+    return SY_OK;
+}
+
+static int crown_holds(const crown_grid *cg, const double p[3])
+{
+    if (!cg || !cg->inside) return 0;
+    int q[3];
+    for (int k = 0; k < 3; k++) {
+        double t = (p[k] - cg->lo[k]) / cg->h;
+        if (!(t >= 0) || t >= cg->d[k]) return 0;
+        q[k] = (int)t;
+    }
+    return cg->inside[(size_t)q[0] + (size_t)cg->d[0] * ((size_t)q[1] + (size_t)cg->d[1] * (size_t)q[2])];
+}
+
 typedef struct {
     sy_skeleton *out;
     sy_leaves *leaves;
     float *leaf_key; /* per leaf: share of its patch's stored order before it */
     size_t key_cap;
     int32_t next_branch;
+    const crown_grid *crown; /* NULL: tips stay in their own lobe */
 } synth_out;
 
 /* Eq. 3.3 with a cost that falls as the fit improves (digest §2.3):
@@ -724,7 +841,9 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
                 tip[k] = stem[k] + fit[t][0] * fit[t][2] * leaf_size * Y[k];
             }
             long cs = grid_cell(g, stem), ct = grid_cell(g, tip);
-            if (cs < 0 || !g->soft[cs] || ct < 0 || !g->soft[ct] || !near_hull(g, stem, LEAF_HULL_TOL)) continue;
+            if (cs < 0 || !g->soft[cs] || !((ct >= 0 && g->soft[ct]) || crown_holds(so->crown, tip)) ||
+                !near_hull(g, stem, LEAF_HULL_TOL))
+                continue;
             size = fit[t][2] * (float)leaf_size;
             for (int k = 0; k < 3; k++) {
                 pos[k] = (float)stem[k];
@@ -1010,6 +1129,7 @@ typedef struct {
     double ceiling; /* no synthesised bark rises above this height */
     int32_t base_branches;
     lobe_work *work;
+    const crown_grid *crown;
 } lobe_ctx;
 
 static void lobe_work_free(lobe_work *w)
@@ -1045,7 +1165,7 @@ static void texture_lobes(void *vctx, size_t begin, size_t end, size_t chunk)
         if (!w->rc) {
             sy_cluster local = *C;
             local.seed = 0;
-            synth_out so = {&w->out, &w->leaves, NULL, 0, x->base_branches};
+            synth_out so = {&w->out, &w->leaves, NULL, 0, x->base_branches, x->crown};
             w->rc = texture_lobe(&local, (int32_t)c, x->lib, x->o, density, max_depth, x->max_thick, x->ceiling, cands,
                                  &so, &w->rep, &w->occupied, w->cells, &w->err);
             w->leaf_key = so.leaf_key;
@@ -1104,7 +1224,7 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
     double max_thick = 0;
     for (size_t i = 0; i < lib->n_patches; i++)
         if (lib->patches[i].thickness > max_thick) max_thick = lib->patches[i].thickness;
-    synth_out so = {out, leaves, NULL, 0, sy_skeleton_branch_count(skel)};
+    synth_out so = {out, leaves, NULL, 0, sy_skeleton_branch_count(skel), NULL};
     size_t occupied = 0, cells[2] = {0, 0};
     size_t n_lobes = lobes ? lobes->n : 0;
     lobe_work *work = n_lobes ? calloc(n_lobes, sizeof *work) : NULL;
@@ -1118,8 +1238,13 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
         for (size_t i = 0; i < skel->n; i++) ceiling = fmax(ceiling, skel->pos[3 * i + 2]);
         for (size_t c = 0; c < n_lobes; c++)
             for (size_t v = 0; v < lobes->items[c].n_verts; v++) ceiling = fmax(ceiling, lobes->items[c].verts[3 * v + 2]);
-        lobe_ctx ctx = {skel, lobes, lib, o, max_thick, ceiling, ctx_branches, work};
-        sy_parallel_for(n_lobes, 1, texture_lobes, &ctx);
+        crown_grid crown;
+        rc = crown_build(lobes, &crown, err);
+        if (!rc) {
+            lobe_ctx ctx = {skel, lobes, lib, o, max_thick, ceiling, ctx_branches, work, &crown};
+            sy_parallel_for(n_lobes, 1, texture_lobes, &ctx);
+        }
+        free(crown.inside);
     }
     /* The lobes in order, as if textured one after another into out. */
     for (size_t c = 0; !rc && c < n_lobes; c++) {
