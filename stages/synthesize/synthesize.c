@@ -525,6 +525,9 @@ static sy_code crown_build(const sy_clusters *lobes, crown_grid *cg, sy_error *e
                 for (size_t t = 0; t < C->n_tris; t++) {
                     const float *a = C->verts + 3 * C->tris[3 * t], *b = C->verts + 3 * C->tris[3 * t + 1],
                                 *e = C->verts + 3 * C->tris[3 * t + 2];
+                    if ((px < a[0] && px < b[0] && px < e[0]) || (px > a[0] && px > b[0] && px > e[0]) ||
+                        (py < a[1] && py < b[1] && py < e[1]) || (py > a[1] && py > b[1] && py > e[1]))
+                        continue;
                     double d = (b[0] - a[0]) * (e[1] - a[1]) - (e[0] - a[0]) * (b[1] - a[1]);
                     if (fabs(d) < 1e-18) continue;
                     double u = ((px - a[0]) * (e[1] - a[1]) - (e[0] - a[0]) * (py - a[1])) / d;
@@ -534,34 +537,31 @@ static sy_code crown_build(const sy_clusters *lobes, crown_grid *cg, sy_error *e
                 }
                 if (nh < 2) continue;
                 qsort(hits, nh, sizeof *hits, sy_cmp_double);
-                for (int z = 0; z < dz; z++) {
-                    double pz = cg->lo[2] + (z + 0.5) * cg->h;
-                    size_t below = 0;
-                    while (below < nh && hits[below] < pz) below++;
-                    if (below & 1) in[(size_t)x + (size_t)dx * ((size_t)y + (size_t)dy * (size_t)z)] = 1;
+                /* Centres above an odd number of crossings: between hits 2i and 2i+1. */
+                for (size_t i = 0; i + 1 < nh; i += 2) {
+                    int z0 = (int)ceil((hits[i] - cg->lo[2]) / cg->h - 0.5), z1 = (int)ceil((hits[i + 1] - cg->lo[2]) / cg->h - 0.5);
+                    for (int z = z0 < 0 ? 0 : z0; z < z1 && z < dz; z++)
+                        in[(size_t)x + (size_t)dx * ((size_t)y + (size_t)dy * (size_t)z)] = 1;
                 }
             }
     }
     free(hits);
-    /* Closing by one cell, 6-neighbourhood: dilate into tmp, erode into in. */
-    for (int pass = 0; pass < 2; pass++) {
-        const uint8_t *src = pass ? tmp : in;
-        uint8_t *dst = pass ? in : tmp;
-        for (int z = 0; z < dz; z++)
-            for (int y = 0; y < dy; y++)
-                for (int x = 0; x < dx; x++) {
-                    size_t i = (size_t)x + (size_t)dx * ((size_t)y + (size_t)dy * (size_t)z);
-                    int any = src[i], all = src[i];
-                    const int nb[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
-                    for (int k = 0; k < 6; k++) {
-                        int X = x + nb[k][0], Y = y + nb[k][1], Z = z + nb[k][2];
-                        int v = X >= 0 && Y >= 0 && Z >= 0 && X < dx && Y < dy && Z < dz &&
-                                src[(size_t)X + (size_t)dx * ((size_t)Y + (size_t)dy * (size_t)Z)];
-                        any |= v, all &= v;
-                    }
-                    dst[i] = (uint8_t)(pass ? all : any);
-                }
-    }
+    /* Closing by one cell, 6-neighbourhood: dilate into tmp, erode back into
+     * in. Only set cells are visited. A cell whose centre lies inside a hull
+     * is never on the grid's border (the border cells' centres lie outside
+     * the hulls' box), so dilation stays on the grid, and a border cell of
+     * the dilation erodes to empty. */
+    const size_t sx = 1, sy = (size_t)dx, sz = (size_t)dx * (size_t)dy;
+    memcpy(tmp, in, n);
+    for (size_t i = 0; i < n; i++)
+        if (in[i]) tmp[i - sx] = tmp[i + sx] = tmp[i - sy] = tmp[i + sy] = tmp[i - sz] = tmp[i + sz] = 1;
+    memset(in, 0, n);
+    for (int z = 1; z + 1 < dz; z++)
+        for (int y = 1; y + 1 < dy; y++)
+            for (int x = 1; x + 1 < dx; x++) {
+                size_t i = (size_t)x + sy * (size_t)y + sz * (size_t)z;
+                in[i] = tmp[i] && tmp[i - sx] && tmp[i + sx] && tmp[i - sy] && tmp[i + sy] && tmp[i - sz] && tmp[i + sz];
+            }
     free(tmp);
     cg->inside = in;
     return SY_OK;
