@@ -283,6 +283,35 @@ static void texturing_fills_the_lobe(void **state)
     sy_skeleton_free(&s);
 }
 
+/* Lobe c: a copy of box moved by (dx, dy, dz), hanging off node seed, with
+ * its first n_tris triangles (fewer than 4: degenerate). */
+static void moved_box(sy_cluster *c, const sy_cluster *box, int32_t seed, float dx, float dy, float dz, size_t n_tris)
+{
+    c->seed = seed;
+    c->n_verts = box->n_verts;
+    c->n_tris = n_tris;
+    c->verts = malloc(3 * box->n_verts * sizeof(float));
+    c->tris = malloc(3 * box->n_tris * sizeof(uint32_t));
+    assert_non_null(c->verts);
+    assert_non_null(c->tris);
+    for (size_t v = 0; v < box->n_verts; v++) {
+        c->verts[3 * v] = box->verts[3 * v] + dx;
+        c->verts[3 * v + 1] = box->verts[3 * v + 1] + dy;
+        c->verts[3 * v + 2] = box->verts[3 * v + 2] + dz;
+    }
+    memcpy(c->tris, box->tris, 3 * box->n_tris * sizeof(uint32_t));
+}
+
+/* The trunk of make_tree with its 1.2 m box lobe in one, and n empty lobes
+ * in cl for moved copies of that box. */
+static void tree_with_lobes(sy_skeleton *s, sy_clusters *one, sy_clusters *cl, size_t n)
+{
+    make_tree(s, one, 0.6, 0);
+    cl->n = n;
+    cl->items = calloc(n, sizeof *cl->items);
+    assert_non_null(cl->items);
+}
+
 /* Lobes are textured in parallel and merged in order: several lobes (one of
  * them degenerate, so bare) give the same skeleton, branch ids, leaves and
  * report on one thread and on two. */
@@ -290,28 +319,13 @@ static void lobes_in_parallel_give_the_same_tree(void **state)
 {
     (void)state;
     sy_skeleton s;
-    sy_clusters one = {0};
-    make_tree(&s, &one, 0.6, 0);
+    sy_clusters one = {0}, cl = {0};
+    tree_with_lobes(&s, &one, &cl, 5);
     const sy_cluster *box = &one.items[0];
-    sy_clusters cl = {0};
-    cl.n = 5;
-    cl.items = calloc(cl.n, sizeof *cl.items);
-    assert_non_null(cl.items);
     for (size_t k = 0; k < cl.n; k++) {
-        sy_cluster *c = &cl.items[k];
-        c->seed = (int32_t)(4 + 2 * (k % 4));
-        c->n_verts = box->n_verts;
-        c->n_tris = k == 2 ? 2 : box->n_tris; /* lobe 2 is degenerate */
-        c->verts = malloc(3 * box->n_verts * sizeof(float));
-        c->tris = malloc(3 * box->n_tris * sizeof(uint32_t));
-        assert_non_null(c->verts);
-        assert_non_null(c->tris);
-        for (size_t v = 0; v < box->n_verts; v++) {
-            c->verts[3 * v] = box->verts[3 * v] + (float)(1.5 * cos((double)k));
-            c->verts[3 * v + 1] = box->verts[3 * v + 1] + (float)(1.5 * sin((double)k));
-            c->verts[3 * v + 2] = box->verts[3 * v + 2] - 4.6f + 0.8f * (float)c->seed * 0.4f;
-        }
-        memcpy(c->tris, box->tris, 3 * box->n_tris * sizeof(uint32_t));
+        int32_t seed = (int32_t)(4 + 2 * (k % 4));
+        moved_box(&cl.items[k], box, seed, (float)(1.5 * cos((double)k)), (float)(1.5 * sin((double)k)),
+                  -4.6f + 0.8f * (float)seed * 0.4f, k == 2 ? 2 : box->n_tris); /* lobe 2 is degenerate */
     }
     sy_branchlets lib;
     sy_synth_options o = aspen_options(&lib);
@@ -366,29 +380,11 @@ static void cards_reach_across_lobe_borders(void **state)
 {
     (void)state;
     sy_skeleton s;
-    sy_clusters one = {0};
-    make_tree(&s, &one, 0.6, 0);
+    sy_clusters one = {0}, cl = {0};
+    tree_with_lobes(&s, &one, &cl, 2);
     const sy_cluster *box = &one.items[0];
-    sy_clusters cl = {0};
-    cl.n = 2;
-    cl.items = calloc(cl.n, sizeof *cl.items);
-    assert_non_null(cl.items);
-    for (size_t k = 0; k < cl.n; k++) {
-        sy_cluster *c = &cl.items[k];
-        c->seed = 10;
-        c->n_verts = box->n_verts;
-        c->n_tris = box->n_tris;
-        c->verts = malloc(3 * box->n_verts * sizeof(float));
-        c->tris = malloc(3 * box->n_tris * sizeof(uint32_t));
-        assert_non_null(c->verts);
-        assert_non_null(c->tris);
-        for (size_t v = 0; v < box->n_verts; v++) {
-            c->verts[3 * v] = box->verts[3 * v] + (k ? 0.6f : -0.6f); /* x in [-1.2, 0] and [0, 1.2] */
-            c->verts[3 * v + 1] = box->verts[3 * v + 1];
-            c->verts[3 * v + 2] = box->verts[3 * v + 2];
-        }
-        memcpy(c->tris, box->tris, 3 * box->n_tris * sizeof(uint32_t));
-    }
+    for (size_t k = 0; k < cl.n; k++) /* x in [-1.2, 0] and [0, 1.2] */
+        moved_box(&cl.items[k], box, 10, k ? 0.6f : -0.6f, 0, 0, box->n_tris);
     sy_branchlets lib;
     sy_synth_options o = aspen_options(&lib);
     sy_skeleton out;
