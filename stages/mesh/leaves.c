@@ -225,8 +225,8 @@ static void quat_mul(const float a[4], const float b[4], float out[4])
     out[3] = a[3] * b[3] - a[0] * b[0] - a[1] * b[1] - a[2] * b[2];
 }
 
-/* The ring centre of stem s nearest p: where a leaf of a dropped twig moves
- * so that it still hangs on drawn bark. */
+/* The ring centre of stem s nearest p and its radius: a leaf of a dropped
+ * twig comes toward it until it hangs within reach of drawn bark. */
 static void nearest_centre(const sy_stem *s, const float p[3], float out[3], float *radius)
 {
     float best = INFINITY;

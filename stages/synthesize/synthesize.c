@@ -186,13 +186,10 @@ static long grid_cell(const lobe_grid *g, const double p[3])
  * out of their hull). */
 #define LEAF_HULL_TOL 0.05
 
-/* Where the vertical line through (px, py) meets hull triangle t: 1 and
- * its height in *z, or 0 (outside the triangle's padded box included). */
-static int vertical_hit(const lobe_grid *g, size_t t, double px, double py, double *z)
+/* Where the vertical line through (px, py) meets triangle t of hull c: 1
+ * and its height in *z, or 0. */
+static int triangle_vertical_hit(const sy_cluster *c, size_t t, double px, double py, double *z)
 {
-    const sy_cluster *c = g->hull;
-    const float *bx = g->tri_box + 6 * t;
-    if (px < bx[0] || px > bx[1] || py < bx[2] || py > bx[3]) return 0;
     const float *a = c->verts + 3 * c->tris[3 * t], *b = c->verts + 3 * c->tris[3 * t + 1],
                 *e = c->verts + 3 * c->tris[3 * t + 2];
     double d = (b[0] - a[0]) * (e[1] - a[1]) - (e[0] - a[0]) * (b[1] - a[1]);
@@ -202,6 +199,26 @@ static int vertical_hit(const lobe_grid *g, size_t t, double px, double py, doub
     if (u < 0 || v < 0 || u + v > 1) return 0;
     *z = a[2] + u * (b[2] - a[2]) + v * (e[2] - a[2]);
     return 1;
+}
+
+/* The same for the lobe grid's hull, outside the triangle's padded box
+ * rejected first. */
+static int vertical_hit(const lobe_grid *g, size_t t, double px, double py, double *z)
+{
+    const float *bx = g->tri_box + 6 * t;
+    if (px < bx[0] || px > bx[1] || py < bx[2] || py > bx[3]) return 0;
+    return triangle_vertical_hit(g->hull, t, px, py, z);
+}
+
+/* Hull c's bounding box. */
+static void hull_box(const sy_cluster *c, float lo[3], float hi[3])
+{
+    for (int k = 0; k < 3; k++) lo[k] = hi[k] = c->verts[k];
+    for (size_t i = 1; i < c->n_verts; i++)
+        for (int k = 0; k < 3; k++) {
+            if (c->verts[3 * i + k] < lo[k]) lo[k] = c->verts[3 * i + k];
+            if (c->verts[3 * i + k] > hi[k]) hi[k] = c->verts[3 * i + k];
+        }
 }
 
 /* 1 when p lies inside the hull or within tol of its surface: the exact
@@ -252,12 +269,7 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
 {
     memset(g, 0, sizeof *g);
     g->hull = c;
-    for (int k = 0; k < 3; k++) g->lo[k] = g->hi[k] = c->verts[k];
-    for (size_t i = 1; i < c->n_verts; i++)
-        for (int k = 0; k < 3; k++) {
-            if (c->verts[3 * i + k] < g->lo[k]) g->lo[k] = c->verts[3 * i + k];
-            if (c->verts[3 * i + k] > g->hi[k]) g->hi[k] = c->verts[3 * i + k];
-        }
+    hull_box(c, g->lo, g->hi);
     double ext = 0;
     for (int k = 0; k < 3; k++)
         if (g->hi[k] - g->lo[k] > ext) ext = g->hi[k] - g->lo[k];
@@ -488,8 +500,10 @@ static sy_code crown_build(const sy_clusters *lobes, crown_grid *cg, sy_error *e
     size_t max_tris = 0;
     for (size_t c = 0; lobes && c < lobes->n; c++) {
         const sy_cluster *C = &lobes->items[c];
-        for (size_t v = 0; v < C->n_verts; v++)
-            for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], C->verts[3 * v + k]), hi[k] = fmax(hi[k], C->verts[3 * v + k]);
+        if (C->n_verts == 0) continue;
+        float blo[3], bhi[3];
+        hull_box(C, blo, bhi);
+        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], blo[k]), hi[k] = fmax(hi[k], bhi[k]);
         if (C->n_tris > max_tris) max_tris = C->n_tris;
     }
     double ext = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
@@ -511,10 +525,8 @@ static sy_code crown_build(const sy_clusters *lobes, crown_grid *cg, sy_error *e
     for (size_t c = 0; c < lobes->n; c++) {
         const sy_cluster *C = &lobes->items[c];
         if (C->n_tris < 4) continue;
-        double blo[3] = {INFINITY, INFINITY, INFINITY}, bhi[3] = {-INFINITY, -INFINITY, -INFINITY};
-        for (size_t v = 0; v < C->n_verts; v++)
-            for (int k = 0; k < 3; k++)
-                blo[k] = fmin(blo[k], C->verts[3 * v + k]), bhi[k] = fmax(bhi[k], C->verts[3 * v + k]);
+        float blo[3], bhi[3];
+        hull_box(C, blo, bhi);
         int x0 = (int)floor((blo[0] - cg->lo[0]) / cg->h), x1 = (int)floor((bhi[0] - cg->lo[0]) / cg->h);
         int y0 = (int)floor((blo[1] - cg->lo[1]) / cg->h), y1 = (int)floor((bhi[1] - cg->lo[1]) / cg->h);
         for (int y = y0; y <= y1; y++)
@@ -528,12 +540,7 @@ static sy_code crown_build(const sy_clusters *lobes, crown_grid *cg, sy_error *e
                     if ((px < a[0] && px < b[0] && px < e[0]) || (px > a[0] && px > b[0] && px > e[0]) ||
                         (py < a[1] && py < b[1] && py < e[1]) || (py > a[1] && py > b[1] && py > e[1]))
                         continue;
-                    double d = (b[0] - a[0]) * (e[1] - a[1]) - (e[0] - a[0]) * (b[1] - a[1]);
-                    if (fabs(d) < 1e-18) continue;
-                    double u = ((px - a[0]) * (e[1] - a[1]) - (e[0] - a[0]) * (py - a[1])) / d;
-                    double v = ((b[0] - a[0]) * (py - a[1]) - (px - a[0]) * (b[1] - a[1])) / d;
-                    if (u < 0 || v < 0 || u + v > 1) continue;
-                    hits[nh++] = a[2] + u * (b[2] - a[2]) + v * (e[2] - a[2]);
+                    nh += triangle_vertical_hit(C, t, px, py, hits + nh);
                 }
                 if (nh < 2) continue;
                 qsort(hits, nh, sizeof *hits, sy_cmp_double);
