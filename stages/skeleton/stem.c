@@ -76,11 +76,17 @@
  * straight line from the root to its end: a real trunk, however crooked,
  * stays near 1; chains that follow a leaf-on crown's shell, down one limb's
  * curtain and up the next, reach 1.9-4.6 on the simulated willow, maple and
- * plane (and 2.3-2.7 on two leaf-off scans whose limbs the scan does show). */
-#define CROWN_MEANDER 1.8
+ * plane (and 2.3-2.7 on two leaf-off scans whose limbs the scan does show).
+ * 1.8 until stop 24 left the sugar maple (seed 2: 1.54) and the silver birch
+ * (seed 1: 1.58) meandering through their shells as coiled limbs; the crown
+ * fill test below still keeps the leaf-off scans (fill 0.44-0.58) out. */
+#define CROWN_MEANDER 1.45
 /* The trunk is kept up to its crown base: the last node before the chain's
- * path from the root exceeds this many times the straight distance, or a
- * step rises less than half its length. */
+ * path exceeds this many times the straight distance, or a step rises less
+ * than half its length. Both are measured from the node above the root: the
+ * root is the lowest return, which can lie off the stem (the palm sample's,
+ * 0.9 m to the side, made its first step rise 0.47 of its 1.0 m and put the
+ * crown base at the ground, so the whole palm was regrown as a crown). */
 #define CROWN_BASE_PATH 1.15
 /* A crown of foliage: over height slabs of its upper 60 %, the median of
  * (median / 95th percentile) of the returns' distance from the slab
@@ -575,14 +581,19 @@ sy_code sy_regrow_meandering_crown(sy_skeleton *s, const float *xyz, size_t n, i
     free(child);
     float r0[3]; /* the root: s is replaced below */
     memcpy(r0, s->pos, sizeof r0);
-    double path = 0, chord = 0, top_z = r0[2];
+    double path = 0, chord = 0, top_z = r0[2], trunk_path = 0;
     size_t base = 0;
     int past_base = 0;
     for (size_t k = 1; k < K; k++) {
         const float *a = s->pos + 3 * (size_t)chain[k - 1], *b = s->pos + 3 * (size_t)chain[k];
         path += dist3f(a, b);
         chord = dist3f(r0, b);
-        if (!past_base && (path > CROWN_BASE_PATH * chord || b[2] - a[2] < 0.5 * dist3f(a, b))) past_base = 1;
+        if (k >= 2) {
+            trunk_path += dist3f(a, b);
+            const float *t0 = s->pos + 3 * (size_t)chain[1];
+            if (!past_base && (trunk_path > CROWN_BASE_PATH * dist3f(t0, b) || b[2] - a[2] < 0.5 * dist3f(a, b)))
+                past_base = 1;
+        }
         if (!past_base) base = k;
     }
     for (size_t i = 0; i < n; i++) top_z = fmax(top_z, xyz[3 * i + 2]);

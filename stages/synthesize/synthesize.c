@@ -27,6 +27,7 @@ sy_synth_options sy_synth_options_default(void)
     o.candidates = 12;
     o.rolls = 4;
     o.outside_max = 0.2f;
+    o.start_outside_max = 0.35f;
     o.grid = 16;
     return o;
 }
@@ -39,7 +40,8 @@ sy_code sy_synth_options_check(const sy_synth_options *o, sy_error *err)
     if (o->max_depth < 0 || o->max_depth > 32) return sy_fail(err, SY_EUSAGE, "synthesize: max_depth must be 0..32");
     if (o->max_patches < 1 || o->candidates < 1 || o->candidates > 64 || o->rolls < 1 || o->rolls > 16)
         return sy_fail(err, SY_EUSAGE, "synthesize: max_patches >= 1, candidates 1..64, rolls 1..16");
-    if (!(o->outside_max >= 0 && o->outside_max <= 1)) return sy_fail(err, SY_EUSAGE, "synthesize: outside_max must be in [0, 1]");
+    if (!(o->outside_max >= 0 && o->outside_max <= 1) || !(o->start_outside_max >= 0 && o->start_outside_max <= 1))
+        return sy_fail(err, SY_EUSAGE, "synthesize: outside_max and start_outside_max must be in [0, 1]");
     if (o->grid < 2 || o->grid > 64) return sy_fail(err, SY_EUSAGE, "synthesize: grid must be 2..64");
 
     return SY_OK;
@@ -1055,8 +1057,10 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
                     mat_mul(Rr[r], T, R);
                     fit_geo f;
                     if (d.pos[2] + s * p->extent > ceiling && rises_above(p, &d, R, s, ceiling)) continue;
-                    /* A start may leave from a seed outside the hull: half of it may lie out. */
-                    int fit = patch_fit(p, &d, R, s, &g, d.depth > 0 ? o->outside_max : 0.5, cands[ci].key, ext, best, &f);
+                    /* A start leaves from a seed that may lie outside the hull, so
+                     * more of it may lie out (start_outside_max). */
+                    int fit = patch_fit(p, &d, R, s, &g, d.depth > 0 ? o->outside_max : o->start_outside_max, cands[ci].key,
+                                        ext, best, &f);
                     if (fit == 0) continue;
                     if (fit == 2 || f.gain < 0.15) { /* the lobe is full where it would go */
                         full = 1;

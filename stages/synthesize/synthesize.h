@@ -37,6 +37,9 @@ typedef struct {
     int candidates;         /* best patches by eq. 3.3 tried against the lobe geometry (default 12) */
     int rolls;              /* roll angles tried per candidate (default 4) */
     float outside_max;      /* reject a patch with more than this share of its samples outside the hull (0.2) */
+    float start_outside_max; /* the same for a start's first patch, which leaves from a seed that may lie outside
+                               * the hull (0.35; 0.5 until stop 24 put the starts' twigs across empty space
+                               * beside the scan's points: docs/synthesize.md) */
     int grid;               /* lobe grid cells along its longest side (default 16) */
     int literal_eq33;       /* 1: eq. 3.3 as printed, max/min thickness ratio x (v_r . v_d), minimised */
 } sy_synth_options;
