@@ -56,6 +56,7 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
     sy_json_bool(&j, "crown_regrown", r->crown_regrown);
     sy_json_number(&j, "trunk_meander", r->trunk_meander);
     sy_json_number(&j, "crown_fill", r->crown_fill);
+    if (r->crown_regrown) sy_json_number(&j, "crown_base", r->crown_base);
     sy_json_number(&j, "height", r->height);
     sy_json_int(&j, "hull_triangles", (long long)res->asset.hull_triangles);
     sy_json_int(&j, "lod0_bark_triangles", (long long)(res->asset.bark_triangles[0] - res->asset.hull_triangles));

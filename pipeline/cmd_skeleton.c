@@ -48,6 +48,7 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
         sy_json_bool(&j, "crown_regrown", r->crown_regrown);
         sy_json_number(&j, "trunk_meander", r->trunk_meander);
         sy_json_number(&j, "crown_fill", r->crown_fill);
+        if (r->crown_regrown) sy_json_number(&j, "crown_base", r->crown_base);
         sy_json_number(&j, "height", r->height);
         sy_json_object(&j, "seconds");
         sy_json_number(&j, "graph", r->t_graph);

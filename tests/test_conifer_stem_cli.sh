@@ -69,6 +69,16 @@ palm_tls 0.45 0.03
 aspen_als 1.30 0.03
 palm_als 2.30 0.03
 EOF
+# The palm's trunk chain runs up its bole and out along a frond (meander 1.6):
+# its crown is regrown, but above the bole. Its root (the lowest return) lies
+# 0.9 m off the stem, and a crown base measured from the root put the base at
+# the ground: the whole palm regrown as a crown, its DBH no longer fitted.
+rg=$(jq -r .crown_regrown "$tmp/palm_tls.report"); cb=$(jq -r '.crown_base // 0' "$tmp/palm_tls.report")
+ph=$(jq -r .height "$tmp/palm_tls.report"); pf=$(jq -r .dbh_fitted "$tmp/palm_tls.report")
+if [ "$rg" = true ]; then
+  check "palm_tls crown regrown above its bole: base $cb m >= 0.6 x $ph m" "$cb >= 0.6 * $ph"
+fi
+[ "$pf" = true ] && echo "ok: palm_tls DBH fitted" || { echo "FAIL: palm_tls DBH not fitted"; fail=1; }
 # A broadleaf whose bole the scan shows under a crown that starts higher up:
 # its trunk chain strays from the crown's axis because the trunk divides
 # among the limbs, and rebuilding it made a pole with spokes (sassafras, the
