@@ -348,9 +348,12 @@ static void skeleton_features(const float *P, size_t m, double z0, double H, dou
     sy_skeleton_options so = sy_skeleton_options_default();
     /* The features of SY_FEATURES_VERSION 2, on which the shipped model was
      * trained, come from skeletons with their hairpins left as they are and
-     * occluded stems rebuilt to the crown's top. */
+     * occluded stems rebuilt to the crown's top, crowns regrown at a trunk
+     * meander of 1.8 above a base measured from the root. */
     so.unfold_hairpins = 0;
     so.fork_domed_stems = 0;
+    so.crown_meander = 1.8;
+    so.crown_base_above_root = 0;
     sy_cut_options co = sy_cut_options_default();
     co.clusters = 0; /* the skeleton alone, every point on it */
     sy_full_skeleton full;

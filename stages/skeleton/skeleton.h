@@ -46,6 +46,10 @@ typedef struct {
                              skeletonize.c, unfold_hairpins) */
     int fork_domed_stems; /* an occluded stem rebuilt under a domed crown ends where the crown's widest
                              part ends, and the limbs spread from there (1; stem.c) */
+    double crown_meander; /* a leaf-on crown is regrown when the trunk chain's path is more than this
+                             many times its reach (1.45; 1.8 until stop 24; stem.c) */
+    int crown_base_above_root; /* the regrown crown's base measured from the node above the root, which
+                                  can lie off the stem (1; 0 until stop 24; stem.c) */
     double wood_share;    /* wood/leaf separation: wood = shortest-path subtrees holding at least this
                              share of the points, plus their neighbours; 0 = off, all wood (default:
                              on leafy TLS scans it gained little and hurt leafless trees, docs/skeleton.md) */

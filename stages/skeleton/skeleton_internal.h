@@ -83,14 +83,16 @@ sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int
                                  const uint8_t *wood, double w, double spacing, int fork_domes, sy_stem_info *info,
                                  sy_error *err);
 /* A decurrent crown's occluded limbs (stem.c): when the trunk chain of s
- * meanders (its path over CROWN_MEANDER times its root-to-end distance: it
+ * meanders (its path over `meander` times its root-to-end distance: it
  * follows the shell of a leaf-on crown, down one limb and up the next) and
  * the crown's returns are foliage (CROWN_FOLIAGE_RATIO), keeps the trunk up
- * to its crown base and regrows the crown above it by space colonisation;
- * s comes back as from sy_rebuild_occluded_stem. info->crown_regrown says
- * whether it changed anything. */
+ * to its crown base (measured from the node above the root when
+ * base_above_root, else from the root) and regrows the crown above it by
+ * space colonisation; s comes back as from sy_rebuild_occluded_stem.
+ * info->crown_regrown says whether it changed anything. */
 sy_code sy_regrow_meandering_crown(sy_skeleton *s, const float *xyz, size_t n, int32_t *point_node,
-                                   const uint8_t *wood, double w, sy_stem_info *info, sy_error *err);
+                                   const uint8_t *wood, double w, double meander, int base_above_root,
+                                   sy_stem_info *info, sy_error *err);
 /* Space colonisation (colonize.c, Runions et al. 2007): from the n_seed
  * nodes at seed, grows nodes one step at a time toward the attraction points
  * (pts thinned to one per step-sized voxel) until each is within kill of a

@@ -72,21 +72,13 @@
 /* The root is on the stem when it lies within this many times the slab
  * centroids' RMS scatter of their free line. */
 #define STEM_ROOT_ON_AXIS 2.0
-/* A trunk chain meanders when its path is this many times as long as the
- * straight line from the root to its end: a real trunk, however crooked,
- * stays near 1; chains that follow a leaf-on crown's shell, down one limb's
- * curtain and up the next, reach 1.9-4.6 on the simulated willow, maple and
- * plane (and 2.3-2.7 on two leaf-off scans whose limbs the scan does show).
- * 1.8 until stop 24 left the sugar maple (seed 2: 1.54) and the silver birch
- * (seed 1: 1.58) meandering through their shells as coiled limbs; the crown
- * fill test below still keeps the leaf-off scans (fill 0.44-0.58) out. */
-#define CROWN_MEANDER 1.45
 /* The trunk is kept up to its crown base: the last node before the chain's
  * path exceeds this many times the straight distance, or a step rises less
- * than half its length. Both are measured from the node above the root: the
- * root is the lowest return, which can lie off the stem (the palm sample's,
- * 0.9 m to the side, made its first step rise 0.47 of its 1.0 m and put the
- * crown base at the ground, so the whole palm was regrown as a crown). */
+ * than half its length. Both are measured from the node above the root
+ * (base_above_root): the root is the lowest return, which can lie off the
+ * stem (the palm sample's, 0.9 m to the side, made its first step rise 0.47
+ * of its 1.0 m and put the crown base at the ground, so the whole palm was
+ * regrown as a crown). */
 #define CROWN_BASE_PATH 1.15
 /* A crown of foliage: over height slabs of its upper 60 %, the median of
  * (median / 95th percentile) of the returns' distance from the slab
@@ -561,7 +553,8 @@ static double crown_fill_ratio(const float *xyz, size_t n, double z0, double H, 
 }
 
 sy_code sy_regrow_meandering_crown(sy_skeleton *s, const float *xyz, size_t n, int32_t *point_node,
-                                   const uint8_t *wood, double w, sy_stem_info *info, sy_error *err)
+                                   const uint8_t *wood, double w, double meander, int base_above_root,
+                                   sy_stem_info *info, sy_error *err)
 {
     if (s->n < 3 || n == 0 || s->parent[0] >= 0) return SY_OK;
     /* The trunk chain: from the root (node 0, breadth-first) through the
@@ -588,9 +581,10 @@ sy_code sy_regrow_meandering_crown(sy_skeleton *s, const float *xyz, size_t n, i
         const float *a = s->pos + 3 * (size_t)chain[k - 1], *b = s->pos + 3 * (size_t)chain[k];
         path += dist3f(a, b);
         chord = dist3f(r0, b);
-        if (k >= 2) {
+        size_t k0 = base_above_root ? 1 : 0; /* where the trunk's path is measured from */
+        if (k > k0) {
             trunk_path += dist3f(a, b);
-            const float *t0 = s->pos + 3 * (size_t)chain[1];
+            const float *t0 = s->pos + 3 * (size_t)chain[k0];
             if (!past_base && (trunk_path > CROWN_BASE_PATH * dist3f(t0, b) || b[2] - a[2] < 0.5 * dist3f(a, b)))
                 past_base = 1;
         }
@@ -599,8 +593,8 @@ sy_code sy_regrow_meandering_crown(sy_skeleton *s, const float *xyz, size_t n, i
     for (size_t i = 0; i < n; i++) top_z = fmax(top_z, xyz[3 * i + 2]);
     info->meander = chord > 0 ? path / chord : 0;
     sy_code rc = SY_OK;
-    if (info->meander > CROWN_MEANDER) info->crown_fill = crown_fill_ratio(xyz, n, r0[2], top_z - r0[2], err, &rc);
-    if (rc || !(info->meander > CROWN_MEANDER) || !(info->crown_fill > CROWN_FOLIAGE_RATIO)) {
+    if (info->meander > meander) info->crown_fill = crown_fill_ratio(xyz, n, r0[2], top_z - r0[2], err, &rc);
+    if (rc || !(info->meander > meander) || !(info->crown_fill > CROWN_FOLIAGE_RATIO)) {
         free(chain);
         return rc;
     }
