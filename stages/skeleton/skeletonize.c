@@ -737,7 +737,8 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     rc = sy_rebuild_occluded_stem(full, xyz, n, point_node, wood, w, s, o->fork_domed_stems, &stem, err);
     /* A decurrent crown's chain that follows its foliage shell: regrow the
      * crown from the trunk's top. */
-    if (!rc && !stem.rebuilt) rc = sy_regrow_meandering_crown(full, xyz, n, point_node, wood, w, o->crown_meander, o->crown_base_above_root,
+    if (!rc && !stem.rebuilt)
+        rc = sy_regrow_meandering_crown(full, xyz, n, point_node, wood, w, o->crown_meander, o->crown_base_above_root,
                                         &stem, err);
     /* Hairpins are turned only where neither rebuild took the crown: both
      * judge the chains as the level sets made them (turning first cut the

@@ -575,18 +575,17 @@ sy_code sy_regrow_meandering_crown(sy_skeleton *s, const float *xyz, size_t n, i
     float r0[3]; /* the root: s is replaced below */
     memcpy(r0, s->pos, sizeof r0);
     double path = 0, chord = 0, top_z = r0[2], trunk_path = 0;
-    size_t base = 0;
+    size_t base = 0, k0 = base_above_root && K > 1 ? 1 : 0; /* the crown base is measured from chain[k0] */
+    const float *t0 = s->pos + 3 * (size_t)chain[k0];
     int past_base = 0;
     for (size_t k = 1; k < K; k++) {
         const float *a = s->pos + 3 * (size_t)chain[k - 1], *b = s->pos + 3 * (size_t)chain[k];
-        path += dist3f(a, b);
+        double step = dist3f(a, b);
+        path += step;
         chord = dist3f(r0, b);
-        size_t k0 = base_above_root ? 1 : 0; /* where the trunk's path is measured from */
         if (k > k0) {
-            trunk_path += dist3f(a, b);
-            const float *t0 = s->pos + 3 * (size_t)chain[k0];
-            if (!past_base && (trunk_path > CROWN_BASE_PATH * dist3f(t0, b) || b[2] - a[2] < 0.5 * dist3f(a, b)))
-                past_base = 1;
+            trunk_path += step;
+            if (!past_base && (trunk_path > CROWN_BASE_PATH * dist3f(t0, b) || b[2] - a[2] < 0.5 * step)) past_base = 1;
         }
         if (!past_base) base = k;
     }
