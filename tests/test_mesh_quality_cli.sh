@@ -10,17 +10,20 @@ set -u
 source "$SYLVA_SOURCE_DIR/tests/glb_cli_common.sh"
 samples="$SYLVA_SOURCE_DIR/samples"
 # The checks of one --json report: jq exits 1 unless every condition holds.
-# Sails: a classified palm_tls (synthesised fronds) measures 0.60% at LOD0 and
-# fir_tls 0.30% (0.72% / 0.61% before the mesher shortened Hermite slopes at
-# sharp polyline corners, where noisy reconstructed twigs bulged off their
-# skeleton). What is left on palm_tls sits in one crowded knot of 3 mm twigs
-# at 10.4 m, not yet explained; the bound is 0.7%, over the 0.5% aimed at.
+# Sails: at most 0.5 % of LOD0's bark triangles. Measured at stop 25: the
+# classified palm_tls 0.31 %, tree1 0.04 %, the others under 0.15 %. Until
+# then the check measured a child's first segment from the two parent
+# segments at its attachment node, while the mesher attaches it anywhere
+# within reach along its parent's stem (and chains stems through a thick,
+# straight child of another id): a fir's whorl of twigs attached 20 cm down
+# its shoot counted as sails across that gap (palm_tls 0.60 %, the airborne
+# fir 0.97 %), and the bound here was 0.7 %.
 assert_quality() {
     jq -e --argjson empty_ok "${2:-false}" '
       .mesh_check as $c | ($c[0]) as $l0 |
       ($c | length) == 0 and $empty_ok or ($c | length) >= 2 and
       ([$c[] | .misoriented_edges == 0 and .below_ground == 0 and .leaves_below_ground == 0] | all) and
-      $l0.sails <= 0.007 * $l0.bark_triangles and $l0.slivers <= 0.002 * $l0.bark_triangles and
+      $l0.sails <= 0.005 * $l0.bark_triangles and $l0.slivers <= 0.002 * $l0.bark_triangles and
       $l0.bark_triangles <= 60000 and $l0.leaves_far == 0 and
       ([$c[1:][] | .ratio >= 0.25 and .ratio <= 0.5] | all)' "$1" > /dev/null
 }

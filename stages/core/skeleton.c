@@ -208,6 +208,30 @@ void sy_skeleton_children(const sy_skeleton *s, int32_t *first_child, int32_t *n
     }
 }
 
+void sy_skeleton_continuations(const sy_skeleton *s, int32_t *cont)
+{
+    size_t n = s->n;
+    for (size_t i = 0; i < n; i++) cont[i] = -1;
+    for (size_t i = 0; i < n; i++) {
+        int32_t p = s->parent[i];
+        if (p >= 0 && s->branch[p] == s->branch[i] && cont[p] < 0) cont[p] = (int32_t)i;
+    }
+    for (size_t i = 0; i < n; i++) {
+        int32_t p = s->parent[i], g = p >= 0 ? s->parent[p] : -1;
+        if (p < 0 || g < 0 || s->radius[i] < 0.7f * s->radius[p]) continue;
+        if (cont[p] >= 0 && s->branch[cont[p]] == s->branch[p]) continue; /* goes on in its own id */
+        float a[3], b[3];
+        for (int k = 0; k < 3; k++) {
+            a[k] = s->pos[3 * (size_t)p + k] - s->pos[3 * (size_t)g + k];
+            b[k] = s->pos[3 * i + k] - s->pos[3 * (size_t)p + k];
+        }
+        float ab = a[0] * b[0] + a[1] * b[1] + a[2] * b[2], aa = a[0] * a[0] + a[1] * a[1] + a[2] * a[2],
+              bb = b[0] * b[0] + b[1] * b[1] + b[2] * b[2];
+        if (ab < 0.7f * sqrtf(aa * bb)) continue; /* turns by more than 45 degrees */
+        if (cont[p] < 0 || s->radius[i] > s->radius[cont[p]]) cont[p] = (int32_t)i;
+    }
+}
+
 double sy_skeleton_edge_length(const sy_skeleton *s, size_t i)
 {
     int32_t p = s->parent[i];

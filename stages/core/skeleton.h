@@ -63,6 +63,15 @@ double sy_skeleton_length(const sy_skeleton *s);
 /* Child lists (s->n entries each, -1 = none): node i's children are
  * first_child[i], next_sibling[first_child[i]], ... in ascending index order. */
 void sy_skeleton_children(const sy_skeleton *s, int32_t *first_child, int32_t *next_sibling);
+/* The node each node's stem goes on through (s->n entries, -1 = its stem
+ * ends there): its lowest-index child of the same branch id, else a child
+ * of another id that goes on as thick (>= 0.7 of its radius) and as
+ * straight (turning < 45 degrees), the thickest such. The mesher draws one
+ * stem along each chain and the mesh check measures against the same
+ * chains. QSMs that number their segments between forks (rTwig's segment
+ * ids) would otherwise end the trunk in a dome at every fork with its
+ * continuation welded on as a branch. */
+void sy_skeleton_continuations(const sy_skeleton *s, int32_t *cont);
 /* Length of node i's incoming edge in metres (0 at the root). */
 double sy_skeleton_edge_length(const sy_skeleton *s, size_t i);
 /* l[i] = length of all edges below node i plus its incoming edge (so leaves

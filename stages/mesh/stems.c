@@ -96,30 +96,7 @@ static sy_code build_chains(const sy_skeleton *sk, sy_stems *st, sy_error *err)
         free(keys);
         return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
     }
-    for (size_t i = 0; i < n; i++) cont[i] = -1;
-    for (size_t i = 0; i < n; i++) {
-        int32_t p = sk->parent[i];
-        if (p >= 0 && sk->branch[p] == sk->branch[i] && cont[p] < 0) cont[p] = (int32_t)i;
-    }
-    /* A chain that ends where a child of another id goes on as thick and
-     * as straight carries on through it: QSMs that number their segments
-     * between forks (rTwig's segment ids) would otherwise end the trunk in a
-     * dome at every fork with its continuation welded on as a branch. */
-    uint8_t *had = malloc(n ? n : 1);
-    if (!had) {
-        free(cont), free(keys);
-        return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
-    }
-    for (size_t i = 0; i < n; i++) had[i] = cont[i] >= 0;
-    for (size_t i = 0; i < n; i++) {
-        int32_t p = sk->parent[i], g = p >= 0 ? sk->parent[p] : -1;
-        if (p < 0 || had[p] || g < 0 || sk->radius[i] < 0.7f * sk->radius[p]) continue;
-        float a[3], b[3];
-        for (int k = 0; k < 3; k++) a[k] = sk->pos[3 * p + k] - sk->pos[3 * g + k], b[k] = sk->pos[3 * i + k] - sk->pos[3 * p + k];
-        if (sy_dot3(a, b) < 0.7f * sqrtf(sy_dot3(a, a) * sy_dot3(b, b))) continue; /* turns by more than 45 deg */
-        if (cont[p] < 0 || sk->radius[i] > sk->radius[cont[p]]) cont[p] = (int32_t)i;
-    }
-    free(had);
+    sy_skeleton_continuations(sk, cont);
     size_t ns = 0;
     for (size_t i = 0; i < n; i++) {
         int32_t p = sk->parent[i];
