@@ -142,6 +142,10 @@ int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris
     size_t floor = (size_t)(FLOOR_SHARE * (double)prev_tris);
     if (count < prev_tris / 4 && count <= budget) {
         if (!sy_lod_restore(st, prev_keep, lp, &count, floor < budget ? floor : budget)) return 0;
+        /* A small tree's stems may each cost more than the gap to the floor
+         * (the airborne palm's LOD3 kept 24 of 198 triangles: every frond
+         * was over the 35 that fit); then one may take the budget. */
+        if (count < prev_tris / 4 && !sy_lod_restore(st, prev_keep, lp, &count, budget)) return 0;
     }
     *tris = count;
     return count <= budget;
