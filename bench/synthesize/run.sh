@@ -18,10 +18,15 @@
 #       the main skeleton's leaf-on recall of limbs >= 2 cm (`sylva eval
 #       --truth`) next to its visibility ceiling (bench_visibility: the share
 #       of that limb length with a wood return near it at all).
+#   (l) simulated airborne scans of every library species (`sylva scan
+#       --scanner airborne`, 40 m, 10 pulses/m^2, as samples/*_als.las): the
+#       asset against the true tree's asset by the same silhouette measure,
+#       height, crown width and DBH against the truth, whether the stem was
+#       drawn as unseen (docs/skeleton.md 8d), leaves.
 #   (d) decode (synthesis + meshing LOD0, no export) on one core for every
 #       .sylva made above, and its linearity in LOD0 triangles (least squares).
 #   (k) scan -> glb for a 100k-point simulated tree (`sylva run`, all cores).
-# Usage: bash bench/synthesize/run.sh [r] [a] [s] [d] [k]   (default: all)
+# Usage: bash bench/synthesize/run.sh [r] [a] [s] [l] [d] [k]   (default: all)
 # Env: SYLVA (build/sylva), BENCH (build/bench/bench_synthesize),
 #      ADTREE (/work/peers/adtree/build/bin/AdTree; a binary built from
 #      tudelft3d/AdTree outside this repository; skipped when absent),
@@ -38,7 +43,7 @@ adtree=${ADTREE:-/work/peers/adtree/build/bin/AdTree}
 [[ -x $adtree ]] || adtree=
 data=${SYLVA_DATA_DIR:-../shared/data}
 seed=${SEED:-1}
-parts=${*:-r a s d k}
+parts=${*:-r a s l d k}
 export SYLVA_LIBRARY=${SYLVA_LIBRARY:-$here/species}
 if [[ -n ${KEEP:-} ]]; then tmp=$KEEP; mkdir -p "$tmp"; else tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT; fi
 key() { local v; v=$(grep -o "\"$1\":[^,}]*" <<< "$2" | head -1 | cut -d: -f2); echo "${v:-nan}"; }
@@ -159,6 +164,30 @@ if [[ $parts == *s* ]]; then
       "$(f3 "$(kv branches_r2cm_ratio "$cmp")") | $(f3 "$(key recall_r2cm "$tr")") | $(f3 "${vis:-nan}") | $(cut -d' ' -f1 "$tmp/run.cpu") |"
   done
   echo "targets: IoU mean >= 0.80; leaf area ratio within 0.75-1.25; branches r>=2cm ratio within 0.70-1.30"
+  echo
+fi
+
+if [[ $parts == *l* ]]; then
+  echo "(l) simulated airborne scans (40 m, 10 pulses/m^2, seed $seed) vs the true tree's asset; load $(load)"
+  echo "| species | returns | stem unseen | IoU mean | IoU min | height err | width err | DBH err | leaves | run CPU s |"
+  echo "|---|---|---|---|---|---|---|---|---|---|"
+  for ini in species/*.ini; do
+    sp=$(basename "$ini" .ini)
+    [[ -z ${SPECIES:-} || " $SPECIES " == *" $sp "* ]] || continue
+    out=$("$sylva" scan "$sp" --seed "$seed" --scanner airborne --altitude 40 --density 10 -o "$tmp/l_$sp.las" \
+          --truth "$tmp/l_$sp.json" --quiet --json 2>/dev/null) || { echo "| $sp | scan failed |"; continue; }
+    cpu "$tmp/run.cpu" "$sylva" run "$tmp/l_$sp.las" --species "$sp" -o "$tmp/l_$sp.glb" --json > "$tmp/l_$sp.run" 2>/dev/null ||
+      { echo "| $sp | run failed |"; continue; }
+    [[ -f "$tmp/${sp}_true.glb" ]] || "$sylva" grow --species "$sp" --seed "$seed" -o "$tmp/${sp}_true.glb" --quiet 2>/dev/null
+    ev=$("$bench" lookglb "$tmp/${sp}_true.glb" "$tmp/l_$sp.glb" 2>/dev/null)
+    run=$(cat "$tmp/l_$sp.run")
+    dbh=$(awk -v a="$(key dbh "$run")" -v t="$(grep -o '"dbh":[^,}]*' "$tmp/l_$sp.json" | head -1 | cut -d: -f2)" \
+          'BEGIN { if (t > 0) print a / t - 1; else print "nan" }')
+    echo "| $sp | $(key point_count "$out") | $(key stem_unseen "$run") | $(f3 "$(kv iou_mean "$ev")") | $(f3 "$(kv iou_min "$ev")") |" \
+      "$(pct "$(kv height_error_rel "$ev")") | $(pct "$(kv crown_width_error_rel "$ev")") | $(pct "$dbh") | $(key leaves "$run") |" \
+      "$(cut -d' ' -f1 "$tmp/run.cpu") |"
+  done
+  echo "no target of its own: the terrestrial ones (IoU mean >= 0.80 of (s)) for comparison"
   echo
 fi
 
