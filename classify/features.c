@@ -349,11 +349,13 @@ static void skeleton_features(const float *P, size_t m, double z0, double H, dou
     /* The features of SY_FEATURES_VERSION 2, on which the shipped model was
      * trained, come from skeletons with their hairpins left as they are and
      * occluded stems rebuilt to the crown's top, crowns regrown at a trunk
-     * meander of 1.8 above a base measured from the root. */
+     * meander of 1.8 above a base measured from the root, and no stem drawn
+     * for a scan that shows none. */
     so.unfold_hairpins = 0;
     so.fork_domed_stems = 0;
     so.crown_meander = 1.8;
     so.crown_base_above_root = 0;
+    so.unseen_stems = 0;
     sy_cut_options co = sy_cut_options_default();
     co.clusters = 0; /* the skeleton alone, every point on it */
     sy_full_skeleton full;

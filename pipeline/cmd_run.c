@@ -51,6 +51,8 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
     sy_json_bool(&j, "dbh_fitted", r->dbh_fitted);
     sy_json_int(&j, "hairpins", (long long)r->hairpins);
     sy_json_bool(&j, "stem_rebuilt", r->stem_rebuilt);
+    sy_json_bool(&j, "stem_unseen", r->stem_unseen);
+    if (r->stem_unseen) sy_json_number(&j, "crown_gap", r->crown_gap);
     sy_json_number(&j, "stem_excursion", r->stem_excursion);
     sy_json_number(&j, "stem_fork", r->stem_fork);
     sy_json_bool(&j, "crown_regrown", r->crown_regrown);

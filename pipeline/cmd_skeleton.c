@@ -43,6 +43,8 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
         sy_json_bool(&j, "dbh_fitted", r->dbh_fitted);
         sy_json_int(&j, "hairpins", (long long)r->hairpins);
         sy_json_bool(&j, "stem_rebuilt", r->stem_rebuilt);
+        sy_json_bool(&j, "stem_unseen", r->stem_unseen);
+        if (r->stem_unseen) sy_json_number(&j, "crown_gap", r->crown_gap);
         sy_json_number(&j, "stem_excursion", r->stem_excursion);
         sy_json_number(&j, "stem_fork", r->stem_fork);
         sy_json_bool(&j, "crown_regrown", r->crown_regrown);
@@ -76,7 +78,10 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
     if (r->stem_rebuilt)
         printf("  stem       rebuilt on the crown's axis (the trunk chain strayed %.2f m from it, crown radius %.2f m)\n",
                r->stem_excursion, r->crown_radius);
-    if (r->stem_rebuilt && r->stem_fork > 0)
+    if (r->stem_unseen)
+        printf("  stem       unseen: the lowest return stands %.2f m over the ground; a trunk drawn from the ground%s\n",
+               r->crown_gap, r->stem_fork > 0 ? "" : " to the crown's top");
+    if ((r->stem_rebuilt || r->stem_unseen) && r->stem_fork > 0)
         printf("  stem       ends at %.2f m, where the domed crown's widest part ends (dome %.2f): the limbs spread from there\n",
                r->stem_fork, r->crown_dome);
     if (r->crown_regrown)

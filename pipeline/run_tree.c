@@ -123,10 +123,23 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
     report->t_total += cut.seconds;
     if (!clusters) return SY_OK;
     ho.triangles = sy_sylva_hull_budget(clusters->n, out->n);
-    if ((rc = sy_clusters_build_hulls(clusters, c->xyz, &ho, hulls, err))) {
+    /* An airborne crown: its lobes seen from above, each reaching in to the
+     * node it hangs from (the simulated airborne fir against its true tree:
+     * IoU 0.511 with neither, 0.559 filled below the returns, 0.601 with
+     * the anchors too). */
+    ho.seen_from_above = report->stem_unseen;
+    float *anchors = NULL;
+    if (report->stem_unseen && clusters->n) {
+        if (!(anchors = sy_calloc(clusters->n, 3 * sizeof *anchors, err, "hulls"))) rc = SY_EINTERNAL;
+        for (size_t k = 0; anchors && k < clusters->n; k++)
+            memcpy(anchors + 3 * k, out->pos + 3 * (size_t)clusters->items[k].seed, 3 * sizeof *anchors);
+        ho.anchors = anchors;
+    }
+    if (rc || (rc = sy_clusters_build_hulls(clusters, c->xyz, &ho, hulls, err))) {
         sy_clusters_free(clusters);
         sy_skeleton_free(out);
     }
+    free(anchors);
     return rc;
 }
 

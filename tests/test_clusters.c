@@ -148,7 +148,7 @@ static void alpha_shape_of_a_ball(void **state)
     }
     c.n_points = n;
     sy_error err = {0};
-    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, &err), SY_OK);
+    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, NULL, &err), SY_OK);
     assert_int_equal(c.hull, SY_HULL_ALPHA);
     assert_true(c.alpha > 0);
     assert_true(c.n_tris <= 120); /* simplified toward the budget */
@@ -165,12 +165,12 @@ static void alpha_shape_of_a_ball(void **state)
     for (size_t i = 0; i < n; i++) xyz[3 * i + 2] = 5;
     assert_int_equal(sy_alpha_shape_boundary(xyz, n, 5.0, &m, &shape_err), SY_EINPUT);
     assert_non_null(strstr(shape_err.msg, "dimensions"));
-    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, &err), SY_OK);
+    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, NULL, &err), SY_OK);
     assert_int_equal(c.hull, SY_HULL_BOX);
     assert_good_hull(&c, xyz);
     /* Three points: a box too. */
     c.n_points = 3;
-    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, &err), SY_OK);
+    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, NULL, &err), SY_OK);
     assert_int_equal(c.hull, SY_HULL_BOX);
     assert_good_hull(&c, xyz);
     free(c.points);

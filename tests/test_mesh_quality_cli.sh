@@ -19,9 +19,9 @@ samples="$SYLVA_SOURCE_DIR/samples"
 # its shoot counted as sails across that gap (palm_tls 0.60 %, the airborne
 # fir 0.97 %), and the bound here was 0.7 %.
 assert_quality() {
-    jq -e --argjson empty_ok "${2:-false}" '
+    jq -e '
       .mesh_check as $c | ($c[0]) as $l0 |
-      ($c | length) == 0 and $empty_ok or ($c | length) >= 2 and
+      ($c | length) >= 2 and
       ([$c[] | .misoriented_edges == 0 and .below_ground == 0 and .leaves_below_ground == 0] | all) and
       $l0.sails <= 0.005 * $l0.bark_triangles and $l0.slivers <= 0.002 * $l0.bark_triangles and
       $l0.bark_triangles <= 60000 and $l0.leaves_far == 0 and
@@ -29,9 +29,9 @@ assert_quality() {
 }
 for s in aspen_tls fir_tls palm_tls aspen_als fir_als palm_als; do
     if "$SYLVA" run "$samples/$s.las" -o "$tmp/$s.glb" --check --json --impostor-size 64 > "$tmp/$s.json" 2> "$tmp/$s.err"; then
-        # Airborne scans of a leafy tree may see no wood at all: then no bark to check.
-        empty=false; [[ $s == *_als ]] && empty=true
-        check "run $s: mesh checks hold ($(jq -c '[.mesh_check[] | .triangles]' "$tmp/$s.json"))" "assert_quality '$tmp/$s.json' $empty"
+        # Airborne scans see no wood, yet get a stem from the ground (docs/skeleton.md 8d):
+        # until stop 25 they were let off with no bark to check.
+        check "run $s: mesh checks hold ($(jq -c '[.mesh_check[] | .triangles]' "$tmp/$s.json"))" "assert_quality '$tmp/$s.json'"
     else
         echo "FAIL: run $s: $(tail -1 "$tmp/$s.err")"; fail=1
     fi

@@ -524,7 +524,7 @@ static sy_code box_hull(sy_cluster *c, const float *xyz, double pad, sy_error *e
 }
 
 sy_code sy_cluster_build_hull(sy_cluster *c, const float *xyz, double alpha_scale, int target_tris, double tol,
-                              sy_error *err)
+                              const float *anchor, sy_error *err)
 {
     free(c->verts);
     free(c->tris);
@@ -534,9 +534,10 @@ sy_code sy_cluster_build_hull(sy_cluster *c, const float *xyz, double alpha_scal
     if (target_tris < 12) target_tris = 12;
     if (c->n_points >= 4) {
         size_t cap = c->n_points < HULL_MAX_POINTS ? c->n_points : HULL_MAX_POINTS;
-        float *p = sy_calloc(cap, 3 * sizeof(float), err, "hull");
+        float *p = sy_calloc(cap + 1, 3 * sizeof(float), err, "hull");
         if (!p) return SY_EINTERNAL;
         size_t m = thin_points(xyz, c->points, c->n_points, HULL_MAX_POINTS, p);
+        if (anchor) memcpy(p + 3 * m++, anchor, 3 * sizeof *p);
         /* The alpha shape first, then the convex hull (infinite alpha). A
          * failure here is not the stage's: the next hull, then the box, fit. */
         double scales[2] = {alpha_scale, 0};
@@ -592,8 +593,9 @@ static void hull_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
     hull_job *J = ctx;
     for (size_t c = begin; c < end; c++) {
         sy_cluster *C = &J->cl->items[c];
-        J->rc[c] = sy_cluster_build_hull(C, J->xyz, J->o->alpha_scale, J->o->triangles, J->o->tol, &J->err[c]);
-        if (!J->rc[c]) J->rc[c] = sy_cluster_occupancy(C, J->xyz, 8, &J->err[c]); /* what synthesis reads on decode */
+        J->rc[c] = sy_cluster_build_hull(C, J->xyz, J->o->alpha_scale, J->o->triangles, J->o->tol,
+                                         J->o->anchors ? J->o->anchors + 3 * c : NULL, &J->err[c]);
+        if (!J->rc[c]) J->rc[c] = sy_cluster_occupancy(C, J->xyz, 8, J->o->seen_from_above, &J->err[c]); /* what synthesis reads on decode */
     }
 }
 

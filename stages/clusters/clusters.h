@@ -79,9 +79,9 @@ sy_code sy_clusters_cut(const sy_skeleton *full, const float *xyz, const float *
  * of) the points with alpha = alpha_scale * alpha_min, simplified towards
  * target_tris; it falls back to the convex hull and finally an oriented box
  * so that the result is always closed, outward and holds >= 95% of the points
- * within tol metres. */
+ * within tol metres. anchor (3 floats, or NULL): a point the hull also holds. */
 sy_code sy_cluster_build_hull(sy_cluster *c, const float *xyz, double alpha_scale, int target_tris, double tol,
-                              sy_error *err);
+                              const float *anchor, sy_error *err);
 
 /* Options of the hull step: the alpha shape's scale (alpha = alpha_scale *
  * alpha_min, both CGAL squared radii), the triangle budget per hull (the
@@ -91,6 +91,10 @@ typedef struct {
     double alpha_scale; /* 5 */
     int triangles;      /* per hull, >= 12 (160) */
     double tol;         /* metres (0.01) */
+    int seen_from_above; /* the scan saw the crown from above (airborne): a cell under one that holds
+                            a return is occluded, not empty, and counts as occupied (0) */
+    const float *anchors; /* 3 per cluster or NULL: a point each hull also holds (an airborne crown's
+                             lobes reach in to the skeleton node they hang from) */
 } sy_hull_options;
 
 sy_hull_options sy_hull_options_default(void);
@@ -109,8 +113,10 @@ sy_code sy_clusters_build_hulls(sy_clusters *cl, const float *xyz, const sy_hull
 
 /* Fills c->occ_dims and c->occupancy from its points and hull: the longest
  * side of the hull's box gets `cells` (1..8) cells, the others as many as
- * keep cells near cubic. */
-sy_code sy_cluster_occupancy(sy_cluster *c, const float *xyz, int cells, sy_error *err);
+ * keep cells near cubic. With from_above, every cell under an occupied one
+ * in its column is occupied too (what an airborne scanner cannot see under
+ * the returns it got). */
+sy_code sy_cluster_occupancy(sy_cluster *c, const float *xyz, int cells, int from_above, sy_error *err);
 /* Bytes of c's occupancy bits (0 without). */
 size_t sy_cluster_occupancy_bytes(const sy_cluster *c);
 

@@ -221,7 +221,7 @@ size_t sy_cluster_occupancy_bytes(const sy_cluster *c)
     return c->occupancy ? (n + 7) / 8 : 0;
 }
 
-sy_code sy_cluster_occupancy(sy_cluster *c, const float *xyz, int cells, sy_error *err)
+sy_code sy_cluster_occupancy(sy_cluster *c, const float *xyz, int cells, int from_above, sy_error *err)
 {
     free(c->occupancy);
     c->occupancy = NULL;
@@ -247,8 +247,14 @@ sy_code sy_cluster_occupancy(sy_cluster *c, const float *xyz, int cells, sy_erro
             double t = (p[k] - b[k]) / (b[3 + k] - b[k] > 0 ? b[3 + k] - b[k] : 1) * c->occ_dims[k];
             q[k] = t < 0 ? 0 : t >= c->occ_dims[k] ? c->occ_dims[k] - 1 : (int)t;
         }
-        size_t bit = (size_t)q[0] + c->occ_dims[0] * ((size_t)q[1] + c->occ_dims[1] * (size_t)q[2]);
-        c->occupancy[bit >> 3] |= (uint8_t)(1u << (bit & 7));
+        /* Seen from above, the cells under a return are hidden by it. An
+         * airborne scan's returns lie on the crown's top (the simulated
+         * airborne aspen's occupied 12 % of its lobes' cells), and synthesis
+         * put leaves only there: a lid on an empty crown. */
+        for (int z = from_above ? 0 : q[2]; z <= q[2]; z++) {
+            size_t bit = (size_t)q[0] + c->occ_dims[0] * ((size_t)q[1] + c->occ_dims[1] * (size_t)z);
+            c->occupancy[bit >> 3] |= (uint8_t)(1u << (bit & 7));
+        }
     }
     return SY_OK;
 }

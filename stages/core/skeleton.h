@@ -100,6 +100,7 @@ typedef struct {
     double ground;         /* ground height under the base in the skeleton's frame; NaN: unknown */
     double foot_step;      /* extend the root down to the ground only when it lies more than this
                               above it (a foot worth a node: the level-set width) */
+    double spacing;        /* the scan's point spacing the skeleton was built at (metres) */
 } sy_full_skeleton;
 
 void sy_full_skeleton_free(sy_full_skeleton *f);

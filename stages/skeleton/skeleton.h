@@ -50,6 +50,9 @@ typedef struct {
                              many times its reach (1.45; 1.8 until stop 24; stem.c) */
     int crown_base_above_root; /* the regrown crown's base measured from the node above the root, which
                                   can lie off the stem (1; 0 until stop 24; stem.c) */
+    int unseen_stems;     /* a scan that shows no stem (its lowest return high over the ground, or
+                             spacing >= 0.2 m: airborne) gets a trunk from the ground and limbs grown
+                             into its returns (1; 0 until stop 25; stem.c, docs/skeleton.md 8d) */
     double wood_share;    /* wood/leaf separation: wood = shortest-path subtrees holding at least this
                              share of the points, plus their neighbours; 0 = off, all wood (default:
                              on leafy TLS scans it gained little and hurt leafless trees, docs/skeleton.md) */
@@ -95,6 +98,9 @@ typedef struct {
                              shell) and the crown above its base was regrown by space colonisation */
     double trunk_meander, crown_fill, crown_base; /* path over chord of the trunk chain; the crown's
                              median/95th-percentile radius; the kept trunk's top above the root, metres */
+    int stem_unseen;      /* 1: the lowest return stood crown_gap metres over the ground (an airborne
+                             scan): a trunk from the ground, limbs grown into the crown (step 8d) */
+    double crown_gap;
     double t_graph, t_dijkstra, t_levels, t_radii, t_clusters, t_total; /* seconds */
 } sy_skeleton_report;
 

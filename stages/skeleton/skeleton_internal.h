@@ -71,6 +71,8 @@ typedef struct {
     double crown_fill;   /* the crown slabs' median / 95th-percentile radius (CROWN_FOLIAGE_RATIO) */
     int crown_regrown;   /* 1: a meandering chain in a foliage crown; the crown above its base regrown */
     double crown_base;   /* that crown base's height above the root, metres */
+    int stem_unseen;     /* 1: no return on the stem (an airborne scan): trunk drawn from the ground */
+    double crown_gap;    /* the lowest return's height above the ground, metres (0: ground unknown) */
 } sy_stem_info;
 
 /* Rebuilds the trunk of s (branch ids assigned, breadth-first, support
@@ -93,6 +95,17 @@ sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int
 sy_code sy_regrow_meandering_crown(sy_skeleton *s, const float *xyz, size_t n, int32_t *point_node,
                                    const uint8_t *wood, double w, double meander, int base_above_root,
                                    sy_stem_info *info, sy_error *err);
+/* An airborne scan's tree (stem.c, docs/skeleton.md step 8d): when the
+ * lowest return lies more than max(1 m, UNSEEN_STEM_GAP of the height) above
+ * the ground under it (ground: NaN when unknown), the scan saw no stem. s is
+ * replaced by a vertical trunk from the ground under the crown's returns to
+ * the top of a cone-shaped crown, or into a domed one as far as its widest
+ * part, and limbs grown from it by space colonisation into the returns; s
+ * comes back as from sy_rebuild_occluded_stem, info->stem_unseen and
+ * info->rebuilt set, the radius from the species' allometry or the
+ * slenderness (sy_apply_stem_radius). */
+sy_code sy_rebuild_unseen_stem(sy_skeleton *s, const float *xyz, size_t n, int32_t *point_node, const uint8_t *wood,
+                               double w, double spacing, double ground, sy_stem_info *info, sy_error *err);
 /* Space colonisation (colonize.c, Runions et al. 2007): from the n_seed
  * nodes at seed, grows nodes one step at a time toward the attraction points
  * (pts thinned to one per step-sized voxel) until each is within kill of a

@@ -45,6 +45,7 @@ sy_skeleton_options sy_skeleton_options_default(void)
      * coiling through their shells. */
     o->crown_meander = 1.45;
     o->crown_base_above_root = 1;
+    o->unseen_stems = 1;
     return value_;
 }
 
@@ -610,19 +611,40 @@ static double ground_under_base(const sy_cloud *c, double zbase)
 {
     const double *hag = sy_cloud_attr(c, "height_above_ground");
     if (!hag) return NAN;
+    /* The lowest 30 cm, or the lowest GROUND_MIN_POINTS returns where the
+     * slab holds fewer: an airborne crown's lowest 30 cm may hold one or two
+     * (the simulated airborne beech, poplar, sassafras and willow had no
+     * ground, so they began at their crowns: half their height). */
+    enum { GROUND_MIN_POINTS = 5 };
     size_t m = 0;
-    for (size_t i = 0; i < c->n; i++) m += c->xyz[3 * i + 2] <= zbase + 0.3 && isfinite(hag[i]);
-    double *g = m >= 5 ? malloc(m * sizeof *g) : NULL;
-    if (!g) return NAN;
+    for (size_t i = 0; i < c->n; i++) m += isfinite(hag[i]);
+    double (*zg)[2] = m >= GROUND_MIN_POINTS ? malloc(m * sizeof *zg) : NULL;
+    if (!zg) return NAN;
     m = 0;
     for (size_t i = 0; i < c->n; i++)
-        if (c->xyz[3 * i + 2] <= zbase + 0.3 && isfinite(hag[i])) g[m++] = c->xyz[3 * i + 2] - hag[i];
-    qsort(g, m, sizeof *g, sy_cmp_double);
-    double ground = g[m / 2];
+        if (isfinite(hag[i])) zg[m][0] = c->xyz[3 * i + 2], zg[m][1] = c->xyz[3 * i + 2] - hag[i], m++;
+    qsort(zg, m, sizeof *zg, sy_cmp_double); /* by height: the pair's first double */
+    size_t k = 0;
+    while (k < m && (k < GROUND_MIN_POINTS || zg[k][0] <= zbase + 0.3)) k++;
+    double *g = malloc(k * sizeof *g);
+    if (!g) {
+        free(zg);
+        return NAN;
+    }
+    for (size_t i = 0; i < k; i++) g[i] = zg[i][1];
+    free(zg);
+    qsort(g, k, sizeof *g, sy_cmp_double);
+    double ground = g[k / 2];
     free(g);
-    /* A base far above the ground is a tree whose foot the scan missed, not
-     * a measurement to trust; below the base by definition. */
-    return ground <= zbase + 0.05 && ground >= zbase - 1.0 ? ground : NAN;
+    /* Below the base by definition. A base far above the ground is a tree
+     * whose stem the scan missed: an airborne scan sees the crown from above
+     * and hardly a return under it (the simulated airborne aspen's lowest
+     * tree return is 7.2 m up). Until stop 24 such a ground (more than 1 m
+     * down) was ignored, and the tree began at its crown: `sylva run` made
+     * the 13.6 m airborne aspen a 4.0 m tree. Its foot is now the ground
+     * (sy_clusters_extract prepends a root there, and the DBH comes from the
+     * height: sy_assign_radii). */
+    return ground <= zbase + 0.05 ? ground : NAN;
 }
 
 sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options *o, sy_full_skeleton *out,
@@ -648,6 +670,7 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     rep->spacing = s;
     rep->bin_width = w;
     out->foot_step = w;
+    out->spacing = s;
     double zlo = INFINITY, zhi = -INFINITY;
     for (size_t i = 0; i < n; i++) {
         zlo = fmin(zlo, xyz[3 * i + 2]);
@@ -734,7 +757,12 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     /* A trunk chain that circles the crown's axis is the shell of an
      * occluded conifer, not its stem: rebuild the stem on the axis. */
     sy_stem_info stem;
-    rc = sy_rebuild_occluded_stem(full, xyz, n, point_node, wood, w, s, o->fork_domed_stems, &stem, err);
+    memset(&stem, 0, sizeof stem);
+    /* A crown over a stem the scan never saw (airborne): a trunk from the
+     * ground and limbs grown into the crown. */
+    if (o->unseen_stems) rc = sy_rebuild_unseen_stem(full, xyz, n, point_node, wood, w, s, ground, &stem, err);
+    if (!rc && !stem.rebuilt)
+        rc = sy_rebuild_occluded_stem(full, xyz, n, point_node, wood, w, s, o->fork_domed_stems, &stem, err);
     /* A decurrent crown's chain that follows its foliage shell: regrow the
      * crown from the trunk's top. */
     if (!rc && !stem.rebuilt)
@@ -762,7 +790,9 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
             sy_skeleton_assign_branches(full, l);
         }
     }
-    rep->stem_rebuilt = stem.rebuilt;
+    rep->stem_rebuilt = stem.rebuilt && !stem.stem_unseen;
+    rep->stem_unseen = stem.stem_unseen;
+    rep->crown_gap = stem.crown_gap;
     rep->crown_regrown = stem.crown_regrown;
     rep->trunk_meander = stem.meander;
     rep->crown_fill = stem.crown_fill;
