@@ -101,6 +101,7 @@ typedef struct {
     double foot_step;      /* extend the root down to the ground only when it lies more than this
                               above it (a foot worth a node: the level-set width) */
     double spacing;        /* the scan's point spacing the skeleton was built at (metres) */
+    int stem_unseen;       /* the scan showed no stem: it saw the crown from above (airborne) */
 } sy_full_skeleton;
 
 void sy_full_skeleton_free(sy_full_skeleton *f);

@@ -832,6 +832,7 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     out->wood = wood;
     out->measured = fit;
     out->ground = ground;
+    out->stem_unseen = stem.stem_unseen;
     point_node = NULL;
     wood = NULL;
     fit = NULL;
