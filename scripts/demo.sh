@@ -20,6 +20,9 @@ echo "== sylva run samples/aspen_tls.las -o out/aspen_tls.glb --sylva out/aspen_
 $sylva run samples/aspen_tls.las -o out/aspen_tls.glb --sylva out/aspen_tls.sylva
 echo "reconstructed tree: $PWD/out/aspen_tls.glb (bark mesh + instanced leaves from the species branchlets), $PWD/out/aspen_tls.sylva"
 $sylva eval --truth samples/aspen_tls.json out/aspen_tls.sylva
+echo "== sylva run samples/aspen_als.las -o out/aspen_als.glb --sylva out/aspen_als.sylva (airborne: no stem in the scan)"
+$sylva run samples/aspen_als.las -o out/aspen_als.glb --sylva out/aspen_als.sylva
+$sylva eval --truth samples/aspen_als.json out/aspen_als.sylva
 echo
 echo "demo outputs are in $PWD/out/"
 ls -l out/
