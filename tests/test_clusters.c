@@ -130,6 +130,62 @@ static void low_confidence_rule(void **state)
     assert_int_equal(sy_edge_low_confidence(p, c, 0, next, 2, blob, idx, 64, 0.05, 1.0), 1);
 }
 
+/* An airborne lobe (docs/skeleton.md 8d): returns on a crown's top, a dome
+ * cap 5.6-6 m up. With a floor and an anchor its hull is a closed column
+ * from the top down to the floor that also holds the anchor; seen from
+ * above, its occupancy marks the cells under each return. */
+static void hull_seen_from_above(void **state)
+{
+    (void)state;
+    size_t n = 400;
+    sy_cluster c = {0};
+    float *xyz = malloc(3 * n * sizeof *xyz);
+    c.points = malloc(n * sizeof *c.points);
+    uint64_t st = 5;
+    for (size_t i = 0; i < n; i++) {
+        double x = 2 * syn_uniform(&st) - 1, y = 2 * syn_uniform(&st) - 1;
+        xyz[3 * i] = (float)x, xyz[3 * i + 1] = (float)y;
+        xyz[3 * i + 2] = (float)(6 - 0.4 * (x * x + y * y) / 2);
+        c.points[i] = (uint32_t)i;
+    }
+    c.n_points = n;
+    sy_error err = {0};
+    const float anchor[3] = {0, 0, 3.5f};
+    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 160, 0.01, anchor, 4.0, &err), SY_OK);
+    assert_good_hull(&c, xyz);
+    double zmin = INFINITY, zmax = -INFINITY;
+    for (size_t v = 0; v < c.n_verts; v++) zmin = fmin(zmin, c.verts[3 * v + 2]), zmax = fmax(zmax, c.verts[3 * v + 2]);
+    assert_float_equal(zmin, 3.5, 0.02); /* the anchor, under the floor (within the hull tolerance) */
+    assert_true(zmax <= 6.0 + 0.02);
+    /* Without a floor or anchor the cap stays a cap. */
+    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 160, 0.01, NULL, NAN, &err), SY_OK);
+    zmin = INFINITY;
+    for (size_t v = 0; v < c.n_verts; v++) zmin = fmin(zmin, c.verts[3 * v + 2]);
+    assert_true(zmin >= 5.5);
+    /* Occupancy over the column: from above, every cell under a return's. */
+    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 160, 0.01, anchor, 4.0, &err), SY_OK);
+    size_t set[2];
+    for (int from_above = 0; from_above < 2; from_above++) {
+        assert_int_equal(sy_cluster_occupancy(&c, xyz, 8, from_above, &err), SY_OK);
+        size_t nb = (size_t)c.occ_dims[0] * c.occ_dims[1] * c.occ_dims[2];
+        set[from_above] = 0;
+        for (size_t b = 0; b < nb; b++) set[from_above] += (c.occupancy[b >> 3] >> (b & 7)) & 1;
+        if (from_above) /* the lowest layer under the returns is set */
+            for (int x = 0; x < c.occ_dims[0]; x++)
+                for (int y = 0; y < c.occ_dims[1]; y++) {
+                    int top = 0;
+                    for (int z = 0; z < c.occ_dims[2]; z++) {
+                        size_t b = (size_t)x + c.occ_dims[0] * ((size_t)y + c.occ_dims[1] * (size_t)z);
+                        top |= (c.occupancy[b >> 3] >> (b & 7)) & 1;
+                    }
+                    size_t b0 = (size_t)x + c.occ_dims[0] * (size_t)y;
+                    if (top) assert_true((c.occupancy[b0 >> 3] >> (b0 & 7)) & 1);
+                }
+    }
+    assert_true(set[1] >= 3 * set[0]); /* the column under the cap, not only the cap */
+    free(c.points), free(c.verts), free(c.tris), free(c.occupancy), free(xyz);
+}
+
 static void alpha_shape_of_a_ball(void **state)
 {
     (void)state;
@@ -148,7 +204,7 @@ static void alpha_shape_of_a_ball(void **state)
     }
     c.n_points = n;
     sy_error err = {0};
-    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, NULL, &err), SY_OK);
+    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, NULL, NAN, &err), SY_OK);
     assert_int_equal(c.hull, SY_HULL_ALPHA);
     assert_true(c.alpha > 0);
     assert_true(c.n_tris <= 120); /* simplified toward the budget */
@@ -165,12 +221,12 @@ static void alpha_shape_of_a_ball(void **state)
     for (size_t i = 0; i < n; i++) xyz[3 * i + 2] = 5;
     assert_int_equal(sy_alpha_shape_boundary(xyz, n, 5.0, &m, &shape_err), SY_EINPUT);
     assert_non_null(strstr(shape_err.msg, "dimensions"));
-    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, NULL, &err), SY_OK);
+    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, NULL, NAN, &err), SY_OK);
     assert_int_equal(c.hull, SY_HULL_BOX);
     assert_good_hull(&c, xyz);
     /* Three points: a box too. */
     c.n_points = 3;
-    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, NULL, &err), SY_OK);
+    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, NULL, NAN, &err), SY_OK);
     assert_int_equal(c.hull, SY_HULL_BOX);
     assert_good_hull(&c, xyz);
     free(c.points);
@@ -240,6 +296,7 @@ int main(void)
         cmocka_unit_test(mesh_checks_detect_open_and_flipped),
         cmocka_unit_test(low_confidence_rule),
         cmocka_unit_test(alpha_shape_of_a_ball),
+        cmocka_unit_test(hull_seen_from_above),
         cmocka_unit_test(foliage_becomes_clusters),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -524,7 +524,7 @@ static sy_code box_hull(sy_cluster *c, const float *xyz, double pad, sy_error *e
 }
 
 sy_code sy_cluster_build_hull(sy_cluster *c, const float *xyz, double alpha_scale, int target_tris, double tol,
-                              const float *anchor, sy_error *err)
+                              const float *anchor, double floor_z, sy_error *err)
 {
     free(c->verts);
     free(c->tris);
@@ -534,9 +534,17 @@ sy_code sy_cluster_build_hull(sy_cluster *c, const float *xyz, double alpha_scal
     if (target_tris < 12) target_tris = 12;
     if (c->n_points >= 4) {
         size_t cap = c->n_points < HULL_MAX_POINTS ? c->n_points : HULL_MAX_POINTS;
-        float *p = sy_calloc(cap + 1, 3 * sizeof(float), err, "hull");
+        float *p = sy_calloc(2 * cap + 1, 3 * sizeof(float), err, "hull");
         if (!p) return SY_EINTERNAL;
         size_t m = thin_points(xyz, c->points, c->n_points, HULL_MAX_POINTS, p);
+        if (isfinite(floor_z)) {
+            size_t m0 = m;
+            for (size_t i = 0; i < m0; i++)
+                if (p[3 * i + 2] > floor_z) {
+                    p[3 * m] = p[3 * i], p[3 * m + 1] = p[3 * i + 1], p[3 * m + 2] = (float)floor_z;
+                    m++;
+                }
+        }
         if (anchor) memcpy(p + 3 * m++, anchor, 3 * sizeof *p);
         /* The alpha shape first, then the convex hull (infinite alpha). A
          * failure here is not the stage's: the next hull, then the box, fit. */
@@ -567,6 +575,7 @@ sy_hull_options sy_hull_options_default(void)
     o.alpha_scale = 5.0;
     o.triangles = 160;
     o.tol = 0.01;
+    o.floor_z = NAN;
     return o;
 }
 
@@ -594,8 +603,9 @@ static void hull_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
     for (size_t c = begin; c < end; c++) {
         sy_cluster *C = &J->cl->items[c];
         J->rc[c] = sy_cluster_build_hull(C, J->xyz, J->o->alpha_scale, J->o->triangles, J->o->tol,
-                                         J->o->anchors ? J->o->anchors + 3 * c : NULL, &J->err[c]);
-        if (!J->rc[c]) J->rc[c] = sy_cluster_occupancy(C, J->xyz, 8, J->o->seen_from_above, &J->err[c]); /* what synthesis reads on decode */
+                                         J->o->anchors ? J->o->anchors + 3 * c : NULL, J->o->floor_z, &J->err[c]);
+        /* What synthesis reads on decode. */
+        if (!J->rc[c]) J->rc[c] = sy_cluster_occupancy(C, J->xyz, 8, J->o->seen_from_above, &J->err[c]);
     }
 }
 

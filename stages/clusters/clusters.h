@@ -79,9 +79,11 @@ sy_code sy_clusters_cut(const sy_skeleton *full, const float *xyz, const float *
  * of) the points with alpha = alpha_scale * alpha_min, simplified towards
  * target_tris; it falls back to the convex hull and finally an oriented box
  * so that the result is always closed, outward and holds >= 95% of the points
- * within tol metres. anchor (3 floats, or NULL): a point the hull also holds. */
+ * within tol metres. anchor (3 floats, or NULL): a point the hull also holds;
+ * floor_z (NaN: none): the hull also holds each point's copy at that height
+ * (a column down to it). */
 sy_code sy_cluster_build_hull(sy_cluster *c, const float *xyz, double alpha_scale, int target_tris, double tol,
-                              const float *anchor, sy_error *err);
+                              const float *anchor, double floor_z, sy_error *err);
 
 /* Options of the hull step: the alpha shape's scale (alpha = alpha_scale *
  * alpha_min, both CGAL squared radii), the triangle budget per hull (the
@@ -93,6 +95,8 @@ typedef struct {
     double tol;         /* metres (0.01) */
     int seen_from_above; /* the scan saw the crown from above (airborne): a cell under one that holds
                             a return is occluded, not empty, and counts as occupied (0) */
+    double floor_z;      /* NaN (default), or every hull also holds its points' copies at this height
+                            (an airborne crown's lobes reach down to its lowest return) */
     const float *anchors; /* 3 per cluster or NULL: a point each hull also holds (an airborne crown's
                              lobes reach in to the skeleton node they hang from) */
 } sy_hull_options;
