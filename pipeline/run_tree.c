@@ -136,9 +136,15 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
         for (size_t k = 0; anchors && k < clusters->n; k++)
             memcpy(anchors + 3 * k, out->pos + 3 * (size_t)clusters->items[k].seed, 3 * sizeof *anchors);
         ho.anchors = anchors;
-        double zlo = INFINITY;
-        for (size_t i = 0; i < c->n; i++) zlo = fmin(zlo, c->xyz[3 * i + 2]);
+        double zlo = INFINITY, ztop = -INFINITY, root = out->n ? out->pos[2] : 0;
+        for (size_t i = 0; i < c->n; i++) zlo = fmin(zlo, c->xyz[3 * i + 2]), ztop = fmax(ztop, c->xyz[3 * i + 2]);
         ho.floor_z = zlo;
+        /* ... and at least to the species' crown base: the lower crown the
+         * top hides from above (the airborne aspen's returns start at 8.6 m
+         * of 13.6, its crown at 5.4). Seed-2 airborne scans of the 13
+         * species against their true trees: IoU mean 0.577 -> 0.601 (birch
+         * 0.619 -> 0.748, poplar 0.617 -> 0.721; pine -0.03, beech -0.02). */
+        if (o->crown_base_share > 0) ho.floor_z = fmin(zlo, root + o->crown_base_share * (ztop - root));
     }
     if (rc || (rc = sy_clusters_build_hulls(clusters, c->xyz, &ho, hulls, err))) {
         sy_clusters_free(clusters);
@@ -325,13 +331,21 @@ static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_opti
 /* The species' allometry: DBH over height of its nominal tree (Weber-Penn,
  * seed 1; a few milliseconds), 0 when it cannot be grown or measured. Height
  * -diameter curves by species are how inventories fill in a stem the
- * survey could not measure. */
-static double species_dbh_per_height(const sy_species_params *sp)
+ * survey could not measure. Also its crown base over its height (0:
+ * unknown). */
+static double species_dbh_per_height(const sy_species_params *sp, double *crown_base_share)
 {
     sy_skeleton t;
     sy_error err = {0};
+    *crown_base_share = 0;
     if (sy_grow_tree(sp, 1, &t, NULL, &err)) return 0;
     double h = sy_skeleton_height(&t), d = sy_skeleton_dbh(&t);
+    /* The crown base: the lowest node off the trunk (Weber-Penn's BaseSize
+     * of the stem bare of branches). */
+    double zb = INFINITY;
+    for (size_t i = 0; i < t.n; i++)
+        if (t.order[i] >= 1) zb = fmin(zb, t.pos[3 * i + 2]);
+    if (t.n && h > 0 && isfinite(zb)) *crown_base_share = fmin(fmax((zb - t.pos[2]) / h, 0), 1);
     sy_skeleton_free(&t);
     return h > 1.3 && d > 0 && d / h < 1 ? d / h : 0;
 }
@@ -341,7 +355,10 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
 {
     sy_code rc;
     sy_skeleton_options so = sy_skeleton_options_default();
-    if (sp) so.beta = sp->beta, so.gamma = sp->gamma, so.dbh_per_height = species_dbh_per_height(sp);
+    if (sp) {
+        so.beta = sp->beta, so.gamma = sp->gamma;
+        so.dbh_per_height = species_dbh_per_height(sp, &so.crown_base_share);
+    }
     if (!isnan(o->beta)) so.beta = o->beta;
     if (!isnan(o->gamma)) so.gamma = o->gamma;
     so.fs = o->fs;

@@ -50,6 +50,9 @@ typedef struct {
                              many times its reach (1.45; 1.8 until stop 24; stem.c) */
     int crown_base_above_root; /* the regrown crown's base measured from the node above the root, which
                                   can lie off the stem (1; 0 until stop 24; stem.c) */
+    double crown_base_share; /* the species' crown base over its height, from its nominal tree: an
+                                airborne crown's lobes reach down at least that far (0: unknown; the
+                                pipeline's hulls read it, as lobe_size below) */
     int unseen_stems;     /* a scan that shows no stem (its lowest return high over the ground, or
                              spacing >= 0.2 m: airborne) gets a trunk from the ground and limbs grown
                              into its returns (1; 0 until stop 25; stem.c, docs/skeleton.md 8d) */
