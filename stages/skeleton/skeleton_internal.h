@@ -97,13 +97,15 @@ sy_code sy_regrow_meandering_crown(sy_skeleton *s, const float *xyz, size_t n, i
                                    sy_stem_info *info, sy_error *err);
 /* An airborne scan's tree (stem.c, docs/skeleton.md step 8d): when the
  * lowest return lies more than max(1 m, UNSEEN_STEM_GAP of the height) above
- * the ground under it (ground: NaN when unknown), the scan saw no stem. s is
- * replaced by a vertical trunk from the ground under the crown's returns to
- * the top of a cone-shaped crown, or into a domed one as far as its widest
- * part, and limbs grown from it by space colonisation into the returns; s
- * comes back as from sy_rebuild_occluded_stem, info->stem_unseen and
- * info->rebuilt set, the radius from the species' allometry or the
- * slenderness (sy_apply_stem_radius). */
+ * the ground under it (ground: NaN when unknown, then the lowest return), or
+ * the point spacing is UNSEEN_SPACING or more, the scan saw no stem. s is
+ * replaced by a vertical trunk from the ground under the crown's returns:
+ * to the top of a cone-shaped crown, every return on its nearest trunk
+ * node; or into a domed one as far as its widest part, with limbs grown
+ * from that fork by space colonisation into the returns. s comes back as
+ * from sy_rebuild_occluded_stem, info->stem_unseen and info->rebuilt set,
+ * the radius from the species' allometry or the slenderness
+ * (sy_apply_stem_radius). */
 sy_code sy_rebuild_unseen_stem(sy_skeleton *s, const float *xyz, size_t n, int32_t *point_node, const uint8_t *wood,
                                double w, double spacing, double ground, sy_stem_info *info, sy_error *err);
 /* Space colonisation (colonize.c, Runions et al. 2007): from the n_seed
