@@ -328,17 +328,16 @@ static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_opti
     return rc;
 }
 
-/* The species' allometry: DBH over height of its nominal tree (Weber-Penn,
- * seed 1; a few milliseconds), 0 when it cannot be grown or measured. Height
- * -diameter curves by species are how inventories fill in a stem the
- * survey could not measure. Also its crown base over its height (0:
- * unknown). */
-static double species_dbh_per_height(const sy_species_params *sp, double *crown_base_share)
+/* The species' nominal tree (Weber-Penn, seed 1; a few milliseconds): its
+ * DBH over its height, the allometry (height-diameter curves by species are
+ * how inventories fill in a stem the survey could not measure), and its
+ * crown base over its height; each 0 when it cannot be grown or measured. */
+static void species_nominal(const sy_species_params *sp, double *dbh_per_height, double *crown_base_share)
 {
     sy_skeleton t;
     sy_error err = {0};
-    *crown_base_share = 0;
-    if (sy_grow_tree(sp, 1, &t, NULL, &err)) return 0;
+    *dbh_per_height = *crown_base_share = 0;
+    if (sy_grow_tree(sp, 1, &t, NULL, &err)) return;
     double h = sy_skeleton_height(&t), d = sy_skeleton_dbh(&t);
     /* The crown base: the lowest node off the trunk (Weber-Penn's BaseSize
      * of the stem bare of branches). */
@@ -347,7 +346,7 @@ static double species_dbh_per_height(const sy_species_params *sp, double *crown_
         if (t.order[i] >= 1) zb = fmin(zb, t.pos[3 * i + 2]);
     if (t.n && h > 0 && isfinite(zb)) *crown_base_share = fmin(fmax((zb - t.pos[2]) / h, 0), 1);
     sy_skeleton_free(&t);
-    return h > 1.3 && d > 0 && d / h < 1 ? d / h : 0;
+    if (h > 1.3 && d > 0 && d / h < 1) *dbh_per_height = d / h;
 }
 
 static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree_options *o,
@@ -357,7 +356,7 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
     sy_skeleton_options so = sy_skeleton_options_default();
     if (sp) {
         so.beta = sp->beta, so.gamma = sp->gamma;
-        so.dbh_per_height = species_dbh_per_height(sp, &so.crown_base_share);
+        species_nominal(sp, &so.dbh_per_height, &so.crown_base_share);
     }
     if (!isnan(o->beta)) so.beta = o->beta;
     if (!isnan(o->gamma)) so.gamma = o->gamma;

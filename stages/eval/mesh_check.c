@@ -12,6 +12,7 @@
 #include "eval.h"
 #include "geometry.h"
 #include "stages/core/bvh.h"
+#include "stages/core/vec3.h"
 #include "stages/mesh/mesh.h"
 
 /* Glitches below this area are invisible and waste rasteriser work
@@ -353,20 +354,16 @@ static void node_pos(const sy_skeleton *sk, int32_t i, double out[3])
     for (int k = 0; k < 3; k++) out[k] = sk->pos[3 * (size_t)i + k];
 }
 
-static double point_distance(const double a[3], const double b[3])
-{
-    return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
-}
-
 /* The point of the stem through node p nearest q, searched along the
  * stem from p both ways over the arc length |q - p| (backwards onto the
  * segment that joins it to its own parent); near starts at p's position. */
 static void nearest_on_branch(const sy_skeleton *sk, const int32_t *cont, int32_t p, const double q[3],
                               double near[3])
 {
-    double at[3], best = INFINITY;
-    node_pos(sk, p, at);
-    double reach = point_distance(q, at);
+    double d[3], best = INFINITY;
+    node_pos(sk, p, d);
+    sy_v3_sub(d, q, d);
+    double reach = sy_v3_len(d);
     for (int dir = 0; dir < 2; dir++) {
         double walked = 0;
         for (int32_t x = p; walked < reach;) {
@@ -377,7 +374,8 @@ static void nearest_on_branch(const sy_skeleton *sk, const int32_t *cont, int32_
             double dd = sy_point_segment_distance(q, a, b, &t);
             if (dd < best)
                 for (int k = 0; k < 3; k++) best = dd, near[k] = a[k] + t * (b[k] - a[k]);
-            walked += point_distance(a, b);
+            sy_v3_sub(d, b, a);
+            walked += sy_v3_len(d);
             if (!dir && cont[ia] != ib) break; /* ib starts its stem */
             x = dir ? ib : ia;
         }

@@ -617,29 +617,35 @@ static double ground_under_base(const sy_cloud *c, double zbase)
      * ground, so they began at their crowns: half their height). */
     enum { GROUND_MIN_POINTS = 5 };
     size_t m = 0;
-    for (size_t i = 0; i < c->n; i++) m += isfinite(hag[i]);
-    double (*zg)[2] = m >= GROUND_MIN_POINTS ? malloc(m * sizeof *zg) : NULL;
-    if (!zg) return NAN;
-    m = 0;
-    for (size_t i = 0; i < c->n; i++)
-        if (isfinite(hag[i])) zg[m][0] = c->xyz[3 * i + 2], zg[m][1] = c->xyz[3 * i + 2] - hag[i], m++;
-    qsort(zg, m, sizeof *zg, sy_cmp_double); /* by height: the pair's first double */
-    size_t k = 0;
-    while (k < m && (k < GROUND_MIN_POINTS || zg[k][0] <= zbase + 0.3)) k++;
-    double *g = malloc(k * sizeof *g);
-    if (!g) {
-        free(zg);
-        return NAN;
+    for (size_t i = 0; i < c->n; i++) m += c->xyz[3 * i + 2] <= zbase + 0.3 && isfinite(hag[i]);
+    double g[GROUND_MIN_POINTS], *slab = NULL;
+    if (m >= GROUND_MIN_POINTS) {
+        if (!(slab = malloc(m * sizeof *slab))) return NAN;
+        m = 0;
+        for (size_t i = 0; i < c->n; i++)
+            if (c->xyz[3 * i + 2] <= zbase + 0.3 && isfinite(hag[i])) slab[m++] = c->xyz[3 * i + 2] - hag[i];
+    } else {
+        /* The lowest few by insertion, keeping their heights beside. */
+        double z[GROUND_MIN_POINTS];
+        m = 0;
+        for (size_t i = 0; i < c->n; i++) {
+            if (!isfinite(hag[i])) continue;
+            double zi = c->xyz[3 * i + 2];
+            size_t at = m < GROUND_MIN_POINTS ? m++ : GROUND_MIN_POINTS;
+            for (; at > 0 && z[at - 1] > zi; at--)
+                if (at < GROUND_MIN_POINTS) z[at] = z[at - 1], g[at] = g[at - 1];
+            if (at < GROUND_MIN_POINTS) z[at] = zi, g[at] = zi - hag[i];
+        }
+        if (m < GROUND_MIN_POINTS) return NAN;
     }
-    for (size_t i = 0; i < k; i++) g[i] = zg[i][1];
-    free(zg);
-    qsort(g, k, sizeof *g, sy_cmp_double);
-    double ground = g[k / 2];
-    free(g);
+    double *v = slab ? slab : g;
+    qsort(v, m, sizeof *v, sy_cmp_double);
+    double ground = v[m / 2];
+    free(slab);
     /* Below the base by definition. A base far above the ground is a tree
      * whose stem the scan missed: an airborne scan sees the crown from above
      * and hardly a return under it (the simulated airborne aspen's lowest
-     * tree return is 7.2 m up). Until stop 24 such a ground (more than 1 m
+     * tree return is 8.6 m up). Until stop 24 such a ground (more than 1 m
      * down) was ignored, and the tree began at its crown: `sylva run` made
      * the 13.6 m airborne aspen a 4.0 m tree. Its foot is now the ground
      * (sy_clusters_extract prepends a root there, and the DBH comes from the

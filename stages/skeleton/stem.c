@@ -282,23 +282,29 @@ done:
 
 /* Replaces s by a chain of K trunk nodes (root first) and the limbs that
  * space colonisation (colonize.c) grows from them, from node `sprout` up
- * (below it a bare bole), into the returns above height z_from, step
+ * (below it a bare bole; sprout >= K: the trunk alone), into the returns
+ * above height z_from, step
  * `grow`, kill distance STEM_LIMB_KILL steps (adopt_tree; every point joins
  * its nearest node). */
 static sy_code regrow_from_trunk(sy_skeleton *s, const float *trunk, size_t K, size_t sprout, const float *xyz,
                                  size_t n, double z_from, int32_t *point_node, const uint8_t *wood, double grow,
                                  sy_error *err)
 {
-    float *cpos = NULL, *all = NULL, *attract = malloc((n ? n : 1) * 3 * sizeof *attract);
+    float *cpos = NULL, *all = NULL, *attract = NULL;
     int32_t *cpar = NULL, *apar = NULL;
     size_t M = 0, na = 0;
-    if (!attract) return sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
-    if (sprout >= K) sprout = K - 1;
-    for (size_t i = 0; i < n; i++)
-        if (xyz[3 * i + 2] > z_from) memcpy(attract + 3 * na++, xyz + 3 * i, 3 * sizeof *attract);
-    sy_code rc = sy_colonize(trunk + 3 * sprout, K - sprout, attract, na, grow, STEM_LIMB_KILL * grow,
-                             K - sprout + STEM_LIMB_NODES, &cpos, &cpar, &M, err);
-    free(attract);
+    sy_code rc = SY_OK;
+    if (sprout >= K) {
+        sprout = K; /* the trunk alone */
+    } else if (!(attract = malloc((n ? n : 1) * 3 * sizeof *attract))) {
+        return sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
+    } else {
+        for (size_t i = 0; i < n; i++)
+            if (xyz[3 * i + 2] > z_from) memcpy(attract + 3 * na++, xyz + 3 * i, 3 * sizeof *attract);
+        rc = sy_colonize(trunk + 3 * sprout, K - sprout, attract, na, grow, STEM_LIMB_KILL * grow,
+                         K - sprout + STEM_LIMB_NODES, &cpos, &cpar, &M, err);
+        free(attract);
+    }
     if (!rc) {
         /* The bole's nodes first, then the colonised ones (the sprouting
          * trunk nodes lead them, in order). */
@@ -308,7 +314,7 @@ static sy_code regrow_from_trunk(sy_skeleton *s, const float *trunk, size_t K, s
     }
     if (!rc) {
         memcpy(all, trunk, sprout * 3 * sizeof *all);
-        memcpy(all + 3 * sprout, cpos, M * 3 * sizeof *all);
+        if (M) memcpy(all + 3 * sprout, cpos, M * 3 * sizeof *all);
         for (size_t t = 0; t < sprout + M; t++)
             apar[t] = t < K ? (int32_t)t - 1 : cpar[t - sprout] + (int32_t)sprout;
         rc = adopt_tree(s, all, apar, sprout + M, xyz, n, point_node, wood, err);
@@ -727,22 +733,13 @@ sy_code sy_rebuild_unseen_stem(sy_skeleton *s, const float *xyz, size_t n, int32
      * trunk like crossarms (the beech's IoU against its true tree 0.541 with
      * them, 0.601 without); under a dome the crown above the fork lost its
      * support without them (the black oak 0.588 -> 0.461, height -37 %). */
-    sy_code rc;
-    if (info->fork > 0) {
-        /* Limbs only from the fork, where the trunk divides: sprouting from
-         * every trunk node in a crown that reaches down to the bole (the
-         * airborne black oak's, 0.5 m over the ground), they stood off it as
-         * a comb of level rods (IoU 0.650 with the comb, 0.632 without). */
-        size_t sprout = K - 1;
-        rc = regrow_from_trunk(s, tpos, K, sprout, xyz, n, -INFINITY, point_node, wood,
-                               UNSEEN_LIMB_STEP * info->crown_radius, err);
-    } else {
-        int32_t *tpar = malloc(K * sizeof *tpar);
-        rc = tpar ? SY_OK : sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
-        for (size_t t = 0; tpar && t < K; t++) tpar[t] = (int32_t)t - 1;
-        if (!rc) rc = adopt_tree(s, tpos, tpar, K, xyz, n, point_node, wood, err);
-        free(tpar);
-    }
+    /* Limbs only from the fork, where the trunk divides: sprouting from
+     * every trunk node in a crown that reaches down to the bole (the
+     * airborne black oak's, 0.5 m over the ground), they stood off it as a
+     * comb of level rods (IoU 0.650 with the comb, 0.632 without). */
+    size_t sprout = info->fork > 0 ? K - 1 : K;
+    sy_code rc = regrow_from_trunk(s, tpos, K, sprout, xyz, n, -INFINITY, point_node, wood,
+                                   UNSEEN_LIMB_STEP * info->crown_radius, err);
     free(tpos);
     if (rc) return rc;
     info->rebuilt = info->stem_unseen = 1;
