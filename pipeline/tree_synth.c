@@ -71,6 +71,7 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
     }
     so.leaf_density = ls.leaf_density;
     so.max_depth = ls.max_depth;
+    if (species && species->ratio_power > 0) so.ratio_power = species->ratio_power;
     rc = sy_synthesize(&t->skel, &t->lobes, &lib, &so, &t->grown, &t->leaves, &t->synth, err);
     sy_branchlets_free(&lib);
     if (rc) sy_decoded_tree_free(t);

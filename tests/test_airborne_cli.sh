@@ -7,7 +7,9 @@
 # with no leaf and the 11.7 m palm a 0.9 m one.
 # Measured at stop 25, asset against `sylva grow` of the same species and
 # seed (the tree the scan was made from), silhouette IoU mean: aspen 0.615,
-# fir 0.761, palm 0.544 (the terrestrial scans of the same trees: 0.84-0.87).
+# fir 0.761, palm 0.544 (the terrestrial scans of the same trees: 0.84-0.87);
+# at stop 26, with the limbs the scan hides grown inside the lobes
+# (docs/synthesize.md, the scaffold): 0.799, 0.792, 0.558 (mean 0.717).
 . "$SYLVA_SOURCE_DIR/tests/measure_cli_common.sh"
 s="$SYLVA_SOURCE_DIR/samples"
 sum=0
@@ -25,8 +27,8 @@ for sp in quaking_aspen:aspen balsam_fir:fir palm:palm; do
     "$SYLVA" grow --species "$species" --seed 1 -o "$tmp/${name}_true.glb" --impostor-size 64 --quiet ||
         { echo "FAIL: grow $species"; fail=1; continue; }
     iou=$("$SYLVA" eval --points "$tmp/${name}_true.glb" "$tmp/$name.glb" --json | jq -r .iou_mean)
-    check "${name}_als asset against its true tree: IoU mean $iou >= 0.45" "$iou >= 0.45"
+    check "${name}_als asset against its true tree: IoU mean $iou >= 0.50" "$iou >= 0.50"
     sum=$(awk -v a="$sum" -v b="$iou" 'BEGIN { print a + b }')
 done
-check "airborne IoU mean over the three $(awk -v s="$sum" 'BEGIN { printf "%.3f", s / 3 }') >= 0.58" "$sum / 3 >= 0.58"
+check "airborne IoU mean over the three $(awk -v s="$sum" 'BEGIN { printf "%.3f", s / 3 }') >= 0.68" "$sum / 3 >= 0.68"
 exit $fail

@@ -376,6 +376,46 @@ static void lobes_in_parallel_give_the_same_tree(void **state)
  * share the face x = 0; the tips of cards whose stems stand in one box must
  * reach more than a lobe cell into the other, and no tip may leave the two
  * boxes by more than a lobe cell and a crown cell. */
+/* A lobe far bigger than a patch gets the limbs the scan hides (the
+ * scaffold, docs/synthesize.md): the trunk ends at the lobe's seed, so its
+ * hidden rest runs on in the trunk's own branch, straight (a continuation
+ * turns at most 15 degrees a step), well up into the lobe, with patches on
+ * it, never thicker toward its tip. */
+static void hidden_limbs_continue_the_seed_limb(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_clusters cl = {0};
+    make_tree(&s, &cl, 2.5, 0); /* a 5 m box above a 4 m trunk */
+    sy_branchlets lib;
+    sy_synth_options o = aspen_options(&lib);
+    sy_skeleton out;
+    sy_leaves lv;
+    sy_error err = {0};
+    assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out, &lv, NULL, &err), SY_OK);
+    int32_t node = 10, steps = 0;
+    double top = out.pos[3 * node + 2];
+    for (;;) {
+        int32_t next = -1;
+        for (size_t i = s.n; i < out.n && next < 0; i++)
+            if (out.parent[i] == node && out.branch[i] == 0) next = (int32_t)i;
+        if (next < 0) break;
+        if (steps > 0) {
+            const float *a = out.pos + 3 * out.parent[node], *b = out.pos + 3 * node, *c = out.pos + 3 * next;
+            double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - b[0], c[1] - b[1], c[2] - b[2]};
+            double cs = (u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) / sqrt((u[0] * u[0] + u[1] * u[1] + u[2] * u[2]) *
+                                                                        (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]));
+            if (!(cs >= cos(15.5 * 3.14159265358979 / 180))) fail_msg("the hidden limb turns %.1f degrees at step %d", acos(cs) * 180 / 3.14159265358979, steps);
+        }
+        assert_true(out.radius[next] <= out.radius[node] + 1e-7f);
+        node = next, steps++;
+        top = fmax(top, out.pos[3 * node + 2]);
+    }
+    if (!(steps >= 4 && top > 4 + 2.5)) fail_msg("the trunk goes on %d steps, up to %.2f m (box 4-9 m)", steps, top);
+    assert_true(lv.n > 100);
+    sy_skeleton_free(&s), sy_skeleton_free(&out), sy_leaves_free(&lv), sy_clusters_free(&cl), sy_branchlets_free(&lib);
+}
+
 static void cards_reach_across_lobe_borders(void **state)
 {
     (void)state;
@@ -523,6 +563,7 @@ int main(void)
         cmocka_unit_test(every_species_grows_branchlets),
         cmocka_unit_test(grammar_errors_name_the_line),
         cmocka_unit_test(texturing_fills_the_lobe),
+        cmocka_unit_test(hidden_limbs_continue_the_seed_limb),
         cmocka_unit_test(leaf_area_follows_the_density),
         cmocka_unit_test(lobes_without_room_are_reported),
         cmocka_unit_test(lobes_in_parallel_give_the_same_tree),

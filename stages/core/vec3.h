@@ -29,6 +29,13 @@ static inline void sy_v3_cross(double r[3], const double a[3], const double b[3]
 
 static inline double sy_v3_len(const double v[3]) { return sqrt(sy_v3_dot(v, v)); }
 
+static inline double sy_v3_dist(const double a[3], const double b[3])
+{
+    double d[3];
+    sy_v3_sub(d, a, b);
+    return sy_v3_len(d);
+}
+
 /* Scales v to unit length; a zero vector stays zero. Returns the old length. */
 static inline double sy_v3_normalize(double v[3])
 {

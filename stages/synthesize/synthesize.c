@@ -12,6 +12,7 @@
 #include "stages/core/parallel.h"
 #include "stages/core/progress.h"
 #include "stages/core/sort.h"
+#include "stages/core/vec3.h"
 
 #ifndef M_PI
 #define M_PI 3.14159265358979323846
@@ -43,6 +44,8 @@ sy_code sy_synth_options_check(const sy_synth_options *o, sy_error *err)
     if (!(o->outside_max >= 0 && o->outside_max <= 1) || !(o->start_outside_max >= 0 && o->start_outside_max <= 1))
         return sy_fail(err, SY_EUSAGE, "synthesize: outside_max and start_outside_max must be in [0, 1]");
     if (o->grid < 2 || o->grid > 64) return sy_fail(err, SY_EUSAGE, "synthesize: grid must be 2..64");
+    if (!(o->ratio_power == 0 || (o->ratio_power >= 0.5 && o->ratio_power <= 5)))
+        return sy_fail(err, SY_EUSAGE, "synthesize: ratio_power must be 0 or in [0.5, 5]");
 
     return SY_OK;
 }
@@ -891,8 +894,265 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
     return SY_OK;
 }
 
+/* ---- The scaffold: the limbs inside a lobe that the scan does not resolve ---- */
+
+/* A lobe hangs off a seed node, often metres from the leaves it holds, and
+ * the limbs between them are hidden by those leaves (the simulated beech:
+ * a wood return lies near 10 % of its limb length of 2 cm or more). Before
+ * the patches, they are grown by space colonisation (Runions, Lane &
+ * Prusinkiewicz 2007): every attractor (the lobe's occupied cells, and its
+ * inside cells on a lattice of two cells) pulls its nearest scaffold node,
+ * every pulled node grows one step toward the mean direction of its pulls,
+ * and an attractor within the kill distance of a node is reached (a patch
+ * docked there covers it). Rules that keep the limbs tree-like:
+ * - one limb enters the lobe from its seed;
+ * - a node's first child (its continuation) turns at most 15 degrees from
+ *   the way the node grew, a later one (a lateral) leaves at 25 to 90;
+ * - with the occupied cells alone, limbs ran along the lobe's shell of
+ *   returns, and with free turns they drew arcs and hooks.
+ * Radii by Weber & Penn's rule, the species' own (as `sylva grow`): a branch
+ * of length L off a parent branch of length Lp and base radius rp starts at
+ * rp (L / Lp)^RatioPower, at most 0.9 of the parent there, and tapers to the
+ * thickest patch's thickness, on which patches then dock as on their own
+ * twigs. Before, every start drew a straight rod from the seed as thin as a
+ * patch: airborne lobes were columns of leaves on bare rods (the airborne
+ * oak's IoU against its true tree 0.618, with the scaffold 0.852). */
+#define SCAFFOLD_MAX_NODES 512
+#define SCAFFOLD_MAX_STEPS 64
+#define SCAFFOLD_KILL 0.35   /* kill distance, in the longest patch's lengths (at least two cells) */
+#define SCAFFOLD_MAX_TURN 15 /* degrees a continuation turns per step at most */
+#define SCAFFOLD_MAX_BEND 40 /* degrees a limb bends away from the way it left its parent at most */
+
+/* The limb of the main skeleton a lobe's seed lies on. */
+typedef struct {
+    double length, base_radius; /* of the seed's branch */
+    double dir[3];              /* the way the limb runs at the seed (0 at a root) */
+    int ends;                   /* the seed is the limb's last node */
+} seed_limb;
+
+typedef struct {
+    size_t n;                       /* nodes; node 0 is the seed */
+    double pos[3 * SCAFFOLD_MAX_NODES];
+    int32_t parent[SCAFFOLD_MAX_NODES], first[SCAFFOLD_MAX_NODES], next[SCAFFOLD_MAX_NODES]; /* tree links */
+    double head_dir[3 * SCAFFOLD_MAX_NODES]; /* the way the node's limb left its parent limb */
+    uint8_t entered[SCAFFOLD_MAX_NODES];     /* the node or one below it lies in the lobe's soft hull */
+    const seed_limb *limb;
+} scaffold;
+
+/* Does node j's next child continue its limb (else it starts a lateral)?
+ * The seed's child continues the seed's limb where the limb ends there. */
+static int scaffold_continues(const scaffold *s, size_t j)
+{
+    return j == 0 ? s->limb->ends : s->first[j] < 0;
+}
+
+/* The attractors of lobe g: its occupied cell centres occ_c (n_occ) and the
+ * centres of its other inside cells with even coordinates. */
+static double *scaffold_attractors(const lobe_grid *g, const double *occ_c, size_t n_occ, size_t *n_att)
+{
+    double *att = malloc((n_occ + g->n / 8 + 8) * 3 * sizeof *att);
+    if (!att) return NULL;
+    memcpy(att, occ_c, n_occ * 3 * sizeof *att);
+    size_t m = n_occ;
+    for (int z = 0; z < g->d[2]; z += 2)
+        for (int y = 0; y < g->d[1]; y += 2)
+            for (int x = 0; x < g->d[0]; x += 2) {
+                size_t i = (size_t)x + (size_t)g->d[0] * ((size_t)y + (size_t)g->d[1] * (size_t)z);
+                if (!g->inside[i] || g->occupied[i]) continue;
+                att[3 * m] = g->lo[0] + (x + 0.5) * g->h, att[3 * m + 1] = g->lo[1] + (y + 0.5) * g->h;
+                att[3 * m + 2] = g->lo[2] + (z + 0.5) * g->h;
+                m++;
+            }
+    *n_att = m;
+    return att;
+}
+
+/* The direction node j of s grows a child in, from the unit pull dir,
+ * within the rules above: a continuation turns at most SCAFFOLD_MAX_TURN
+ * from the way j grew and stays within SCAFFOLD_MAX_BEND of its limb's first
+ * direction (15 degrees a step still coiled a fir's limbs round its trunk);
+ * a lateral leaves at 25 to 90 degrees (the seed's child too, off the
+ * seed's limb, unless that limb ends at the seed and goes on). 0 when it
+ * has no such direction. */
+static int scaffold_direction(const scaffold *s, size_t j, double dir[3])
+{
+    double g0[3], side[3];
+    if (j == 0) {
+        if (!(sy_v3_len(s->limb->dir) > 0)) return 1; /* the root of the tree: any way */
+        memcpy(g0, s->limb->dir, sizeof g0);
+    } else {
+        sy_v3_sub(g0, s->pos + 3 * j, s->pos + 3 * s->parent[j]);
+        sy_v3_normalize(g0);
+    }
+    int on = scaffold_continues(s, j);
+    double c = sy_v3_dot(dir, g0), lo = 0, hi = SCAFFOLD_MAX_TURN * M_PI / 180;
+    if (!on) lo = 25 * M_PI / 180, hi = M_PI / 2;
+    for (int k = 0; k < 3; k++) side[k] = dir[k] - c * g0[k];
+    if (!(sy_v3_normalize(side) > 1e-6)) { /* straight on or straight back: no side to turn to */
+        memcpy(dir, g0, sizeof g0);
+        return on && c > 0; /* a continuation goes straight on, a lateral has no way to leave */
+    }
+    double ang = acos(c > 1 ? 1 : c < -1 ? -1 : c);
+    ang = ang < lo ? lo : ang > hi ? hi : ang;
+    for (int k = 0; k < 3; k++) dir[k] = cos(ang) * g0[k] + sin(ang) * side[k];
+    if (!on) return 1;
+    const double *h = s->head_dir + 3 * j, bend = SCAFFOLD_MAX_BEND * M_PI / 180;
+    c = sy_v3_dot(dir, h);
+    if (c >= cos(bend)) return 1;
+    for (int k = 0; k < 3; k++) side[k] = dir[k] - c * h[k];
+    if (!(sy_v3_normalize(side) > 1e-6)) return 0;
+    for (int k = 0; k < 3; k++) dir[k] = cos(bend) * h[k] + sin(bend) * side[k];
+    return 1;
+}
+
+/* Space colonisation from s's node 0 toward the n attractors att (kill
+ * distance kill, step length step). No node outside lobe g's soft hull
+ * once the limb from the seed has reached it (bare limbs stood out of the
+ * airborne aspen's crown), above ceiling, or
+ * within a step of the ground (a fir's lowest lobes reach it: tubes along
+ * the ground). */
+static sy_code scaffold_colonise(scaffold *s, const lobe_grid *g, const double *att, size_t n, double kill, double step,
+                                 double ceiling, double ground, sy_error *err)
+{
+    int32_t *near = malloc(n * sizeof *near);
+    double *near_d = malloc(n * sizeof *near_d), *pull = malloc(4 * SCAFFOLD_MAX_NODES * sizeof *pull);
+    uint8_t *alive = malloc(n);
+    if (!near || !near_d || !pull || !alive) {
+        free(near), free(near_d), free(pull), free(alive);
+        return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+    }
+    for (size_t o = 0; o < n; o++) alive[o] = 1, near[o] = 0, near_d[o] = INFINITY;
+    size_t seen = 0; /* nodes every attractor's nearest has been compared with */
+    for (int it = 0; it < SCAFFOLD_MAX_STEPS && s->n < SCAFFOLD_MAX_NODES; it++) {
+        /* An attractor's nearest node can only change to a node added since. */
+        for (size_t o = 0; o < n; o++)
+            for (size_t j = seen; j < s->n && alive[o]; j++) {
+                double d = sy_v3_dist(att + 3 * o, s->pos + 3 * j);
+                if (d < kill) alive[o] = 0;
+                if (d < near_d[o]) near_d[o] = d, near[o] = (int32_t)j;
+            }
+        seen = s->n;
+        memset(pull, 0, 4 * s->n * sizeof *pull);
+        for (size_t o = 0; o < n; o++) {
+            if (!alive[o] || !(near_d[o] > 0)) continue;
+            double *a = pull + 4 * near[o];
+            for (int k = 0; k < 3; k++) a[k] += (att[3 * o + k] - s->pos[3 * near[o] + k]) / near_d[o];
+            a[3] += 1;
+        }
+        size_t n0 = s->n;
+        for (size_t j = 0; j < n0 && s->n < SCAFFOLD_MAX_NODES; j++) {
+            const double *a = pull + 4 * j;
+            double l = sy_v3_len(a), dir[3], p[3];
+            if (a[3] == 0 || l < 0.2 * a[3]) continue; /* unpulled, or pulled from opposite sides */
+            if (j == 0 && s->first[0] >= 0) continue;   /* one limb from the seed */
+            for (int k = 0; k < 3; k++) dir[k] = a[k] / l;
+            if (!scaffold_direction(s, j, dir)) continue;
+            for (int k = 0; k < 3; k++) p[k] = s->pos[3 * j + k] + step * dir[k];
+            long cell = grid_cell(g, p);
+            int in = cell >= 0 && g->soft[cell];
+            /* Outside the hull only on the way in: the seed's limb may reach the lobe from below it. */
+            if ((!in && (s->entered[j] || s->first[j] >= 0)) || p[2] > ceiling || p[2] < ground + step) continue;
+            /* Attractors that stay nearest to j pull it the same way again: one child per direction. */
+            int dup = 0;
+            for (int32_t c = s->first[j]; c >= 0 && !dup; c = s->next[c]) dup = sy_v3_dist(p, s->pos + 3 * c) < 0.5 * step;
+            if (dup) continue;
+            size_t m = s->n++;
+            memcpy(s->pos + 3 * m, p, sizeof p);
+            /* A continuation keeps its limb's first direction; a lateral starts a limb. */
+            memcpy(s->head_dir + 3 * m, scaffold_continues(s, j) ? s->head_dir + 3 * j : dir, 3 * sizeof *dir);
+            s->entered[m] = s->entered[j] || in;
+            s->parent[m] = (int32_t)j, s->first[m] = -1, s->next[m] = s->first[j], s->first[j] = (int32_t)m;
+        }
+        if (s->n == n0) break;
+    }
+    free(near), free(near_d), free(pull), free(alive);
+    return SY_OK;
+}
+
+/* Adds scaffold s (its node 0 is node seed of so->out) to so->out: a node
+ * continues its parent's branch through its first-grown child, the one
+ * grown under the continuation's turn limits (the child carrying the most
+ * tips drew a lateral's first step as a 90-degree elbow of its branch);
+ * the limb from the seed starts a branch of its
+ * own, unless the seed ends its limb (limb->ends): the lobe then holds
+ * that limb's hidden rest, which goes on in the limb's own branch. Radii by
+ * Weber & Penn's rule from the seed's branch (its length and base radius),
+ * tapering to tip_r. */
+static sy_code scaffold_to_skeleton(const scaffold *s, int32_t seed, double ratio_power,
+                                    double tip_r, synth_out *so, sy_synth_report *rep, sy_error *err)
+{
+    sy_skeleton *sk = so->out;
+    size_t n = s->n;
+    int32_t cont[SCAFFOLD_MAX_NODES], head[SCAFFOLD_MAX_NODES], global[SCAFFOLD_MAX_NODES];
+    double along[SCAFFOLD_MAX_NODES], blen[SCAFFOLD_MAX_NODES] = {0},
+           bbase[SCAFFOLD_MAX_NODES] = {0};
+    for (size_t j = 0; j < n; j++) {
+        cont[j] = -1;
+        if (j == 0 && !s->limb->ends) continue;
+        for (int32_t c = s->first[j]; c >= 0; c = s->next[c]) cont[j] = c; /* the first grown, listed last */
+    }
+    /* Branch heads, the distance along their branch, each branch's length
+     * (local branch 0: the seed's, seen up to the seed). */
+    head[0] = 0, along[0] = blen[0] = s->limb->length, bbase[0] = s->limb->base_radius;
+    for (size_t j = 1; j < n; j++) {
+        int32_t p = s->parent[j];
+        int on = cont[p] == (int32_t)j;
+        head[j] = on ? head[p] : (int32_t)j;
+        along[j] = (on ? along[p] : 0) + sy_v3_dist(s->pos + 3 * j, s->pos + 3 * p);
+        blen[head[j]] = fmax(blen[head[j]], along[j]);
+    }
+    for (size_t j = 1; j < n; j++)
+        if (head[j] == (int32_t)j) {
+            int32_t h = head[s->parent[j]];
+            bbase[j] = blen[h] > 0 ? bbase[h] * pow(fmin(1, blen[j] / blen[h]), ratio_power) : tip_r;
+        }
+    global[0] = seed;
+    sy_code rc = SY_OK;
+    for (size_t j = 1; j < n && !rc; j++) {
+        int32_t p = s->parent[j], gp = global[p], h = head[j];
+        int on = cont[p] == (int32_t)j;
+        double b = h == 0 ? sk->radius[seed] : bbase[h], e = fmin(b, tip_r);
+        double a0 = h == 0 ? s->limb->length : 0, t = blen[h] > a0 ? (along[j] - a0) / (blen[h] - a0) : 1;
+        double r = b + (e - b) * t, cap = (on ? 1.0 : 0.9) * sk->radius[gp];
+        int order = on ? sk->order[gp] : sk->order[gp] < 254 ? sk->order[gp] + 1 : 255;
+        int32_t branch = on ? sk->branch[gp] : so->next_branch++;
+        float q[3] = {(float)s->pos[3 * j], (float)s->pos[3 * j + 1], (float)s->pos[3 * j + 2]};
+        global[j] = sy_skeleton_add(sk, q, (float)(r < cap ? r : cap), gp, order, branch, err);
+        if (global[j] < 0) rc = SY_EINTERNAL;
+        rep->nodes_added++;
+    }
+    return rc;
+}
+
+/* The scaffold of lobe g (occupied cell centres occ_c), hanging off node
+ * seed of so->out; reach: the library's longest patch, tip_r: its thickest.
+ * None when a patch docked at the seed reaches every attractor. */
+static sy_code grow_scaffold(const lobe_grid *g, const double *occ_c, size_t n_occ, int32_t seed, double reach,
+                             double tip_r, double ratio_power, const seed_limb *limb, double ceiling,
+                             double ground, synth_out *so, sy_synth_report *rep, sy_error *err)
+{
+    const double kill = fmax(SCAFFOLD_KILL * reach, 2 * g->h), step = fmax(0.5 * kill, 1.5 * g->h);
+    size_t n_att = 0;
+    double *att = scaffold_attractors(g, occ_c, n_occ, &n_att);
+    if (!att) return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+    scaffold *s = malloc(sizeof *s);
+    if (!s) {
+        free(att);
+        return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+    }
+    s->n = 1, s->parent[0] = s->first[0] = s->next[0] = -1, s->entered[0] = 0, s->limb = limb;
+    memcpy(s->head_dir, limb->dir, sizeof limb->dir);
+    for (int k = 0; k < 3; k++) s->pos[k] = so->out->pos[3 * seed + k];
+    size_t beyond = 0;
+    for (size_t o = 0; o < n_att; o++) beyond += sy_v3_dist(att + 3 * o, s->pos) > kill;
+    sy_code rc = beyond ? scaffold_colonise(s, g, att, n_att, kill, step, ceiling, ground, err) : SY_OK;
+    if (!rc && s->n > 1) rc = scaffold_to_skeleton(s, seed, ratio_power, tip_r, so, rep, err);
+    free(att), free(s);
+    return rc;
+}
+
 static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_branchlets *lib, const sy_synth_options *o,
-                            double density, int max_depth, double max_thick, double ceiling, ranked *cands, synth_out *so,
+                            const seed_limb *limb, double density, int max_depth, double max_thick, double ceiling, double ground, ranked *cands, synth_out *so,
                             sy_synth_report *rep, size_t *occupied, size_t cells[2], sy_error *err)
 {
     double leaf_area = 0.5 * o->leaf_size * o->leaf_size; /* a card about half as wide as long */
@@ -929,6 +1189,9 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     size_t lobe_node0 = sk->n; /* nodes from here on are this lobe's bark */
     double min_start = sk->radius[seed] * 0.9 < max_thick ? sk->radius[seed] * 0.9 : max_thick;
     size_t lobe_patches = 0;
+    if (!rc && bare_reason < 0)
+        rc = grow_scaffold(&g, occ_c, n_occ, seed, reach, max_thick, o->ratio_power > 0 ? o->ratio_power : 1.3,
+                           limb, ceiling, ground, so, rep, err);
     while (!rc && bare_reason < 0 && starts < max_starts && lobe_patches < (size_t)o->max_patches) {
         /* A new start from the seed toward the occupied cells with room:
          * a carrier limb (the part of the limb the scan does not resolve)
@@ -1138,9 +1401,12 @@ typedef struct {
     const sy_synth_options *o;
     double max_thick;
     double ceiling; /* no synthesised bark rises above this height */
+    double ground;  /* the skeleton's lowest node: the root on the ground */
     int32_t base_branches;
     lobe_work *work;
     const crown_grid *crown;
+    const double *branch_len, *branch_base; /* per branch of skel: length and first node's radius */
+    const uint8_t *limb_end;                /* per node of skel: no child continues its branch */
 } lobe_ctx;
 
 static void lobe_work_free(lobe_work *w)
@@ -1177,7 +1443,16 @@ static void texture_lobes(void *vctx, size_t begin, size_t end, size_t chunk)
             sy_cluster local = *C;
             local.seed = 0;
             synth_out so = {&w->out, &w->leaves, NULL, 0, x->base_branches, x->crown};
-            w->rc = texture_lobe(&local, (int32_t)c, x->lib, x->o, density, max_depth, x->max_thick, x->ceiling, cands,
+            seed_limb limb = {x->branch_len[k->branch[seed]], x->branch_base[k->branch[seed]], {0, 0, 0}, x->limb_end[seed]};
+            /* The trunk's seen length understates the limb its laterals hang
+             * from where its top is hidden: it stands the scan's height. */
+            if (k->order[seed] == 0) limb.length = fmax(limb.length, x->ceiling - x->ground);
+            if (k->parent[seed] >= 0) {
+                const float *a = k->pos + 3 * k->parent[seed], *b = k->pos + 3 * seed;
+                double d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+                if (sy_v3_normalize(d) > 0) memcpy(limb.dir, d, sizeof d);
+            }
+            w->rc = texture_lobe(&local, (int32_t)c, x->lib, x->o, &limb, density, max_depth, x->max_thick, x->ceiling, x->ground, cands,
                                  &so, &w->rep, &w->occupied, w->cells, &w->err);
             w->leaf_key = so.leaf_key;
             w->next_branch = so.next_branch;
@@ -1245,17 +1520,33 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
         /* The scan's top: the highest skeleton node or lobe hull vertex (the
          * hulls enclose the returns). A willow's branchlets docked near the
          * crown top reached 0.26 m above AdTree's tree7 (height +5.2 %). */
-        double ceiling = -INFINITY;
-        for (size_t i = 0; i < skel->n; i++) ceiling = fmax(ceiling, skel->pos[3 * i + 2]);
+        double ceiling = -INFINITY, ground = INFINITY;
+        for (size_t i = 0; i < skel->n; i++) ceiling = fmax(ceiling, skel->pos[3 * i + 2]), ground = fmin(ground, skel->pos[3 * i + 2]);
         for (size_t c = 0; c < n_lobes; c++)
             for (size_t v = 0; v < lobes->items[c].n_verts; v++) ceiling = fmax(ceiling, lobes->items[c].verts[3 * v + 2]);
         crown_grid crown;
         rc = crown_build(lobes, &crown, err);
+        double *branch_len = calloc((size_t)ctx_branches + 1, sizeof *branch_len);
+        double *branch_base = calloc((size_t)ctx_branches + 1, sizeof *branch_base);
+        uint8_t *limb_end = malloc(skel->n + 1);
+        if (!rc && (!branch_len || !branch_base || !limb_end)) rc = sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+        if (!rc) memset(limb_end, 1, skel->n + 1);
+        for (size_t i = 0; !rc && i < skel->n; i++)
+            if (skel->parent[i] >= 0 && skel->branch[skel->parent[i]] == skel->branch[i]) limb_end[skel->parent[i]] = 0;
+        for (size_t i = 0; !rc && i < skel->n; i++) {
+            int32_t p = skel->parent[i], b = skel->branch[i];
+            if (b < 0 || b >= ctx_branches) continue;
+            if (p < 0 || skel->branch[p] != b) branch_base[b] = skel->radius[i];
+            if (p < 0) continue;
+            const float *a = skel->pos + 3 * i, *q = skel->pos + 3 * p;
+            branch_len[b] += sqrt((a[0] - q[0]) * (a[0] - q[0]) + (a[1] - q[1]) * (a[1] - q[1]) + (a[2] - q[2]) * (a[2] - q[2]));
+        }
         if (!rc) {
-            lobe_ctx ctx = {skel, lobes, lib, o, max_thick, ceiling, ctx_branches, work, &crown};
+            lobe_ctx ctx = {skel,     lobes, lib,    o,           max_thick,   ceiling, ground,
+                            ctx_branches, work, &crown, branch_len, branch_base, limb_end};
             sy_parallel_for(n_lobes, 1, texture_lobes, &ctx);
         }
-        free(crown.inside);
+        free(crown.inside), free(branch_len), free(branch_base), free(limb_end);
     }
     /* The lobes in order, as if textured one after another into out. */
     for (size_t c = 0; !rc && c < n_lobes; c++) {

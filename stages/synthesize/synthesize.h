@@ -41,6 +41,7 @@ typedef struct {
                                * the hull (0.35; 0.5 until stop 24 put the starts' twigs across empty space
                                * beside the scan's points: docs/synthesize.md) */
     int grid;               /* lobe grid cells along its longest side (default 16) */
+    float ratio_power;      /* Weber & Penn's RatioPower of the species: the hidden limbs' radii (0: 1.3) */
     int literal_eq33;       /* 1: eq. 3.3 as printed, max/min thickness ratio x (v_r . v_d), minimised */
 } sy_synth_options;
 
