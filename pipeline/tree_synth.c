@@ -72,6 +72,8 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
     so.leaf_density = ls.leaf_density;
     so.max_depth = ls.max_depth;
     if (species && species->ratio_power > 0) so.ratio_power = species->ratio_power;
+    for (int l = 0; species && l < 2; l++)
+        so.down_angle[l] = species->level[l + 1].down_angle, so.down_angle_v[l] = species->level[l + 1].down_angle_v;
     rc = sy_synthesize(&t->skel, &t->lobes, &lib, &so, &t->grown, &t->leaves, &t->synth, err);
     sy_branchlets_free(&lib);
     if (rc) sy_decoded_tree_free(t);

@@ -9,7 +9,7 @@
 # seed (the tree the scan was made from), silhouette IoU mean: aspen 0.615,
 # fir 0.761, palm 0.544 (the terrestrial scans of the same trees: 0.84-0.87);
 # at stop 26, with the limbs the scan hides grown inside the lobes
-# (docs/synthesize.md, the scaffold): 0.799, 0.792, 0.558 (mean 0.717).
+# (docs/synthesize.md, the scaffold): 0.812, 0.791, 0.556 (mean 0.720).
 . "$SYLVA_SOURCE_DIR/tests/measure_cli_common.sh"
 s="$SYLVA_SOURCE_DIR/samples"
 sum=0

@@ -368,19 +368,11 @@ static void lobes_in_parallel_give_the_same_tree(void **state)
     sy_skeleton_free(&s);
 }
 
-/* Lobes tile a crown: a card's tip may reach from its own lobe into the
- * next one (the crown is the union of the hulls), while its stem stays in
- * its own. Held inside its own lobe, every card near the border turned
- * inward and a card-wide seam of bare bark ran between the lobes (the
- * bundled aspen's crown drew as a lattice of leaf blocks). Two 1.2 m boxes
- * share the face x = 0; the tips of cards whose stems stand in one box must
- * reach more than a lobe cell into the other, and no tip may leave the two
- * boxes by more than a lobe cell and a crown cell. */
 /* A lobe far bigger than a patch gets the limbs the scan hides (the
  * scaffold, docs/synthesize.md): the trunk ends at the lobe's seed, so its
  * hidden rest runs on in the trunk's own branch, straight (a continuation
  * turns at most 15 degrees a step), well up into the lobe, with patches on
- * it, never thicker toward its tip. */
+ * it, never thicker toward its tip; of two lobes on that end, one. */
 static void hidden_limbs_continue_the_seed_limb(void **state)
 {
     (void)state;
@@ -413,9 +405,31 @@ static void hidden_limbs_continue_the_seed_limb(void **state)
     }
     if (!(steps >= 4 && top > 4 + 2.5)) fail_msg("the trunk goes on %d steps, up to %.2f m (box 4-9 m)", steps, top);
     assert_true(lv.n > 100);
-    sy_skeleton_free(&s), sy_skeleton_free(&out), sy_leaves_free(&lv), sy_clusters_free(&cl), sy_branchlets_free(&lib);
+    sy_skeleton_free(&out), sy_leaves_free(&lv);
+    /* Two lobes on the trunk's end, side by side: only the first continues
+     * the trunk (both did, forking it in two), the other leaves it as a limb
+     * of its own. */
+    sy_clusters two = {0};
+    two.n = 2;
+    two.items = calloc(2, sizeof *two.items);
+    moved_box(&two.items[0], &cl.items[0], 10, -2.5f, 0, 0, cl.items[0].n_tris);
+    moved_box(&two.items[1], &cl.items[0], 10, 2.5f, 0, 0, cl.items[0].n_tris);
+    assert_int_equal(sy_synthesize(&s, &two, &lib, &o, &out, &lv, NULL, &err), SY_OK);
+    int on_trunk = 0;
+    for (size_t i = s.n; i < out.n; i++) on_trunk += out.parent[i] == 10 && out.branch[i] == 0;
+    assert_int_equal(on_trunk, 1);
+    sy_skeleton_free(&s), sy_skeleton_free(&out), sy_leaves_free(&lv), sy_clusters_free(&cl), sy_clusters_free(&two);
+    sy_branchlets_free(&lib);
 }
 
+/* Lobes tile a crown: a card's tip may reach from its own lobe into the
+ * next one (the crown is the union of the hulls), while its stem stays in
+ * its own. Held inside its own lobe, every card near the border turned
+ * inward and a card-wide seam of bare bark ran between the lobes (the
+ * bundled aspen's crown drew as a lattice of leaf blocks). Two 1.2 m boxes
+ * share the face x = 0; the tips of cards whose stems stand in one box must
+ * reach more than a lobe cell into the other, and no tip may leave the two
+ * boxes by more than a lobe cell and a crown cell. */
 static void cards_reach_across_lobe_borders(void **state)
 {
     (void)state;

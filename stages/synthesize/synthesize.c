@@ -44,8 +44,12 @@ sy_code sy_synth_options_check(const sy_synth_options *o, sy_error *err)
     if (!(o->outside_max >= 0 && o->outside_max <= 1) || !(o->start_outside_max >= 0 && o->start_outside_max <= 1))
         return sy_fail(err, SY_EUSAGE, "synthesize: outside_max and start_outside_max must be in [0, 1]");
     if (o->grid < 2 || o->grid > 64) return sy_fail(err, SY_EUSAGE, "synthesize: grid must be 2..64");
-    if (!(o->ratio_power == 0 || (o->ratio_power >= 0.5 && o->ratio_power <= 5)))
-        return sy_fail(err, SY_EUSAGE, "synthesize: ratio_power must be 0 or in [0.5, 5]");
+    /* The species parser's ranges (species/params.c). */
+    if (!(o->ratio_power >= 0 && o->ratio_power <= 10))
+        return sy_fail(err, SY_EUSAGE, "synthesize: ratio_power must be in [0, 10]");
+    for (int l = 0; l < 2; l++)
+        if (!(fabs(o->down_angle[l]) <= 3600 && fabs(o->down_angle_v[l]) <= 3600))
+            return sy_fail(err, SY_EUSAGE, "synthesize: down_angle and down_angle_v must be within 3600 degrees");
 
     return SY_OK;
 }
@@ -904,12 +908,16 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
  * inside cells on a lattice of two cells) pulls its nearest scaffold node,
  * every pulled node grows one step toward the mean direction of its pulls,
  * and an attractor within the kill distance of a node is reached (a patch
- * docked there covers it). Rules that keep the limbs tree-like:
- * - one limb enters the lobe from its seed;
- * - a node's first child (its continuation) turns at most 15 degrees from
- *   the way the node grew, a later one (a lateral) leaves at 25 to 90;
- * - with the occupied cells alone, limbs ran along the lobe's shell of
- *   returns, and with free turns they drew arcs and hooks.
+ * docked there covers it). Rules that keep the limbs tree-like (without
+ * the inside cells limbs ran along the lobe's shell of returns; with free
+ * turns they drew arcs and hooks):
+ * - one limb enters the lobe from its seed, and continues the seed's limb
+ *   where that limb ends at the seed;
+ * - a node's first child (its continuation) turns at most 15 degrees a step
+ *   and 40 from its limb's first direction; a later one (a lateral) leaves
+ *   within the species' down-angle band;
+ * - no node leaves the soft hull once the limb has entered it, rises above
+ *   the scan's top or comes within a step of the ground.
  * Radii by Weber & Penn's rule, the species' own (as `sylva grow`): a branch
  * of length L off a parent branch of length Lp and base radius rp starts at
  * rp (L / Lp)^RatioPower, at most 0.9 of the parent there, and tapers to the
@@ -922,12 +930,14 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
 #define SCAFFOLD_KILL 0.35   /* kill distance, in the longest patch's lengths (at least two cells) */
 #define SCAFFOLD_MAX_TURN 15 /* degrees a continuation turns per step at most */
 #define SCAFFOLD_MAX_BEND 40 /* degrees a limb bends away from the way it left its parent at most */
+#define SCAFFOLD_RATIO_POWER 1.2 /* Weber & Penn's RatioPower without a species (species/params.c's default) */
 
 /* The limb of the main skeleton a lobe's seed lies on. */
 typedef struct {
     double length, base_radius; /* of the seed's branch */
     double dir[3];              /* the way the limb runs at the seed (0 at a root) */
     int ends;                   /* the seed is the limb's last node */
+    int on_trunk;               /* the seed's limb is the trunk (order 0) */
 } seed_limb;
 
 typedef struct {
@@ -936,7 +946,9 @@ typedef struct {
     int32_t parent[SCAFFOLD_MAX_NODES], first[SCAFFOLD_MAX_NODES], next[SCAFFOLD_MAX_NODES]; /* tree links */
     double head_dir[3 * SCAFFOLD_MAX_NODES]; /* the way the node's limb left its parent limb */
     uint8_t entered[SCAFFOLD_MAX_NODES];     /* the node or one below it lies in the lobe's soft hull */
+    uint8_t on_seed_limb[SCAFFOLD_MAX_NODES]; /* the node continues the seed's own limb (node 0 too) */
     const seed_limb *limb;
+    double lateral[2][2]; /* radians: the angle a lateral leaves its limb at, min and max, off the trunk / off a limb */
 } scaffold;
 
 /* Does node j's next child continue its limb (else it starts a lateral)?
@@ -950,7 +962,8 @@ static int scaffold_continues(const scaffold *s, size_t j)
  * centres of its other inside cells with even coordinates. */
 static double *scaffold_attractors(const lobe_grid *g, const double *occ_c, size_t n_occ, size_t *n_att)
 {
-    double *att = malloc((n_occ + g->n / 8 + 8) * 3 * sizeof *att);
+    size_t lattice = (size_t)((g->d[0] + 1) / 2) * (size_t)((g->d[1] + 1) / 2) * (size_t)((g->d[2] + 1) / 2);
+    double *att = malloc((n_occ + lattice + 1) * 3 * sizeof *att);
     if (!att) return NULL;
     memcpy(att, occ_c, n_occ * 3 * sizeof *att);
     size_t m = n_occ;
@@ -967,13 +980,27 @@ static double *scaffold_attractors(const lobe_grid *g, const double *occ_c, size
     return att;
 }
 
+/* The angles a lateral leaves its limb at, off the trunk (band[0]) and off
+ * a limb (band[1]): the species' Weber & Penn DownAngle of levels 1 and 2
+ * within its variation and 10 degrees more (25 to 90 without a species).
+ * With 25 to 90 for every species, a fir's laterals rose off its trunk and
+ * arched over. */
+static void scaffold_lateral_bands(const sy_synth_options *o, double band[2][2])
+{
+    for (int l = 0; l < 2; l++) {
+        double a = o->down_angle[l], v = fabs(o->down_angle_v[l]) + 10, lo = 25, hi = 90;
+        if (a > 0) lo = fmax(5, a - v), hi = fmin(135, a + v);
+        band[l][0] = lo * M_PI / 180, band[l][1] = hi * M_PI / 180;
+    }
+}
+
 /* The direction node j of s grows a child in, from the unit pull dir,
  * within the rules above: a continuation turns at most SCAFFOLD_MAX_TURN
  * from the way j grew and stays within SCAFFOLD_MAX_BEND of its limb's first
  * direction (15 degrees a step still coiled a fir's limbs round its trunk);
- * a lateral leaves at 25 to 90 degrees (the seed's child too, off the
- * seed's limb, unless that limb ends at the seed and goes on). 0 when it
- * has no such direction. */
+ * a lateral leaves within the species' down-angle band (the seed's child
+ * too, off the seed's limb, unless that limb ends at the seed and goes on).
+ * 0 when it has no such direction. */
 static int scaffold_direction(const scaffold *s, size_t j, double dir[3])
 {
     double g0[3], side[3];
@@ -986,7 +1013,10 @@ static int scaffold_direction(const scaffold *s, size_t j, double dir[3])
     }
     int on = scaffold_continues(s, j);
     double c = sy_v3_dot(dir, g0), lo = 0, hi = SCAFFOLD_MAX_TURN * M_PI / 180;
-    if (!on) lo = 25 * M_PI / 180, hi = M_PI / 2;
+    if (!on) {
+        const double *band = s->lateral[s->on_seed_limb[j] && s->limb->on_trunk ? 0 : 1];
+        lo = band[0], hi = band[1];
+    }
     for (int k = 0; k < 3; k++) side[k] = dir[k] - c * g0[k];
     if (!(sy_v3_normalize(side) > 1e-6)) { /* straight on or straight back: no side to turn to */
         memcpy(dir, g0, sizeof g0);
@@ -1058,8 +1088,12 @@ static sy_code scaffold_colonise(scaffold *s, const lobe_grid *g, const double *
             if (dup) continue;
             size_t m = s->n++;
             memcpy(s->pos + 3 * m, p, sizeof p);
-            /* A continuation keeps its limb's first direction; a lateral starts a limb. */
-            memcpy(s->head_dir + 3 * m, scaffold_continues(s, j) ? s->head_dir + 3 * j : dir, 3 * sizeof *dir);
+            /* A continuation keeps its limb's first direction (a root seed has
+             * none: its limb's first step gives it); a lateral starts a limb. */
+            int on = scaffold_continues(s, j);
+            memcpy(s->head_dir + 3 * m, on && sy_v3_len(s->head_dir + 3 * j) > 0 ? s->head_dir + 3 * j : dir,
+                   3 * sizeof *dir);
+            s->on_seed_limb[m] = on && s->on_seed_limb[j];
             s->entered[m] = s->entered[j] || in;
             s->parent[m] = (int32_t)j, s->first[m] = -1, s->next[m] = s->first[j], s->first[j] = (int32_t)m;
         }
@@ -1119,16 +1153,16 @@ static sy_code scaffold_to_skeleton(const scaffold *s, int32_t seed, double rati
         float q[3] = {(float)s->pos[3 * j], (float)s->pos[3 * j + 1], (float)s->pos[3 * j + 2]};
         global[j] = sy_skeleton_add(sk, q, (float)(r < cap ? r : cap), gp, order, branch, err);
         if (global[j] < 0) rc = SY_EINTERNAL;
-        rep->nodes_added++;
+        else rep->nodes_added++;
     }
     return rc;
 }
 
 /* The scaffold of lobe g (occupied cell centres occ_c), hanging off node
  * seed of so->out; reach: the library's longest patch, tip_r: its thickest.
- * None when a patch docked at the seed reaches every attractor. */
+ * None when every attractor lies within the kill distance of the seed. */
 static sy_code grow_scaffold(const lobe_grid *g, const double *occ_c, size_t n_occ, int32_t seed, double reach,
-                             double tip_r, double ratio_power, const seed_limb *limb, double ceiling,
+                             double tip_r, const sy_synth_options *o, const seed_limb *limb, double ceiling,
                              double ground, synth_out *so, sy_synth_report *rep, sy_error *err)
 {
     const double kill = fmax(SCAFFOLD_KILL * reach, 2 * g->h), step = fmax(0.5 * kill, 1.5 * g->h);
@@ -1140,13 +1174,15 @@ static sy_code grow_scaffold(const lobe_grid *g, const double *occ_c, size_t n_o
         free(att);
         return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
     }
-    s->n = 1, s->parent[0] = s->first[0] = s->next[0] = -1, s->entered[0] = 0, s->limb = limb;
+    s->n = 1, s->parent[0] = s->first[0] = s->next[0] = -1, s->entered[0] = 0, s->on_seed_limb[0] = 1, s->limb = limb;
+    scaffold_lateral_bands(o, s->lateral);
     memcpy(s->head_dir, limb->dir, sizeof limb->dir);
     for (int k = 0; k < 3; k++) s->pos[k] = so->out->pos[3 * seed + k];
     size_t beyond = 0;
     for (size_t o = 0; o < n_att; o++) beyond += sy_v3_dist(att + 3 * o, s->pos) > kill;
     sy_code rc = beyond ? scaffold_colonise(s, g, att, n_att, kill, step, ceiling, ground, err) : SY_OK;
-    if (!rc && s->n > 1) rc = scaffold_to_skeleton(s, seed, ratio_power, tip_r, so, rep, err);
+    if (!rc && s->n > 1)
+        rc = scaffold_to_skeleton(s, seed, o->ratio_power > 0 ? o->ratio_power : SCAFFOLD_RATIO_POWER, tip_r, so, rep, err);
     free(att), free(s);
     return rc;
 }
@@ -1190,13 +1226,13 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     double min_start = sk->radius[seed] * 0.9 < max_thick ? sk->radius[seed] * 0.9 : max_thick;
     size_t lobe_patches = 0;
     if (!rc && bare_reason < 0)
-        rc = grow_scaffold(&g, occ_c, n_occ, seed, reach, max_thick, o->ratio_power > 0 ? o->ratio_power : 1.3,
-                           limb, ceiling, ground, so, rep, err);
+        rc = grow_scaffold(&g, occ_c, n_occ, seed, reach, max_thick, o, limb, ceiling, ground, so, rep, err);
     while (!rc && bare_reason < 0 && starts < max_starts && lobe_patches < (size_t)o->max_patches) {
-        /* A new start from the seed toward the occupied cells with room:
-         * a carrier limb (the part of the limb the scan does not resolve)
-         * runs from the seed to the nearest of them when it lies farther
-         * than a cell, and the first patch docks at its end. */
+        /* A new start toward the occupied cell with room nearest the seed,
+         * from the nearest bark this lobe has (its scaffold, its patches or
+         * the seed): where that lies farther than a cell and a half, a
+         * straight carrier limb bridges the gap and the first patch docks
+         * at its end. */
         double target[3] = {0, 0, 0}, cnt = 0, near[3] = {0, 0, 0}, near_d = INFINITY;
         const float ss[3] = {sk->pos[3 * seed], sk->pos[3 * seed + 1], sk->pos[3 * seed + 2]};
         long near_i = -1;
@@ -1378,6 +1414,52 @@ static sy_code copy_skeleton(const sy_skeleton *s, sy_skeleton *out, sy_error *e
     return SY_OK;
 }
 
+/* Each lobe's seed limb for the scaffold: the length and base radius of
+ * its seed's branch, the branch's direction at the seed, whether it is the
+ * trunk, and whether the lobe continues it: only where the branch ends at
+ * the seed, and only the first lobe on that seed (two would each continue
+ * it, forking the limb in two). height: the scan's; the trunk's seen length
+ * understates the limb its laterals hang from where its top is hidden, so
+ * it counts as the scan's height. */
+static sy_code seed_limbs_build(const sy_skeleton *skel, const sy_clusters *lobes, double height, seed_limb *out,
+                                sy_error *err)
+{
+    size_t n_lobes = lobes ? lobes->n : 0;
+    int32_t nb = sy_skeleton_branch_count(skel);
+    double *len = calloc((size_t)nb + 1, sizeof *len), *base = calloc((size_t)nb + 1, sizeof *base);
+    int32_t *taker = malloc((skel->n + 1) * sizeof *taker); /* per node: the lobe continuing its limb, or -1 */
+    if (!len || !base || !taker) {
+        free(len), free(base), free(taker);
+        return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+    }
+    for (size_t i = 0; i < skel->n; i++) taker[i] = -2; /* -2: a limb ends here, no lobe yet */
+    for (size_t i = 0; i < skel->n; i++) {
+        int32_t p = skel->parent[i], b = skel->branch[i];
+        if (p >= 0 && skel->branch[p] == b) taker[p] = -1; /* the limb goes on past p */
+        if (b < 0) continue;
+        if (p < 0 || skel->branch[p] != b) base[b] = skel->radius[i];
+        if (p < 0) continue;
+        double d[3];
+        for (int k = 0; k < 3; k++) d[k] = (double)skel->pos[3 * i + k] - skel->pos[3 * p + k];
+        len[b] += sy_v3_len(d);
+    }
+    for (size_t c = 0; c < n_lobes; c++) {
+        int32_t seed = lobes->items[c].seed, b = skel->branch[seed], p = skel->parent[seed];
+        seed_limb *l = &out[c];
+        memset(l, 0, sizeof *l);
+        l->length = len[b], l->base_radius = base[b], l->on_trunk = skel->order[seed] == 0;
+        if (l->on_trunk) l->length = fmax(l->length, height);
+        if (taker[seed] == -2) taker[seed] = (int32_t)c;
+        l->ends = taker[seed] == (int32_t)c;
+        if (p >= 0) {
+            for (int k = 0; k < 3; k++) l->dir[k] = (double)skel->pos[3 * seed + k] - skel->pos[3 * p + k];
+            sy_v3_normalize(l->dir);
+        }
+    }
+    free(len), free(base), free(taker);
+    return SY_OK;
+}
+
 /* One lobe textured on its own: its seed node alone (index 0) plus the
  * nodes and leaves it adds, branch ids counted from the skeleton's. Lobes
  * only read their seed and their own bark, so they run in parallel and are
@@ -1405,8 +1487,7 @@ typedef struct {
     int32_t base_branches;
     lobe_work *work;
     const crown_grid *crown;
-    const double *branch_len, *branch_base; /* per branch of skel: length and first node's radius */
-    const uint8_t *limb_end;                /* per node of skel: no child continues its branch */
+    const seed_limb *limbs;   /* per lobe: the limb its seed lies on */
 } lobe_ctx;
 
 static void lobe_work_free(lobe_work *w)
@@ -1443,16 +1524,7 @@ static void texture_lobes(void *vctx, size_t begin, size_t end, size_t chunk)
             sy_cluster local = *C;
             local.seed = 0;
             synth_out so = {&w->out, &w->leaves, NULL, 0, x->base_branches, x->crown};
-            seed_limb limb = {x->branch_len[k->branch[seed]], x->branch_base[k->branch[seed]], {0, 0, 0}, x->limb_end[seed]};
-            /* The trunk's seen length understates the limb its laterals hang
-             * from where its top is hidden: it stands the scan's height. */
-            if (k->order[seed] == 0) limb.length = fmax(limb.length, x->ceiling - x->ground);
-            if (k->parent[seed] >= 0) {
-                const float *a = k->pos + 3 * k->parent[seed], *b = k->pos + 3 * seed;
-                double d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-                if (sy_v3_normalize(d) > 0) memcpy(limb.dir, d, sizeof d);
-            }
-            w->rc = texture_lobe(&local, (int32_t)c, x->lib, x->o, &limb, density, max_depth, x->max_thick, x->ceiling, x->ground, cands,
+            w->rc = texture_lobe(&local, (int32_t)c, x->lib, x->o, &x->limbs[c], density, max_depth, x->max_thick, x->ceiling, x->ground, cands,
                                  &so, &w->rep, &w->occupied, w->cells, &w->err);
             w->leaf_key = so.leaf_key;
             w->next_branch = so.next_branch;
@@ -1526,27 +1598,14 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
             for (size_t v = 0; v < lobes->items[c].n_verts; v++) ceiling = fmax(ceiling, lobes->items[c].verts[3 * v + 2]);
         crown_grid crown;
         rc = crown_build(lobes, &crown, err);
-        double *branch_len = calloc((size_t)ctx_branches + 1, sizeof *branch_len);
-        double *branch_base = calloc((size_t)ctx_branches + 1, sizeof *branch_base);
-        uint8_t *limb_end = malloc(skel->n + 1);
-        if (!rc && (!branch_len || !branch_base || !limb_end)) rc = sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
-        if (!rc) memset(limb_end, 1, skel->n + 1);
-        for (size_t i = 0; !rc && i < skel->n; i++)
-            if (skel->parent[i] >= 0 && skel->branch[skel->parent[i]] == skel->branch[i]) limb_end[skel->parent[i]] = 0;
-        for (size_t i = 0; !rc && i < skel->n; i++) {
-            int32_t p = skel->parent[i], b = skel->branch[i];
-            if (b < 0 || b >= ctx_branches) continue;
-            if (p < 0 || skel->branch[p] != b) branch_base[b] = skel->radius[i];
-            if (p < 0) continue;
-            const float *a = skel->pos + 3 * i, *q = skel->pos + 3 * p;
-            branch_len[b] += sqrt((a[0] - q[0]) * (a[0] - q[0]) + (a[1] - q[1]) * (a[1] - q[1]) + (a[2] - q[2]) * (a[2] - q[2]));
-        }
+        seed_limb *limbs = n_lobes ? calloc(n_lobes, sizeof *limbs) : NULL;
+        if (!rc && n_lobes && !limbs) rc = sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+        if (!rc) rc = seed_limbs_build(skel, lobes, ceiling - ground, limbs, err);
         if (!rc) {
-            lobe_ctx ctx = {skel,     lobes, lib,    o,           max_thick,   ceiling, ground,
-                            ctx_branches, work, &crown, branch_len, branch_base, limb_end};
+            lobe_ctx ctx = {skel, lobes, lib, o, max_thick, ceiling, ground, ctx_branches, work, &crown, limbs};
             sy_parallel_for(n_lobes, 1, texture_lobes, &ctx);
         }
-        free(crown.inside), free(branch_len), free(branch_base), free(limb_end);
+        free(crown.inside), free(limbs);
     }
     /* The lobes in order, as if textured one after another into out. */
     for (size_t c = 0; !rc && c < n_lobes; c++) {

@@ -41,7 +41,9 @@ typedef struct {
                                * the hull (0.35; 0.5 until stop 24 put the starts' twigs across empty space
                                * beside the scan's points: docs/synthesize.md) */
     int grid;               /* lobe grid cells along its longest side (default 16) */
-    float ratio_power;      /* Weber & Penn's RatioPower of the species: the hidden limbs' radii (0: 1.3) */
+    float ratio_power;      /* Weber & Penn's RatioPower of the species: the hidden limbs' radii (0: 1.2) */
+    float down_angle[2], down_angle_v[2]; /* the species' DownAngle and its variation, levels 1 and 2, degrees:
+                                             the angles the hidden limbs branch at (0: 25 to 90) */
     int literal_eq33;       /* 1: eq. 3.3 as printed, max/min thickness ratio x (v_r . v_d), minimised */
 } sy_synth_options;
 
