@@ -728,12 +728,13 @@ sy_code sy_rebuild_unseen_stem(sy_skeleton *s, const float *xyz, size_t n, int32
     /* A domed crown's trunk divides where it stops: limbs grow from it into
      * the returns by space colonisation, as the occluded stem's. A trunk
      * that runs to the top carries its lobes itself (every return joins its
-     * nearest trunk node) and synthesis' carrier limbs reach them: limbs
-     * colonised there, in steps of 2 level sets (1.7-2.7 m), stood off the
-     * trunk like crossarms (the beech's IoU against its true tree 0.541 with
-     * them, 0.601 without); under a dome the crown above the fork lost its
-     * support without them (the black oak 0.588 -> 0.461, height -37 %). */
-    /* Limbs only from the fork, where the trunk divides: sprouting from
+     * nearest trunk node) and synthesis grows the limbs inside its lobes
+     * (docs/synthesize.md, the scaffold): limbs colonised there, in steps of
+     * 2 level sets (1.7-2.7 m), stood off the trunk like crossarms (the
+     * beech's IoU against its true tree 0.541 with them, 0.601 without);
+     * under a dome the crown above the fork lost its support without them
+     * (the black oak 0.588 -> 0.461, height -37 %).
+     * Limbs only from the fork, where the trunk divides: sprouting from
      * every trunk node in a crown that reaches down to the bole (the
      * airborne black oak's, 0.5 m over the ground), they stood off it as a
      * comb of level rods (IoU 0.650 with the comb, 0.632 without). */

@@ -12,6 +12,7 @@
 #include "stages/core/parallel.h"
 #include "stages/core/progress.h"
 #include "stages/core/sort.h"
+#include "stages/core/colonize.h"
 #include "stages/core/vec3.h"
 
 #ifndef M_PI
@@ -940,40 +941,41 @@ typedef struct {
     int on_trunk;               /* the seed's limb is the trunk (order 0) */
 } seed_limb;
 
+/* The scaffold's own state beside the colony (stages/core/colonize.h):
+ * the rules' parameters and per node what they need. */
 typedef struct {
-    size_t n;                       /* nodes; node 0 is the seed */
-    double pos[3 * SCAFFOLD_MAX_NODES];
-    int32_t parent[SCAFFOLD_MAX_NODES], first[SCAFFOLD_MAX_NODES], next[SCAFFOLD_MAX_NODES]; /* tree links */
+    const seed_limb *limb;
+    double lateral[2][2]; /* radians: the angle a lateral leaves its limb at, min and max, off the trunk / off a limb */
+    const lobe_grid *g;
+    double step, ceiling, ground;
     double head_dir[3 * SCAFFOLD_MAX_NODES]; /* the way the node's limb left its parent limb */
     uint8_t entered[SCAFFOLD_MAX_NODES];     /* the node or one below it lies in the lobe's soft hull */
     uint8_t on_seed_limb[SCAFFOLD_MAX_NODES]; /* the node continues the seed's own limb (node 0 too) */
-    const seed_limb *limb;
-    double lateral[2][2]; /* radians: the angle a lateral leaves its limb at, min and max, off the trunk / off a limb */
 } scaffold;
 
 /* Does node j's next child continue its limb (else it starts a lateral)?
  * The seed's child continues the seed's limb where the limb ends there. */
-static int scaffold_continues(const scaffold *s, size_t j)
+static int scaffold_continues(const scaffold *s, const sy_colony *c, size_t j)
 {
-    return j == 0 ? s->limb->ends : s->first[j] < 0;
+    return j == 0 ? s->limb->ends : c->first[j] < 0;
 }
 
 /* The attractors of lobe g: its occupied cell centres occ_c (n_occ) and the
  * centres of its other inside cells with even coordinates. */
-static double *scaffold_attractors(const lobe_grid *g, const double *occ_c, size_t n_occ, size_t *n_att)
+static float *scaffold_attractors(const lobe_grid *g, const double *occ_c, size_t n_occ, size_t *n_att)
 {
     size_t lattice = (size_t)((g->d[0] + 1) / 2) * (size_t)((g->d[1] + 1) / 2) * (size_t)((g->d[2] + 1) / 2);
-    double *att = malloc((n_occ + lattice + 1) * 3 * sizeof *att);
+    float *att = malloc((n_occ + lattice + 1) * 3 * sizeof *att);
     if (!att) return NULL;
-    memcpy(att, occ_c, n_occ * 3 * sizeof *att);
+    for (size_t i = 0; i < 3 * n_occ; i++) att[i] = (float)occ_c[i];
     size_t m = n_occ;
     for (int z = 0; z < g->d[2]; z += 2)
         for (int y = 0; y < g->d[1]; y += 2)
             for (int x = 0; x < g->d[0]; x += 2) {
                 size_t i = (size_t)x + (size_t)g->d[0] * ((size_t)y + (size_t)g->d[1] * (size_t)z);
                 if (!g->inside[i] || g->occupied[i]) continue;
-                att[3 * m] = g->lo[0] + (x + 0.5) * g->h, att[3 * m + 1] = g->lo[1] + (y + 0.5) * g->h;
-                att[3 * m + 2] = g->lo[2] + (z + 0.5) * g->h;
+                att[3 * m] = (float)(g->lo[0] + (x + 0.5) * g->h), att[3 * m + 1] = (float)(g->lo[1] + (y + 0.5) * g->h);
+                att[3 * m + 2] = (float)(g->lo[2] + (z + 0.5) * g->h);
                 m++;
             }
     *n_att = m;
@@ -994,24 +996,24 @@ static void scaffold_lateral_bands(const sy_synth_options *o, double band[2][2])
     }
 }
 
-/* The direction node j of s grows a child in, from the unit pull dir,
- * within the rules above: a continuation turns at most SCAFFOLD_MAX_TURN
- * from the way j grew and stays within SCAFFOLD_MAX_BEND of its limb's first
+/* The direction node j grows a child in, from the unit pull dir, within
+ * the rules above: a continuation turns at most SCAFFOLD_MAX_TURN from the
+ * way j grew and stays within SCAFFOLD_MAX_BEND of its limb's first
  * direction (15 degrees a step still coiled a fir's limbs round its trunk);
  * a lateral leaves within the species' down-angle band (the seed's child
  * too, off the seed's limb, unless that limb ends at the seed and goes on).
  * 0 when it has no such direction. */
-static int scaffold_direction(const scaffold *s, size_t j, double dir[3])
+static int scaffold_direction(const scaffold *s, const sy_colony *col, size_t j, double dir[3])
 {
     double g0[3], side[3];
     if (j == 0) {
         if (!(sy_v3_len(s->limb->dir) > 0)) return 1; /* the root of the tree: any way */
         memcpy(g0, s->limb->dir, sizeof g0);
     } else {
-        sy_v3_sub(g0, s->pos + 3 * j, s->pos + 3 * s->parent[j]);
+        for (int k = 0; k < 3; k++) g0[k] = (double)col->pos[3 * j + k] - col->pos[3 * (size_t)col->parent[j] + k];
         sy_v3_normalize(g0);
     }
-    int on = scaffold_continues(s, j);
+    int on = scaffold_continues(s, col, j);
     double c = sy_v3_dot(dir, g0), lo = 0, hi = SCAFFOLD_MAX_TURN * M_PI / 180;
     if (!on) {
         const double *band = s->lateral[s->on_seed_limb[j] && s->limb->on_trunk ? 0 : 1];
@@ -1035,123 +1037,86 @@ static int scaffold_direction(const scaffold *s, size_t j, double dir[3])
     return 1;
 }
 
-/* Space colonisation from s's node 0 toward the n attractors att (kill
- * distance kill, step length step). No node outside lobe g's soft hull
- * once the limb from the seed has reached it (bare limbs stood out of the
- * airborne aspen's crown), above ceiling, or
- * within a step of the ground (a fir's lowest lobes reach it: tubes along
- * the ground). */
-static sy_code scaffold_colonise(scaffold *s, const lobe_grid *g, const double *att, size_t n, double kill, double step,
-                                 double ceiling, double ground, sy_error *err)
+/* The colony's steer (sy_colony_steer): one limb from the seed, the turn
+ * limits, and no node outside lobe g's soft hull once the limb from the
+ * seed has reached it (bare limbs stood out of the airborne aspen's crown),
+ * above the ceiling, or within a step of the ground (a fir's lowest lobes
+ * reach it: tubes along the ground). Records the child's state, which
+ * stays unused when the colony then drops it as a duplicate. */
+static int scaffold_steer(void *ctx, const sy_colony *c, size_t j, double dir[3])
 {
-    int32_t *near = malloc(n * sizeof *near);
-    double *near_d = malloc(n * sizeof *near_d), *pull = malloc(4 * SCAFFOLD_MAX_NODES * sizeof *pull);
-    uint8_t *alive = malloc(n);
-    if (!near || !near_d || !pull || !alive) {
-        free(near), free(near_d), free(pull), free(alive);
-        return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
-    }
-    for (size_t o = 0; o < n; o++) alive[o] = 1, near[o] = 0, near_d[o] = INFINITY;
-    size_t seen = 0; /* nodes every attractor's nearest has been compared with */
-    for (int it = 0; it < SCAFFOLD_MAX_STEPS && s->n < SCAFFOLD_MAX_NODES; it++) {
-        /* An attractor's nearest node can only change to a node added since. */
-        for (size_t o = 0; o < n; o++)
-            for (size_t j = seen; j < s->n && alive[o]; j++) {
-                double d = sy_v3_dist(att + 3 * o, s->pos + 3 * j);
-                if (d < kill) alive[o] = 0;
-                if (d < near_d[o]) near_d[o] = d, near[o] = (int32_t)j;
-            }
-        seen = s->n;
-        memset(pull, 0, 4 * s->n * sizeof *pull);
-        for (size_t o = 0; o < n; o++) {
-            if (!alive[o] || !(near_d[o] > 0)) continue;
-            double *a = pull + 4 * near[o];
-            for (int k = 0; k < 3; k++) a[k] += (att[3 * o + k] - s->pos[3 * near[o] + k]) / near_d[o];
-            a[3] += 1;
-        }
-        size_t n0 = s->n;
-        for (size_t j = 0; j < n0 && s->n < SCAFFOLD_MAX_NODES; j++) {
-            const double *a = pull + 4 * j;
-            double l = sy_v3_len(a), dir[3], p[3];
-            if (a[3] == 0 || l < 0.2 * a[3]) continue; /* unpulled, or pulled from opposite sides */
-            if (j == 0 && s->first[0] >= 0) continue;   /* one limb from the seed */
-            for (int k = 0; k < 3; k++) dir[k] = a[k] / l;
-            if (!scaffold_direction(s, j, dir)) continue;
-            for (int k = 0; k < 3; k++) p[k] = s->pos[3 * j + k] + step * dir[k];
-            long cell = grid_cell(g, p);
-            int in = cell >= 0 && g->soft[cell];
-            /* Outside the hull only on the way in: the seed's limb may reach the lobe from below it. */
-            if ((!in && (s->entered[j] || s->first[j] >= 0)) || p[2] > ceiling || p[2] < ground + step) continue;
-            /* Attractors that stay nearest to j pull it the same way again: one child per direction. */
-            int dup = 0;
-            for (int32_t c = s->first[j]; c >= 0 && !dup; c = s->next[c]) dup = sy_v3_dist(p, s->pos + 3 * c) < 0.5 * step;
-            if (dup) continue;
-            size_t m = s->n++;
-            memcpy(s->pos + 3 * m, p, sizeof p);
-            /* A continuation keeps its limb's first direction (a root seed has
-             * none: its limb's first step gives it); a lateral starts a limb. */
-            int on = scaffold_continues(s, j);
-            memcpy(s->head_dir + 3 * m, on && sy_v3_len(s->head_dir + 3 * j) > 0 ? s->head_dir + 3 * j : dir,
-                   3 * sizeof *dir);
-            s->on_seed_limb[m] = on && s->on_seed_limb[j];
-            s->entered[m] = s->entered[j] || in;
-            s->parent[m] = (int32_t)j, s->first[m] = -1, s->next[m] = s->first[j], s->first[j] = (int32_t)m;
-        }
-        if (s->n == n0) break;
-    }
-    free(near), free(near_d), free(pull), free(alive);
-    return SY_OK;
+    scaffold *s = ctx;
+    if (j == 0 && c->first[0] >= 0) return 0; /* one limb from the seed */
+    if (!scaffold_direction(s, c, j, dir)) return 0;
+    double p[3];
+    for (int k = 0; k < 3; k++) p[k] = c->pos[3 * j + k] + s->step * dir[k];
+    long cell = grid_cell(s->g, p);
+    int in = cell >= 0 && s->g->soft[cell];
+    /* Outside the hull only on the way in: the seed's limb may reach the lobe from below it. */
+    if ((!in && (s->entered[j] || c->first[j] >= 0)) || p[2] > s->ceiling || p[2] < s->ground + s->step) return 0;
+    /* A continuation keeps its limb's first direction (a root seed has none:
+     * its limb's first step gives it); a lateral starts a limb. */
+    size_t m = c->n;
+    int on = scaffold_continues(s, c, j);
+    memcpy(s->head_dir + 3 * m, on && sy_v3_len(s->head_dir + 3 * j) > 0 ? s->head_dir + 3 * j : dir, 3 * sizeof *dir);
+    s->entered[m] = s->entered[j] || in;
+    s->on_seed_limb[m] = on && s->on_seed_limb[j];
+    return 1;
 }
 
-/* Adds scaffold s (its node 0 is node seed of so->out) to so->out: a node
+static double colony_dist(const sy_colony *c, size_t a, size_t b)
+{
+    double d[3];
+    for (int k = 0; k < 3; k++) d[k] = (double)c->pos[3 * a + k] - c->pos[3 * b + k];
+    return sy_v3_len(d);
+}
+
+/* Adds scaffold col (its node 0 is node seed of so->out) to so->out: a node
  * continues its parent's branch through its first-grown child, the one
  * grown under the continuation's turn limits (the child carrying the most
  * tips drew a lateral's first step as a 90-degree elbow of its branch);
- * the limb from the seed starts a branch of its
- * own, unless the seed ends its limb (limb->ends): the lobe then holds
- * that limb's hidden rest, which goes on in the limb's own branch. Radii by
- * Weber & Penn's rule from the seed's branch (its length and base radius),
- * tapering to tip_r. */
-static sy_code scaffold_to_skeleton(const scaffold *s, int32_t seed, double ratio_power,
+ * the limb from the seed starts a branch of its own, unless the seed ends
+ * its limb (limb->ends): the lobe then holds that limb's hidden rest, which
+ * goes on in the limb's own branch. Radii by Weber & Penn's rule from the
+ * seed's branch (its length and base radius), tapering to tip_r. */
+static sy_code scaffold_to_skeleton(const sy_colony *col, const seed_limb *limb, int32_t seed, double ratio_power,
                                     double tip_r, synth_out *so, sy_synth_report *rep, sy_error *err)
 {
     sy_skeleton *sk = so->out;
-    size_t n = s->n;
+    size_t n = col->n;
     int32_t cont[SCAFFOLD_MAX_NODES], head[SCAFFOLD_MAX_NODES], global[SCAFFOLD_MAX_NODES];
-    double along[SCAFFOLD_MAX_NODES], blen[SCAFFOLD_MAX_NODES] = {0},
-           bbase[SCAFFOLD_MAX_NODES] = {0};
+    double along[SCAFFOLD_MAX_NODES], blen[SCAFFOLD_MAX_NODES] = {0}, bbase[SCAFFOLD_MAX_NODES] = {0};
     for (size_t j = 0; j < n; j++) {
         cont[j] = -1;
-        if (j == 0 && !s->limb->ends) continue;
-        for (int32_t c = s->first[j]; c >= 0; c = s->next[c]) cont[j] = c; /* the first grown, listed last */
+        if (j == 0 && !limb->ends) continue;
+        for (int32_t c = col->first[j]; c >= 0; c = col->next[c]) cont[j] = c; /* the first grown, listed last */
     }
     /* Branch heads, the distance along their branch, each branch's length
      * (local branch 0: the seed's, seen up to the seed). */
-    head[0] = 0, along[0] = blen[0] = s->limb->length, bbase[0] = s->limb->base_radius;
+    head[0] = 0, along[0] = blen[0] = limb->length, bbase[0] = limb->base_radius;
     for (size_t j = 1; j < n; j++) {
-        int32_t p = s->parent[j];
+        int32_t p = col->parent[j];
         int on = cont[p] == (int32_t)j;
         head[j] = on ? head[p] : (int32_t)j;
-        along[j] = (on ? along[p] : 0) + sy_v3_dist(s->pos + 3 * j, s->pos + 3 * p);
+        along[j] = (on ? along[p] : 0) + colony_dist(col, j, (size_t)p);
         blen[head[j]] = fmax(blen[head[j]], along[j]);
     }
     for (size_t j = 1; j < n; j++)
         if (head[j] == (int32_t)j) {
-            int32_t h = head[s->parent[j]];
+            int32_t h = head[col->parent[j]];
             bbase[j] = blen[h] > 0 ? bbase[h] * pow(fmin(1, blen[j] / blen[h]), ratio_power) : tip_r;
         }
     global[0] = seed;
     sy_code rc = SY_OK;
     for (size_t j = 1; j < n && !rc; j++) {
-        int32_t p = s->parent[j], gp = global[p], h = head[j];
+        int32_t p = col->parent[j], gp = global[p], h = head[j];
         int on = cont[p] == (int32_t)j;
         double b = h == 0 ? sk->radius[seed] : bbase[h], e = fmin(b, tip_r);
-        double a0 = h == 0 ? s->limb->length : 0, t = blen[h] > a0 ? (along[j] - a0) / (blen[h] - a0) : 1;
+        double a0 = h == 0 ? limb->length : 0, t = blen[h] > a0 ? (along[j] - a0) / (blen[h] - a0) : 1;
         double r = b + (e - b) * t, cap = (on ? 1.0 : 0.9) * sk->radius[gp];
         int order = on ? sk->order[gp] : sk->order[gp] < 254 ? sk->order[gp] + 1 : 255;
         int32_t branch = on ? sk->branch[gp] : so->next_branch++;
-        float q[3] = {(float)s->pos[3 * j], (float)s->pos[3 * j + 1], (float)s->pos[3 * j + 2]};
-        global[j] = sy_skeleton_add(sk, q, (float)(r < cap ? r : cap), gp, order, branch, err);
+        global[j] = sy_skeleton_add(sk, col->pos + 3 * j, (float)(r < cap ? r : cap), gp, order, branch, err);
         if (global[j] < 0) rc = SY_EINTERNAL;
         else rep->nodes_added++;
     }
@@ -1167,22 +1132,35 @@ static sy_code grow_scaffold(const lobe_grid *g, const double *occ_c, size_t n_o
 {
     const double kill = fmax(SCAFFOLD_KILL * reach, 2 * g->h), step = fmax(0.5 * kill, 1.5 * g->h);
     size_t n_att = 0;
-    double *att = scaffold_attractors(g, occ_c, n_occ, &n_att);
-    if (!att) return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+    float *att = scaffold_attractors(g, occ_c, n_occ, &n_att);
     scaffold *s = malloc(sizeof *s);
-    if (!s) {
-        free(att);
+    if (!att || !s) {
+        free(att), free(s);
         return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
     }
-    s->n = 1, s->parent[0] = s->first[0] = s->next[0] = -1, s->entered[0] = 0, s->on_seed_limb[0] = 1, s->limb = limb;
+    s->limb = limb, s->g = g, s->step = step, s->ceiling = ceiling, s->ground = ground;
     scaffold_lateral_bands(o, s->lateral);
     memcpy(s->head_dir, limb->dir, sizeof limb->dir);
-    for (int k = 0; k < 3; k++) s->pos[k] = so->out->pos[3 * seed + k];
+    s->entered[0] = 0, s->on_seed_limb[0] = 1;
+    const float *sp = so->out->pos + 3 * seed;
     size_t beyond = 0;
-    for (size_t o = 0; o < n_att; o++) beyond += sy_v3_dist(att + 3 * o, s->pos) > kill;
-    sy_code rc = beyond ? scaffold_colonise(s, g, att, n_att, kill, step, ceiling, ground, err) : SY_OK;
-    if (!rc && s->n > 1)
-        rc = scaffold_to_skeleton(s, seed, o->ratio_power > 0 ? o->ratio_power : SCAFFOLD_RATIO_POWER, tip_r, so, rep, err);
+    for (size_t i = 0; i < n_att; i++) {
+        double d[3] = {(double)att[3 * i] - sp[0], (double)att[3 * i + 1] - sp[1], (double)att[3 * i + 2] - sp[2]};
+        beyond += sy_v3_len(d) > kill;
+    }
+    sy_code rc = SY_OK;
+    if (beyond) {
+        /* Pulls that nearly cancel (under 0.2 of their count) grow nothing;
+         * a child within about 29 degrees of a sibling (half a step apart)
+         * is a duplicate. */
+        sy_colony_options co = {step, kill, 0.2, 0.875, SCAFFOLD_MAX_NODES, SCAFFOLD_MAX_STEPS, scaffold_steer, s};
+        sy_colony col;
+        rc = sy_colony_grow(&col, sp, 1, att, n_att, &co, err);
+        if (!rc && col.n > 1)
+            rc = scaffold_to_skeleton(&col, limb, seed, o->ratio_power > 0 ? o->ratio_power : SCAFFOLD_RATIO_POWER,
+                                      tip_r, so, rep, err);
+        sy_colony_free(&col);
+    }
     free(att), free(s);
     return rc;
 }
