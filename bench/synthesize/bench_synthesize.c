@@ -111,6 +111,34 @@ static int compare(const char *species, uint64_t seed, const char *path)
     return rc;
 }
 
+/* FNV-1a over n bytes, continuing from h. */
+static uint64_t fnv1a(uint64_t h, const void *data, size_t n)
+{
+    const unsigned char *b = data;
+    for (size_t i = 0; i < n; i++) h = (h ^ b[i]) * 0x100000001B3ull;
+    return h;
+}
+
+/* A digest of LOD0 (bark positions and triangles, leaf instances' TRS): a
+ * change meant to keep the asset's bytes can be checked without an export. */
+static uint64_t lod0_digest(const sy_asset *a)
+{
+    uint64_t h = 0xCBF29CE484222325ull;
+    const sy_lod *lod = &a->lods[0];
+    for (int k = 0; k < lod->n_meshes; k++) {
+        const sy_mesh *m = &a->meshes[lod->meshes[k]];
+        h = fnv1a(h, m->position, 3 * m->n_vertices * sizeof *m->position);
+        h = fnv1a(h, m->indices, m->n_indices * sizeof *m->indices);
+    }
+    for (int k = 0; k < lod->n_instances; k++) {
+        const sy_instances *in = &lod->instances[k];
+        h = fnv1a(h, in->translation, 3 * in->n * sizeof *in->translation);
+        h = fnv1a(h, in->rotation, 4 * in->n * sizeof *in->rotation);
+        h = fnv1a(h, in->scale, 3 * in->n * sizeof *in->scale);
+    }
+    return h;
+}
+
 static int decode(const char *path, int reps)
 {
     sy_error err = {0};
@@ -130,6 +158,7 @@ static int decode(const char *path, int reps)
     double *t_synth = calloc((size_t)reps, sizeof *t_synth), *t_mesh = calloc((size_t)reps, sizeof *t_mesh);
     double t_lib = 0;
     size_t bark = 0, cards = 0, leaf_tris = 0, nodes = 0;
+    uint64_t digest = 0;
     int rc = 0;
     for (int r = 0; r < reps && !rc; r++) {
         sy_decoded_tree dt;
@@ -177,6 +206,7 @@ static int decode(const char *path, int reps)
                 leaf_tris += lod->instances[k].n * (a.meshes[lod->instances[k].mesh].n_indices / 3);
             }
             nodes = dt.grown.n;
+            digest = lod0_digest(&a);
             sy_asset_free(&a);
         }
         sy_decoded_tree_free(&dt);
@@ -189,9 +219,9 @@ static int decode(const char *path, int reps)
         qsort(t_mesh, (size_t)reps, sizeof *t_mesh, cmp_double);
         qsort(both, (size_t)n, sizeof *both, cmp_double);
         printf("species=%s nodes=%zu lod0_bark_tris=%zu leaf_instances=%zu lod0_tris=%zu library_ms=%.1f "
-               "synth_ms=%.1f mesh_ms=%.1f decode_ms=%.1f\n",
+               "synth_ms=%.1f mesh_ms=%.1f decode_ms=%.1f digest=%016llx\n",
                have ? sp.name : "default", nodes, bark, cards, bark + leaf_tris, 1000 * t_lib,
-               1000 * t_synth[reps / 2], 1000 * t_mesh[reps / 2], 1000 * both[n / 2]);
+               1000 * t_synth[reps / 2], 1000 * t_mesh[reps / 2], 1000 * both[n / 2], (unsigned long long)digest);
     }
     free(t_synth);
     free(t_mesh);

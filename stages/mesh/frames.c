@@ -3,17 +3,6 @@
 
 #include "mesh_internal.h"
 
-float sy_normalize3(float v[3])
-{
-    float len = sqrtf(sy_dot3(v, v));
-    if (len > 0) {
-        v[0] /= len;
-        v[1] /= len;
-        v[2] /= len;
-    }
-    return len;
-}
-
 void sy_hermite(const float p0[3], const float m0[3], const float p1[3], const float m1[3], float t, float pos[3],
                 float der[3])
 {

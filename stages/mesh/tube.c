@@ -617,6 +617,26 @@ static int cmp_id_pair(const void *x, const void *y)
     return (p->b > q->b) - (p->b < q->b);
 }
 
+/* Sorts pairs by (a, b). A junction strip's sets are small: insertion
+ * sort there (qsort's calls through a pointer cost 3 % of a decode); equal
+ * pairs are identical, so any sort gives the same array. */
+static void id_pairs_sort(id_pair *s, size_t n)
+{
+    if (n > 48) {
+        qsort(s, n, sizeof *s, cmp_id_pair);
+        return;
+    }
+    for (size_t i = 1; i < n; i++) {
+        id_pair x = s[i];
+        size_t j = i;
+        while (j > 0 && (s[j - 1].a > x.a || (s[j - 1].a == x.a && s[j - 1].b > x.b))) {
+            s[j] = s[j - 1];
+            j--;
+        }
+        s[j] = x;
+    }
+}
+
 /* The first of the sorted pairs s[0..n) not below key. */
 static size_t pair_lower_bound(const id_pair *s, size_t n, id_pair key)
 {
@@ -722,7 +742,7 @@ static int delaunay_flips(uint32_t *tri, size_t t, const weld_pt *pts, size_t n)
     id_pair *by_id = malloc((n + 1) * sizeof *by_id);
     int ok = ix.head && ix.next && ix.corner && by_id;
     for (size_t i = 0; ok && i < n; i++) by_id[i] = (id_pair){pts[i].id, (uint32_t)i};
-    if (ok) qsort(by_id, n, sizeof *by_id, cmp_id_pair);
+    if (ok) id_pairs_sort(by_id, n);
     for (size_t k = 0; ok && k < 3 * t; k++) ok = edge_file(&ix, tri, (uint32_t)k);
     /* clean[f]: no edge of f flips as things stand. Each pass flips the
      * first flippable edge from the first triangle on, so a pass may skip
@@ -1101,9 +1121,9 @@ static int strip_valid(const uint32_t *tri, size_t t, const weld_pt *pts, size_t
             ok &= edge[f].a != edge[f].b; /* a degenerate edge */
         }
         memcpy(sorted, edge, nc * sizeof *edge);
-        qsort(sorted, nc, sizeof *sorted, cmp_id_pair);
+        id_pairs_sort(sorted, nc);
         for (size_t i = 0; i < n; i++) boundary[i] = (id_pair){pts[i].id, pts[(i + 1) % n].id};
-        qsort(boundary, n, sizeof *boundary, cmp_id_pair);
+        id_pairs_sort(boundary, n);
         for (size_t f = 0; f < nc && ok; f++) {
             size_t next = f - f % 3 + (f % 3 + 1) % 3;
             size_t twice = pair_count(sorted, nc, edge[f]) - 1;

@@ -140,6 +140,13 @@ static void quat_from_basis(const double X[3], const double Y[3], const double Z
 }
 
 /* ---- The lobe's grid ---- */
+/* What patch_fit reads of a cell, side by side. */
+typedef struct {
+    float dist;   /* distance (metres) to the nearest occupied cell */
+    uint8_t soft; /* inside, or next to an inside cell: the hull as a soft constraint */
+    uint8_t room; /* occupied, and its block holds fewer leaves than its cap (block_has_room) */
+} lobe_cell;
+
 typedef struct {
     float lo[3], hi[3];  /* hull box */
     double h;            /* cell size */
@@ -147,15 +154,13 @@ typedef struct {
     size_t n;
     uint8_t *inside;     /* winding number >= 0.5 at the cell centre */
     uint8_t *occupied;   /* inside and holding scan points */
-    float *dist;         /* distance (metres) to the nearest occupied cell */
+    lobe_cell *cell;     /* what a patch's fit reads, one cache line per sample */
     uint16_t *leaves;    /* leaves placed per cell */
-    uint8_t *soft;       /* inside, or next to an inside cell: the hull as a soft constraint */
     int bk;              /* a block's edge in cells: about a card's length */
     int bd[3];           /* blocks of bk x bk x bk cells, where fullness is counted */
     uint32_t *block;     /* leaves per block */
     uint32_t *cell_block; /* each cell's block */
     float *block_cap;    /* whole leaves a block holds (0 when it has no occupied cell) */
-    uint8_t *room;       /* occupied, and its block holds fewer leaves than its cap (block_has_room) */
     size_t n_occupied, n_blocks, n_filled; /* occupied cells; blocks with room; blocks holding a leaf */
     size_t n_inside;     /* cells inside the hull */
     double capacity;     /* leaves an occupied block holds on average */
@@ -166,8 +171,8 @@ typedef struct {
 
 static void grid_free(lobe_grid *g)
 {
-    free(g->inside), free(g->occupied), free(g->dist), free(g->leaves), free(g->soft), free(g->block), free(g->block_cap);
-    free(g->cell_block), free(g->room), free(g->tri_box);
+    free(g->inside), free(g->occupied), free(g->cell), free(g->leaves), free(g->block), free(g->block_cap);
+    free(g->cell_block), free(g->tri_box);
 }
 
 static size_t block_of(const lobe_grid *g, long c) { return g->cell_block[c]; }
@@ -293,23 +298,22 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
     }
     g->inside = sy_calloc(g->n, 1, err, "synthesis grid");
     g->occupied = sy_calloc(g->n, 1, err, "synthesis grid");
-    g->dist = sy_calloc(g->n, sizeof *g->dist, err, "synthesis grid");
+    g->cell = sy_calloc(g->n, sizeof *g->cell, err, "synthesis grid");
     g->leaves = sy_calloc(g->n, sizeof *g->leaves, err, "synthesis grid");
-    g->soft = sy_calloc(g->n, 1, err, "synthesis grid");
     g->bk = (int)lround(sqrt(2 * leaf_area) / g->h); /* the card's length */
     if (g->bk < 2) g->bk = 2;
     for (int k = 0; k < 3; k++) g->bd[k] = (g->d[k] + g->bk - 1) / g->bk;
     g->block = sy_calloc((size_t)g->bd[0] * g->bd[1] * g->bd[2], sizeof *g->block, err, "synthesis grid");
     g->block_cap = sy_calloc((size_t)g->bd[0] * g->bd[1] * g->bd[2], sizeof *g->block_cap, err, "synthesis grid");
     g->cell_block = sy_calloc(g->n, sizeof *g->cell_block, err, "synthesis grid");
-    g->room = sy_calloc(g->n, 1, err, "synthesis grid");
-    if (!g->inside || !g->occupied || !g->dist || !g->leaves || !g->soft || !g->block || !g->block_cap ||
-        !g->cell_block || !g->room)
+    if (!g->inside || !g->occupied || !g->cell || !g->leaves || !g->block || !g->block_cap || !g->cell_block)
         return SY_EINTERNAL;
     for (int z = 0, i = 0; z < g->d[2]; z++)
-        for (int y = 0; y < g->d[1]; y++)
-            for (int x = 0; x < g->d[0]; x++, i++)
-                g->cell_block[i] = (uint32_t)(x / g->bk + g->bd[0] * (y / g->bk + g->bd[1] * (z / g->bk)));
+        for (int y = 0; y < g->d[1]; y++) {
+            uint32_t row = (uint32_t)(g->bd[0] * (y / g->bk + g->bd[1] * (z / g->bk)));
+            for (int x = 0; x < g->d[0]; x += g->bk)
+                for (int xx = x; xx < x + g->bk && xx < g->d[0]; xx++, i++) g->cell_block[i] = row + (uint32_t)(x / g->bk);
+        }
     /* Inside by parity along vertical rays through the cell centres: one
      * pass over the triangles per column instead of a winding number per
      * cell (the hull is closed and outward, so parity and winding agree). The
@@ -333,11 +337,50 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
         float pad = 1e-4f * (bx[1] - bx[0] + bx[3] - bx[2]) + 1e-6f;
         for (int k = 0; k < 3; k++) bx[2 * k] -= pad, bx[2 * k + 1] += pad;
     }
+    /* The triangles whose box may hold each column's ray, in triangle
+     * order (a column tests only those; its hits are sorted anyway). */
+    size_t n_col = (size_t)g->d[0] * (size_t)g->d[1], *col_start = calloc(n_col + 1, sizeof *col_start), *col_tri = NULL;
+    int *col_span = malloc((c->n_tris + 1) * 4 * sizeof *col_span);
+    if (!col_start || !col_span) {
+        free(hits), free(col_start), free(col_span);
+        return sy_fail(err, SY_EINTERNAL, "synthesis grid: out of memory");
+    }
+    for (int pass = 0; pass < 2; pass++) {
+        for (size_t t = 0; t < c->n_tris; t++) {
+            int *sp = col_span + 4 * t;
+            if (pass == 0) {
+                const float *bx = g->tri_box + 6 * t;
+                /* Column x's ray is at lo + (x + 0.5) h: a cell of slack each way. */
+                for (int k = 0; k < 2; k++) {
+                    double a = floor((bx[2 * k] - g->lo[k]) / g->h - 0.5) - 1, b = ceil((bx[2 * k + 1] - g->lo[k]) / g->h - 0.5) + 1;
+                    sp[2 * k] = a < 0 ? 0 : a >= g->d[k] ? g->d[k] : (int)a;
+                    sp[2 * k + 1] = b < 0 ? -1 : b >= g->d[k] ? g->d[k] - 1 : (int)b;
+                }
+            }
+            for (int y = sp[2]; y <= sp[3]; y++)
+                for (int x = sp[0]; x <= sp[1]; x++) {
+                    size_t col = (size_t)x + (size_t)g->d[0] * (size_t)y;
+                    if (pass == 0) col_start[col + 1]++;
+                    else col_tri[col_start[col]++] = t;
+                }
+        }
+        if (pass == 0) {
+            for (size_t i = 0; i < n_col; i++) col_start[i + 1] += col_start[i];
+            col_tri = malloc((col_start[n_col] + 1) * sizeof *col_tri);
+            if (!col_tri) {
+                free(hits), free(col_start), free(col_span);
+                return sy_fail(err, SY_EINTERNAL, "synthesis grid: out of memory");
+            }
+        }
+    }
+    /* The second pass advanced each start to the next column's. */
+    for (size_t i = n_col; i > 0; i--) col_start[i] = col_start[i - 1];
+    col_start[0] = 0;
     for (int y = 0; y < g->d[1]; y++)
         for (int x = 0; x < g->d[0]; x++) {
             double px = g->lo[0] + (x + 0.5) * g->h + 1.3e-7 * g->h, py = g->lo[1] + (y + 0.5) * g->h + 2.9e-7 * g->h;
-            size_t nh = 0;
-            for (size_t t = 0; t < c->n_tris; t++) nh += vertical_hit(g, t, px, py, hits + nh);
+            size_t nh = 0, col = (size_t)x + (size_t)g->d[0] * (size_t)y;
+            for (size_t j = col_start[col]; j < col_start[col + 1]; j++) nh += vertical_hit(g, col_tri[j], px, py, hits + nh);
             qsort(hits, nh, sizeof *hits, sy_cmp_double);
             for (int z = 0; z < g->d[2]; z++) {
                 double pz = g->lo[2] + (z + 0.5) * g->h;
@@ -346,7 +389,7 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
                 g->inside[(size_t)x + (size_t)g->d[0] * ((size_t)y + (size_t)g->d[1] * (size_t)z)] = (uint8_t)(below & 1);
             }
         }
-    free(hits);
+    free(hits), free(col_start), free(col_tri), free(col_span);
     double cs[3] = {0, 0, 0};
     for (int z = 0; z < g->d[2]; z++)
         for (int y = 0; y < g->d[1]; y++)
@@ -404,22 +447,22 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
     }
     for (int z = 0, i = 0; z < g->d[2]; z++)
         for (int y = 0; y < g->d[1]; y++)
-            for (int x = 0; x < g->d[0]; x++, i++) g->dist[i] = pad[(x + 1) * px + (y + 1) * py + (z + 1) * pz];
+            for (int x = 0; x < g->d[0]; x++, i++) g->cell[i].dist = pad[(x + 1) * px + (y + 1) * py + (z + 1) * pz];
     free(pad);
     const size_t sx = 1, sy = (size_t)g->d[0], sz = (size_t)g->d[0] * (size_t)g->d[1];
     /* soft: inside dilated by the 3 x 3 x 3 cube, one axis at a time. */
     uint8_t *tmp = malloc(g->n);
     if (!tmp) return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
-    memcpy(g->soft, g->inside, g->n);
+    for (size_t i = 0; i < g->n; i++) g->cell[i].soft = g->inside[i];
     const size_t stride[3] = {sx, sy, sz};
     for (int a = 0; a < 3; a++) {
-        memcpy(tmp, g->soft, g->n);
+        for (size_t i = 0; i < g->n; i++) tmp[i] = g->cell[i].soft;
         for (int z = 0, i = 0; z < g->d[2]; z++)
             for (int y = 0; y < g->d[1]; y++)
                 for (int x = 0; x < g->d[0]; x++, i++) {
                     int q = a == 0 ? x : a == 1 ? y : z;
-                    if (q > 0) g->soft[i] |= tmp[(size_t)i - stride[a]];
-                    if (q + 1 < g->d[a]) g->soft[i] |= tmp[(size_t)i + stride[a]];
+                    if (q > 0) g->cell[i].soft |= tmp[(size_t)i - stride[a]];
+                    if (q + 1 < g->d[a]) g->cell[i].soft |= tmp[(size_t)i + stride[a]];
                 }
     }
     free(tmp);
@@ -441,7 +484,7 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
         g->block_cap[b] = g->block_cap[b] > 0 ? (float)floor(g->block_cap[b] + u) : 0;
         g->n_blocks += g->block_cap[b] > 0;
     }
-    for (size_t i = 0; i < g->n; i++) g->room[i] = g->occupied[i] && block_has_room(g, (long)i);
+    for (size_t i = 0; i < g->n; i++) g->cell[i].room = g->occupied[i] && block_has_room(g, (long)i);
     return SY_OK;
 }
 
@@ -457,7 +500,29 @@ static void block_add_leaf(lobe_grid *g, long c)
     for (int z = bz * g->bk; z < (bz + 1) * g->bk && z < g->d[2]; z++)
         for (int y = by * g->bk; y < (by + 1) * g->bk && y < g->d[1]; y++)
             for (int x = bx * g->bk; x < (bx + 1) * g->bk && x < g->d[0]; x++)
-                g->room[(size_t)x + (size_t)g->d[0] * ((size_t)y + (size_t)g->d[1] * (size_t)z)] = 0;
+                g->cell[(size_t)x + (size_t)g->d[0] * ((size_t)y + (size_t)g->d[1] * (size_t)z)].room = 0;
+}
+
+/* Does a block with room overlap the box of cells within r (metres) of p?
+ * A patch placed at p whose every leaf lies within r of it can gain
+ * nothing where none does, so a dock in a full region skips its
+ * candidates' fits (they would all stop on their gain or fall outside). */
+static int room_near(const lobe_grid *g, const double p[3], double r)
+{
+    int b0[3], b1[3];
+    for (int k = 0; k < 3; k++) {
+        double t0 = floor((p[k] - r - g->lo[k]) / g->h), t1 = floor((p[k] + r - g->lo[k]) / g->h);
+        if (!(t1 >= 0) || !(t0 < g->d[k])) return 0; /* the box misses the grid (NaN too) */
+        int c0 = t0 < 0 ? 0 : (int)t0, c1 = t1 >= g->d[k] ? g->d[k] - 1 : (int)t1;
+        b0[k] = c0 / g->bk, b1[k] = c1 / g->bk;
+    }
+    for (int z = b0[2]; z <= b1[2]; z++)
+        for (int y = b0[1]; y <= b1[1]; y++)
+            for (int x = b0[0]; x <= b1[0]; x++) {
+                size_t b = (size_t)x + (size_t)g->bd[0] * ((size_t)y + (size_t)g->bd[1] * (size_t)z);
+                if (g->block[b] < g->block_cap[b]) return 1;
+            }
+    return 0;
 }
 
 /* ---- Texturing ---- */
@@ -751,15 +816,15 @@ static int patch_fit(const sy_patch *p, const dock *d, const double R[9], double
     const double inv_n = 1 / n, inv_nl = nl ? 1 / (double)nl : 0, dist_w = 2 / (n * ext);
     double outside = 0, dist = 0, gain = 0;
     for (size_t k = 0; k < n_nodes + nl; k++) {
-        long c = k < n_nodes ? placed_cell(p->pos + 3 * (k * step), &gp, g)
-                             : placed_cell(p->leaf_pos + 3 * ((k - n_nodes) * lstep), &gp, g);
-        outside += c < 0 || !g->soft[c];
-        dist += c < 0 ? far : g->dist[c];
-        if (k >= n_nodes) gain += c >= 0 && g->room[c];
+        long c = k < nl ? placed_cell(p->leaf_pos + 3 * (k * lstep), &gp, g)
+                        : placed_cell(p->pos + 3 * ((k - nl) * step), &gp, g);
+        outside += c < 0 || !g->cell[c].soft;
+        dist += c < 0 ? far : g->cell[c].dist;
+        if (k < nl) gain += c >= 0 && g->cell[c].room;
         if (outside >= reject) return 0;
         if ((k & 3) == 3) {
             /* The most gain the leaves still to come can bring. */
-            double left = (double)(k < n_nodes ? nl : n_nodes + nl - 1 - k);
+            double left = (double)(k < nl ? nl - 1 - k : 0);
             double gain_max = (gain + left) * inv_nl;
             if (gain_max < 0.15) return 2;
             if (isfinite(best) && 0.25 * key + outside * inv_n + dist * dist_w - gain_max >= best) return 0;
@@ -858,7 +923,7 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
                 tip[k] = stem[k] + fit[t][0] * fit[t][2] * leaf_size * Y[k];
             }
             long cs = grid_cell(g, stem), ct = grid_cell(g, tip);
-            if (cs < 0 || !g->soft[cs] || !((ct >= 0 && g->soft[ct]) || crown_holds(so->crown, tip)) ||
+            if (cs < 0 || !g->cell[cs].soft || !((ct >= 0 && g->cell[ct].soft) || crown_holds(so->crown, tip)) ||
                 !near_hull(g, stem, LEAF_HULL_TOL))
                 continue;
             size = fit[t][2] * (float)leaf_size;
@@ -1051,7 +1116,7 @@ static int scaffold_steer(void *ctx, const sy_colony *c, size_t j, double dir[3]
     double p[3];
     for (int k = 0; k < 3; k++) p[k] = c->pos[3 * j + k] + s->step * dir[k];
     long cell = grid_cell(s->g, p);
-    int in = cell >= 0 && s->g->soft[cell];
+    int in = cell >= 0 && s->g->cell[cell].soft;
     /* Outside the hull only on the way in: the seed's limb may reach the lobe from below it. */
     if ((!in && (s->entered[j] || c->first[j] >= 0)) || p[2] > s->ceiling || p[2] < s->ground + s->step) return 0;
     /* A continuation keeps its limb's first direction (a root seed has none:
@@ -1216,7 +1281,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
         long near_i = -1;
         for (size_t o = 0; o < n_occ; o++) {
             size_t i = occ[o];
-            if (tried[i] || !g.room[i]) continue; /* occ: occupied cells */
+            if (tried[i] || !g.cell[i].room) continue; /* occ: occupied cells */
             const double *c = occ_c + 3 * o;
             double dd = (c[0] - ss[0]) * (c[0] - ss[0]) + (c[1] - ss[1]) * (c[1] - ss[1]) + (c[2] - ss[2]) * (c[2] - ss[2]);
             if (dd < near_d) near_d = dd, memcpy(near, c, sizeof near), near_i = (long)i;
@@ -1292,7 +1357,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
                 rep->docks_depth++;
                 continue;
             }
-            if (d.depth > 0 && (cell < 0 || !g.soft[cell])) {
+            if (d.depth > 0 && (cell < 0 || !g.cell[cell].soft)) {
                 rep->docks_outside++;
                 continue;
             }
@@ -1325,6 +1390,15 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
             double best = INFINITY, bestR[9] = {0}, best_s = 1, ext = lobe_ext > 0 ? lobe_ext : 1;
             int full = 0; /* a candidate fitted the hull but every leaf fell in full or empty cells */
             size_t best_i = 0;
+            /* The farthest any candidate's leaves can reach from the dock
+             * (geom_scale grows with the ratio: one pow for all of them). */
+            double thinnest = INFINITY, widest = 0;
+            for (size_t ci = 0; ci < nc; ci++) {
+                const sy_patch *p = &lib->patches[cands[ci].idx];
+                if (p->thickness < thinnest) thinnest = p->thickness;
+                if (p->extent > widest) widest = p->extent;
+            }
+            if (nc && !room_near(&g, d.pos, geom_scale(d.thickness / thinnest) * widest)) nc = 0, full = 1;
             for (size_t ci = 0; ci < nc; ci++) {
                 const sy_patch *p = &lib->patches[cands[ci].idx];
                 double s = geom_scale(d.thickness / p->thickness), T[9];
