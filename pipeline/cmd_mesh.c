@@ -100,9 +100,8 @@ static int mesh_sylva(const char *path, const char *out_path, const char *specie
         memcpy(f->origin, dt.skel.origin, sizeof f->origin);
         f->height = sy_skeleton_height(&dt.skel);
         for (size_t i = 0; i < dt.synth.lobes_bare && i < 8 && !cli->quiet && !cli->json; i++)
-            fprintf(stderr, "sylva mesh: lobe %d: %s; left bare\n", (int)dt.synth.bare_lobe[i],
-                    dt.synth.bare_reason[i] == 0 ? "no room inside its hull (flat, tiny or a single point)"
-                                                 : "no branchlet patch fits inside its hull");
+            fprintf(stderr, "sylva mesh: lobe %d: %s\n", (int)dt.synth.bare_lobe[i],
+                    sy_synth_bare_reason(dt.synth.bare_reason[i]));
         o->seed = dt.meta.seed;
         o->keep_leaf_order = 1;
         o->hulls = proxy ? &dt.lobes : NULL;

@@ -406,10 +406,9 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
         step(o, "synthesize", r->t_synth, line);
         for (size_t i = 0; i < dt.synth.lobes_bare && i < 8; i++) {
             int32_t c = dt.synth.bare_lobe[i];
-            snprintf(line, sizeof line, "lobe %d (node %d): %s; left bare", (int)c,
+            snprintf(line, sizeof line, "lobe %d (node %d): %s", (int)c,
                      c >= 0 && (size_t)c < dt.lobes.n ? (int)dt.lobes.items[c].seed : -1,
-                     dt.synth.bare_reason[i] == 0 ? "no room inside its hull (flat, tiny or a single point)"
-                                                  : "no branchlet patch fits inside its hull");
+                     sy_synth_bare_reason(dt.synth.bare_reason[i]));
             step(o, "synthesize", 0, line);
         }
         sy_tree_asset_options ao = o->asset;

@@ -85,10 +85,8 @@ void sy_decoded_tree_report_bare(const char *command, const sy_decoded_tree *t)
     const sy_synth_report *r = &t->synth;
     for (size_t i = 0; i < r->lobes_bare && i < 8; i++) {
         int32_t c = r->bare_lobe[i];
-        fprintf(stderr, "sylva %s: lobe %d (node %d): %s; left bare\n", command, (int)c,
-                c >= 0 && (size_t)c < t->lobes.n ? (int)t->lobes.items[c].seed : -1,
-                r->bare_reason[i] == 0 ? "no room inside its hull (flat, tiny or a single point)"
-                                       : "no branchlet patch fits inside its hull");
+        fprintf(stderr, "sylva %s: lobe %d (node %d): %s\n", command, (int)c,
+                c >= 0 && (size_t)c < t->lobes.n ? (int)t->lobes.items[c].seed : -1, sy_synth_bare_reason(r->bare_reason[i]));
     }
     if (r->lobes_bare > 8) fprintf(stderr, "sylva %s: ... and %zu more bare lobes\n", command, r->lobes_bare - 8);
 }

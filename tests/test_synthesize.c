@@ -556,6 +556,47 @@ static void lobes_without_room_are_reported(void **state)
     sy_branchlets_free(&lib);
 }
 
+/* A lobe smaller than every branchlet patch (a twig's end on a leaf-off
+ * scan): no patch fits, so its twigs grow toward its returns at the lobe
+ * grid's scale, inside its hull and without leaves, and it is reported. */
+static void lobes_smaller_than_a_patch_get_twigs(void **state)
+{
+    (void)state;
+    sy_branchlets lib;
+    sy_synth_options o = aspen_options(&lib);
+    sy_skeleton s, out, out2;
+    sy_clusters cl = {0};
+    make_tree(&s, &cl, 0.08, 0); /* a 16 cm box over the trunk's end */
+    sy_leaves lv, lv2;
+    sy_synth_report rep;
+    sy_error err = {0};
+    assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out, &lv, &rep, &err), SY_OK);
+    printf("16 cm lobe: %zu nodes added, %zu leaves, bare %zu (reason %d)\n", rep.nodes_added, lv.n, rep.lobes_bare,
+           rep.bare_reason[0]);
+    assert_int_equal(rep.patches, 0);
+    assert_int_equal(rep.lobes_bare, 1);
+    assert_int_equal(rep.bare_reason[0], 2);
+    assert_int_equal(lv.n, 0);
+    assert_true(out.n >= s.n + 3);
+    /* The twigs reach into the lobe and stay in it (the grid's cells are 1 cm). */
+    double top = 0;
+    for (size_t i = s.n; i < out.n; i++) {
+        double d = dist_to_box(out.pos + 3 * i, &cl.items[0]);
+        if (!(d < 0.03)) fail_msg("twig node %zu is %.3f m outside its 16 cm lobe", i, d);
+        top = fmax(top, out.pos[3 * i + 2]);
+    }
+    if (!(top > 4.0 + 0.08)) fail_msg("the twigs reach %.3f m, not the lobe's upper half (4.08 to 4.16 m)", top);
+    /* Deterministic. */
+    assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out2, &lv2, NULL, &err), SY_OK);
+    assert_int_equal(out2.n, out.n);
+    assert_memory_equal(out2.pos, out.pos, 3 * out.n * sizeof(float));
+    sy_skeleton_free(&out), sy_skeleton_free(&out2);
+    sy_leaves_free(&lv), sy_leaves_free(&lv2);
+    sy_clusters_free(&cl);
+    sy_skeleton_free(&s);
+    sy_branchlets_free(&lib);
+}
+
 static void winding_number_of_a_box(void **state)
 {
     (void)state;
@@ -580,6 +621,7 @@ int main(void)
         cmocka_unit_test(hidden_limbs_continue_the_seed_limb),
         cmocka_unit_test(leaf_area_follows_the_density),
         cmocka_unit_test(lobes_without_room_are_reported),
+        cmocka_unit_test(lobes_smaller_than_a_patch_get_twigs),
         cmocka_unit_test(lobes_in_parallel_give_the_same_tree),
         cmocka_unit_test(cards_reach_across_lobe_borders),
         cmocka_unit_test(winding_number_of_a_box),

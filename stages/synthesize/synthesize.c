@@ -55,6 +55,15 @@ sy_code sy_synth_options_check(const sy_synth_options *o, sy_error *err)
     return SY_OK;
 }
 
+const char *sy_synth_bare_reason(int reason)
+{
+    switch (reason) {
+    case 0: return "no room inside its hull (flat, tiny or a single point); left bare";
+    case 1: return "no branchlet patch fits inside its hull; left bare";
+    default: return "no branchlet patch fits inside its hull; twigs grown to its returns, no leaves";
+    }
+}
+
 double sy_winding_number(const float *verts, const uint32_t *tris, size_t n_tris, const float p[3])
 {
     double sum = 0;
@@ -1432,7 +1441,15 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
         }
         if (rep->patches == before && ++failed >= 48) break; /* nothing fits any more */
     }
-    if (!rc && bare_reason < 0 && rep->patches == placed0) bare_reason = 1;
+    if (!rc && bare_reason < 0 && rep->patches == placed0) {
+        /* No patch fits: the lobe is smaller than the species' branchlets
+         * (a twig's end on a leaf-off scan: rTwig's sapling has 55 such
+         * lobes). Its twigs grow toward its returns at the grid's own scale
+         * instead (a kill distance of two cells), without leaves. */
+        size_t nodes0 = rep->nodes_added;
+        rc = grow_scaffold(&g, occ_c, n_occ, seed, 0, max_thick, o, limb, ceiling, ground, so, rep, err);
+        bare_reason = rep->nodes_added > nodes0 ? 2 : 1;
+    }
     if (!rc && bare_reason >= 0) {
         if (rep->lobes_bare < 8) {
             rep->bare_lobe[rep->lobes_bare] = lobe_index;

@@ -47,13 +47,17 @@ typedef struct {
     int literal_eq33;       /* 1: eq. 3.3 as printed, max/min thickness ratio x (v_r . v_d), minimised */
 } sy_synth_options;
 
+/* What happened to a lobe that got no patch (sy_synth_report.bare_reason), as a phrase. */
+const char *sy_synth_bare_reason(int reason);
+
 sy_synth_options sy_synth_options_default(void);
 sy_code sy_synth_options_check(const sy_synth_options *o, sy_error *err);
 
 typedef struct {
     size_t lobes, lobes_bare;   /* lobes given; lobes that got no patch (no room or nothing fits) */
     int32_t bare_lobe[8];       /* the first bare lobes' indices */
-    int bare_reason[8];         /* 0 no room inside the hull, 1 no candidate fitted */
+    int bare_reason[8];         /* 0 no room inside the hull, 1 no candidate fitted, 2 no candidate fitted and
+                                 * the lobe's twigs were grown toward its returns (sy_synth_bare_reason) */
     size_t patches, docks_filled, docks_outside, docks_depth, docks_full, docks_rejected;
     size_t nodes_added, leaves;
     size_t leaves_in_hull;      /* leaves inside their lobe's hull or within 5 cm of it (exact test) */
