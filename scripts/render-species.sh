@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Regenerates the species pictures in docs/pictures/ (docs/species.md, docs/mesh.md):
 # every library species grown with seed 1 and drawn by three.js in headless Chromium
-# (tests/three/render_glb.mjs) at LOD0 and every coarser level, side by side, plus a
-# bark-only junction close-up of the rTwig QSM and of quaking aspen.
+# (tests/three/render_glb.mjs) at LOD0 and every coarser level, side by side, every species'
+# main junction close up (bark only), and bark-only junction close-ups of the rTwig QSM and of
+# quaking aspen.
 # Usage: bash scripts/render-species.sh [path/to/sylva]   (default build/sylva)
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
@@ -24,6 +25,17 @@ for sp in $names; do
     montage $shots -tile "$(echo "$shots" | wc -l)x1" -geometry 300x300+1+1 -background '#b9cfe0' \
         "$out/${sp}_lods.png"
 done
+# Every species' main junction (its stiffest limb leaving the trunk, tests/three/junction_at.mjs),
+# bark only, in one labelled montage.
+tiles=()
+for sp in $names; do
+    at=$(node "$here/tests/three/junction_at.mjs" "$tmp/$sp.glb")
+    render --view close --bark-only 1 --size 300 --at "$at" --png "$tmp/jn_" "$tmp/$sp.glb" > /dev/null
+    convert "$tmp/jn_${sp}_lod0_close.png" -gravity south -background '#b9cfe0' -splice 0x18 \
+        -font DejaVu-Sans -pointsize 14 -annotate +0+2 "$sp" "$tmp/jl_$sp.png"
+    tiles+=("$tmp/jl_$sp.png")
+done
+montage "${tiles[@]}" -tile 7x -geometry +1+1 -background '#b9cfe0' "$out/junctions_species.png"
 # Junction close-ups, bark only (glTF frame: y up; the QSM's first limb leaves the trunk at
 # 1.34 m, the aspen's first limbs at about 5 m).
 "$SYLVA" mesh "$here/../shared/data/real/rtwig/QSM.csv" -o "$tmp/qsm.glb" --species quaking_aspen --quiet
