@@ -240,6 +240,7 @@ static void build_tree(sy_asset *a)
     leaf.diffuse_transmission_color[1] = 0.8f;
     leaf.diffuse_transmission_color[2] = 0.2f;
     leaf.diffuse_transmission_image = leaf_t;
+    for (int c = 0; c < 3; c++) leaf.emissive[c] = 0.09f; /* the fallback glow for engines without transmission */
     sy_material imp = sy_material_default("impostor");
     imp.base_color_image = imp_c;
     imp.alpha_mode = SY_ALPHA_MASK;
@@ -490,6 +491,11 @@ static void materials_samplers_and_transmission(void **state)
     assert_int_equal((int)glb_num(f, "/samplers/%d/minFilter", leaf_sampler), 9987);
     assert_true(string_in_array(f, "/extensionsUsed", "KHR_materials_diffuse_transmission"));
     assert_false(string_in_array(f, "/extensionsRequired", "KHR_materials_diffuse_transmission"));
+    /* Engines without the extension light the card's shaded side by the
+     * emissive fallback, in the leaf's own colours; bark has none. */
+    for (int c = 0; c < 3; c++) assert_float_equal(glb_num(f, "%s/emissiveFactor/%d", leaf, c), 0.09, 1e-6);
+    assert_int_equal((int)glb_num(f, "%s/emissiveTexture/index", leaf), leaf_tex);
+    assert_false(sy_gltf_has(f, "/materials/0/emissiveFactor"));
     /* The impostor has no transmission, so no extension object. */
     assert_false(sy_gltf_has(f, "/materials/2/extensions"));
     sy_gltf_close(f);

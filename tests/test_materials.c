@@ -166,6 +166,12 @@ static void library_textures_become_materials(void **state)
     assert_true(tc[0] < 1.0f && tc[2] < 1.0f && tc[2] >= 0.0f);
     assert_true(lm->base_color_image >= 0 && lm->normal_image >= 0);
     assert_string_equal(asset.images[lm->base_color_image].name, "leaf_color");
+    /* The fallback for engines without KHR_materials_diffuse_transmission:
+     * a glow of 0.3 x the translucency (docs/gltf.md); bark has none. */
+    for (int c = 0; c < 3; c++) {
+        assert_float_equal(lm->emissive[c], 0.3f * 0.45f, 1e-6f);
+        assert_float_equal(bm->emissive[c], 0.0f, 0);
+    }
     sy_asset_free(&asset);
 }
 
