@@ -103,6 +103,24 @@
  * crown width went from -9.5 % to -14.3 % at the same IoU, and its limbs
  * stood off a pole like crossarms). Terrestrial scans have 0.01-0.09 m. */
 #define UNSEEN_SPACING 0.3
+/* Between 0.15 m and that, a scan is as coarse as an airborne one but may
+ * still show a bole (AHN3's Delft tree, 0.22 m: 14 of the 133 returns in the
+ * lowest 15 % of its height lie near the crown's axis). Where the crown
+ * comes lower than the gap above, the stem counts as seen only with at
+ * least 3 such returns, and more than 2 % of that band's. Else it is unseen:
+ * the simulated airborne Norway spruce (0.244 m, its skirt 0.13 m up, 0 of
+ * 261) grew its trunk from the skirt's edge, leaning 8 m across the crown,
+ * and the London plane of seed 2 (0.266 m, 3.5 m up under a 24.3 m top, 1
+ * return in the band) a trunk from its lowest limb. Near: within 15 % of
+ * the returns' median distance from the axis, at least 0.5 m. Terrestrial
+ * scans (0.01-0.09 m) never come here; their occluded stems are
+ * sy_rebuild_occluded_stem's. */
+#define UNSEEN_SKIRT_SPACING 0.15
+#define UNSEEN_LOW_BAND 0.15
+#define UNSEEN_BOLE_NEAR 0.15
+#define UNSEEN_BOLE_NEAR_MIN 0.5
+#define UNSEEN_BOLE_SHARE 0.02
+#define UNSEEN_BOLE_MIN 3
 /* An unseen stem's limbs grow from its fork in steps of this share of the
  * crown radius. The simulated airborne black oak, willow and palm (domes)
  * against their true trees, IoU: 0.640 / 0.625 / 0.473 at 0.1, 0.632 /
@@ -674,7 +692,8 @@ sy_code sy_rebuild_unseen_stem(sy_skeleton *s, const float *xyz, size_t n, int32
     if (!isfinite(ground)) ground = zlo;
     double H = ztop - ground, D = ztop - zlo;
     info->crown_gap = zlo - ground;
-    if (!(H > 2.0) || !(D > 0) || (info->crown_gap < fmax(1.0, UNSEEN_STEM_GAP * H) && !(spacing >= UNSEEN_SPACING)))
+    if (!(H > 2.0) || !(D > 0) || !(spacing >= UNSEEN_SKIRT_SPACING ||
+                                     info->crown_gap >= fmax(1.0, UNSEEN_STEM_GAP * H)))
         return SY_OK;
     /* The stem stands under the middle of the crown: the median x and y of
      * its returns (a crown seen from above has no lean to measure). */
@@ -683,6 +702,20 @@ sy_code sy_rebuild_unseen_stem(sy_skeleton *s, const float *xyz, size_t n, int32
     for (int k = 0; k < 2; k++) {
         for (size_t i = 0; i < n; i++) v[i] = xyz[3 * i + k];
         axis[k] = median_of(v, n);
+    }
+    if (info->crown_gap < fmax(1.0, UNSEEN_STEM_GAP * H) && !(spacing >= UNSEEN_SPACING)) {
+        /* A crown low over the ground in a coarse scan: unseen unless its
+         * lowest returns show a bole near the axis. */
+        for (size_t i = 0; i < n; i++) v[i] = hypot(xyz[3 * i] - axis[0], xyz[3 * i + 1] - axis[1]);
+        double near_r = fmax(UNSEEN_BOLE_NEAR_MIN, UNSEEN_BOLE_NEAR * median_of(v, n));
+        size_t low = 0, bole = 0;
+        for (size_t i = 0; i < n; i++)
+            if (xyz[3 * i + 2] < ground + UNSEEN_LOW_BAND * H)
+                low++, bole += hypot(xyz[3 * i] - axis[0], xyz[3 * i + 1] - axis[1]) < near_r;
+        if (bole >= UNSEEN_BOLE_MIN && (double)bole > UNSEEN_BOLE_SHARE * (double)low) {
+            free(v);
+            return SY_OK;
+        }
     }
     free(v);
     /* The crown's shape, as the occluded stem's (sy_rebuild_occluded_stem):
