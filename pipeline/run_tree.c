@@ -138,13 +138,19 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
         ho.anchors = anchors;
         double zlo = INFINITY, ztop = -INFINITY, root = out->n ? out->pos[2] : 0;
         for (size_t i = 0; i < c->n; i++) zlo = fmin(zlo, c->xyz[3 * i + 2]), ztop = fmax(ztop, c->xyz[3 * i + 2]);
-        ho.floor_z = zlo;
+        ho.floor.z = zlo;
         /* ... and at least to the species' crown base: the lower crown the
          * top hides from above (the airborne aspen's returns start at 8.6 m
          * of 13.6, its crown at 5.4). Seed-2 airborne scans of the 13
          * species against their true trees: IoU mean 0.577 -> 0.601 (birch
          * 0.619 -> 0.748, poplar 0.617 -> 0.721; pine -0.03, beech -0.02). */
-        if (o->crown_base_share > 0) ho.floor_z = fmin(zlo, root + o->crown_base_share * (ztop - root));
+        if (o->crown_base_share > 0) ho.floor.z = fmin(zlo, root + o->crown_base_share * (ztop - root));
+        /* ... narrowing toward it as the species' crown does (a dome's
+         * returns seen from above reach its widest part, and columns from
+         * there stood as a box). */
+        ho.floor.axis[0] = out->n ? out->pos[0] : 0, ho.floor.axis[1] = out->n ? out->pos[1] : 0;
+        ho.floor.top = ztop;
+        memcpy(ho.floor.profile, o->crown_profile, sizeof ho.floor.profile);
     }
     if (rc || (rc = sy_clusters_build_hulls(clusters, c->xyz, &ho, hulls, err))) {
         sy_clusters_free(clusters);
@@ -332,19 +338,37 @@ static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_opti
  * DBH over its height, the allometry (height-diameter curves by species are
  * how inventories fill in a stem the survey could not measure), and its
  * crown base over its height; each 0 when it cannot be grown or measured. */
-static void species_nominal(const sy_species_params *sp, double *dbh_per_height, double *crown_base_share)
+_Static_assert(sizeof(((sy_skeleton_options *)0)->crown_profile) == SY_CROWN_SLABS * sizeof(float),
+               "the skeleton options carry the clusters stage's crown profile");
+
+static void species_nominal(const sy_species_params *sp, double *dbh_per_height, double *crown_base_share,
+                            float profile[SY_CROWN_SLABS])
 {
     sy_skeleton t;
     sy_error err = {0};
     *dbh_per_height = *crown_base_share = 0;
+    memset(profile, 0, SY_CROWN_SLABS * sizeof *profile);
     if (sy_grow_tree(sp, 1, &t, NULL, &err)) return;
     double h = sy_skeleton_height(&t), d = sy_skeleton_dbh(&t);
     /* The crown base: the lowest node off the trunk (Weber-Penn's BaseSize
      * of the stem bare of branches). */
-    double zb = INFINITY;
-    for (size_t i = 0; i < t.n; i++)
+    double zb = INFINITY, zt = -INFINITY;
+    for (size_t i = 0; i < t.n; i++) {
         if (t.order[i] >= 1) zb = fmin(zb, t.pos[3 * i + 2]);
+        zt = fmax(zt, t.pos[3 * i + 2]);
+    }
     if (t.n && h > 0 && isfinite(zb)) *crown_base_share = fmin(fmax((zb - t.pos[2]) / h, 0), 1);
+    /* The crown's profile: per slab from its base to its top, the farthest
+     * branch node from the trunk's foot (the species' own crown shape, as
+     * Weber & Penn's Shape and the branch angles draw it). */
+    if (t.n && isfinite(zb) && zt > zb)
+        for (size_t i = 0; i < t.n; i++) {
+            if (t.order[i] < 1) continue;
+            int k = (int)((t.pos[3 * i + 2] - zb) / (zt - zb) * SY_CROWN_SLABS);
+            k = k < 0 ? 0 : k >= SY_CROWN_SLABS ? SY_CROWN_SLABS - 1 : k;
+            float r = hypotf(t.pos[3 * i] - t.pos[0], t.pos[3 * i + 1] - t.pos[1]);
+            if (r > profile[k]) profile[k] = r;
+        }
     sy_skeleton_free(&t);
     if (h > 1.3 && d > 0 && d / h < 1) *dbh_per_height = d / h;
 }
@@ -356,7 +380,7 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
     sy_skeleton_options so = sy_skeleton_options_default();
     if (sp) {
         so.beta = sp->beta, so.gamma = sp->gamma;
-        species_nominal(sp, &so.dbh_per_height, &so.crown_base_share);
+        species_nominal(sp, &so.dbh_per_height, &so.crown_base_share, so.crown_profile);
     }
     if (!isnan(o->beta)) so.beta = o->beta;
     if (!isnan(o->gamma)) so.gamma = o->gamma;

@@ -151,19 +151,20 @@ static void hull_seen_from_above(void **state)
     c.n_points = n;
     sy_error err = {0};
     const float anchor[3] = {0, 0, 3.5f};
-    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 160, 0.01, anchor, 4.0, &err), SY_OK);
+    const sy_hull_floor base = {4.0, {0, 0}, 6.0, {0}}; /* no profile: a column */
+    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 160, 0.01, anchor, &base, &err), SY_OK);
     assert_good_hull(&c, xyz);
     double zmin = INFINITY, zmax = -INFINITY;
     for (size_t v = 0; v < c.n_verts; v++) zmin = fmin(zmin, c.verts[3 * v + 2]), zmax = fmax(zmax, c.verts[3 * v + 2]);
     assert_float_equal(zmin, 3.5, 0.02); /* the anchor, under the floor (within the hull tolerance) */
     assert_true(zmax <= 6.0 + 0.02);
     /* Without a floor or anchor the cap stays a cap. */
-    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 160, 0.01, NULL, NAN, &err), SY_OK);
+    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 160, 0.01, NULL, NULL, &err), SY_OK);
     zmin = INFINITY;
     for (size_t v = 0; v < c.n_verts; v++) zmin = fmin(zmin, c.verts[3 * v + 2]);
     assert_true(zmin >= 5.5);
     /* Occupancy over the column: from above, every cell under a return's. */
-    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 160, 0.01, anchor, 4.0, &err), SY_OK);
+    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 160, 0.01, anchor, &base, &err), SY_OK);
     size_t set[2];
     for (int from_above = 0; from_above < 2; from_above++) {
         assert_int_equal(sy_cluster_occupancy(&c, xyz, 8, from_above, &err), SY_OK);
@@ -183,6 +184,19 @@ static void hull_seen_from_above(void **state)
                 }
     }
     assert_true(set[1] >= 3 * set[0]); /* the column under the cap, not only the cap */
+    /* A crown that narrows toward its base (a dome: half as wide at the
+     * floor as where the returns are): the hull's floor narrows with it,
+     * to half the cap's width within a tenth, and still holds the cap. */
+    double cap_w = 0, floor_w = 0;
+    for (size_t v = 0; v < c.n_verts; v++)
+        if (c.verts[3 * v + 2] > 5.5) cap_w = fmax(cap_w, fabs(c.verts[3 * v]));
+    const sy_hull_floor dome = {4.0, {0, 0}, 6.0, {1, 1, 2, 2, 2, 2, 2, 2}};
+    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 160, 0.01, NULL, &dome, &err), SY_OK);
+    assert_good_hull(&c, xyz);
+    for (size_t v = 0; v < c.n_verts; v++)
+        if (c.verts[3 * v + 2] < 4.05) floor_w = fmax(floor_w, fabs(c.verts[3 * v]));
+    if (!(fabs(floor_w - 0.5 * cap_w) < 0.1 * cap_w))
+        fail_msg("floor half-width %.3f m against the cap's %.3f m (want half)", floor_w, cap_w);
     free(c.points), free(c.verts), free(c.tris), free(c.occupancy), free(xyz);
 }
 
@@ -204,7 +218,7 @@ static void alpha_shape_of_a_ball(void **state)
     }
     c.n_points = n;
     sy_error err = {0};
-    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, NULL, NAN, &err), SY_OK);
+    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, NULL, NULL, &err), SY_OK);
     assert_int_equal(c.hull, SY_HULL_ALPHA);
     assert_true(c.alpha > 0);
     assert_true(c.n_tris <= 120); /* simplified toward the budget */
@@ -221,12 +235,12 @@ static void alpha_shape_of_a_ball(void **state)
     for (size_t i = 0; i < n; i++) xyz[3 * i + 2] = 5;
     assert_int_equal(sy_alpha_shape_boundary(xyz, n, 5.0, &m, &shape_err), SY_EINPUT);
     assert_non_null(strstr(shape_err.msg, "dimensions"));
-    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, NULL, NAN, &err), SY_OK);
+    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, NULL, NULL, &err), SY_OK);
     assert_int_equal(c.hull, SY_HULL_BOX);
     assert_good_hull(&c, xyz);
     /* Three points: a box too. */
     c.n_points = 3;
-    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, NULL, NAN, &err), SY_OK);
+    assert_int_equal(sy_cluster_build_hull(&c, xyz, 5.0, 60, 0.01, NULL, NULL, &err), SY_OK);
     assert_int_equal(c.hull, SY_HULL_BOX);
     assert_good_hull(&c, xyz);
     free(c.points);

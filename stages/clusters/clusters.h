@@ -75,15 +75,27 @@ sy_code sy_clusters_cut(const sy_skeleton *full, const float *xyz, const float *
                         int min_points,
                         int32_t *cluster_of, int32_t *seed_of, size_t *n_clusters, sy_error *err);
 
+/* The floor an airborne crown's lobes reach down to (docs/skeleton.md 8d):
+ * each hull also holds a copy of each of its points at height z, drawn in
+ * toward the stem at (axis) as the species' crown narrows from the point's
+ * height to the floor: the copy keeps min(1, profile(floor) / profile(its
+ * height)) of the point's horizontal offset, profile read over SY_CROWN_SLABS
+ * slabs from z (0) to top. A profile of zeros keeps every offset: columns. */
+#define SY_CROWN_SLABS 8
+typedef struct {
+    double z;                        /* NaN: no floor */
+    double axis[2], top;
+    float profile[SY_CROWN_SLABS];   /* the crown's radius per slab, any scale */
+} sy_hull_floor;
+
 /* Builds the hull of c from its points: the alpha shape of (a thinned copy
  * of) the points with alpha = alpha_scale * alpha_min, simplified towards
  * target_tris; it falls back to the convex hull and finally an oriented box
  * so that the result is always closed, outward and holds >= 95% of the points
  * within tol metres. anchor (3 floats, or NULL): a point the hull also holds;
- * floor_z (NaN: none): the hull also holds each point's copy at that height
- * (a column down to it). */
+ * base (NULL: none): the floor the hull also reaches down to. */
 sy_code sy_cluster_build_hull(sy_cluster *c, const float *xyz, double alpha_scale, int target_tris, double tol,
-                              const float *anchor, double floor_z, sy_error *err);
+                              const float *anchor, const sy_hull_floor *base, sy_error *err);
 
 /* Options of the hull step: the alpha shape's scale (alpha = alpha_scale *
  * alpha_min, both CGAL squared radii), the triangle budget per hull (the
@@ -95,8 +107,8 @@ typedef struct {
     double tol;         /* metres (0.01) */
     int seen_from_above; /* the scan saw the crown from above (airborne): a cell under one that holds
                             a return is occluded, not empty, and counts as occupied (0) */
-    double floor_z;      /* NaN (default), or every hull also holds its points' copies at this height
-                            (an airborne crown's lobes reach down to its lowest return) */
+    sy_hull_floor floor; /* floor.z NaN (default), or every hull reaches down to this floor (an
+                            airborne crown's lobes reach down to its lowest return, or its crown base) */
     const float *anchors; /* 3 per cluster or NULL: a point each hull also holds (an airborne crown's
                              lobes reach in to the skeleton node they hang from) */
 } sy_hull_options;
