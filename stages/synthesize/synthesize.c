@@ -1277,8 +1277,10 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     size_t lobe_node0 = sk->n; /* nodes from here on are this lobe's bark */
     double min_start = sk->radius[seed] * 0.9 < max_thick ? sk->radius[seed] * 0.9 : max_thick;
     size_t lobe_patches = 0;
+    size_t scaffold0 = rep->nodes_added;
     if (!rc && bare_reason < 0)
         rc = grow_scaffold(&g, occ_c, n_occ, seed, reach, max_thick, o, limb, ceiling, ground, so, rep, err);
+    int scaffolded = rep->nodes_added > scaffold0;
     while (!rc && bare_reason < 0 && starts < max_starts && lobe_patches < (size_t)o->max_patches) {
         /* A new start toward the occupied cell with room nearest the seed,
          * from the nearest bark this lobe has (its scaffold, its patches or
@@ -1407,7 +1409,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
                 if (p->thickness < thinnest) thinnest = p->thickness;
                 if (p->extent > widest) widest = p->extent;
             }
-            if (nc && !room_near(&g, d.pos, geom_scale(d.thickness / thinnest) * widest)) nc = 0, full = 1;
+            if (nc && !room_near(&g, d.pos, geom_scale(d.thickness / thinnest) * widest + g.h)) nc = 0, full = 1;
             for (size_t ci = 0; ci < nc; ci++) {
                 const sy_patch *p = &lib->patches[cands[ci].idx];
                 double s = geom_scale(d.thickness / p->thickness), T[9];
@@ -1441,11 +1443,13 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
         }
         if (rep->patches == before && ++failed >= 48) break; /* nothing fits any more */
     }
-    if (!rc && bare_reason < 0 && rep->patches == placed0) {
-        /* No patch fits: the lobe is smaller than the species' branchlets
-         * (a twig's end on a leaf-off scan: rTwig's sapling has 55 such
-         * lobes). Its twigs grow toward its returns at the grid's own scale
-         * instead (a kill distance of two cells), without leaves. */
+    if (!rc && bare_reason < 0 && rep->patches == placed0 && !scaffolded) {
+        /* No patch fits and no hidden limb grew: the lobe is smaller than
+         * the species' branchlets (a twig's end on a leaf-off scan: rTwig's
+         * sapling has 55 such lobes). Its twigs grow toward its returns at
+         * the grid's own scale instead (a kill distance of two cells),
+         * without leaves. A second colony beside a first would fork the
+         * seed's limb (seed_limbs_build). */
         size_t nodes0 = rep->nodes_added;
         rc = grow_scaffold(&g, occ_c, n_occ, seed, 0, max_thick, o, limb, ceiling, ground, so, rep, err);
         bare_reason = rep->nodes_added > nodes0 ? 2 : 1;
