@@ -1110,7 +1110,17 @@ static int strip_valid(const uint32_t *tri, size_t t, const weld_pt *pts, size_t
             memcpy(at[k].p, strip_pos(m, sp, tri[k]), sizeof at[k].p);
             at[k].corner = (uint32_t)k;
         }
-        qsort(at, nc, sizeof *at, cmp_corner_at);
+        if (nc > 48) qsort(at, nc, sizeof *at, cmp_corner_at);
+        else /* a strip's few corners: insertion, as id_pairs_sort */
+            for (size_t i = 1; i < nc; i++) {
+                corner_at x = at[i];
+                size_t j = i;
+                while (j > 0 && cmp_corner_at(&at[j - 1], &x) > 0) {
+                    at[j] = at[j - 1];
+                    j--;
+                }
+                at[j] = x;
+            }
         for (size_t i = 0, c = 0; i < nc; i++) {
             if (i && cmp_place(&at[i], &at[i - 1])) c++;
             place[at[i].corner] = (uint32_t)c;
