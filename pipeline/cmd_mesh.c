@@ -99,9 +99,7 @@ static int mesh_sylva(const char *path, const char *out_path, const char *specie
         f->seconds_leaves = sy_now() - t0;
         memcpy(f->origin, dt.skel.origin, sizeof f->origin);
         f->height = sy_skeleton_height(&dt.skel);
-        for (size_t i = 0; i < dt.synth.lobes_bare && i < 8 && !cli->quiet && !cli->json; i++)
-            fprintf(stderr, "sylva mesh: lobe %d: %s\n", (int)dt.synth.bare_lobe[i],
-                    sy_synth_bare_reason(dt.synth.bare_reason[i]));
+        if (!cli->quiet && !cli->json) sy_decoded_tree_report_bare("mesh", &dt);
         o->seed = dt.meta.seed;
         o->keep_leaf_order = 1;
         o->hulls = proxy ? &dt.lobes : NULL;

@@ -1511,10 +1511,7 @@ static sy_code seed_limbs_build(const sy_skeleton *skel, const sy_clusters *lobe
         if (p >= 0 && skel->branch[p] == b) taker[p] = -1; /* the limb goes on past p */
         if (b < 0) continue;
         if (p < 0 || skel->branch[p] != b) base[b] = skel->radius[i];
-        if (p < 0) continue;
-        double d[3];
-        for (int k = 0; k < 3; k++) d[k] = (double)skel->pos[3 * i + k] - skel->pos[3 * p + k];
-        len[b] += sy_v3_len(d);
+        len[b] += sy_skeleton_edge_length(skel, i);
     }
     for (size_t c = 0; c < n_lobes; c++) {
         int32_t seed = lobes->items[c].seed, b = skel->branch[seed], p = skel->parent[seed];
