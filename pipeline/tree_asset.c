@@ -84,6 +84,7 @@ void sy_tree_asset_report_lods_json(sy_json *j, const sy_tree_asset_report *rep)
         sy_json_number(j, "max_across", c->max_across);
         sy_json_number(j, "max_edge_radii", c->max_edge_radii);
         sy_json_number(j, "max_edge", c->max_edge);
+        sy_json_int(j, "degenerate", (long long)c->degenerate);
         sy_json_int(j, "slivers", (long long)c->slivers);
         sy_json_int(j, "collapsed", (long long)c->collapsed);
         sy_json_int(j, "boundary_edges", (long long)c->boundary_edges);

@@ -254,7 +254,8 @@ typedef struct {
     double max_across;       /* largest edge extent across its nearest axis, in local radii */
     double max_edge_radii;   /* longest edge / its triangle's local radius */
     double max_edge;         /* longest edge, metres */
-    size_t slivers;          /* area < 0.005 mm^2 or height < 1/1000 of the longest edge */
+    size_t degenerate;       /* area < 0.005 mm^2 (issue 19's near-degenerate triangle) */
+    size_t slivers;          /* degenerate, or height < 1/1000 of the longest edge */
     size_t collapsed;        /* triangles with two welded corners equal */
     size_t boundary_edges, nonmanifold_edges, misoriented_edges; /* after welding by position */
     size_t components;       /* connected parts of the welded bark */

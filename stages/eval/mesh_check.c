@@ -34,7 +34,14 @@ typedef struct {
 
 typedef struct {
     const capsule *caps;
+    int with_axis; /* only capsules with a direction (not a child's zero-length first one) */
 } cap_ctx;
+
+static int has_axis(const capsule *c)
+{
+    double d[3] = {c->b[0] - c->a[0], c->b[1] - c->a[1], c->b[2] - c->a[2]};
+    return d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > 1e-12;
+}
 
 /* Distance from q to the capsule's surface, 0 inside (the BVH prunes with
  * box distances, which this never undercuts). */
@@ -48,6 +55,7 @@ static double capsule_gap(const capsule *c, const double q[3], double *t)
 static double cap_distance(const void *ctx, uint32_t prim, const double q[3])
 {
     const cap_ctx *c = ctx;
+    if (c->with_axis && !has_axis(&c->caps[prim])) return INFINITY;
     double t, g = capsule_gap(&c->caps[prim], q, &t);
     return g > 0 ? g : 0;
 }
@@ -228,7 +236,7 @@ static sy_code check_level(const sy_asset *a, size_t level, const sy_bvh *cap_bv
         return sy_fail(err, SY_EINTERNAL, "mesh check: out of memory");
     }
     size_t t = 0;
-    cap_ctx cc = {caps};
+    cap_ctx cc = {caps, 0}, axis_cc = {caps, 1};
     uint32_t hint = UINT32_MAX;
     for (int k = 0; k < lod->n_meshes; k++) {
         const sy_mesh *m = &a->meshes[lod->meshes[k]];
@@ -259,11 +267,13 @@ static sy_code check_level(const sy_asset *a, size_t level, const sy_bvh *cap_bv
             /* Local radius: the largest of the radii of the capsules
              * nearest each corner (corners lie on the surface they belong to). */
             double rloc = 0;
+            uint32_t corner_cap[3] = {UINT32_MAX, UINT32_MAX, UINT32_MAX};
             for (int c = 0; c < 3; c++) {
                 double g, tt;
                 uint32_t ci = sy_bvh_nearest(cap_bvh, q + 3 * c, INFINITY, cap_distance, &cc, hint, &g);
                 if (ci == UINT32_MAX) continue;
                 hint = ci;
+                corner_cap[c] = ci;
                 capsule_gap(&caps[ci], q + 3 * c, &tt);
                 double r = caps[ci].ra + tt * (caps[ci].rb - caps[ci].ra);
                 if (r > rloc) rloc = r;
@@ -279,14 +289,39 @@ static sy_code check_level(const sy_asset *a, size_t level, const sy_bvh *cap_bv
                 double mid[3] = {0.5 * (u[0] + w[0]), 0.5 * (u[1] + w[1]), 0.5 * (u[2] + w[2])}, gap;
                 uint32_t ci = sy_bvh_nearest(cap_bvh, mid, INFINITY, cap_distance, &cc, hint, &gap);
                 if (ci == UINT32_MAX) continue;
+                /* Across: the edge's extent perpendicular to a branch axis,
+                 * the least over the branches nearest its two ends and its
+                 * midpoint. An edge running along its own twig near a
+                 * junction has its midpoint nearest the parent, across
+                 * which it runs; an edge spanning two branches (a sail) is
+                 * across all of them. A child starting on its parent's axis
+                 * has a zero-length first capsule: the nearest branch with
+                 * a direction stands in for it. */
                 const capsule *cp = &caps[ci];
-                double ax[3], al = 0;
-                for (int k2 = 0; k2 < 3; k2++) ax[k2] = cp->b[k2] - cp->a[k2], al += ax[k2] * ax[k2];
+                uint32_t cand[3] = {ci, corner_cap[c], corner_cap[(c + 1) % 3]};
+                double across = INFINITY;
+                for (int h = 0; h < 3; h++) {
+                    if (cand[h] == UINT32_MAX) continue;
+                    const capsule *axis = &caps[cand[h]];
+                    if (!has_axis(axis)) {
+                        const double *at = h == 0 ? mid : h == 1 ? u : w;
+                        double g2;
+                        uint32_t c2 = sy_bvh_nearest(cap_bvh, at, INFINITY, cap_distance, &axis_cc, UINT32_MAX, &g2);
+                        if (c2 == UINT32_MAX) continue;
+                        axis = &caps[c2];
+                    }
+                    double ax[3], axis_len = 0;
+                    for (int k2 = 0; k2 < 3; k2++) ax[k2] = axis->b[k2] - axis->a[k2], axis_len += ax[k2] * ax[k2];
+                    axis_len = sqrt(axis_len);
+                    double along = (d[0] * ax[0] + d[1] * ax[1] + d[2] * ax[2]) / axis_len;
+                    across = fmin(across, sqrt(fmax(0, len * len - along * along)) / fmax(rloc, SPLINE_SLACK * axis_len));
+                }
+                if (across == INFINITY) across = 0;
+                double al = 0;
+                for (int k2 = 0; k2 < 3; k2++) al += (cp->b[k2] - cp->a[k2]) * (cp->b[k2] - cp->a[k2]);
                 al = sqrt(al);
-                double along = al > 0 ? (d[0] * ax[0] + d[1] * ax[1] + d[2] * ax[2]) / al : 0;
                 /* The mesh follows a smooth curve through the nodes, the
                  * capsules the polyline: allow 5 % of the segment's length. */
-                double across = sqrt(fmax(0, len * len - along * along)) / rloc;
                 double off = gap / fmax(rloc, SPLINE_SLACK * al);
                 if (across > out->max_across) out->max_across = across;
                 if (len / rloc > out->max_edge_radii) out->max_edge_radii = len / rloc;
@@ -294,6 +329,7 @@ static sy_code check_level(const sy_asset *a, size_t level, const sy_bvh *cap_bv
                 if (off > o->sail_radii) sail = 1;
             }
             out->sails += (size_t)sail;
+            if (area < SLIVER_AREA) out->degenerate++;
             if (area < SLIVER_AREA || 2 * area < SLIVER_ASPECT * lmax * lmax) out->slivers++;
             if (lmax > out->max_edge) out->max_edge = lmax;
         }
@@ -405,6 +441,18 @@ sy_code sy_mesh_check(const sy_asset *a, const sy_skeleton *sk, const sy_mesh_ch
         return sy_fail(err, SY_EINTERNAL, "mesh check: out of memory");
     }
     sy_skeleton_continuations(sk, cont);
+    /* The trunk: the root's chain of continuations. */
+    uint8_t *trunk = calloc(sk->n + 1, 1);
+    if (!trunk) {
+        free(caps), free(boxes), free(cont);
+        return sy_fail(err, SY_EINTERNAL, "mesh check: out of memory");
+    }
+    double mesh_ground = INFINITY; /* the mesher's: the root's height (sy_stems_build) */
+    for (size_t i = 0; i < sk->n; i++)
+        if (sk->parent[i] < 0) {
+            if (mesh_ground == INFINITY) mesh_ground = sk->pos[3 * i + 2];
+            for (int32_t x = (int32_t)i; x >= 0 && !trunk[x]; x = cont[x]) trunk[x] = 1;
+        }
     nc = 0;
     for (size_t i = 0; i < sk->n; i++) {
         int32_t p = sk->parent[i];
@@ -427,6 +475,12 @@ sy_code sy_mesh_check(const sy_asset *a, const sy_skeleton *sk, const sy_mesh_ch
         /* A stem's first segment carries its own radius at the attachment. */
         c->ra = fmax(cont[p] == (int32_t)i ? sk->radius[p] : sk->radius[i], o->min_radius);
         c->rb = fmax(sk->radius[i], o->min_radius);
+        /* The mesher lifts a drooping twig's samples above the ground
+         * (sample_curve in stages/mesh/stems.c): so do its capsules. */
+        if (!trunk[i]) {
+            c->a[2] = fmax(c->a[2], mesh_ground + c->ra);
+            c->b[2] = fmax(c->b[2], mesh_ground + c->rb);
+        }
         double rm = fmax(c->ra, c->rb);
         sy_box_empty(&boxes[nc]);
         double lo[3], hi[3];
@@ -438,7 +492,7 @@ sy_code sy_mesh_check(const sy_asset *a, const sy_skeleton *sk, const sy_mesh_ch
         sy_box_add_point(&boxes[nc], hi);
         nc++;
     }
-    free(cont);
+    free(cont), free(trunk);
     sy_bvh cb;
     rc = sy_bvh_build(&cb, boxes, nc, err);
     free(boxes);
