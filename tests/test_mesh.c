@@ -1060,6 +1060,47 @@ static void bad_input_is_refused_with_a_message(void **state)
     sy_skeleton_free(&s);
 }
 
+/* A 2 cm octahedron whose top vertex sits on the edge between two equator
+ * vertices (0.1 um off it): the face over that edge has 0.0005 mm^2, a tenth
+ * of the bark's minimum. The edge flip replaces it and its neighbour across that edge with
+ * two real triangles; every edge still has two faces running opposite ways,
+ * and no vertex moved. */
+static void degenerate_triangle_is_flipped_away(void **state)
+{
+    (void)state;
+    float pos[6 * 3] = {0.01f, 0, 0, 0, 0.01f, 0, -0.01f, 0, 0, 0, -0.01f, 0, 0.005f, 0.005f + 1e-7f, 0, 0, 0, -0.01f};
+    /* 0..3 the equator, 4 the squashed top (on edge 0-1), 5 the bottom. */
+    uint32_t idx[8 * 3] = {0, 1, 4, 1, 2, 4, 2, 3, 4, 3, 0, 4, 1, 0, 5, 2, 1, 5, 3, 2, 5, 0, 3, 5};
+    sy_mesh m;
+    memset(&m, 0, sizeof m);
+    m.position = pos, m.n_vertices = 6, m.indices = idx, m.n_indices = 24;
+    float before[18];
+    memcpy(before, pos, sizeof pos);
+    assert_int_equal(sy_mesh_flip_degenerates(&m, SY_BARK_MIN_AREA), 1);
+    assert_memory_equal(before, pos, sizeof pos);
+    for (size_t t = 0; t < 8; t++) {
+        const float *a = pos + 3 * idx[3 * t], *b = pos + 3 * idx[3 * t + 1], *c = pos + 3 * idx[3 * t + 2];
+        float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]}, n[3];
+        sy_cross3(e1, e2, n);
+        assert_true(0.5f * sqrtf(sy_dot3(n, n)) > SY_BARK_MIN_AREA);
+    }
+    /* Closed and consistently oriented: each directed edge once, its reverse once. */
+    for (size_t t = 0; t < 8; t++)
+        for (int c = 0; c < 3; c++) {
+            uint32_t u = idx[3 * t + c], w = idx[3 * t + (c + 1) % 3];
+            int same = 0, reverse = 0;
+            for (size_t k = 0; k < 8; k++)
+                for (int d = 0; d < 3; d++) {
+                    uint32_t x = idx[3 * k + d], y = idx[3 * k + (d + 1) % 3];
+                    same += x == u && y == w, reverse += x == w && y == u;
+                }
+            assert_int_equal(same, 1);
+            assert_int_equal(reverse, 1);
+        }
+    /* Nothing left to flip. */
+    assert_int_equal(sy_mesh_flip_degenerates(&m, SY_BARK_MIN_AREA), 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1076,6 +1117,7 @@ int main(void)
         cmocka_unit_test(budget_leaves_stay_by_their_twigs),
         cmocka_unit_test(wind_table_keeps_levels_0_to_3),
         cmocka_unit_test(bad_input_is_refused_with_a_message),
+        cmocka_unit_test(degenerate_triangle_is_flipped_away),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

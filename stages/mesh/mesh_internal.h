@@ -58,10 +58,17 @@ void sy_rmf(size_t n, const float *x, const float *t, const float r0[3], float *
 /* ---- stems: one generalised cylinder per skeleton branch (stems.c) ---- */
 typedef struct {
     int32_t branch_id;
-    int32_t parent;      /* stem index, -1 for the root stem */
-    int depth;           /* number of ancestor stems */
+    int32_t parent;      /* stem index whose surface the base leaves, -1 for the root stem */
+    int depth;           /* number of ancestor stems in the skeleton's hierarchy */
     int32_t attach_node; /* skeleton node the base attaches to, -1 for the root stem */
     float attach_s;      /* arc length on the parent curve at attach_node */
+    /* A child whose base its parent buried in the grandparent leaves the
+     * grandparent (parent, attach_s: reattach_buried in stems.c) but keeps
+     * its place in the hierarchy for wind: its own parent and the arc
+     * length on it. sy_stem_tree_parent / sy_stem_tree_attach_s read them. */
+    int reattached;
+    int32_t tree_parent;
+    float tree_attach_s;
     int32_t *nodes;      /* chain of skeleton nodes, base to tip */
     size_t n_nodes;
     /* Polyline the curve interpolates: attachment node + chain, coincident
@@ -90,6 +97,10 @@ typedef struct {
     float wind_w[4];
     int wind_slot;
 } sy_stem;
+
+/* The stem's parent and attachment in the skeleton's hierarchy (wind). */
+static inline int32_t sy_stem_tree_parent(const sy_stem *s) { return s->reattached ? s->tree_parent : s->parent; }
+static inline float sy_stem_tree_attach_s(const sy_stem *s) { return s->reattached ? s->tree_attach_s : s->attach_s; }
 
 typedef struct {
     size_t n;
@@ -159,6 +170,16 @@ sy_code sy_bark_mesh(const sy_stems *st, const sy_lod_params *lp, int material, 
  * (either may be NULL). */
 sy_code sy_bark_mesh_welds(const sy_stems *st, const sy_lod_params *lp, int material, sy_mesh *out,
                            size_t *junctions, size_t *welded, sy_error *err);
+
+/* ---- slivers (slivers.c) ---- */
+/* Triangles smaller than this (m^2, 0.005 mm^2: issue 19's near-degenerate
+ * sliver) are flipped away where an edge flip can. */
+#define SY_BARK_MIN_AREA 5e-9
+/* Flips the edges of m's triangles under min_area into the neighbour across
+ * them where both new triangles face as the pair did and reach min_area;
+ * positions, normals, UVs and wind are untouched, the mesh stays closed.
+ * Returns the number of flips. */
+size_t sy_mesh_flip_degenerates(sy_mesh *m, double min_area);
 
 /* ---- wind (wind.c) ---- */
 /* Tapered-beam deflection (Habel 2009 eq. 4.7, unit prefactor) at x in [0,1]

@@ -1507,16 +1507,22 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
     return t;
 }
 
-/* Closes a ring that could not be welded with a fan facing into the
+/* Closes a ring that could not be welded with a low cone facing into the
  * parent: the tube stays a closed surface, its end hidden in the bark. The
- * fan has its own copies of the ring (u = 0: the ring's u would run the
- * whole texture across one hidden triangle). Returns 0 when out of memory. */
+ * cone has its own copies of the ring (u = 0: the ring's u would run the
+ * whole texture across one hidden triangle). Its apex sits half a radius
+ * inside, behind the ring's centre: a flat fan over a ring the parent's
+ * surface squashed into a line (a child leaving a thin parent at a glancing
+ * angle) was a zero-area triangle. Returns the triangles, 0 when out of
+ * memory. */
 static size_t cap_ring(const sy_stems *st, size_t c, const sy_lod_params *lp, const size_t *vo, const sy_mesh *m,
                        strip_verts *vb, uint32_t *extra)
 {
-    int Pc = sy_stem_radial(&st->s[c], lp);
-    if (!strip_verts_grow(vb, (size_t)Pc)) return 0;
+    const sy_stem *s = &st->s[c];
+    int Pc = sy_stem_radial(s, lp);
+    if (!strip_verts_grow(vb, (size_t)Pc + 1)) return 0;
     uint32_t r0 = vb->base + (uint32_t)vb->n;
+    float centre[3] = {0, 0, 0};
     for (int k = 0; k < Pc; k++) {
         size_t w = vb->n++, id = vo[c] + (size_t)k;
         memcpy(vb->pos + 3 * w, m->position + 3 * id, 3 * sizeof(float));
@@ -1525,9 +1531,22 @@ static size_t cap_ring(const sy_stems *st, size_t c, const sy_lod_params *lp, co
         memcpy(vb->ww + 4 * w, m->wind_w + 4 * id, 4 * sizeof(float));
         vb->wb[w] = m->wind_branch[id];
         vb->uv[2 * w] = 0, vb->uv[2 * w + 1] = m->uv[2 * id + 1];
+        for (int q = 0; q < 3; q++) centre[q] += m->position[3 * id + q] / (float)Pc;
     }
+    /* The apex: a copy of ring vertex 0 moved in along the tube's axis. */
+    size_t w = vb->n++, id0 = vo[c];
+    float back[3], in_yup[3] = {-s->st[0], -s->st[1], -s->st[2]};
+    sy_to_yup(in_yup, back);
+    for (int q = 0; q < 3; q++) vb->pos[3 * w + q] = centre[q] + 0.5f * s->sr[0] * back[q];
+    memcpy(vb->nrm + 3 * w, back, 3 * sizeof(float));
+    memcpy(vb->tan + 4 * w, m->tangent + 4 * id0, 4 * sizeof(float));
+    memcpy(vb->ww + 4 * w, m->wind_w + 4 * id0, 4 * sizeof(float));
+    vb->wb[w] = m->wind_branch[id0];
+    vb->uv[2 * w] = 0, vb->uv[2 * w + 1] = m->uv[2 * id0 + 1];
+    uint32_t apex = vb->base + (uint32_t)w;
     size_t t = 0;
-    for (int k = 1; k + 1 < Pc; k++) extra[t++] = r0, extra[t++] = r0 + (uint32_t)k + 1, extra[t++] = r0 + (uint32_t)k;
+    for (int k = 0; k < Pc; k++)
+        extra[t++] = apex, extra[t++] = r0 + (uint32_t)((k + 1) % Pc), extra[t++] = r0 + (uint32_t)k;
     return t / 3;
 }
 
@@ -1882,6 +1901,7 @@ sy_code sy_bark_mesh_welds(const sy_stems *st, const sy_lod_params *lp, int mate
     }
     sy_code rc = weld_junctions(st, lp, vo, io, idx, out, junctions, welded, err);
     free(vo), free(io), free(idx);
+    if (rc == SY_OK) sy_mesh_flip_degenerates(out, SY_BARK_MIN_AREA);
     if (rc != SY_OK) sy_mesh_free(out);
     return rc;
 }
