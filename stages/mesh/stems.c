@@ -398,6 +398,38 @@ static int attach_on_parent(const sy_stem *p, sy_stem *s)
     return 0;
 }
 
+/* A child whose first point lies within the start its parent lost inside
+ * the grandparent (trim_junction; a twig off the first centimetres of a twig
+ * that leaves the trunk with it) has no parent surface to leave there: its
+ * tube started at the parent's first ring, half a metre along on a twig
+ * leaving the trunk at a glancing angle, and ran back across to its own path
+ * (a 0.6 m chord on the aspen). It leaves the grandparent instead, from
+ * where the parent does, straight towards its second point: that first
+ * point sits on the parent's buried axis, and a tube through it would share
+ * the parent's base. Returns whether it was moved. */
+static int reattach_buried(sy_stems *st, sy_stem *s)
+{
+    int moved = 0;
+    while (s->parent >= 0 && s->n_pts >= 2) {
+        const sy_stem *p = &st->s[s->parent];
+        if (!p->junction || p->parent < 0) break;
+        const float *q = s->pts + 3;
+        float d0[3] = {q[0] - s->pts[0], q[1] - s->pts[1], q[2] - s->pts[2]};
+        if (s->attach_s + sqrtf(sy_dot3(d0, d0)) >= p->ss[0]) break;
+        if (!s->reattached) s->reattached = 1, s->tree_parent = s->parent, s->tree_attach_s = s->attach_s;
+        memcpy(s->pts, p->pts, 3 * sizeof(float));
+        s->parent = p->parent;
+        s->attach_s = p->attach_s;
+        moved = 1;
+    }
+    if (moved && s->n_pts > 2) {
+        memmove(s->pts + 3, s->pts + 6, 3 * (s->n_pts - 2) * sizeof(float));
+        memmove(s->rad + 1, s->rad + 2, (s->n_pts - 2) * sizeof(float));
+        s->n_pts--;
+    }
+    return moved;
+}
+
 /* Seam placement: u = 0 faces down on branches (under the branch) and away
  * from a glTF viewer's default camera on a vertical trunk. */
 static void initial_normal(const sy_stem *s, float r0[3])
@@ -549,7 +581,11 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
         }
         s->r_base = s->rad[0];
         s->r_tip = s->rad[s->n_pts - 1];
-        if (s->parent >= 0) s->attach_s = st->node_s[s->attach_node];
+        if (s->parent >= 0) {
+            s->attach_s = st->node_s[s->attach_node];
+            if (reattach_buried(st, s))
+                for (size_t i = 0; i < s->n_nodes; i++) node_pt[i] = node_pt[i] > 0 ? node_pt[i] - 1 : 0;
+        }
         /* (Only when the first node is a point of its own: a child whose first
          * node sits on the attachment node starts exactly there.) */
         if (s->parent >= 0 && st->s[s->parent].has_geometry && s->n_pts >= 2 && node_pt[0] == 1 &&

@@ -73,7 +73,8 @@ sy_code sy_wind_build(sy_stems *st, sy_asset *asset, sy_error *err)
         sy_wind_branch *b = slot[i] >= 0 ? &w[slot[i]] : NULL;
         if (b) {
             /* Ancestors have lower levels: their entries exist. */
-            b->parent = s->parent >= 0 ? slot[s->parent] : -1;
+            int32_t tp = sy_stem_tree_parent(s);
+            b->parent = tp >= 0 ? slot[tp] : -1;
             b->level = s->depth < WIND_LEVELS - 1 ? s->depth : WIND_LEVELS - 1;
             const float *base = s->pts, *tip = s->pts + 3 * (s->n_pts - 1);
             float axis[3] = {tip[0] - base[0], tip[1] - base[1], tip[2] - base[2]};
@@ -95,13 +96,13 @@ sy_code sy_wind_build(sy_stems *st, sy_asset *asset, sy_error *err)
         int32_t path[WIND_LEVELS + 1];
         int depth = s->depth;
         int32_t v = (int32_t)i;
-        while (st->s[v].depth > WIND_LEVELS) v = st->s[v].parent;
-        for (int32_t u = v; u >= 0; u = st->s[u].parent) path[st->s[u].depth] = u;
+        while (st->s[v].depth > WIND_LEVELS) v = sy_stem_tree_parent(&st->s[v]);
+        for (int32_t u = v; u >= 0; u = sy_stem_tree_parent(&st->s[u])) path[st->s[u].depth] = u;
         memset(s->wind_w, 0, sizeof s->wind_w);
         int top = depth < WIND_LEVELS ? depth : WIND_LEVELS;
         for (int l = 0; l < top; l++) {
             const sy_stem *anc = &st->s[path[l]];
-            float x = anc->length > 0 ? st->s[path[l + 1]].attach_s / anc->length : 0;
+            float x = anc->length > 0 ? sy_stem_tree_attach_s(&st->s[path[l + 1]]) / anc->length : 0;
             /* Kept above 0: a shader that stops at the first zero (as in the
              * thesis) must still reach the deeper levels. */
             s->wind_w[l] = x < 1e-6f ? 1e-6f : x > 1 ? 1 : x;
