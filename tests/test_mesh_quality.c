@@ -23,7 +23,15 @@
  * the asset had, 5.85 m across, stood 600 radii off. */
 #define SAIL_SHARE 0.04         /* sails / bark triangles */
 #define OFF_SURFACE_MAX 60      /* local radii (measured <= 46) */
-#define SLIVER_SHARE 0.002      /* slivers / bark triangles (measured <= 0.11 %) */
+/* An edge's extent across the branches it runs by (docs/mesh.md, "Stop 28"):
+ * the aspen's 0.59 m chord between two twigs was 15 at LOD0 by this measure. */
+#define ACROSS_LOD0 12          /* measured <= 10.3 (weeping willow's curved limbs) */
+#define ACROSS_ANY 40           /* coarser levels, measured <= 34 */
+/* No triangle under 0.005 mm^2 at any level (the tubes' edge flips and the
+ * caps' cones, docs/mesh.md "Slivers"); needles, thinner than 1/1000 of
+ * their longest edge, are the thin sides of tapering twig tips and of strips
+ * meeting 1.5 mm twigs (measured <= 0.11 %). */
+#define SLIVER_SHARE 0.002      /* slivers / bark triangles */
 /* Bark is closed at every level: each junction is welded into its parent
  * (one strip per group of crowded children) or, where its ring cannot be
  * (a ring off the parent's end, a fold), capped inside the parent. */
@@ -36,11 +44,17 @@
 /* Over the whole library (both seeds): the capped ones are mostly rings that
  * cross, rectangles that wrap their parent and strips that fold
  * (docs/mesh.md, "Welding"). */
-#define WELDED_LIBRARY_LOD0 0.981 /* measured 98.2 % (98.0 % before the budget ranked stems by reach,
+/* Stop 28 counts 538 more LOD0 junctions: children whose base lay in the
+ * part of their parent buried in the grandparent started as loose tubes
+ * with a base disc (uncounted), and now leave the grandparent (457 welded,
+ * 81 capped). Counting those loose tubes as unwelded, the library was at
+ * 92.9 % before (9237 of 9940) and is at 97.5 % now. */
+#define WELDED_LIBRARY_LOD0 0.974 /* measured 97.5 % (98.2 % of the junctions counted before stop 28,
                                      97.4 % before the unfolding flips and the wider rectangles,
                                      96.5 % before the bands) */
-#define WELDED_LIBRARY_ANY 0.938  /* coarser levels, measured 93.9 % (93.5 % before reach, 91.9 % before
-                                     the unfolding flips and the wider rectangles, 88.0 % before the bands) */
+#define WELDED_LIBRARY_ANY 0.92   /* coarser levels, measured 92.5 % (93.9 % of those counted before stop 28,
+                                     91.9 % before the unfolding flips and the wider rectangles, 88.0 % before
+                                     the bands) */
 #define LEAF_GAP_MAX 1.0        /* petiole to LOD0 bark, in leaf lengths */
 #define RATIO_MIN 0.25          /* each level's triangles over the previous level's */
 #define RATIO_MAX 0.5
@@ -59,13 +73,14 @@ static void check_asset(const char *name, const sy_tree_asset_report *rep, weld_
     assert_true(c->n_levels >= 3);
     const sy_mesh_check_level *l0 = &c->level[0];
     double bark = (double)l0->bark_triangles;
-    printf("%s: LOD0 %zu bark + %zu leaves, sails %zu slivers %zu open %zu nonmanifold %zu misoriented %zu, "
-           "leaf gap %.2f, top bark %.2f leaf %.2f\n",
-           name, l0->bark_triangles, l0->leaves, l0->sails, l0->slivers, l0->boundary_edges, l0->nonmanifold_edges,
+    printf("%s: LOD0 %zu bark + %zu leaves, sails %zu across %.1f slivers %zu open %zu nonmanifold %zu "
+           "misoriented %zu, leaf gap %.2f, top bark %.2f leaf %.2f\n",
+           name, l0->bark_triangles, l0->leaves, l0->sails, l0->max_across, l0->slivers, l0->boundary_edges, l0->nonmanifold_edges,
            l0->misoriented_edges, l0->max_leaf_gap, l0->bark_top, l0->leaf_top);
     assert_true(l0->bark_triangles <= LOD0_BARK_MAX);
     assert_true(l0->sails <= SAIL_SHARE * bark);
     assert_true(l0->max_off_surface <= OFF_SURFACE_MAX);
+    assert_true(l0->max_across <= ACROSS_LOD0);
     assert_true(l0->slivers <= SLIVER_SHARE * bark);
     assert_true(l0->nonmanifold_edges <= NONMANIFOLD_SHARE * bark);
     assert_int_equal(l0->misoriented_edges, 0);
@@ -85,6 +100,8 @@ static void check_asset(const char *name, const sy_tree_asset_report *rep, weld_
         tally->junctions[l > 0] += nj, tally->welded[l > 0] += nw;
         assert_int_equal(v->below_ground, 0);
         assert_int_equal(v->leaves_below_ground, 0);
+        assert_int_equal(v->degenerate, 0);
+        assert_true(v->max_across <= ACROSS_ANY);
         assert_int_equal(v->misoriented_edges, 0);
         assert_int_equal(v->boundary_edges, 0);
         if (l == 0) continue;
