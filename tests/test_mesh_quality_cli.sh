@@ -6,7 +6,7 @@
 # ground (the root's height less the trunk's base radius: a leaning trunk's
 # base disc tilts), no triangle under 0.005 mm^2 at any level, no edge far
 # across the branches it runs by (max_across, docs/mesh.md "Stop 28": LOD0
-# measured <= 13.3, coarser <= 24.5), few sails and slivers, LOD0 leaves within a leaf length of bark,
+# measured <= 11.4, coarser <= 23.7), few sails and slivers, LOD0 leaves within a leaf length of bark,
 # each LOD level 25-50 % of the previous one's triangles.
 set -u
 source "$SYLVA_SOURCE_DIR/tests/glb_cli_common.sh"

@@ -35,6 +35,7 @@ typedef struct {
 typedef struct {
     const capsule *caps;
     int with_axis; /* only capsules with a direction (not a child's zero-length first one) */
+    int in_slack;  /* the gap in units of the capsule's room: its radius or 5 % of its length */
 } cap_ctx;
 
 static int has_axis(const capsule *c)
@@ -55,9 +56,18 @@ static double capsule_gap(const capsule *c, const double q[3], double *t)
 static double cap_distance(const void *ctx, uint32_t prim, const double q[3])
 {
     const cap_ctx *c = ctx;
-    if (c->with_axis && !has_axis(&c->caps[prim])) return INFINITY;
-    double t, g = capsule_gap(&c->caps[prim], q, &t);
-    return g > 0 ? g : 0;
+    const capsule *cp = &c->caps[prim];
+    if (c->with_axis && !has_axis(cp)) return INFINITY;
+    double t, g = capsule_gap(cp, q, &t);
+    if (g <= 0) return 0;
+    if (c->in_slack) {
+        /* Never below the box distance the BVH prunes with: a room of at
+         * most a metre only scales the gap up. */
+        double d[3] = {cp->b[0] - cp->a[0], cp->b[1] - cp->a[1], cp->b[2] - cp->a[2]};
+        double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        g /= fmin(1.0, fmax(fmax(cp->ra, cp->rb), SPLINE_SLACK * len));
+    }
+    return g;
 }
 
 typedef struct {
@@ -236,7 +246,7 @@ static sy_code check_level(const sy_asset *a, size_t level, const sy_bvh *cap_bv
         return sy_fail(err, SY_EINTERNAL, "mesh check: out of memory");
     }
     size_t t = 0;
-    cap_ctx cc = {caps, 0}, axis_cc = {caps, 1};
+    cap_ctx cc = {caps, 0, 0}, axis_cc = {caps, 1, 0}, room_cc = {caps, 1, 1};
     uint32_t hint = UINT32_MAX;
     for (int k = 0; k < lod->n_meshes; k++) {
         const sy_mesh *m = &a->meshes[lod->meshes[k]];
@@ -267,9 +277,10 @@ static sy_code check_level(const sy_asset *a, size_t level, const sy_bvh *cap_bv
             /* Local radius: the largest of the radii of the capsules
              * nearest each corner (corners lie on the surface they belong to). */
             double rloc = 0;
-            uint32_t corner_cap[3] = {UINT32_MAX, UINT32_MAX, UINT32_MAX};
+            uint32_t corner_cap[3] = {UINT32_MAX, UINT32_MAX, UINT32_MAX}, corner_room[3];
             for (int c = 0; c < 3; c++) {
                 double g, tt;
+                corner_room[c] = sy_bvh_nearest(cap_bvh, q + 3 * c, INFINITY, cap_distance, &room_cc, hint, &g);
                 uint32_t ci = sy_bvh_nearest(cap_bvh, q + 3 * c, INFINITY, cap_distance, &cc, hint, &g);
                 if (ci == UINT32_MAX) continue;
                 hint = ci;
@@ -291,16 +302,22 @@ static sy_code check_level(const sy_asset *a, size_t level, const sy_bvh *cap_bv
                 if (ci == UINT32_MAX) continue;
                 /* Across: the edge's extent perpendicular to a branch axis,
                  * the least over the branches nearest its two ends and its
-                 * midpoint. An edge running along its own twig near a
+                 * midpoint, each found both by distance and by distance in
+                 * units of the branch's room (a twig's spline may bow 5 % of
+                 * a long segment towards a neighbouring twig, which is then
+                 * nearer). An edge running along its own twig near a
                  * junction has its midpoint nearest the parent, across
                  * which it runs; an edge spanning two branches (a sail) is
                  * across all of them. A child starting on its parent's axis
                  * has a zero-length first capsule: the nearest branch with
                  * a direction stands in for it. */
                 const capsule *cp = &caps[ci];
-                uint32_t cand[3] = {ci, corner_cap[c], corner_cap[(c + 1) % 3]};
+                double g3;
+                uint32_t cand[6] = {ci, corner_cap[c], corner_cap[(c + 1) % 3],
+                                    sy_bvh_nearest(cap_bvh, mid, INFINITY, cap_distance, &room_cc, ci, &g3),
+                                    corner_room[c], corner_room[(c + 1) % 3]};
                 double across = INFINITY;
-                for (int h = 0; h < 3; h++) {
+                for (int h = 0; h < 6; h++) {
                     if (cand[h] == UINT32_MAX) continue;
                     const capsule *axis = &caps[cand[h]];
                     if (!has_axis(axis)) {
