@@ -33,6 +33,34 @@ static int same_pos(const sy_mesh *m, uint32_t i, uint32_t j)
     return i == j || memcmp(m->position + 3 * (size_t)i, m->position + 3 * (size_t)j, 3 * sizeof(float)) == 0;
 }
 
+static int near(const float *x, const float *y, int n, float tol)
+{
+    for (int k = 0; k < n; k++)
+        if (!(fabsf(x[k] - y[k]) <= tol)) return 0;
+    return 1;
+}
+
+/* Two copies that differ in nothing a renderer would show (a junction
+ * strip's copies of its parent's ring vertices, their v a rounding apart):
+ * an edge between them is no seam. */
+static int same_vertex(const sy_mesh *m, uint32_t i, uint32_t j)
+{
+    size_t a = i, b = j;
+    return i == j ||
+           (same_pos(m, i, j) && near(m->normal + 3 * a, m->normal + 3 * b, 3, 1e-5f) &&
+            (!m->uv || near(m->uv + 2 * a, m->uv + 2 * b, 2, 1e-5f)) &&
+            (!m->tangent || near(m->tangent + 4 * a, m->tangent + 4 * b, 4, 1e-4f)) &&
+            (!m->wind_w || near(m->wind_w + 4 * a, m->wind_w + 4 * b, 4, 1e-5f)) &&
+            (!m->wind_branch || m->wind_branch[a] == m->wind_branch[b]));
+}
+
+/* Twice the signed area of triangle (i, j, k) on the texture. */
+static double uv_area(const sy_mesh *m, uint32_t i, uint32_t j, uint32_t k)
+{
+    const float *a = m->uv + 2 * (size_t)i, *b = m->uv + 2 * (size_t)j, *c = m->uv + 2 * (size_t)k;
+    return ((double)b[0] - a[0]) * ((double)c[1] - a[1]) - ((double)b[1] - a[1]) * ((double)c[0] - a[0]);
+}
+
 /* Whether some triangle has an edge between the positions of i and j. */
 static int has_edge(const sy_mesh *m, uint32_t i, uint32_t j)
 {
@@ -47,8 +75,9 @@ static int has_edge(const sy_mesh *m, uint32_t i, uint32_t j)
 /* Flips one edge of triangle t (a, b, c), longest first, with the triangle
  * (b, a, d) across it into (c, a, d) and (d, b, c), when both new triangles
  * face the way the pair did and the smaller of them reaches min_area.
- * Only edges whose two triangles share the corner vertices themselves (no
- * UV seam along the edge) are flipped. Returns whether it flipped. */
+ * Only edges whose two triangles share their corners, or copies of them
+ * alike in every attribute (no UV seam along the edge), are flipped; each
+ * new triangle keeps its own side's copy. Returns whether it flipped. */
 static int flip_one(sy_mesh *m, size_t t, double min_area)
 {
     size_t nt = m->n_indices / 3;
@@ -72,7 +101,7 @@ static int flip_one(sy_mesh *m, size_t t, double min_area)
             uint32_t *U = m->indices + 3 * u;
             int f = -1;
             for (int cc = 0; cc < 3; cc++)
-                if (U[cc] == b && U[(cc + 1) % 3] == a) f = cc;
+                if (same_vertex(m, U[cc], b) && same_vertex(m, U[(cc + 1) % 3], a)) f = cc;
             if (f < 0) continue;
             uint32_t d = U[(f + 2) % 3];
             if (same_pos(m, c, d) || has_edge(m, c, d)) return 0;
@@ -88,6 +117,8 @@ static int flip_one(sy_mesh *m, size_t t, double min_area)
             double a1 = 0.5 * sqrt(n1[0] * n1[0] + n1[1] * n1[1] + n1[2] * n1[2]);
             double a2 = 0.5 * sqrt(n2[0] * n2[0] + n2[1] * n2[1] + n2[2] * n2[2]);
             if (d1 <= 0 || d2 <= 0 || fmin(a1, a2) < min_area) break; /* try the next edge */
+            /* Nor may a new triangle map mirrored onto the texture. */
+            if (m->uv && (uv_area(m, c, a, d) < 0 || uv_area(m, d, b, c) < 0)) break;
             T[0] = c, T[1] = a, T[2] = d;
             U[0] = d, U[1] = b, U[2] = c;
             return 1;

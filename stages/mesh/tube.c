@@ -1509,44 +1509,46 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
 
 /* Closes a ring that could not be welded with a low cone facing into the
  * parent: the tube stays a closed surface, its end hidden in the bark. The
- * cone has its own copies of the ring (u = 0: the ring's u would run the
- * whole texture across one hidden triangle). Its apex sits half a radius
- * inside, behind the ring's centre: a flat fan over a ring the parent's
- * surface squashed into a line (a child leaving a thin parent at a glancing
- * angle) was a zero-area triangle. Returns the triangles, 0 when out of
- * memory. */
+ * cone shares the tube's ring vertices (its seam copy too, so u runs on
+ * round it) and has one apex copy per column, each with its column's u, half
+ * a radius inside, behind the ring's centre. A flat fan over a ring the
+ * parent's surface squashed into a line (a child leaving a thin parent at a
+ * glancing angle) was a zero-area triangle; and the fan's own copies of the
+ * ring (u = 0) made a seam that an edge flip could not cross, leaving a
+ * zero-area triangle of the tube's first row beside it (slivers.c). Returns
+ * the triangles, 0 when out of memory. */
 static size_t cap_ring(const sy_stems *st, size_t c, const sy_lod_params *lp, const size_t *vo, const sy_mesh *m,
                        strip_verts *vb, uint32_t *extra)
 {
     const sy_stem *s = &st->s[c];
     int Pc = sy_stem_radial(s, lp);
-    if (!strip_verts_grow(vb, (size_t)Pc + 1)) return 0;
-    uint32_t r0 = vb->base + (uint32_t)vb->n;
-    float centre[3] = {0, 0, 0};
+    if (!strip_verts_grow(vb, (size_t)Pc)) return 0;
+    float centre[3] = {0, 0, 0}, back[3], in_yup[3] = {-s->st[0], -s->st[1], -s->st[2]};
+    for (int k = 0; k < Pc; k++)
+        for (int q = 0; q < 3; q++) centre[q] += m->position[3 * (vo[c] + (size_t)k) + q] / (float)Pc;
+    sy_to_yup(in_yup, back);
+    uint32_t apex0 = vb->base + (uint32_t)vb->n, ring = (uint32_t)vo[c];
+    /* The apex copies sit on the texture half a row before the ring's
+     * lowest v (a ring pushed onto its parent has a v per vertex), so the
+     * cone maps onto it the way the tube's rows do, never mirrored. */
+    float v0 = INFINITY, dv = 0;
+    for (int k = 0; k <= Pc; k++) {
+        size_t id = vo[c] + (size_t)k;
+        v0 = fminf(v0, m->uv[2 * id + 1]);
+        dv = fmaxf(dv, fabsf(m->uv[2 * (id + (size_t)Pc + 1) + 1] - m->uv[2 * id + 1]));
+    }
     for (int k = 0; k < Pc; k++) {
         size_t w = vb->n++, id = vo[c] + (size_t)k;
-        memcpy(vb->pos + 3 * w, m->position + 3 * id, 3 * sizeof(float));
-        memcpy(vb->nrm + 3 * w, m->normal + 3 * id, 3 * sizeof(float));
+        for (int q = 0; q < 3; q++) vb->pos[3 * w + q] = centre[q] + 0.5f * s->sr[0] * back[q];
+        memcpy(vb->nrm + 3 * w, back, 3 * sizeof(float));
         memcpy(vb->tan + 4 * w, m->tangent + 4 * id, 4 * sizeof(float));
         memcpy(vb->ww + 4 * w, m->wind_w + 4 * id, 4 * sizeof(float));
         vb->wb[w] = m->wind_branch[id];
-        vb->uv[2 * w] = 0, vb->uv[2 * w + 1] = m->uv[2 * id + 1];
-        for (int q = 0; q < 3; q++) centre[q] += m->position[3 * id + q] / (float)Pc;
+        vb->uv[2 * w] = ((float)k + 0.5f) / (float)Pc, vb->uv[2 * w + 1] = v0 - fmaxf(0.5f * dv, 1e-4f);
     }
-    /* The apex: a copy of ring vertex 0 moved in along the tube's axis. */
-    size_t w = vb->n++, id0 = vo[c];
-    float back[3], in_yup[3] = {-s->st[0], -s->st[1], -s->st[2]};
-    sy_to_yup(in_yup, back);
-    for (int q = 0; q < 3; q++) vb->pos[3 * w + q] = centre[q] + 0.5f * s->sr[0] * back[q];
-    memcpy(vb->nrm + 3 * w, back, 3 * sizeof(float));
-    memcpy(vb->tan + 4 * w, m->tangent + 4 * id0, 4 * sizeof(float));
-    memcpy(vb->ww + 4 * w, m->wind_w + 4 * id0, 4 * sizeof(float));
-    vb->wb[w] = m->wind_branch[id0];
-    vb->uv[2 * w] = 0, vb->uv[2 * w + 1] = m->uv[2 * id0 + 1];
-    uint32_t apex = vb->base + (uint32_t)w;
     size_t t = 0;
     for (int k = 0; k < Pc; k++)
-        extra[t++] = apex, extra[t++] = r0 + (uint32_t)((k + 1) % Pc), extra[t++] = r0 + (uint32_t)k;
+        extra[t++] = apex0 + (uint32_t)k, extra[t++] = ring + (uint32_t)k + 1, extra[t++] = ring + (uint32_t)k;
     return t / 3;
 }
 
