@@ -20,14 +20,15 @@ done
 grep -q '"format":"sylva-truth"' "$TMP/a.json" || fail "truth file lacks its format tag"
 grep -q '"species":"quaking_aspen"' "$TMP/a.json" || fail "truth file lacks the species"
 
-# No wood under the terrain: black oak seed 2 grows limbs that curve down to
-# 3 m below its base (Weber & Penn know no ground); the scene cuts them where
-# they meet the ground, and the truth says how many nodes went.
-"$SYLVA" scan black_oak --seed 2 --step 5 --no-leaves -o "$TMP/oak.las" --truth "$TMP/oak.json" --quiet || fail "scan oak"
+# No wood under the terrain: Norway spruce seed 2 grows low limbs that sag
+# below its base (Weber & Penn know no ground; 154 nodes); the scene cuts them
+# where they meet the ground, and the truth says how many nodes went. (The
+# black oak did until stop 28 raised its crown, docs/species.md.)
+"$SYLVA" scan norway_spruce --seed 2 --step 5 --no-leaves -o "$TMP/spruce.las" --truth "$TMP/spruce.json" --quiet || fail "scan spruce"
 command -v jq > /dev/null || fail "jq missing (run scripts/install-deps.sh)"
-jq -e '.trees[0] | .nodes_below_ground > 100 and ([.nodes[].z] | min) >= .position[2] - 0.1' "$TMP/oak.json" > /dev/null ||
-    fail "black oak wood under the ground: $(jq -c '.trees[0] | {below: .nodes_below_ground, min_z: ([.nodes[].z] | min), base: .position}' "$TMP/oak.json")"
-jq -e '.trees[0].nodes | . as $n | all(.[]; .parent == -1 or (.parent >= 0 and .parent < ($n | length)))' "$TMP/oak.json" > /dev/null ||
+jq -e '.trees[0] | .nodes_below_ground > 100 and ([.nodes[].z] | min) >= .position[2] - 0.1' "$TMP/spruce.json" > /dev/null ||
+    fail "spruce wood under the ground: $(jq -c '.trees[0] | {below: .nodes_below_ground, min_z: ([.nodes[].z] | min), base: .position}' "$TMP/spruce.json")"
+jq -e '.trees[0].nodes | . as $n | all(.[]; .parent == -1 or (.parent >= 0 and .parent < ($n | length)))' "$TMP/spruce.json" > /dev/null ||
     fail "the cut skeleton's parents are not all nodes"
 
 # Same seed: same bytes (the LAS date comes from SOURCE_DATE_EPOCH).
