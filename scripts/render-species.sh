@@ -25,6 +25,21 @@ for sp in $names; do
     montage $shots -tile "$(echo "$shots" | wc -l)x1" -geometry 300x300+1+1 -background '#b9cfe0' \
         "$out/${sp}_lods.png"
 done
+# Every species at LOD0 with its crown spread over its height, as tests/test_species_habit.c
+# measures it, beside the published figure (docs/species.md, "Habit against descriptions").
+declare -A published=([balsam_fir]=0.33 [black_oak]="0.5-1.0" [european_pine]="0.5-0.8" [lombardy_poplar]=0.2
+    [london_plane]="0.8-1.0" [palm]="6-12 m" [quaking_aspen]="0.33-0.5" [sassafras]=0.7 [silver_birch]="0.5-0.6"
+    [sugar_maple]="0.7-1.0" [weeping_willow]=1.0 [norway_spruce]="0.3-0.55" [european_beech]=0.75)
+habit=$("$here/build/tests/test_species_habit" 2>/dev/null | grep ' seed 1:' || true)
+tiles=()
+for sp in $names; do
+    spread=$(echo "$habit" | awk -v s="$sp" '$1 == s { for (i = 1; i <= NF; i++) if ($i == "spread") print $(i + 1) }')
+    convert "$tmp/${sp}_lod0_persp.png" -gravity south -background '#b9cfe0' -splice 0x34 -font DejaVu-Sans \
+        -pointsize 13 -annotate +0+18 "$sp" -annotate +0+2 "spread ${spread:-?} (published ${published[$sp]:-?})" \
+        "$tmp/h_$sp.png"
+    tiles+=("$tmp/h_$sp.png")
+done
+montage "${tiles[@]}" -tile 7x -geometry +1+1 -background '#b9cfe0' "$out/species_habits.png"
 # Every species' main junction (its stiffest limb leaving the trunk, tests/three/junction_at.mjs),
 # bark only, in one labelled montage.
 tiles=()

@@ -24,8 +24,8 @@
 #define SAIL_SHARE 0.04         /* sails / bark triangles */
 #define OFF_SURFACE_MAX 60      /* local radii (measured <= 46) */
 /* An edge's extent across the branches it runs by (docs/mesh.md, "Stop 28"):
- * the aspen's 0.59 m chord between two twigs was 15 at LOD0 by this measure. */
-#define ACROSS_LOD0 12          /* measured <= 10.3 (weeping willow's curved limbs) */
+ * the aspen's 0.59 m chord between two twigs measured 15 at LOD0 (before the room units: stop 28). */
+#define ACROSS_LOD0 12          /* measured <= 11.1 (the London plane's and black oak's curved limbs) */
 #define ACROSS_ANY 40           /* coarser levels, measured <= 34 */
 /* No triangle under 0.005 mm^2 at any level (the tubes' edge flips and the
  * caps' cones, docs/mesh.md "Slivers"); needles, thinner than 1/1000 of
