@@ -63,6 +63,7 @@ static habit measure(const sy_skeleton *sk, const sy_leaves *lv)
     int w = 0;
     for (int s = 1; s < SLABS; s++)
         if (reach[s] > reach[w]) w = s;
+    assert_true(reach[w] > 0); /* taper and low would be NaN, and every form check pass */
     h.height = top;
     h.clear_bole = base / top;
     h.spread = 2 * reach[w];

@@ -321,7 +321,7 @@ static sy_code check_level(const sy_asset *a, size_t level, const sy_bvh *cap_bv
                     if (cand[h] == UINT32_MAX) continue;
                     const capsule *axis = &caps[cand[h]];
                     if (!has_axis(axis)) {
-                        const double *at = h == 0 ? mid : h == 1 ? u : w;
+                        const double *at = h % 3 == 0 ? mid : h % 3 == 1 ? u : w;
                         double g2;
                         uint32_t c2 = sy_bvh_nearest(cap_bvh, at, INFINITY, cap_distance, &axis_cc, UINT32_MAX, &g2);
                         if (c2 == UINT32_MAX) continue;

@@ -47,7 +47,7 @@ static int same_vertex(const sy_mesh *m, uint32_t i, uint32_t j)
 {
     size_t a = i, b = j;
     return i == j ||
-           (same_pos(m, i, j) && near(m->normal + 3 * a, m->normal + 3 * b, 3, 1e-5f) &&
+           (same_pos(m, i, j) && (!m->normal || near(m->normal + 3 * a, m->normal + 3 * b, 3, 1e-5f)) &&
             (!m->uv || near(m->uv + 2 * a, m->uv + 2 * b, 2, 1e-5f)) &&
             (!m->tangent || near(m->tangent + 4 * a, m->tangent + 4 * b, 4, 1e-4f)) &&
             (!m->wind_w || near(m->wind_w + 4 * a, m->wind_w + 4 * b, 4, 1e-5f)) &&
@@ -104,7 +104,7 @@ static int flip_one(sy_mesh *m, size_t t, double min_area)
                 if (same_vertex(m, U[cc], b) && same_vertex(m, U[(cc + 1) % 3], a)) f = cc;
             if (f < 0) continue;
             uint32_t d = U[(f + 2) % 3];
-            if (same_pos(m, c, d) || has_edge(m, c, d)) return 0;
+            if (same_pos(m, c, d) || has_edge(m, c, d)) break; /* would fold or double an edge: the next edge */
             double n1[3], n2[3], o1[3], o2[3], N[3];
             const float *pa = m->position + 3 * (size_t)a, *pb = m->position + 3 * (size_t)b,
                         *pc = m->position + 3 * (size_t)c, *pd = m->position + 3 * (size_t)d;

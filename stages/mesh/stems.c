@@ -406,7 +406,8 @@ static int attach_on_parent(const sy_stem *p, sy_stem *s)
  * (a 0.6 m chord on the aspen). It leaves the grandparent instead, from
  * where the parent does, straight towards its second point: that first
  * point sits on the parent's buried axis, and a tube through it would share
- * the parent's base. Returns whether it was moved. */
+ * the parent's base (kept when it is the child's only point after the
+ * attachment). Returns whether that first point was dropped. */
 static int reattach_buried(sy_stems *st, sy_stem *s)
 {
     int moved = 0;
@@ -422,12 +423,11 @@ static int reattach_buried(sy_stems *st, sy_stem *s)
         s->attach_s = p->attach_s;
         moved = 1;
     }
-    if (moved && s->n_pts > 2) {
-        memmove(s->pts + 3, s->pts + 6, 3 * (s->n_pts - 2) * sizeof(float));
-        memmove(s->rad + 1, s->rad + 2, (s->n_pts - 2) * sizeof(float));
-        s->n_pts--;
-    }
-    return moved;
+    if (!moved || s->n_pts <= 2) return 0;
+    memmove(s->pts + 3, s->pts + 6, 3 * (s->n_pts - 2) * sizeof(float));
+    memmove(s->rad + 1, s->rad + 2, (s->n_pts - 2) * sizeof(float));
+    s->n_pts--;
+    return 1;
 }
 
 /* Seam placement: u = 0 faces down on branches (under the branch) and away
