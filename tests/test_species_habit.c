@@ -142,18 +142,16 @@ static void check_form(const char *name, form f, const habit *h)
     }
 }
 
+static sy_library library; /* loaded once by main */
+
 static void species_habit_matches_its_description(void **state)
 {
     const expected_habit *e = *state;
     sy_species_params sp;
     sy_error err = {0};
-    assert_int_equal(sy_species_params_find(e->name, &sp, &err), SY_OK);
-    sy_library lib;
-    assert_int_equal(sy_library_load(NULL, &lib, &err), SY_OK);
-    const sy_library_entry *le = NULL;
-    for (size_t i = 0; i < lib.n; i++)
-        if (strcmp(lib.entries[i].name, e->name) == 0) le = &lib.entries[i];
+    const sy_library_entry *le = sy_library_find(&library, e->name);
     assert_non_null(le);
+    assert_int_equal(sy_library_params(&library, le, &sp, &err), SY_OK);
     /* Needle sprays on the conifers, broad leaves on the others. */
     int needles = sp.leaf_texture && strstr(sp.leaf_texture, "pine_color.png") != NULL;
     assert_int_equal(needles, le->kind == SY_SPECIES_CONIFER);
@@ -173,7 +171,6 @@ static void species_habit_matches_its_description(void **state)
         sy_skeleton_free(&sk);
         sy_leaves_free(&lv);
     }
-    sy_library_free(&lib);
     sy_species_params_free(&sp);
 }
 
@@ -181,24 +178,25 @@ static void species_habit_matches_its_description(void **state)
 static void every_species_has_a_description(void **state)
 {
     (void)state;
-    sy_library lib;
-    sy_error err = {0};
-    assert_int_equal(sy_library_load(NULL, &lib, &err), SY_OK);
-    for (size_t i = 0; i < lib.n; i++) {
+    for (size_t i = 0; i < library.n; i++) {
         int found = 0;
-        for (size_t k = 0; k < sizeof expected / sizeof *expected; k++) found |= !strcmp(expected[k].name, lib.entries[i].name);
-        if (!found) fail_msg("%s: no expected habit in test_species_habit.c", lib.entries[i].name);
+        for (size_t k = 0; k < sizeof expected / sizeof *expected; k++)
+            found |= !strcmp(expected[k].name, library.entries[i].name);
+        if (!found) fail_msg("%s: no expected habit in test_species_habit.c", library.entries[i].name);
     }
-    sy_library_free(&lib);
 }
 
 int main(void)
 {
     enum { N = sizeof expected / sizeof *expected };
+    sy_error err = {0};
+    if (sy_library_load(NULL, &library, &err) != SY_OK) return fprintf(stderr, "%s\n", err.msg), 1;
     struct CMUnitTest tests[N + 1];
     for (size_t i = 0; i < N; i++)
         tests[i] = (struct CMUnitTest){expected[i].name, species_habit_matches_its_description, NULL, NULL,
                                        (void *)&expected[i]};
     tests[N] = (struct CMUnitTest){"every_species_has_a_description", every_species_has_a_description, NULL, NULL, NULL};
-    return _cmocka_run_group_tests("species_habit", tests, N + 1, NULL, NULL);
+    int rc = _cmocka_run_group_tests("species_habit", tests, N + 1, NULL, NULL);
+    sy_library_free(&library);
+    return rc;
 }

@@ -30,6 +30,7 @@
 typedef struct {
     double a[3], b[3];
     double ra, rb;
+    double len; /* |b - a|; 0 for a child's first capsule when it starts on its parent's axis */
 } capsule;
 
 typedef struct {
@@ -38,11 +39,7 @@ typedef struct {
     int in_slack;  /* the gap in units of the capsule's room: its radius or 5 % of its length */
 } cap_ctx;
 
-static int has_axis(const capsule *c)
-{
-    double d[3] = {c->b[0] - c->a[0], c->b[1] - c->a[1], c->b[2] - c->a[2]};
-    return d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > 1e-12;
-}
+static int has_axis(const capsule *c) { return c->len > 1e-6; }
 
 /* Distance from q to the capsule's surface, 0 inside (the BVH prunes with
  * box distances, which this never undercuts). */
@@ -60,13 +57,9 @@ static double cap_distance(const void *ctx, uint32_t prim, const double q[3])
     if (c->with_axis && !has_axis(cp)) return INFINITY;
     double t, g = capsule_gap(cp, q, &t);
     if (g <= 0) return 0;
-    if (c->in_slack) {
-        /* Never below the box distance the BVH prunes with: a room of at
-         * most a metre only scales the gap up. */
-        double d[3] = {cp->b[0] - cp->a[0], cp->b[1] - cp->a[1], cp->b[2] - cp->a[2]};
-        double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-        g /= fmin(1.0, fmax(fmax(cp->ra, cp->rb), SPLINE_SLACK * len));
-    }
+    /* Never below the box distance the BVH prunes with: a room of at most
+     * a metre only scales the gap up. */
+    if (c->in_slack) g /= fmin(1.0, fmax(fmax(cp->ra, cp->rb), SPLINE_SLACK * cp->len));
     return g;
 }
 
@@ -327,19 +320,15 @@ static sy_code check_level(const sy_asset *a, size_t level, const sy_bvh *cap_bv
                         if (c2 == UINT32_MAX) continue;
                         axis = &caps[c2];
                     }
-                    double ax[3], axis_len = 0;
-                    for (int k2 = 0; k2 < 3; k2++) ax[k2] = axis->b[k2] - axis->a[k2], axis_len += ax[k2] * ax[k2];
-                    axis_len = sqrt(axis_len);
-                    double along = (d[0] * ax[0] + d[1] * ax[1] + d[2] * ax[2]) / axis_len;
-                    across = fmin(across, sqrt(fmax(0, len * len - along * along)) / fmax(rloc, SPLINE_SLACK * axis_len));
+                    double ax[3];
+                    sy_v3_sub(ax, axis->b, axis->a);
+                    double along = sy_v3_dot(d, ax) / axis->len;
+                    across = fmin(across, sqrt(fmax(0, len * len - along * along)) / fmax(rloc, SPLINE_SLACK * axis->len));
                 }
                 if (across == INFINITY) across = 0;
-                double al = 0;
-                for (int k2 = 0; k2 < 3; k2++) al += (cp->b[k2] - cp->a[k2]) * (cp->b[k2] - cp->a[k2]);
-                al = sqrt(al);
                 /* The mesh follows a smooth curve through the nodes, the
                  * capsules the polyline: allow 5 % of the segment's length. */
-                double off = gap / fmax(rloc, SPLINE_SLACK * al);
+                double off = gap / fmax(rloc, SPLINE_SLACK * cp->len);
                 if (across > out->max_across) out->max_across = across;
                 if (len / rloc > out->max_edge_radii) out->max_edge_radii = len / rloc;
                 if (off > out->max_off_surface) out->max_off_surface = off;
@@ -498,6 +487,7 @@ sy_code sy_mesh_check(const sy_asset *a, const sy_skeleton *sk, const sy_mesh_ch
             c->a[2] = fmax(c->a[2], mesh_ground + c->ra);
             c->b[2] = fmax(c->b[2], mesh_ground + c->rb);
         }
+        c->len = sy_v3_dist(c->a, c->b);
         double rm = fmax(c->ra, c->rb);
         sy_box_empty(&boxes[nc]);
         double lo[3], hi[3];

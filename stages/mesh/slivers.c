@@ -9,23 +9,23 @@
 #include <string.h>
 
 #include "mesh_internal.h"
+#include "stages/core/vec3.h"
 
 static const float *corner(const sy_mesh *m, size_t t, int c) { return m->position + 3 * m->indices[3 * t + c]; }
 
+/* (b - a) x (c - a) in double: twice the area, along the face's normal. */
 static void tri_cross(const float *a, const float *b, const float *c, double n[3])
 {
     double e1[3], e2[3];
     for (int k = 0; k < 3; k++) e1[k] = (double)b[k] - a[k], e2[k] = (double)c[k] - a[k];
-    n[0] = e1[1] * e2[2] - e1[2] * e2[1];
-    n[1] = e1[2] * e2[0] - e1[0] * e2[2];
-    n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    sy_v3_cross(n, e1, e2);
 }
 
 static double tri_area(const sy_mesh *m, size_t t)
 {
     double n[3];
     tri_cross(corner(m, t, 0), corner(m, t, 1), corner(m, t, 2), n);
-    return 0.5 * sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    return 0.5 * sy_v3_len(n);
 }
 
 static int same_pos(const sy_mesh *m, uint32_t i, uint32_t j)
@@ -86,7 +86,8 @@ static int flip_one(sy_mesh *m, size_t t, double min_area)
     double len[3];
     for (int c = 0; c < 3; c++) {
         const float *p = corner(m, t, c), *q = corner(m, t, (c + 1) % 3);
-        len[c] = hypot(hypot((double)q[0] - p[0], (double)q[1] - p[1]), (double)q[2] - p[2]);
+        double e[3] = {(double)q[0] - p[0], (double)q[1] - p[1], (double)q[2] - p[2]};
+        len[c] = sy_v3_len(e);
     }
     for (int i = 1; i < 3; i++)
         for (int j = i; j > 0 && len[order[j]] > len[order[j - 1]]; j--) {
@@ -113,9 +114,7 @@ static int flip_one(sy_mesh *m, size_t t, double min_area)
             tri_cross(pc, pa, pd, n1);
             tri_cross(pd, pb, pc, n2);
             for (int q = 0; q < 3; q++) N[q] = o1[q] + o2[q];
-            double d1 = n1[0] * N[0] + n1[1] * N[1] + n1[2] * N[2], d2 = n2[0] * N[0] + n2[1] * N[1] + n2[2] * N[2];
-            double a1 = 0.5 * sqrt(n1[0] * n1[0] + n1[1] * n1[1] + n1[2] * n1[2]);
-            double a2 = 0.5 * sqrt(n2[0] * n2[0] + n2[1] * n2[1] + n2[2] * n2[2]);
+            double d1 = sy_v3_dot(n1, N), d2 = sy_v3_dot(n2, N), a1 = 0.5 * sy_v3_len(n1), a2 = 0.5 * sy_v3_len(n2);
             if (d1 <= 0 || d2 <= 0 || fmin(a1, a2) < min_area) break; /* try the next edge */
             /* Nor may a new triangle map mirrored onto the texture. */
             if (m->uv && (uv_area(m, c, a, d) < 0 || uv_area(m, d, b, c) < 0)) break;

@@ -1904,6 +1904,6 @@ sy_code sy_bark_mesh_welds(const sy_stems *st, const sy_lod_params *lp, int mate
     sy_code rc = weld_junctions(st, lp, vo, io, idx, out, junctions, welded, err);
     free(vo), free(io), free(idx);
     if (rc == SY_OK) sy_mesh_flip_degenerates(out, SY_BARK_MIN_AREA);
-    if (rc != SY_OK) sy_mesh_free(out);
+    else sy_mesh_free(out);
     return rc;
 }
