@@ -84,10 +84,11 @@ char *sy_batch_options_text(const sy_batch_options *o, const sy_batch_input *in)
              a->impostor, a->impostor_size, a->meshopt, a->instancing, a->texture_size, a->check);
     snprintf(buf, 4096,
              "sylva %s batch 1\nspecies=%s\nmodel=%s\nclassify=%d\nbeta=%.17g\ngamma=%.17g\nfs=%.17g\nwood_share=%.17g\n"
-             "voxel=%.17g\nspread_around=%d\nkeep_hairpins=%d\nproxy=%d\nlobe_size=%.17g\nseed=%llu\nasset=%s\nthumbnails=%d\n"
+             "voxel=%.17g\nspread_around=%d\nkeep_hairpins=%d\nfair_sigma=%.17g\nproxy=%d\nlobe_size=%.17g\nseed=%llu\nasset=%s\nthumbnails=%d\n"
              "thumb_size=%d\neval=%d\nlabel=%s\nposition=%d,%.17g,%.17g,%.17g\n",
              SYLVA_VERSION, in && in->species ? in->species : (r->species ? r->species : ""), r->model ? r->model : "",
-             r->classify, r->beta, r->gamma, r->fs, r->wood_share, r->voxel, r->spread_around, r->keep_hairpins, r->proxy, r->lobe_size,
+             r->classify, r->beta, r->gamma, r->fs, r->wood_share, r->voxel, r->spread_around, r->keep_hairpins,
+             r->fair_sigma, r->proxy, r->lobe_size,
              (unsigned long long)r->seed, asset, o->thumbnails, o->thumb_size, o->eval,
              in && in->label ? in->label : "", in ? in->has_position : 0, in && in->has_position ? in->position[0] : 0,
              in && in->has_position ? in->position[1] : 0, in && in->has_position ? in->position[2] : 0);

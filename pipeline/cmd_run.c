@@ -50,6 +50,8 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
     sy_json_number(&j, "dbh", r->dbh);
     sy_json_bool(&j, "dbh_fitted", r->dbh_fitted);
     sy_json_int(&j, "hairpins", (long long)r->hairpins);
+    sy_json_int(&j, "limb_kinks", (long long)r->limb_kinks);
+    sy_json_number(&j, "limb_turn_max", r->limb_turn_max);
     sy_json_bool(&j, "stem_rebuilt", r->stem_rebuilt);
     sy_json_bool(&j, "stem_unseen", r->stem_unseen);
     if (r->stem_unseen) sy_json_number(&j, "crown_gap", r->crown_gap);
@@ -122,6 +124,8 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
         {"--keep-hairpins", OPT_FLAG, &a.run.keep_hairpins, NULL,
          "leave chains that climb one limb and come down another as they are (default: turn them to grow up "
          "from the wood below)"},
+        {"--fair-limbs", OPT_DOUBLE, &a.run.fair_sigma, "S",
+         "smooth each limb along its length over S times its radius (default 4; 0: off)"},
         SY_GLB_OPTIONS(a.glb),
         SY_PHOTO_OPTIONS(photo),
         {NULL, 0, NULL, NULL, NULL},

@@ -23,7 +23,7 @@ sy_run_tree_options sy_run_tree_options_default(void)
 {
     sy_run_tree_options o;
     memset(&o, 0, sizeof o);
-    o.beta = o.gamma = NAN;
+    o.beta = o.gamma = o.fair_sigma = NAN;
     o.fs = 1;
     o.seed = 1;
     o.lobe_size = 0.1;
@@ -46,6 +46,8 @@ sy_code sy_run_tree_options_check(const sy_run_tree_options *o, sy_error *err)
         return sy_fail(err, SY_EUSAGE, "run: lobe_size %g outside [0, 1]", o->lobe_size);
     if (!(o->voxel >= 0) || !isfinite(o->voxel))
         return sy_fail(err, SY_EUSAGE, "run: voxel %g must be >= 0 metres", o->voxel);
+    if (!isnan(o->fair_sigma) && !(o->fair_sigma >= 0 && isfinite(o->fair_sigma)))
+        return sy_fail(err, SY_EUSAGE, "run: fair_sigma %g must be >= 0", o->fair_sigma);
     return sy_tree_asset_options_check(&o->asset, err);
 }
 
@@ -113,7 +115,15 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
     sy_cut_report cut;
     rc = sy_clusters_extract(&full, c->xyz, &co, out, clusters, &cut, err);
     sy_full_skeleton_free(&full);
+    /* Faired after the cut, which judges the chains as the level sets made
+     * them (their points' spread about each edge). */
     if (rc) return rc;
+    if ((rc = sy_skeleton_fair_limbs(out, o->fair_sigma, err))) {
+        if (clusters) sy_clusters_free(clusters);
+        sy_skeleton_free(out);
+        return rc;
+    }
+    report->limb_kinks = sy_skeleton_limb_kinks(out, 0.02, 60, &report->limb_turn_max);
     report->nodes = cut.nodes;
     report->branches = cut.branches;
     report->clusters = cut.clusters;
@@ -388,6 +398,7 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
     so.wood_share = o->wood_share;
     so.spread_around = o->spread_around;
     so.unfold_hairpins = !o->keep_hairpins;
+    if (!isnan(o->fair_sigma)) so.fair_sigma = o->fair_sigma;
     so.lobe_size = o->lobe_size;
     sy_skeleton s;
     sy_clusters cl;

@@ -40,6 +40,8 @@ typedef struct {
                             0: never) */
     int spread_around;   /* skeleton: spread around the node, not the edge (0) */
     int keep_hairpins;   /* skeleton: leave chains that climb one limb and come down another as they are (0) */
+    double fair_sigma;   /* skeleton: limbs smoothed over this many times their radius; NAN: the skeleton's
+                            default (sy_skeleton_options.fair_sigma) */
     int sylva;           /* 1: also keep the .sylva file (result->sylva); the asset is always made from it */
     int proxy;           /* 1: also draw the lobe hulls as the semi-transparent foliage_proxy mesh (0) */
     int leaf_off;        /* 1: a leaf-off scan: synthesised branches without leaf cards (0); the .sylva is

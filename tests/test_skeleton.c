@@ -598,6 +598,71 @@ static void rejects_tiny_and_bad_options(void **state)
     sy_cloud_free(&c);
 }
 
+/* Limb fairing (fair.c): a 2 m limb 8-10 cm thick whose chain wanders in
+ * 0.4 m waves of 10 cm (what level sets through leaf clumps give a limb in
+ * a leafy crown: AdTree's tree33) and whose radius steps down by 2 cm in
+ * one segment halfway (eq. 3.1 where a limb leaves), with a 4 mm twig in
+ * 0.32 m waves of 2 cm leaving it there. The limb comes out straight and
+ * tapers over several segments, the twig keeps its shape, the root and the
+ * tips stay where they were, and no radius grows toward a tip. */
+static void limbs_are_faired_by_their_thickness(void **state)
+{
+    (void)state;
+    const double pi = 3.14159265358979323846, step = 0.04;
+    sy_error err = {0};
+    sy_skeleton s;
+    assert_int_equal(sy_skeleton_init(&s, 0, &err), SY_OK);
+    int32_t prev = -1, mid = -1;
+    for (int i = 0; i <= 50; i++) {
+        float p[3] = {(float)(0.10 * sin(2 * pi * i / 10)), 0, (float)(i * step)};
+        prev = sy_skeleton_add(&s, p, i <= 25 ? 0.10f : 0.08f, prev, 0, 0, &err);
+        if (i == 25) mid = prev;
+    }
+    int32_t limb_tip = prev;
+    prev = mid;
+    for (int i = 1; i <= 20; i++) {
+        float p[3] = {0, (float)(i * step), (float)(25 * step + 0.02 * sin(2 * pi * i / 8))};
+        prev = sy_skeleton_add(&s, p, 0.004f, prev, 1, 1, &err);
+    }
+    int32_t twig_tip = prev;
+    size_t n = s.n;
+    float *before = malloc(n * 3 * sizeof *before);
+    assert_non_null(before);
+    memcpy(before, s.pos, n * 3 * sizeof *before);
+    double worst_before, worst_after;
+    size_t kinks_before = sy_skeleton_limb_kinks(&s, 0.02, 60, &worst_before);
+    assert_int_equal(sy_skeleton_fair_limbs(&s, 0, &err), SY_OK); /* 0: off */
+    assert_memory_equal(before, s.pos, n * 3 * sizeof *before);
+    assert_int_equal(sy_skeleton_fair_limbs(&s, 5, &err), SY_OK);
+    for (int k = 0; k < 3; k++) {
+        assert_true(s.pos[k] == before[k]);
+        assert_true(s.pos[3 * limb_tip + k] == before[3 * limb_tip + k]);
+        assert_true(s.pos[3 * twig_tip + k] == before[3 * twig_tip + k]);
+    }
+    double limb_off = 0, twig_wave = 0, twig_wave0 = 0;
+    for (int32_t i = 0; i <= limb_tip; i++) limb_off = fmax(limb_off, fabs(s.pos[3 * i]));
+    for (int32_t i = limb_tip + 1; i < twig_tip; i++) {
+        twig_wave = fmax(twig_wave, fabs(s.pos[3 * i + 2] - s.pos[3 * mid + 2]));
+        twig_wave0 = fmax(twig_wave0, fabs(before[3 * i + 2] - before[3 * mid + 2]));
+    }
+    double step_before = 0, step_after = 0;
+    for (int32_t i = 1; i <= limb_tip; i++) step_after = fmax(step_after, s.radius[i - 1] - s.radius[i]);
+    step_before = 0.10 - 0.08;
+    for (size_t i = 1; i < n; i++) assert_true(s.radius[i] <= s.radius[s.parent[i]]);
+    size_t kinks_after = sy_skeleton_limb_kinks(&s, 0.02, 60, &worst_after);
+    printf("limb off its axis %.4f m (0.10 before); twig wave %.4f of %.4f m; limb turns %.1f -> %.1f deg, "
+           "kinks %zu -> %zu; largest radius step %.4f -> %.4f m\n",
+           limb_off, twig_wave, twig_wave0, worst_before, worst_after, kinks_before, kinks_after, step_before,
+           step_after);
+    assert_true(step_after < 0.25 * step_before);
+    assert_true(limb_off < 0.01);
+    assert_true(twig_wave >= 0.8 * twig_wave0);
+    assert_true(worst_before > 30 && worst_after < 5);
+    assert_int_equal(kinks_after, 0);
+    free(before);
+    sy_skeleton_free(&s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -614,6 +679,7 @@ int main(void)
         cmocka_unit_test(whorl_is_not_the_trunk),
         cmocka_unit_test(limbs_grow_into_an_unseen_crown),
         cmocka_unit_test(rejects_tiny_and_bad_options),
+        cmocka_unit_test(limbs_are_faired_by_their_thickness),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

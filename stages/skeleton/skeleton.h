@@ -37,6 +37,8 @@ typedef struct {
     double prune_factor;  /* drop side subtrees shorter than prune_factor * local radius (2.5) */
     double merge_cos;     /* merge sibling nodes whose directions have cos above this (0.9) */
     int smooth_iters;     /* Laplacian passes along chains (3) */
+    double fair_sigma;    /* limb fairing after the cut: each chain node of the main skeleton smoothed
+                             over this many times its radius (4; 0 = off; fair.c) */
     double dbh_height;    /* breast height above the base in metres (1.3) */
     double dbh_slab;      /* slab thickness for the DBH circle fit in metres (0.10) */
     double dbh_per_height; /* the species' allometry, DBH over height of its nominal tree: the DBH
@@ -80,6 +82,16 @@ sy_skeleton_options sy_skeleton_options_default(void);
 /* SY_EUSAGE naming the field when a value is out of range. */
 sy_code sy_skeleton_options_check(const sy_skeleton_options *o, sy_error *err);
 
+/* Limb fairing (fair.c): each chain node smoothed along its branch over
+ * sigma_factor x its radius (Laplacian passes, a Gaussian of that width);
+ * tips, the root and twigs a pass cannot reach stay put. 0 does nothing. */
+sy_code sy_skeleton_fair_limbs(sy_skeleton *s, double sigma_factor, sy_error *err);
+/* Kinks: chain nodes of limbs at least min_radius thick whose chain turns
+ * by more than max_turn_deg between max(4 radii, 10 cm) of it on either
+ * side (a limb bends; a hook or a level crossing turns). worst (may be
+ * NULL) gets the largest turn of any such node, in degrees. */
+size_t sy_skeleton_limb_kinks(const sy_skeleton *s, double min_radius, double max_turn_deg, double *worst);
+
 typedef struct {
     size_t points, graph_edges, components, bridges;
     size_t largest_component; /* points in the largest graph component before bridging */
@@ -87,6 +99,9 @@ typedef struct {
     double spacing, bin_width;
     size_t raw_nodes, pruned_nodes, merged_nodes;
     size_t hairpins;      /* descending chains turned round to grow up from the wood below them */
+    size_t limb_kinks;    /* after sy_reconstruct_tree: main-skeleton nodes on limbs >= 2 cm turning
+                             more than 60 degrees (sy_skeleton_limb_kinks), after the fairing */
+    double limb_turn_max; /* ... and the largest such turn, degrees */
     /* After the stage: the full skeleton's; after sy_reconstruct_tree: the
      * main skeleton's and the clusters' (the clusters stage's cut). */
     size_t nodes, branches;

@@ -28,6 +28,7 @@ sy_skeleton_options sy_skeleton_options_default(void)
     o->prune_factor = 2.5;
     o->merge_cos = 0.9;
     o->smooth_iters = 3;
+    o->fair_sigma = 4;
     o->dbh_height = 1.3;
     o->dbh_slab = 0.10;
     o->min_cluster_points = 24;
@@ -62,6 +63,8 @@ sy_code sy_skeleton_options_check(const sy_skeleton_options *o, sy_error *err)
         return sy_fail(err, SY_EUSAGE, "skeleton: radius_factor and bin_factor must be > 0, min_bin >= 0");
     if (!(o->prune_factor >= 0) || !(o->merge_cos >= -1 && o->merge_cos <= 1) || o->smooth_iters < 0)
         return sy_fail(err, SY_EUSAGE, "skeleton: prune_factor >= 0, merge_cos in [-1, 1], smooth_iters >= 0");
+    if (!(o->fair_sigma >= 0) || !isfinite(o->fair_sigma))
+        return sy_fail(err, SY_EUSAGE, "skeleton: fair_sigma %g must be >= 0", o->fair_sigma);
     if (!(o->dbh_height > 0) || !(o->dbh_slab > 0))
         return sy_fail(err, SY_EUSAGE, "skeleton: dbh_height and dbh_slab must be > 0");
     if (!(o->dbh_per_height >= 0 && o->dbh_per_height < 1))
@@ -405,12 +408,66 @@ static size_t merge_siblings(nodes *N, int32_t root, double merge_cos, double w,
  * to grow up from that wood. Only subtrees holding share_min of the
  * skeleton's length, and none whose apex has a heavier child rising above
  * it: a weeping twig, or a limb drooping from a stem that goes on above it,
- * hangs from its apex by nature. Largest falls first, one at a time, at most
+ * hangs from its apex by nature (unless the way in jogs into that child:
+ * jogs_into). Largest falls first, one at a time, at most
  * max_turns. Returns how many were turned. */
 typedef struct {
     double drop_min, drop_share, gap_share, share_min;
     int max_turns;
 } hairpin_rule;
+
+/* The node reached walking from u toward the root until len of path lies
+ * behind (or the root). */
+static int32_t walk_up(const nodes *N, int32_t u, double len)
+{
+    for (double d = 0; d < len && N->parent[u] >= 0; u = N->parent[u]) d += ndist(N, u, N->parent[u]);
+    return u;
+}
+
+/* The node reached walking from u's child c down its heaviest children
+ * until len of path lies behind (or a tip). */
+static int32_t walk_down(const nodes *N, int32_t u, int32_t c, const double *sub, double len)
+{
+    for (double d = ndist(N, u, c); d < len;) {
+        int32_t best = -1;
+        for (int32_t k = N->first_child[c]; k >= 0; k = N->next_sibling[k])
+            if (best < 0 || ndist(N, c, k) + sub[k] > ndist(N, c, best) + sub[best]) best = k;
+        if (best < 0) break;
+        d += ndist(N, c, best);
+        c = best;
+    }
+    return c;
+}
+
+static double cos_between(const nodes *N, int32_t a0, int32_t a1, int32_t b0, int32_t b1)
+{
+    double u[3], w[3];
+    for (int k = 0; k < 3; k++) u[k] = N->pos[3 * a1 + k] - N->pos[3 * a0 + k], w[k] = N->pos[3 * b1 + k] - N->pos[3 * b0 + k];
+    double nu = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]), nw = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+    return nu > 0 && nw > 0 ? (u[0] * w[0] + u[1] * w[1] + u[2] * w[2]) / (nu * nw) : 1;
+}
+
+/* Whether the way into a hairpin's apex jogs into its heavy rising child c
+ * rather than going on into it: the way in (len of path below the apex)
+ * turns by more than 45 degrees into c's first len, while the descending
+ * chain (from the tip at v), reversed, runs within 37 degrees of c and at
+ * least 0.3 straighter (in cosine). tree1 (AdTree): a limb whose foot the
+ * scan misses is reached over a level crossing branch, and its upper part
+ * hangs from that crossing as a 90-degree, 5 cm thick hook; the TreeLS
+ * pine's stem goes straight on above its drooping limbs and keeps them. */
+static int jogs_into(const nodes *N, int32_t v, int32_t apex, int32_t c, const double *sub, double len)
+{
+    int32_t in = walk_up(N, apex, len), on = walk_down(N, apex, c, sub, len);
+    /* The descending chain's node len of path below the apex (or the tip). */
+    double chain = 0;
+    for (int32_t u = v; u != apex; u = N->parent[u]) chain += ndist(N, u, N->parent[u]);
+    int32_t down = v;
+    for (double d = chain; down != apex && d - ndist(N, down, N->parent[down]) >= len; down = N->parent[down])
+        d -= ndist(N, down, N->parent[down]);
+    if (in == apex || on == apex || down == apex) return 0;
+    double c_in = cos_between(N, in, apex, apex, on), c_down = cos_between(N, down, apex, apex, on);
+    return c_in < 0.7 && c_down > 0.8 && c_down > c_in + 0.3;
+}
 
 static size_t unfold_hairpins(nodes *N, int32_t root, const hairpin_rule *r, int32_t *order, int32_t *stack,
                               double *sub)
@@ -456,7 +513,9 @@ static size_t unfold_hairpins(nodes *N, int32_t root, const hairpin_rule *r, int
             int side = 0;
             double via_len = ndist(N, apex, via) + sub[via];
             for (int32_t c = N->first_child[apex]; c >= 0; c = N->next_sibling[c])
-                if (c != via && ndist(N, apex, c) + sub[c] > via_len && top[c] > zmax + drop_min) side = 1;
+                if (c != via && ndist(N, apex, c) + sub[c] > via_len && top[c] > zmax + drop_min &&
+                    !jogs_into(N, v, apex, c, sub, drop_min))
+                    side = 1;
             if (side) continue;
             /* Wood below the tip outside the apex's subtree. */
             stamp++;
