@@ -4,9 +4,9 @@
 # single-tree sample and `sylva mesh` on rTwig's reference QSM (with species
 # leaves). Asserted per file: no misoriented edges, nothing below the
 # ground (the root's height less the trunk's base radius: a leaning trunk's
-# base disc tilts), no triangle under 0.005 mm^2 at LOD0 and at most one over
-# the coarser levels (the airborne fir's LOD3 keeps one, 0.0008 mm^2 beside a
-# capped junction, whose edge flip would make an edge that exists), no edge far
+# base disc tilts), no triangle under 0.005 mm^2 at any level (until stop 29
+# the airborne fir's LOD3 kept one, 0.0008 mm^2 beside a capped junction,
+# whose edge flip would make an edge that exists), no edge far
 # across the branches it runs by (max_across, docs/mesh.md "Stop 28": LOD0
 # measured <= 11.4, coarser <= 23.7), few sails and slivers, LOD0 leaves within a leaf length of bark,
 # each LOD level 25-50 % of the previous one's triangles.
@@ -27,7 +27,7 @@ assert_quality() {
       .mesh_check as $c | ($c[0]) as $l0 |
       ($c | length) >= 2 and
       ([$c[] | .misoriented_edges == 0 and .below_ground == 0 and .leaves_below_ground == 0] | all) and
-      $l0.degenerate == 0 and ([$c[] | .degenerate] | add) <= 1 and
+      ([$c[] | .degenerate] | add) == 0 and
       $l0.sails <= 0.005 * $l0.bark_triangles and $l0.slivers <= 0.002 * $l0.bark_triangles and
       $l0.bark_triangles <= 60000 and $l0.leaves_far == 0 and
       $l0.max_across <= 16 and ([$c[] | .max_across <= 40] | all) and
@@ -49,6 +49,17 @@ qsm="$SYLVA_DATA_DIR/real/rtwig/QSM.csv"
 "$SYLVA" mesh "$qsm" -o "$tmp/q.glb" --species quaking_aspen --check --json --impostor-size 64 > "$tmp/q.json" 2> "$tmp/q.err" ||
     { echo "FAIL: mesh QSM.csv: $(tail -1 "$tmp/q.err")"; fail=1; }
 check "rTwig QSM: mesh checks hold ($(jq -c '[.mesh_check[] | .triangles]' "$tmp/q.json"))" "assert_quality '$tmp/q.json'"
+# Junctions welded into their parents at LOD0 (the rest are capped inside
+# them). A stem that ended with children on its tip welded none of them:
+# until stop 29 only a child >= 0.7 as thick turning < 45 degrees went on
+# through (sy_skeleton_continuations), and rTwig's QSM, which forks into
+# thinner limbs, welded 30 of 100; the airborne fir, whose patches dock at
+# each other's ends, 468 of 708. Now 56 of 72 and 525 of 615.
+welded() { jq -r '.mesh_check[0] | .welded / .junctions' "$1"; }
+w=$(welded "$tmp/q.json")
+check "rTwig QSM: $w of LOD0 junctions welded (>= 0.7)" "awk 'BEGIN { exit !($w >= 0.7) }'"
+w=$(welded "$tmp/fir_als.json")
+check "run fir_als: $w of LOD0 junctions welded (>= 0.8)" "awk 'BEGIN { exit !($w >= 0.8) }'"
 # Its bark is closed at every level: junctions welded or capped.
 check "rTwig QSM: closed bark" "jq -e '[.mesh_check[] | .boundary_edges == 0] | all' '$tmp/q.json' > /dev/null"
 exit $fail

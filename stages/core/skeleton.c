@@ -218,7 +218,7 @@ void sy_skeleton_continuations(const sy_skeleton *s, int32_t *cont)
     }
     for (size_t i = 0; i < n; i++) {
         int32_t p = s->parent[i], g = p >= 0 ? s->parent[p] : -1;
-        if (p < 0 || g < 0 || s->radius[i] < 0.7f * s->radius[p]) continue;
+        if (p < 0 || g < 0) continue;
         if (cont[p] >= 0 && s->branch[cont[p]] == s->branch[p]) continue; /* goes on in its own id */
         float a[3], b[3];
         for (int k = 0; k < 3; k++) {
@@ -227,7 +227,7 @@ void sy_skeleton_continuations(const sy_skeleton *s, int32_t *cont)
         }
         float ab = a[0] * b[0] + a[1] * b[1] + a[2] * b[2], aa = a[0] * a[0] + a[1] * a[1] + a[2] * a[2],
               bb = b[0] * b[0] + b[1] * b[1] + b[2] * b[2];
-        if (ab < 0.7f * sqrtf(aa * bb)) continue; /* turns by more than 45 degrees */
+        if (ab < 0.5f * sqrtf(aa * bb)) continue; /* turns by more than 60 degrees */
         if (cont[p] < 0 || s->radius[i] > s->radius[cont[p]]) cont[p] = (int32_t)i;
     }
 }
