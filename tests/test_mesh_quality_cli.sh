@@ -18,8 +18,8 @@ samples="$SYLVA_SOURCE_DIR/samples"
 # classified palm_tls 0.31 %, tree1 0.04 %, the others under 0.15 %. Until
 # then the check measured a child's first segment from the two parent
 # segments at its attachment node, while the mesher attaches it anywhere
-# within reach along its parent's stem (and chains stems through a thick,
-# straight child of another id): a fir's whorl of twigs attached 20 cm down
+# within reach along its parent's stem (and chains stems through children of
+# other ids, sy_skeleton_continuations): a fir's whorl of twigs attached 20 cm down
 # its shoot counted as sails across that gap (palm_tls 0.60 %, the airborne
 # fir 0.97 %), and the bound here was 0.7 %.
 assert_quality() {

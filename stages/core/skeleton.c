@@ -227,7 +227,7 @@ void sy_skeleton_continuations(const sy_skeleton *s, int32_t *cont)
         }
         float ab = a[0] * b[0] + a[1] * b[1] + a[2] * b[2], aa = a[0] * a[0] + a[1] * a[1] + a[2] * a[2],
               bb = b[0] * b[0] + b[1] * b[1] + b[2] * b[2];
-        if (ab < 0.5f * sqrtf(aa * bb)) continue; /* turns by more than 60 degrees */
+        if (!(aa > 0 && bb > 0) || ab < 0.5f * sqrtf(aa * bb)) continue; /* turns by more than 60 degrees */
         if (cont[p] < 0 || s->radius[i] > s->radius[cont[p]]) cont[p] = (int32_t)i;
     }
 }

@@ -8,7 +8,7 @@
  * to fair surface design": repeated [1/4 1/2 1/4] passes are a Gaussian of
  * variance passes / 2 in node steps), as many at a node as make the
  * Gaussian's width there sigma_factor x its radius. Twigs of a few
- * millimetres get one pass or none; tips and the root stay where they are,
+ * millimetres get a pass or two; tips and the root stay where they are,
  * so the tree keeps its extent. */
 #include <math.h>
 #include <stdlib.h>
@@ -25,9 +25,45 @@
 static void same_branch_children(const sy_skeleton *s, int32_t *cont)
 {
     for (size_t i = 0; i < s->n; i++) cont[i] = -1;
-    for (size_t i = s->n; i-- > 1;) {
+    for (size_t i = s->n; i-- > 0;) {
         int32_t p = s->parent[i];
         if (p >= 0 && s->branch[p] == s->branch[i]) cont[p] = (int32_t)i;
+    }
+}
+
+/* One branch's chain, from its first node c0 (whose parent, the fork, is
+ * faired already and stays put) to its tip, which stays put too: pass
+ * counts as in sy_skeleton_fair_limbs, Jacobi passes over the chain's
+ * positions and its radii (not c0's where its parent is the thicker limb
+ * it leaves). chain, passes, pos and rad are scratch of the chain's length. */
+static void fair_chain(sy_skeleton *s, const int32_t *cont, int32_t c0, double sigma_factor, int32_t *chain,
+                       int *passes, float *pos, float *rad)
+{
+    const int max_passes = 400;
+    size_t m = 0;
+    for (int32_t v = c0; v >= 0; v = cont[v]) chain[m++] = v;
+    int most = 0;
+    for (size_t k = 0; k + 1 < m; k++) {
+        size_t i = (size_t)chain[k];
+        double step = 0.5 * (sy_skeleton_edge_length(s, i) + sy_skeleton_edge_length(s, (size_t)chain[k + 1]));
+        double w = sigma_factor * s->radius[i] / step, q = ceil(2 * w * w); /* the width in node steps */
+        passes[k] = step > 0 && q >= 0 ? (q > max_passes ? max_passes : (int)q) : 0; /* NaN: none */
+        if (passes[k] > most) most = passes[k];
+    }
+    for (int pass = 0; pass < most; pass++) {
+        for (size_t k = 0; k + 1 < m; k++) {
+            if (passes[k] <= pass) continue;
+            size_t i = (size_t)chain[k], p = (size_t)s->parent[i], c = (size_t)chain[k + 1];
+            for (int q = 0; q < 3; q++)
+                pos[3 * k + q] = 0.5f * s->pos[3 * i + q] + 0.25f * (s->pos[3 * p + q] + s->pos[3 * c + q]);
+            rad[k] = s->branch[p] == s->branch[i] ? 0.5f * s->radius[i] + 0.25f * (s->radius[p] + s->radius[c])
+                                                  : s->radius[i];
+        }
+        for (size_t k = 0; k + 1 < m; k++) {
+            if (passes[k] <= pass) continue;
+            memcpy(s->pos + 3 * (size_t)chain[k], pos + 3 * k, 3 * sizeof *pos);
+            s->radius[chain[k]] = rad[k];
+        }
     }
 }
 
@@ -35,63 +71,77 @@ sy_code sy_skeleton_fair_limbs(sy_skeleton *s, double sigma_factor, sy_error *er
 {
     size_t n = s->n;
     if (!(sigma_factor > 0) || n < 3) return SY_OK;
-    int32_t *cont = malloc(n * sizeof *cont);
-    int *passes = calloc(n, sizeof *passes);
-    float *next = malloc(n * 3 * sizeof *next), *next_r = malloc(n * sizeof *next_r);
-    if (!cont || !passes || !next || !next_r) {
-        free(cont), free(passes), free(next), free(next_r);
+    int32_t *cont = malloc(n * sizeof *cont), *order = malloc(n * sizeof *order), *chain = malloc(n * sizeof *chain);
+    int32_t *first = malloc(n * sizeof *first), *next = malloc(n * sizeof *next);
+    int *passes = malloc(n * sizeof *passes);
+    float *pos = malloc(n * 3 * sizeof *pos), *rad = malloc(n * sizeof *rad), *before = malloc(n * 3 * sizeof *before);
+    if (!cont || !order || !chain || !first || !next || !passes || !pos || !rad || !before) {
+        free(cont), free(order), free(chain), free(first), free(next), free(passes), free(pos), free(rad), free(before);
         return sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
     }
     /* A node is smoothed along its own chain: its parent and its child of
-     * the same branch; side branches follow the node they leave from. */
+     * the same branch. Branches are faired parents first, each bent first
+     * by as much as its fork moved, so a side branch stays on the node it
+     * leaves (left alone, forks on tree33 moved up to 0.35 m from their
+     * twigs, on stretched first edges). */
     same_branch_children(s, cont);
-    const int max_passes = 400;
-    int most = 0;
-    for (size_t i = 1; i < n; i++) {
-        if (cont[i] < 0 || s->parent[i] < 0) continue;
-        double step = 0.5 * (sy_skeleton_edge_length(s, i) + sy_skeleton_edge_length(s, (size_t)cont[i]));
-        if (!(step > 0)) continue;
-        double w = sigma_factor * s->radius[i] / step; /* the width in node steps */
-        double k = ceil(2 * w * w);
-        passes[i] = k > max_passes ? max_passes : (int)k;
-        if (passes[i] > most) most = passes[i];
-    }
-    /* The radii too, within each branch: eq. 3.1 steps the radius down
-     * where a limb leaves (AdTree's tree7: 0.110 -> 0.088 m in one 4 cm
-     * segment of its trunk, a collar under the fork), where a stem swells
-     * and narrows over about its diameter. A branch's first node keeps its
-     * own radius (its parent is the thicker limb it leaves). */
-    for (int pass = 0; pass < most; pass++) {
-        memcpy(next, s->pos, n * 3 * sizeof *next);
-        memcpy(next_r, s->radius, n * sizeof *next_r);
-        for (size_t i = 1; i < n; i++) {
-            if (passes[i] <= pass) continue;
-            int32_t p = s->parent[i], c = cont[i];
-            const float *a = s->pos + 3 * (size_t)p, *b = s->pos + 3 * (size_t)c;
-            for (int q = 0; q < 3; q++) next[3 * i + q] = 0.5f * s->pos[3 * i + q] + 0.25f * (a[q] + b[q]);
-            if (s->branch[p] == s->branch[i]) next_r[i] = 0.5f * s->radius[i] + 0.25f * (s->radius[p] + s->radius[c]);
+    sy_skeleton_children(s, first, next);
+    size_t m = 0;
+    for (size_t i = 0; i < n; i++)
+        if (s->parent[i] < 0) order[m++] = (int32_t)i;
+    for (size_t h = 0; h < m; h++)
+        for (int32_t c = first[order[h]]; c >= 0; c = next[c]) order[m++] = c;
+    memcpy(before, s->pos, n * 3 * sizeof *before);
+    for (size_t h = 0; h < m; h++) {
+        int32_t b = order[h], f = s->parent[b];
+        if (f >= 0 && s->branch[f] == s->branch[b]) continue; /* not a branch's first node */
+        if (f >= 0) {
+            /* The fork's displacement, in full at the branch's first node
+             * and down to none over the fork's own smoothing width (sigma x
+             * its radius): the first edge keeps its length and the rest
+             * stays on what the scan saw. Carried whole, the crowns shifted
+             * with every fork below them (rTwig's sapling lost 0.05 of
+             * silhouette IoU; bent down to its tip, 0.02). */
+            float d[3];
+            for (int q = 0; q < 3; q++) d[q] = s->pos[3 * (size_t)f + q] - before[3 * (size_t)f + q];
+            double reach = sigma_factor * s->radius[f], at = 0;
+            for (int32_t v = b; v >= 0 && at < reach; v = cont[v]) {
+                if (v != b) {
+                    if (cont[v] < 0) break; /* the tip stays */
+                    at += sy_skeleton_edge_length(s, (size_t)v);
+                }
+                float w = at < reach ? (float)(1 - at / reach) : 0;
+                for (int q = 0; q < 3; q++) s->pos[3 * (size_t)v + q] += w * d[q];
+            }
+            fair_chain(s, cont, b, sigma_factor, chain, passes, pos, rad);
+        } else if (cont[b] >= 0) {
+            fair_chain(s, cont, cont[b], sigma_factor, chain, passes, pos, rad); /* the root stays */
         }
-        memcpy(s->pos, next, n * 3 * sizeof *next);
-        memcpy(s->radius, next_r, n * sizeof *next_r);
     }
-    /* Averaging keeps each chain's taper, but a fork's side branch may now
-     * start thicker than the node it leaves: no radius grows toward a tip. */
-    for (size_t i = 1; i < n; i++)
-        if (s->parent[i] >= 0 && s->radius[i] > s->radius[s->parent[i]]) s->radius[i] = s->radius[s->parent[i]];
-    free(cont), free(passes), free(next), free(next_r);
+    /* Averaging keeps each chain's taper, but a side branch may now start
+     * thicker than the faired node it leaves: no radius grows toward a tip
+     * (parents first). */
+    for (size_t h = 0; h < m; h++) {
+        int32_t v = order[h], p = s->parent[v];
+        if (p >= 0 && s->radius[v] > s->radius[p]) s->radius[v] = s->radius[p];
+    }
+    free(cont), free(order), free(chain), free(first), free(next), free(passes), free(pos), free(rad), free(before);
     return SY_OK;
 }
 
 /* Walks from node u along its chain (toward the root with up, else along
  * the continuations in cont) until len of path lies behind; the node
- * reached, or u itself when the chain ends at once. */
+ * reached, or u itself when the chain ends at once. Up, it stops on the
+ * fork its branch leaves (past it, it would measure the fork's angle). */
 static int32_t walk_chain(const sy_skeleton *s, const int32_t *cont, int32_t u, double len, int up)
 {
     for (double d = 0; d < len;) {
         int32_t v = up ? s->parent[u] : cont[u];
         if (v < 0) break;
         d += sy_skeleton_edge_length(s, (size_t)(up ? u : v));
+        int fork = up && s->branch[v] != s->branch[u];
         u = v;
+        if (fork) break;
     }
     return u;
 }

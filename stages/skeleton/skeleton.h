@@ -83,8 +83,11 @@ sy_skeleton_options sy_skeleton_options_default(void);
 sy_code sy_skeleton_options_check(const sy_skeleton_options *o, sy_error *err);
 
 /* Limb fairing (fair.c): each chain node smoothed along its branch over
- * sigma_factor x its radius (Laplacian passes, a Gaussian of that width);
- * tips, the root and twigs a pass cannot reach stay put. 0 does nothing. */
+ * sigma_factor x its radius (Laplacian passes, a Gaussian of that width),
+ * the radii too within each branch; branches parents first, each bent by
+ * as much as its fork moved (in full at its first node, none from
+ * sigma_factor x the fork's radius on); the root and the tips stay put. No radius then grows toward a tip.
+ * 0 does nothing. Any node order. */
 sy_code sy_skeleton_fair_limbs(sy_skeleton *s, double sigma_factor, sy_error *err);
 /* Kinks: chain nodes of limbs at least min_radius thick whose chain turns
  * by more than max_turn_deg between max(4 radii, 10 cm) of it on either
