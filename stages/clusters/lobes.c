@@ -69,12 +69,7 @@ sy_code sy_clusters_split_lobes(const sy_skeleton *full, const float *xyz, doubl
         return sy_fail(err, SY_EINTERNAL, "lobes: out of memory");
     }
     sy_skeleton_children(full, first, next);
-    /* Breadth-first order from the root. */
-    size_t no = 0;
-    for (size_t i = 0; i < n; i++)
-        if (full->parent[i] < 0) order[no++] = (int32_t)i;
-    for (size_t h = 0; h < no; h++)
-        for (int32_t c = first[order[h]]; c >= 0; c = next[c]) order[no++] = c;
+    size_t no = sy_skeleton_breadth_first(full, first, next, order);
     /* Subtree boxes of the points (and nodes), leaves first. */
     for (size_t h = no; h-- > 0;) {
         int32_t v = order[h];

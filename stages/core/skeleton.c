@@ -208,14 +208,30 @@ void sy_skeleton_children(const sy_skeleton *s, int32_t *first_child, int32_t *n
     }
 }
 
+size_t sy_skeleton_breadth_first(const sy_skeleton *s, const int32_t *first_child, const int32_t *next_sibling,
+                                 int32_t *order)
+{
+    size_t m = 0;
+    for (size_t i = 0; i < s->n; i++)
+        if (s->parent[i] < 0) order[m++] = (int32_t)i;
+    for (size_t h = 0; h < m; h++)
+        for (int32_t c = first_child[order[h]]; c >= 0; c = next_sibling[c]) order[m++] = c;
+    return m;
+}
+
+void sy_skeleton_branch_next(const sy_skeleton *s, int32_t *next)
+{
+    for (size_t i = 0; i < s->n; i++) next[i] = -1;
+    for (size_t i = 0; i < s->n; i++) {
+        int32_t p = s->parent[i];
+        if (p >= 0 && s->branch[p] == s->branch[i] && next[p] < 0) next[p] = (int32_t)i;
+    }
+}
+
 void sy_skeleton_continuations(const sy_skeleton *s, int32_t *cont)
 {
     size_t n = s->n;
-    for (size_t i = 0; i < n; i++) cont[i] = -1;
-    for (size_t i = 0; i < n; i++) {
-        int32_t p = s->parent[i];
-        if (p >= 0 && s->branch[p] == s->branch[i] && cont[p] < 0) cont[p] = (int32_t)i;
-    }
+    sy_skeleton_branch_next(s, cont);
     for (size_t i = 0; i < n; i++) {
         int32_t p = s->parent[i], g = p >= 0 ? s->parent[p] : -1;
         if (p < 0 || g < 0) continue;

@@ -63,6 +63,13 @@ double sy_skeleton_length(const sy_skeleton *s);
 /* Child lists (s->n entries each, -1 = none): node i's children are
  * first_child[i], next_sibling[first_child[i]], ... in ascending index order. */
 void sy_skeleton_children(const sy_skeleton *s, int32_t *first_child, int32_t *next_sibling);
+/* The nodes in breadth-first order from the roots (nodes without a parent),
+ * over the child lists above; returns how many (s->n for a forest). */
+size_t sy_skeleton_breadth_first(const sy_skeleton *s, const int32_t *first_child, const int32_t *next_sibling,
+                                 int32_t *order);
+/* Each node's lowest-index child of its own branch id (s->n entries, -1 at
+ * a branch's end): the branch's chain. */
+void sy_skeleton_branch_next(const sy_skeleton *s, int32_t *next);
 /* The node each node's stem goes on through (s->n entries, -1 = its stem
  * ends there): its lowest-index child of the same branch id, else the
  * thickest child of another id turning by less than 60 degrees. The mesher

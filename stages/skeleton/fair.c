@@ -20,17 +20,6 @@
 #define M_PI 3.14159265358979323846
 #endif
 
-/* cont[i]: node i's child of its own branch (the lowest index), -1 at a
- * tip. The skeleton's branch ids make each branch one chain. */
-static void same_branch_children(const sy_skeleton *s, int32_t *cont)
-{
-    for (size_t i = 0; i < s->n; i++) cont[i] = -1;
-    for (size_t i = s->n; i-- > 0;) {
-        int32_t p = s->parent[i];
-        if (p >= 0 && s->branch[p] == s->branch[i]) cont[p] = (int32_t)i;
-    }
-}
-
 /* One branch's chain, from its first node c0 (whose parent, the fork, is
  * faired already and stays put) to its tip, which stays put too: pass
  * counts as in sy_skeleton_fair_limbs, Jacobi passes over the chain's
@@ -84,13 +73,9 @@ sy_code sy_skeleton_fair_limbs(sy_skeleton *s, double sigma_factor, sy_error *er
      * by as much as its fork moved, so a side branch stays on the node it
      * leaves (left alone, forks on tree33 moved up to 0.35 m from their
      * twigs, on stretched first edges). */
-    same_branch_children(s, cont);
+    sy_skeleton_branch_next(s, cont);
     sy_skeleton_children(s, first, next);
-    size_t m = 0;
-    for (size_t i = 0; i < n; i++)
-        if (s->parent[i] < 0) order[m++] = (int32_t)i;
-    for (size_t h = 0; h < m; h++)
-        for (int32_t c = first[order[h]]; c >= 0; c = next[c]) order[m++] = c;
+    size_t m = sy_skeleton_breadth_first(s, first, next, order);
     memcpy(before, s->pos, n * 3 * sizeof *before);
     for (size_t h = 0; h < m; h++) {
         int32_t b = order[h], f = s->parent[b];
@@ -153,7 +138,7 @@ size_t sy_skeleton_limb_kinks(const sy_skeleton *s, double min_radius, double ma
     int32_t *cont = n ? malloc(n * sizeof *cont) : NULL;
     if (worst) *worst = 0;
     if (!cont) return 0;
-    same_branch_children(s, cont);
+    sy_skeleton_branch_next(s, cont);
     for (size_t i = 1; i < n; i++) {
         if (s->radius[i] < min_radius || cont[i] < 0) continue;
         double len = fmax(4 * s->radius[i], 0.1);
