@@ -115,9 +115,9 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
     sy_cut_report cut;
     rc = sy_clusters_extract(&full, c->xyz, &co, out, clusters, &cut, err);
     sy_full_skeleton_free(&full);
+    if (rc) return rc;
     /* Faired after the cut, which judges the chains as the level sets made
      * them (their points' spread about each edge). */
-    if (rc) return rc;
     if ((rc = sy_skeleton_fair_limbs(out, o->fair_sigma, err))) {
         if (clusters) sy_clusters_free(clusters);
         sy_skeleton_free(out);

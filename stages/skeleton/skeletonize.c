@@ -12,6 +12,7 @@
 #include "skeleton_internal.h"
 #include "stages/core/progress.h"
 #include "stages/core/sort.h"
+#include "stages/core/vec3.h"
 
 sy_skeleton_options sy_skeleton_options_default(void)
 {
@@ -439,12 +440,15 @@ static int32_t walk_down(const nodes *N, int32_t u, int32_t c, const double *sub
     return c;
 }
 
+/* Cosine between the directions a0 -> a1 and b0 -> b1 (1 when either is
+ * a point). */
 static double cos_between(const nodes *N, int32_t a0, int32_t a1, int32_t b0, int32_t b1)
 {
     double u[3], w[3];
-    for (int k = 0; k < 3; k++) u[k] = N->pos[3 * a1 + k] - N->pos[3 * a0 + k], w[k] = N->pos[3 * b1 + k] - N->pos[3 * b0 + k];
-    double nu = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]), nw = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
-    return nu > 0 && nw > 0 ? (u[0] * w[0] + u[1] * w[1] + u[2] * w[2]) / (nu * nw) : 1;
+    sy_v3_sub(u, N->pos + 3 * a1, N->pos + 3 * a0);
+    sy_v3_sub(w, N->pos + 3 * b1, N->pos + 3 * b0);
+    double nu = sy_v3_len(u), nw = sy_v3_len(w);
+    return nu > 0 && nw > 0 ? sy_v3_dot(u, w) / (nu * nw) : 1;
 }
 
 /* Whether the way into a hairpin's apex jogs into its heavy rising child c
