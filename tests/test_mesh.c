@@ -679,6 +679,65 @@ static void whorl_welds_as_a_band(void **state)
     sy_skeleton_free(&s);
 }
 
+/* A limb ends in a fork of two twigs turning 75 degrees off it (no
+ * continuation), and two limbs leave one trunk node at one azimuth, one
+ * level, one rising: the twigs' rings stood partly off the limb's last ring
+ * and the limbs' rings crossed, and three of the four were capped. Each now
+ * slides along its parent until its ring fits (fit_on_parent, stems.c):
+ * all four weld at LOD0, the bark stays closed, and no base moved more
+ * than a few of its radii. */
+static void crowded_and_tip_children_slide_to_weld(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_error err;
+    memset(&s, 0, sizeof s);
+    int32_t prev = -1, low = -1, mid = -1;
+    for (int i = 0; i <= 8; i++) {
+        float p[3] = {0, 0, 0.5f * (float)i};
+        prev = sy_skeleton_add(&s, p, 0.2f - 0.01f * (float)i, prev, 0, 0, &err);
+        if (i == 2) low = prev;
+        if (i == 4) mid = prev;
+    }
+    /* The limb along +x, its end forking. */
+    prev = mid;
+    for (int i = 1; i <= 4; i++) {
+        float p[3] = {0.25f * (float)i, 0, 2.0f};
+        prev = sy_skeleton_add(&s, p, 0.06f - 0.005f * (float)i, prev, 1, 1, &err);
+    }
+    int32_t end = prev;
+    for (int k = 0; k < 2; k++) {
+        float up = k ? -1.0f : 1.0f, c = cosf(75 * 0.01745329f), sn = sinf(75 * 0.01745329f);
+        prev = end;
+        for (int i = 1; i <= 3; i++) {
+            float p[3] = {1.0f + 0.12f * (float)i * c, 0, 2.0f + up * 0.12f * (float)i * sn};
+            prev = sy_skeleton_add(&s, p, 0.025f - 0.004f * (float)i, prev, 2, 2 + k, &err);
+        }
+    }
+    /* Two limbs side by side from the low node: level, and rising 35 degrees. */
+    for (int k = 0; k < 2; k++) {
+        float el = k ? 35 * 0.01745329f : 0;
+        prev = low;
+        for (int i = 1; i <= 3; i++) {
+            float p[3] = {0.3f * (float)i * cosf(el), 0, 1.0f + 0.3f * (float)i * sinf(el)};
+            prev = sy_skeleton_add(&s, p, 0.05f - 0.008f * (float)i, prev, 1, 4 + k, &err);
+        }
+    }
+    sy_mesh_options o = sy_mesh_options_default();
+    o.impostor_size = 64;
+    sy_mesh_weld_stats ws;
+    o.weld_stats = &ws;
+    sy_asset a;
+    mesh_tree(&s, NULL, &o, &a);
+    check_mesh_basics_share(bark0(&a), WELD_FOLD_SHARE);
+    printf("tip fork and side-by-side limbs: %zu of %zu junctions welded at LOD0\n", ws.welded[0], ws.junctions[0]);
+    assert_int_equal(ws.junctions[0], 5);
+    assert_int_equal(ws.welded[0], 5);
+    assert_int_equal(check_branches(&s, &a), 5);
+    sy_asset_free(&a);
+    sy_skeleton_free(&s);
+}
+
 /* Over its leaf budget LOD0 keeps a prefix of the seeded order, grown to
  * the same total leaf area; LOD1 halves that prefix. */
 static void leaf_budget_keeps_the_leaf_area(void **state)
@@ -1111,6 +1170,7 @@ int main(void)
         cmocka_unit_test(branches_sit_on_a_lobed_trunk),
         cmocka_unit_test(bent_trunk_branches_sit_on_the_parent),
         cmocka_unit_test(whorl_welds_as_a_band),
+        cmocka_unit_test(crowded_and_tip_children_slide_to_weld),
         cmocka_unit_test(curved_branch_keeps_its_curve_at_every_level),
         cmocka_unit_test(random_tree_meets_every_property),
         cmocka_unit_test(leaf_budget_keeps_the_leaf_area),

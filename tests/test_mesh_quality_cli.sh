@@ -59,7 +59,17 @@ welded() { jq -r '.mesh_check[0] | .welded / .junctions' "$1"; }
 w=$(welded "$tmp/q.json")
 check "rTwig QSM: $w of LOD0 junctions welded (>= 0.7)" "awk 'BEGIN { exit !($w >= 0.7) }'"
 w=$(welded "$tmp/fir_als.json")
-check "run fir_als: $w of LOD0 junctions welded (>= 0.8)" "awk 'BEGIN { exit !($w >= 0.8) }'"
+check "run fir_als: $w of LOD0 junctions welded (>= 0.85)" "awk 'BEGIN { exit !($w >= 0.85) }'"
+# A child whose ring stood partly off its parent's first or last ring, or
+# crossed a sibling's ring, was capped: palm_tls welded 0.57 of its LOD0
+# junctions, palm_als 0.71, tree1 0.61. Since stop 30 such children slide
+# along the parent until the ring fits (fit_on_parent, stems.c): 0.81, 0.86,
+# 0.78, and every sample's run at least 0.75.
+for s in aspen_tls fir_tls palm_tls aspen_als fir_als palm_als tree1; do
+    [[ -f $tmp/$s.json ]] || continue
+    w=$(welded "$tmp/$s.json")
+    check "run $s: $w of LOD0 junctions welded (>= 0.75)" "awk 'BEGIN { exit !($w >= 0.75) }'"
+done
 # Its bark is closed at every level: junctions welded or capped.
 check "rTwig QSM: closed bark" "jq -e '[.mesh_check[] | .boundary_edges == 0] | all' '$tmp/q.json' > /dev/null"
 exit $fail

@@ -157,8 +157,13 @@ static void check_element(const grown *g, const sy_gltf_file *f, int root, unsig
     }
     /* The mesher attaches a child where the parent's drawn axis passes
      * nearest its first node (docs/mesh.md), which can lie off the parent's
-     * polyline by up to the parent's radius. */
-    assert_true(sqrtf(off) <= sqrtf(seg) + sk->radius[p] + 1e-4f);
+     * polyline by up to the parent's radius; then slides it along the
+     * parent until its ring lands on the tube, clear of its siblings
+     * (fit_on_parent, stems.c): off an end by at most R cot 25 degrees plus
+     * 1.25 r / sin 25 degrees, past siblings by at most three times that
+     * half-length (r as drawn: at least the mesher's minimum radius). */
+    float r = fmaxf(sk->radius[n], sy_mesh_options_default().min_radius), slide = 2.2f * sk->radius[p] + 12 * r;
+    assert_true(sqrtf(off) <= sqrtf(seg) + sk->radius[p] + slide + 1e-4f);
 }
 
 /* Every mesh with _WIND_BRANCH: the two table-free attributes beside it,

@@ -85,6 +85,11 @@ typedef struct {
     int has_geometry;    /* 0: fewer than two distinct points, or buried in its parent */
     int junction;        /* base ring is projected onto the parent's surface */
     int has_children;    /* some stem attaches to it: keeps at least 6 ring vertices */
+    /* Where the base ring lands on the parent (fit_on_parent in stems.c):
+     * arc lengths fp_lo..fp_hi, azimuth fp_az +- fp_hw about the parent's
+     * frame normal; fp_set once placed. */
+    float fp_lo, fp_hi, fp_az, fp_hw;
+    int fp_set;
     /* Weber-Penn lobes of an order-0 stem of a grown tree (sy_skeleton.lobes),
      * 0 / 0 otherwise: rings have radius R (1 + lobe_depth sin(lobes theta)). */
     int lobes;

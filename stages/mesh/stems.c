@@ -398,6 +398,125 @@ static int attach_on_parent(const sy_stem *p, sy_stem *s)
     return 0;
 }
 
+/* Slack kept between a child's footprint and its parent's first or last
+ * ring, in footprint half-lengths; gaps kept between siblings' footprints,
+ * along the parent (in the child's radii) and around it (radians). */
+#define FOOTPRINT_SLACK 1.25f
+#define FOOTPRINT_GAP 0.25f
+#define FOOTPRINT_GAP_AZ 0.15f
+/* A child slides past its siblings by at most this many footprint
+ * half-lengths. */
+#define FOOTPRINT_MAX_SLIDE 3.0f
+
+/* Does a footprint at arc lengths lo..hi, azimuth az +- hw, clear every
+ * sibling of stem `self` placed before it (first / next: their lists, by
+ * parent)? */
+static int footprint_clear(const sy_stems *st, int32_t self, const int32_t *first, const int32_t *next, float lo,
+                           float hi, float az, float hw, float gap)
+{
+    for (int32_t k = first[st->s[self].parent]; k >= 0; k = next[k]) {
+        const sy_stem *o = &st->s[k];
+        if (o->fp_hi + gap <= lo || o->fp_lo - gap >= hi) continue;
+        float dz = fabsf(remainderf(o->fp_az - az, 2 * SY_PI));
+        if (dz < o->fp_hw + hw + FOOTPRINT_GAP_AZ) return 0;
+    }
+    return 1;
+}
+
+typedef struct {
+    float centre, half, az, hw; /* footprint about attachment arc length as */
+    float lo, hi;               /* the arc lengths where it fits on the tube */
+    float d[3];                 /* the first segment's direction from there */
+} footprint;
+
+/* The footprint of s's base ring if s left parent p at arc length as,
+ * its first segment running from there to its first own point. 0 when
+ * that segment has no direction or runs within 25 degrees of the parent's
+ * axis (a continuation, carried through by sy_skeleton_continuations). */
+static int footprint_at(const sy_stem *p, const sy_stem *s, float as, footprint *f)
+{
+    float c[3], T[3], N[3], B[3], R;
+    sy_stem_frame_at(p, NULL, 0, as, c, T, N, &R);
+    for (int k = 0; k < 3; k++) f->d[k] = s->pts[3 + k] - c[k];
+    if (sy_normalize3(f->d) < DEDUPE_EPS || R <= 0) return 0;
+    float ct = sy_dot3(f->d, T), st2 = 1 - ct * ct;
+    if (st2 < 0.1786f) return 0; /* sin^2 25 degrees */
+    float sn = sqrtf(st2), r = s->rad[0];
+    f->centre = R * ct / sn, f->half = FOOTPRINT_SLACK * r / sn;
+    f->lo = p->ss[0] + f->half - f->centre, f->hi = p->ss[p->n_samp - 1] - f->half - f->centre;
+    sy_cross3(T, N, B);
+    f->az = atan2f(sy_dot3(f->d, B), sy_dot3(f->d, N)), f->hw = asinf(fminf(1.0f, r / R));
+    return 1;
+}
+
+/* A junction welds only where the child's base ring lands on the parent's
+ * tube, clear of its siblings' rings (tube.c). A child leaving its parent's
+ * last node (a stem ending in a fork that turns back, a branchlet patch
+ * docked at a twig's end) or its first ring (a twig off the node where the
+ * parent leaves the grandparent) had part of its ring off the tube's end,
+ * and children leaving one node side by side had rings crossing: both were
+ * capped, most of the capped junctions of a `run` asset (tree1: 110 and 20
+ * of 131 at LOD0). Such a child slides along its parent, as little as it
+ * can, until its footprint fits on the tube and clears the siblings placed
+ * before it: its axis leaves a parent of radius R, at angle th to it, R cot
+ * th farther along, and the ring of radius r lands within r / sin th of
+ * there (1.25 times that kept clear) and asin(r / R) of its azimuth. Children within 25 degrees of the
+ * parent's axis (continuations, carried through by
+ * sy_skeleton_continuations), parents too short for the footprint, and
+ * slides that would turn the child's first segment by more than 30 degrees
+ * keep their place. Moving the start turns the first segment, which moves
+ * the footprint: the fit is repeated, four rounds at most. Records the
+ * footprint either way and lists the child among its parent's placed
+ * children. */
+static void fit_on_parent(sy_stems *st, int32_t self, int32_t *first, int32_t *next)
+{
+    sy_stem *s = &st->s[self];
+    const sy_stem *p = &st->s[s->parent];
+    if (p->n_samp < 2 || s->n_pts < 2) return;
+    footprint f0, f;
+    if (!footprint_at(p, s, s->attach_s, &f0)) return;
+    float gap = FOOTPRINT_GAP * s->rad[0], as = s->attach_s;
+    /* Moving the start turns the first segment, which moves the footprint:
+     * a few rounds settle it. */
+    for (int round = 0; round < 4; round++) {
+        if (!footprint_at(p, s, as, &f) || f.lo > f.hi) return;
+        /* The nearest clear place: the end-fitted one, or just before or
+         * after a sibling's footprint. */
+        float fitted = s->attach_s < f.lo ? f.lo : s->attach_s > f.hi ? f.hi : s->attach_s, to = fitted;
+        if (!footprint_clear(st, self, first, next, to + f.centre - f.half, to + f.centre + f.half, f.az, f.hw, gap)) {
+            float best = INFINITY;
+            for (int32_t k = first[s->parent]; k >= 0; k = next[k]) {
+                const sy_stem *o = &st->s[k];
+                float cand[2] = {o->fp_lo - gap - f.centre - f.half, o->fp_hi + gap - f.centre + f.half};
+                for (int e = 0; e < 2; e++) {
+                    float a = cand[e], move = fabsf(a - fitted);
+                    if (a < f.lo || a > f.hi || move >= best || move > FOOTPRINT_MAX_SLIDE * f.half ||
+                        !footprint_clear(st, self, first, next, a + f.centre - f.half, a + f.centre + f.half, f.az,
+                                         f.hw, gap))
+                        continue;
+                    best = move, to = a;
+                }
+            }
+        }
+        if (fabsf(to - as) < 1e-5f) break;
+        as = to;
+    }
+    if (as != s->attach_s) {
+        if (!footprint_at(p, s, as, &f) || sy_dot3(f.d, f0.d) < 0.866f) return; /* turned > 30 degrees */
+        float c[3], T[3], N[3], R, w[3];
+        sy_stem_frame_at(p, NULL, 0, as, c, T, N, &R);
+        for (int k = 0; k < 3; k++) w[k] = s->pts[3 + k] - c[k];
+        if (sy_dot3(w, w) < 4 * s->rad[0] * s->rad[0]) return;
+        memcpy(s->pts, c, sizeof c);
+        s->attach_s = as;
+    } else {
+        f = f0;
+    }
+    s->fp_lo = as + f.centre - f.half, s->fp_hi = as + f.centre + f.half;
+    s->fp_az = f.az, s->fp_hw = f.hw, s->fp_set = 1;
+    next[self] = first[s->parent], first[s->parent] = self;
+}
+
 /* A child whose first point lies within the start its parent lost inside
  * the grandparent (trim_junction; a twig off the first centimetres of a twig
  * that leaves the trunk with it) has no parent surface to leave there: its
@@ -571,11 +690,18 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
     st->height = zmax - zmin;
     st->trunk_radius = sk->radius[st->s[st->root].nodes[0]];
     st->ground = sk->pos[3 * st->s[st->root].nodes[0] + 2];
+    /* Each stem's children placed so far (fit_on_parent). */
+    int32_t *first_child = malloc(2 * (st->n ? st->n : 1) * sizeof *first_child), *next_sib = first_child + st->n;
+    if (!first_child) {
+        sy_stems_free(st);
+        return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
+    }
+    for (size_t i = 0; i < st->n; i++) first_child[i] = -1;
     for (size_t o = 0; o < st->n; o++) {
         sy_stem *s = &st->s[st->by_depth[o]];
         int32_t *node_pt = malloc(s->n_nodes * sizeof *node_pt);
         if (!node_pt || !build_polyline(sk, s, node_pt, opt->min_radius)) {
-            free(node_pt);
+            free(node_pt), free(first_child);
             sy_stems_free(st);
             return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
         }
@@ -591,9 +717,10 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
         if (s->parent >= 0 && st->s[s->parent].has_geometry && s->n_pts >= 2 && node_pt[0] == 1 &&
             attach_on_parent(&st->s[s->parent], s))
             for (size_t i = 0; i < s->n_nodes; i++) node_pt[i] = node_pt[i] > 0 ? node_pt[i] - 1 : 0;
+        if (s->parent >= 0 && st->s[s->parent].has_geometry) fit_on_parent(st, st->by_depth[o], first_child, next_sib);
         if (s->n_pts >= 2) {
             if (!sample_curve(s, opt, st->ground)) {
-                free(node_pt);
+                free(node_pt), free(first_child);
                 sy_stems_free(st);
                 return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
             }
@@ -620,5 +747,6 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
         }
         if (s->parent >= 0 && st->s[s->parent].has_geometry) trim_junction(st, s);
     }
+    free(first_child);
     return SY_OK;
 }
