@@ -190,6 +190,7 @@ static sy_code clean(sy_cloud *c, const char *name, const sy_run_tree_options *o
     po.voxel = budget_voxel > 0 ? budget_voxel : o->voxel;
     po.remove_ground = 1; /* one tree: the ground would become a skeleton of its own */
     po.normals = 0;       /* the skeleton does not use them */
+    po.keep_top = 0;      /* a crown's sparse top makes no skeleton; the height is taken to top_z */
     sy_preprocess_result pr;
     sy_code rc = sy_preprocess(c, &po, &pr, err);
     if (rc) return rc;

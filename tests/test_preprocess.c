@@ -549,7 +549,9 @@ static void test_pipeline(void **state)
 }
 
 /* The top a height is measured to: the highest point with company, before
- * the outlier filter, which strips a sparse crown top along with the strays. */
+ * the outlier filter, which strips a sparse crown top along with the strays.
+ * The filter's output keeps that top (keep_supported_top): every tuft's
+ * return is there, the stray is not. */
 static void test_top_before_outliers(void **state)
 {
     (void)state;
@@ -578,7 +580,43 @@ static void test_top_before_outliers(void **state)
     sy_cloud_bounds(&c, min, max);
     printf("top %.3f, after the outlier filter %.3f\n", r.top_z, max[2]);
     assert_true(fabs(r.top_z - (3.2 + 0.2 * (double)(tufts - 1) + 0.09)) < 1e-4);
-    assert_true(max[2] < r.top_z - 0.5); /* the filter took the tufts' top with the stray */
+    assert_true(fabs(max[2] - r.top_z) < 1e-4); /* the tufts' top is kept, the stray is not */
+    size_t tuft_points = 0;
+    for (size_t j = 0; j < c.n; j++) tuft_points += c.xyz[3 * j + 2] > 3.1f;
+    assert_int_equal(tuft_points, 4 * tufts);
+    assert_true(strstr(r.steps[3].detail, "crown's top kept") != NULL);
+    sy_cloud_free(&c);
+}
+
+/* A crown's top seen as lone returns 0.8 m apart (no company within 0.5 m):
+ * the top follows them up, each within 1 m of the one below; a stray 1.6 m
+ * above the last is not the tree, and the filter's output keeps the chain
+ * but not the stray. */
+static void test_top_follows_sparse_returns(void **state)
+{
+    (void)state;
+    const size_t dense = 20000, lone = 5;
+    sy_cloud c;
+    sy_error err = {0};
+    assert_int_equal(sy_cloud_init(&c, dense + lone + 1, &err), SY_OK);
+    uint64_t rng = 5;
+    size_t i = 0;
+    for (; i < dense; i++) /* a 2 m cube of crown, 1 to 3 m up */
+        for (int a = 0; a < 3; a++) c.xyz[3 * i + a] = (float)(2 * sy_unit53(sy_splitmix64(&rng)) + (a == 2));
+    for (size_t t = 0; t < lone; t++, i++) /* rising 0.8 m a step from the cube's top */
+        c.xyz[3 * i] = 1, c.xyz[3 * i + 1] = 1, c.xyz[3 * i + 2] = (float)(3 + 0.8 * (double)(t + 1));
+    c.xyz[3 * i] = 1, c.xyz[3 * i + 1] = 1, c.xyz[3 * i + 2] = (float)(3 + 0.8 * lone + 1.6); /* the stray */
+    sy_preprocess_options o = sy_preprocess_options_default();
+    o.up = SY_UP_Z;
+    o.ground = 0;
+    o.normals = 0;
+    sy_preprocess_result r;
+    assert_int_equal(sy_preprocess(&c, &o, &r, &err), SY_OK);
+    double min[3], max[3];
+    sy_cloud_bounds(&c, min, max);
+    printf("sparse top %.3f (last lone return %.3f), after the filter %.3f\n", r.top_z, 3 + 0.8 * lone, max[2]);
+    assert_true(fabs(r.top_z - (3 + 0.8 * (double)lone)) < 1e-4);
+    assert_true(fabs(max[2] - r.top_z) < 1e-4);
     sy_cloud_free(&c);
 }
 
@@ -591,6 +629,7 @@ int main(void)
         cmocka_unit_test(test_rotations_are_proper), cmocka_unit_test(test_up_synthetic),
         cmocka_unit_test(test_up_real),      cmocka_unit_test(test_pipeline),
         cmocka_unit_test(test_top_before_outliers),
+        cmocka_unit_test(test_top_follows_sparse_returns),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

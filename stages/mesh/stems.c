@@ -407,6 +407,9 @@ static int attach_on_parent(const sy_stem *p, sy_stem *s)
 /* A child slides past its siblings by at most this many footprint
  * half-lengths. */
 #define FOOTPRINT_MAX_SLIDE 3.0f
+/* A parent with more placed children than this fits the next ones to its
+ * tube alone, past no sibling. */
+#define FOOTPRINT_MAX_SIBLINGS 64
 
 /* Does a footprint at arc lengths lo..hi, azimuth az +- hw, clear every
  * sibling of stem `self` placed before it (first / next: their lists, by
@@ -414,9 +417,11 @@ static int attach_on_parent(const sy_stem *p, sy_stem *s)
 static int footprint_clear(const sy_stems *st, int32_t self, const int32_t *first, const int32_t *next, float lo,
                            float hi, float az, float hw, float gap)
 {
+    /* A slot built against a sibling's edge may round a hair into it. */
+    const float tol = 1e-5f;
     for (int32_t k = first[st->s[self].parent]; k >= 0; k = next[k]) {
         const sy_stem *o = &st->s[k];
-        if (o->fp_hi + gap <= lo || o->fp_lo - gap >= hi) continue;
+        if (o->fp_hi + gap <= lo + tol || o->fp_lo - gap >= hi - tol) continue;
         float dz = fabsf(remainderf(o->fp_az - az, 2 * SY_PI));
         if (dz < o->fp_hw + hw + FOOTPRINT_GAP_AZ) return 0;
     }
@@ -468,22 +473,32 @@ static int footprint_at(const sy_stem *p, const sy_stem *s, float as, footprint 
  * the footprint: the fit is repeated, four rounds at most. Records the
  * footprint either way and lists the child among its parent's placed
  * children. */
-static void fit_on_parent(sy_stems *st, int32_t self, int32_t *first, int32_t *next)
+static void fit_on_parent(sy_stems *st, int32_t self, int32_t *first, int32_t *next, int32_t *placed)
 {
     sy_stem *s = &st->s[self];
     const sy_stem *p = &st->s[s->parent];
-    if (p->n_samp < 2 || s->n_pts < 2) return;
-    footprint f0, f;
-    if (!footprint_at(p, s, s->attach_s, &f0)) return;
-    float gap = FOOTPRINT_GAP * s->rad[0], as = s->attach_s;
+    footprint f0, f, fg;
+    if (p->n_samp < 2 || s->n_pts < 2 || !footprint_at(p, s, s->attach_s, &f0)) return;
+    fg = f0;
+    float gap = FOOTPRINT_GAP * s->rad[0], as = s->attach_s, good = NAN;
+    /* Past this many placed siblings a slot is rarely found and the search
+     * costs their number squared (4,000 twigs off one node: minutes). */
+    int crowd = placed[s->parent] > FOOTPRINT_MAX_SIBLINGS;
     /* Moving the start turns the first segment, which moves the footprint:
-     * a few rounds settle it. */
-    for (int round = 0; round < 4; round++) {
-        if (!footprint_at(p, s, as, &f) || f.lo > f.hi) return;
+     * a few rounds settle it, and the last place found clear on the tube
+     * (judged by its own footprint) is kept. */
+    for (int round = 0; round <= 4; round++) {
+        if (!footprint_at(p, s, as, &f) || f.lo > f.hi) break;
+        int on_tube = as >= f.lo - 0.1f * f.half && as <= f.hi + 0.1f * f.half;
+        if (on_tube && (crowd || footprint_clear(st, self, first, next, as + f.centre - f.half,
+                                                 as + f.centre + f.half, f.az, f.hw, gap)))
+            good = as, fg = f;
+        if (round == 4) break;
         /* The nearest clear place: the end-fitted one, or just before or
          * after a sibling's footprint. */
         float fitted = s->attach_s < f.lo ? f.lo : s->attach_s > f.hi ? f.hi : s->attach_s, to = fitted;
-        if (!footprint_clear(st, self, first, next, to + f.centre - f.half, to + f.centre + f.half, f.az, f.hw, gap)) {
+        if (!crowd &&
+            !footprint_clear(st, self, first, next, to + f.centre - f.half, to + f.centre + f.half, f.az, f.hw, gap)) {
             float best = INFINITY;
             for (int32_t k = first[s->parent]; k >= 0; k = next[k]) {
                 const sy_stem *o = &st->s[k];
@@ -498,23 +513,31 @@ static void fit_on_parent(sy_stems *st, int32_t self, int32_t *first, int32_t *n
                 }
             }
         }
-        if (fabsf(to - as) < 1e-5f) break;
+        if (fabsf(to - as) <= 1e-3f * f.half) break;
         as = to;
     }
-    if (as != s->attach_s) {
-        if (!footprint_at(p, s, as, &f) || sy_dot3(f.d, f0.d) < 0.866f) return; /* turned > 30 degrees */
-        float c[3], T[3], N[3], R, w[3];
-        sy_stem_frame_at(p, NULL, 0, as, c, T, N, &R);
-        for (int k = 0; k < 3; k++) w[k] = s->pts[3 + k] - c[k];
-        if (sy_dot3(w, w) < 4 * s->rad[0] * s->rad[0]) return;
-        memcpy(s->pts, c, sizeof c);
-        s->attach_s = as;
-    } else {
-        f = f0;
+    /* Where no place was judged clear, the last one tried still welds
+     * more often than not (the footprint is a bound, not the ring). */
+    if (isnan(good)) {
+        if (footprint_at(p, s, as, &fg)) good = as;
+        else good = s->attach_s, fg = f0;
     }
-    s->fp_lo = as + f.centre - f.half, s->fp_hi = as + f.centre + f.half;
-    s->fp_az = f.az, s->fp_hw = f.hw, s->fp_set = 1;
+    if (good != s->attach_s) {
+        float c[3], T[3], N[3], R, w[3];
+        sy_stem_frame_at(p, NULL, 0, good, c, T, N, &R);
+        for (int k = 0; k < 3; k++) w[k] = s->pts[3 + k] - c[k];
+        float r = s->rad[0];
+        if (sy_dot3(fg.d, f0.d) >= 0.866f && sy_dot3(w, w) >= 4 * r * r) { /* turned < 30 degrees */
+            memcpy(s->pts, c, sizeof c);
+            s->attach_s = good;
+        } else {
+            good = s->attach_s, fg = f0;
+        }
+    }
+    s->fp_lo = good + fg.centre - fg.half, s->fp_hi = good + fg.centre + fg.half;
+    s->fp_az = fg.az, s->fp_hw = fg.hw, s->fp_set = 1;
     next[self] = first[s->parent], first[s->parent] = self;
+    placed[s->parent]++;
 }
 
 /* A child whose first point lies within the start its parent lost inside
@@ -691,12 +714,13 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
     st->trunk_radius = sk->radius[st->s[st->root].nodes[0]];
     st->ground = sk->pos[3 * st->s[st->root].nodes[0] + 2];
     /* Each stem's children placed so far (fit_on_parent). */
-    int32_t *first_child = malloc(2 * (st->n ? st->n : 1) * sizeof *first_child), *next_sib = first_child + st->n;
+    int32_t *first_child = malloc(3 * (st->n ? st->n : 1) * sizeof *first_child), *next_sib = first_child + st->n;
+    int32_t *placed = next_sib + st->n;
     if (!first_child) {
         sy_stems_free(st);
         return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
     }
-    for (size_t i = 0; i < st->n; i++) first_child[i] = -1;
+    for (size_t i = 0; i < st->n; i++) first_child[i] = -1, placed[i] = 0;
     for (size_t o = 0; o < st->n; o++) {
         sy_stem *s = &st->s[st->by_depth[o]];
         int32_t *node_pt = malloc(s->n_nodes * sizeof *node_pt);
@@ -717,7 +741,7 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
         if (s->parent >= 0 && st->s[s->parent].has_geometry && s->n_pts >= 2 && node_pt[0] == 1 &&
             attach_on_parent(&st->s[s->parent], s))
             for (size_t i = 0; i < s->n_nodes; i++) node_pt[i] = node_pt[i] > 0 ? node_pt[i] - 1 : 0;
-        if (s->parent >= 0 && st->s[s->parent].has_geometry) fit_on_parent(st, st->by_depth[o], first_child, next_sib);
+        if (s->parent >= 0 && st->s[s->parent].has_geometry) fit_on_parent(st, st->by_depth[o], first_child, next_sib, placed);
         if (s->n_pts >= 2) {
             if (!sample_curve(s, opt, st->ground)) {
                 free(node_pt), free(first_child);

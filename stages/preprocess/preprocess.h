@@ -30,6 +30,9 @@ typedef struct {
     int sor;                 /* statistical outlier removal on/off */
     int sor_k;
     double sor_std;
+    int keep_top;            /* 1: the crown's top the outlier filter strips is kept (default);
+                                0: dropped, only measured (top_z): `sylva run` reconstructs from
+                                the filtered points and takes the height to top_z */
     int ground;              /* ground classification on/off */
     double ground_cell;      /* metres */
     double ground_slope;     /* rise over run the terrain may have */
@@ -60,9 +63,10 @@ typedef struct {
     int up_axis;         /* the axis the input had as up (signed code) */
     int up_detected;     /* 1 when auto detection chose it */
     size_t ground_points;
-    double top_z;        /* world z of the highest point with at least 3 others within 0.5 m, taken
-                            before the outlier filter (which strips a sparse crown top); NaN: none,
-                            or the filter is off */
+    double top_z;        /* world z of the crown's top, taken before the outlier filter (which
+                            strips a sparse crown top): the highest point with at least 3 others
+                            within 0.5 m, then on up through returns each within 1 m of one below
+                            it; NaN: none, or the filter is off */
 } sy_preprocess_result;
 
 /* Runs the enabled steps on c in place. */
@@ -105,6 +109,12 @@ double sy_voxel_finest(const sy_cloud *c);
 
 /* Removes statistical outliers (PCL). */
 sy_code sy_remove_outliers(sy_cloud *c, int k, double std_mul, sy_error *err);
+/* The same, giving back the crown's top the filter strips: dropped points
+ * above every kept one, up to top_z (world z, NaN: none), are kept when
+ * chained (c->n flags, may be NULL: the chain to the top, sy_preprocess)
+ * or with 3 others within 0.5 m; *given counts them. */
+sy_code sy_remove_outliers_keeping_top(sy_cloud *c, int k, double std_mul, double top_z, const uint8_t *chained,
+                                       size_t *given, sy_error *err);
 
 /* Classifies ground (class 2, other points keep their class or get 1 =
  * unclassified when the cloud had none) and fills the attribute
