@@ -589,19 +589,27 @@ static void branches_sit_on_a_lobed_trunk(void **state)
     sy_leaves_free(&lv);
 }
 
+/* A trunk of nine nodes half a metre apart, bent sideways by bend
+ * sin(0.6 z), radius r0 - dr i at node i; node[i] receives node i's id. */
+static void add_trunk(sy_skeleton *s, float bend, float r0, float dr, int32_t node[9])
+{
+    sy_error err;
+    int32_t prev = -1;
+    for (int i = 0; i <= 8; i++) {
+        float z = (float)i * 0.5f, p[3] = {bend * sinf(z * 0.6f), 0, z};
+        node[i] = prev = sy_skeleton_add(s, p, r0 - dr * (float)i, prev, 0, 0, &err);
+    }
+}
+
 static void bent_trunk_branches_sit_on_the_parent(void **state)
 {
     (void)state;
     sy_skeleton s;
     sy_error err;
     memset(&s, 0, sizeof s);
-    int32_t prev = -1, n3 = -1, n6 = -1;
-    for (int i = 0; i <= 8; i++) {
-        float z = (float)i * 0.5f, p[3] = {0.3f * sinf(z * 0.6f), 0, z};
-        prev = sy_skeleton_add(&s, p, 0.15f - 0.015f * (float)i, prev, 0, 0, &err);
-        if (i == 3) n3 = prev;
-        if (i == 6) n6 = prev;
-    }
+    int32_t trunk[9];
+    add_trunk(&s, 0.3f, 0.15f, 0.015f, trunk);
+    int32_t prev, n3 = trunk[3], n6 = trunk[6];
     /* branch 1 towards +Y (input), branch 2 towards -X, upward */
     prev = n3;
     for (int i = 1; i <= 4; i++) {
@@ -646,12 +654,9 @@ static void whorl_welds_as_a_band(void **state)
     sy_skeleton s;
     sy_error err;
     memset(&s, 0, sizeof s);
-    int32_t prev = -1, at = -1;
-    for (int i = 0; i <= 8; i++) {
-        float p[3] = {0, 0, 0.5f * (float)i};
-        prev = sy_skeleton_add(&s, p, 0.2f - 0.01f * (float)i, prev, 0, 0, &err);
-        if (i == 4) at = prev;
-    }
+    int32_t trunk[9];
+    add_trunk(&s, 0, 0.2f, 0.01f, trunk);
+    int32_t prev, at = trunk[4];
     static const float azimuth_deg[4] = {20, 106, 198, 288};
     for (int k = 0; k < 4; k++) {
         float az = azimuth_deg[k] * 0.01745329f, r = 0.59f * s.radius[at];
@@ -692,13 +697,9 @@ static void crowded_and_tip_children_slide_to_weld(void **state)
     sy_skeleton s;
     sy_error err;
     memset(&s, 0, sizeof s);
-    int32_t prev = -1, low = -1, mid = -1;
-    for (int i = 0; i <= 8; i++) {
-        float p[3] = {0, 0, 0.5f * (float)i};
-        prev = sy_skeleton_add(&s, p, 0.2f - 0.01f * (float)i, prev, 0, 0, &err);
-        if (i == 2) low = prev;
-        if (i == 4) mid = prev;
-    }
+    int32_t trunk[9];
+    add_trunk(&s, 0, 0.2f, 0.01f, trunk);
+    int32_t prev, low = trunk[2], mid = trunk[4];
     /* The limb along +x, its end forking. */
     prev = mid;
     for (int i = 1; i <= 4; i++) {
