@@ -515,8 +515,8 @@ static double crown_top(const sy_cloud *c, double reach, size_t company, double 
 /* The statistical filter's keep mask, with the crown's top given back: a
  * point it dropped above every point it kept, up to top_z (world;
  * crown_top), is kept when it has `company` others within `reach`, and so
- * is every point of the chain to that top. A sparse top is the tree; a stray stays
- * dropped. `sylva preprocess` wrote files 0.8-2.3 m short of their tops
+ * is every point of the chain to that top. A sparse top is the tree; a
+ * stray stays dropped. `sylva preprocess` wrote files 0.8-2.3 m short of their tops
  * (simulated black oak, London plane, beech at 100k points: -9.9, -10.1 and
  * -14.7 % of their true heights, against -5.0, -5.0 and -5.8 % for the
  * highest return of all), so a tree measured from a preprocessed file came
