@@ -589,11 +589,13 @@ static void branches_sit_on_a_lobed_trunk(void **state)
     sy_leaves_free(&lv);
 }
 
-/* A trunk of nine nodes half a metre apart, bent sideways by bend
- * sin(0.6 z), radius r0 - dr i at node i; node[i] receives node i's id. */
+/* A new skeleton s of a trunk of nine nodes half a metre apart, bent
+ * sideways by bend sin(0.6 z), radius r0 - dr i at node i; node[i]
+ * receives node i's id. */
 static void add_trunk(sy_skeleton *s, float bend, float r0, float dr, int32_t node[9])
 {
     sy_error err;
+    memset(s, 0, sizeof *s);
     int32_t prev = -1;
     for (int i = 0; i <= 8; i++) {
         float z = (float)i * 0.5f, p[3] = {bend * sinf(z * 0.6f), 0, z};
@@ -606,7 +608,6 @@ static void bent_trunk_branches_sit_on_the_parent(void **state)
     (void)state;
     sy_skeleton s;
     sy_error err;
-    memset(&s, 0, sizeof s);
     int32_t trunk[9];
     add_trunk(&s, 0.3f, 0.15f, 0.015f, trunk);
     int32_t prev, n3 = trunk[3], n6 = trunk[6];
@@ -653,7 +654,6 @@ static void whorl_welds_as_a_band(void **state)
     (void)state;
     sy_skeleton s;
     sy_error err;
-    memset(&s, 0, sizeof s);
     int32_t trunk[9];
     add_trunk(&s, 0, 0.2f, 0.01f, trunk);
     int32_t prev, at = trunk[4];
@@ -696,7 +696,6 @@ static void crowded_and_tip_children_slide_to_weld(void **state)
     (void)state;
     sy_skeleton s;
     sy_error err;
-    memset(&s, 0, sizeof s);
     int32_t trunk[9];
     add_trunk(&s, 0, 0.2f, 0.01f, trunk);
     int32_t prev, low = trunk[2], mid = trunk[4];

@@ -87,9 +87,8 @@ typedef struct {
     int has_children;    /* some stem attaches to it: keeps at least 6 ring vertices */
     /* Where the base ring lands on the parent (fit_on_parent in stems.c):
      * arc lengths fp_lo..fp_hi, azimuth fp_az +- fp_hw about the parent's
-     * frame normal; fp_set once placed. */
+     * frame normal. */
     float fp_lo, fp_hi, fp_az, fp_hw;
-    int fp_set;
     /* Weber-Penn lobes of an order-0 stem of a grown tree (sy_skeleton.lobes),
      * 0 / 0 otherwise: rings have radius R (1 + lobe_depth sin(lobes theta)). */
     int lobes;
@@ -180,6 +179,8 @@ sy_code sy_bark_mesh_welds(const sy_stems *st, const sy_lod_params *lp, int mate
 /* Triangles smaller than this (m^2, 0.005 mm^2: issue 19's near-degenerate
  * sliver) are flipped away where an edge flip can. */
 #define SY_BARK_MIN_AREA 5e-9
+/* Area of the triangle a, b, c (positions), in double. */
+double sy_tri_area(const float *a, const float *b, const float *c);
 /* Flips the edges of m's triangles under min_area into the neighbour across
  * them where both new triangles face as the pair did and reach min_area;
  * positions, normals, UVs and wind are untouched, the mesh stays closed.

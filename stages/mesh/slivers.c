@@ -21,12 +21,14 @@ static void tri_cross(const float *a, const float *b, const float *c, double n[3
     sy_v3_cross(n, e1, e2);
 }
 
-static double tri_area(const sy_mesh *m, size_t t)
+double sy_tri_area(const float *a, const float *b, const float *c)
 {
     double n[3];
-    tri_cross(corner(m, t, 0), corner(m, t, 1), corner(m, t, 2), n);
+    tri_cross(a, b, c, n);
     return 0.5 * sy_v3_len(n);
 }
+
+static double tri_area(const sy_mesh *m, size_t t) { return sy_tri_area(corner(m, t, 0), corner(m, t, 1), corner(m, t, 2)); }
 
 static int same_pos(const sy_mesh *m, uint32_t i, uint32_t j)
 {

@@ -465,9 +465,10 @@ static int footprint_at(const sy_stem *p, const sy_stem *s, float as, footprint 
  * can, until its footprint fits on the tube and clears the siblings placed
  * before it: its axis leaves a parent of radius R, at angle th to it, R cot
  * th farther along, and the ring of radius r lands within r / sin th of
- * there (1.25 times that kept clear) and asin(r / R) of its azimuth. Children within 25 degrees of the
- * parent's axis (continuations, carried through by
- * sy_skeleton_continuations), parents too short for the footprint, and
+ * there (1.25 times that kept clear) and asin(r / R) of its azimuth.
+ * Children within 25 degrees of the parent's axis (continuations, carried
+ * through by sy_skeleton_continuations), parents too short for the
+ * footprint, and
  * slides that would turn the child's first segment by more than 30 degrees
  * keep their place. Moving the start turns the first segment, which moves
  * the footprint: the fit is repeated, four rounds at most. Records the
@@ -535,7 +536,7 @@ static void fit_on_parent(sy_stems *st, int32_t self, int32_t *first, int32_t *n
         }
     }
     s->fp_lo = good + fg.centre - fg.half, s->fp_hi = good + fg.centre + fg.half;
-    s->fp_az = fg.az, s->fp_hw = fg.hw, s->fp_set = 1;
+    s->fp_az = fg.az, s->fp_hw = fg.hw;
     next[self] = first[s->parent], first[s->parent] = self;
     placed[s->parent]++;
 }
@@ -741,7 +742,8 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
         if (s->parent >= 0 && st->s[s->parent].has_geometry && s->n_pts >= 2 && node_pt[0] == 1 &&
             attach_on_parent(&st->s[s->parent], s))
             for (size_t i = 0; i < s->n_nodes; i++) node_pt[i] = node_pt[i] > 0 ? node_pt[i] - 1 : 0;
-        if (s->parent >= 0 && st->s[s->parent].has_geometry) fit_on_parent(st, st->by_depth[o], first_child, next_sib, placed);
+        if (s->parent >= 0 && st->s[s->parent].has_geometry)
+            fit_on_parent(st, st->by_depth[o], first_child, next_sib, placed);
         if (s->n_pts >= 2) {
             if (!sample_curve(s, opt, st->ground)) {
                 free(node_pt), free(first_child);

@@ -7,7 +7,6 @@
 #include <string.h>
 
 #include "mesh_internal.h"
-#include "stages/core/vec3.h"
 
 #define SY_PI 3.14159265358979323846f
 
@@ -1492,14 +1491,10 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
      * a parent row line) that no edge flip can mend (sy_mesh_flip_degenerates
      * flips within the bark, not across a strip's copies) leaves the
      * junction capped: a weld may not cost a degenerate triangle. */
-    for (size_t f = 0; f < t; f++) {
-        const float *a = strip_pos(m, &sp, extra[3 * f]), *b = strip_pos(m, &sp, extra[3 * f + 1]);
-        const float *c = strip_pos(m, &sp, extra[3 * f + 2]);
-        double e1[3], e2[3], n[3];
-        for (int k = 0; k < 3; k++) e1[k] = (double)b[k] - a[k], e2[k] = (double)c[k] - a[k];
-        sy_v3_cross(n, e1, e2);
-        if (0.5 * sy_v3_len(n) < SY_BARK_MIN_AREA) return 0;
-    }
+    for (size_t f = 0; f < t; f++)
+        if (sy_tri_area(strip_pos(m, &sp, extra[3 * f]), strip_pos(m, &sp, extra[3 * f + 1]),
+                        strip_pos(m, &sp, extra[3 * f + 2])) < SY_BARK_MIN_AREA)
+            return 0;
     /* A ring's last vertex pairs with its seam copy, not with vertex 0. */
     for (size_t f = 0; f < t; f++)
         for (size_t k = 0; k < ng; k++) {

@@ -449,12 +449,15 @@ static int cmp_z_down(const void *a, const void *b)
 
 static double z_dist(const z_point *a, const z_point *b) { return hypot(hypot(a->x - b->x, a->y - b->y), a->z - b->z); }
 
-/* Has p[i] (sorted by z, highest first) `company` others within `reach`? */
-static int has_company(const z_point *p, size_t n, size_t i, double reach, size_t company)
+/* Has p[i] (sorted by z, highest first) `company` others within `reach`?
+ * With mark (flags by cloud index), every one of them is marked. */
+static int has_company(const z_point *p, size_t n, size_t i, double reach, size_t company, uint8_t *mark)
 {
-    size_t k = 0;
-    for (size_t j = i; j-- > 0 && p[j].z - p[i].z <= reach && k < company;) k += z_dist(&p[j], &p[i]) <= reach;
-    for (size_t j = i + 1; j < n && p[i].z - p[j].z <= reach && k < company; j++) k += z_dist(&p[j], &p[i]) <= reach;
+    size_t k = 0, all = mark ? n : company;
+    for (size_t j = i; j-- > 0 && p[j].z - p[i].z <= reach && k < all;)
+        if (z_dist(&p[j], &p[i]) <= reach && ++k && mark) mark[p[j].i] = 1;
+    for (size_t j = i + 1; j < n && p[i].z - p[j].z <= reach && k < all; j++)
+        if (z_dist(&p[j], &p[i]) <= reach && ++k && mark) mark[p[j].i] = 1;
     return k >= company;
 }
 
@@ -485,20 +488,14 @@ static double crown_top(const sy_cloud *c, double reach, size_t company, double 
     qsort(p, c->n, sizeof *p, cmp_z_down);
     size_t top = c->n;
     for (size_t i = 0; i < c->n && top == c->n; i++)
-        if (has_company(p, c->n, i, reach, company)) top = i;
+        if (has_company(p, c->n, i, reach, company, NULL)) top = i;
     /* Upward from the supported top: everything at or below it counts as
      * the tree's. */
     for (size_t i = top; i < c->n; i++) tree[i] = 1;
     /* chained: the supported top with its company, each point the chain
      * takes and the point it links to, so that the same top stands in
      * the output for a second pass to find (`run` on a preprocessed file). */
-    if (chained && top < c->n) {
-        chained[p[top].i] = 1;
-        for (size_t j = top; j-- > 0 && p[j].z - p[top].z <= reach;)
-            if (z_dist(&p[j], &p[top]) <= reach) chained[p[j].i] = 1;
-        for (size_t j = top + 1; j < c->n && p[top].z - p[j].z <= reach; j++)
-            if (z_dist(&p[j], &p[top]) <= reach) chained[p[j].i] = 1;
-    }
+    if (chained && top < c->n) chained[p[top].i] = 1, has_company(p, c->n, top, reach, company, chained);
     size_t highest = top;
     for (size_t j = top < c->n ? top : 0; j-- > 0;)
         for (size_t k = j + 1; k < c->n && p[j].z - p[k].z <= link; k++)
@@ -532,11 +529,8 @@ static size_t keep_crown_top(const sy_cloud *c, uint8_t *keep, double top_z, con
     /* The chain whole, its stepping stones below the kept top too: without
      * them a second pass (`run` on a preprocessed file) found no chain. */
     for (size_t i = 0; chained && i < c->n; i++)
-        if (chained[i] && !keep[i]) keep[i] = 2, given++;
-    if (!(top > kept_max)) {
-        for (size_t i = 0; i < c->n; i++) keep[i] = keep[i] != 0;
-        return given;
-    }
+        if (chained[i] && !keep[i]) keep[i] = 1, given++;
+    if (!(top > kept_max)) return given;
     /* Company of a point above kept_max lies above kept_max - reach. */
     size_t n = 0;
     for (size_t i = 0; i < c->n; i++) n += c->xyz[3 * i + 2] >= kept_max - (float)reach;
@@ -549,9 +543,8 @@ static size_t keep_crown_top(const sy_cloud *c, uint8_t *keep, double top_z, con
     for (size_t a = 0; a < n; a++) {
         size_t i = p[a].i;
         if (keep[i] || !(p[a].z > kept_max) || p[a].z > top + 1e-3f) continue;
-        if (has_company(p, n, a, reach, company)) keep[i] = 2, given++;
+        if (has_company(p, n, a, reach, company, NULL)) keep[i] = 1, given++;
     }
-    for (size_t i = 0; i < c->n; i++) keep[i] = keep[i] != 0;
     free(p);
     return given;
 }
@@ -1158,15 +1151,16 @@ sy_code sy_preprocess(sy_cloud *c, const sy_preprocess_options *o, sy_preprocess
     step_end(s, c->n);
 
     /* Only the outlier filter strips a top: without it the output's highest point is the top. */
-    uint8_t *chained = rc == SY_OK && o->sor ? calloc(c->n ? c->n : 1, 1) : NULL;
-    if (rc == SY_OK && o->sor && !chained) rc = sy_fail(err, SY_EINTERNAL, "preprocess: out of memory");
-    r->top_z = chained ? crown_top(c, 0.5, 3, 1.0, chained) : NAN;
+    /* The chain to it is kept only with keep_top. */
+    uint8_t *chained = rc == SY_OK && o->sor && o->keep_top ? calloc(c->n ? c->n : 1, 1) : NULL;
+    if (rc == SY_OK && o->sor && o->keep_top && !chained) rc = sy_fail(err, SY_EINTERNAL, "preprocess: out of memory");
+    r->top_z = rc == SY_OK && o->sor ? crown_top(c, 0.5, 3, 1.0, chained) : NAN;
     s = step_begin(r, 3, "outliers", o->sor, c->n);
     if (rc == SY_OK && o->sor) {
         sy_progress_begin(&p, "outliers", c->n);
         size_t given = 0;
-        rc = sy_remove_outliers_keeping_top(c, o->sor_k, o->sor_std, o->keep_top ? r->top_z : NAN,
-                                            o->keep_top ? chained : NULL, &given, err);
+        rc = sy_remove_outliers_keeping_top(c, o->sor_k, o->sor_std, o->keep_top ? r->top_z : NAN, chained, &given,
+                                            err);
         if (rc == SY_OK) sy_progress_end(&p);
         snprintf(s->detail, sizeof s->detail, "k %d, %g standard deviations; %zu points of the crown's top kept",
                  o->sor_k, o->sor_std, given);

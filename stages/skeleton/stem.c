@@ -353,11 +353,10 @@ sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int
      * moved every slab's bounds, and the simulated sassafras flipped from
      * a kept stem to a rebuilt one (DBH 0.68 -> 0.40 m) over one return
      * 3 cm above the rest. */
-    float *zs = malloc(n * sizeof *zs);
+    double *zs = malloc(n * sizeof *zs);
     if (!zs) return sy_fail(err, SY_EINTERNAL, "skeleton: out of memory");
     for (size_t i = 0; i < n; i++) zs[i] = xyz[3 * i + 2];
-    qsort(zs, n, sizeof *zs, sy_cmp_float);
-    double z0 = s->pos[2], ztop = fmax(z0, zs[n - 1 - n / 2000]);
+    double z0 = s->pos[2], ztop = fmax(z0, sy_select_double(zs, n, n - 1 - n / 2000));
     free(zs);
     double H = ztop - z0;
     if (!(H > 2.0)) return SY_OK;
