@@ -1210,7 +1210,7 @@ static void strip_verts_free(strip_verts *vb)
 }
 
 static int strip_copies(const sy_stems *st, const int32_t *g, size_t ng, const sy_lod_params *lp, const sy_mesh *m,
-                        const size_t *vo, const sy_stem *ps, const int32_t *pidx, size_t np, float s_mid, float arc,
+                        const size_t *vo, const sy_stem *ps, const int32_t *pidx, size_t np, float arc,
                         int P, const weld_pt *pts, size_t n_pts, const weld_steiner *sp, uint32_t *tri, size_t t,
                         strip_verts *vb)
 {
@@ -1266,7 +1266,6 @@ static int strip_copies(const sy_stems *st, const int32_t *g, size_t ng, const s
         }
         tri[f] = made[i];
     }
-    (void)s_mid;
     free(made);
     return 1;
 }
@@ -1343,14 +1342,36 @@ static void unfold_flips(uint32_t *tri, size_t t, const weld_pt *pts, size_t n, 
     }
 }
 
+/* A group's strip as weld_group found it, kept until it is drawn: its
+ * triangles (vertex ids), plane points and Steiner points, and the
+ * parent's column arc. The greedy grouping (weld_junctions) tries every
+ * group before it draws any; drawing the kept strip instead of welding the
+ * group a second time halves the welds' cost, with the same bytes. */
+typedef struct {
+    uint32_t *tri;
+    size_t t;
+    weld_pt *pts;
+    size_t n_pts;
+    weld_steiner sp;
+    float arc;
+} weld_strip;
+
+static void weld_strip_free(weld_strip *w)
+{
+    if (!w) return;
+    free(w->tri), free(w->pts);
+    free(w);
+}
+
 /* Welds the group of children g[0..ng) of one parent into the parent's
- * quads [q0, q1] x [c0, c1] (columns unwrapped about the rectangle): cuts them (marked in cut; NULL
- * only tries) and writes the strip to extra. Returns the strip's triangles, 0 when the rings do
- * not fit (crossing rings, a ring that winds the wrong way, a fold). */
+ * quads [q0, q1] x [c0, c1] (columns unwrapped about the rectangle): writes the strip to
+ * extra and, with keep, a copy of it for weld_emit (NULL when out of memory). Returns the
+ * strip's triangles, 0 when the rings do not fit (crossing rings, a ring that winds the wrong
+ * way, a fold). */
 static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q0, long q1, int c0, int c1,
-                         const int *seam, const sy_lod_params *lp, const sy_mesh *m, const size_t *vo, const size_t *io,
-                         uint8_t *cut, uint32_t *extra, size_t extra_cap, int32_t *pidx, weld_pt *scratch,
-                         size_t scratch_cap, strip_verts *vb)
+                         const int *seam, const sy_lod_params *lp, const sy_mesh *m, const size_t *vo,
+                         uint32_t *extra, size_t extra_cap, int32_t *pidx, weld_pt *scratch, size_t scratch_cap,
+                         weld_strip **keep)
 {
     size_t p = (size_t)st->s[g[0]].parent;
     const sy_stem *ps = &st->s[p];
@@ -1504,15 +1525,43 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
                 for (int c = 0; c < 3; c++)
                     if (x[c] == r0) x[c] = r0 + (uint32_t)hn[k];
         }
-    if (vb && !strip_copies(st, g, ng, lp, m, vo, ps, pidx, np, s_mid, arc, P, pts, n_all, &sp, extra, t, vb)) return 0;
-    if (cut)
-        for (long r = q0; r <= q1; r++)
-            for (int j = c0; j <= c1; j++) {
-                size_t q = quad_tri(io, p, P, r, j, 0);
-                cut[q] = cut[q + 1] = 1;
-            }
+    if (keep) {
+        weld_strip *w = calloc(1, sizeof *w);
+        if (w) w->tri = malloc(3 * t * sizeof *w->tri), w->pts = malloc(n_all * sizeof *w->pts);
+        if (w && w->tri && w->pts) {
+            memcpy(w->tri, extra, 3 * t * sizeof *w->tri), memcpy(w->pts, pts, n_all * sizeof *w->pts);
+            w->t = t, w->n_pts = n_all, w->sp = sp, w->arc = arc;
+        } else {
+            weld_strip_free(w), w = NULL;
+        }
+        *keep = w;
+    }
 #undef SEAM
     return t;
+}
+
+/* Draws a kept strip of the group g[0..ng) welded into the parent's quads
+ * [q0, q1] x [c0, c1]: the strip's own vertex copies (into vb, its
+ * triangles into extra) and the parent's quads it replaces (cut). Returns
+ * the strip's triangles, 0 when out of memory. */
+static size_t weld_emit(const sy_stems *st, const int32_t *g, size_t ng, long q0, long q1, int c0, int c1,
+                        const sy_lod_params *lp, const sy_mesh *m, const size_t *vo, const size_t *io, uint8_t *cut,
+                        const weld_strip *w, uint32_t *extra, size_t extra_cap, int32_t *pidx, strip_verts *vb)
+{
+    size_t p = (size_t)st->s[g[0]].parent;
+    const sy_stem *ps = &st->s[p];
+    int P = sy_stem_radial(ps, lp);
+    size_t np = sy_stem_rings(ps, lp, pidx);
+    if (3 * w->t > extra_cap) return 0;
+    memcpy(extra, w->tri, 3 * w->t * sizeof *extra);
+    if (!strip_copies(st, g, ng, lp, m, vo, ps, pidx, np, w->arc, P, w->pts, w->n_pts, &w->sp, extra, w->t, vb))
+        return 0;
+    for (long r = q0; r <= q1; r++)
+        for (int j = c0; j <= c1; j++) {
+            size_t q = quad_tri(io, p, P, r, j, 0);
+            cut[q] = cut[q + 1] = 1;
+        }
+    return w->t;
 }
 
 /* Closes a ring that could not be welded with a low cone facing into the
@@ -1700,13 +1749,14 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
     weld_rect *rect = malloc(nj * sizeof *rect);
     weld_rect *box = malloc(nj * sizeof *box);
     int *group = malloc(nj * sizeof *group), *weld_joined = malloc(nj * sizeof *weld_joined);
+    weld_strip **kept = calloc(nj, sizeof *kept); /* per group (by its last child): its strip */
     uint8_t *cut = calloc(nt + 1, 1);
     uint32_t *extra = malloc(extra_cap * sizeof *extra), *strips = NULL;
     weld_pt *scratch = malloc(scratch_cap * sizeof *scratch);
     size_t n_strips = 0, cap_strips = 0;
     strip_verts vb = {0, 0, (uint32_t)out->n_vertices, NULL, NULL, NULL, NULL, NULL, NULL};
     sy_code rc = SY_OK;
-    if (!jobs || !rect || !box || !group || !weld_joined || !cut || !extra || !scratch) {
+    if (!jobs || !rect || !box || !group || !weld_joined || !kept || !cut || !extra || !scratch) {
         rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
         goto done;
     }
@@ -1777,18 +1827,30 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
                             }
                     }
                 }
+                /* In the children's order, as the group is drawn below. */
+                for (size_t x = 1; x < ng && x < WELD_MAX_GROUP; x++)
+                    for (size_t y = x; y > 0 && member_job[y] < member_job[y - 1]; y--) {
+                        size_t tj = member_job[y];
+                        int32_t tm = members[y];
+                        member_job[y] = member_job[y - 1], members[y] = members[y - 1];
+                        member_job[y - 1] = tj, members[y - 1] = tm;
+                    }
                 int band = ok && ng <= WELD_MAX_GROUP && u.c1 - u.c0 + 1 > P - 1;
                 if (band) ok = band_seam(rect, member_job, ng, P, &u, seam);
                 ok = ok && ng <= WELD_MAX_GROUP && u.c1 - u.c0 + 1 <= P && u.q1 <= (long)np - 2 &&
                      2 * ((size_t)(u.q1 - u.q0 + 1) + (size_t)(u.c1 - u.c0 + 1)) <= WELD_MAX_LOOP;
+                weld_strip *w = NULL;
                 if (ok)
-                    ok = weld_group(st, members, ng, u.q0, u.q1, u.c0, u.c1, band ? seam : NULL, lp, out, vo, io, NULL,
-                                    extra, extra_cap, idx, scratch, scratch_cap, NULL) > 0;
+                    ok = weld_group(st, members, ng, u.q0, u.q1, u.c0, u.c1, band ? seam : NULL, lp, out, vo, extra,
+                                    extra_cap, idx, scratch, scratch_cap, &w) > 0;
                 if (ok) {
+                    for (size_t k = a; k < j; k++)
+                        if (group[k] == (int)k && joined[k - a]) weld_strip_free(kept[k]), kept[k] = NULL;
                     for (size_t k = a; k < j; k++)
                         if (group[k] >= 0 && joined[group[k] - (int)a]) group[k] = (int)j;
                     group[j] = (int)j;
                     box[j] = u;
+                    kept[j] = w;
                 }
             }
             if (!ok) {
@@ -1805,11 +1867,10 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
             weld_rect u = box[j];
             size_t ng = 0;
             for (size_t k = a; k < b; k++)
-                if (group[k] == (int)j) member_job[ng] = k, members[ng++] = jobs[k].stem;
-            /* A band's seam again, as its trial found it. */
-            int band = u.c1 - u.c0 + 1 == P && band_seam(rect, member_job, ng, P, &u, seam);
-            size_t t = weld_group(st, members, ng, u.q0, u.q1, u.c0, u.c1, band ? seam : NULL, lp, out, vo, io, cut,
-                                  extra, extra_cap, idx, scratch, scratch_cap, &vb);
+                if (group[k] == (int)j) members[ng++] = jobs[k].stem;
+            size_t t = kept[j] ? weld_emit(st, members, ng, u.q0, u.q1, u.c0, u.c1, lp, out, vo, io, cut, kept[j],
+                                           extra, extra_cap, idx, &vb)
+                               : 0;
             *n_welded += ng;
             if (!t || !append_strip(&strips, &n_strips, &cap_strips, extra, t)) {
                 rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
@@ -1854,6 +1915,8 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
     }
 done:
     strip_verts_free(&vb);
+    for (size_t j = 0; kept && j < nj; j++) weld_strip_free(kept[j]);
+    free(kept);
     free(jobs), free(rect), free(box), free(group), free(weld_joined), free(cut), free(extra), free(strips), free(scratch);
     return rc;
 }
