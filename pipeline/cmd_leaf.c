@@ -27,7 +27,7 @@
 typedef struct {
     const char *out_dir, *species_name, *library_dir, *back_lit, *flat_field, *height, *abaxial, *abaxial_back_lit,
         *abaxial_flat_field, *abaxial_height, *white, *synthetic_dir;
-    double thickness, texel, leaf_length, height_scale, white_reflectance;
+    double thickness, texel, leaf_length, height_scale, white_reflectance, tint[3];
     int size, no_orient, directions;
 } leaf_args;
 
@@ -234,6 +234,7 @@ int cmd_leaf(int argc, char **argv, sy_cli *cli)
     a.thickness = a.texel = a.leaf_length = -1;
     a.height_scale = 1, a.white_reflectance = 0.9;
     a.size = a.directions = -1;
+    a.tint[0] = a.tint[1] = a.tint[2] = -1;
     const sy_opt opts[] = {
         {"-o", OPT_STRING, &a.out_dir, "DIR", "output folder for the maps and leaf.material"},
         {"--species", OPT_STRING, &a.species_name, "NAME", "install the maps into the species library as NAME's leaf"},
@@ -254,6 +255,8 @@ int cmd_leaf(int argc, char **argv, sy_cli *cli)
         {"--size", OPT_INT, &a.size, "N", "maps are N x N texels, a power of two (default 1024)"},
         {"--directions", OPT_INT, &a.directions, "N", "light directions of the HL2 projection (default 128)"},
         {"--no-orient", OPT_FLAG, &a.no_orient, NULL, "keep the photo's orientation (default: petiole down, axis vertical)"},
+        {"--tint", OPT_DOUBLE3, a.tint, "R,G,B",
+         "recolour the front-lit photos to this mean leaf colour (sRGB 0-255), each texel keeping its luminance (an autumn photo made summer)"},
         {"--synthetic-capture", OPT_STRING, &a.synthetic_dir, "DIR",
          "write a synthetic capture set (photos, scans, truth) of --size pixels and stop"},
         {NULL, 0, NULL, NULL, NULL},
@@ -287,6 +290,7 @@ int cmd_leaf(int argc, char **argv, sy_cli *cli)
     if (size >= 0) o.size = size;
     if (directions >= 0) o.directions = directions;
     o.orient = !a.no_orient;
+    if (a.tint[0] >= 0 || a.tint[1] >= 0 || a.tint[2] >= 0) memcpy(o.tint, a.tint, sizeof o.tint);
     o.seed = cli->seed;
     o.progress = !cli->quiet && !cli->json;
     sy_error err = {0};

@@ -388,6 +388,74 @@ static void test_real_masks(void **state)
     check_real_mask("real/eztree/ash_color.png");
 }
 
+/* --tint: the autumn aspen photo made a summer leaf. Over the leaf the
+ * albedo's mean is the tint (in linear light, within rounding of the clamp at
+ * 0.98), each texel keeps its luminance over the mean (veins and shading
+ * stay), the mask is the photo's, and the translucency derived from the
+ * albedo's hue turns green with it. A tint outside sRGB is refused. */
+static double srgb_lin(double v)
+{
+    v /= 255;
+    return v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4);
+}
+
+static float luma(const float *rgb) { return 0.2126f * rgb[0] + 0.7152f * rgb[1] + 0.0722f * rgb[2]; }
+
+static void test_tint(void **state)
+{
+    (void)state;
+    float *px;
+    int w, h, c, depth;
+    sy_error err = {0};
+    assert_int_equal(sy_lcv_read(data_path("real/eztree/aspen_color.png"), &px, &w, &h, &c, &depth, &err), SY_OK);
+    sy_fimage im = {w, h, c, px};
+    sy_leafmaps_options o = sy_leafmaps_options_default();
+    o.size = 128;
+    o.directions = 3;
+    sy_leaf_capture cap;
+    memset(&cap, 0, sizeof cap);
+    cap.side[0].reflected = &im;
+    sy_leaf_maps plain, tinted;
+    assert_int_equal(sy_leafmaps_build(&cap, &o, &plain, &err), SY_OK);
+    const double tint[3] = {96, 128, 52};
+    memcpy(o.tint, tint, sizeof tint);
+    assert_int_equal(sy_leafmaps_options_check(&o, &err), SY_OK);
+    assert_int_equal(sy_leafmaps_build(&cap, &o, &tinted, &err), SY_OK);
+    size_t n = (size_t)plain.w * plain.h, k = 0;
+    double mean[3] = {0, 0, 0}, luma_p = 0, luma_t = 0, tr_plain[3] = {0, 0, 0}, tr_tint[3] = {0, 0, 0};
+    for (size_t i = 0; i < n; i++) {
+        assert_true(plain.alpha[i] == tinted.alpha[i]);
+        if (plain.alpha[i] < 0.5f) continue;
+        k++;
+        for (int ch = 0; ch < 3; ch++) {
+            mean[ch] += tinted.albedo[0][3 * i + ch];
+            tr_plain[ch] += plain.translucency[0][3 * i + ch], tr_tint[ch] += tinted.translucency[0][3 * i + ch];
+        }
+        luma_p += luma(plain.albedo[0] + 3 * i), luma_t += luma(tinted.albedo[0] + 3 * i);
+    }
+    assert_true(k > 1000);
+    for (int ch = 0; ch < 3; ch++) assert_true(fabs(mean[ch] / (double)k - srgb_lin(tint[ch])) < 0.01);
+    /* Luminance over the mean, texel by texel. */
+    double worst = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (plain.alpha[i] < 0.5f) continue;
+        double a = luma(plain.albedo[0] + 3 * i) / (luma_p / (double)k);
+        double b = luma(tinted.albedo[0] + 3 * i) / (luma_t / (double)k);
+        if (luma(tinted.albedo[0] + 3 * i) < 0.97f && fabs(a - b) > worst) worst = fabs(a - b);
+    }
+    assert_true(worst < 1e-3);
+    /* The photo is yellow (red over green), the tinted leaf green, and its
+     * light through the leaf too. */
+    assert_true(tr_plain[0] > tr_plain[1]);
+    assert_true(tr_tint[1] > 1.2 * tr_tint[0] && tr_tint[1] > 1.2 * tr_tint[2]);
+    o.tint[1] = 300;
+    assert_int_equal(sy_leafmaps_options_check(&o, &err), SY_EUSAGE);
+    assert_non_null(strstr(err.msg, "tint"));
+    sy_leaf_maps_free(&plain);
+    sy_leaf_maps_free(&tinted);
+    free(px);
+}
+
 static void test_bad_captures(void **state)
 {
     (void)state;
@@ -429,6 +497,7 @@ int main(void)
         cmocka_unit_test(test_round_trip_transmission),
         cmocka_unit_test(test_hl2_reconstruction_energy),
         cmocka_unit_test(test_real_masks),
+        cmocka_unit_test(test_tint),
         cmocka_unit_test(test_bad_captures),
     };
     int failed = cmocka_run_group_tests(tests, NULL, NULL);

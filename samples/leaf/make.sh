@@ -6,7 +6,9 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 S=${SYLVA:-build/sylva}
 E=${SYLVA_DATA_DIR:-../shared/data}/real/eztree
-$S leaf "$E/aspen_color.png" --species quaking_aspen --size 512 --leaf-length 300
+# The aspen photo is an autumn twig: --tint makes it the summer green of the
+# other broadleaf cards (their mean albedo is about 80-92, 116-122, 47-52).
+$S leaf "$E/aspen_color.png" --species quaking_aspen --size 512 --leaf-length 300 --tint 96,128,52
 $S leaf "$E/oak_color.png" "$E/oak_leaf.png" --species black_oak --size 512 --leaf-length 400 --no-orient
 $S leaf "$E/ash_color.png" --species weeping_willow --size 512 --leaf-length 300
 $S leaf "$E/pine_color.png" --species european_pine --size 512 --leaf-length 300

@@ -78,6 +78,7 @@ sy_leafmaps_options sy_leafmaps_options_default(void)
     o.orient = 1;
     o.highlight_ratio = 1.3;
     o.relief_mm = 0.03;
+    o.tint[0] = o.tint[1] = o.tint[2] = -1;
     o.seed = 0;
     return o;
 }
@@ -109,6 +110,11 @@ sy_code sy_leafmaps_options_check(const sy_leafmaps_options *o, sy_error *err)
     if (!(o->highlight_ratio > 1 && o->highlight_ratio < 10))
         return sy_fail(err, SY_EUSAGE, "leafmaps: highlight_ratio %g is outside (1, 10)", o->highlight_ratio);
     if (!(o->relief_mm >= 0 && o->relief_mm <= 5)) return sy_fail(err, SY_EUSAGE, "leafmaps: relief_mm %g is outside [0, 5]", o->relief_mm);
+    if (o->tint[0] >= 0 || o->tint[1] >= 0 || o->tint[2] >= 0)
+        for (int c = 0; c < 3; c++)
+            if (!(o->tint[c] >= 0 && o->tint[c] <= 255))
+                return sy_fail(err, SY_EUSAGE, "leafmaps: tint %g,%g,%g is not an sRGB colour in 0..255", o->tint[0],
+                               o->tint[1], o->tint[2]);
     return SY_OK;
 }
 
@@ -153,6 +159,37 @@ static void affine_compose(const double A[6], const double B[6], double out[6]) 
     r[4] = A[3] * B[1] + A[4] * B[4];
     r[5] = A[3] * B[2] + A[4] * B[5] + A[5];
     memcpy(out, r, sizeof r);
+}
+
+/* An sRGB value in 0..255 as linear 0..1 (IEC 61966-2-1). */
+static double srgb_to_linear(double v)
+{
+    v /= 255;
+    return v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4);
+}
+
+/* Recolours the albedo (linear RGB, n texels) to the mean colour tint (sRGB
+ * 0..255) over the leaf (alpha >= 0.5): each texel is the tint times its
+ * luminance over the leaf's mean luminance, so veins, shading and the
+ * petiole keep their contrast (species/materials.c's bark_color, in linear
+ * light). Texels outside the leaf are left as they are. */
+static void tint_albedo(float *rgb, const float *alpha, size_t n, const double tint[3])
+{
+    double sum = 0;
+    size_t k = 0;
+    for (size_t i = 0; i < n; i++)
+        if (alpha[i] >= 0.5f) sum += sy_leaf_luma(rgb + 3 * i), k++;
+    if (k == 0 || !(sum > 0)) return;
+    double mean = sum / (double)k, lin[3];
+    for (int c = 0; c < 3; c++) lin[c] = srgb_to_linear(tint[c]);
+    for (size_t i = 0; i < n; i++) {
+        if (alpha[i] < 0.5f) continue;
+        double l = sy_leaf_luma(rgb + 3 * i) / mean;
+        for (int c = 0; c < 3; c++) {
+            double v = lin[c] * l;
+            rgb[3 * i + c] = (float)(v > 0.98 ? 0.98 : v);
+        }
+    }
 }
 
 /* ---------------------------------------------------------- segmentation */
@@ -1076,6 +1113,7 @@ static sy_code build(const sy_leaf_capture *cap, const sy_leafmaps_options *o, s
                 m->albedo[s][3 * i + ch] = (float)(v < 0 ? 0 : v > 0.98 ? 0.98 : v);
             }
         rc = remove_highlights(m->albedo[s], m->alpha, size, o->highlight_ratio, err);
+        if (!rc && o->tint[0] >= 0) tint_albedo(m->albedo[s], m->alpha, n, o->tint);
     }
     for (int s = 0; !rc && s < 2; s++) {
         if (!ratio[s].px) continue;

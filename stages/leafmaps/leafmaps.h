@@ -75,6 +75,10 @@ typedef struct {
     int orient;         /* 1: main axis vertical, petiole down */
     double highlight_ratio; /* luminance over the local median that marks a highlight */
     double relief_mm;   /* amplitude of the luminance detail in derived heights */
+    /* The leaf's mean colour (sRGB 0..255) the front-lit photos are
+     * recoloured to, each texel keeping its luminance over the mean: an
+     * autumn photo of a summer leaf. tint[0] < 0: as photographed. */
+    double tint[3];
     uint64_t seed;      /* jitter of the HL2 light directions */
     int progress;       /* 1: print progress lines on stderr */
 } sy_leafmaps_options;
