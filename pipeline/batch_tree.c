@@ -230,18 +230,16 @@ typedef struct {
 static sy_code score(const char *glb, const double *pts, size_t n, tree_eval *e, sy_error *err)
 {
     double *tri;
-    size_t n_tri, *hull;
-    sy_code rc = sy_gltf_read_triangles(glb, &tri, &n_tri, &hull, err);
+    size_t k;
+    sy_gltf_cutout cut;
+    sy_code rc = sy_gltf_read_surface(glb, &tri, &k, &cut, err);
     if (rc) return rc;
-    size_t k = 0;
-    for (size_t t = 0; t < n_tri; t++)
-        if (!hull[t]) memmove(tri + 9 * k++, tri + 9 * t, 9 * sizeof *tri);
-    free(hull);
     sy_eval_model m = {0};
     rc = sy_eval_model_add_mesh(&m, tri, k, 0, err);
     if (!rc) rc = sy_surface_metrics_compute(&m, pts, n, 0.02, 0.05, &e->s, err);
-    if (!rc) rc = sy_silhouette_metrics_compute(tri, k, pts, n, &e->sm, err);
+    if (!rc) rc = sy_silhouette_metrics_compute(tri, k, &cut, pts, n, &e->sm, err);
     sy_eval_model_free(&m);
+    sy_gltf_cutout_free(&cut);
     free(tri);
     e->ok = rc == SY_OK;
     return rc;

@@ -160,45 +160,32 @@ static int run_truth(const eval_args *a, const char *model_path, sy_cli *cli)
     return status;
 }
 
-static sy_code glb_triangles(const char *path, double **tri, size_t *n, sy_error *err)
-{
-    size_t n_tri = 0, *hull = NULL;
-    sy_code grc = sy_gltf_read_triangles(path, tri, &n_tri, &hull, err);
-    if (grc) return grc;
-    size_t k = 0;
-    for (size_t t = 0; t < n_tri; t++)
-        if (!hull[t]) memmove(*tri + 9 * k++, *tri + 9 * t, 9 * sizeof **tri);
-    free(hull);
-    *n = k;
-    return SY_OK;
-}
-
 /* A reference asset (SCAN given as a .glb, e.g. the true tree's own asset
- * from `sylva grow`) as points: its LOD0 surface, proxy left out, sampled
- * every 2 cm. */
+ * from `sylva grow`) as points: its drawn LOD0 surface (proxy left out,
+ * alpha-tested cards where their leaves are) every 2 cm. */
 static sy_code glb_points(const char *path, double **pts, size_t *n, sy_error *err)
 {
     double *tri;
     size_t nt;
-    sy_code rc = glb_triangles(path, &tri, &nt, err);
+    sy_gltf_cutout cut;
+    sy_code rc = sy_gltf_read_surface(path, &tri, &nt, &cut, err);
     if (rc) return rc;
-    sy_eval_model m = {0};
-    rc = sy_eval_model_add_mesh(&m, tri, nt, 0, err);
+    if (!(*pts = sy_drawn_surface_points(tri, nt, &cut, 0.02, n, err))) rc = SY_EINTERNAL;
+    sy_gltf_cutout_free(&cut);
     free(tri);
-    if (!rc && !(*pts = sy_model_surface_samples(&m, 0.02, n, err))) rc = SY_EINTERNAL;
-    sy_eval_model_free(&m);
     return rc;
 }
 
-/* The asset's look against the scan: the glb's default scene (LOD0) without
- * its foliage proxy, against the scan's above-ground points (the cloud
+/* The asset's look against the scan: the glb's drawn LOD0 surface
+ * (sy_gltf_read_surface), against the scan's above-ground points (the cloud
  * preprocessed as `sylva run` does) or a reference asset's surface. */
 static sy_code silhouette(const char *model_path, sy_cloud *c, const double *ref, size_t n_ref,
                           sy_silhouette_metrics *m, sy_error *err)
 {
     double *tri = NULL;
     size_t k = 0;
-    sy_code rc = glb_triangles(model_path, &tri, &k, err);
+    sy_gltf_cutout cut;
+    sy_code rc = sy_gltf_read_surface(model_path, &tri, &k, &cut, err);
     if (rc) return rc;
     double *pts = NULL;
     if (!ref) {
@@ -210,7 +197,8 @@ static sy_code silhouette(const char *model_path, sy_cloud *c, const double *ref
         pts = rc ? NULL : sy_cloud_world_points(c, err);
         if (!rc && !pts) rc = SY_EINTERNAL;
     }
-    if (!rc) rc = sy_silhouette_metrics_compute(tri, k, ref ? ref : pts, ref ? n_ref : c->n, m, err);
+    if (!rc) rc = sy_silhouette_metrics_compute(tri, k, &cut, ref ? ref : pts, ref ? n_ref : c->n, m, err);
+    sy_gltf_cutout_free(&cut);
     free(pts);
     free(tri);
     return rc;

@@ -10,6 +10,10 @@
 # fir 0.761, palm 0.544 (the terrestrial scans of the same trees: 0.84-0.87);
 # at stop 26, with the limbs the scan hides grown inside the lobes
 # (docs/synthesize.md, the scaffold): 0.812, 0.791, 0.556 (mean 0.720).
+# Stop 31 counts alpha-tested leaf cards where their leaves are drawn, not as
+# whole quads (docs/eval.md), on both trees: the same assets measure 0.832,
+# 0.722, 0.553 (mean 0.703) the old way and 0.807, 0.681, 0.513 (0.667) now,
+# so the mean's floor moved from 0.68 to 0.645 (the same share of the mean).
 . "$SYLVA_SOURCE_DIR/tests/measure_cli_common.sh"
 s="$SYLVA_SOURCE_DIR/samples"
 sum=0
@@ -30,7 +34,7 @@ for sp in quaking_aspen:aspen balsam_fir:fir palm:palm; do
     check "${name}_als asset against its true tree: IoU mean $iou >= 0.50" "$iou >= 0.50"
     sum=$(awk -v a="$sum" -v b="$iou" 'BEGIN { print a + b }')
 done
-check "airborne IoU mean over the three $(awk -v s="$sum" 'BEGIN { printf "%.3f", s / 3 }') >= 0.68" "$sum / 3 >= 0.68"
+check "airborne IoU mean over the three $(awk -v s="$sum" 'BEGIN { printf "%.3f", s / 3 }') >= 0.645" "$sum / 3 >= 0.645"
 
 # A conifer whose skirt reaches the ground (stop 27): the airborne Norway spruce's
 # lowest returns stand 0.13 m up, its spacing (0.244 m) is under the 0.3 m of a

@@ -766,7 +766,7 @@ static void silhouette_of_dense_and_sparse_scans(void **state)
         box_faces(steps[k], &pts, &n);
         sy_silhouette_metrics m;
         sy_error err = {0};
-        assert_int_equal(sy_silhouette_metrics_compute(tri, nt, pts, n, &m, &err), SY_OK);
+        assert_int_equal(sy_silhouette_metrics_compute(tri, nt, NULL, pts, n, &m, &err), SY_OK);
         printf("box, scan spacing %.2f m: splat %.3f m, IoU mean %.4f min %.4f\n", steps[k], m.splat_radius, m.iou_mean,
                m.iou_min);
         assert_float_equal(m.splat_radius, steps[k], 0.01 * steps[k]);
@@ -775,9 +775,45 @@ static void silhouette_of_dense_and_sparse_scans(void **state)
     }
 }
 
+/* An alpha-tested card counts where it is drawn: a 1 m square card whose
+ * texture is clear on its left half, scanned on its right half only. With
+ * the cut-out the asset's silhouette is the scan's; taken whole, the card
+ * is twice as wide in the side views (IoU about 0.5 there). The profile's
+ * area is the drawn half. */
+static void alpha_tested_cards_count_where_drawn(void **state)
+{
+    (void)state;
+    const double tri[18] = {0, 0, 0, 1, 0, 0, 1, 0, 1, 0, 0, 0, 1, 0, 1, 0, 0, 1};
+    float uv[12] = {0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1};
+    int32_t map[2] = {0, 0};
+    unsigned char alpha[2] = {0, 255};
+    sy_gltf_alpha_map am = {2, 1, 0.5f, alpha};
+    sy_gltf_cutout cut = {uv, map, 1, &am};
+    size_t n = 0;
+    double *pts = malloc(51 * 101 * 3 * sizeof *pts);
+    for (int i = 0; i <= 50; i++)
+        for (int j = 0; j <= 100; j++, n++) pts[3 * n] = 0.5 + 0.01 * i, pts[3 * n + 1] = 0, pts[3 * n + 2] = 0.01 * j;
+    sy_silhouette_metrics with, whole;
+    sy_error err = {0};
+    assert_int_equal(sy_silhouette_metrics_compute(tri, 2, &cut, pts, n, &with, &err), SY_OK);
+    assert_int_equal(sy_silhouette_metrics_compute(tri, 2, NULL, pts, n, &whole, &err), SY_OK);
+    for (int v = 0; v < 6; v++) printf("view %d: IoU %.3f with the cut-out, %.3f whole\n", v, with.iou[v], whole.iou[v]);
+    /* Every view but the edge-on one (azimuth 0) sees the clear half. */
+    assert_true(with.iou_min >= 0.85 && with.iou_mean >= 0.95);
+    assert_true(whole.iou[2] <= 0.6 && with.iou[2] >= 0.95);
+    assert_true(with.width_error > -0.1 && with.width_error < 0.1);
+    size_t nd = 0;
+    double *drawn = sy_drawn_surface_points(tri, 2, &cut, 0.01, &nd, &err);
+    assert_non_null(drawn);
+    for (size_t i = 0; i < nd; i++) assert_true(drawn[3 * i] >= 0.49);
+    free(drawn);
+    free(pts);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(alpha_tested_cards_count_where_drawn),
         cmocka_unit_test(skeleton_vs_itself_is_perfect),
         cmocka_unit_test(skeleton_metrics_options_are_checked),
         cmocka_unit_test(long_edges_take_bounded_samples),

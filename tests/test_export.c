@@ -641,6 +641,48 @@ static void leaves_are_gpu_instances(void **state)
     }
 }
 
+/* What a viewer draws of the file (sy_gltf_read_surface): the leaf cards'
+ * triangles are tested against their texture's alpha (columns 2-5 of 8
+ * opaque, the rest 0, cutoff 0.4), the bark is drawn whole; baked or
+ * instanced, the same. */
+static void leaf_cards_are_cut_where_their_texture_is_clear(void **state)
+{
+    (void)state;
+    for (int v = V_PLAIN; v <= V_BAKED; v += V_BAKED - V_PLAIN) {
+        char path[4200];
+        snprintf(path, sizeof path, "%s/%s", out_dir, variant_name[v]);
+        double *tri = NULL;
+        size_t nt = 0, leaf_tris = 0, drawn = 0, tested = 0;
+        sy_gltf_cutout cut;
+        sy_error err = {0};
+        assert_int_equal(sy_gltf_read_surface(path, &tri, &nt, &cut, &err), SY_OK);
+        assert_non_null(cut.map);
+        assert_int_equal(cut.n_maps, 1); /* the leaf material: the impostor is a level of its own, not LOD0 */
+        for (size_t t = 0; t < nt; t++) {
+            if (cut.map[t] < 0) continue;
+            leaf_tris++;
+            assert_float_equal(cut.maps[cut.map[t]].cutoff, 0.4, 1e-6);
+            for (int i = 0; i <= 20; i++)
+                for (int j = 0; i + j <= 20; j++) {
+                    double w[3] = {(20.0 - i - j) / 20, i / 20.0, j / 20.0};
+                    /* Points off the 1/8 column lines only (nearest texel there is exact). */
+                    const float *uv = cut.uv + 6 * t;
+                    double u = w[0] * uv[0] + w[1] * uv[2] + w[2] * uv[4];
+                    if (fabs(u * 8 - floor(u * 8 + 0.5)) < 1e-3) continue;
+                    tested++;
+                    drawn += (size_t)sy_gltf_cutout_drawn(&cut, t, w);
+                    assert_int_equal(sy_gltf_cutout_drawn(&cut, t, w), u >= 0.25 && u < 0.75);
+                }
+        }
+        assert_int_equal(leaf_tris, 2 * N_LEAVES);
+        assert_true(tested > 0 && fabs((double)drawn / (double)tested - 0.5) < 0.1);
+        /* Bark triangles: drawn whole. */
+        assert_true(nt > leaf_tris);
+        sy_gltf_cutout_free(&cut);
+        free(tri);
+    }
+}
+
 static void baked_fallback_has_no_instancing(void **state)
 {
     (void)state;
@@ -914,6 +956,7 @@ int main(void)
         cmocka_unit_test(position_bounds_and_generated_tangents_match_data),
         cmocka_unit_test(leaves_are_gpu_instances),
         cmocka_unit_test(baked_fallback_has_no_instancing),
+        cmocka_unit_test(leaf_cards_are_cut_where_their_texture_is_clear),
         cmocka_unit_test(lod_chain_uses_msft_lod),
         cmocka_unit_test(meshopt_streams_decode_to_the_originals),
         cmocka_unit_test(large_meshes_use_32_bit_indices),

@@ -296,7 +296,7 @@ static int look(const char *scan, const char *obj)
     double *pts = NULL;
     sy_silhouette_metrics m;
     int rc = sy_preprocess(&c, &po, &pr, &err) || !(pts = sy_cloud_world_points(&c, &err)) ||
-             sy_silhouette_metrics_compute(tri, nt, pts, c.n, &m, &err);
+             sy_silhouette_metrics_compute(tri, nt, NULL, pts, c.n, &m, &err);
     if (rc) fprintf(stderr, "%s\n", err.msg);
     else
         printf("triangles=%zu iou_mean=%.3f iou_min=%.3f profile_correlation=%.3f height_error_rel=%+.3f "
@@ -308,33 +308,24 @@ static int look(const char *scan, const char *obj)
     return rc ? 2 : 0;
 }
 
-/* LOD0 triangles of a glb without its foliage proxy (as cmd_eval.c's glb_triangles). */
-static int glb_tris(const char *path, double **tri, size_t *n, sy_error *err)
-{
-    size_t nt = 0, *hull = NULL, k = 0;
-    if (sy_gltf_read_triangles(path, tri, &nt, &hull, err)) return 2;
-    for (size_t t = 0; t < nt; t++)
-        if (!hull[t]) memmove(*tri + 9 * k++, *tri + 9 * t, 9 * sizeof **tri);
-    free(hull);
-    *n = k;
-    return 0;
-}
-
+/* The reference asset's drawn surface every 2 cm against the asset's (as
+ * `sylva eval --points REF.glb ASSET.glb`). */
 static int lookglb(const char *ref, const char *asset)
 {
     sy_error err = {0};
     double *rt = NULL, *at = NULL, *pts = NULL;
     size_t nr = 0, na = 0, np = 0;
-    sy_eval_model m = {0};
+    sy_gltf_cutout rc_cut = {0}, ac_cut = {0};
     sy_silhouette_metrics sm;
-    int rc = glb_tris(ref, &rt, &nr, &err) || glb_tris(asset, &at, &na, &err) ||
-             sy_eval_model_add_mesh(&m, rt, nr, 0, &err) || !(pts = sy_model_surface_samples(&m, 0.02, &np, &err)) ||
-             sy_silhouette_metrics_compute(at, na, pts, np, &sm, &err);
+    int rc = sy_gltf_read_surface(ref, &rt, &nr, &rc_cut, &err) || sy_gltf_read_surface(asset, &at, &na, &ac_cut, &err) ||
+             !(pts = sy_drawn_surface_points(rt, nr, &rc_cut, 0.02, &np, &err)) ||
+             sy_silhouette_metrics_compute(at, na, &ac_cut, pts, np, &sm, &err);
     if (rc) fprintf(stderr, "%s\n", err.msg);
     else
         printf("iou_mean=%.3f iou_min=%.3f profile_correlation=%.3f height_error_rel=%+.3f crown_width_error_rel=%+.3f\n",
                sm.iou_mean, sm.iou_min, sm.profile_correlation, sm.height_error, sm.width_error);
-    sy_eval_model_free(&m);
+    sy_gltf_cutout_free(&rc_cut);
+    sy_gltf_cutout_free(&ac_cut);
     free(pts);
     free(rt);
     free(at);

@@ -17,6 +17,7 @@
 #include "stages/core/cloud.h"
 #include "stages/core/json.h"
 #include "stages/core/skeleton.h"
+#include "stages/gltf/gltf_read.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -109,7 +110,10 @@ double *sy_model_surface_samples(const sy_eval_model *m, double spacing, size_t 
  * a pixel), the Pearson correlation of the vertical profiles (40 height
  * bins: scan points against model surface area) and the relative height and
  * crown-width (5-95% extent along x and y, averaged) errors, signed (model -
- * scan) / scan. tri: 9 doubles per triangle, world Z up; pts: 3 per point. */
+ * scan) / scan. tri: 9 doubles per triangle, world Z up; pts: 3 per point.
+ * cut (NULL: every triangle drawn whole) leaves out what a viewer's alpha
+ * test discards: an alpha-masked leaf card counts where its leaves are, not
+ * as its whole quad (sy_gltf_read_surface). */
 typedef struct {
     double iou[6], iou_mean, iou_min;
     double profile_correlation;
@@ -117,8 +121,14 @@ typedef struct {
     double scan_width, model_width, width_error;
     double splat_radius; /* the scan's median spacing, metres */
 } sy_silhouette_metrics;
-sy_code sy_silhouette_metrics_compute(const double *tri, size_t n_tri, const double *pts, size_t n_pts,
-                                      sy_silhouette_metrics *out, sy_error *err);
+sy_code sy_silhouette_metrics_compute(const double *tri, size_t n_tri, const sy_gltf_cutout *cut, const double *pts,
+                                      size_t n_pts, sy_silhouette_metrics *out, sy_error *err);
+
+/* The triangles' drawn surface as points no more than step apart (cut, which
+ * may be NULL, leaves out the texels an alpha test discards); 3 doubles
+ * each, *n of them (malloc'd; NULL when out of memory). */
+double *sy_drawn_surface_points(const double *tri, size_t n_tri, const sy_gltf_cutout *cut, double step, size_t *n,
+                                sy_error *err);
 
 /* World coordinates of a cloud as 3n doubles (caller frees). */
 double *sy_cloud_world_points(const sy_cloud *c, sy_error *err);

@@ -211,7 +211,8 @@ static void seed(unsigned char *mask, double u, double w, const double lo[2], do
  * area plus the perimeter: a barycentric m x m grid by the longest edge gave
  * a twig's long, thin triangle m^2 / 2 samples for a few square
  * centimetres (8.5 million for a 97k-triangle tree). */
-static double *sample_triangles(const double *tri, size_t n_tri, double step, size_t *n_out, double **area_out)
+static double *sample_triangles(const double *tri, size_t n_tri, const sy_gltf_cutout *cut, double step, size_t *n_out,
+                                double **area_out)
 {
     size_t cap = 4 * n_tri + 1024, n = 0;
     double *s = malloc(3 * cap * sizeof *s), *ar = malloc(cap * sizeof *ar);
@@ -245,7 +246,8 @@ static double *sample_triangles(const double *tri, size_t n_tri, double step, si
             }
             s = s2, ar = a2;
         }
-        size_t first = n;
+        size_t first = n, all = 0;
+        int tested = cut && cut->map && cut->map[t] >= 0;
         for (long r = 0; r <= rows; r++) {
             /* Row r from a + f (c - a) to b + f (c - b); the last is c. */
             double f = rows ? (double)r / (double)rows : 0, p0[3], p1[3];
@@ -256,11 +258,19 @@ static double *sample_triangles(const double *tri, size_t n_tri, double step, si
             if (r == rows && rows > 0) m = 0;
             for (long i = 0; i <= m; i++) {
                 double g = m ? (double)i / (double)m : 0;
+                all++;
+                if (tested) {
+                    /* The sample's weights on the triangle's own corners. */
+                    double w[3];
+                    w[e] = (1 - f) * (1 - g), w[(e + 1) % 3] = (1 - f) * g, w[(e + 2) % 3] = f;
+                    if (!sy_gltf_cutout_drawn(cut, t, w)) continue;
+                }
                 for (int k = 0; k < 3; k++) s[3 * n + k] = p0[k] + g * (p1[k] - p0[k]);
                 n++;
             }
         }
-        for (size_t i = first; i < n; i++) ar[i] = area / (double)(n - first);
+        /* A cut-out triangle's drawn share of its area. */
+        for (size_t i = first; i < n; i++) ar[i] = area / (double)all;
     }
     *n_out = n;
     *area_out = ar;
@@ -278,8 +288,17 @@ static double crown_width(const double *p, size_t n, double *tmp)
     return w / 2;
 }
 
-sy_code sy_silhouette_metrics_compute(const double *tri, size_t n_tri, const double *pts, size_t n_pts,
-                                      sy_silhouette_metrics *out, sy_error *err)
+double *sy_drawn_surface_points(const double *tri, size_t n_tri, const sy_gltf_cutout *cut, double step, size_t *n,
+                                sy_error *err)
+{
+    double *area = NULL, *p = sample_triangles(tri, n_tri, cut, step, n, &area);
+    free(area);
+    if (!p) sy_fail(err, SY_EINTERNAL, "surface points: out of memory");
+    return p;
+}
+
+sy_code sy_silhouette_metrics_compute(const double *tri, size_t n_tri, const sy_gltf_cutout *cut, const double *pts,
+                                      size_t n_pts, sy_silhouette_metrics *out, sy_error *err)
 {
     memset(out, 0, sizeof *out);
     if (n_pts < 2) return sy_fail(err, SY_EINPUT, "silhouette: the scan has %zu points above the ground", n_pts);
@@ -298,7 +317,7 @@ sy_code sy_silhouette_metrics_compute(const double *tri, size_t n_tri, const dou
     if (!(step > 1e-5)) step = 1e-5;
     size_t n_smp = 0;
     double *area = NULL;
-    double *smp = sample_triangles(tri, n_tri, step, &n_smp, &area);
+    double *smp = sample_triangles(tri, n_tri, cut, step, &n_smp, &area);
     unsigned char *ma = malloc(RES * RES), *mb = malloc(RES * RES);
     double *tmp = malloc((n_smp > n_pts ? n_smp : n_pts) * sizeof *tmp);
     if (!smp || !ma || !mb || !tmp) {

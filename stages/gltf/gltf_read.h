@@ -50,6 +50,36 @@ sy_code sy_gltf_tinygltf_check(const char *path, sy_error *err);
  * glTF) or SY_EINTERNAL (out of memory) with a one-line message naming path. */
 sy_code sy_gltf_read_triangles(const char *path, double **tri, size_t *n_tri, size_t **hull, sy_error *err);
 
+/* Where alpha-tested triangles are drawn. A renderer discards the texels of
+ * an alphaMode MASK material whose alpha (baseColorFactor's times the
+ * baseColorTexture's) falls below alphaCutoff: a leaf card is a quad of
+ * which the leaves are a fraction (the shipped aspen card: 14 %). Per
+ * triangle, its corners' TEXCOORD_0 and the alpha map it is tested
+ * against; opaque and blended triangles are drawn whole. */
+typedef struct {
+    int w, h;
+    float cutoff;         /* drawn where alpha >= cutoff (0..1) */
+    unsigned char *alpha; /* w * h, row 0 at v = 0; 8-bit */
+} sy_gltf_alpha_map;
+
+typedef struct {
+    float *uv;       /* 6 per triangle (its corners' u v), or NULL when no triangle is tested */
+    int32_t *map;    /* per triangle: index into maps, -1: drawn whole; NULL likewise */
+    size_t n_maps;
+    sy_gltf_alpha_map *maps;
+} sy_gltf_cutout;
+
+/* The surface a viewer draws of the default scene (LOD0: MSFT_lod's other
+ * levels hang off their nodes' extension, not the scene): the triangles of
+ * sy_gltf_read_triangles without the foliage proxy, and with cut non-NULL
+ * their cut-out (images decoded). Triangles as sy_gltf_read_triangles. */
+sy_code sy_gltf_read_surface(const char *path, double **tri, size_t *n_tri, sy_gltf_cutout *cut, sy_error *err);
+void sy_gltf_cutout_free(sy_gltf_cutout *c);
+
+/* Is triangle t of cut drawn at the point with barycentric weights w[3] of
+ * its corners? Nearest texel, coordinates wrapped (REPEAT). */
+int sy_gltf_cutout_drawn(const sy_gltf_cutout *cut, size_t t, const double w[3]);
+
 /* The whole scene, for drawing it (the GL preview): meshes with every
  * attribute a renderer needs, materials, decoded images, node transforms,
  * EXT_mesh_gpu_instancing copies, MSFT_lod levels with their

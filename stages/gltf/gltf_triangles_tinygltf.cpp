@@ -181,11 +181,60 @@ std::vector<size_t> components(const std::vector<size_t> &idx, size_t n_vertices
 }
 
 struct Reader {
+    explicit Reader(const tinygltf::Model &model) : m(model) {}
     const tinygltf::Model &m;
     std::vector<double> out;
     std::vector<size_t> hull; // per triangle: 0, or 1 + the closed hull it belongs to
     size_t n_hulls = 0;
     size_t visits = 0;
+    // The cut-out (sy_gltf_read_surface): per triangle its corners' uv and alpha map.
+    bool want_cut = false;
+    std::vector<float> uv;
+    std::vector<int32_t> tmap;
+    std::vector<sy_gltf_alpha_map> maps;
+    std::vector<std::vector<unsigned char>> alphas; // the maps' texels
+    std::map<int, int> map_of_material;
+
+    // The alpha map of material mat (-1: its triangles are drawn whole):
+    // alphaMode MASK, alpha = baseColorFactor's times the baseColorTexture's
+    // (TEXCOORD_0; a texture on another set is not followed), 1 x 1 without one.
+    int alpha_map(int mat)
+    {
+        if (mat < 0 || size_t(mat) >= m.materials.size()) return -1;
+        auto found = map_of_material.find(mat);
+        if (found != map_of_material.end()) return found->second;
+        const tinygltf::Material &mt = m.materials[size_t(mat)];
+        const tinygltf::PbrMetallicRoughness &pbr = mt.pbrMetallicRoughness;
+        int result = -1;
+        if (mt.alphaMode == "MASK") {
+            double fa = pbr.baseColorFactor.size() == 4 ? pbr.baseColorFactor[3] : 1.0;
+            fa = fa < 0 ? 0 : fa > 1 ? 1 : fa;
+            sy_gltf_alpha_map am{1, 1, float(mt.alphaCutoff), nullptr};
+            std::vector<unsigned char> px(1, (unsigned char)std::lround(255 * fa));
+            int ti = pbr.baseColorTexture.index;
+            if (ti >= 0 && size_t(ti) < m.textures.size() && pbr.baseColorTexture.texCoord == 0) {
+                int src = m.textures[size_t(ti)].source;
+                const tinygltf::Image *im = src >= 0 && size_t(src) < m.images.size() ? &m.images[size_t(src)] : nullptr;
+                int comps = im ? im->component : 0, bytes = im && im->bits == 16 ? 2 : 1;
+                size_t n = im && im->width > 0 && im->height > 0 ? size_t(im->width) * size_t(im->height) : 0;
+                if (n && comps >= 1 && comps <= 4 && im->image.size() >= n * size_t(comps * bytes)) {
+                    am.w = im->width, am.h = im->height;
+                    px.assign(n, (unsigned char)std::lround(255 * fa));
+                    if (comps == 2 || comps == 4)
+                        for (size_t i = 0; i < n; i++) {
+                            // The high byte of a 16-bit texel (tinygltf keeps them little-endian).
+                            unsigned a = im->image[(i * size_t(comps) + size_t(comps - 1)) * size_t(bytes) + size_t(bytes - 1)];
+                            px[i] = (unsigned char)std::lround(a * fa);
+                        }
+                }
+            }
+            result = int(maps.size());
+            maps.push_back(am);
+            alphas.push_back(std::move(px));
+        }
+        map_of_material[mat] = result;
+        return result;
+    }
 
     // Instance matrices of EXT_mesh_gpu_instancing, or one identity.
     std::vector<Mat4> instances(const tinygltf::Node &n)
@@ -222,10 +271,16 @@ struct Reader {
         return result;
     }
 
-    void emit(const Mat4 &xf, const AccessorView &pos, size_t a, size_t b, size_t c, size_t hull_id)
+    void emit(const Mat4 &xf, const AccessorView &pos, size_t a, size_t b, size_t c, size_t hull_id,
+              const AccessorView *tc = nullptr, int map = -1)
     {
         if (out.size() / 9 >= kMaxTriangles) throw Failure{2, "more than 2^28 triangles"};
         hull.push_back(hull_id);
+        if (want_cut) {
+            tmap.push_back(map);
+            for (size_t v : {a, b, c})
+                for (int k = 0; k < 2; k++) uv.push_back(tc ? float(tc->get(v, k)) : 0.0f);
+        }
         for (size_t v : {a, b, c}) {
             double p[3] = {pos.get(v, 0), pos.get(v, 1), pos.get(v, 2)}, w[3];
             for (int r = 0; r < 3; r++) {
@@ -266,18 +321,26 @@ struct Reader {
         }
         // Hulls are plain triangle lists (as Sylva writes them); each instance is hulls of its own.
         hulls = hulls && mode == TINYGLTF_MODE_TRIANGLES;
+        int map = want_cut ? alpha_map(prim.material) : -1;
+        std::unique_ptr<AccessorView> tc;
+        if (map >= 0 && maps[size_t(map)].w * maps[size_t(map)].h > 1) {
+            auto t = prim.attributes.find("TEXCOORD_0");
+            if (t != prim.attributes.end()) tc.reset(new AccessorView(m, t->second, "TEXCOORD_0"));
+            if (!tc || tc->components() != 2 || tc->count() != pos.count()) map = -1, tc.reset(); // untextured: drawn whole
+        }
         std::vector<size_t> part = hulls ? components(idx, pos.count()) : std::vector<size_t>();
         size_t n_parts = 0;
         for (size_t p : part) n_parts = std::max(n_parts, p + 1);
         for (const Mat4 &xf : xfs) {
             if (mode == TINYGLTF_MODE_TRIANGLES)
                 for (size_t i = 0; i + 2 < idx.size(); i += 3)
-                    emit(xf, pos, idx[i], idx[i + 1], idx[i + 2], hulls ? n_hulls + 1 + part[i / 3] : 0);
+                    emit(xf, pos, idx[i], idx[i + 1], idx[i + 2], hulls ? n_hulls + 1 + part[i / 3] : 0, tc.get(), map);
             else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP)
                 for (size_t i = 0; i + 2 < idx.size(); i++)
-                    i % 2 ? emit(xf, pos, idx[i + 1], idx[i], idx[i + 2], 0) : emit(xf, pos, idx[i], idx[i + 1], idx[i + 2], 0);
+                    i % 2 ? emit(xf, pos, idx[i + 1], idx[i], idx[i + 2], 0, tc.get(), map)
+                          : emit(xf, pos, idx[i], idx[i + 1], idx[i + 2], 0, tc.get(), map);
             else
-                for (size_t i = 1; i + 1 < idx.size(); i++) emit(xf, pos, idx[0], idx[i], idx[i + 1], 0);
+                for (size_t i = 1; i + 1 < idx.size(); i++) emit(xf, pos, idx[0], idx[i], idx[i + 1], 0, tc.get(), map);
             n_hulls += n_parts;
         }
     }
@@ -478,15 +541,26 @@ bool asset_origin(const tinygltf::Model &model, double o[3])
 
 } // namespace
 
-static int read_triangles(const char *path, double **tri, size_t *n_tri, size_t **hull, char *msg, size_t msg_size)
+static float *c_floats(const std::vector<float> &v)
+{
+    float *p = static_cast<float *>(std::malloc(v.size() * sizeof(float) + 1));
+    if (!p) throw std::bad_alloc();
+    if (!v.empty()) std::memcpy(p, v.data(), v.size() * sizeof(float));
+    return p;
+}
+
+// cut non-NULL: also the triangles' cut-out (images decoded), filled only on success.
+static int read_triangles(const char *path, double **tri, size_t *n_tri, size_t **hull, sy_gltf_cutout *cut, char *msg,
+                          size_t msg_size)
 {
     *tri = nullptr;
     *hull = nullptr;
     *n_tri = 0;
     try {
         tinygltf::Model model;
-        if (!load_model(path, model, false, msg, msg_size)) return 2;
-        Reader r{model, {}, {}};
+        if (!load_model(path, model, cut != nullptr, msg, msg_size)) return 2;
+        Reader r(model);
+        r.want_cut = cut != nullptr;
         std::vector<int> roots = scene_roots(model);
         for (int n : roots) r.node(n, identity(), 0);
         // `sylva mesh` centres the tree at its base and keeps the world position
@@ -512,6 +586,34 @@ static int read_triangles(const char *path, double **tri, size_t *n_tri, size_t 
         }
         if (!r.out.empty()) std::memcpy(*tri, r.out.data(), r.out.size() * sizeof(double));
         if (!r.hull.empty()) std::memcpy(*hull, r.hull.data(), r.hull.size() * sizeof(size_t));
+        if (cut) {
+            *cut = sy_gltf_cutout{nullptr, nullptr, 0, nullptr};
+            try {
+                if (!r.maps.empty()) {
+                    cut->uv = c_floats(r.uv);
+                    cut->map = static_cast<int32_t *>(std::malloc(r.tmap.size() * sizeof(int32_t) + 1));
+                    cut->maps = static_cast<sy_gltf_alpha_map *>(std::calloc(r.maps.size(), sizeof(sy_gltf_alpha_map)));
+                    if (!cut->map || !cut->maps) throw std::bad_alloc();
+                    if (!r.tmap.empty()) std::memcpy(cut->map, r.tmap.data(), r.tmap.size() * sizeof(int32_t));
+                    cut->n_maps = r.maps.size();
+                    for (size_t i = 0; i < r.maps.size(); i++) {
+                        cut->maps[i] = r.maps[i];
+                        cut->maps[i].alpha = static_cast<unsigned char *>(std::malloc(r.alphas[i].size()));
+                        if (!cut->maps[i].alpha) throw std::bad_alloc();
+                        std::memcpy(cut->maps[i].alpha, r.alphas[i].data(), r.alphas[i].size());
+                    }
+                }
+            } catch (const std::bad_alloc &) {
+                sy_gltf_cutout_free(cut);
+                std::free(*tri);
+                std::free(*hull);
+                *tri = nullptr;
+                *hull = nullptr;
+                *n_tri = 0;
+                set_msg(msg, msg_size, path, "out of memory");
+                return 3;
+            }
+        }
         return 0;
     } catch (const Failure &f) {
         set_msg(msg, msg_size, path, f.what);
@@ -528,9 +630,54 @@ static int read_triangles(const char *path, double **tri, size_t *n_tri, size_t 
 extern "C" sy_code sy_gltf_read_triangles(const char *path, double **tri, size_t *n_tri, size_t **hull, sy_error *err)
 {
     char msg[1024];
-    int rc = read_triangles(path, tri, n_tri, hull, msg, sizeof msg);
+    int rc = read_triangles(path, tri, n_tri, hull, nullptr, msg, sizeof msg);
     if (rc == 0) return SY_OK;
     return sy_fail(err, rc == 3 ? SY_EINTERNAL : SY_EINPUT, "%s", msg);
+}
+
+extern "C" void sy_gltf_cutout_free(sy_gltf_cutout *c)
+{
+    if (!c) return;
+    for (size_t i = 0; i < c->n_maps; i++) std::free(c->maps[i].alpha);
+    std::free(c->maps), std::free(c->map), std::free(c->uv);
+    *c = sy_gltf_cutout{nullptr, nullptr, 0, nullptr};
+}
+
+extern "C" sy_code sy_gltf_read_surface(const char *path, double **tri, size_t *n_tri, sy_gltf_cutout *cut, sy_error *err)
+{
+    char msg[1024];
+    size_t *hull = nullptr;
+    if (cut) *cut = sy_gltf_cutout{nullptr, nullptr, 0, nullptr};
+    int rc = read_triangles(path, tri, n_tri, &hull, cut, msg, sizeof msg);
+    if (rc) return sy_fail(err, rc == 3 ? SY_EINTERNAL : SY_EINPUT, "%s", msg);
+    // The foliage proxy is no surface a viewer draws as the tree.
+    size_t k = 0;
+    for (size_t t = 0; t < *n_tri; t++) {
+        if (hull[t]) continue;
+        std::memmove(*tri + 9 * k, *tri + 9 * t, 9 * sizeof **tri);
+        if (cut && cut->map) {
+            cut->map[k] = cut->map[t];
+            std::memmove(cut->uv + 6 * k, cut->uv + 6 * t, 6 * sizeof *cut->uv);
+        }
+        k++;
+    }
+    std::free(hull);
+    *n_tri = k;
+    return SY_OK;
+}
+
+extern "C" int sy_gltf_cutout_drawn(const sy_gltf_cutout *cut, size_t t, const double w[3])
+{
+    if (!cut || !cut->map || cut->map[t] < 0) return 1;
+    const sy_gltf_alpha_map *am = &cut->maps[cut->map[t]];
+    const float *uv = cut->uv + 6 * t;
+    double u = w[0] * uv[0] + w[1] * uv[2] + w[2] * uv[4], v = w[0] * uv[1] + w[1] * uv[3] + w[2] * uv[5];
+    if (!std::isfinite(u) || !std::isfinite(v)) return 1;
+    // REPEAT: the texel under (u, v), nearest.
+    long x = long(std::floor((u - std::floor(u)) * am->w)), y = long(std::floor((v - std::floor(v)) * am->h));
+    x = x < 0 ? 0 : x >= am->w ? am->w - 1 : x;
+    y = y < 0 ? 0 : y >= am->h ? am->h - 1 : y;
+    return am->alpha[size_t(y) * size_t(am->w) + size_t(x)] >= am->cutoff * 255.0f;
 }
 
 // ---------------------------------------------------------------------------

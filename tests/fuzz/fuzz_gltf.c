@@ -1,7 +1,9 @@
 /* libFuzzer target: arbitrary bytes as the glb/glTF model of `sylva eval`
  * (tinygltf, then Sylva's accessor, index, node, instancing and coordinate
  * checks). The first byte picks the container: even as a .glb, odd as a
- * .gltf (JSON). Every triangle returned must be finite. */
+ * .gltf (JSON). Every triangle returned must be finite. The drawn surface
+ * (images decoded, alpha maps built) is read too, and every triangle's
+ * alpha test is asked at its corners and centre. */
 #include <math.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -24,6 +26,14 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             if (!isfinite(tri[i])) abort();
         free(tri);
         free(hull);
+    }
+    sy_gltf_cutout cut;
+    if (sy_gltf_read_surface(path, &tri, &n, &cut, &err) == SY_OK) {
+        static const double w[4][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1 / 3.0, 1 / 3.0, 1 / 3.0}};
+        for (size_t t = 0; t < n; t++)
+            for (int k = 0; k < 4; k++) (void)sy_gltf_cutout_drawn(&cut, t, w[k]);
+        sy_gltf_cutout_free(&cut);
+        free(tri);
     }
     return 0;
 }
