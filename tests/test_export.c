@@ -67,7 +67,7 @@ static int add_png(sy_asset *a, const char *name, int comp, unsigned char seed)
     for (int i = 0; i < 64; i++)
         for (int c = 0; c < comp; c++) px[i * comp + c] = (unsigned char)(seed * (c + 1) + i * 3);
     if (comp == 4)
-        for (int i = 0; i < 64; i++) px[i * 4 + 3] = (i % 8 > 1 && i % 8 < 6) ? 255 : 0;
+        for (int i = 0; i < 64; i++) px[i * 4 + 3] = (i % 8 >= 1 && i % 8 <= 3 && i / 8 < 5) ? 255 : 0; /* no symmetry */
     png_buf b = {NULL, 0};
     assert_true(stbi_write_png_to_func(png_sink, &b, 8, 8, comp, px, 8 * comp));
     sy_image img = {b.data, b.size, ""};
@@ -642,9 +642,10 @@ static void leaves_are_gpu_instances(void **state)
 }
 
 /* What a viewer draws of the file (sy_gltf_read_surface): the leaf cards'
- * triangles are tested against their texture's alpha (columns 2-5 of 8
- * opaque, the rest 0, cutoff 0.4), the bark is drawn whole; baked or
- * instanced, the same. */
+ * triangles are tested against their texture's alpha (opaque in columns 1-3
+ * of rows 0-4 of 8 x 8, asymmetric both ways, so a lookup mirrored in u or
+ * v fails; cutoff 0.4), the bark is drawn whole; baked or instanced, the
+ * same. The cards' corners carry the exporter's uv. */
 static void leaf_cards_are_cut_where_their_texture_is_clear(void **state)
 {
     (void)state;
@@ -658,24 +659,32 @@ static void leaf_cards_are_cut_where_their_texture_is_clear(void **state)
         assert_int_equal(sy_gltf_read_surface(path, &tri, &nt, &cut, &err), SY_OK);
         assert_non_null(cut.map);
         assert_int_equal(cut.n_maps, 1); /* the leaf material: the impostor is a level of its own, not LOD0 */
+        int corner_seen[4] = {0, 0, 0, 0};
         for (size_t t = 0; t < nt; t++) {
             if (cut.map[t] < 0) continue;
             leaf_tris++;
+            for (int c = 0; c < 3; c++) {
+                float u = cut.uv[6 * t + 2 * c], v = cut.uv[6 * t + 2 * c + 1];
+                assert_true((u == 0 || u == 1) && (v == 0 || v == 1));
+                corner_seen[(int)u + 2 * (int)v] = 1;
+            }
             assert_float_equal(cut.maps[cut.map[t]].cutoff, 0.4, 1e-6);
             for (int i = 0; i <= 20; i++)
                 for (int j = 0; i + j <= 20; j++) {
                     double w[3] = {(20.0 - i - j) / 20, i / 20.0, j / 20.0};
-                    /* Points off the 1/8 column lines only (nearest texel there is exact). */
+                    /* Points off the 1/8 texel lines only (the nearest texel there is exact). */
                     const float *uv = cut.uv + 6 * t;
-                    double u = w[0] * uv[0] + w[1] * uv[2] + w[2] * uv[4];
-                    if (fabs(u * 8 - floor(u * 8 + 0.5)) < 1e-3) continue;
+                    double u = w[0] * uv[0] + w[1] * uv[2] + w[2] * uv[4], v = w[0] * uv[1] + w[1] * uv[3] + w[2] * uv[5];
+                    if (fabs(u * 8 - floor(u * 8 + 0.5)) < 1e-3 || fabs(v * 8 - floor(v * 8 + 0.5)) < 1e-3) continue;
                     tested++;
                     drawn += (size_t)sy_gltf_cutout_drawn(&cut, t, w);
-                    assert_int_equal(sy_gltf_cutout_drawn(&cut, t, w), u >= 0.25 && u < 0.75);
+                    assert_int_equal(sy_gltf_cutout_drawn(&cut, t, w), u >= 0.125 && u < 0.5 && v < 0.625);
                 }
         }
         assert_int_equal(leaf_tris, 2 * N_LEAVES);
-        assert_true(tested > 0 && fabs((double)drawn / (double)tested - 0.5) < 0.1);
+        for (int c = 0; c < 4; c++) assert_true(corner_seen[c]);
+        /* 15 of the 64 texels pass. */
+        assert_true(tested > 0 && fabs((double)drawn / (double)tested - 15.0 / 64) < 0.05);
         /* Bark triangles: drawn whole. */
         assert_true(nt > leaf_tris);
         sy_gltf_cutout_free(&cut);

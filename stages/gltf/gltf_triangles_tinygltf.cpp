@@ -4,11 +4,13 @@
 #include "stages/gltf/gltf_read.h"
 
 #include <meshoptimizer.h>
+#include <stb_image.h>
 #include <tiny_gltf.h>
 
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <cfloat>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -279,7 +281,11 @@ struct Reader {
         if (want_cut) {
             tmap.push_back(map);
             for (size_t v : {a, b, c})
-                for (int k = 0; k < 2; k++) uv.push_back(tc ? float(tc->get(v, k)) : 0.0f);
+                for (int k = 0; k < 2; k++) {
+                    // A coordinate beyond float (a DOUBLE accessor) is NaN: drawn (sy_gltf_cutout_drawn).
+                    double x = tc ? tc->get(v, k) : 0.0;
+                    uv.push_back(std::fabs(x) <= FLT_MAX ? float(x) : NAN);
+                }
         }
         for (size_t v : {a, b, c}) {
             double p[3] = {pos.get(v, 0), pos.get(v, 1), pos.get(v, 2)}, w[3];
@@ -423,6 +429,26 @@ bool skip_image(tinygltf::Image *, const int, std::string *, std::string *, int,
     return true;
 }
 
+// The alpha test (sy_gltf_read_surface) reads what images it can and draws a
+// triangle whole where its image is unreadable: a format stb does not decode
+// (WebP, KTX2) or one over kMaxCutPixels (a few bytes of a crafted header
+// would otherwise cost gigabytes) is left empty, and the file still loads.
+constexpr long long kMaxCutPixels = 8192LL * 8192LL;
+
+bool lenient_image(tinygltf::Image *image, const int index, std::string *err, std::string *warn, int req_width,
+                   int req_height, const unsigned char *bytes, int size, void *user)
+{
+    int w = 0, h = 0, c = 0;
+    if (size <= 0 || !stbi_info_from_memory(bytes, size, &w, &h, &c) || (long long)w * h > kMaxCutPixels) return true;
+    std::string e, wn;
+    if (!tinygltf::LoadImageData(image, index, &e, &wn, req_width, req_height, bytes, size, user)) {
+        image->image.clear();
+        image->width = image->height = 0;
+    }
+    (void)err, (void)warn;
+    return true;
+}
+
 void set_msg(char *msg, size_t size, const char *path, const std::string &what)
 {
     std::string one = what;
@@ -487,11 +513,14 @@ void decode_meshopt(tinygltf::Model &m)
 }
 
 // Loads a .glb or .gltf (told apart by the GLB magic); false with msg set on failure.
-// images: decode them (the scene reader) or skip them (geometry only).
-bool load_model(const char *path, tinygltf::Model &model, bool images, char *msg, size_t msg_size)
+// images: decode them (the scene reader), or those that can be (the alpha test), or skip them.
+enum Images { kSkipImages, kDecodeImages, kDecodeReadableImages };
+
+bool load_model(const char *path, tinygltf::Model &model, Images images, char *msg, size_t msg_size)
 {
     tinygltf::TinyGLTF loader;
-    if (!images) loader.SetImageLoader(skip_image, nullptr);
+    if (images == kSkipImages) loader.SetImageLoader(skip_image, nullptr);
+    if (images == kDecodeReadableImages) loader.SetImageLoader(lenient_image, nullptr);
     // External buffers and images: regular files of a bounded size only (a FIFO would hang the read).
     loader.SetFsCallbacks(tinygltf::FsCallbacks{fs_exists, fs_expand, fs_read, fs_write, nullptr});
     std::string err, warn;
@@ -558,7 +587,7 @@ static int read_triangles(const char *path, double **tri, size_t *n_tri, size_t 
     *n_tri = 0;
     try {
         tinygltf::Model model;
-        if (!load_model(path, model, cut != nullptr, msg, msg_size)) return 2;
+        if (!load_model(path, model, cut ? kDecodeReadableImages : kSkipImages, msg, msg_size)) return 2;
         Reader r(model);
         r.want_cut = cut != nullptr;
         std::vector<int> roots = scene_roots(model);
@@ -1153,7 +1182,7 @@ static int read_scene(const char *path, sy_gltf_scene *out, char *msg, size_t ms
     std::memset(out, 0, sizeof *out);
     try {
         tinygltf::Model model;
-        if (!load_model(path, model, true, msg, msg_size)) return 2;
+        if (!load_model(path, model, kDecodeImages, msg, msg_size)) return 2;
         SceneBuilder b{model, *out, {}, {}, {}, {}};
         b.build_images();
         b.build_textures();
