@@ -18,6 +18,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "stages/core/color.h"
 #include "stages/core/parallel.h"
 #include "stages/core/sort.h"
 #include "stages/leafmaps/leafmaps_cv.h"
@@ -161,13 +162,6 @@ static void affine_compose(const double A[6], const double B[6], double out[6]) 
     memcpy(out, r, sizeof r);
 }
 
-/* An sRGB value in 0..255 as linear 0..1 (IEC 61966-2-1). */
-static double srgb_to_linear(double v)
-{
-    v /= 255;
-    return v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4);
-}
-
 /* Recolours the albedo (linear RGB, n texels) to the mean colour tint (sRGB
  * 0..255) over the leaf (alpha >= 0.5): each texel is the tint times its
  * luminance over the leaf's mean luminance, so veins, shading and the
@@ -181,7 +175,7 @@ static void tint_albedo(float *rgb, const float *alpha, size_t n, const double t
         if (alpha[i] >= 0.5f) sum += sy_leaf_luma(rgb + 3 * i), k++;
     if (k == 0 || !(sum > 0)) return;
     double mean = sum / (double)k, lin[3];
-    for (int c = 0; c < 3; c++) lin[c] = srgb_to_linear(tint[c]);
+    for (int c = 0; c < 3; c++) lin[c] = sy_srgb_to_linear(tint[c] / 255);
     for (size_t i = 0; i < n; i++) {
         if (alpha[i] < 0.5f) continue;
         double l = sy_leaf_luma(rgb + 3 * i) / mean;

@@ -463,9 +463,7 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
                         row[x] = c < row[x] ? c : row[x];
                     }
                 }
-                float w = nb_w[0];
-                for (int k = 0; k < n_nb; k++)
-                    if (nb_off[k] == -px) w = nb_w[k];
+                const float w = (float)g->h; /* the step to the cell before: one cell */
                 for (int xx = 0; xx < g->d[0]; xx++) {
                     int x = pass ? g->d[0] - 1 - xx : xx;
                     float c = r0[x - s] + w;
