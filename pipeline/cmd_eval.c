@@ -180,7 +180,7 @@ static sy_code glb_points(const char *path, double **pts, size_t *n, sy_error *e
  * (sy_gltf_read_surface), against the scan's above-ground points (the cloud
  * preprocessed as `sylva run` does) or a reference asset's surface. */
 static sy_code silhouette(const char *model_path, sy_cloud *c, const double *ref, size_t n_ref,
-                          sy_silhouette_metrics *m, sy_error *err)
+                          sy_silhouette_metrics *m, unsigned char *masks, sy_error *err)
 {
     double *tri = NULL;
     size_t k = 0;
@@ -197,7 +197,7 @@ static sy_code silhouette(const char *model_path, sy_cloud *c, const double *ref
         pts = rc ? NULL : sy_cloud_world_points(c, err);
         if (!rc && !pts) rc = SY_EINTERNAL;
     }
-    if (!rc) rc = sy_silhouette_metrics_compute(tri, k, &cut, ref ? ref : pts, ref ? n_ref : c->n, m, err);
+    if (!rc) rc = sy_silhouette_metrics_compute(tri, k, &cut, ref ? ref : pts, ref ? n_ref : c->n, m, masks, err);
     sy_gltf_cutout_free(&cut);
     free(pts);
     free(tri);
@@ -234,7 +234,13 @@ static int run_points(const eval_args *a, const char *model_path, sy_cli *cli)
     sy_eval_model_free(&model);
     sy_silhouette_metrics sm;
     int look = !rc && is_gltf(model_path);
-    if (look) rc = silhouette(model_path, &c, ref, n_ref, &sm, &err);
+    unsigned char *masks = NULL;
+    if (look && a->png_path &&
+        !(masks = sy_calloc(SY_SILHOUETTE_VIEWS * SY_SILHOUETTE_RES, SY_SILHOUETTE_RES, &err, "silhouette masks")))
+        rc = SY_EINTERNAL;
+    if (look && !rc) rc = silhouette(model_path, &c, ref, n_ref, &sm, masks, &err);
+    if (masks && !rc) rc = sy_silhouette_png(masks, a->png_path, &err);
+    free(masks);
     sy_cloud_free(&c);
     free(ref);
     if (rc) return sy_cli_report(&err);
@@ -250,6 +256,12 @@ static int run_points(const eval_args *a, const char *model_path, sy_cli *cli)
         put(&r, "iou_mean", "silhouette IoU, mean of 6", sm.iou_mean, "");
         put(&r, "iou_min", "silhouette IoU, minimum", sm.iou_min, "");
         put(&r, "profile_correlation", "vertical profile correlation", sm.profile_correlation, "");
+        if (r.json) {
+            put(&r, "profile_z0", "", sm.profile_z0, "");
+            put(&r, "profile_dz", "", sm.profile_dz, "");
+            sy_json_numbers(&r.j, "profile_scan", sm.profile_scan, SY_SILHOUETTE_BINS);
+            sy_json_numbers(&r.j, "profile_model", sm.profile_model, SY_SILHOUETTE_BINS);
+        }
         put(&r, "scan_height", "scan height (above ground)", sm.scan_height, " m");
         put(&r, "model_height", "asset height", sm.model_height, " m");
         put(&r, "height_error_rel", "height error (relative, signed)", sm.height_error, "");
@@ -348,7 +360,7 @@ int cmd_eval(int argc, char **argv, sy_cli *cli)
         {"--species", OPT_FLAG, &args.species_mode, NULL, "score species predictions (CSV id,species or truth JSON)"},
         {"--truth-attr", OPT_STRING, &args.truth_attr, "NAME", "truth labels: extra-bytes attribute or LAS field, e.g. classification (default treeID)"},
         {"--pred-attr", OPT_STRING, &args.pred_attr, "NAME", "predicted labels: extra-bytes attribute or LAS field (default treeID)"},
-        {"--png", OPT_STRING, &args.png_path, "FILE", "species: write the confusion matrix as a PNG heatmap"},
+        {"--png", OPT_STRING, &args.png_path, "FILE", "species: the confusion matrix as a PNG heatmap; points: the six silhouette views"},
         {"--closed", OPT_FLAG, &args.closed_flag, NULL, "treat the model's meshes as closed hulls (inside = distance 0)"},
         {"--coverage", OPT_DOUBLE, &args.coverage_eps, "METRES", "coverage distance (default 0.02)"},
         {"--match-distance", OPT_DOUBLE, &args.match_distance, "METRES", "segmentation: nearest-point match radius when the clouds differ (default 0.01)"},
@@ -369,7 +381,9 @@ int cmd_eval(int argc, char **argv, sy_cli *cli)
     "                         silhouette IoU of 6 views (mean, minimum), vertical profile correlation,\n"
     "                         relative height and crown-width errors (LOD0, foliage proxy left out).\n"
     "                         SCAN may be a .glb too (a reference asset, e.g. `sylva grow`'s true tree:\n"
-    "                         its LOD0 surface sampled every 2 cm).\n"
+    "                         its LOD0 surface sampled every 2 cm). --png FILE draws the six views'\n"
+    "                         masks (scan only red, asset only blue, both grey); --json adds the two\n"
+    "                         vertical profiles (profile_scan: points, profile_model: area in m^2).\n"
         "  --segmentation T P     instance precision/recall/F1 at IoU > 0.5 (labels 0/NaN: no tree),\n"
         "                         over-/under-segmentation counts (sylva segment's output as P).\n"
         "  --species T P          accuracy, macro-F1 and the confusion matrix.\n"
@@ -392,8 +406,8 @@ int cmd_eval(int argc, char **argv, sy_cli *cli)
         fprintf(stderr, "sylva eval: --coverage and --match-distance must be >= 0\n");
         return SY_EUSAGE;
     }
-    if (a->png_path && !a->species_mode) {
-        fprintf(stderr, "sylva eval: --png applies to --species only\n");
+    if (a->png_path && !a->species_mode && !(a->points_path && n == 1 && is_gltf(pos[0]))) {
+        fprintf(stderr, "sylva eval: --png applies to --species, and to --points with a .glb/.gltf MODEL\n");
         return SY_EUSAGE;
     }
     const char *ins[4] = {pos[0], n > 1 ? pos[1] : NULL, a->truth_path, a->points_path};

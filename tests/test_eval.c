@@ -766,7 +766,7 @@ static void silhouette_of_dense_and_sparse_scans(void **state)
         box_faces(steps[k], &pts, &n);
         sy_silhouette_metrics m;
         sy_error err = {0};
-        assert_int_equal(sy_silhouette_metrics_compute(tri, nt, NULL, pts, n, &m, &err), SY_OK);
+        assert_int_equal(sy_silhouette_metrics_compute(tri, nt, NULL, pts, n, &m, NULL, &err), SY_OK);
         printf("box, scan spacing %.2f m: splat %.3f m, IoU mean %.4f min %.4f\n", steps[k], m.splat_radius, m.iou_mean,
                m.iou_min);
         assert_float_equal(m.splat_radius, steps[k], 0.01 * steps[k]);
@@ -795,8 +795,8 @@ static void alpha_tested_cards_count_where_drawn(void **state)
         for (int j = 0; j <= 100; j++, n++) pts[3 * n] = 0.5 + 0.01 * i, pts[3 * n + 1] = 0, pts[3 * n + 2] = 0.01 * j;
     sy_silhouette_metrics with, whole;
     sy_error err = {0};
-    assert_int_equal(sy_silhouette_metrics_compute(tri, 2, &cut, pts, n, &with, &err), SY_OK);
-    assert_int_equal(sy_silhouette_metrics_compute(tri, 2, NULL, pts, n, &whole, &err), SY_OK);
+    assert_int_equal(sy_silhouette_metrics_compute(tri, 2, &cut, pts, n, &with, NULL, &err), SY_OK);
+    assert_int_equal(sy_silhouette_metrics_compute(tri, 2, NULL, pts, n, &whole, NULL, &err), SY_OK);
     for (int v = 0; v < 6; v++) printf("view %d: IoU %.3f with the cut-out, %.3f whole\n", v, with.iou[v], whole.iou[v]);
     /* Every view but the edge-on one (azimuth 0) sees the clear half. */
     assert_true(with.iou_min >= 0.85 && with.iou_mean >= 0.95);
@@ -810,10 +810,80 @@ static void alpha_tested_cards_count_where_drawn(void **state)
     free(pts);
 }
 
+/* What the scores are made of: each view's mask pixels give its IoU exactly;
+ * the profiles hold every scan point and the model's drawn area (the half-
+ * clear card: 1 m^2 whole, 0.5 m^2 cut); the PNG shows each view's pixels in
+ * their colours (3 x 2 views of 256^2, 4-pixel gutters). */
+static void masks_and_profiles_behind_the_scores(void **state)
+{
+    (void)state;
+    const double tri[18] = {0, 0, 0, 1, 0, 0, 1, 0, 1, 0, 0, 0, 1, 0, 1, 0, 0, 1};
+    float uv[12] = {0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1};
+    int32_t map[2] = {0, 0};
+    unsigned char alpha[2] = {0, 255};
+    sy_gltf_alpha_map am = {2, 1, 0.5f, alpha};
+    sy_gltf_cutout cut = {uv, map, 1, &am};
+    size_t n = 0;
+    double *pts = malloc(51 * 101 * 3 * sizeof *pts);
+    for (int i = 0; i <= 50; i++)
+        for (int j = 0; j <= 100; j++, n++) pts[3 * n] = 0.5 + 0.01 * i, pts[3 * n + 1] = 0, pts[3 * n + 2] = 0.01 * j;
+    const size_t per = SY_SILHOUETTE_RES * SY_SILHOUETTE_RES;
+    unsigned char *masks = malloc(SY_SILHOUETTE_VIEWS * per);
+    assert_non_null(masks);
+    for (int with_cut = 0; with_cut < 2; with_cut++) {
+        sy_silhouette_metrics m;
+        sy_error err = {0};
+        assert_int_equal(sy_silhouette_metrics_compute(tri, 2, with_cut ? &cut : NULL, pts, n, &m, masks, &err), SY_OK);
+        size_t model_only[SY_SILHOUETTE_VIEWS];
+        for (int v = 0; v < SY_SILHOUETTE_VIEWS; v++) {
+            size_t both = 0, any = 0;
+            model_only[v] = 0;
+            for (size_t i = 0; i < per; i++) {
+                unsigned char b = masks[(size_t)v * per + i];
+                assert_true(b <= (SY_MASK_SCAN | SY_MASK_MODEL));
+                both += b == (SY_MASK_SCAN | SY_MASK_MODEL), any += b != 0, model_only[v] += b == SY_MASK_MODEL;
+            }
+            assert_true(any > 0);
+            assert_float_equal(m.iou[v], (double)both / (double)any, 1e-12);
+        }
+        /* Whole, the clear half is drawn: model-only pixels at azimuth 90. */
+        assert_true(with_cut ? model_only[2] < per / 100 : model_only[2] > per / 10);
+        double pts_sum = 0, area = 0;
+        for (int b = 0; b < SY_SILHOUETTE_BINS; b++) pts_sum += m.profile_scan[b], area += m.profile_model[b];
+        assert_float_equal(pts_sum, (double)n, 0);
+        assert_float_equal(area, with_cut ? 0.5 : 1.0, 0.02);
+        assert_float_equal(m.profile_z0, 0, 1e-12);
+        assert_float_equal(m.profile_z0 + SY_SILHOUETTE_BINS * m.profile_dz, 1.0, 1e-9);
+        if (with_cut) continue;
+        const char *png = tmp_path("silhouette.png");
+        assert_int_equal(sy_silhouette_png(masks, png, &err), SY_OK);
+        int w, h, ch;
+        unsigned char *img = stbi_load(png, &w, &h, &ch, 3);
+        assert_non_null(img);
+        assert_int_equal(w, 3 * SY_SILHOUETTE_RES + 4 * 4);
+        assert_int_equal(h, 2 * SY_SILHOUETTE_RES + 3 * 4);
+        /* Azimuth 90 is the third view of the top row; blue is model only. */
+        size_t blue = 0;
+        for (int y = 4; y < 4 + SY_SILHOUETTE_RES; y++)
+            for (int x = 4 + 2 * (SY_SILHOUETTE_RES + 4); x < 4 + 2 * (SY_SILHOUETTE_RES + 4) + SY_SILHOUETTE_RES; x++) {
+                const unsigned char *q = img + 3 * ((size_t)y * (size_t)w + (size_t)x);
+                blue += q[0] == 40 && q[1] == 80 && q[2] == 230;
+            }
+        assert_int_equal(blue, model_only[2]);
+        stbi_image_free(img);
+        /* An unwritable path is an error naming it, and nothing is left. */
+        assert_int_not_equal(sy_silhouette_png(masks, "/nonexistent-dir/x.png", &err), SY_OK);
+        assert_non_null(strstr(err.msg, "/nonexistent-dir"));
+    }
+    free(masks);
+    free(pts);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(alpha_tested_cards_count_where_drawn),
+        cmocka_unit_test(masks_and_profiles_behind_the_scores),
         cmocka_unit_test(skeleton_vs_itself_is_perfect),
         cmocka_unit_test(skeleton_metrics_options_are_checked),
         cmocka_unit_test(long_edges_take_bounded_samples),

@@ -296,7 +296,7 @@ static int look(const char *scan, const char *obj)
     double *pts = NULL;
     sy_silhouette_metrics m;
     int rc = sy_preprocess(&c, &po, &pr, &err) || !(pts = sy_cloud_world_points(&c, &err)) ||
-             sy_silhouette_metrics_compute(tri, nt, NULL, pts, c.n, &m, &err);
+             sy_silhouette_metrics_compute(tri, nt, NULL, pts, c.n, &m, NULL, &err);
     if (rc) fprintf(stderr, "%s\n", err.msg);
     else
         printf("triangles=%zu iou_mean=%.3f iou_min=%.3f profile_correlation=%.3f height_error_rel=%+.3f "
@@ -319,7 +319,7 @@ static int lookglb(const char *ref, const char *asset)
     sy_silhouette_metrics sm;
     int rc = sy_gltf_read_surface(ref, &rt, &nr, &rc_cut, &err) || sy_gltf_read_surface(asset, &at, &na, &ac_cut, &err) ||
              !(pts = sy_drawn_surface_points(rt, nr, &rc_cut, 0.02, &np, &err)) ||
-             sy_silhouette_metrics_compute(at, na, &ac_cut, pts, np, &sm, &err);
+             sy_silhouette_metrics_compute(at, na, &ac_cut, pts, np, &sm, NULL, &err);
     if (rc) fprintf(stderr, "%s\n", err.msg);
     else
         printf("iou_mean=%.3f iou_min=%.3f profile_correlation=%.3f height_error_rel=%+.3f crown_width_error_rel=%+.3f\n",

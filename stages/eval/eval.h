@@ -114,15 +114,29 @@ double *sy_model_surface_samples(const sy_eval_model *m, double spacing, size_t 
  * cut (NULL: every triangle drawn whole) leaves out what a viewer's alpha
  * test discards: an alpha-masked leaf card counts where its leaves are, not
  * as its whole quad (sy_gltf_read_surface). */
+#define SY_SILHOUETTE_VIEWS 6
+#define SY_SILHOUETTE_RES 256
+#define SY_SILHOUETTE_BINS 40
 typedef struct {
-    double iou[6], iou_mean, iou_min;
+    double iou[SY_SILHOUETTE_VIEWS], iou_mean, iou_min;
     double profile_correlation;
+    /* The profiles it correlates: bin b spans world z profile_z0 + [b, b + 1)
+     * profile_dz; the scan's points and the model's drawn area (m^2) in each. */
+    double profile_z0, profile_dz, profile_scan[SY_SILHOUETTE_BINS], profile_model[SY_SILHOUETTE_BINS];
     double scan_height, model_height, height_error;
     double scan_width, model_width, width_error;
     double splat_radius; /* the scan's median spacing, metres */
 } sy_silhouette_metrics;
+/* masks: NULL, or room for SY_SILHOUETTE_VIEWS masks of SY_SILHOUETTE_RES^2
+ * bytes, view after view in the order of iou[], row 0 at the bottom of the
+ * view; each pixel the SY_MASK_SCAN and SY_MASK_MODEL bits it holds. */
+enum { SY_MASK_SCAN = 1, SY_MASK_MODEL = 2 };
 sy_code sy_silhouette_metrics_compute(const double *tri, size_t n_tri, const sy_gltf_cutout *cut, const double *pts,
-                                      size_t n_pts, sy_silhouette_metrics *out, sy_error *err);
+                                      size_t n_pts, sy_silhouette_metrics *out, unsigned char *masks, sy_error *err);
+/* The six masks as one PNG at path (written whole or not at all): azimuths
+ * 0, 45 and 90 degrees on the top row, 135, top and oblique below; scan
+ * only red, model only blue, both dark grey, neither white. */
+sy_code sy_silhouette_png(const unsigned char *masks, const char *path, sy_error *err);
 
 /* The triangles' drawn surface as points no more than step apart (cut, which
  * may be NULL, leaves out the texels an alpha test discards); 3 doubles

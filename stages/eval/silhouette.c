@@ -8,15 +8,17 @@
 #include <string.h>
 
 #include "stages/eval/eval.h"
+#include "stages/core/fileio.h"
+#include "stages/core/png.h"
 #include "stages/core/sort.h"
 
 #ifndef M_PI
 #define M_PI 3.14159265358979323846
 #endif
 
-#define VIEWS 6
-#define RES 256
-#define BINS 40
+#define VIEWS SY_SILHOUETTE_VIEWS
+#define RES SY_SILHOUETTE_RES
+#define BINS SY_SILHOUETTE_BINS
 /* Splats up to this radius (pixels) are drawn point by point, exactly; wider
  * ones (sparse scans) at once from the points' pixels (splat_seeds), within
  * 0.7 px of the same disks. */
@@ -298,7 +300,7 @@ double *sy_drawn_surface_points(const double *tri, size_t n_tri, const sy_gltf_c
 }
 
 sy_code sy_silhouette_metrics_compute(const double *tri, size_t n_tri, const sy_gltf_cutout *cut, const double *pts,
-                                      size_t n_pts, sy_silhouette_metrics *out, sy_error *err)
+                                      size_t n_pts, sy_silhouette_metrics *out, unsigned char *masks, sy_error *err)
 {
     memset(out, 0, sizeof *out);
     if (n_pts < 2) return sy_fail(err, SY_EINPUT, "silhouette: the scan has %zu points above the ground", n_pts);
@@ -352,6 +354,9 @@ sy_code sy_silhouette_metrics_compute(const double *tri, size_t n_tri, const sy_
         }
         size_t inter = 0, uni = 0;
         for (size_t i = 0; i < RES * RES; i++) inter += ma[i] && mb[i], uni += ma[i] || mb[i];
+        if (masks)
+            for (size_t i = 0; i < RES * RES; i++)
+                masks[(size_t)v * RES * RES + i] = (unsigned char)((ma[i] ? SY_MASK_SCAN : 0) | (mb[i] ? SY_MASK_MODEL : 0));
         out->iou[v] = uni ? (double)inter / (double)uni : 0;
         out->iou_mean += out->iou[v] / VIEWS;
         out->iou_min = fmin(out->iou_min, out->iou[v]);
@@ -372,6 +377,9 @@ sy_code sy_silhouette_metrics_compute(const double *tri, size_t n_tri, const sy_
     for (int b = 0; b < BINS; b++)
         sxy += (hp[b] - mp) * (hm[b] - mm), sxx += (hp[b] - mp) * (hp[b] - mp), syy += (hm[b] - mm) * (hm[b] - mm);
     out->profile_correlation = sxx > 0 && syy > 0 ? sxy / sqrt(sxx * syy) : 0;
+    out->profile_z0 = z0, out->profile_dz = dz;
+    memcpy(out->profile_scan, hp, sizeof hp);
+    memcpy(out->profile_model, hm, sizeof hm);
     /* Height (base to top) and crown width of each. */
     double pz0 = INFINITY, pz1 = -INFINITY, mz0 = INFINITY, mz1 = -INFINITY;
     for (size_t i = 0; i < n_pts; i++) pz0 = fmin(pz0, pts[3 * i + 2]), pz1 = fmax(pz1, pts[3 * i + 2]);
@@ -384,4 +392,35 @@ sy_code sy_silhouette_metrics_compute(const double *tri, size_t n_tri, const sy_
     out->width_error = out->scan_width > 0 ? (out->model_width - out->scan_width) / out->scan_width : NAN;
     free(smp), free(area), free(ma), free(mb), free(tmp);
     return SY_OK;
+}
+
+sy_code sy_silhouette_png(const unsigned char *masks, const char *path, sy_error *err)
+{
+    /* 3 x 2 views, a 4-pixel white gutter round each with a light grey
+     * frame, so an empty view still shows where it is. */
+    enum { GAP = 4, COLS = 3, ROWS = 2, W = COLS * RES + (COLS + 1) * GAP, H = ROWS * RES + (ROWS + 1) * GAP };
+    static const unsigned char colour[4][3] = {{255, 255, 255}, {230, 40, 40}, {40, 80, 230}, {60, 60, 60}};
+    unsigned char *px = sy_calloc((size_t)W * H, 3, err, "silhouette image");
+    if (!px) return SY_EINTERNAL;
+    memset(px, 255, (size_t)W * H * 3);
+    for (int v = 0; v < VIEWS; v++) {
+        int x0 = GAP + (v % COLS) * (RES + GAP), y0 = GAP + (v / COLS) * (RES + GAP);
+        for (int y = -1; y <= RES; y++)
+            for (int x = -1; x <= RES; x++) {
+                unsigned char *o = px + 3 * ((size_t)(y0 + y) * W + (size_t)(x0 + x));
+                if (x < 0 || y < 0 || x == RES || y == RES) {
+                    o[0] = o[1] = o[2] = 200;
+                    continue;
+                }
+                /* Image rows run down, mask rows up. */
+                memcpy(o, colour[masks[(size_t)v * RES * RES + (size_t)(RES - 1 - y) * RES + (size_t)x] & 3], 3);
+            }
+    }
+    unsigned char *png = NULL;
+    size_t size = 0;
+    int bad = sy_png_encode(px, W, H, 3, 8, &png, &size);
+    free(px);
+    sy_code rc = bad ? sy_fail(err, SY_EINTERNAL, "%s: PNG encoding failed", path) : sy_write_file_atomic(path, png, size, err);
+    free(png);
+    return rc;
 }

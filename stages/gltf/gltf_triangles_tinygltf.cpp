@@ -433,6 +433,10 @@ bool skip_image(tinygltf::Image *, const int, std::string *, std::string *, int,
 // triangle whole where its image is unreadable: a format stb does not decode
 // (WebP, KTX2) or one over kMaxCutPixels (a few bytes of a crafted header
 // would otherwise cost gigabytes) is left empty, and the file still loads.
+// An image without alpha (grey or RGB, stb's header comps 1 or 3; a PNG's
+// tRNS chunk counts as alpha) is left empty too: an empty image and an
+// opaque one give the same map, the factor's alpha alone (alpha_map), and a
+// tree's bark, normal and impostor maps need not be decoded to be measured.
 constexpr long long kMaxCutPixels = 8192LL * 8192LL;
 
 bool lenient_image(tinygltf::Image *image, const int index, std::string *err, std::string *warn, int req_width,
@@ -440,6 +444,7 @@ bool lenient_image(tinygltf::Image *image, const int index, std::string *err, st
 {
     int w = 0, h = 0, c = 0;
     if (size <= 0 || !stbi_info_from_memory(bytes, size, &w, &h, &c) || (long long)w * h > kMaxCutPixels) return true;
+    if (c == 1 || c == 3) return true;
     std::string e, wn;
     if (!tinygltf::LoadImageData(image, index, &e, &wn, req_width, req_height, bytes, size, user)) {
         image->image.clear();
