@@ -50,6 +50,7 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
     sy_json_number(&j, "dbh", r->dbh);
     sy_json_bool(&j, "dbh_fitted", r->dbh_fitted);
     sy_json_int(&j, "hairpins", (long long)r->hairpins);
+    sy_json_int(&j, "radii_capped", (long long)r->radii_capped);
     sy_json_int(&j, "limb_kinks", (long long)r->limb_kinks);
     sy_json_number(&j, "limb_turn_max", r->limb_turn_max);
     sy_json_bool(&j, "stem_rebuilt", r->stem_rebuilt);
@@ -126,6 +127,8 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
          "from the wood below)"},
         {"--fair-limbs", OPT_DOUBLE, &a.run.fair_sigma, "S",
          "smooth each limb along its length over S times its radius (default 4; 0: off)"},
+        {"--return-cap", OPT_DOUBLE, &a.run.return_cap, "F",
+         "no limb thicker than F times the median distance of its returns (default 2; 0: off)"},
         SY_GLB_OPTIONS(a.glb),
         SY_PHOTO_OPTIONS(photo),
         {NULL, 0, NULL, NULL, NULL},

@@ -42,6 +42,7 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
         sy_json_number(&j, "dbh", r->dbh);
         sy_json_bool(&j, "dbh_fitted", r->dbh_fitted);
         sy_json_int(&j, "hairpins", (long long)r->hairpins);
+        sy_json_int(&j, "radii_capped", (long long)r->radii_capped);
         sy_json_int(&j, "limb_kinks", (long long)r->limb_kinks);
         sy_json_number(&j, "limb_turn_max", r->limb_turn_max);
         sy_json_bool(&j, "stem_rebuilt", r->stem_rebuilt);
@@ -128,6 +129,8 @@ int cmd_skeleton(int argc, char **argv, sy_cli *cli)
          "from the wood below)"},
         {"--fair-limbs", OPT_DOUBLE, &a.o.fair_sigma, "S",
          "smooth each limb along its length over S times its radius (default 4; 0: off)"},
+        {"--return-cap", OPT_DOUBLE, &a.o.return_cap, "F",
+         "no limb thicker than F times the median distance of its returns (default 2; 0: off)"},
         {"--no-clusters", OPT_FLAG, &a.no_clusters, NULL, "keep every point on the skeleton"},
         {NULL, 0, NULL, NULL, NULL},
     };

@@ -23,7 +23,7 @@ sy_run_tree_options sy_run_tree_options_default(void)
 {
     sy_run_tree_options o;
     memset(&o, 0, sizeof o);
-    o.beta = o.gamma = o.fair_sigma = NAN;
+    o.beta = o.gamma = o.fair_sigma = o.return_cap = NAN;
     o.fs = 1;
     o.seed = 1;
     o.lobe_size = 0.1;
@@ -48,6 +48,8 @@ sy_code sy_run_tree_options_check(const sy_run_tree_options *o, sy_error *err)
         return sy_fail(err, SY_EUSAGE, "run: voxel %g must be >= 0 metres", o->voxel);
     if (!isnan(o->fair_sigma) && !(o->fair_sigma >= 0 && isfinite(o->fair_sigma)))
         return sy_fail(err, SY_EUSAGE, "run: fair_sigma %g must be >= 0", o->fair_sigma);
+    if (!isnan(o->return_cap) && !(o->return_cap >= 0 && isfinite(o->return_cap)))
+        return sy_fail(err, SY_EUSAGE, "run: return_cap %g must be >= 0", o->return_cap);
     return sy_tree_asset_options_check(&o->asset, err);
 }
 
@@ -116,9 +118,14 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
     rc = sy_clusters_extract(&full, c->xyz, &co, out, clusters, &cut, err);
     sy_full_skeleton_free(&full);
     if (rc) return rc;
+    /* Radii the returns bound, on the chains the level sets made (where the
+     * returns are centred), before the fairing smooths them along each limb;
+     * the trunk keeps its DBH fit up to breast height. */
+    double breast_z = out->n ? out->pos[2] + fmin(o->dbh_height, 0.25 * report->height) : 0;
+    rc = sy_cap_radii_by_returns(out, c->xyz, o->return_cap, breast_z, &report->radii_capped, err);
     /* Faired after the cut, which judges the chains as the level sets made
      * them (their points' spread about each edge). */
-    if ((rc = sy_skeleton_fair_limbs(out, o->fair_sigma, err))) {
+    if (rc || (rc = sy_skeleton_fair_limbs(out, o->fair_sigma, err))) {
         if (clusters) sy_clusters_free(clusters);
         sy_skeleton_free(out);
         return rc;
@@ -400,6 +407,7 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
     so.spread_around = o->spread_around;
     so.unfold_hairpins = !o->keep_hairpins;
     if (!isnan(o->fair_sigma)) so.fair_sigma = o->fair_sigma;
+    if (!isnan(o->return_cap)) so.return_cap = o->return_cap;
     so.lobe_size = o->lobe_size;
     sy_skeleton s;
     sy_clusters cl;

@@ -42,6 +42,8 @@ typedef struct {
     int keep_hairpins;   /* skeleton: leave chains that climb one limb and come down another as they are (0) */
     double fair_sigma;   /* skeleton: limbs smoothed over this many times their radius; NAN: the skeleton's
                             default (sy_skeleton_options.fair_sigma) */
+    double return_cap;   /* skeleton: no limb thicker than this many times its returns' median distance;
+                            NAN: the skeleton's default (sy_skeleton_options.return_cap) */
     int sylva;           /* 1: also keep the .sylva file (result->sylva); the asset is always made from it */
     int proxy;           /* 1: also draw the lobe hulls as the semi-transparent foliage_proxy mesh (0) */
     int leaf_off;        /* 1: a leaf-off scan: synthesised branches without leaf cards (0); the .sylva is

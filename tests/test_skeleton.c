@@ -670,6 +670,99 @@ static void limbs_are_faired_by_their_thickness(void **state)
     sy_skeleton_free(&s);
 }
 
+/* Radii the returns bound (radii.c): a 4 m trunk chain the pipe model made
+ * 10 cm thick all the way, whose returns ring it at 10 cm below 1 m and at
+ * 3 cm above (a vase tree's leader, AdTree's tree7), with a 2 cm limb at 2 m
+ * whose 12 returns are too few to judge and a 2 cm limb at 3 m ringed at
+ * 5 mm. The trunk is cut to at most twice 3 cm above 1 m and keeps 10 cm
+ * below it, the limb at 3 m to 1 cm, the unjudged limb only to its (cut)
+ * parent; the returns on the trunk where a limb leaves stay the trunk's;
+ * nothing is cut below keep_below_z; cap 0 does nothing. */
+static void radii_are_bound_by_their_returns(void **state)
+{
+    (void)state;
+    const double pi = 3.14159265358979323846;
+    sy_error err = {0};
+    sy_skeleton s;
+    assert_int_equal(sy_skeleton_init(&s, 0, &err), SY_OK);
+    int32_t prev = -1, at2 = -1, at3 = -1;
+    for (int i = 0; i <= 20; i++) {
+        float p[3] = {0, 0, (float)(0.2 * i)};
+        prev = sy_skeleton_add(&s, p, 0.10f, prev, 0, 0, &err);
+        if (i == 10) at2 = prev;
+        if (i == 15) at3 = prev;
+    }
+    int32_t limb2[5], limb3[5];
+    for (int b = 0; b < 2; b++) {
+        prev = b ? at3 : at2;
+        for (int i = 1; i <= 5; i++) {
+            float p[3] = {(float)(0.15 * i), 0, s.pos[3 * prev + 2]};
+            p[2] = b ? 3.0f : 2.0f;
+            prev = sy_skeleton_add(&s, p, 0.02f, prev, 1, 1 + b, &err);
+            (b ? limb3 : limb2)[i - 1] = prev;
+        }
+    }
+    /* Returns: rings round the trunk (36 a ring, every 5 cm), round the limb
+     * at 3 m (12 a ring, every 3 cm), 12 beside the limb at 2 m. */
+    size_t cap = 4096, n = 0;
+    float *xyz = malloc(3 * cap * sizeof *xyz);
+    int32_t *node = malloc(cap * sizeof *node);
+    assert_true(xyz && node);
+    for (int k = 0; k < 80; k++) {
+        double z = 0.025 + 0.05 * k, r = z < 1 ? 0.10 : 0.03;
+        for (int a = 0; a < 36; a++, n++) {
+            xyz[3 * n] = (float)(r * cos(2 * pi * a / 36)), xyz[3 * n + 1] = (float)(r * sin(2 * pi * a / 36));
+            xyz[3 * n + 2] = (float)z;
+            node[n] = (int32_t)lround(z / 0.2);
+        }
+    }
+    for (int k = 1; k <= 24; k++)
+        for (int a = 0; a < 12; a++, n++) {
+            xyz[3 * n] = (float)(0.03 * k), xyz[3 * n + 1] = (float)(0.005 * cos(2 * pi * a / 12));
+            xyz[3 * n + 2] = (float)(3.0 + 0.005 * sin(2 * pi * a / 12));
+            node[n] = limb3[(k - 1) / 5];
+        }
+    for (int k = 0; k < 12; k++, n++) {
+        xyz[3 * n] = (float)(0.05 + 0.05 * k), xyz[3 * n + 1] = 0.004f, xyz[3 * n + 2] = 2.0f;
+        node[n] = limb2[k / 3];
+    }
+    /* Each node's support: its returns. */
+    s.support_start = calloc(s.n + 1, sizeof *s.support_start);
+    s.support = malloc(n * sizeof *s.support);
+    assert_true(s.support_start && s.support);
+    for (size_t i = 0; i < n; i++) s.support_start[node[i] + 1]++;
+    for (size_t v = 0; v < s.n; v++) s.support_start[v + 1] += s.support_start[v];
+    uint32_t *fill = malloc(s.n * sizeof *fill);
+    for (size_t v = 0; v < s.n; v++) fill[v] = s.support_start[v];
+    for (size_t i = 0; i < n; i++) s.support[fill[node[i]]++] = (uint32_t)i;
+    float *before = malloc(s.n * sizeof *before);
+    memcpy(before, s.radius, s.n * sizeof *before);
+    size_t capped = 99;
+    assert_int_equal(sy_cap_radii_by_returns(&s, xyz, 0, 0.5, &capped, &err), SY_OK);
+    assert_int_equal(capped, 0);
+    assert_memory_equal(before, s.radius, s.n * sizeof *before);
+    assert_int_equal(sy_cap_radii_by_returns(&s, xyz, 2, 0.5, &capped, &err), SY_OK);
+    printf("capped %zu of %zu edges; trunk at 0.4 m %.4f, 2 m %.4f, 3.6 m %.4f; limb at 2 m %.4f, at 3 m %.4f\n", capped,
+           s.n - 1, s.radius[2], s.radius[at2], s.radius[18], s.radius[limb2[0]], s.radius[limb3[0]]);
+    for (int i = 0; i <= 20; i++) {
+        double z = 0.2 * i;
+        if (z < 0.9) assert_float_equal(s.radius[i], 0.10, 1e-6);
+        else if (z > 1.1) assert_true(s.radius[i] >= 0.03 && s.radius[i] <= 0.065);
+    }
+    for (int i = 0; i < 5; i++) {
+        assert_true(s.radius[limb3[i]] >= 0.004 && s.radius[limb3[i]] <= 0.012);
+        assert_float_equal(s.radius[limb2[i]], fmin(0.02, s.radius[at2]), 1e-6);
+    }
+    for (size_t i = 1; i < s.n; i++) assert_true(s.radius[i] <= s.radius[s.parent[i]]);
+    /* Nothing below keep_below_z: the trunk up to 5 m keeps its guess. */
+    memcpy(s.radius, before, s.n * sizeof *before);
+    assert_int_equal(sy_cap_radii_by_returns(&s, xyz, 2, 5.0, &capped, &err), SY_OK);
+    for (int i = 0; i <= 20; i++) assert_float_equal(s.radius[i], 0.10, 1e-6);
+    assert_true(s.radius[limb3[0]] <= 0.012);
+    free(before), free(fill), free(xyz), free(node);
+    sy_skeleton_free(&s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -687,6 +780,7 @@ int main(void)
         cmocka_unit_test(limbs_grow_into_an_unseen_crown),
         cmocka_unit_test(rejects_tiny_and_bad_options),
         cmocka_unit_test(limbs_are_faired_by_their_thickness),
+        cmocka_unit_test(radii_are_bound_by_their_returns),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -39,6 +39,9 @@ typedef struct {
     int smooth_iters;     /* Laplacian passes along chains (3) */
     double fair_sigma;    /* limb fairing after the cut: each chain node of the main skeleton smoothed
                              over this many times its radius (4; 0 = off; fair.c) */
+    double return_cap;    /* after the cut, before the fairing: no main-skeleton edge thicker than this
+                             many times the median distance of its returns (2; 0 = off; radii.c,
+                             sy_cap_radii_by_returns) */
     double dbh_height;    /* breast height above the base in metres (1.3) */
     double dbh_slab;      /* slab thickness for the DBH circle fit in metres (0.10) */
     double dbh_per_height; /* the species' allometry, DBH over height of its nominal tree: the DBH
@@ -89,6 +92,14 @@ sy_code sy_skeleton_options_check(const sy_skeleton_options *o, sy_error *err);
  * sigma_factor x the fork's radius on); the root and the tips stay put. No radius then grows toward a tip.
  * 0 does nothing. Any node order. */
 sy_code sy_skeleton_fair_limbs(sy_skeleton *s, double sigma_factor, sy_error *err);
+/* Radii the returns bound (radii.c): each edge of s (a main skeleton with
+ * its support) with at least 20 returns nearest to it of all its edges is
+ * made no thicker than cap times their median distance from it, but for
+ * trunk nodes (branch 0) below keep_below_z (breast height: the DBH fit
+ * stands there); then no radius grows toward a tip. capped counts the
+ * edges cut. cap 0 does nothing. */
+sy_code sy_cap_radii_by_returns(sy_skeleton *s, const float *xyz, double cap, double keep_below_z, size_t *capped,
+                                sy_error *err);
 /* Kinks: chain nodes of limbs at least min_radius thick whose chain turns
  * by more than max_turn_deg between max(4 radii, 10 cm) of it on either
  * side (a limb bends; a hook or a level crossing turns). worst (may be
@@ -102,6 +113,8 @@ typedef struct {
     double spacing, bin_width;
     size_t raw_nodes, pruned_nodes, merged_nodes;
     size_t hairpins;      /* descending chains turned round to grow up from the wood below them */
+    size_t radii_capped;  /* after sy_reconstruct_tree: main-skeleton edges thinned to their returns
+                             (sy_cap_radii_by_returns) */
     size_t limb_kinks;    /* after sy_reconstruct_tree: main-skeleton nodes on limbs >= 2 cm turning
                              more than 60 degrees (sy_skeleton_limb_kinks), after the fairing */
     double limb_turn_max; /* ... and the largest such turn, degrees */

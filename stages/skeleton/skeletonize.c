@@ -30,6 +30,7 @@ sy_skeleton_options sy_skeleton_options_default(void)
     o->merge_cos = 0.9;
     o->smooth_iters = 3;
     o->fair_sigma = 4;
+    o->return_cap = 2;
     o->dbh_height = 1.3;
     o->dbh_slab = 0.10;
     o->min_cluster_points = 24;
@@ -66,6 +67,8 @@ sy_code sy_skeleton_options_check(const sy_skeleton_options *o, sy_error *err)
         return sy_fail(err, SY_EUSAGE, "skeleton: prune_factor >= 0, merge_cos in [-1, 1], smooth_iters >= 0");
     if (!(o->fair_sigma >= 0) || !isfinite(o->fair_sigma))
         return sy_fail(err, SY_EUSAGE, "skeleton: fair_sigma %g must be >= 0", o->fair_sigma);
+    if (!(o->return_cap >= 0) || !isfinite(o->return_cap))
+        return sy_fail(err, SY_EUSAGE, "skeleton: return_cap %g must be >= 0", o->return_cap);
     if (!(o->dbh_height > 0) || !(o->dbh_slab > 0))
         return sy_fail(err, SY_EUSAGE, "skeleton: dbh_height and dbh_slab must be > 0");
     if (!(o->dbh_per_height >= 0 && o->dbh_per_height < 1))
