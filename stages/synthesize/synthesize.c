@@ -1120,7 +1120,13 @@ static int scaffold_direction(const scaffold *s, const sy_colony *col, size_t j,
     ang = ang < lo ? lo : ang > hi ? hi : ang;
     for (int k = 0; k < 3; k++) dir[k] = cos(ang) * g0[k] + sin(ang) * side[k];
     if (!on) return 1;
-    const double *h = s->head_dir + 3 * j, bend = SCAFFOLD_MAX_BEND * M_PI / 180;
+    /* A leader grows up: the trunk's hidden rest keeps within the bend of
+     * the vertical, not of the way the level sets left its top (the aspen
+     * sample's chain leans 30 degrees in its sparse top, and its rest went
+     * on 40 more into a crook over the crown). */
+    static const double up[3] = {0, 0, 1};
+    const double *h = s->on_seed_limb[j] && s->limb->on_trunk ? up : s->head_dir + 3 * j;
+    const double bend = SCAFFOLD_MAX_BEND * M_PI / 180;
     c = sy_v3_dot(dir, h);
     if (c >= cos(bend)) return 1;
     for (int k = 0; k < 3; k++) side[k] = dir[k] - c * h[k];
