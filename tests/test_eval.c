@@ -775,6 +775,38 @@ static void silhouette_of_dense_and_sparse_scans(void **state)
     }
 }
 
+/* A 1 m square card upright in the x-z plane whose texture is clear on its
+ * left half (alpha 0 for u < 0.5, cutoff 0.5), and a scan of its right half
+ * every centimetre. The cut-out points into the card's own arrays. */
+typedef struct {
+    double tri[18];
+    float uv[12];
+    int32_t map[2];
+    unsigned char alpha[2];
+    sy_gltf_alpha_map am;
+    sy_gltf_cutout cut;
+    double *pts;
+    size_t n;
+} half_clear_card;
+
+static void half_clear_card_make(half_clear_card *c)
+{
+    const double tri[18] = {0, 0, 0, 1, 0, 0, 1, 0, 1, 0, 0, 0, 1, 0, 1, 0, 0, 1};
+    const float uv[12] = {0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1};
+    memcpy(c->tri, tri, sizeof tri);
+    memcpy(c->uv, uv, sizeof uv);
+    c->map[0] = c->map[1] = 0;
+    c->alpha[0] = 0, c->alpha[1] = 255;
+    c->am = (sy_gltf_alpha_map){2, 1, 0.5f, c->alpha};
+    c->cut = (sy_gltf_cutout){c->uv, c->map, 1, &c->am};
+    c->pts = malloc(51 * 101 * 3 * sizeof *c->pts);
+    assert_non_null(c->pts);
+    c->n = 0;
+    for (int i = 0; i <= 50; i++)
+        for (int j = 0; j <= 100; j++, c->n++)
+            c->pts[3 * c->n] = 0.5 + 0.01 * i, c->pts[3 * c->n + 1] = 0, c->pts[3 * c->n + 2] = 0.01 * j;
+}
+
 /* An alpha-tested card counts where it is drawn: a 1 m square card whose
  * texture is clear on its left half, scanned on its right half only. With
  * the cut-out the asset's silhouette is the scan's; taken whole, the card
@@ -783,31 +815,23 @@ static void silhouette_of_dense_and_sparse_scans(void **state)
 static void alpha_tested_cards_count_where_drawn(void **state)
 {
     (void)state;
-    const double tri[18] = {0, 0, 0, 1, 0, 0, 1, 0, 1, 0, 0, 0, 1, 0, 1, 0, 0, 1};
-    float uv[12] = {0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1};
-    int32_t map[2] = {0, 0};
-    unsigned char alpha[2] = {0, 255};
-    sy_gltf_alpha_map am = {2, 1, 0.5f, alpha};
-    sy_gltf_cutout cut = {uv, map, 1, &am};
-    size_t n = 0;
-    double *pts = malloc(51 * 101 * 3 * sizeof *pts);
-    for (int i = 0; i <= 50; i++)
-        for (int j = 0; j <= 100; j++, n++) pts[3 * n] = 0.5 + 0.01 * i, pts[3 * n + 1] = 0, pts[3 * n + 2] = 0.01 * j;
+    half_clear_card card;
+    half_clear_card_make(&card);
     sy_silhouette_metrics with, whole;
     sy_error err = {0};
-    assert_int_equal(sy_silhouette_metrics_compute(tri, 2, &cut, pts, n, &with, NULL, &err), SY_OK);
-    assert_int_equal(sy_silhouette_metrics_compute(tri, 2, NULL, pts, n, &whole, NULL, &err), SY_OK);
+    assert_int_equal(sy_silhouette_metrics_compute(card.tri, 2, &card.cut, card.pts, card.n, &with, NULL, &err), SY_OK);
+    assert_int_equal(sy_silhouette_metrics_compute(card.tri, 2, NULL, card.pts, card.n, &whole, NULL, &err), SY_OK);
     for (int v = 0; v < 6; v++) printf("view %d: IoU %.3f with the cut-out, %.3f whole\n", v, with.iou[v], whole.iou[v]);
     /* Every view but the edge-on one (azimuth 0) sees the clear half. */
     assert_true(with.iou_min >= 0.85 && with.iou_mean >= 0.95);
     assert_true(whole.iou[2] <= 0.6 && with.iou[2] >= 0.95);
     assert_true(with.width_error > -0.1 && with.width_error < 0.1);
     size_t nd = 0;
-    double *drawn = sy_drawn_surface_points(tri, 2, &cut, 0.01, &nd, &err);
+    double *drawn = sy_drawn_surface_points(card.tri, 2, &card.cut, 0.01, &nd, &err);
     assert_non_null(drawn);
     for (size_t i = 0; i < nd; i++) assert_true(drawn[3 * i] >= 0.49);
     free(drawn);
-    free(pts);
+    free(card.pts);
 }
 
 /* What the scores are made of: each view's mask pixels give its IoU exactly;
@@ -817,23 +841,15 @@ static void alpha_tested_cards_count_where_drawn(void **state)
 static void masks_and_profiles_behind_the_scores(void **state)
 {
     (void)state;
-    const double tri[18] = {0, 0, 0, 1, 0, 0, 1, 0, 1, 0, 0, 0, 1, 0, 1, 0, 0, 1};
-    float uv[12] = {0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1};
-    int32_t map[2] = {0, 0};
-    unsigned char alpha[2] = {0, 255};
-    sy_gltf_alpha_map am = {2, 1, 0.5f, alpha};
-    sy_gltf_cutout cut = {uv, map, 1, &am};
-    size_t n = 0;
-    double *pts = malloc(51 * 101 * 3 * sizeof *pts);
-    for (int i = 0; i <= 50; i++)
-        for (int j = 0; j <= 100; j++, n++) pts[3 * n] = 0.5 + 0.01 * i, pts[3 * n + 1] = 0, pts[3 * n + 2] = 0.01 * j;
+    half_clear_card card;
+    half_clear_card_make(&card);
     const size_t per = SY_SILHOUETTE_RES * SY_SILHOUETTE_RES;
     unsigned char *masks = malloc(SY_SILHOUETTE_VIEWS * per);
     assert_non_null(masks);
     for (int with_cut = 0; with_cut < 2; with_cut++) {
         sy_silhouette_metrics m;
         sy_error err = {0};
-        assert_int_equal(sy_silhouette_metrics_compute(tri, 2, with_cut ? &cut : NULL, pts, n, &m, masks, &err), SY_OK);
+        assert_int_equal(sy_silhouette_metrics_compute(card.tri, 2, with_cut ? &card.cut : NULL, card.pts, card.n, &m, masks, &err), SY_OK);
         size_t model_only[SY_SILHOUETTE_VIEWS];
         for (int v = 0; v < SY_SILHOUETTE_VIEWS; v++) {
             size_t both = 0, any = 0;
@@ -850,7 +866,7 @@ static void masks_and_profiles_behind_the_scores(void **state)
         assert_true(with_cut ? model_only[2] < per / 100 : model_only[2] > per / 10);
         double pts_sum = 0, area = 0;
         for (int b = 0; b < SY_SILHOUETTE_BINS; b++) pts_sum += m.profile_scan[b], area += m.profile_model[b];
-        assert_float_equal(pts_sum, (double)n, 0);
+        assert_float_equal(pts_sum, (double)card.n, 0);
         assert_float_equal(area, with_cut ? 0.5 : 1.0, 0.02);
         assert_float_equal(m.profile_z0, 0, 1e-12);
         assert_float_equal(m.profile_z0 + SY_SILHOUETTE_BINS * m.profile_dz, 1.0, 1e-9);
@@ -876,7 +892,7 @@ static void masks_and_profiles_behind_the_scores(void **state)
         assert_non_null(strstr(err.msg, "/nonexistent-dir"));
     }
     free(masks);
-    free(pts);
+    free(card.pts);
 }
 
 int main(void)

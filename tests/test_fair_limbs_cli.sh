@@ -36,8 +36,5 @@ done
 a=$(jq -r .iou_mean "$tmp/eval_4.json"); b=$(jq -r .iou_mean "$tmp/eval_0.json")
 check "tree33: IoU mean $a faired, $b unfaired (within 0.03)" "$a >= $b - 0.03"
 # Bad values are usage errors naming the option.
-"$SYLVA" run "$adtree/tree1.xyz" -o "$tmp/bad.glb" --fair-limbs -1 --quiet 2> "$tmp/bad.err"
-rc=$?
-check "--fair-limbs -1: exit $rc (1), says fair_sigma, no file" \
-  "$rc == 1 && $(grep -c fair_sigma "$tmp/bad.err") >= 1 && $([ -e "$tmp/bad.glb" ] && echo 1 || echo 0) == 0"
+check_bad_run "$adtree/tree1.xyz" --fair-limbs -1 fair_sigma
 exit $fail

@@ -39,8 +39,5 @@ for cap in 0 2; do
 done
 a=$(jq -r .iou_mean "$tmp/e2.json"); b=$(jq -r .iou_mean "$tmp/e0.json")
 check "IoU mean $a capped, $b not (no lower by more than 0.01)" "$a >= $b - 0.01"
-"$SYLVA" run "$scan" -o "$tmp/bad.glb" --return-cap -1 --quiet 2> "$tmp/bad.err"
-rc=$?
-check "--return-cap -1: exit $rc (1), says return_cap, no file" \
-  "$rc == 1 && $(grep -c return_cap "$tmp/bad.err") >= 1 && $([ -e "$tmp/bad.glb" ] && echo 1 || echo 0) == 0"
+check_bad_run "$scan" --return-cap -1 return_cap
 exit $fail
