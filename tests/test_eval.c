@@ -10,6 +10,7 @@
 #include <stb_image.h>
 
 #include "stages/eval/eval.h"
+#include "stages/gltf/gltf_read.h"
 #include "stages/eval/geometry.h"
 #include "stages/ingest/ingest.h"
 
@@ -834,6 +835,58 @@ static void alpha_tested_cards_count_where_drawn(void **state)
     free(card.pts);
 }
 
+/* The alpha test reads an RGB PNG whose tRNS chunk makes black clear:
+ * stb's header scan says 3 components for it (it stops at the IHDR), so an
+ * image is left undecoded as opaque only when no tRNS says otherwise. A
+ * 1 m card (the fuzz corpus's alpha_mask_card, its texture a 2 x 1 RGB PNG,
+ * black then white, black transparent) is drawn on its right half only. */
+static void rgb_png_with_trns_is_cut(void **state)
+{
+    (void)state;
+    static const char gltf[] =
+        "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0}],"
+        "\"meshes\":[{\"name\":\"leaf_card\",\"primitives\":[{\"attributes\":{\"POSITION\":0,\"TEXCOORD_0\":1"
+        "},\"indices\":2,\"material\":0}]}],\"materials\":[{\"name\":\"leaf\",\"alphaMode\":\"MASK\",\"alphaC"
+        "utoff\":0.5,\"doubleSided\":true,\"pbrMetallicRoughness\":{\"baseColorTexture\":{\"index\":0},\"base"
+        "ColorFactor\":[1,1,1,1]}}],\"textures\":[{\"source\":0}],\"images\":[{\"uri\":\"data:image/png;base6"
+        "4,iVBORw0KGgoAAAANSUhEUgAAAAIAAAABCAIAAAB7QOjdAAAABnRSTlMAAAAAAABupgeRAAAAD0lEQVR4nGNgYGD4//8/AAYBAv"
+        "4CsjmuAAAAAElFTkSuQmCC\"}],\"buffers\":[{\"byteLength\":92,\"uri\":\"data:application/octet-stream;b"
+        "ase64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAACAPwAAgD8AAAAAAAAAAAAAgD8AAAAAAAAAAAAAAAAAAIA/AAAAAAAAgD8AAI"
+        "A/AAAAAAAAgD8AAAEAAgAAAAIAAwA=\"}],\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":48"
+        "},{\"buffer\":0,\"byteOffset\":48,\"byteLength\":32},{\"buffer\":0,\"byteOffset\":80,\"byteLength\":"
+        "12}],\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":4,\"type\":\"VEC3\",\"min\":["
+        "0,0,0],\"max\":[1,1,0]},{\"bufferView\":1,\"componentType\":5126,\"count\":4,\"type\":\"VEC2\"},{\"b"
+        "ufferView\":2,\"componentType\":5123,\"count\":6,\"type\":\"SCALAR\"}]}";
+    static const unsigned char png[] = {137, 80, 78, 71, 13, 10, 26, 10, 0, 0, 0, 13, 73, 72, 68, 82, 0, 0, 0, 2,
+                                        0, 0, 0, 1, 8, 2, 0, 0, 0};
+    int w, h, c;
+    /* Only the header: what stb's scan sees of this PNG. */
+    assert_int_equal(stbi_info_from_memory(png, (int)sizeof png, &w, &h, &c), 1);
+    assert_int_equal(c, 3);
+    const char *path = tmp_path("trns_card.gltf");
+    FILE *f = fopen(path, "wb");
+    assert_non_null(f);
+    fputs(gltf, f);
+    fclose(f);
+    double *tri = NULL;
+    size_t nt = 0, n = 0;
+    sy_gltf_cutout cut;
+    sy_error err = {0};
+    sy_code rc = sy_gltf_read_surface(path, &tri, &nt, &cut, &err);
+    if (rc) printf("%s\n", err.msg);
+    assert_int_equal(rc, SY_OK);
+    assert_int_equal(nt, 2);
+    double *p = sy_drawn_surface_points(tri, nt, &cut, 0.01, &n, &err);
+    assert_non_null(p);
+    size_t left = 0;
+    for (size_t i = 0; i < n; i++) left += p[3 * i] < 0.45;
+    printf("RGB + tRNS card: %zu drawn samples, %zu on the clear half\n", n, left);
+    assert_true(n > 2000 && left == 0);
+    free(p);
+    free(tri);
+    sy_gltf_cutout_free(&cut);
+}
+
 /* What the scores are made of: each view's mask pixels give its IoU exactly;
  * the profiles hold every scan point and the model's drawn area (the half-
  * clear card: 1 m^2 whole, 0.5 m^2 cut); the PNG shows each view's pixels in
@@ -900,6 +953,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(alpha_tested_cards_count_where_drawn),
         cmocka_unit_test(masks_and_profiles_behind_the_scores),
+        cmocka_unit_test(rgb_png_with_trns_is_cut),
         cmocka_unit_test(skeleton_vs_itself_is_perfect),
         cmocka_unit_test(skeleton_metrics_options_are_checked),
         cmocka_unit_test(long_edges_take_bounded_samples),

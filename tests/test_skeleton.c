@@ -676,8 +676,7 @@ static void limbs_are_faired_by_their_thickness(void **state)
  * whose 12 returns are too few to judge and a 2 cm limb at 3 m ringed at
  * 5 mm. The trunk is cut to at most twice 3 cm above 1 m and keeps 10 cm
  * below it, the limb at 3 m to 1 cm, the unjudged limb only to its (cut)
- * parent; the returns on the trunk where a limb leaves stay the trunk's;
- * nothing is cut below keep_below_z; cap 0 does nothing. */
+ * parent; nothing is cut below keep_below_z; cap 0 does nothing. */
 static void radii_are_bound_by_their_returns(void **state)
 {
     (void)state;

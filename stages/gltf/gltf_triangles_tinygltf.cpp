@@ -433,18 +433,39 @@ bool skip_image(tinygltf::Image *, const int, std::string *, std::string *, int,
 // triangle whole where its image is unreadable: a format stb does not decode
 // (WebP, KTX2) or one over kMaxCutPixels (a few bytes of a crafted header
 // would otherwise cost gigabytes) is left empty, and the file still loads.
-// An image without alpha (grey or RGB, stb's header comps 1 or 3; a PNG's
-// tRNS chunk counts as alpha) is left empty too: an empty image and an
-// opaque one give the same map, the factor's alpha alone (alpha_map), and a
-// tree's bark, normal and impostor maps need not be decoded to be measured.
+// An image without alpha is left empty too: an empty image and an opaque
+// one give the same map, the factor's alpha alone (alpha_map; a material
+// whose primitive lacks the TEXCOORD_0 its texture needs, invalid glTF, is
+// then cut by that alpha instead of drawn whole), and a tree's bark, normal
+// and impostor maps need not be decoded to be measured. Without alpha: stb's
+// header says grey or RGB (1 or 3 components), and it is no grey or RGB PNG
+// with a tRNS chunk (stb's header scan stops at such a PNG's IHDR and says 1
+// or 3, though decoding gives it an alpha channel; a paletted PNG it scans on
+// to its tRNS).
 constexpr long long kMaxCutPixels = 8192LL * 8192LL;
+
+bool png_grey_or_rgb_with_trns(const unsigned char *b, int size)
+{
+    static const unsigned char sig[8] = {137, 80, 78, 71, 13, 10, 26, 10};
+    if (size < 33 || std::memcmp(b, sig, 8) != 0 || std::memcmp(b + 12, "IHDR", 4) != 0) return false;
+    if (b[25] != 0 && b[25] != 2) return false; // colour type: grey or RGB
+    long long at = 8;
+    while (at + 8 <= size) {
+        unsigned long len = (unsigned long)b[at] << 24 | (unsigned long)b[at + 1] << 16 | (unsigned long)b[at + 2] << 8 | b[at + 3];
+        const unsigned char *type = b + at + 4;
+        if (std::memcmp(type, "tRNS", 4) == 0) return true;
+        if (std::memcmp(type, "IDAT", 4) == 0 || std::memcmp(type, "IEND", 4) == 0) return false;
+        at += 12 + (long long)len;
+    }
+    return false;
+}
 
 bool lenient_image(tinygltf::Image *image, const int index, std::string *err, std::string *warn, int req_width,
                    int req_height, const unsigned char *bytes, int size, void *user)
 {
     int w = 0, h = 0, c = 0;
     if (size <= 0 || !stbi_info_from_memory(bytes, size, &w, &h, &c) || (long long)w * h > kMaxCutPixels) return true;
-    if (c == 1 || c == 3) return true;
+    if ((c == 1 || c == 3) && !png_grey_or_rgb_with_trns(bytes, size)) return true;
     std::string e, wn;
     if (!tinygltf::LoadImageData(image, index, &e, &wn, req_width, req_height, bytes, size, user)) {
         image->image.clear();

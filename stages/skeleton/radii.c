@@ -517,9 +517,11 @@ sy_code sy_calibrate_radii(sy_skeleton *s, const float *fit, sy_error *err)
 
 /* Each edge of the main skeleton is at most return_cap (2) times as thick
  * as the median distance of its returns from it (those nearest to it of all
- * the edges), when it has RETURN_MIN or more. Twice leaves a one-sided
- * scan its room: its level sets' centroids sit toward the scanner, so a
- * limb's returns lie 0.6-0.9 of its radius from the chain on the median.
+ * the edges, pooled along its branch over four of its radii either way),
+ * when they are RETURN_MIN or more. Twice leaves a one-sided scan its room:
+ * a level set's node sits at the centroid of the half ring the scanner saw,
+ * from which a limb's returns lie 0.55-0.7 of its radius on the median (the
+ * side facing the scanner is sampled densest).
  * What it cuts is the allometry's and the pipe model's guess where the
  * returns deny it: AdTree's tree7 forks a metre up into a vase of thin
  * stems, and the trunk chain running up its middle took 0.09 m from the
@@ -564,8 +566,10 @@ static void nearest_edges(void *ctx, size_t begin, size_t end, size_t chunk)
                         if (d < best || (d == best && best_e >= 0 && e < best_e)) best = d, best_e = e;
                     }
                 }
-        /* A return on the parent's tube where a branch leaves it is the
-         * parent's, though the branch's first segment runs through it. */
+        /* A return on the parent's tube where a branch leaves it is left out:
+         * the branch's first segment runs through the parent's tube there, so
+         * it would count for the branch (and the parent has its own returns
+         * all along its tube). */
         if (best_e >= 0) {
             int32_t par = s->parent[best_e];
             const float *o = s->pos + 3 * (size_t)par;
@@ -634,7 +638,8 @@ sy_code sy_cap_radii_by_returns(sy_skeleton *s, const float *xyz, double cap_fac
         for (size_t i = 0; i < m; i++) start[i + 1] += start[i];
         for (size_t q = 0; q < n_sup; q++)
             if (edge[q] >= 0) d[start[edge[q]]++] = dist[q];
-        /* start[i] now ends edge i's run; runs begin at start[i - 1]. */
+        /* The scatter moved each start[i] to the end of edge i's run: shift
+         * them back so edge i's run is start[i] .. start[i + 1]. */
         for (size_t i = m; i > 0; i--) start[i] = start[i - 1];
         start[0] = 0;
         /* Each node's cap from the returns of its edge and of the edges along
@@ -660,7 +665,9 @@ sy_code sy_cap_radii_by_returns(sy_skeleton *s, const float *xyz, double cap_fac
                     v = next;
                 }
             }
-            if (cnt >= RETURN_MIN) cap[i] = cap_factor * sy_quantile_double(pool, cnt, 0.5);
+            /* A millimetre at least: returns on the chain itself (duplicates,
+             * a level set of one point) must not make a radius of 0. */
+            if (cnt >= RETURN_MIN) cap[i] = fmax(cap_factor * sy_quantile_double(pool, cnt, 0.5), 0.001);
         }
         for (size_t i = 0; i < m; i++)
             if (s->radius[i] > cap[i]) {

@@ -93,8 +93,10 @@ sy_code sy_skeleton_options_check(const sy_skeleton_options *o, sy_error *err);
  * 0 does nothing. Any node order. */
 sy_code sy_skeleton_fair_limbs(sy_skeleton *s, double sigma_factor, sy_error *err);
 /* Radii the returns bound (radii.c): each edge of s (a main skeleton with
- * its support) with at least 20 returns nearest to it of all its edges is
- * made no thicker than cap times their median distance from it, but for
+ * its support) is made no thicker than cap times the median distance from
+ * it of the returns nearest to it of all its edges, pooled along its branch
+ * over four of its radii either way, when they are at least 20 (and a
+ * millimetre at least), but for
  * trunk nodes (branch 0) below keep_below_z (breast height: the DBH fit
  * stands there); then no radius grows toward a tip. capped counts the
  * edges cut. cap 0 does nothing. */

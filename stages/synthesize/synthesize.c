@@ -1091,7 +1091,9 @@ static void scaffold_lateral_bands(const sy_synth_options *o, double band[2][2])
 /* The direction node j grows a child in, from the unit pull dir, within
  * the rules above: a continuation turns at most SCAFFOLD_MAX_TURN from the
  * way j grew and stays within SCAFFOLD_MAX_BEND of its limb's first
- * direction (15 degrees a step still coiled a fir's limbs round its trunk);
+ * direction (15 degrees a step still coiled a fir's limbs round its trunk),
+ * the trunk's of the vertical, turning toward it by SCAFFOLD_MAX_TURN a
+ * step where its top leans further;
  * a lateral leaves within the species' down-angle band (the seed's child
  * too, off the seed's limb, unless that limb ends at the seed and goes on).
  * 0 when it has no such direction. */
@@ -1132,6 +1134,14 @@ static int scaffold_direction(const scaffold *s, const sy_colony *col, size_t j,
     for (int k = 0; k < 3; k++) side[k] = dir[k] - c * h[k];
     if (!(sy_v3_normalize(side) > 1e-6)) return 0;
     for (int k = 0; k < 3; k++) dir[k] = cos(bend) * h[k] + sin(bend) * side[k];
+    /* Onto the cone in one turn of SCAFFOLD_MAX_TURN at most: a leader whose
+     * top leans past it (g0 outside the vertical's cone) comes round over
+     * several steps. */
+    c = sy_v3_dot(dir, g0);
+    if (c >= cos(hi)) return 1;
+    for (int k = 0; k < 3; k++) side[k] = dir[k] - c * g0[k];
+    if (!(sy_v3_normalize(side) > 1e-6)) return 0;
+    for (int k = 0; k < 3; k++) dir[k] = cos(hi) * g0[k] + sin(hi) * side[k];
     return 1;
 }
 
