@@ -890,7 +890,7 @@ static void rgb_png_with_trns_is_cut(void **state)
 /* What the scores are made of: each view's mask pixels give its IoU exactly;
  * the profiles hold every scan point and the model's drawn area (the half-
  * clear card: 1 m^2 whole, 0.5 m^2 cut); the PNG shows each view's pixels in
- * their colours (3 x 2 views of 256^2, 4-pixel gutters). */
+ * their colours (3 x 2 views of 256^2 under 12-pixel labels, 4-pixel gutters). */
 static void masks_and_profiles_behind_the_scores(void **state)
 {
     (void)state;
@@ -930,10 +930,10 @@ static void masks_and_profiles_behind_the_scores(void **state)
         unsigned char *img = stbi_load(png, &w, &h, &ch, 3);
         assert_non_null(img);
         assert_int_equal(w, 3 * SY_SILHOUETTE_RES + 4 * 4);
-        assert_int_equal(h, 2 * SY_SILHOUETTE_RES + 3 * 4);
+        assert_int_equal(h, 2 * SY_SILHOUETTE_RES + 3 * 4 + 2 * 12);
         /* Azimuth 90 is the third view of the top row; blue is model only. */
         size_t blue = 0;
-        for (int y = 4; y < 4 + SY_SILHOUETTE_RES; y++)
+        for (int y = 4 + 12; y < 4 + 12 + SY_SILHOUETTE_RES; y++)
             for (int x = 4 + 2 * (SY_SILHOUETTE_RES + 4); x < 4 + 2 * (SY_SILHOUETTE_RES + 4) + SY_SILHOUETTE_RES; x++) {
                 const unsigned char *q = img + 3 * ((size_t)y * (size_t)w + (size_t)x);
                 blue += q[0] == 40 && q[1] == 80 && q[2] == 230;

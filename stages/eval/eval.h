@@ -133,9 +133,10 @@ typedef struct {
 enum { SY_MASK_SCAN = 1, SY_MASK_MODEL = 2 };
 sy_code sy_silhouette_metrics_compute(const double *tri, size_t n_tri, const sy_gltf_cutout *cut, const double *pts,
                                       size_t n_pts, sy_silhouette_metrics *out, unsigned char *masks, sy_error *err);
-/* The six masks as one PNG at path (written whole or not at all): azimuths
- * 0, 45 and 90 degrees on the top row, 135, top and oblique below; scan
- * only red, model only blue, both dark grey, neither white. */
+/* The six masks as one PNG at path (written whole or not at all), 784 x
+ * 548: azimuths 0, 45 and 90 degrees on the top row, 135, top and oblique
+ * below, each under a 12-pixel band naming it with its IoU, 4-pixel
+ * gutters; scan only red, model only blue, both dark grey, neither white. */
 sy_code sy_silhouette_png(const unsigned char *masks, const char *path, sy_error *err);
 
 /* The triangles' drawn surface as points no more than step apart (cut, which

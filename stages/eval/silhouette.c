@@ -4,10 +4,12 @@
  * finer than a pixel), each splatted as a disk of the scan's median
  * spacing into 256 x 256 masks over the union's extent in that view. */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "stages/eval/eval.h"
+#include "stages/eval/eval_internal.h"
 #include "stages/core/fileio.h"
 #include "stages/core/png.h"
 #include "stages/core/sort.h"
@@ -398,13 +400,21 @@ sy_code sy_silhouette_png(const unsigned char *masks, const char *path, sy_error
 {
     /* 3 x 2 views, a 4-pixel white gutter round each with a light grey
      * frame, so an empty view still shows where it is. */
-    enum { GAP = 4, COLS = 3, ROWS = 2, W = COLS * RES + (COLS + 1) * GAP, H = ROWS * RES + (ROWS + 1) * GAP };
+    enum { GAP = 4, BAND = 12, COLS = 3, ROWS = 2 };
+    enum { W = COLS * RES + (COLS + 1) * GAP, H = ROWS * (RES + BAND) + (ROWS + 1) * GAP };
     static const unsigned char colour[4][3] = {{255, 255, 255}, {230, 40, 40}, {40, 80, 230}, {60, 60, 60}};
     unsigned char *px = sy_calloc((size_t)W * H, 3, err, "silhouette image");
     if (!px) return SY_EINTERNAL;
     memset(px, 255, (size_t)W * H * 3);
+    static const char *name[VIEWS] = {"azimuth 0", "azimuth 45", "azimuth 90", "azimuth 135", "top", "oblique 30"};
+    sy_canvas cv = {px, W, H};
     for (int v = 0; v < VIEWS; v++) {
-        int x0 = GAP + (v % COLS) * (RES + GAP), y0 = GAP + (v / COLS) * (RES + GAP);
+        int x0 = GAP + (v % COLS) * (RES + GAP), y0 = GAP + BAND + (v / COLS) * (RES + BAND + GAP);
+        size_t both = 0, any = 0;
+        for (size_t i = 0; i < RES * RES; i++) {
+            unsigned char b = masks[(size_t)v * RES * RES + i] & 3;
+            both += b == 3, any += b != 0;
+        }
         for (int y = -1; y <= RES; y++)
             for (int x = -1; x <= RES; x++) {
                 unsigned char *o = px + 3 * ((size_t)(y0 + y) * W + (size_t)(x0 + x));
@@ -415,6 +425,11 @@ sy_code sy_silhouette_png(const unsigned char *masks, const char *path, sy_error
                 /* Image rows run down, mask rows up. */
                 memcpy(o, colour[masks[(size_t)v * RES * RES + (size_t)(RES - 1 - y) * RES + (size_t)x] & 3], 3);
             }
+        /* Each view's name and IoU in the band above it. */
+        char label[48];
+        snprintf(label, sizeof label, "%s IoU %.3f", name[v], any ? (double)both / (double)any : 0.0);
+        static const unsigned char ink[3] = {20, 20, 20};
+        sy_canvas_text(&cv, x0, y0 - BAND + 1, label, 0, ink);
     }
     unsigned char *png = NULL;
     size_t size = 0;
