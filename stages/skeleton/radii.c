@@ -529,6 +529,7 @@ sy_code sy_calibrate_radii(sy_skeleton *s, const float *fit, sy_error *err)
  * step 11d). Nearest edges, not level sets: a fork's level sets hold both
  * limbs' rings. */
 #define RETURN_MIN 20
+#define MAX_EDGE_SAMPLES ((size_t)1 << 22)
 
 typedef struct {
     const sy_skeleton *s;
@@ -595,13 +596,18 @@ sy_code sy_cap_radii_by_returns(sy_skeleton *s, const float *xyz, double cap_fac
      * cells round its own are sure to hold a sample (h / 4 apart) of every
      * edge that near. */
     double h = fmax(2 * rmax, 0.02), step = 0.25 * h;
-    size_t n_smp = 0;
+    double total = 0;
     for (size_t i = 0; i < m; i++) {
         if (s->parent[i] < 0) continue;
         const float *a = s->pos + 3 * (size_t)s->parent[i], *b = s->pos + 3 * i;
         double len = sqrt((b[0] - a[0]) * (b[0] - a[0]) + (b[1] - a[1]) * (b[1] - a[1]) + (b[2] - a[2]) * (b[2] - a[2]));
-        n_smp += (size_t)ceil(len / step) + 1;
+        total += ceil(len / step) + 1;
     }
+    /* Edges hundreds of times longer than the thickest radius (a degenerate
+     * skeleton, hostile input) would take more samples than any tree:
+     * such a skeleton keeps its radii. */
+    if (!(total <= (double)MAX_EDGE_SAMPLES)) return SY_OK;
+    size_t n_smp = (size_t)total;
     float *smp = sy_calloc(n_smp + 1, 3 * sizeof *smp, err, "radii");
     uint32_t *sample_edge = sy_calloc(n_smp + 1, sizeof *sample_edge, err, "radii");
     int32_t *edge = sy_calloc(n_sup, sizeof *edge, err, "radii");
