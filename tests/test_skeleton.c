@@ -691,16 +691,16 @@ static void radii_are_bound_by_their_returns(void **state)
         if (i == 10) at2 = prev;
         if (i == 15) at3 = prev;
     }
-    int32_t limb2[5], limb3[5];
+    int32_t limbs[2][5]; /* the limb at 2 m, the limb at 3 m */
     for (int b = 0; b < 2; b++) {
         prev = b ? at3 : at2;
         for (int i = 1; i <= 5; i++) {
-            float p[3] = {(float)(0.15 * i), 0, s.pos[3 * prev + 2]};
-            p[2] = b ? 3.0f : 2.0f;
+            float p[3] = {(float)(0.15 * i), 0, b ? 3.0f : 2.0f};
             prev = sy_skeleton_add(&s, p, 0.02f, prev, 1, 1 + b, &err);
-            (b ? limb3 : limb2)[i - 1] = prev;
+            limbs[b][i - 1] = prev;
         }
     }
+    const int32_t *limb2 = limbs[0], *limb3 = limbs[1];
     /* Returns: rings round the trunk (36 a ring, every 5 cm), round the limb
      * at 3 m (12 a ring, every 3 cm), 12 beside the limb at 2 m. */
     size_t cap = 4096, n = 0;
