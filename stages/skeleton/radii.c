@@ -5,7 +5,7 @@
 #include <string.h>
 
 #include "skeleton_internal.h"
-#include "stages/core/grid.h"
+#include "stages/core/bvh.h"
 #include "stages/core/geometry.h"
 #include "stages/core/parallel.h"
 #include "stages/core/rng.h"
@@ -529,56 +529,55 @@ sy_code sy_calibrate_radii(sy_skeleton *s, const float *fit, sy_error *err)
  * step 11d). Nearest edges, not level sets: a fork's level sets hold both
  * limbs' rings. */
 #define RETURN_MIN 20
-#define MAX_EDGE_SAMPLES ((size_t)1 << 22)
 
+/* The main skeleton's edges as BVH primitives: edge k ends at node[k]. */
 typedef struct {
     const sy_skeleton *s;
+    const int32_t *node;
+} edge_set;
+
+static double edge_distance(const void *ctx, uint32_t k, const double q[3])
+{
+    const edge_set *E = ctx;
+    const float *a = E->s->pos + 3 * (size_t)E->s->parent[E->node[k]], *b = E->s->pos + 3 * (size_t)E->node[k];
+    const double ad[3] = {a[0], a[1], a[2]}, bd[3] = {b[0], b[1], b[2]};
+    return sy_point_segment_distance(q, ad, bd, NULL);
+}
+
+typedef struct {
+    const edge_set *E;
+    const sy_bvh *bvh;
     const float *xyz;
-    const sy_grid *grid;
-    const uint32_t *sample_edge; /* per grid sample: its edge's child node */
-    double reach;                /* a return farther than this from every edge is none's */
-    int32_t *edge;               /* per support entry: the nearest edge's child, -1 none */
-    float *dist;                 /* ... and the distance to it */
+    double reach;  /* a return farther than this from every edge is none's */
+    int32_t *edge; /* per support entry: the nearest edge's child node, -1 none */
+    float *dist;   /* ... and the distance to it */
 } nearest_job;
 
 static void nearest_edges(void *ctx, size_t begin, size_t end, size_t chunk)
 {
     (void)chunk;
     nearest_job *J = ctx;
-    const sy_skeleton *s = J->s;
+    const sy_skeleton *s = J->E->s;
+    uint32_t hint = UINT32_MAX;
     for (size_t k = begin; k < end; k++) {
         const float *p = J->xyz + 3 * (size_t)s->support[k];
-        double pd[3] = {p[0], p[1], p[2]}, best = J->reach;
-        int32_t best_e = -1;
-        int32_t c[3];
-        sy_grid_cell_of(J->grid, p, c);
-        for (int dz = -1; dz <= 1; dz++)
-            for (int dy = -1; dy <= 1; dy++)
-                for (int dx = -1; dx <= 1; dx++) {
-                    long cell = sy_grid_find(J->grid, c[0] + dx, c[1] + dy, c[2] + dz);
-                    if (cell < 0) continue;
-                    for (size_t q = J->grid->cell_start[cell]; q < J->grid->cell_start[cell + 1]; q++) {
-                        int32_t e = (int32_t)J->sample_edge[J->grid->order[q]];
-                        if (e == best_e) continue;
-                        const float *a = s->pos + 3 * (size_t)s->parent[e], *b = s->pos + 3 * (size_t)e;
-                        double ad[3] = {a[0], a[1], a[2]}, bd[3] = {b[0], b[1], b[2]}, t;
-                        double d = sy_point_segment_distance(pd, ad, bd, &t);
-                        /* Ties to the lower node: the same answer in any cell order. */
-                        if (d < best || (d == best && best_e >= 0 && e < best_e)) best = d, best_e = e;
-                    }
-                }
+        const double q[3] = {p[0], p[1], p[2]};
+        double best;
+        /* Ties go to the lower edge, so the answer is the same on any thread. */
+        uint32_t e = sy_bvh_nearest(J->bvh, q, J->reach, edge_distance, J->E, hint, &best);
+        int32_t node = e == UINT32_MAX ? -1 : J->E->node[e];
+        if (e != UINT32_MAX) hint = e;
         /* A return on the parent's tube where a branch leaves it is left out:
          * the branch's first segment runs through the parent's tube there, so
          * it would count for the branch (and the parent has its own returns
          * all along its tube). */
-        if (best_e >= 0) {
-            int32_t par = s->parent[best_e];
+        if (node >= 0) {
+            int32_t par = s->parent[node];
             const float *o = s->pos + 3 * (size_t)par;
-            double dx = pd[0] - o[0], dy = pd[1] - o[1], dz = pd[2] - o[2];
-            if (s->branch[par] != s->branch[best_e] && sqrt(dx * dx + dy * dy + dz * dz) < 1.2 * s->radius[par])
-                best_e = -1;
+            double dx = q[0] - o[0], dy = q[1] - o[1], dz = q[2] - o[2];
+            if (s->branch[par] != s->branch[node] && sqrt(dx * dx + dy * dy + dz * dz) < 1.2 * s->radius[par]) node = -1;
         }
-        J->edge[k] = best_e;
+        J->edge[k] = node;
         J->dist[k] = (float)best;
     }
 }
@@ -589,54 +588,36 @@ sy_code sy_cap_radii_by_returns(sy_skeleton *s, const float *xyz, double cap_fac
     *capped = 0;
     size_t m = s->n;
     if (!(cap_factor > 0) || m < 2 || !s->support_start || !s->support_start[m]) return SY_OK;
-    size_t n_sup = s->support_start[m];
+    size_t n_sup = s->support_start[m], n_edges = 0;
     double rmax = 0;
-    for (size_t i = 0; i < m; i++) rmax = fmax(rmax, s->radius[i]);
-    /* Cells of 2 rmax; a return counts within 0.75 of that, where the 27
-     * cells round its own are sure to hold a sample (h / 4 apart) of every
-     * edge that near. */
-    double h = fmax(2 * rmax, 0.02), step = 0.25 * h;
-    double total = 0;
-    for (size_t i = 0; i < m; i++) {
-        if (s->parent[i] < 0) continue;
-        const float *a = s->pos + 3 * (size_t)s->parent[i], *b = s->pos + 3 * i;
-        double len = sqrt((b[0] - a[0]) * (b[0] - a[0]) + (b[1] - a[1]) * (b[1] - a[1]) + (b[2] - a[2]) * (b[2] - a[2]));
-        total += ceil(len / step) + 1;
-    }
-    /* Edges hundreds of times longer than the thickest radius (a degenerate
-     * skeleton, hostile input) would take more samples than any tree:
-     * such a skeleton keeps its radii. */
-    if (!(total <= (double)MAX_EDGE_SAMPLES)) return SY_OK;
-    size_t n_smp = (size_t)total;
-    float *smp = sy_calloc(n_smp + 1, 3 * sizeof *smp, err, "radii");
-    uint32_t *sample_edge = sy_calloc(n_smp + 1, sizeof *sample_edge, err, "radii");
+    for (size_t i = 0; i < m; i++) rmax = fmax(rmax, s->radius[i]), n_edges += s->parent[i] >= 0;
+    int32_t *node = sy_calloc(n_edges + 1, sizeof *node, err, "radii");
+    sy_box *boxes = sy_calloc(n_edges + 1, sizeof *boxes, err, "radii");
     int32_t *edge = sy_calloc(n_sup, sizeof *edge, err, "radii");
     float *dist = sy_calloc(n_sup, sizeof *dist, err, "radii");
     size_t *start = sy_calloc(m + 1, sizeof *start, err, "radii");
     double *d = sy_calloc(n_sup, sizeof *d, err, "radii");
+    int32_t *next = sy_calloc(m, sizeof *next, err, "radii");
     int32_t *first_child = sy_calloc(m, sizeof *first_child, err, "radii");
     int32_t *next_sibling = sy_calloc(m, sizeof *next_sibling, err, "radii");
-    int32_t *stack = sy_calloc(m, sizeof *stack, err, "radii");
+    int32_t *order = sy_calloc(m, sizeof *order, err, "radii");
     double *pool = sy_calloc(n_sup, sizeof *pool, err, "radii"), *cap = sy_calloc(m, sizeof *cap, err, "radii");
-    sy_grid grid = {0};
-    sy_code rc = smp && sample_edge && edge && dist && start && d && first_child && next_sibling && stack && pool && cap
+    sy_bvh bvh = {0};
+    sy_code rc = node && boxes && edge && dist && start && d && next && first_child && next_sibling && order && pool && cap
                      ? SY_OK
                      : SY_EINTERNAL;
-    size_t k = 0;
-    for (size_t i = 0; !rc && i < m; i++) {
+    for (size_t i = 0, k = 0; !rc && i < m; i++) {
         if (s->parent[i] < 0) continue;
         const float *a = s->pos + 3 * (size_t)s->parent[i], *b = s->pos + 3 * i;
-        double len = sqrt((b[0] - a[0]) * (b[0] - a[0]) + (b[1] - a[1]) * (b[1] - a[1]) + (b[2] - a[2]) * (b[2] - a[2]));
-        size_t ns = (size_t)ceil(len / step) + 1;
-        for (size_t j = 0; j < ns; j++, k++) {
-            double f = ns > 1 ? (double)j / (double)(ns - 1) : 0;
-            for (int q = 0; q < 3; q++) smp[3 * k + q] = (float)(a[q] + f * (b[q] - a[q]));
-            sample_edge[k] = (uint32_t)i;
-        }
+        for (int c = 0; c < 3; c++) boxes[k].lo[c] = fmin(a[c], b[c]), boxes[k].hi[c] = fmax(a[c], b[c]);
+        node[k++] = (int32_t)i;
     }
-    if (!rc) rc = sy_grid_build(&grid, smp, n_smp, h, err);
+    if (!rc) rc = sy_bvh_build(&bvh, boxes, n_edges, err);
     if (!rc) {
-        nearest_job J = {s, xyz, &grid, sample_edge, 0.75 * grid.h, edge, dist};
+        /* Each return's nearest edge within 1.5 of the thickest radius (a
+         * surface return of any limb is that near its own chain), 1.5 cm at least. */
+        edge_set E = {s, node};
+        nearest_job J = {&E, &bvh, xyz, fmax(1.5 * rmax, 0.015), edge, dist};
         sy_parallel_for(n_sup, 4096, nearest_edges, &J);
         /* Each edge's distances, then their median. */
         for (size_t q = 0; q < n_sup; q++)
@@ -652,7 +633,7 @@ sy_code sy_cap_radii_by_returns(sy_skeleton *s, const float *xyz, double cap_fac
          * its branch within four of its radii either way: a single short edge
          * holds a sliver of returns, and at a fork a biased one (the
          * synthetic tree's trunk: 21 returns at 2.8 cm for a 12 cm radius). */
-        sy_skeleton_children(s, first_child, next_sibling);
+        sy_skeleton_branch_next(s, next);
         for (size_t i = 0; i < m; i++) {
             cap[i] = INFINITY;
             if (s->parent[i] < 0 || (s->branch[i] == 0 && s->pos[3 * i + 2] < keep_below_z)) continue;
@@ -664,11 +645,10 @@ sy_code sy_cap_radii_by_returns(sy_skeleton *s, const float *xyz, double cap_fac
                 while (v >= 0 && walked <= reach) {
                     if (dir == 0 || v != (int32_t)i)
                         for (size_t q = start[v]; q < start[v + 1]; q++) pool[cnt++] = d[q];
-                    int32_t next = dir ? continuation(s, first_child, next_sibling, (size_t)v) : s->parent[v];
-                    if (next < 0 || s->parent[next] < 0 || s->branch[next] != s->branch[i]) break;
-                    const float *a = s->pos + 3 * (size_t)v, *b = s->pos + 3 * (size_t)next;
-                    walked += sqrt((b[0] - a[0]) * (b[0] - a[0]) + (b[1] - a[1]) * (b[1] - a[1]) + (b[2] - a[2]) * (b[2] - a[2]));
-                    v = next;
+                    int32_t w = dir ? next[v] : s->parent[v];
+                    if (w < 0 || s->parent[w] < 0 || s->branch[w] != s->branch[i]) break;
+                    walked += sy_skeleton_edge_length(s, (size_t)(dir ? w : v));
+                    v = w;
                 }
             }
             /* A millimetre at least: returns on the chain itself (duplicates,
@@ -681,19 +661,15 @@ sy_code sy_cap_radii_by_returns(sy_skeleton *s, const float *xyz, double cap_fac
                 (*capped)++;
             }
         /* No radius grows toward the tips: parents before children. */
-        size_t top = 0;
-        for (size_t i = 0; i < m; i++)
-            if (s->parent[i] < 0) stack[top++] = (int32_t)i;
-        while (top) {
-            int32_t v = stack[--top];
-            for (int32_t c = first_child[v]; c >= 0; c = next_sibling[c]) {
-                if (s->radius[c] > s->radius[v]) s->radius[c] = s->radius[v];
-                stack[top++] = c;
-            }
+        sy_skeleton_children(s, first_child, next_sibling);
+        size_t n_order = sy_skeleton_breadth_first(s, first_child, next_sibling, order);
+        for (size_t h = 0; h < n_order; h++) {
+            int32_t v = order[h], p = s->parent[v];
+            if (p >= 0 && s->radius[v] > s->radius[p]) s->radius[v] = s->radius[p];
         }
     }
-    sy_grid_free(&grid);
-    free(smp), free(sample_edge), free(edge), free(dist), free(start), free(d);
-    free(first_child), free(next_sibling), free(stack), free(pool), free(cap);
+    sy_bvh_free(&bvh);
+    free(node), free(boxes), free(edge), free(dist), free(start), free(d), free(next);
+    free(first_child), free(next_sibling), free(order), free(pool), free(cap);
     return rc;
 }

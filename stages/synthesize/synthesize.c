@@ -1088,6 +1088,19 @@ static void scaffold_lateral_bands(const sy_synth_options *o, double band[2][2])
     }
 }
 
+/* Turns unit dir toward unit ref onto the cone of angle lim round it: 1
+ * when dir lay within it already (unchanged), 2 when turned, 0 when dir
+ * points straight away from ref, with no side to turn by. */
+static int within_angle(double dir[3], const double ref[3], double lim)
+{
+    double c = sy_v3_dot(dir, ref), side[3];
+    if (c >= cos(lim)) return 1;
+    for (int k = 0; k < 3; k++) side[k] = dir[k] - c * ref[k];
+    if (!(sy_v3_normalize(side) > 1e-6)) return 0;
+    for (int k = 0; k < 3; k++) dir[k] = cos(lim) * ref[k] + sin(lim) * side[k];
+    return 2;
+}
+
 /* The direction node j grows a child in, from the unit pull dir, within
  * the rules above: a continuation turns at most SCAFFOLD_MAX_TURN from the
  * way j grew and stays within SCAFFOLD_MAX_BEND of its limb's first
@@ -1128,21 +1141,11 @@ static int scaffold_direction(const scaffold *s, const sy_colony *col, size_t j,
      * on 40 more into a crook over the crown). */
     static const double up[3] = {0, 0, 1};
     const double *h = s->on_seed_limb[j] && s->limb->on_trunk ? up : s->head_dir + 3 * j;
-    const double bend = SCAFFOLD_MAX_BEND * M_PI / 180;
-    c = sy_v3_dot(dir, h);
-    if (c >= cos(bend)) return 1;
-    for (int k = 0; k < 3; k++) side[k] = dir[k] - c * h[k];
-    if (!(sy_v3_normalize(side) > 1e-6)) return 0;
-    for (int k = 0; k < 3; k++) dir[k] = cos(bend) * h[k] + sin(bend) * side[k];
     /* Onto the cone in one turn of SCAFFOLD_MAX_TURN at most: a leader whose
      * top leans past it (g0 outside the vertical's cone) comes round over
      * several steps. */
-    c = sy_v3_dot(dir, g0);
-    if (c >= cos(hi)) return 1;
-    for (int k = 0; k < 3; k++) side[k] = dir[k] - c * g0[k];
-    if (!(sy_v3_normalize(side) > 1e-6)) return 0;
-    for (int k = 0; k < 3; k++) dir[k] = cos(hi) * g0[k] + sin(hi) * side[k];
-    return 1;
+    int bent = within_angle(dir, h, SCAFFOLD_MAX_BEND * M_PI / 180);
+    return bent == 2 ? within_angle(dir, g0, hi) != 0 : bent;
 }
 
 /* The colony's steer (sy_colony_steer): one limb from the seed, the turn
