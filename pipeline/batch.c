@@ -655,18 +655,35 @@ void sy_batch_death(int status, int timed_out, double timeout, char *why, size_t
     else snprintf(why, size, "the worker exited with status %d", WEXITSTATUS(status));
 }
 
+/* A stop asked of the whole batch: Ctrl-C (the terminal signals the
+ * process group), scancel (Slurm signals every process of the step), a
+ * hang-up. */
+static int stop_signal(int sig) { return sig == SIGINT || sig == SIGTERM || sig == SIGHUP; }
+
 sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void *ctx, size_t job),
-                      void (*done)(void *ctx, size_t job, int status, int timed_out, double seconds), void *ctx,
-                      sy_error *err)
+                      void (*done)(void *ctx, size_t job, int status, int timed_out, int interrupted, double seconds),
+                      void *ctx, sy_error *err)
 {
     worker *w = calloc((size_t)(nw > 0 ? nw : 1), sizeof *w);
     if (!w) return sy_fail(err, SY_EINTERNAL, "batch: out of memory");
+    /* The stop signals and SIGCHLD are taken with sigtimedwait, not by
+     * handlers (no state outside this frame): a stop is seen between two
+     * reaps, never in the middle of recording one. Workers get the mask of
+     * before. */
+    sigset_t wait_set, before;
+    sigemptyset(&wait_set);
+    sigaddset(&wait_set, SIGINT);
+    sigaddset(&wait_set, SIGTERM);
+    sigaddset(&wait_set, SIGHUP);
+    sigaddset(&wait_set, SIGCHLD);
+    sigprocmask(SIG_BLOCK, &wait_set, &before);
     size_t next = 0, running = 0;
+    int stopped_by = 0;
     sy_code rc = SY_OK;
     fflush(NULL);
-    while (next < n_jobs || running) {
+    while ((next < n_jobs && !stopped_by) || running) {
         /* Fill the free slots. */
-        for (int k = 0; k < nw && next < n_jobs; k++) {
+        for (int k = 0; k < nw && next < n_jobs && !stopped_by; k++) {
             if (w[k].pid) continue;
             size_t j = next++;
             pid_t pid = fork();
@@ -676,6 +693,7 @@ sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void 
                 break;
             }
             if (pid == 0) {
+                sigprocmask(SIG_SETMASK, &before, NULL);
                 child(ctx, j);
                 _exit(SY_EINTERNAL);
             }
@@ -685,31 +703,42 @@ sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void 
             w[k].timed_out = 0;
             running++;
         }
-        if (!running) break;
+        if (!running || rc) break;
         int status;
-        pid_t pid = waitpid(-1, &status, timeout > 0 ? WNOHANG : 0);
+        pid_t pid = waitpid(-1, &status, WNOHANG);
         if (pid < 0) {
-            if (errno == EINTR) continue;
             rc = sy_fail(err, SY_EINTERNAL, "batch: waiting for the workers: %s", strerror(errno));
             break;
         }
-        if (pid == 0) {
+        if (pid > 0) {
+            int k = 0;
+            while (k < nw && w[k].pid != pid) k++;
+            if (k == nw) continue;
+            w[k].pid = 0;
+            running--;
+            /* A worker stopped by a stop signal (it may see it before this
+             * process does) or ended unfinished after the stop did not fail
+             * its tree: nothing is recorded, and the tree is to do again. */
+            int ok = WIFEXITED(status) && WEXITSTATUS(status) == 0 && !w[k].timed_out;
+            int interrupted = !ok && ((WIFSIGNALED(status) && stop_signal(WTERMSIG(status))) || stopped_by);
+            done(ctx, w[k].job, status, w[k].timed_out, interrupted, sy_now() - w[k].start);
+            continue;
+        }
+        if (timeout > 0) {
             double now = sy_now();
             for (int k = 0; k < nw; k++)
                 if (w[k].pid && !w[k].timed_out && now - w[k].start > timeout) {
                     kill(w[k].pid, SIGKILL);
                     w[k].timed_out = 1;
                 }
-            struct timespec ts = {0, 50000000};
-            nanosleep(&ts, NULL);
-            continue;
         }
-        int k = 0;
-        while (k < nw && w[k].pid != pid) k++;
-        if (k == nw) continue;
-        w[k].pid = 0;
-        running--;
-        done(ctx, w[k].job, status, w[k].timed_out, sy_now() - w[k].start);
+        struct timespec ts = {0, timeout > 0 ? 50000000 : 500000000};
+        int sig = sigtimedwait(&wait_set, NULL, &ts);
+        if (sig > 0 && stop_signal(sig) && !stopped_by) {
+            stopped_by = sig;
+            for (int k = 0; k < nw; k++)
+                if (w[k].pid) kill(w[k].pid, sig);
+        }
     }
     if (rc) {
         /* A batch-level failure: stop the workers still running. */
@@ -717,6 +746,15 @@ sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void 
             if (w[k].pid) kill(w[k].pid, SIGKILL), waitpid(w[k].pid, NULL, 0);
     }
     free(w);
+    sigprocmask(SIG_SETMASK, &before, NULL);
+    if (stopped_by) {
+        /* Every worker is reaped and what finished is recorded: now die of
+         * the signal as the batch would have without this pool, so a shell
+         * or Slurm sees the stop. */
+        fflush(NULL);
+        signal(stopped_by, SIG_DFL);
+        raise(stopped_by);
+    }
     return rc;
 }
 
@@ -741,14 +779,18 @@ static void tree_child(void *ctx, size_t job)
     _exit(rc);
 }
 
-static void tree_done(void *ctx, size_t job, int status, int timed_out, double secs)
+static void tree_done(void *ctx, size_t job, int status, int timed_out, int interrupted, double secs)
 {
     tree_pool *t = ctx;
     const sy_batch_jobs *b = &t->jobs;
     size_t j = b->todo[job];
     const sy_batch_input *in = &b->in->items[j];
     const char *st = "ok";
-    if (WIFEXITED(status) && WEXITSTATUS(status) == 0 && !timed_out) {
+    if (interrupted) {
+        /* Not the tree's failure: no record, so the next run makes it. */
+        t->summary->interrupted++;
+        st = "interrupted";
+    } else if (WIFEXITED(status) && WEXITSTATUS(status) == 0 && !timed_out) {
         t->summary->done++;
     } else {
         char why[256];

@@ -81,6 +81,7 @@ sy_code sy_batch_options_check(const sy_batch_options *o, sy_error *err);
 
 typedef struct {
     size_t trees, done, skipped, failed; /* jobs; finished now; kept from before; failed (now or before) */
+    size_t interrupted;                  /* workers a stop signal ended: no record, to do next run */
     double seconds;
 } sy_batch_summary;
 
@@ -120,11 +121,15 @@ void sy_batch_sweep(const char *out_dir);
 
 /* The worker pool: runs child(ctx, j) for j in [0, n_jobs) in forked
  * processes, nw at once (child must _exit), and done(ctx, j, wait status,
- * timed_out, seconds) in the parent as each ends; workers running past
- * timeout seconds (0: none) are killed. Fails only for the pool itself. */
+ * timed_out, interrupted, seconds) in the parent as each ends; workers
+ * running past timeout seconds (0: none) are killed. A stop signal
+ * (SIGINT, SIGTERM, SIGHUP) starts no more workers, is passed to those
+ * running, and once they are reaped this process dies of it; a worker that
+ * a stop signal ended is `interrupted`, its job neither done nor failed.
+ * Fails only for the pool itself. */
 sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void *ctx, size_t job),
-                      void (*done)(void *ctx, size_t job, int status, int timed_out, double seconds), void *ctx,
-                      sy_error *err);
+                      void (*done)(void *ctx, size_t job, int status, int timed_out, int interrupted, double seconds),
+                      void *ctx, sy_error *err);
 /* What the tree pool and the plot pool both hand their workers: job j runs
  * in->items[todo[j]] (its input's hash in hash[todo[j]]) into out_dir with
  * o, on `threads` threads, and dies with `parent`. */

@@ -161,10 +161,11 @@ static void plot_child(void *ctx, size_t job)
     _exit(rc);
 }
 
-static void plot_done(void *ctx, size_t job, int status, int timed_out, double secs)
+static void plot_done(void *ctx, size_t job, int status, int timed_out, int interrupted, double secs)
 {
     const sy_batch_jobs *p = ctx;
     const sy_batch_input *in = &p->in->items[p->todo[job]];
+    if (interrupted) return; /* inspected again next run */
     if (!(WIFEXITED(status) && (WEXITSTATUS(status) == 0 || WEXITSTATUS(status) == SY_EINPUT)) || timed_out) {
         char why[256];
         sy_batch_death(status, timed_out, p->o->worker_timeout, why, sizeof why);

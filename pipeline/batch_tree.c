@@ -204,6 +204,12 @@ static int thumbnail(const sy_batch_options *o, const char *glb, const char *png
         nanosleep(&ts, NULL);
     }
     if (WIFEXITED(status) && WEXITSTATUS(status) == 0 && access(png, R_OK) == 0) return 1;
+    /* The viewer was stopped with the batch (Ctrl-C, scancel), which stops
+     * this worker too, before its record: the tree is not finished. */
+    if (WIFSIGNALED(status) && (WTERMSIG(status) == SIGINT || WTERMSIG(status) == SIGTERM || WTERMSIG(status) == SIGHUP)) {
+        signal(WTERMSIG(status), SIG_DFL);
+        raise(WTERMSIG(status));
+    }
     /* The viewer's last line says why. */
     char last[512] = "";
     FILE *fp = fopen(log, "r");

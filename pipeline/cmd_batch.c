@@ -165,11 +165,15 @@ int cmd_batch(int argc, char **argv, sy_cli *cli)
         sy_json_int(&j, "made", (long long)s.done);
         sy_json_int(&j, "kept", (long long)s.skipped);
         sy_json_int(&j, "failed", (long long)s.failed);
+        sy_json_int(&j, "interrupted", (long long)s.interrupted);
         sy_json_number(&j, "seconds", s.seconds);
         sy_cli_json_close(&j);
     } else if (!cli->quiet) {
         fprintf(stderr, "sylva batch: %zu trees: %zu made, %zu kept, %zu failed in %.1f s; %s/report.html\n", s.trees, s.done,
                 s.skipped, s.failed, s.seconds, out_dir);
+        if (s.interrupted)
+            fprintf(stderr, "sylva batch: %zu tree%s interrupted by a signal to %s worker, not recorded: run the same command again\n",
+                    s.interrupted, s.interrupted == 1 ? "" : "s", s.interrupted == 1 ? "its" : "their");
     }
     return 0;
 }

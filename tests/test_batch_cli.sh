@@ -142,28 +142,34 @@ check "plot trees are placed at their stems" \
 check "a rerun segments nothing and keeps every tree" \
     "jq -s -e '([.[] | select(.event == \"inspected\")] | length) == 0 and .[-1].made == 0' '$tmp/plot2.jsonl' > /dev/null"
 
+# catch_worker BATCH_PID: stops one of the batch's tree workers and sets w to
+# it. The batch first forks a short child per input that checks whether it
+# is a plot (its stderr goes to logs/ID.segment.log); the target is a tree
+# worker (stderr to logs/ID.log). It is stopped first and seen stopped
+# (state T) before the caller's signal: one that was already finishing (a
+# zombie) cannot be stopped, and the next is taken instead. A loaded machine
+# may take a while.
+catch_worker() {
+    w=
+    for i in $(seq 1200); do
+        for c in $(pgrep -P "$1"); do
+            log=$(readlink "/proc/$c/fd/2" 2> /dev/null)
+            [[ $log == */logs/*.log && $log != *.segment.log ]] || continue
+            kill -STOP "$c" 2> /dev/null || continue
+            sleep 0.05
+            if [[ $(sed 's/.*) //' "/proc/$c/stat" 2> /dev/null | cut -d' ' -f1) == T ]]; then w=$c; return; fi
+            kill -CONT "$c" 2> /dev/null
+        done
+        sleep 0.05
+    done
+}
+
 # A worker that crashes fails its tree only. (Sanitizer builds would turn the
 # signal into their own report and exit 1: let it through as a crash.)
 ASAN_OPTIONS=${ASAN_OPTIONS:+$ASAN_OPTIONS:}handle_segv=0 UBSAN_OPTIONS=${UBSAN_OPTIONS:+$UBSAN_OPTIONS:}handle_segv=0 \
 "$SYLVA" batch "$tmp/kin" -o "$tmp/crash" --workers 1 --no-eval --no-thumbnails --quiet &
 pid=$!
-# The batch first forks a short child per input that checks whether it is a
-# plot (its stderr goes to logs/ID.segment.log); the target is a tree worker
-# (stderr to logs/ID.log). It is stopped first and seen stopped (state T)
-# before the signal: one that was already finishing (a zombie) cannot be
-# stopped, and the next is taken instead. A loaded machine may take a while.
-w=
-for i in $(seq 1200); do
-    for c in $(pgrep -P "$pid"); do
-        log=$(readlink "/proc/$c/fd/2" 2> /dev/null)
-        [[ $log == */logs/*.log && $log != *.segment.log ]] || continue
-        kill -STOP "$c" 2> /dev/null || continue
-        sleep 0.05
-        if [[ $(sed 's/.*) //' "/proc/$c/stat" 2> /dev/null | cut -d' ' -f1) == T ]]; then w=$c; break 2; fi
-        kill -CONT "$c" 2> /dev/null
-    done
-    sleep 0.05
-done
+catch_worker "$pid"
 [[ -n $w ]] && kill -SEGV "$w" && kill -CONT "$w"
 wait "$pid"; rc=$?
 check "a worker was caught and sent SIGSEGV" "[[ -n '$w' ]]"
@@ -172,4 +178,32 @@ check "the crashed tree is recorded with the signal, the other made" \
     "jq -e '.counts.ok == 1 and .counts.failed == 1 and (.failures[0].error | test(\"segmentation fault\"))' '$tmp/crash/index.json' > /dev/null"
 "$SYLVA" batch "$tmp/kin" -o "$tmp/crash" --workers 1 --no-eval --no-thumbnails --quiet --retry-failed
 check "--retry-failed redoes it" "jq -e '.counts.ok == 2' '$tmp/crash/index.json' > /dev/null"
+
+# A stop is not a failure. Ctrl-C and scancel signal the batch and its
+# workers alike, in either order: a worker ended by SIGTERM (here alone, as
+# when it is signalled first) leaves its tree unrecorded, to be made by the
+# next run, and the batch goes on.
+"$SYLVA" batch "$tmp/kin" -o "$tmp/stop" "${opts[@]}" --workers 1 --json > "$tmp/stop.jsonl" &
+pid=$!
+catch_worker "$pid"
+stopped=$(readlink "/proc/$w/fd/2" 2> /dev/null | sed 's,.*/,,; s,\.log$,,')
+[[ -n $w ]] && kill -TERM "$w" && kill -CONT "$w"
+wait "$pid"; rc=$?
+check "a worker was caught and sent SIGTERM ($stopped)" "[[ -n '$w' && -n '$stopped' ]]"
+check "the batch goes on (exit $rc): the other tree made, the stopped one pending and unrecorded" \
+    "[[ $rc == 0 && ! -e '$tmp/stop/trees/$stopped.json' ]] && jq -e '.counts.ok == 1 and .counts.failed == 0 and .counts.pending == 1' '$tmp/stop/index.json' > /dev/null && jq -s -e '.[-1].interrupted == 1 and .[-1].failed == 0' '$tmp/stop.jsonl' > /dev/null"
+# SIGTERM to the batch while a worker runs: passed on to it, the batch dies
+# of it once the worker is reaped, and nothing is recorded as failed.
+rm -rf "$tmp/stop"
+"$SYLVA" batch "$tmp/kin" -o "$tmp/stop" "${opts[@]}" --workers 1 &
+pid=$!
+catch_worker "$pid"
+[[ -n $w ]] && kill -TERM "$pid" && sleep 0.2 && kill -CONT "$w"
+wait "$pid"; rc=$?
+check "SIGTERM to the batch: it dies of it (exit $rc), no failure recorded, no report" \
+    "[[ -n '$w' && $rc == 143 && ! -e '$tmp/stop/index.json' ]] && ! grep -ls '\"failed\"' '$tmp'/stop/trees/*.json > /dev/null"
+check "... and its worker is gone with it" "! kill -0 '$w' 2> /dev/null"
+"$SYLVA" batch "$tmp/kin" -o "$tmp/stop" "${opts[@]}"
+check "the same command again finishes it: outputs identical to an uninterrupted run" \
+    "diff <(same '$tmp/ref') <(same '$tmp/stop') > '$tmp/stop.diff'"
 exit $fail

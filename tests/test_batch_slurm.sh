@@ -111,8 +111,22 @@ check "Slurm outputs byte-identical to the local run's (timings aside)" "diff <(
 [[ -s slurm.diff ]] && head -20 slurm.diff
 
 # Cancel a task midway (after its first tree), then resubmit: nothing lost.
+# Task 0 makes aspen_als, then palm_als (0.3 s). So that the cancel lands
+# between the two on any machine, task 0's batch is held (SIGSTOP) once its
+# first tree's worker runs (stderr to logs/aspen_als.log): the worker
+# finishes its tree, the held batch cannot start the next. scancel sends
+# SIGCONT and SIGTERM; the batch takes the SIGTERM before it reaps.
 "$SYLVA" batch in -o out2 --slurm --array-size 2 --json "${opts[@]}" > sub2.json 2> sub2.err
 job=$(jq -r .job sub2.json)
+held=
+for i in $(seq 1200); do
+    b=$(pgrep -o -f -- "--slurm-task 0 --slurm-tasks 2")
+    for c in $(pgrep -P "${b:-0}"); do
+        [[ $(readlink "/proc/$c/fd/2" 2> /dev/null) == */logs/aspen_als.log ]] && kill -STOP "$b" && held=$b && break 2
+    done
+    sleep 0.1
+done
+check "task 0's batch held while its first tree's worker runs" "[[ -n '$held' ]]"
 for i in $(seq 600); do [[ -s out2/trees/aspen_als.json ]] && break; sleep 0.2; done
 scancel "${job}_0"
 wait_job "$job" 120
