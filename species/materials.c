@@ -21,6 +21,7 @@
 #include "stages/leafmaps/leafmaps_cv.h"
 #include "stages/core/fileio.h"
 #include "stages/core/png.h"
+#include "stages/core/texture.h"
 
 #define BARK_NORMAL_STRENGTH 6.0f /* bark photos have shallow luminance relief */
 #define LEAF_NORMAL_STRENGTH 2.0f
@@ -324,6 +325,20 @@ static sy_code make_bark(const sy_material_spec *spec, int max_size, sy_asset *a
     return *out < 0 ? SY_EINTERNAL : SY_OK;
 }
 
+/* The leaf card's clear texels take the leaf's colours (texture.h): an
+ * engine's mip levels average them in, and a card that is mostly clear
+ * showed its photo's background colour at a distance. */
+static sy_code bleed_clear_texels(image *im, sy_error *err)
+{
+    size_t n = (size_t)im->w * (size_t)im->h;
+    unsigned char *covered = malloc(n ? n : 1);
+    if (!covered) return sy_fail(err, SY_EINTERNAL, "leaf: out of memory");
+    for (size_t i = 0; i < n; i++) covered[i] = im->rgba[4 * i + 3] >= 128;
+    sy_code rc = sy_texture_bleed_u8(im->rgba, im->w, im->h, 4, 3, covered, err);
+    free(covered);
+    return rc;
+}
+
 static sy_code make_leaf(const sy_material_spec *spec, int max_size, float translucency, sy_asset *asset,
                              int *out, sy_error *err)
 {
@@ -334,6 +349,7 @@ static sy_code make_leaf(const sy_material_spec *spec, int max_size, float trans
     if (rc == SY_OK && !had_alpha && sy_cv_alpha_from_background(im.rgba, im.w, im.h, ALPHA_THRESHOLD, err))
         rc = sy_error_prefix(err, spec->leaf_image);
     if (rc == SY_OK && spec->leaf_image) rc = resize_to(&im, max_size, spec->leaf_image, err);
+    if (rc == SY_OK) rc = bleed_clear_texels(&im, err);
     int color = -1, normal = -1;
     if (rc == SY_OK && add_maps(asset, "leaf", &im, 1, NULL, LEAF_NORMAL_STRENGTH, 0, &color, &normal, err))
         rc = err->code;
@@ -441,7 +457,8 @@ static sy_code make_leaf_from_maps(const sy_material_spec *spec, int max_size, s
         if (lm.hl2[s][0]) rc = read_map(lm.hl2[s], 3, 16, side, &hl[s], err);
     size_t n = (size_t)side * side;
     float *base = rc ? NULL : malloc(n * 4 * sizeof *base), *trans = rc ? NULL : malloc(n * 4 * sizeof *trans);
-    if (!rc && (!base || !trans)) rc = sy_fail(err, SY_EINTERNAL, "leaf maps: out of memory");
+    unsigned char *covered = rc ? NULL : malloc(n);
+    if (!rc && (!base || !trans || !covered)) rc = sy_fail(err, SY_EINTERNAL, "leaf maps: out of memory");
     for (size_t i = 0; !rc && i < n; i++) {
         float a[3], t[3] = {0, 0, 0}, f = 0;
         for (int c = 0; c < 3; c++) {
@@ -456,7 +473,15 @@ static sy_code make_leaf_from_maps(const sy_material_spec *spec, int max_size, s
         }
         base[4 * i + 3] = alb[4 * i + 3];
         trans[4 * i + 3] = f;
+        covered[i] = alb[4 * i + 3] >= 0.5f;
     }
+    /* Every map's clear texels take the leaf's values (bleed_clear_texels). */
+    if (!rc) rc = sy_texture_bleed(base, side, side, 4, 3, covered, err);
+    if (!rc) rc = sy_texture_bleed(trans, side, side, 4, 4, covered, err);
+    if (!rc) rc = sy_texture_bleed(nrm, side, side, 3, 3, covered, err);
+    if (!rc && th) rc = sy_texture_bleed(th, side, side, 1, 1, covered, err);
+    for (int s = 0; !rc && s < 2; s++)
+        if (hl[s]) rc = sy_texture_bleed(hl[s], side, side, 3, 3, covered, err);
     sy_material m = sy_material_default("leaf");
     if (!rc && ((m.base_color_image = add_png16(asset, "leaf_color", base, side, 4, 8, err)) < 0 ||
                 (m.normal_image = add_png16(asset, "leaf_normal", nrm, side, 3, 8, err)) < 0))
@@ -467,7 +492,7 @@ static sy_code make_leaf_from_maps(const sy_material_spec *spec, int max_size, s
     static const char *hl_names[2] = {"leaf_hl2_adaxial", "leaf_hl2_abaxial"};
     for (int s = 0; !rc && s < 2; s++)
         if (hl[s] && (m.hl2_image[s] = add_png16(asset, hl_names[s], hl[s], side, 3, 16, err)) < 0) rc = err->code;
-    free(alb), free(nrm), free(tr), free(th), free(hl[0]), free(hl[1]), free(base), free(trans);
+    free(alb), free(nrm), free(tr), free(th), free(hl[0]), free(hl[1]), free(base), free(trans), free(covered);
     if (rc) return rc;
     m.roughness = 0.7f;
     m.alpha_mode = SY_ALPHA_MASK;

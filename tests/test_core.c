@@ -12,6 +12,7 @@
 #include "stages/core/parallel.h"
 #include "stages/core/rng.h"
 #include "stages/core/sort.h"
+#include "stages/core/texture.h"
 
 static void filter_keeps_every_array_aligned(void **state)
 {
@@ -201,6 +202,64 @@ static void parallel_result_independent_of_threads(void **state)
     assert_true(totals[0] > 9.0);
 }
 
+/* Push-pull bleeding: covered texels and the channels left out keep their
+ * values; every clear texel takes a blend of covered colours, the nearer
+ * ones more; one colour fills the clear texels with itself, so a far mip
+ * level (the image's mean) is the surface's colour. */
+static void bleeding_fills_clear_texels_with_covered_colours(void **state)
+{
+    (void)state;
+    enum { W = 37, H = 23 };
+    float px[W * H * 4];
+    unsigned char cov[W * H];
+    sy_error err = {0};
+    /* A red blob at the left, a blue one at the right, alpha 1 there, the
+     * rest a stray colour (0.5, 0.3, 0.5) with alpha 0. */
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            size_t i = (size_t)y * W + (size_t)x;
+            int left = (x - 4) * (x - 4) + (y - 11) * (y - 11) <= 9, right = (x - 32) * (x - 32) + (y - 11) * (y - 11) <= 9;
+            cov[i] = (unsigned char)(left || right);
+            float *p = px + 4 * i;
+            p[0] = left ? 0.9f : 0.5f, p[1] = cov[i] ? 0.5f : 0.3f, p[2] = right ? 0.8f : 0.5f, p[3] = cov[i] ? 1.0f : 0.0f;
+            if (left) p[2] = 0.1f;
+            if (right) p[0] = 0.2f;
+        }
+    float before[W * H * 4];
+    memcpy(before, px, sizeof px);
+    assert_int_equal(sy_texture_bleed(px, W, H, 4, 3, cov, &err), SY_OK);
+    for (size_t i = 0; i < (size_t)W * H; i++) {
+        assert_float_equal(px[4 * i + 3], before[4 * i + 3], 0); /* alpha untouched */
+        if (cov[i]) {
+            for (int k = 0; k < 3; k++) assert_float_equal(px[4 * i + k], before[4 * i + k], 0);
+            continue;
+        }
+        /* A blend of red (0.9, 0.5, 0.1) and blue (0.2, 0.5, 0.8): nothing of the stray left. */
+        double t = (px[4 * i] - 0.9) / (0.2 - 0.9);
+        assert_true(t >= -1e-5 && t <= 1 + 1e-5);
+        assert_float_equal(px[4 * i + 1], 0.5, 1e-5);
+        assert_float_equal(px[4 * i + 2], 0.1 + t * 0.7, 1e-4);
+    }
+    /* Nearer the red blob, redder. */
+    assert_true(px[4 * (11 * W + 9)] > px[4 * (11 * W + 27)] + 0.3f);
+
+    /* One colour: every clear texel is that colour; odd 1 x N sizes too. */
+    float one[5 * 4] = {0};
+    unsigned char c1[5] = {0, 0, 0, 1, 0};
+    one[4 * 3] = 0.25f, one[4 * 3 + 1] = 0.5f, one[4 * 3 + 2] = 0.75f;
+    assert_int_equal(sy_texture_bleed(one, 5, 1, 4, 3, c1, &err), SY_OK);
+    for (int i = 0; i < 5; i++) {
+        assert_float_equal(one[4 * i], 0.25f, 1e-6);
+        assert_float_equal(one[4 * i + 2], 0.75f, 1e-6);
+        assert_float_equal(one[4 * i + 3], 0.0f, 0);
+    }
+    /* Nothing covered: nothing changes. */
+    unsigned char none[5] = {0}, u8[5 * 3] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15}, copy[15];
+    memcpy(copy, u8, sizeof u8);
+    assert_int_equal(sy_texture_bleed_u8(u8, 5, 1, 3, 3, none, &err), SY_OK);
+    assert_memory_equal(u8, copy, sizeof u8);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -211,6 +270,7 @@ int main(void)
         cmocka_unit_test(json_nests_and_escapes),
         cmocka_unit_test(parallel_result_independent_of_threads),
         cmocka_unit_test(select_matches_a_sort),
+        cmocka_unit_test(bleeding_fills_clear_texels_with_covered_colours),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

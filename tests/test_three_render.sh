@@ -22,6 +22,16 @@ IOU_MIN=0.85
 CHROMA_MAX=0.08
 CHROMA='def ch($c): [$c[0], $c[1]] | map(. / ($c[0] + $c[1] + $c[2] + 1e-9));
   (ch(.impostor_colour)) as $a | (ch(.lod0_colour)) as $b | (($a[0] - $b[0]) * ($a[0] - $b[0]) + ($a[1] - $b[1]) * ($a[1] - $b[1])) | sqrt'
+# The impostor level as three.js draws it against LOD0 as three.js draws it,
+# same camera and lights (front view, supersampled as above): the relative luminance (Rec.
+# 709) within LUMA_TOL, and the chromaticity as above. Until the atlas held
+# albedo and a normal map, the far level came out 20-44 % darker than LOD0
+# (the atlas's baked Lambert lit again on the card) and bluish LOD0 leaves
+# (mip levels of clear texels) differed in hue too (docs/mesh.md, Impostor).
+LUMA_TOL=0.15
+LUMA='def y($c): 0.2126 * $c[0] + 0.7152 * $c[1] + 0.0722 * $c[2]; y(.impostor_render_colour) / (y(.lod0_colour) + 1e-9)'
+CHROMA_RENDER='def ch($c): [$c[0], $c[1]] | map(. / ($c[0] + $c[1] + $c[2] + 1e-9));
+  (ch(.impostor_render_colour)) as $a | (ch(.lod0_colour)) as $b | (($a[0] - $b[0]) * ($a[0] - $b[0]) + ($a[1] - $b[1]) * ($a[1] - $b[1])) | sqrt'
 files=()
 for ini in "$SYLVA_SOURCE_DIR"/species/*.ini; do
     sp=$(basename "$ini" .ini)
@@ -44,5 +54,8 @@ while read -r line; do
     d=$(jq "$CHROMA" "$tmp/v.json")
     check "$f: the atlas's colour is LOD0's (chromaticity distance $d <= $CHROMA_MAX)" \
         "jq -e '($CHROMA) <= $CHROMA_MAX' '$tmp/v.json' > /dev/null"
+    l=$(jq "$LUMA" "$tmp/v.json"); d=$(jq "$CHROMA_RENDER" "$tmp/v.json")
+    check "$f: three.js draws the impostor as bright as LOD0 (luminance ratio $l within 1 +- $LUMA_TOL) and of its hue (chromaticity distance $d <= $CHROMA_MAX)" \
+        "jq -e '(($LUMA) - 1 | fabs) <= $LUMA_TOL and ($CHROMA_RENDER) <= $CHROMA_MAX' '$tmp/v.json' > /dev/null"
 done < "$tmp/verdicts.jsonl"
 exit $fail

@@ -1,8 +1,10 @@
 /* Impostor: two crossed vertical cards through the trunk axis, textured with
- * orthographic renders of LOD0 made by a small z-buffered CPU rasteriser
- * (Lambert-shaded bark and leaf cards, the leaf texture's alpha when there is
- * one). The atlas is S x S: the view along +Z on the left half, the view along
- * +X on the right half; alpha is coverage. */
+ * orthographic renders of LOD0 made by a small z-buffered CPU rasteriser:
+ * an albedo atlas (bark and leaf colours, the leaf texture's alpha when there
+ * is one) and a normal map of the same surfaces in the cards' tangent space,
+ * so the engine lights the cards as it lights LOD0. Each atlas is S x S: the
+ * view along +Z on the left half, the view along +X on the right half;
+ * alpha is coverage. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -13,14 +15,16 @@
 #include "mesh_internal.h"
 #include "stages/core/parallel.h"
 #include "stages/core/png.h"
+#include "stages/core/texture.h"
 
 /* Share of the tree's extent added around it so the silhouette never touches
  * the card border (mip-mapping would smear it). */
 #define MARGIN 0.03f
-#define DILATE_PASSES 4
 
 typedef struct {
     unsigned char *rgba; /* atlas */
+    unsigned char *nrm;  /* its tangent-space normal map (RGB), or NULL */
+    float *glow;         /* per texel: the emissive factor of the material drawn there (3), or NULL */
     float *depth;
     int W, H;      /* atlas size */
     int x0, w;     /* this view's tile: columns [x0, x0 + w) */
@@ -32,13 +36,12 @@ typedef struct {
     unsigned char *px; /* RGBA texels or NULL */
     int w, h;
     float color[4];
+    float emissive[3];
     float cutoff;
     int masked;
     int exact;     /* cover only the pixels whose centre the triangle holds */
     int fill_only; /* write only pixels nothing else covers */
 } shade_src;
-
-static const float light[3] = {0.32f, 0.83f, 0.45f};
 
 static void to_pixel(const view *v, const float p[3], float out[3])
 {
@@ -47,19 +50,24 @@ static void to_pixel(const view *v, const float p[3], float out[3])
     out[2] = sy_dot3(p, v->toward);
 }
 
-/* Rasterises one triangle with flat Lambert shading; uv (6 floats) is used
- * to look up the source texture's alpha and colour when there is one. */
+/* Rasterises one triangle's albedo (the material's colour times its
+ * texture; uv, 6 floats, looks up the texture's alpha and colour when there
+ * is one) and, with v->nrm, its normals (9 floats: the corners' vertex
+ * normals, NULL: the face's) in the card's tangent space. No light is baked:
+ * the engine lights the card through the normal map as it lights LOD0's
+ * surfaces, so the far level keeps LOD0's brightness under any light (the
+ * baked Lambert, lit again on the card, drew the aspen's impostor 40 %
+ * darker than its LOD0 in three.js). */
 static void raster(view *v, const float a[3], const float b[3], const float c[3], const float *uv,
-                   const shade_src *src)
+                   const float *normals, const shade_src *src)
 {
     float pa[3], pb[3], pc[3];
     to_pixel(v, a, pa), to_pixel(v, b, pb), to_pixel(v, c, pc);
     float area = (pb[0] - pa[0]) * (pc[1] - pa[1]) - (pb[1] - pa[1]) * (pc[0] - pa[0]);
     if (fabsf(area) < 1e-12f) return;
-    float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]}, n[3];
-    sy_cross3(e1, e2, n);
-    sy_normalize3(n);
-    float lit = 0.35f + 0.65f * fabsf(sy_dot3(n, light)); /* both sides: leaves are two-sided */
+    float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]}, face[3];
+    sy_cross3(e1, e2, face);
+    sy_normalize3(face);
     int xmin = (int)fmaxf((float)v->x0, floorf(fminf(pa[0], fminf(pb[0], pc[0]))) - 1);
     int xmax = (int)fminf((float)(v->x0 + v->w - 1), ceilf(fmaxf(pa[0], fmaxf(pb[0], pc[0]))) + 1);
     int ymin = (int)fmaxf(0, floorf(fminf(pa[1], fminf(pb[1], pc[1]))) - 1);
@@ -106,10 +114,27 @@ static void raster(view *v, const float a[3], const float b[3], const float c[3]
             if (src->masked && col[3] < src->cutoff) continue;
             v->depth[i] = z;
             for (int k = 0; k < 3; k++) {
-                float c = col[k] * lit;
+                float c = col[k];
                 v->rgba[4 * i + k] = (unsigned char)(255.0f * (c < 0 ? 0 : c > 1 ? 1 : c) + 0.5f);
             }
             v->rgba[4 * i + 3] = 255;
+            if (v->glow) memcpy(v->glow + 3 * i, src->emissive, sizeof src->emissive);
+            if (v->nrm) {
+                float n[3];
+                for (int k = 0; k < 3; k++)
+                    n[k] = normals ? w0 * normals[k] + w1 * normals[3 + k] + w2 * normals[6 + k] : face[k];
+                sy_normalize3(n);
+                /* A double-sided surface seen from behind shows its back,
+                 * whose normal the engine turns to the viewer. */
+                if (sy_dot3(n, v->toward) < 0)
+                    for (int k = 0; k < 3; k++) n[k] = -n[k];
+                /* Tangent space of the card: +u is the image's right, +v
+                 * points down (the card's tangent w = -1), the normal at the
+                 * viewer. */
+                float ts[3] = {sy_dot3(n, v->right), -n[1], sy_dot3(n, v->toward)};
+                for (int k = 0; k < 3; k++)
+                    v->nrm[3 * i + k] = (unsigned char)(127.5f * (1.0f + (ts[k] < -1 ? -1 : ts[k] > 1 ? 1 : ts[k])) + 0.5f);
+            }
         }
     }
 }
@@ -124,6 +149,7 @@ static void material_source(const sy_asset *a, int mi, int per_pixel, shade_src 
     if (mi < 0 || (size_t)mi >= a->n_materials) return;
     const sy_material *m = &a->materials[mi];
     memcpy(s->color, m->base_color, sizeof s->color);
+    memcpy(s->emissive, m->emissive, sizeof s->emissive);
     s->masked = m->alpha_mode == SY_ALPHA_MASK;
     s->cutoff = m->alpha_cutoff;
     int img = m->base_color_image;
@@ -164,6 +190,17 @@ static void instance_point(const sy_instances *in, size_t i, const float v[3], f
     for (int k = 0; k < 3; k++) out[k] += t[k];
 }
 
+/* A normal of the instanced mesh in the world: rotated, and scaled by the
+ * inverse of the instance's scale (a squashed card tilts its normal). */
+static void instance_normal(const sy_instances *in, size_t i, const float n[3], float out[3])
+{
+    const float *s = in->scale + 3 * i;
+    float sn[3];
+    for (int k = 0; k < 3; k++) sn[k] = s[k] != 0 ? n[k] / s[k] : n[k];
+    rotate(in->rotation + 4 * i, sn, out);
+    sy_normalize3(out);
+}
+
 static void grow_box(float lo[3], float hi[3], const float p[3])
 {
     for (int k = 0; k < 3; k++) lo[k] = fminf(lo[k], p[k]), hi[k] = fmaxf(hi[k], p[k]);
@@ -176,8 +213,10 @@ static void render_view(const sy_asset *a, const sy_lod *lod, view *v, const sha
         const sy_mesh *m = &a->meshes[lod->meshes[k]];
         for (size_t t = 0; t + 2 < m->n_indices; t += 3) {
             const uint32_t *ix = m->indices + t;
-            float uv[6] = {0, 0, 0, 0, 0, 0};
-            raster(v, m->position + 3 * ix[0], m->position + 3 * ix[1], m->position + 3 * ix[2], uv, &src_mesh[k]);
+            float uv[6] = {0, 0, 0, 0, 0, 0}, nv[9];
+            for (int c = 0; c < 3 && m->normal; c++) memcpy(nv + 3 * c, m->normal + 3 * ix[c], 3 * sizeof *nv);
+            raster(v, m->position + 3 * ix[0], m->position + 3 * ix[1], m->position + 3 * ix[2], uv,
+                   m->normal ? nv : NULL, &src_mesh[k]);
         }
     }
     for (int k = 0; k < lod->n_instances && !meshes_only; k++) {
@@ -186,13 +225,14 @@ static void render_view(const sy_asset *a, const sy_lod *lod, view *v, const sha
         const shade_src *src = &src_mesh[SY_LOD_MAX_PARTS + k];
         for (size_t i = 0; i < in->n; i++) {
             for (size_t t = 0; t + 2 < m->n_indices; t += 3) {
-                float p[3][3], uv[6] = {0, 0, 0, 0, 0, 0};
+                float p[3][3], uv[6] = {0, 0, 0, 0, 0, 0}, nv[9];
                 for (int c = 0; c < 3; c++) {
                     uint32_t vi = m->indices[t + (size_t)c];
                     instance_point(in, i, m->position + 3 * vi, p[c]);
                     if (m->uv) uv[2 * c] = m->uv[2 * vi], uv[2 * c + 1] = m->uv[2 * vi + 1];
+                    if (m->normal && v->nrm) instance_normal(in, i, m->normal + 3 * vi, nv + 3 * c);
                 }
-                raster(v, p[0], p[1], p[2], uv, src);
+                raster(v, p[0], p[1], p[2], uv, m->normal && v->nrm ? nv : NULL, src);
             }
         }
     }
@@ -213,35 +253,6 @@ static void render_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
         render_view(j->a, j->lod, j->views[k], j->src, 0);
         if (j->fill) render_view(j->a, j->lod, j->views[k], j->fill, 1);
     }
-}
-
-/* Spreads colour into uncovered texels (alpha stays 0) so filtering at the
- * silhouette does not blend towards black. */
-static void dilate(unsigned char *rgba, int W, int H)
-{
-    unsigned char *done = malloc((size_t)W * (size_t)H);
-    if (!done) return;
-    for (int pass = 0; pass < DILATE_PASSES; pass++) {
-        for (size_t i = 0; i < (size_t)W * (size_t)H; i++) done[i] = rgba[4 * i + 3] > 0 || rgba[4 * i] | rgba[4 * i + 1] | rgba[4 * i + 2];
-        for (int y = 0; y < H; y++)
-            for (int x = 0; x < W; x++) {
-                size_t i = (size_t)y * (size_t)W + (size_t)x;
-                if (done[i]) continue;
-                int sum[3] = {0, 0, 0}, n = 0;
-                for (int dy = -1; dy <= 1; dy++)
-                    for (int dx = -1; dx <= 1; dx++) {
-                        int xx = x + dx, yy = y + dy;
-                        if (xx < 0 || yy < 0 || xx >= W || yy >= H) continue;
-                        size_t j = (size_t)yy * (size_t)W + (size_t)xx;
-                        if (!done[j]) continue;
-                        for (int k = 0; k < 3; k++) sum[k] += rgba[4 * j + k];
-                        n++;
-                    }
-                if (n)
-                    for (int k = 0; k < 3; k++) rgba[4 * i + k] = (unsigned char)(sum[k] / n);
-            }
-    }
-    free(done);
 }
 
 /* Two quads: plane z = zc facing +Z (atlas u in [0, 0.5]) and plane x = xc
@@ -321,21 +332,24 @@ int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
         if (a->wind[i].parent < 0) xc = a->wind[i].anchor[0], zc = a->wind[i].anchor[2];
 
     int W = size, H = size;
-    unsigned char *rgba = calloc((size_t)W * (size_t)H, 4);
-    float *depth = malloc((size_t)W * (size_t)H * sizeof(float));
+    unsigned char *rgba = calloc((size_t)W * (size_t)H, 4), *nrm = malloc((size_t)W * (size_t)H * 3);
+    float *depth = malloc((size_t)W * (size_t)H * sizeof(float)), *glow = calloc((size_t)W * (size_t)H * 3, sizeof(float));
     shade_src src[2 * SY_LOD_MAX_PARTS];
     memset(src, 0, sizeof src);
-    if (!rgba || !depth) {
-        free(rgba), free(depth);
+    if (!rgba || !nrm || !depth || !glow) {
+        free(rgba), free(nrm), free(depth), free(glow);
         sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
         return -1;
     }
-    for (size_t i = 0; i < (size_t)W * (size_t)H; i++) depth[i] = -INFINITY;
+    for (size_t i = 0; i < (size_t)W * (size_t)H; i++) {
+        depth[i] = -INFINITY;
+        nrm[3 * i] = nrm[3 * i + 1] = 128, nrm[3 * i + 2] = 255; /* the card's own normal */
+    }
     for (int k = 0; k < lod0->n_meshes; k++) material_source(a, a->meshes[lod0->meshes[k]].material, 0, &src[k]);
     for (int k = 0; k < lod0->n_instances; k++)
         material_source(a, a->meshes[lod0->instances[k].mesh].material, 1, &src[SY_LOD_MAX_PARTS + k]);
-    view front = {rgba, depth, W, H, 0, W / 2, {1, 0, 0}, {0, 0, 1}, lo[0], hi[0], lo[1], hi[1]};
-    view side = {rgba, depth, W, H, W / 2, W - W / 2, {0, 0, -1}, {1, 0, 0}, -hi[2], -lo[2], lo[1], hi[1]};
+    view front = {rgba, nrm, glow, depth, W, H, 0, W / 2, {1, 0, 0}, {0, 0, 1}, lo[0], hi[0], lo[1], hi[1]};
+    view side = {rgba, nrm, glow, depth, W, H, W / 2, W - W / 2, {0, 0, -1}, {1, 0, 0}, -hi[2], -lo[2], lo[1], hi[1]};
     /* The two views fill disjoint halves of the atlas and its depth: one a
      * thread, the same texels either way. */
     /* Colour from the bark at the pixels it holds; twigs thinner than a
@@ -350,23 +364,59 @@ int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
     sy_parallel_for(2, 1, render_chunk, &job);
     for (int k = 0; k < 2 * SY_LOD_MAX_PARTS; k++) stbi_image_free(src[k].px);
     free(depth);
-    dilate(rgba, W, H);
-    sy_image img;
+    /* Leaves glow faintly in engines without diffuse transmission (their
+     * emissive factor times their colour, species/materials.c): the cards
+     * glow by the drawn texels' mean factor, times the atlas's colour. */
+    double glow_sum[3] = {0, 0, 0};
+    size_t drawn = 0;
+    for (size_t i = 0; i < (size_t)W * (size_t)H; i++)
+        if (rgba[4 * i + 3]) {
+            for (int k = 0; k < 3; k++) glow_sum[k] += glow[3 * i + k];
+            drawn++;
+        }
+    free(glow);
+    /* The clear texels take the tree's colours and normals (push-pull), so
+     * filtering and mip levels at the silhouette blend towards the crown,
+     * not towards black (a 4-texel dilation left the rest black, and the
+     * far mip levels dark). */
+    unsigned char *covered = malloc((size_t)W * (size_t)H);
+    int oom = !covered;
+    for (size_t i = 0; covered && i < (size_t)W * (size_t)H; i++) covered[i] = rgba[4 * i + 3] > 0;
+    if (!oom && (sy_texture_bleed_u8(rgba, W, H, 4, 3, covered, err) || sy_texture_bleed_u8(nrm, W, H, 3, 3, covered, err)))
+        oom = 1;
+    free(covered);
+    if (oom) {
+        free(rgba), free(nrm);
+        sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
+        return -1;
+    }
+    sy_image img, nimg;
     memset(&img, 0, sizeof img);
+    memset(&nimg, 0, sizeof nimg);
     int bad = sy_png_encode(rgba, W, H, 4, 8, &img.png, &img.size);
-    free(rgba);
+    bad |= sy_png_encode(nrm, W, H, 3, 8, &nimg.png, &nimg.size);
+    free(rgba), free(nrm);
     if (bad) {
+        free(img.png), free(nimg.png);
         sy_fail(err, SY_EINTERNAL, "mesh: impostor PNG encoding failed");
         return -1;
     }
     snprintf(img.name, sizeof img.name, "impostor");
+    snprintf(nimg.name, sizeof nimg.name, "impostor_normal");
     int ii = sy_asset_add_image(a, &img, err);
     if (ii < 0) {
-        free(img.png);
+        free(img.png), free(nimg.png);
+        return -1;
+    }
+    int ni = sy_asset_add_image(a, &nimg, err);
+    if (ni < 0) {
+        free(nimg.png);
         return -1;
     }
     sy_material mat = sy_material_default("impostor");
     mat.base_color_image = ii;
+    mat.normal_image = ni;
+    for (int k = 0; k < 3 && drawn; k++) mat.emissive[k] = (float)(glow_sum[k] / (double)drawn);
     mat.alpha_mode = SY_ALPHA_MASK;
     mat.alpha_cutoff = 0.5f;
     mat.double_sided = 1;
@@ -403,8 +453,8 @@ sy_code sy_mesh_silhouettes(const sy_asset *a, size_t lod, const float lo[3], co
     for (int k = 0; k < l->n_meshes; k++) material_source(a, a->meshes[l->meshes[k]].material, 0, &src[k]);
     for (int k = 0; k < l->n_instances; k++)
         material_source(a, a->meshes[l->instances[k].mesh].material, 1, &src[SY_LOD_MAX_PARTS + k]);
-    view f = {rgba, depth, W, H, 0, size, {1, 0, 0}, {0, 0, 1}, lo[0], hi[0], lo[1], hi[1]};
-    view s = {rgba, depth, W, H, size, size, {0, 0, -1}, {1, 0, 0}, -hi[2], -lo[2], lo[1], hi[1]};
+    view f = {rgba, NULL, NULL, depth, W, H, 0, size, {1, 0, 0}, {0, 0, 1}, lo[0], hi[0], lo[1], hi[1]};
+    view s = {rgba, NULL, NULL, depth, W, H, size, size, {0, 0, -1}, {1, 0, 0}, -hi[2], -lo[2], lo[1], hi[1]};
     render_view(a, l, &f, src, 0);
     render_view(a, l, &s, src, 0);
     for (int k = 0; k < 2 * SY_LOD_MAX_PARTS; k++) stbi_image_free(src[k].px);

@@ -132,11 +132,22 @@ async function main() {
     // LOD0's colour at the same supersampling: at the atlas's own size the
     // GPU keeps mostly bark (it drops cards thinner than a pixel).
     verdict.lod0_colour = meanColour(hi.px, hi.m);
+    if (lodWanted === 0 && groups.length > 1) {
+      // The impostor level as the engine draws it, same lights, camera and
+      // supersampling: what a viewer sees when the tree switches to it.
+      scene.remove(lod);
+      scene.add(impostor);
+      const im = readMask(aw * SS, ah * SS);
+      verdict.impostor_render_colour = meanColour(im.px, im.m);
+      scene.remove(impostor);
+      scene.add(lod);
+    }
     verdict.atlas_coverage = mi.reduce((a, b) => a + b, 0) / (aw * ah);
   }
   const lo = readMask(w, h);
   verdict.coverage = lo.m.reduce((a, b) => a + b, 0) / (w * h);
   verdict.mean_colour = meanColour(lo.px, lo.m);
+
   renderer.setClearColor(0xb9cfe0, 1);
   renderer.render(scene, cam);
 }
