@@ -640,11 +640,17 @@ void sy_batch_sweep(const char *out_dir)
 }
 
 /* Did the worker leave a record of this attempt (of this input and options)? */
-static int has_current_record(const sy_batch_input *in, const char *out_dir, const sy_batch_options *o, uint64_t h)
+/* What this attempt's record (of this input and options) says, a failure included. */
+static job_state current_record(const sy_batch_input *in, const char *out_dir, const sy_batch_options *o, uint64_t h)
 {
     sy_batch_options any = *o;
     any.retry_failed = 0;
-    return record_state(in, out_dir, &any, h) != JOB_TO_RUN;
+    return record_state(in, out_dir, &any, h);
+}
+
+static int has_current_record(const sy_batch_input *in, const char *out_dir, const sy_batch_options *o, uint64_t h)
+{
+    return current_record(in, out_dir, o, h) != JOB_TO_RUN;
 }
 
 void sy_batch_death(int status, int timed_out, double timeout, char *why, size_t size)
@@ -660,6 +666,22 @@ void sy_batch_death(int status, int timed_out, double timeout, char *why, size_t
  * hang-up. */
 static int stop_signal(int sig) { return sig == SIGINT || sig == SIGTERM || sig == SIGHUP; }
 
+/* Takes the stop signals already pending (zero wait): on the first, no more
+ * workers start and those running get it too; on a second, they are killed
+ * (a worker stuck in a long step would otherwise hold the stop). */
+static void take_stops(const sigset_t *set, worker *w, int nw, int *stopped_by)
+{
+    struct timespec now = {0, 0};
+    int sig;
+    while ((sig = sigtimedwait(set, NULL, &now)) > 0) {
+        if (!stop_signal(sig)) continue;
+        int second = *stopped_by != 0;
+        if (!second) *stopped_by = sig;
+        for (int k = 0; k < nw; k++)
+            if (w[k].pid) kill(w[k].pid, second ? SIGKILL : sig);
+    }
+}
+
 sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void *ctx, size_t job),
                       void (*done)(void *ctx, size_t job, int status, int timed_out, int interrupted, double seconds),
                       void *ctx, sy_error *err)
@@ -668,13 +690,16 @@ sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void 
     if (!w) return sy_fail(err, SY_EINTERNAL, "batch: out of memory");
     /* The stop signals and SIGCHLD are taken with sigtimedwait, not by
      * handlers (no state outside this frame): a stop is seen between two
-     * reaps, never in the middle of recording one. Workers get the mask of
-     * before. */
+     * reaps, never in the middle of recording one. A stop signal set to be
+     * ignored (nohup, a background job of a script) stays ignored: Linux
+     * queues a blocked signal even then. Workers get the mask of before. */
     sigset_t wait_set, before;
     sigemptyset(&wait_set);
-    sigaddset(&wait_set, SIGINT);
-    sigaddset(&wait_set, SIGTERM);
-    sigaddset(&wait_set, SIGHUP);
+    const int stops[3] = {SIGINT, SIGTERM, SIGHUP};
+    for (int q = 0; q < 3; q++) {
+        struct sigaction sa;
+        if (sigaction(stops[q], NULL, &sa) == 0 && sa.sa_handler != SIG_IGN) sigaddset(&wait_set, stops[q]);
+    }
     sigaddset(&wait_set, SIGCHLD);
     sigprocmask(SIG_BLOCK, &wait_set, &before);
     size_t next = 0, running = 0;
@@ -682,6 +707,7 @@ sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void 
     sy_code rc = SY_OK;
     fflush(NULL);
     while ((next < n_jobs && !stopped_by) || running) {
+        take_stops(&wait_set, w, nw, &stopped_by);
         /* Fill the free slots. */
         for (int k = 0; k < nw && next < n_jobs && !stopped_by; k++) {
             if (w[k].pid) continue;
@@ -716,11 +742,13 @@ sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void 
             if (k == nw) continue;
             w[k].pid = 0;
             running--;
-            /* A worker stopped by a stop signal (it may see it before this
-             * process does) or ended unfinished after the stop did not fail
-             * its tree: nothing is recorded, and the tree is to do again. */
+            /* A stop this process has been sent by now counts for this worker too. */
+            take_stops(&wait_set, w, nw, &stopped_by);
+            /* A worker ended by a stop signal (it may see it before this
+             * process does), or unfinished after the stop, did not fail its
+             * job: interrupted, 2 when the whole batch is stopping. */
             int ok = WIFEXITED(status) && WEXITSTATUS(status) == 0 && !w[k].timed_out;
-            int interrupted = !ok && ((WIFSIGNALED(status) && stop_signal(WTERMSIG(status))) || stopped_by);
+            int interrupted = ok ? 0 : stopped_by ? 2 : WIFSIGNALED(status) && stop_signal(WTERMSIG(status)) ? 1 : 0;
             done(ctx, w[k].job, status, w[k].timed_out, interrupted, sy_now() - w[k].start);
             continue;
         }
@@ -734,10 +762,11 @@ sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void 
         }
         struct timespec ts = {0, timeout > 0 ? 50000000 : 500000000};
         int sig = sigtimedwait(&wait_set, NULL, &ts);
-        if (sig > 0 && stop_signal(sig) && !stopped_by) {
-            stopped_by = sig;
+        if (sig > 0 && stop_signal(sig)) {
+            int second = stopped_by != 0;
+            if (!second) stopped_by = sig;
             for (int k = 0; k < nw; k++)
-                if (w[k].pid) kill(w[k].pid, sig);
+                if (w[k].pid) kill(w[k].pid, second ? SIGKILL : sig);
         }
     }
     if (rc) {
@@ -750,10 +779,15 @@ sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void 
     if (stopped_by) {
         /* Every worker is reaped and what finished is recorded: now die of
          * the signal as the batch would have without this pool, so a shell
-         * or Slurm sees the stop. */
+         * or Slurm sees the stop (unblocked even if the caller blocked it). */
         fflush(NULL);
+        sigset_t one;
+        sigemptyset(&one);
+        sigaddset(&one, stopped_by);
         signal(stopped_by, SIG_DFL);
+        sigprocmask(SIG_UNBLOCK, &one, NULL);
         raise(stopped_by);
+        _exit(128 + stopped_by);
     }
     return rc;
 }
@@ -786,10 +820,15 @@ static void tree_done(void *ctx, size_t job, int status, int timed_out, int inte
     size_t j = b->todo[job];
     const sy_batch_input *in = &b->in->items[j];
     const char *st = "ok";
-    if (interrupted) {
+    /* The worker may have committed its record before the signal came. */
+    job_state rec = interrupted ? current_record(in, b->out_dir, b->o, b->hash[j]) : JOB_TO_RUN;
+    if (interrupted && rec == JOB_TO_RUN) {
         /* Not the tree's failure: no record, so the next run makes it. */
         t->summary->interrupted++;
         st = "interrupted";
+    } else if (interrupted) {
+        if (rec == JOB_SKIP_OK) t->summary->done++;
+        else t->summary->failed++, st = "failed";
     } else if (WIFEXITED(status) && WEXITSTATUS(status) == 0 && !timed_out) {
         t->summary->done++;
     } else {

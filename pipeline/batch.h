@@ -123,10 +123,12 @@ void sy_batch_sweep(const char *out_dir);
  * processes, nw at once (child must _exit), and done(ctx, j, wait status,
  * timed_out, interrupted, seconds) in the parent as each ends; workers
  * running past timeout seconds (0: none) are killed. A stop signal
- * (SIGINT, SIGTERM, SIGHUP) starts no more workers, is passed to those
- * running, and once they are reaped this process dies of it; a worker that
- * a stop signal ended is `interrupted`, its job neither done nor failed.
- * Fails only for the pool itself. */
+ * (SIGINT, SIGTERM, SIGHUP; not one set to be ignored, as under nohup)
+ * starts no more workers, is passed to those running (a second one kills
+ * them), and once they are reaped this process dies of it. A worker that did
+ * not finish is `interrupted` (its job neither done nor failed) when a stop
+ * signal ended it (1) or the batch is stopping (2). Fails only for the pool
+ * itself. */
 sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void *ctx, size_t job),
                       void (*done)(void *ctx, size_t job, int status, int timed_out, int interrupted, double seconds),
                       void *ctx, sy_error *err);

@@ -142,9 +142,16 @@ static sy_code inspect(const sy_batch_input *in, const char *out_dir, const sy_b
     return rc;
 }
 
+/* The plot pool: the jobs, and which inputs' inspection a stop signal
+ * ended (left out of this run; the next run inspects them). */
+typedef struct {
+    sy_batch_jobs jobs;
+    unsigned char *stopped; /* per input */
+} plot_pool;
+
 static void plot_child(void *ctx, size_t job)
 {
-    const sy_batch_jobs *p = ctx;
+    const sy_batch_jobs *p = &((plot_pool *)ctx)->jobs;
     const sy_batch_input *in = &p->in->items[p->todo[job]];
     char log_id[300];
     snprintf(log_id, sizeof log_id, "%s.segment", in->id);
@@ -163,9 +170,14 @@ static void plot_child(void *ctx, size_t job)
 
 static void plot_done(void *ctx, size_t job, int status, int timed_out, int interrupted, double secs)
 {
-    const sy_batch_jobs *p = ctx;
+    const sy_batch_jobs *p = &((plot_pool *)ctx)->jobs;
     const sy_batch_input *in = &p->in->items[p->todo[job]];
-    if (interrupted) return; /* inspected again next run */
+    if (interrupted) {
+        /* Not judged: neither a failure nor a single tree this run (running
+         * a plot whole as one tree would leave its output behind). */
+        ((plot_pool *)ctx)->stopped[p->todo[job]] = 1;
+        return;
+    }
     if (!(WIFEXITED(status) && (WEXITSTATUS(status) == 0 || WEXITSTATUS(status) == SY_EINPUT)) || timed_out) {
         char why[256];
         sy_batch_death(status, timed_out, p->o->worker_timeout, why, sizeof why);
@@ -217,9 +229,11 @@ sy_code sy_batch_expand(const sy_batch_inputs *in, const char *out_dir, const sy
     size_t n = in->n;
     uint64_t *hash = calloc(n ? n : 1, sizeof *hash);
     size_t *todo = calloc(n ? n : 1, sizeof *todo), n_todo = 0;
-    if (!hash || !todo) {
+    unsigned char *stopped = calloc(n ? n : 1, 1);
+    if (!hash || !todo || !stopped) {
         free(hash);
         free(todo);
+        free(stopped);
         return sy_fail(err, SY_EINTERNAL, "batch: out of memory");
     }
     uint64_t key = segment_key(o);
@@ -228,6 +242,7 @@ sy_code sy_batch_expand(const sy_batch_inputs *in, const char *out_dir, const sy
     if (mkdir(dir, 0755) && errno != EEXIST) {
         free(hash);
         free(todo);
+        free(stopped);
         return sy_fail(err, SY_EINPUT, "%s: cannot create: %s", dir, strerror(errno));
     }
     sy_code rc = SY_OK;
@@ -248,10 +263,11 @@ sy_code sy_batch_expand(const sy_batch_inputs *in, const char *out_dir, const sy
         if ((size_t)nw > n_todo) nw = (int)n_todo;
         int threads = o->threads ? o->threads : (int)sysconf(_SC_NPROCESSORS_ONLN) / nw;
         if (!o->quiet && !o->json) fprintf(stderr, "sylva batch: looking for plots in %zu input%s\n", n_todo, n_todo == 1 ? "" : "s");
-        sy_batch_jobs pp = {in, out_dir, o, todo, hash, threads < 1 ? 1 : threads, getpid()};
+        plot_pool pp = {{in, out_dir, o, todo, hash, threads < 1 ? 1 : threads, getpid()}, stopped};
         rc = sy_batch_pool(n_todo, nw, o->worker_timeout, plot_child, plot_done, &pp, err);
     }
     for (size_t i = 0; i < n && !rc; i++) {
+        if (stopped[i]) continue;
         const sy_batch_input *src = &in->items[i];
         sy_jv *r = hash[i] ? current_record(src, out_dir, hash[i], key) : NULL;
         const char *kind = r ? sy_jv_string(sy_jv_get(r, "kind")) : NULL;
@@ -277,6 +293,7 @@ sy_code sy_batch_expand(const sy_batch_inputs *in, const char *out_dir, const sy
     }
     free(hash);
     free(todo);
+    free(stopped);
     if (rc) sy_batch_inputs_free(out);
     return rc;
 }

@@ -20,11 +20,12 @@
 /* Share of the tree's extent added around it so the silhouette never touches
  * the card border (mip-mapping would smear it). */
 #define MARGIN 0.03f
+#define PART_NONE 255
 
 typedef struct {
     unsigned char *rgba; /* atlas */
     unsigned char *nrm;  /* its tangent-space normal map (RGB), or NULL */
-    float *glow;         /* per texel: the emissive factor of the material drawn there (3), or NULL */
+    unsigned char *part; /* per texel: the shade_src id drawn there (PART_NONE: nothing), or NULL */
     float *depth;
     int W, H;      /* atlas size */
     int x0, w;     /* this view's tile: columns [x0, x0 + w) */
@@ -37,6 +38,8 @@ typedef struct {
     int w, h;
     float color[4];
     float emissive[3];
+    int id;          /* this source's index among the level's parts (< PART_NONE) */
+    int double_sided;
     float cutoff;
     int masked;
     int exact;     /* cover only the pixels whose centre the triangle holds */
@@ -68,6 +71,7 @@ static void raster(view *v, const float a[3], const float b[3], const float c[3]
     float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]}, face[3];
     sy_cross3(e1, e2, face);
     sy_normalize3(face);
+    int back = src->double_sided && sy_dot3(face, v->toward) < 0;
     int xmin = (int)fmaxf((float)v->x0, floorf(fminf(pa[0], fminf(pb[0], pc[0]))) - 1);
     int xmax = (int)fminf((float)(v->x0 + v->w - 1), ceilf(fmaxf(pa[0], fmaxf(pb[0], pc[0]))) + 1);
     int ymin = (int)fmaxf(0, floorf(fminf(pa[1], fminf(pb[1], pc[1]))) - 1);
@@ -118,20 +122,28 @@ static void raster(view *v, const float a[3], const float b[3], const float c[3]
                 v->rgba[4 * i + k] = (unsigned char)(255.0f * (c < 0 ? 0 : c > 1 ? 1 : c) + 0.5f);
             }
             v->rgba[4 * i + 3] = 255;
-            if (v->glow) memcpy(v->glow + 3 * i, src->emissive, sizeof src->emissive);
+            if (v->part) v->part[i] = (unsigned char)src->id;
             if (v->nrm) {
                 float n[3];
                 for (int k = 0; k < 3; k++)
                     n[k] = normals ? w0 * normals[k] + w1 * normals[3 + k] + w2 * normals[6 + k] : face[k];
                 sy_normalize3(n);
-                /* A double-sided surface seen from behind shows its back,
-                 * whose normal the engine turns to the viewer. */
-                if (sy_dot3(n, v->toward) < 0)
+                float t = sy_dot3(n, v->toward);
+                if (back) {
+                    /* A double-sided triangle seen from behind shows its
+                     * back: the engine turns its normals round (by the
+                     * triangle's facing, not per pixel). */
                     for (int k = 0; k < 3; k++) n[k] = -n[k];
-                /* Tangent space of the card: +u is the image's right, +v
-                 * points down (the card's tangent w = -1), the normal at the
-                 * viewer. */
-                float ts[3] = {sy_dot3(n, v->right), -n[1], sy_dot3(n, v->toward)};
+                } else if (t < 0) {
+                    /* A smooth normal near an outline leaning away from
+                     * the viewer: no more than edge-on. */
+                    for (int k = 0; k < 3; k++) n[k] -= t * v->toward[k];
+                    sy_normalize3(n);
+                }
+                /* Tangent space of the card (glTF: bitangent = cross(normal,
+                 * tangent) w = +Y, up the image as the normal-map convention
+                 * has it): +u the image's right, green up, blue the viewer. */
+                float ts[3] = {sy_dot3(n, v->right), n[1], sy_dot3(n, v->toward)};
                 for (int k = 0; k < 3; k++)
                     v->nrm[3 * i + k] = (unsigned char)(127.5f * (1.0f + (ts[k] < -1 ? -1 : ts[k] > 1 ? 1 : ts[k])) + 0.5f);
             }
@@ -150,6 +162,7 @@ static void material_source(const sy_asset *a, int mi, int per_pixel, shade_src 
     const sy_material *m = &a->materials[mi];
     memcpy(s->color, m->base_color, sizeof s->color);
     memcpy(s->emissive, m->emissive, sizeof s->emissive);
+    s->double_sided = m->double_sided;
     s->masked = m->alpha_mode == SY_ALPHA_MASK;
     s->cutoff = m->alpha_cutoff;
     int img = m->base_color_image;
@@ -282,11 +295,13 @@ static sy_code card_mesh(const float lo[3], const float hi[3], float xc, float z
         memcpy(m->uv + 2 * i, uv[i], sizeof uv[i]);
         int side = i >= 4;
         m->normal[3 * i + (side ? 0 : 2)] = 1;
-        /* +u is +X on the first card and -Z on the second; +v points down, so
-         * cross(normal, tangent) = +Y needs w = -1. */
+        /* +u is +X on the first card and -Z on the second; cross(normal,
+         * tangent) is +Y on both, up the image: w = +1, the bitangent the
+         * normal map's green (glTF's convention, so an engine that derives
+         * its own tangents reads the map the same way). */
         if (side) m->tangent[4 * i + 2] = -1;
         else m->tangent[4 * i] = 1;
-        m->tangent[4 * i + 3] = -1;
+        m->tangent[4 * i + 3] = 1;
     }
     const uint32_t ix[12] = {0, 1, 2, 0, 2, 3, 4, 5, 6, 4, 6, 7};
     memcpy(m->indices, ix, sizeof ix);
@@ -333,23 +348,25 @@ int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
 
     int W = size, H = size;
     unsigned char *rgba = calloc((size_t)W * (size_t)H, 4), *nrm = malloc((size_t)W * (size_t)H * 3);
-    float *depth = malloc((size_t)W * (size_t)H * sizeof(float)), *glow = calloc((size_t)W * (size_t)H * 3, sizeof(float));
+    float *depth = malloc((size_t)W * (size_t)H * sizeof(float));
+    unsigned char *part = malloc((size_t)W * (size_t)H);
     shade_src src[2 * SY_LOD_MAX_PARTS];
     memset(src, 0, sizeof src);
-    if (!rgba || !nrm || !depth || !glow) {
-        free(rgba), free(nrm), free(depth), free(glow);
+    if (!rgba || !nrm || !depth || !part) {
+        free(rgba), free(nrm), free(depth), free(part);
         sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
         return -1;
     }
     for (size_t i = 0; i < (size_t)W * (size_t)H; i++) {
         depth[i] = -INFINITY;
         nrm[3 * i] = nrm[3 * i + 1] = 128, nrm[3 * i + 2] = 255; /* the card's own normal */
+        part[i] = PART_NONE;
     }
     for (int k = 0; k < lod0->n_meshes; k++) material_source(a, a->meshes[lod0->meshes[k]].material, 0, &src[k]);
     for (int k = 0; k < lod0->n_instances; k++)
         material_source(a, a->meshes[lod0->instances[k].mesh].material, 1, &src[SY_LOD_MAX_PARTS + k]);
-    view front = {rgba, nrm, glow, depth, W, H, 0, W / 2, {1, 0, 0}, {0, 0, 1}, lo[0], hi[0], lo[1], hi[1]};
-    view side = {rgba, nrm, glow, depth, W, H, W / 2, W - W / 2, {0, 0, -1}, {1, 0, 0}, -hi[2], -lo[2], lo[1], hi[1]};
+    view front = {rgba, nrm, part, depth, W, H, 0, W / 2, {1, 0, 0}, {0, 0, 1}, lo[0], hi[0], lo[1], hi[1]};
+    view side = {rgba, nrm, part, depth, W, H, W / 2, W - W / 2, {0, 0, -1}, {1, 0, 0}, -hi[2], -lo[2], lo[1], hi[1]};
     /* The two views fill disjoint halves of the atlas and its depth: one a
      * thread, the same texels either way. */
     /* Colour from the bark at the pixels it holds; twigs thinner than a
@@ -357,6 +374,7 @@ int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
      * touches (as the silhouettes do) let the limbs' colour take the crown:
      * the orange-barked pine's impostor came out red-brown. The coverage,
      * and so the silhouette, is the same either way. */
+    for (int k = 0; k < 2 * SY_LOD_MAX_PARTS; k++) src[k].id = k;
     shade_src fill[2 * SY_LOD_MAX_PARTS];
     memcpy(fill, src, sizeof fill);
     for (int k = 0; k < lod0->n_meshes; k++) src[k].exact = 1, fill[k].fill_only = 1;
@@ -370,11 +388,11 @@ int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
     double glow_sum[3] = {0, 0, 0};
     size_t drawn = 0;
     for (size_t i = 0; i < (size_t)W * (size_t)H; i++)
-        if (rgba[4 * i + 3]) {
-            for (int k = 0; k < 3; k++) glow_sum[k] += glow[3 * i + k];
+        if (part[i] != PART_NONE) {
+            for (int k = 0; k < 3; k++) glow_sum[k] += src[part[i]].emissive[k];
             drawn++;
         }
-    free(glow);
+    free(part);
     /* The clear texels take the tree's colours and normals (push-pull), so
      * filtering and mip levels at the silhouette blend towards the crown,
      * not towards black (a 4-texel dilation left the rest black, and the
