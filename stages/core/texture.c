@@ -22,16 +22,19 @@ sy_code sy_texture_bleed(float *px, int w, int h, int stride, int c, const unsig
     memset(L, 0, sizeof L);
     sy_code rc = SY_OK;
     size_t np = (size_t)w * (size_t)h;
+    /* Level 0 is px itself when every channel bleeds; else a copy of the channels that do. */
+    int own = stride != c;
     L[0].w = w, L[0].h = h;
-    L[0].v = malloc(np * (size_t)c * sizeof *L[0].v);
+    L[0].v = own ? malloc(np * (size_t)c * sizeof *L[0].v) : px;
     L[0].wt = malloc(np * sizeof *L[0].wt);
     if (!L[0].v || !L[0].wt) {
-        free(L[0].v), free(L[0].wt);
+        if (own) free(L[0].v);
+        free(L[0].wt);
         return sy_fail(err, SY_EINTERNAL, "texture: out of memory");
     }
     for (size_t i = 0; i < np; i++) {
         L[0].wt[i] = covered[i] ? 1.0f : 0.0f;
-        for (int k = 0; k < c; k++) L[0].v[i * (size_t)c + (size_t)k] = px[i * (size_t)stride + (size_t)k];
+        for (int k = 0; k < c && own; k++) L[0].v[i * (size_t)c + (size_t)k] = px[i * (size_t)stride + (size_t)k];
     }
     n = 1;
     /* Pull: each coarser texel is the weighted mean of its (up to) 2 x 2 finer ones. */
@@ -82,10 +85,13 @@ sy_code sy_texture_bleed(float *px, int w, int h, int stride, int c, const unsig
                 f->wt[q] = 1;
             }
     }
-    for (size_t i = 0; i < np && !rc; i++)
+    for (size_t i = 0; i < np && !rc && own; i++)
         if (!covered[i])
             for (int k = 0; k < c; k++) px[i * (size_t)stride + (size_t)k] = L[0].v[i * (size_t)c + (size_t)k];
-    for (int l = 0; l < n; l++) free(L[l].v), free(L[l].wt);
+    for (int l = 0; l < n; l++) {
+        if (l || own) free(L[l].v);
+        free(L[l].wt);
+    }
     return rc;
 }
 
@@ -93,15 +99,19 @@ sy_code sy_texture_bleed_u8(unsigned char *px, int w, int h, int stride, int c, 
                             sy_error *err)
 {
     if (w < 1 || h < 1 || c < 1 || c > stride) return SY_OK;
-    size_t n = (size_t)w * (size_t)h * (size_t)stride;
-    float *f = malloc(n * sizeof *f);
+    /* The bleeding channels alone, as floats (bled in place), and back into the clear texels. */
+    size_t np = (size_t)w * (size_t)h;
+    float *f = malloc(np * (size_t)c * sizeof *f);
     if (!f) return sy_fail(err, SY_EINTERNAL, "texture: out of memory");
-    for (size_t i = 0; i < n; i++) f[i] = px[i];
-    sy_code rc = sy_texture_bleed(f, w, h, stride, c, covered, err);
-    for (size_t i = 0; !rc && i < n; i++) {
-        float v = f[i] + 0.5f;
-        px[i] = (unsigned char)(v < 0 ? 0 : v > 255 ? 255 : v);
-    }
+    for (size_t i = 0; i < np; i++)
+        for (int k = 0; k < c; k++) f[i * (size_t)c + (size_t)k] = px[i * (size_t)stride + (size_t)k];
+    sy_code rc = sy_texture_bleed(f, w, h, c, c, covered, err);
+    for (size_t i = 0; !rc && i < np; i++)
+        if (!covered[i])
+            for (int k = 0; k < c; k++) {
+                float v = f[i * (size_t)c + (size_t)k] + 0.5f;
+                px[i * (size_t)stride + (size_t)k] = (unsigned char)(v < 0 ? 0 : v > 255 ? 255 : v);
+            }
     free(f);
     return rc;
 }
