@@ -4,6 +4,7 @@ import { createServer } from 'node:http';
 import { readFileSync, existsSync, statSync, unlinkSync } from 'node:fs';
 import { spawn } from 'node:child_process';
 import { resolve, extname } from 'node:path';
+import { readPng, mask } from './png.mjs';
 
 const [glb, viewJson, out] = process.argv.slice(2);
 const v = JSON.parse(readFileSync(viewJson, 'utf8'));
@@ -17,9 +18,12 @@ const server = createServer((req, res) => {
   res.end(readFileSync(path));
 });
 // Headless Chromium now and then hangs before it takes the screenshot (seen once in a
-// clean-clone run: killed after 240 s, while the same render takes 4 s alone). That is the
-// browser failing, not the comparison: the render is tried up to three times, 90 s each,
-// and a run that never produced the picture fails with the browser's last words.
+// clean-clone run: killed after 240 s, while the same render takes 4 s alone), or takes it
+// before the page has drawn (seen once: an all-black picture, 0 of the viewer's 3425 pixels,
+// on a loaded machine; --virtual-time-budget does not wait for the textures' off-thread
+// decoding). That is the browser failing, not the comparison: the render is tried up to three
+// times, 90 s each, and a run that never produced a drawn picture fails with the browser's
+// last words (an empty one is kept, and the comparison fails on it).
 const ATTEMPTS = 3, ATTEMPT_MS = 90000;
 server.listen(0, '127.0.0.1', () => {
   const port = server.address().port;
@@ -37,7 +41,14 @@ server.listen(0, '127.0.0.1', () => {
     const timer = setTimeout(() => chrome.kill('SIGKILL'), ATTEMPT_MS);
     chrome.on('exit', (code) => {
       clearTimeout(timer);
-      if (code === 0 && existsSync(out)) { server.close(); return; }
+      let drawn = false;
+      if (code === 0 && existsSync(out)) {
+        try { drawn = mask(readPng(out)).some((v) => v); } catch { drawn = false; }
+        if (drawn || k + 1 >= ATTEMPTS) { server.close(); return; }
+        console.error(`chromium attempt ${k + 1} took its screenshot before the page drew; trying again`);
+        attempt(k + 1);
+        return;
+      }
       if (k + 1 < ATTEMPTS) { console.error(`chromium attempt ${k + 1} failed (${code}); trying again`); attempt(k + 1); return; }
       server.close();
       console.error(`chromium failed (${code}) ${ATTEMPTS} times: ${err.slice(-400)}`);
