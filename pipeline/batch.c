@@ -639,18 +639,13 @@ void sy_batch_sweep(const char *out_dir)
     closedir(d);
 }
 
-/* Did the worker leave a record of this attempt (of this input and options)? */
-/* What this attempt's record (of this input and options) says, a failure included. */
-static job_state current_record(const sy_batch_input *in, const char *out_dir, const sy_batch_options *o, uint64_t h)
+/* What the worker's record of this attempt (this input and options) says, a
+ * failure included; JOB_TO_RUN: it left none. */
+static job_state attempt_record(const sy_batch_input *in, const char *out_dir, const sy_batch_options *o, uint64_t h)
 {
     sy_batch_options any = *o;
     any.retry_failed = 0;
     return record_state(in, out_dir, &any, h);
-}
-
-static int has_current_record(const sy_batch_input *in, const char *out_dir, const sy_batch_options *o, uint64_t h)
-{
-    return current_record(in, out_dir, o, h) != JOB_TO_RUN;
 }
 
 void sy_batch_death(int status, int timed_out, double timeout, char *why, size_t size)
@@ -661,25 +656,38 @@ void sy_batch_death(int status, int timed_out, double timeout, char *why, size_t
     else snprintf(why, size, "the worker exited with status %d", WEXITSTATUS(status));
 }
 
-/* A stop asked of the whole batch: Ctrl-C (the terminal signals the
- * process group), scancel (Slurm signals every process of the step), a
- * hang-up. */
-static int stop_signal(int sig) { return sig == SIGINT || sig == SIGTERM || sig == SIGHUP; }
+int sy_batch_stop_signal(int sig) { return sig == SIGINT || sig == SIGTERM || sig == SIGHUP; }
 
-/* Takes the stop signals already pending (zero wait): on the first, no more
- * workers start and those running get it too; on a second, they are killed
- * (a worker stuck in a long step would otherwise hold the stop). */
-static void take_stops(const sigset_t *set, worker *w, int nw, int *stopped_by)
+_Noreturn void sy_batch_die_of(int sig)
+{
+    fflush(NULL);
+    sigset_t one;
+    sigemptyset(&one);
+    sigaddset(&one, sig);
+    signal(sig, SIG_DFL);
+    sigprocmask(SIG_UNBLOCK, &one, NULL);
+    raise(sig);
+    _exit(128 + sig);
+}
+
+/* Signal sig has come (from sigtimedwait): a stop's first starts no more
+ * workers and passes it to those running; a second kills them (a worker
+ * stuck in a long step would otherwise hold the stop). */
+static void take_signal(int sig, worker *w, int nw, int *stopped_by)
+{
+    if (!sy_batch_stop_signal(sig)) return;
+    int second = *stopped_by != 0;
+    if (!second) *stopped_by = sig;
+    for (int k = 0; k < nw; k++)
+        if (w[k].pid) kill(w[k].pid, second ? SIGKILL : sig);
+}
+
+/* The signals already pending, without waiting. */
+static void take_pending(const sigset_t *set, worker *w, int nw, int *stopped_by)
 {
     struct timespec now = {0, 0};
     int sig;
-    while ((sig = sigtimedwait(set, NULL, &now)) > 0) {
-        if (!stop_signal(sig)) continue;
-        int second = *stopped_by != 0;
-        if (!second) *stopped_by = sig;
-        for (int k = 0; k < nw; k++)
-            if (w[k].pid) kill(w[k].pid, second ? SIGKILL : sig);
-    }
+    while ((sig = sigtimedwait(set, NULL, &now)) > 0) take_signal(sig, w, nw, stopped_by);
 }
 
 sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void *ctx, size_t job),
@@ -707,7 +715,7 @@ sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void 
     sy_code rc = SY_OK;
     fflush(NULL);
     while ((next < n_jobs && !stopped_by) || running) {
-        take_stops(&wait_set, w, nw, &stopped_by);
+        take_pending(&wait_set, w, nw, &stopped_by);
         /* Fill the free slots. */
         for (int k = 0; k < nw && next < n_jobs && !stopped_by; k++) {
             if (w[k].pid) continue;
@@ -743,12 +751,12 @@ sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void 
             w[k].pid = 0;
             running--;
             /* A stop this process has been sent by now counts for this worker too. */
-            take_stops(&wait_set, w, nw, &stopped_by);
+            take_pending(&wait_set, w, nw, &stopped_by);
             /* A worker ended by a stop signal (it may see it before this
              * process does), or unfinished after the stop, did not fail its
              * job: interrupted, 2 when the whole batch is stopping. */
             int ok = WIFEXITED(status) && WEXITSTATUS(status) == 0 && !w[k].timed_out;
-            int interrupted = ok ? 0 : stopped_by ? 2 : WIFSIGNALED(status) && stop_signal(WTERMSIG(status)) ? 1 : 0;
+            int interrupted = ok ? 0 : stopped_by ? 2 : WIFSIGNALED(status) && sy_batch_stop_signal(WTERMSIG(status)) ? 1 : 0;
             done(ctx, w[k].job, status, w[k].timed_out, interrupted, sy_now() - w[k].start);
             continue;
         }
@@ -762,12 +770,7 @@ sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void 
         }
         struct timespec ts = {0, timeout > 0 ? 50000000 : 500000000};
         int sig = sigtimedwait(&wait_set, NULL, &ts);
-        if (sig > 0 && stop_signal(sig)) {
-            int second = stopped_by != 0;
-            if (!second) stopped_by = sig;
-            for (int k = 0; k < nw; k++)
-                if (w[k].pid) kill(w[k].pid, second ? SIGKILL : sig);
-        }
+        if (sig > 0) take_signal(sig, w, nw, &stopped_by);
     }
     if (rc) {
         /* A batch-level failure: stop the workers still running. */
@@ -776,19 +779,10 @@ sy_code sy_batch_pool(size_t n_jobs, int nw, double timeout, void (*child)(void 
     }
     free(w);
     sigprocmask(SIG_SETMASK, &before, NULL);
-    if (stopped_by) {
-        /* Every worker is reaped and what finished is recorded: now die of
-         * the signal as the batch would have without this pool, so a shell
-         * or Slurm sees the stop (unblocked even if the caller blocked it). */
-        fflush(NULL);
-        sigset_t one;
-        sigemptyset(&one);
-        sigaddset(&one, stopped_by);
-        signal(stopped_by, SIG_DFL);
-        sigprocmask(SIG_UNBLOCK, &one, NULL);
-        raise(stopped_by);
-        _exit(128 + stopped_by);
-    }
+    /* Every worker is reaped and what finished is recorded: now die of the
+     * signal as the batch would have without this pool, so a shell or Slurm
+     * sees the stop. */
+    if (stopped_by) sy_batch_die_of(stopped_by);
     return rc;
 }
 
@@ -821,7 +815,7 @@ static void tree_done(void *ctx, size_t job, int status, int timed_out, int inte
     const sy_batch_input *in = &b->in->items[j];
     const char *st = "ok";
     /* The worker may have committed its record before the signal came. */
-    job_state rec = interrupted ? current_record(in, b->out_dir, b->o, b->hash[j]) : JOB_TO_RUN;
+    job_state rec = interrupted ? attempt_record(in, b->out_dir, b->o, b->hash[j]) : JOB_TO_RUN;
     if (interrupted && rec == JOB_TO_RUN) {
         /* Not the tree's failure: no record, so the next run makes it. */
         t->summary->interrupted++;
@@ -835,7 +829,7 @@ static void tree_done(void *ctx, size_t job, int status, int timed_out, int inte
         char why[256];
         sy_batch_death(status, timed_out, b->o->worker_timeout, why, sizeof why);
         /* Bad input is recorded by the worker itself; a death is recorded here. */
-        if (!has_current_record(in, b->out_dir, b->o, b->hash[j]) || WIFSIGNALED(status) || timed_out) {
+        if (attempt_record(in, b->out_dir, b->o, b->hash[j]) == JOB_TO_RUN || WIFSIGNALED(status) || timed_out) {
             sy_error e2 = {0};
             sy_batch_record_failure(in, b->out_dir, b->o, b->hash[j], why, secs, &e2);
         }

@@ -147,6 +147,12 @@ typedef struct {
 /* In a forked worker: dies with the parent, stdout to /dev/null, stderr to
  * out_dir/logs/ID.log, the memory cap, threads, quiet progress. */
 void sy_batch_worker_setup(const char *out_dir, const char *id, int threads, double mem_gb, pid_t parent);
+/* A stop asked of the whole batch: Ctrl-C (the terminal signals the process
+ * group), scancel (Slurm signals every process of the step), a hang-up. */
+int sy_batch_stop_signal(int sig);
+/* Dies of sig as with its default action (unblocked, even if blocked);
+ * never returns. */
+_Noreturn void sy_batch_die_of(int sig);
 /* One line saying how a worker ended (a wait status). */
 void sy_batch_death(int status, int timed_out, double timeout, char *why, size_t size);
 

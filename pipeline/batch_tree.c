@@ -206,10 +206,7 @@ static int thumbnail(const sy_batch_options *o, const char *glb, const char *png
     if (WIFEXITED(status) && WEXITSTATUS(status) == 0 && access(png, R_OK) == 0) return 1;
     /* The viewer was stopped with the batch (Ctrl-C, scancel), which stops
      * this worker too, before its record: the tree is not finished. */
-    if (WIFSIGNALED(status) && (WTERMSIG(status) == SIGINT || WTERMSIG(status) == SIGTERM || WTERMSIG(status) == SIGHUP)) {
-        signal(WTERMSIG(status), SIG_DFL);
-        raise(WTERMSIG(status));
-    }
+    if (WIFSIGNALED(status) && sy_batch_stop_signal(WTERMSIG(status))) sy_batch_die_of(WTERMSIG(status));
     /* The viewer's last line says why. */
     char last[512] = "";
     FILE *fp = fopen(log, "r");

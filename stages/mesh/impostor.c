@@ -20,12 +20,11 @@
 /* Share of the tree's extent added around it so the silhouette never touches
  * the card border (mip-mapping would smear it). */
 #define MARGIN 0.03f
-#define PART_NONE 255
 
 typedef struct {
     unsigned char *rgba; /* atlas */
     unsigned char *nrm;  /* its tangent-space normal map (RGB), or NULL */
-    unsigned char *part; /* per texel: the shade_src id drawn there (PART_NONE: nothing), or NULL */
+    unsigned char *part; /* per texel: 1 + the shade_src id drawn there, 0 nothing (the coverage); or NULL */
     float *depth;
     int W, H;      /* atlas size */
     int x0, w;     /* this view's tile: columns [x0, x0 + w) */
@@ -38,7 +37,7 @@ typedef struct {
     int w, h;
     float color[4];
     float emissive[3];
-    int id;          /* this source's index among the level's parts (< PART_NONE) */
+    int id;          /* this source's index among the level's parts (< 255) */
     int double_sided;
     float cutoff;
     int masked;
@@ -122,7 +121,7 @@ static void raster(view *v, const float a[3], const float b[3], const float c[3]
                 v->rgba[4 * i + k] = (unsigned char)(255.0f * (c < 0 ? 0 : c > 1 ? 1 : c) + 0.5f);
             }
             v->rgba[4 * i + 3] = 255;
-            if (v->part) v->part[i] = (unsigned char)src->id;
+            if (v->part) v->part[i] = (unsigned char)(src->id + 1);
             if (v->nrm) {
                 float n[3];
                 for (int k = 0; k < 3; k++)
@@ -349,7 +348,7 @@ int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
     int W = size, H = size;
     unsigned char *rgba = calloc((size_t)W * (size_t)H, 4), *nrm = malloc((size_t)W * (size_t)H * 3);
     float *depth = malloc((size_t)W * (size_t)H * sizeof(float));
-    unsigned char *part = malloc((size_t)W * (size_t)H);
+    unsigned char *part = calloc((size_t)W * (size_t)H, 1);
     shade_src src[2 * SY_LOD_MAX_PARTS];
     memset(src, 0, sizeof src);
     if (!rgba || !nrm || !depth || !part) {
@@ -360,7 +359,6 @@ int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
     for (size_t i = 0; i < (size_t)W * (size_t)H; i++) {
         depth[i] = -INFINITY;
         nrm[3 * i] = nrm[3 * i + 1] = 128, nrm[3 * i + 2] = 255; /* the card's own normal */
-        part[i] = PART_NONE;
     }
     for (int k = 0; k < lod0->n_meshes; k++) material_source(a, a->meshes[lod0->meshes[k]].material, 0, &src[k]);
     for (int k = 0; k < lod0->n_instances; k++)
@@ -388,21 +386,16 @@ int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
     double glow_sum[3] = {0, 0, 0};
     size_t drawn = 0;
     for (size_t i = 0; i < (size_t)W * (size_t)H; i++)
-        if (part[i] != PART_NONE) {
-            for (int k = 0; k < 3; k++) glow_sum[k] += src[part[i]].emissive[k];
+        if (part[i]) {
+            for (int k = 0; k < 3; k++) glow_sum[k] += src[part[i] - 1].emissive[k];
             drawn++;
         }
+    /* The clear texels (part 0) take the tree's colours and normals
+     * (push-pull), so filtering and mip levels at the silhouette blend
+     * towards the crown, not towards black (a 4-texel dilation left the rest
+     * black, and the far mip levels dark). */
+    int oom = sy_texture_bleed_u8(rgba, W, H, 4, 3, part, err) || sy_texture_bleed_u8(nrm, W, H, 3, 3, part, err);
     free(part);
-    /* The clear texels take the tree's colours and normals (push-pull), so
-     * filtering and mip levels at the silhouette blend towards the crown,
-     * not towards black (a 4-texel dilation left the rest black, and the
-     * far mip levels dark). */
-    unsigned char *covered = malloc((size_t)W * (size_t)H);
-    int oom = !covered;
-    for (size_t i = 0; covered && i < (size_t)W * (size_t)H; i++) covered[i] = rgba[4 * i + 3] > 0;
-    if (!oom && (sy_texture_bleed_u8(rgba, W, H, 4, 3, covered, err) || sy_texture_bleed_u8(nrm, W, H, 3, 3, covered, err)))
-        oom = 1;
-    free(covered);
     if (oom) {
         free(rgba), free(nrm);
         sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
