@@ -1276,6 +1276,45 @@ static sy_code grow_scaffold(const lobe_grid *g, const double *occ_c, size_t n_o
     return rc;
 }
 
+/* A start from bark of radius r: a little thinner, at most the library's
+ * thickest patch root. */
+static double start_thickness(double r, double max_thick) { return r * 0.9 < max_thick ? r * 0.9 : max_thick; }
+
+/* Where a start of a lobe leaves its bark: point, unit direction, the
+ * thickness of what it grows. */
+typedef struct {
+    float at[3];
+    double dir[3], thickness;
+} start_leaving;
+
+static start_leaving start_from(const float p[3], const double to[3], double thickness)
+{
+    start_leaving s = {{p[0], p[1], p[2]}, {0, 0, 0}, thickness};
+    double l = 0;
+    for (int k = 0; k < 3; k++) s.dir[k] = to[k] - p[k], l += s.dir[k] * s.dir[k];
+    l = sqrt(l);
+    for (int k = 0; k < 3; k++) s.dir[k] = l > 0 ? s.dir[k] / l : 0;
+    return s;
+}
+
+/* Two starts of a lobe leaving the bark within a few of their radii of each
+ * other and within START_SPREAD of one direction drew two limbs along one
+ * path, their bark through each other and their base rings crossing on the
+ * parent, so that neither welded. The earlier start that start x would be
+ * such a pair with, or NULL. */
+#define START_SPREAD 0.906 /* cos 25 degrees */
+#define START_ROOM 4.0     /* radii of the thicker start */
+static const start_leaving *start_crowding(const start_leaving *earlier, int n, const start_leaving *x)
+{
+    for (int i = 0; i < n; i++) {
+        const start_leaving *e = &earlier[i];
+        double room = START_ROOM * (e->thickness > x->thickness ? e->thickness : x->thickness), d2 = 0, c = 0;
+        for (int k = 0; k < 3; k++) d2 += (double)(e->at[k] - x->at[k]) * (e->at[k] - x->at[k]), c += e->dir[k] * x->dir[k];
+        if (d2 < room * room && c > START_SPREAD) return e;
+    }
+    return NULL;
+}
+
 static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_branchlets *lib, const sy_synth_options *o,
                             const seed_limb *limb, double density, int max_depth, double max_thick, double ceiling, double ground, ranked *cands, synth_out *so,
                             sy_synth_report *rep, size_t *occupied, size_t cells[2], sy_error *err)
@@ -1291,7 +1330,9 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     const sy_skeleton *sk = so->out;
     int32_t seed = c->seed;
     double lobe_ext = g.h * (g.d[0] > g.d[1] ? (g.d[0] > g.d[2] ? g.d[0] : g.d[2]) : (g.d[1] > g.d[2] ? g.d[1] : g.d[2]));
-    int starts = 0, max_starts = 96, failed = 0;
+    enum { max_starts = 96 };
+    int starts = 0, failed = 0, crowded = 0, n_started = 0;
+    start_leaving started[2 * max_starts]; /* each start's carrier and its first patch */
     uint8_t *tried = calloc(g.n + 1, 1); /* cells a start aimed at already */
     /* The occupied cells in index order, with their centres: every start
      * looks only at them. */
@@ -1347,7 +1388,9 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
             cnt++;
         }
         for (int k = 0; k < 3; k++) target[k] /= cnt;
-        /* From the nearest bark this lobe has so far (or its seed). */
+        /* From the nearest bark this lobe has so far (or its seed). A start
+         * that would leave it the way an earlier one did is dropped
+         * (start_crowding): its cell stays tried. */
         int32_t from = seed;
         double from_d = INFINITY;
         for (size_t i = lobe_node0; i <= sk->n; i++) {
@@ -1358,14 +1401,21 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
             if (dd < from_d && sk->radius[v] >= 0.3 * min_start) from_d = dd, from = v;
         }
         const float sp[3] = {sk->pos[3 * from], sk->pos[3 * from + 1], sk->pos[3 * from + 2]};
+        int carrier = from_d > 2.25 * g.h * g.h;
+        start_leaving x = start_from(sp, carrier ? near : target, start_thickness(sk->radius[from], max_thick));
+        if (start_crowding(started, n_started, &x)) {
+            /* Skipped, not failed: a bound on the work only. */
+            if (++crowded >= 4 * max_starts) break;
+            continue;
+        }
         dock d0;
         double rs = sk->radius[from];
-        d0.thickness = rs * 0.9 < max_thick ? rs * 0.9 : max_thick;
+        d0.thickness = start_thickness(rs, max_thick);
         d0.node = from;
         d0.depth = 0;
         for (int k = 0; k < 3; k++) d0.pos[k] = sp[k];
         near_d = sqrt(from_d);
-        if (near_d > 1.5 * g.h) {
+        if (carrier) {
             int steps = (int)ceil(near_d / g.h);
             if (steps > 64) steps = 64;
             int32_t parent = from, branch = so->next_branch++;
@@ -1391,6 +1441,13 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
         l = sqrt(d0.dir[0] * d0.dir[0] + d0.dir[1] * d0.dir[1] + d0.dir[2] * d0.dir[2]);
         if (l < 1e-9) d0.dir[0] = d0.dir[1] = 0, d0.dir[2] = 1, l = 1;
         for (int k = 0; k < 3; k++) d0.dir[k] /= l;
+        /* Its carrier (if any) leaves `from`, its first patch the dock; a
+         * start that builds nothing leaves no trace. */
+        int started0 = n_started;
+        if (carrier) started[n_started++] = x;
+        const float dock_at[3] = {(float)d0.pos[0], (float)d0.pos[1], (float)d0.pos[2]};
+        const double dock_to[3] = {d0.pos[0] + d0.dir[0], d0.pos[1] + d0.dir[1], d0.pos[2] + d0.dir[2]};
+        started[n_started++] = start_from(dock_at, dock_to, d0.thickness);
         starts++;
         Q.head = Q.n = 0;
         if (!queue_push(&Q, &d0)) {
@@ -1478,6 +1535,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
             if (!rc && d.depth > 0) rep->docks_filled++;
             lobe_patches++;
         }
+        if (rep->patches == before && !carrier) n_started = started0;
         if (rep->patches == before && ++failed >= 48) break; /* nothing fits any more */
     }
     if (!rc && bare_reason < 0 && rep->patches == placed0 && !scaffolded) {
