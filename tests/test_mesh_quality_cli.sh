@@ -22,13 +22,17 @@ samples="$SYLVA_SOURCE_DIR/samples"
 # other ids, sy_skeleton_continuations): a fir's whorl of twigs attached 20 cm down
 # its shoot counted as sails across that gap (palm_tls 0.60 %, the airborne
 # fir 0.97 %), and the bound here was 0.7 %.
+# Slivers: at most 0.1 % of LOD0's bark. Until stop 34 a junction strip
+# took needle triangles beside thin twigs (the airborne fir 104, 0.198 %,
+# against a bound of 0.2 %); a weld now tries a needle-free strip first
+# (tube.c): at most 38 (0.08 %, that fir), 0 on the others.
 assert_quality() {
     jq -e '
       .mesh_check as $c | ($c[0]) as $l0 |
       ($c | length) >= 2 and
       ([$c[] | .misoriented_edges == 0 and .below_ground == 0 and .leaves_below_ground == 0] | all) and
       ([$c[] | .degenerate] | add) == 0 and
-      $l0.sails <= 0.005 * $l0.bark_triangles and $l0.slivers <= 0.002 * $l0.bark_triangles and
+      $l0.sails <= 0.005 * $l0.bark_triangles and $l0.slivers <= 0.001 * $l0.bark_triangles and
       $l0.bark_triangles <= 60000 and $l0.leaves_far == 0 and
       $l0.max_across <= 16 and ([$c[] | .max_across <= 40] | all) and
       ([$c[1:][] | .ratio >= 0.25 and .ratio <= 0.5] | all)' "$1" > /dev/null
@@ -64,11 +68,14 @@ check "run fir_als: $w of LOD0 junctions welded (>= 0.85)" "awk 'BEGIN { exit !(
 # crossed a sibling's ring, was capped: palm_tls welded 0.57 of its LOD0
 # junctions, palm_als 0.71, tree1 0.61. Since stop 30 such children slide
 # along the parent until the ring fits (fit_on_parent, stems.c): 0.81, 0.86,
-# 0.78, and every sample's run at least 0.75.
+# 0.78. Most of the rest were two synthesised limbs leaving one place the
+# same way, their rings crossing; since stop 34 each start of a lobe leaves
+# its bark another way than the ones before it (start_crowding,
+# synthesize.c): 0.97, 0.98, 0.89, and every sample's run at least 0.85.
 for s in aspen_tls fir_tls palm_tls aspen_als fir_als palm_als tree1; do
     [[ -f $tmp/$s.json ]] || continue
     w=$(welded "$tmp/$s.json")
-    check "run $s: $w of LOD0 junctions welded (>= 0.75)" "awk 'BEGIN { exit !($w >= 0.75) }'"
+    check "run $s: $w of LOD0 junctions welded (>= 0.85)" "awk 'BEGIN { exit !($w >= 0.85) }'"
 done
 # Its bark is closed at every level: junctions welded or capped.
 check "rTwig QSM: closed bark" "jq -e '[.mesh_check[] | .boundary_edges == 0] | all' '$tmp/q.json' > /dev/null"

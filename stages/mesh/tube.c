@@ -1371,7 +1371,7 @@ static void weld_strip_free(weld_strip *w)
 static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q0, long q1, int c0, int c1,
                          const int *seam, const sy_lod_params *lp, const sy_mesh *m, const size_t *vo,
                          uint32_t *extra, size_t extra_cap, int32_t *pidx, weld_pt *scratch, size_t scratch_cap,
-                         weld_strip **keep)
+                         int no_needles, weld_strip **keep)
 {
     size_t p = (size_t)st->s[g[0]].parent;
     const sy_stem *ps = &st->s[p];
@@ -1512,10 +1512,18 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
      * a parent row line) that no edge flip can mend (sy_mesh_flip_degenerates
      * flips within the bark, not across a strip's copies) leaves the
      * junction capped: a weld may not cost a degenerate triangle. */
-    for (size_t f = 0; f < t; f++)
-        if (sy_tri_area(strip_pos(m, &sp, extra[3 * f]), strip_pos(m, &sp, extra[3 * f + 1]),
-                        strip_pos(m, &sp, extra[3 * f + 2])) < SY_BARK_MIN_AREA)
-            return 0;
+    for (size_t f = 0; f < t; f++) {
+        const float *a = strip_pos(m, &sp, extra[3 * f]), *b = strip_pos(m, &sp, extra[3 * f + 1]),
+                    *c = strip_pos(m, &sp, extra[3 * f + 2]);
+        double area = sy_tri_area(a, b, c), l2 = 0;
+        for (int e = 0; e < 3; e++) {
+            const float *u = e == 0 ? a : e == 1 ? b : c, *w = e == 0 ? b : e == 1 ? c : a;
+            double d2 = 0;
+            for (int k = 0; k < 3; k++) d2 += ((double)w[k] - u[k]) * ((double)w[k] - u[k]);
+            l2 = fmax(l2, d2);
+        }
+        if (area < SY_BARK_MIN_AREA || (no_needles && 2 * area < SY_BARK_NEEDLE * l2)) return 0;
+    }
     /* A ring's last vertex pairs with its seam copy, not with vertex 0. */
     for (size_t f = 0; f < t; f++)
         for (size_t k = 0; k < ng; k++) {
@@ -1796,13 +1804,21 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
         for (size_t j = a; j < b; j++) group[j] = -1;
         for (size_t j = a; j < b; j++) {
             int ok = 0;
-            for (int wide = 0; wide < 2 && !ok; wide++) {
+            /* Tries: the ring's own rectangle, then one a column wider
+             * (WELD_SIDE_MARGIN), first refusing needle triangles in the
+             * strip, then taking them: a strip's needles beside a thin
+             * twig (the mesh check's slivers) mostly have a needle-free
+             * strip one column wider, and a weld with needles still beats
+             * a cap. */
+            for (int attempt = 0; attempt < 4 && !ok; attempt++) {
+                int wide = attempt & 1, no_needles = attempt < 2;
                 weld_rect u = rect[j];
                 if (wide) {
                     weld_footprint(st, (size_t)jobs[j].stem, lp, out, vo, idx, WELD_SIDE_MARGIN, &u);
-                    if (u.c0 == rect[j].c0 && u.c1 == rect[j].c1) break;
+                    if (u.c0 == rect[j].c0 && u.c1 == rect[j].c1) continue;
                 }
                 ok = u.ok && u.q0 >= 0;
+                if (!ok && wide) continue;
                 if (!ok) break;
                 size_t ng = 0;
                 member_job[ng] = j;
@@ -1842,7 +1858,7 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
                 weld_strip *w = NULL;
                 if (ok)
                     ok = weld_group(st, members, ng, u.q0, u.q1, u.c0, u.c1, band ? seam : NULL, lp, out, vo, extra,
-                                    extra_cap, idx, scratch, scratch_cap, &w) > 0;
+                                    extra_cap, idx, scratch, scratch_cap, no_needles, &w) > 0;
                 if (ok) {
                     for (size_t k = a; k < j; k++)
                         if (group[k] == (int)k && joined[k - a]) weld_strip_free(kept[k]), kept[k] = NULL;
