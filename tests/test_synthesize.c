@@ -660,7 +660,9 @@ static void starts_leave_the_bark_apart(void **state)
         worst = n > worst ? n : worst, patches += rep.patches;
         sy_skeleton_free(&out), sy_leaves_free(&lv);
     }
-    assert_true(patches > 15);
+    /* The rule skips starts, not the lobe's fill: 1,269 patches over the
+     * three seeds without it, 1,307 with it. */
+    if (!(patches > 1000)) fail_msg("%zu patches over three seeds", patches);
     if (worst > 2) fail_msg("%zu pairs of branches along one path", worst);
     sy_clusters_free(&cl);
     sy_skeleton_free(&s);

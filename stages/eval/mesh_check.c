@@ -15,12 +15,9 @@
 #include "stages/core/vec3.h"
 #include "stages/mesh/mesh.h"
 
-/* Glitches below this area are invisible and waste rasteriser work
- * (0.005 mm^2). */
-#define SLIVER_AREA 5e-9
-/* ... and a triangle whose height is under 1/1000 of its longest edge is a
- * needle, whatever its area. */
-#define SLIVER_ASPECT 1e-3
+/* Glitches: SY_MESH_SLIVER_AREA and SY_MESH_NEEDLE_ASPECT (mesh.h). */
+#define SLIVER_AREA SY_MESH_SLIVER_AREA
+#define SLIVER_ASPECT SY_MESH_NEEDLE_ASPECT
 /* Off-surface allowance per metre of skeleton segment (spline vs polyline). */
 #define SPLINE_SLACK 0.05
 /* Silhouette masks: pixels on a side (the LOD test of a tree, like a 256 px

@@ -15,6 +15,13 @@
 extern "C" {
 #endif
 
+/* Bark slivers (issue 19): a triangle under this area (m^2, 0.005 mm^2) is
+ * invisible and wastes rasteriser work; one whose height is under this
+ * share of its longest edge is a needle, whatever its area. The mesher
+ * avoids both; the mesh check counts them. */
+#define SY_MESH_SLIVER_AREA 5e-9
+#define SY_MESH_NEEDLE_ASPECT 1e-3
+
 /* Junctions per mesh level (optional output of sy_mesh_tree): children
  * whose base ring is drawn on their parent, and those of them welded into
  * the parent's bark (the rest are capped inside it). */

@@ -176,12 +176,9 @@ sy_code sy_bark_mesh_welds(const sy_stems *st, const sy_lod_params *lp, int mate
                            size_t *junctions, size_t *welded, sy_error *err);
 
 /* ---- slivers (slivers.c) ---- */
-/* Triangles smaller than this (m^2, 0.005 mm^2: issue 19's near-degenerate
- * sliver) are flipped away where an edge flip can. */
-#define SY_BARK_MIN_AREA 5e-9
-/* ... and a needle: height under this share of its longest edge (the
- * mesh check's sliver, stages/eval/mesh_check.c). */
-#define SY_BARK_NEEDLE 1e-3
+/* Triangles smaller than this (issue 19's near-degenerate sliver) are
+ * flipped away where an edge flip can. */
+#define SY_BARK_MIN_AREA SY_MESH_SLIVER_AREA
 /* Area of the triangle a, b, c (positions), in double. */
 double sy_tri_area(const float *a, const float *b, const float *c);
 /* Flips the edges of m's triangles under min_area into the neighbour across

@@ -1367,12 +1367,14 @@ static void weld_strip_free(weld_strip *w)
  * quads [q0, q1] x [c0, c1] (columns unwrapped about the rectangle): writes the strip to
  * extra and, with keep, a copy of it for weld_emit (NULL when out of memory). Returns the
  * strip's triangles, 0 when the rings do not fit (crossing rings, a ring that winds the wrong
- * way, a fold). */
+ * way, a fold), the strip would hold a degenerate triangle, or, with no_needles, a needle
+ * (SY_MESH_NEEDLE_ASPECT); *needled says whether a needle alone refused it. */
 static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q0, long q1, int c0, int c1,
                          const int *seam, const sy_lod_params *lp, const sy_mesh *m, const size_t *vo,
                          uint32_t *extra, size_t extra_cap, int32_t *pidx, weld_pt *scratch, size_t scratch_cap,
-                         int no_needles, weld_strip **keep)
+                         int no_needles, int *needled, weld_strip **keep)
 {
+    *needled = 0;
     size_t p = (size_t)st->s[g[0]].parent;
     const sy_stem *ps = &st->s[p];
     int P = sy_stem_radial(ps, lp);
@@ -1511,7 +1513,9 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
     /* A strip triangle of three nearly collinear corners (a ring vertex on
      * a parent row line) that no edge flip can mend (sy_mesh_flip_degenerates
      * flips within the bark, not across a strip's copies) leaves the
-     * junction capped: a weld may not cost a degenerate triangle. */
+     * junction capped: a weld may not cost a degenerate triangle. A needle
+     * refuses the strip only with no_needles (the caller then tries another
+     * rectangle, and takes the needle when none is free of them). */
     for (size_t f = 0; f < t; f++) {
         const float *a = strip_pos(m, &sp, extra[3 * f]), *b = strip_pos(m, &sp, extra[3 * f + 1]),
                     *c = strip_pos(m, &sp, extra[3 * f + 2]);
@@ -1522,7 +1526,8 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
             for (int k = 0; k < 3; k++) d2 += ((double)w[k] - u[k]) * ((double)w[k] - u[k]);
             l2 = fmax(l2, d2);
         }
-        if (area < SY_BARK_MIN_AREA || (no_needles && 2 * area < SY_BARK_NEEDLE * l2)) return 0;
+        if (area < SY_BARK_MIN_AREA) return 0;
+        if (no_needles && 2 * area < SY_MESH_NEEDLE_ASPECT * l2) return *needled = 1, 0;
     }
     /* A ring's last vertex pairs with its seam copy, not with vertex 0. */
     for (size_t f = 0; f < t; f++)
@@ -1806,12 +1811,14 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
             int ok = 0;
             /* Tries: the ring's own rectangle, then one a column wider
              * (WELD_SIDE_MARGIN), first refusing needle triangles in the
-             * strip, then taking them: a strip's needles beside a thin
-             * twig (the mesh check's slivers) mostly have a needle-free
-             * strip one column wider, and a weld with needles still beats
-             * a cap. */
+             * strip, then taking them where a needle alone refused it: a
+             * strip's needles beside a thin twig (the mesh check's
+             * slivers) mostly have a needle-free strip one column wider,
+             * and a weld with needles still beats a cap. */
+            int needled[2] = {0, 0};
             for (int attempt = 0; attempt < 4 && !ok; attempt++) {
                 int wide = attempt & 1, no_needles = attempt < 2;
+                if (!no_needles && !needled[wide]) continue;
                 weld_rect u = rect[j];
                 if (wide) {
                     weld_footprint(st, (size_t)jobs[j].stem, lp, out, vo, idx, WELD_SIDE_MARGIN, &u);
@@ -1858,7 +1865,7 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
                 weld_strip *w = NULL;
                 if (ok)
                     ok = weld_group(st, members, ng, u.q0, u.q1, u.c0, u.c1, band ? seam : NULL, lp, out, vo, extra,
-                                    extra_cap, idx, scratch, scratch_cap, no_needles, &w) > 0;
+                                    extra_cap, idx, scratch, scratch_cap, no_needles, &needled[wide], &w) > 0;
                 if (ok) {
                     for (size_t k = a; k < j; k++)
                         if (group[k] == (int)k && joined[k - a]) weld_strip_free(kept[k]), kept[k] = NULL;

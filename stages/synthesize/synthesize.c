@@ -1297,6 +1297,21 @@ static start_leaving start_from(const float p[3], const double to[3], double thi
     return s;
 }
 
+/* A start's first patch leaves the dock at pos towards target, else
+ * (target on the dock) the way from the start's bark sp to its cell near,
+ * else straight up: unit dir. */
+static void start_direction(const double pos[3], const double target[3], const double near[3], const float sp[3],
+                            double dir[3])
+{
+    for (int k = 0; k < 3; k++) dir[k] = target[k] - pos[k];
+    double l = sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+    if (l < 1e-6)
+        for (int k = 0; k < 3; k++) dir[k] = near[k] - sp[k];
+    l = sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+    if (l < 1e-9) dir[0] = dir[1] = 0, dir[2] = 1, l = 1;
+    for (int k = 0; k < 3; k++) dir[k] /= l;
+}
+
 /* Two starts of a lobe leaving the bark within a few of their radii of each
  * other and within START_SPREAD of one direction drew two limbs along one
  * path, their bark through each other and their base rings crossing on the
@@ -1387,7 +1402,8 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
             for (int k = 0; k < 3; k++) target[k] += c[k];
             cnt++;
         }
-        for (int k = 0; k < 3; k++) target[k] /= cnt;
+        /* (Every cell within reach may hold leaves already: aim at the cell.) */
+        for (int k = 0; k < 3; k++) target[k] = cnt > 0 ? target[k] / cnt : near[k];
         /* From the nearest bark this lobe has so far (or its seed). A start
          * that would leave it the way an earlier one did is dropped
          * (start_crowding): its cell stays tried. */
@@ -1401,8 +1417,12 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
             if (dd < from_d && sk->radius[v] >= 0.3 * min_start) from_d = dd, from = v;
         }
         const float sp[3] = {sk->pos[3 * from], sk->pos[3 * from + 1], sk->pos[3 * from + 2]};
+        /* The way it leaves: its carrier's, else its first patch's. */
         int carrier = from_d > 2.25 * g.h * g.h;
-        start_leaving x = start_from(sp, carrier ? near : target, start_thickness(sk->radius[from], max_thick));
+        start_leaving x = {{sp[0], sp[1], sp[2]}, {0, 0, 0}, start_thickness(sk->radius[from], max_thick)};
+        const double sp_d[3] = {sp[0], sp[1], sp[2]};
+        if (carrier) x = start_from(sp, near, x.thickness);
+        else start_direction(sp_d, target, near, sp, x.dir);
         if (start_crowding(started, n_started, &x)) {
             /* Skipped, not failed: a bound on the work only. */
             if (++crowded >= 4 * max_starts) break;
@@ -1434,15 +1454,10 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
             d0.thickness = 0.95 * sk->radius[parent];
             for (int k = 0; k < 3; k++) d0.pos[k] = near[k];
         }
-        for (int k = 0; k < 3; k++) d0.dir[k] = target[k] - d0.pos[k];
-        double l = sqrt(d0.dir[0] * d0.dir[0] + d0.dir[1] * d0.dir[1] + d0.dir[2] * d0.dir[2]);
-        if (l < 1e-6)
-            for (int k = 0; k < 3; k++) d0.dir[k] = near[k] - sp[k];
-        l = sqrt(d0.dir[0] * d0.dir[0] + d0.dir[1] * d0.dir[1] + d0.dir[2] * d0.dir[2]);
-        if (l < 1e-9) d0.dir[0] = d0.dir[1] = 0, d0.dir[2] = 1, l = 1;
-        for (int k = 0; k < 3; k++) d0.dir[k] /= l;
+        start_direction(d0.pos, target, near, sp, d0.dir);
         /* Its carrier (if any) leaves `from`, its first patch the dock; a
-         * start that builds nothing leaves no trace. */
+         * first patch that does not fit leaves no trace (its carrier
+         * stays, as its bark does). */
         int started0 = n_started;
         if (carrier) started[n_started++] = x;
         const float dock_at[3] = {(float)d0.pos[0], (float)d0.pos[1], (float)d0.pos[2]};
@@ -1535,7 +1550,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
             if (!rc && d.depth > 0) rep->docks_filled++;
             lobe_patches++;
         }
-        if (rep->patches == before && !carrier) n_started = started0;
+        if (rep->patches == before) n_started = started0 + carrier;
         if (rep->patches == before && ++failed >= 48) break; /* nothing fits any more */
     }
     if (!rc && bare_reason < 0 && rep->patches == placed0 && !scaffolded) {
