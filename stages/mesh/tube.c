@@ -1517,13 +1517,12 @@ static size_t weld_group(const sy_stems *st, const int32_t *g, size_t ng, long q
      * refuses the strip only with no_needles (the caller then tries another
      * rectangle, and takes the needle when none is free of them). */
     for (size_t f = 0; f < t; f++) {
-        const float *a = strip_pos(m, &sp, extra[3 * f]), *b = strip_pos(m, &sp, extra[3 * f + 1]),
-                    *c = strip_pos(m, &sp, extra[3 * f + 2]);
-        double area = sy_tri_area(a, b, c), l2 = 0;
+        const float *q[3];
+        for (int e = 0; e < 3; e++) q[e] = strip_pos(m, &sp, extra[3 * f + (size_t)e]);
+        double area = sy_tri_area(q[0], q[1], q[2]), l2 = 0; /* l2: the longest edge, squared */
         for (int e = 0; e < 3; e++) {
-            const float *u = e == 0 ? a : e == 1 ? b : c, *w = e == 0 ? b : e == 1 ? c : a;
             double d2 = 0;
-            for (int k = 0; k < 3; k++) d2 += ((double)w[k] - u[k]) * ((double)w[k] - u[k]);
+            for (int k = 0; k < 3; k++) d2 += ((double)q[(e + 1) % 3][k] - q[e][k]) * ((double)q[(e + 1) % 3][k] - q[e][k]);
             l2 = fmax(l2, d2);
         }
         if (area < SY_BARK_MIN_AREA) return 0;

@@ -1287,29 +1287,17 @@ typedef struct {
     double dir[3], thickness;
 } start_leaving;
 
-static start_leaving start_from(const float p[3], const double to[3], double thickness)
-{
-    start_leaving s = {{p[0], p[1], p[2]}, {0, 0, 0}, thickness};
-    double l = 0;
-    for (int k = 0; k < 3; k++) s.dir[k] = to[k] - p[k], l += s.dir[k] * s.dir[k];
-    l = sqrt(l);
-    for (int k = 0; k < 3; k++) s.dir[k] = l > 0 ? s.dir[k] / l : 0;
-    return s;
-}
-
 /* A start's first patch leaves the dock at pos towards target, else
  * (target on the dock) the way from the start's bark sp to its cell near,
  * else straight up: unit dir. */
 static void start_direction(const double pos[3], const double target[3], const double near[3], const float sp[3],
                             double dir[3])
 {
-    for (int k = 0; k < 3; k++) dir[k] = target[k] - pos[k];
-    double l = sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
-    if (l < 1e-6)
+    sy_v3_sub(dir, target, pos);
+    if (sy_v3_len(dir) < 1e-6)
         for (int k = 0; k < 3; k++) dir[k] = near[k] - sp[k];
-    l = sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
-    if (l < 1e-9) dir[0] = dir[1] = 0, dir[2] = 1, l = 1;
-    for (int k = 0; k < 3; k++) dir[k] /= l;
+    if (sy_v3_len(dir) < 1e-9) dir[0] = dir[1] = 0, dir[2] = 1;
+    sy_v3_normalize(dir);
 }
 
 /* Two starts of a lobe leaving the bark within a few of their radii of each
@@ -1421,7 +1409,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
         int carrier = from_d > 2.25 * g.h * g.h;
         start_leaving x = {{sp[0], sp[1], sp[2]}, {0, 0, 0}, start_thickness(sk->radius[from], max_thick)};
         const double sp_d[3] = {sp[0], sp[1], sp[2]};
-        if (carrier) x = start_from(sp, near, x.thickness);
+        if (carrier) sy_v3_sub(x.dir, near, sp_d), sy_v3_normalize(x.dir);
         else start_direction(sp_d, target, near, sp, x.dir);
         if (start_crowding(started, n_started, &x)) {
             /* Skipped, not failed: a bound on the work only. */
@@ -1429,8 +1417,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
             continue;
         }
         dock d0;
-        double rs = sk->radius[from];
-        d0.thickness = start_thickness(rs, max_thick);
+        d0.thickness = x.thickness;
         d0.node = from;
         d0.depth = 0;
         for (int k = 0; k < 3; k++) d0.pos[k] = sp[k];
@@ -1454,15 +1441,15 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
             d0.thickness = 0.95 * sk->radius[parent];
             for (int k = 0; k < 3; k++) d0.pos[k] = near[k];
         }
-        start_direction(d0.pos, target, near, sp, d0.dir);
+        if (carrier) start_direction(d0.pos, target, near, sp, d0.dir);
+        else memcpy(d0.dir, x.dir, sizeof d0.dir);
         /* Its carrier (if any) leaves `from`, its first patch the dock; a
          * first patch that does not fit leaves no trace (its carrier
          * stays, as its bark does). */
         int started0 = n_started;
         if (carrier) started[n_started++] = x;
-        const float dock_at[3] = {(float)d0.pos[0], (float)d0.pos[1], (float)d0.pos[2]};
-        const double dock_to[3] = {d0.pos[0] + d0.dir[0], d0.pos[1] + d0.dir[1], d0.pos[2] + d0.dir[2]};
-        started[n_started++] = start_from(dock_at, dock_to, d0.thickness);
+        started[n_started++] = (start_leaving){{(float)d0.pos[0], (float)d0.pos[1], (float)d0.pos[2]},
+                                               {d0.dir[0], d0.dir[1], d0.dir[2]}, d0.thickness};
         starts++;
         Q.head = Q.n = 0;
         if (!queue_push(&Q, &d0)) {
