@@ -416,6 +416,8 @@ sy_code sy_batch_tree(const sy_batch_input *in, const char *out_dir, const sy_ba
             sy_json_number(&j, "hausdorff", ev.s.hausdorff);
             sy_json_number(&j, "iou_mean", ev.sm.iou_mean);
             sy_json_number(&j, "iou_min", ev.sm.iou_min);
+            sy_json_number(&j, "silhouette_precision", ev.sm.precision);
+            sy_json_number(&j, "silhouette_recall", ev.sm.recall);
             sy_json_number(&j, "profile_correlation", ev.sm.profile_correlation);
             sy_json_number(&j, "height_error_rel", ev.sm.height_error);
             sy_json_number(&j, "crown_width_error_rel", ev.sm.width_error);

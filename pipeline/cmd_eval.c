@@ -255,6 +255,8 @@ static int run_points(const eval_args *a, const char *model_path, sy_cli *cli)
         for (int v = 0; v < 6; v++) put(&r, key[v], label[v], sm.iou[v], "");
         put(&r, "iou_mean", "silhouette IoU, mean of 6", sm.iou_mean, "");
         put(&r, "iou_min", "silhouette IoU, minimum", sm.iou_min, "");
+        put(&r, "silhouette_precision", "silhouette precision (asset pixels the scan holds)", sm.precision, "");
+        put(&r, "silhouette_recall", "silhouette recall (scan pixels the asset covers)", sm.recall, "");
         put(&r, "profile_correlation", "vertical profile correlation", sm.profile_correlation, "");
         if (r.json) {
             put(&r, "profile_z0", "", sm.profile_z0, "");

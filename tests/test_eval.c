@@ -904,6 +904,7 @@ static void masks_and_profiles_behind_the_scores(void **state)
         sy_error err = {0};
         assert_int_equal(sy_silhouette_metrics_compute(card.tri, 2, with_cut ? &card.cut : NULL, card.pts, card.n, &m, masks, &err), SY_OK);
         size_t model_only[SY_SILHOUETTE_VIEWS];
+        double precision = 0, recall = 0;
         for (int v = 0; v < SY_SILHOUETTE_VIEWS; v++) {
             size_t both = 0, any = 0;
             model_only[v] = 0;
@@ -914,7 +915,17 @@ static void masks_and_profiles_behind_the_scores(void **state)
             }
             assert_true(any > 0);
             assert_float_equal(m.iou[v], (double)both / (double)any, 1e-12);
+            precision += (double)both / (double)(both + model_only[v]) / SY_SILHOUETTE_VIEWS;
+            recall += (double)both / (double)(any - model_only[v]) / SY_SILHOUETTE_VIEWS;
         }
+        /* Precision and recall are the views' means, counted from the same
+         * masks; whole, the card's clear half draws where nothing was
+         * scanned, which costs precision alone. */
+        assert_float_equal(m.precision, precision, 1e-12);
+        assert_float_equal(m.recall, recall, 1e-12);
+        printf("%s: silhouette precision %.3f, recall %.3f\n", with_cut ? "cut out" : "whole", m.precision, m.recall);
+        assert_true(m.recall >= 0.97);
+        assert_true(with_cut ? m.precision >= 0.95 : m.precision <= 0.8);
         /* Whole, the clear half is drawn: model-only pixels at azimuth 90. */
         assert_true(with_cut ? model_only[2] < per / 100 : model_only[2] > per / 10);
         double pts_sum = 0, area = 0;

@@ -8,12 +8,17 @@
  *     species is the file's (library id), as `sylva mesh` takes it; the
  *     L-system library generation is timed apart (per species and seed, it
  *     could be cached).
- *   bench_synthesize look SCAN MESH.obj
+ *   bench_synthesize look SCAN MESH.obj [MASKS.png]
  *     The silhouette measure of `sylva eval --points SCAN ASSET.glb`
  *     (stages/eval/silhouette.c: the scan preprocessed as `sylva run` does)
  *     for a triangle mesh in Wavefront OBJ (v / f lines, polygons fanned),
  *     world Z up, e.g. AdTree's branch mesh, so that a peer's model is scored
- *     by the same measure as Sylva's asset.
+ *     by the same measure as Sylva's asset. MASKS.png: the six views' masks
+ *     as `sylva eval --png` draws them.
+ *   bench_synthesize returns SCAN
+ *     The scan's own returns as the asset (a 4 mm tetrahedron at each, then
+ *     one as wide as the scan's median spacing), by the same measure: what
+ *     an asset that drew every return and nothing else would score.
  *
  *   bench_synthesize lookglb REFERENCE.glb ASSET.glb
  *     `sylva eval --points REFERENCE.glb ASSET.glb`'s silhouette figures
@@ -28,6 +33,7 @@
  *     is >= 2 cm, each with the ratio asset / truth.
  *
  * Output: one line of key=value pairs. */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -277,7 +283,7 @@ static int read_obj(const char *path, double **tri, size_t *n_tri)
     return 0;
 }
 
-static int look(const char *scan, const char *obj)
+static int look(const char *scan, const char *obj, const char *png)
 {
     sy_error err = {0};
     double *tri;
@@ -295,15 +301,61 @@ static int look(const char *scan, const char *obj)
     sy_preprocess_result pr;
     double *pts = NULL;
     sy_silhouette_metrics m;
-    int rc = sy_preprocess(&c, &po, &pr, &err) || !(pts = sy_cloud_world_points(&c, &err)) ||
-             sy_silhouette_metrics_compute(tri, nt, NULL, pts, c.n, &m, NULL, &err);
-    if (rc) fprintf(stderr, "%s\n", err.msg);
+    unsigned char *masks = png ? calloc((size_t)SY_SILHOUETTE_VIEWS * SY_SILHOUETTE_RES * SY_SILHOUETTE_RES, 1) : NULL;
+    int rc = (png && !masks) || sy_preprocess(&c, &po, &pr, &err) || !(pts = sy_cloud_world_points(&c, &err)) ||
+             sy_silhouette_metrics_compute(tri, nt, NULL, pts, c.n, &m, masks, &err) ||
+             (png && sy_silhouette_png(masks, png, &err));
+    free(masks);
+    if (rc) fprintf(stderr, "%s\n", err.msg[0] ? err.msg : "out of memory");
     else
-        printf("triangles=%zu iou_mean=%.3f iou_min=%.3f profile_correlation=%.3f height_error_rel=%+.3f "
-               "crown_width_error_rel=%+.3f\n",
-               nt, m.iou_mean, m.iou_min, m.profile_correlation, m.height_error, m.width_error);
+        printf("triangles=%zu iou_mean=%.3f iou_min=%.3f precision=%.3f recall=%.3f profile_correlation=%.3f "
+               "height_error_rel=%+.3f crown_width_error_rel=%+.3f\n",
+               nt, m.iou_mean, m.iou_min, m.precision, m.recall, m.profile_correlation, m.height_error, m.width_error);
     free(pts);
     free(tri);
+    sy_cloud_free(&c);
+    return rc ? 2 : 0;
+}
+
+/* The scan's own returns as the asset: a regular tetrahedron of
+ * circumradius r at each return (preprocessed as `sylva run` does), scored
+ * against the scan by the same measure, for r = 4 mm and r = the scan's
+ * median spacing (the splat radius). What an asset that drew every return
+ * and nothing else would score: the measure's ceiling on that scan. */
+static int returns(const char *scan)
+{
+    sy_error err = {0};
+    sy_cloud c;
+    memset(&c, 0, sizeof c);
+    if (sy_read_cloud(scan, &c, &err)) return fprintf(stderr, "%s\n", err.msg), 2;
+    sy_preprocess_options po = sy_preprocess_options_default();
+    po.remove_ground = 1;
+    po.normals = 0;
+    sy_preprocess_result pr;
+    double *pts = NULL, *tri = NULL;
+    int rc = sy_preprocess(&c, &po, &pr, &err) || !(pts = sy_cloud_world_points(&c, &err)) ||
+             !(tri = malloc(c.n * 4 * 9 * sizeof *tri));
+    static const int face[4][3] = {{0, 1, 2}, {0, 3, 1}, {0, 2, 3}, {1, 3, 2}};
+    static const double corner[4][3] = {{1, 1, 1}, {1, -1, -1}, {-1, 1, -1}, {-1, -1, 1}};
+    double r = 0.004;
+    for (int pass = 0; pass < 2 && !rc; pass++) {
+        for (size_t i = 0; i < c.n; i++)
+            for (int f = 0; f < 4; f++)
+                for (int v = 0; v < 3; v++)
+                    for (int k = 0; k < 3; k++)
+                        tri[9 * (4 * i + (size_t)f) + 3 * (size_t)v + (size_t)k] =
+                            pts[3 * i + (size_t)k] + r / sqrt(3.0) * corner[face[f][v]][k];
+        sy_silhouette_metrics m;
+        rc = sy_silhouette_metrics_compute(tri, 4 * c.n, NULL, pts, c.n, &m, NULL, &err);
+        if (rc) break;
+        printf("%sradius=%.4f iou_mean=%.3f iou_min=%.3f precision=%.3f recall=%.3f", pass ? " " : "", r, m.iou_mean,
+               m.iou_min, m.precision, m.recall);
+        r = m.splat_radius;
+    }
+    if (rc) fprintf(stderr, "%s\n", err.msg[0] ? err.msg : "out of memory");
+    else printf("\n");
+    free(tri);
+    free(pts);
     sy_cloud_free(&c);
     return rc ? 2 : 0;
 }
@@ -336,9 +388,10 @@ int main(int argc, char **argv)
 {
     sy_set_threads(1);
     if (argc >= 3 && strcmp(argv[1], "decode") == 0) return decode(argv[2], argc > 3 ? atoi(argv[3]) > 0 ? atoi(argv[3]) : 5 : 5);
-    if (argc == 4 && strcmp(argv[1], "look") == 0) return look(argv[2], argv[3]);
+    if ((argc == 4 || argc == 5) && strcmp(argv[1], "look") == 0) return look(argv[2], argv[3], argc == 5 ? argv[4] : NULL);
     if (argc == 4 && strcmp(argv[1], "lookglb") == 0) return lookglb(argv[2], argv[3]);
+    if (argc == 3 && strcmp(argv[1], "returns") == 0) return returns(argv[2]);
     if (argc == 5 && strcmp(argv[1], "compare") == 0) return compare(argv[2], strtoull(argv[3], NULL, 10), argv[4]);
-    fprintf(stderr, "usage: bench_synthesize decode TREE.sylva [REPS] | look SCAN MESH.obj | lookglb REF.glb ASSET.glb | compare SPECIES SEED TREE.sylva\n");
+    fprintf(stderr, "usage: bench_synthesize decode TREE.sylva [REPS] | look SCAN MESH.obj [PNG] | returns SCAN | lookglb REF.glb ASSET.glb | compare SPECIES SEED TREE.sylva\n");
     return 2;
 }

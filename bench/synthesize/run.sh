@@ -61,26 +61,27 @@ treels/pine.las pytlidar/tree_1.las rtwig/cloud.txt"
 
 # AdTree on a scan: its own .xyz as given; other formats go in as the points
 # `sylva run` reconstructs (preprocessed: outliers and ground removed), since
-# AdTree reads .xyz of an isolated tree. Prints "cpu_s iou_mean iou_min".
+# AdTree reads .xyz of an isolated tree. Prints "cpu_s iou_mean iou_min
+# precision recall".
 adtree_look() {
   local in=$1 name=$2 x=$1 d="$tmp/adt_$2"
-  [[ -n $adtree ]] || { echo "— — —"; return; }
+  [[ -n $adtree ]] || { echo "— — — — —"; return; }
   if [[ $in != *.xyz ]]; then
     x="$tmp/$name.pre.xyz"
-    "$sylva" preprocess "$in" -o "$x" --remove-ground --no-normals --quiet >/dev/null 2>&1 || { echo "— — —"; return; }
+    "$sylva" preprocess "$in" -o "$x" --remove-ground --no-normals --quiet >/dev/null 2>&1 || { echo "— — — — —"; return; }
   fi
   rm -rf "$d"; mkdir -p "$d"
   cpu "$tmp/adt.cpu" "$adtree" "$x" "$d" >/dev/null 2>&1 # its batch mode exits 1 after writing
   local obj; obj=$(ls "$d"/*branches*.obj 2>/dev/null | head -1)
-  [[ -n $obj ]] || { echo "$(cut -d' ' -f1 "$tmp/adt.cpu") — —"; return; }
+  [[ -n $obj ]] || { echo "$(cut -d' ' -f1 "$tmp/adt.cpu") — — — —"; return; }
   local lk; lk=$("$bench" look "$in" "$obj" 2>/dev/null)
-  echo "$(cut -d' ' -f1 "$tmp/adt.cpu") $(kv iou_mean "$lk") $(kv iou_min "$lk")"
+  echo "$(cut -d' ' -f1 "$tmp/adt.cpu") $(kv iou_mean "$lk") $(kv iou_min "$lk") $(kv precision "$lk") $(kv recall "$lk")"
 }
 
 if [[ $parts == *r* ]]; then
   echo "(r) real scans: sylva run (no --species: the classifier's species) vs its scan; load $(load)"
-  echo "| scan | points | species | IoU mean | IoU min | profile r | height err | width err | LOD0 bark tris | leaf inst. | leaves ≤5 cm of hull | IoU mean/min --leaf-off | AdTree IoU mean/min | .sylva B | run CPU s |"
-  echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+  echo "| scan | points | species | IoU mean | IoU min | precision / recall | profile r | height err | width err | LOD0 bark tris | leaf inst. | leaves ≤5 cm of hull | IoU mean/min --leaf-off | AdTree IoU mean/min, precision / recall | returns as the asset, IoU 4 mm / spacing | .sylva B | run CPU s |"
+  echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
   for f in $real; do
     in=$data/real/$f
     [[ -f $in ]] || { echo "| $f | missing |"; continue; }
@@ -91,13 +92,20 @@ if [[ $parts == *r* ]]; then
     ev=$("$sylva" eval --points "$in" "$tmp/$name.glb" --json 2>/dev/null)
     "$sylva" run "$in" -o "$tmp/${name}_off.glb" --leaf-off --quiet 2>/dev/null
     off=$("$sylva" eval --points "$in" "$tmp/${name}_off.glb" --json 2>/dev/null)
-    read -r at am an < <(adtree_look "$in" "$name")
+    read -r at am an ap ar < <(adtree_look "$in" "$name")
     [[ $f == adtree/* && -n $adtree ]] && run_cpu[adt_$name]=$at
     sp=$(grep -o '"species":"[^"]*"' <<< "$r" | head -1 | cut -d'"' -f4)
+    # The measure's ceiling on this scan: its own returns drawn as 4 mm
+    # tetrahedra, then as wide as its spacing (bench_synthesize returns).
+    own=$("$bench" returns "$in" 2>/dev/null)
+    own4=$(sed -n 's/^radius=[0-9.]* iou_mean=\([0-9.]*\) .*/\1/p' <<< "$own")
+    owns=$(sed -n 's/.* radius=[0-9.]* iou_mean=\([0-9.]*\) .*/\1/p' <<< "$own")
     echo "| $f | $(key points_preprocessed "$r") | ${sp:-—} | $(f3 "$(key iou_mean "$ev")") | $(f3 "$(key iou_min "$ev")") |" \
+      "$(f3 "$(key silhouette_precision "$ev")") / $(f3 "$(key silhouette_recall "$ev")") |" \
       "$(f3 "$(key profile_correlation "$ev")") | $(pct "$(key height_error_rel "$ev")") | $(pct "$(key crown_width_error_rel "$ev")") |" \
       "$(key lod0_bark_triangles "$r") | $(key lod0_leaf_instances "$r") | $(f3 "$(key leaves_in_hull "$r")") |" \
-      "$(f3 "$(key iou_mean "$off")") / $(f3 "$(key iou_min "$off")") | $(f3 "$am") / $(f3 "$an") | $(key sylva_bytes "$r") | $c |"
+      "$(f3 "$(key iou_mean "$off")") / $(f3 "$(key iou_min "$off")") | $(f3 "$am") / $(f3 "$an"), $(f3 "$ap") / $(f3 "$ar") | $(f3 "$own4") / $(f3 "$owns") |" \
+      "$(key sylva_bytes "$r") | $c |"
     if [[ -n ${RENDER:-} ]]; then
       mkdir -p "$RENDER"
       "$sylva" preprocess "$in" -o "$tmp/$name.xyz" --remove-ground --no-normals --quiet >/dev/null 2>&1

@@ -119,6 +119,11 @@ double *sy_model_surface_samples(const sy_eval_model *m, double spacing, size_t 
 #define SY_SILHOUETTE_BINS 40
 typedef struct {
     double iou[SY_SILHOUETTE_VIEWS], iou_mean, iou_min;
+    /* Means over the views of the share of the asset's pixels the scan
+     * holds too (precision) and of the scan's pixels the asset covers
+     * (recall): which way the IoU is lost, an asset drawing where the scan
+     * shows nothing or missing what it shows. */
+    double precision, recall;
     double profile_correlation;
     /* The profiles it correlates: bin b spans world z profile_z0 + [b, b + 1)
      * profile_dz; the scan's points and the model's drawn area (m^2) in each. */

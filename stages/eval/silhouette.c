@@ -354,8 +354,11 @@ sy_code sy_silhouette_metrics_compute(const double *tri, size_t n_tri, const sy_
                 return sy_fail(err, SY_EINTERNAL, "silhouette: out of memory");
             }
         }
-        size_t inter = 0, uni = 0;
-        for (size_t i = 0; i < RES * RES; i++) inter += ma[i] && mb[i], uni += ma[i] || mb[i];
+        size_t inter = 0, uni = 0, in_a = 0, in_b = 0;
+        for (size_t i = 0; i < RES * RES; i++)
+            inter += ma[i] && mb[i], uni += ma[i] || mb[i], in_a += ma[i] != 0, in_b += mb[i] != 0;
+        out->precision += (in_b ? (double)inter / (double)in_b : 0) / VIEWS;
+        out->recall += (in_a ? (double)inter / (double)in_a : 0) / VIEWS;
         if (masks)
             for (size_t i = 0; i < RES * RES; i++)
                 masks[(size_t)v * RES * RES + i] = (unsigned char)((ma[i] ? SY_MASK_SCAN : 0) | (mb[i] ? SY_MASK_MODEL : 0));
