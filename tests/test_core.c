@@ -140,6 +140,37 @@ static void json_nests_and_escapes(void **state)
     free(text);
 }
 
+/* The arithmetic shortest decimal is the printed one: the double strtod
+ * makes of sy_format_float's text, for short values, values needing all
+ * nine digits, the extremes (the printing fallback) and random bit patterns
+ * and scaled values over 40 decades; and it always reads back as the float. */
+static void shortest_float_matches_the_printed_one(void **state)
+{
+    (void)state;
+    const float fixed[] = {0.8f, 0.05f, 1000.0f, 1e-3f, -2.5f, 0.1f + 0.2f, 3.14159274f, 16777216.0f, 1e-38f, 3.4e38f,
+                           1.4e-45f, 7.0f / 3.0f, -123456.789f};
+    uint64_t rng = 11;
+    for (size_t i = 0; i < 200000 + sizeof fixed / sizeof fixed[0]; i++) {
+        float v;
+        if (i < sizeof fixed / sizeof fixed[0]) v = fixed[i];
+        else if (i % 2) {
+            uint32_t bits = (uint32_t)sy_splitmix64(&rng);
+            memcpy(&v, &bits, sizeof v);
+            if (!isfinite(v)) continue;
+        } else {
+            uint64_t r = sy_splitmix64(&rng);
+            v = (float)((double)(r >> 40) / (1 << 20) * pow(10, (int)(r % 41) - 20));
+        }
+        char buf[32];
+        sy_format_float(buf, sizeof buf, v);
+        double got = sy_float_shortest(v);
+        assert_true((float)got == v);
+        assert_true(got == strtod(buf, NULL));
+    }
+    assert_true(sy_float_shortest(0.8f) == 0.8);
+    assert_true(isnan(sy_float_shortest(NAN)));
+}
+
 typedef struct {
     double partial[64];
 } sum_ctx;
@@ -268,6 +299,7 @@ int main(void)
         cmocka_unit_test(rebase_keeps_world_positions),
         cmocka_unit_test(atomic_write_leaves_nothing_on_abort),
         cmocka_unit_test(json_nests_and_escapes),
+        cmocka_unit_test(shortest_float_matches_the_printed_one),
         cmocka_unit_test(parallel_result_independent_of_threads),
         cmocka_unit_test(select_matches_a_sort),
         cmocka_unit_test(bleeding_fills_clear_texels_with_covered_colours),

@@ -126,6 +126,27 @@ void sy_format_float(char *buf, size_t size, float v)
     }
 }
 
+double sy_float_shortest(float v)
+{
+    if (!isfinite(v) || v == 0) return (double)v;
+    /* Powers of ten a double holds exactly. */
+    static const double p10[23] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
+                                   1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
+    double a = fabs((double)v);
+    int e = (int)floor(log10(a));
+    for (int digits = 6; digits <= 9; digits++) {
+        int k = digits - 1 - e; /* a x 10^k has `digits` digits before the point */
+        double r;
+        if (k >= 0 && k <= 22) r = nearbyint(a * p10[k]) / p10[k];
+        else if (k < 0 && -k <= 22) r = nearbyint(a / p10[-k]) * p10[-k];
+        else break;
+        if ((float)r == (float)a) return v < 0 ? -r : r;
+    }
+    char buf[32];
+    sy_format_float(buf, sizeof buf, v);
+    return strtod(buf, NULL);
+}
+
 void sy_json_bool(sy_json *j, const char *key, int value)
 {
     prefix(j, key);

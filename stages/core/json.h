@@ -29,6 +29,13 @@ void sy_json_float(sy_json *j, const char *key, float value);
 /* The shortest "%.Ng" text (N = 6..9) of v that reads back as the same float
  * ("0.8", not "0.800000011920929"): how every writer prints a float. */
 void sy_format_float(char *buf, size_t size, float v);
+/* The same decimal as a double (strtod of sy_format_float's text), found by
+ * arithmetic instead of printing and parsing: a glTF writer that stores
+ * doubles and prints the shortest double gets the float's short text. The
+ * scaled value is rounded in double arithmetic, so a digit lying within an
+ * ulp of a tie can round the other way; the result still reads back as v.
+ * Finite v; NaN and Inf come back as they are. */
+double sy_float_shortest(float v);
 void sy_json_int(sy_json *j, const char *key, long long value);
 void sy_json_uint(sy_json *j, const char *key, unsigned long long value);
 void sy_json_bool(sy_json *j, const char *key, int value);

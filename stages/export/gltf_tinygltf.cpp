@@ -28,12 +28,7 @@ namespace {
 
 // The shortest decimal that reads back as the same float, so JSON shows 0.8
 // rather than 0.800000011920929 for a float factor.
-double tidy(float f)
-{
-    char buf[32];
-    sy_format_float(buf, sizeof buf, f);
-    return strtod(buf, nullptr);
-}
+double tidy(float f) { return sy_float_shortest(f); }
 
 tinygltf::Value number(float f) { return tinygltf::Value(tidy(f)); }
 

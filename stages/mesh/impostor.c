@@ -67,14 +67,29 @@ static void raster(view *v, const float a[3], const float b[3], const float c[3]
     to_pixel(v, a, pa), to_pixel(v, b, pb), to_pixel(v, c, pc);
     float area = (pb[0] - pa[0]) * (pc[1] - pa[1]) - (pb[1] - pa[1]) * (pc[0] - pa[0]);
     if (fabsf(area) < 1e-12f) return;
-    float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]}, face[3];
-    sy_cross3(e1, e2, face);
-    sy_normalize3(face);
-    int back = src->double_sided && sy_dot3(face, v->toward) < 0;
-    int xmin = (int)fmaxf((float)v->x0, floorf(fminf(pa[0], fminf(pb[0], pc[0]))) - 1);
-    int xmax = (int)fminf((float)(v->x0 + v->w - 1), ceilf(fmaxf(pa[0], fmaxf(pb[0], pc[0]))) + 1);
-    int ymin = (int)fmaxf(0, floorf(fminf(pa[1], fminf(pb[1], pc[1]))) - 1);
-    int ymax = (int)fminf((float)(v->H - 1), ceilf(fmaxf(pa[1], fmaxf(pb[1], pc[1]))) + 1);
+    float lox = fminf(pa[0], fminf(pb[0], pc[0])), hix = fmaxf(pa[0], fmaxf(pb[0], pc[0]));
+    float loy = fminf(pa[1], fminf(pb[1], pc[1])), hiy = fmaxf(pa[1], fmaxf(pb[1], pc[1]));
+    int xmin = (int)fmaxf((float)v->x0, floorf(lox) - 1), xmax = (int)fminf((float)(v->x0 + v->w - 1), ceilf(hix) + 1);
+    int ymin = (int)fmaxf(0, floorf(loy) - 1), ymax = (int)fminf((float)(v->H - 1), ceilf(hiy) + 1);
+    /* The weights are stepped along a row from xstep: where a row starts
+     * changes their rounding, so rows always start there. */
+    int xstep = xmin;
+    if (src->exact) {
+        /* Only pixels whose centre the triangle holds: a twig's triangle
+         * under a pixel wide mostly holds none (a hair of slack for the
+         * weights' rounding). */
+        xmin = (int)fmaxf((float)xmin, ceilf(lox - 0.5f - 1e-3f)), xmax = (int)fminf((float)xmax, floorf(hix - 0.5f + 1e-3f));
+        ymin = (int)fmaxf((float)ymin, ceilf(loy - 0.5f - 1e-3f)), ymax = (int)fminf((float)ymax, floorf(hiy - 0.5f + 1e-3f));
+        if (xmin > xmax || ymin > ymax) return;
+    }
+    float face[3] = {0, 0, 0};
+    int back = 0;
+    if (src->double_sided || (v->nrm && !normals)) {
+        float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        sy_cross3(e1, e2, face);
+        sy_normalize3(face);
+        back = src->double_sided && sy_dot3(face, v->toward) < 0;
+    }
     /* Conservative coverage: a pixel counts when the triangle touches its
      * square (each edge pushed out by half a pixel in the L1 sense), so
      * twigs thinner than a pixel still show in the silhouette. */
@@ -90,8 +105,9 @@ static void raster(view *v, const float a[3], const float b[3], const float c[3]
     float g1x = (pc[1] - pa[1]) * inv, g1y = (pa[0] - pc[0]) * inv;
     float c0 = (pb[0] * pc[1] - pb[1] * pc[0]) * inv, c1 = (pc[0] * pa[1] - pc[1] * pa[0]) * inv;
     for (int y = ymin; y <= ymax; y++) {
-        float py = (float)y + 0.5f, x0 = (float)xmin + 0.5f;
+        float py = (float)y + 0.5f, x0 = (float)xstep + 0.5f;
         float r0 = c0 + g0x * x0 + g0y * py, r1 = c1 + g1x * x0 + g1y * py;
+        for (int x = xstep; x < xmin; x++) r0 += g0x, r1 += g1x;
         for (int x = xmin; x <= xmax; x++, r0 += g0x, r1 += g1x) {
             float w0 = r0, w1 = r1, w2 = 1 - w0 - w1;
             if (w0 < -t0 || w1 < -t1 || w2 < -t2) continue;
