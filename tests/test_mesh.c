@@ -738,6 +738,53 @@ static void crowded_and_tip_children_slide_to_weld(void **state)
     sy_skeleton_free(&s);
 }
 
+/* Twigs grown on a lobe's grid (rTwig's sapling, copied from its run): a
+ * 14 cm twig ends where a 3 cm twig leaves it 66 degrees off, and that one
+ * ends where a twig nearly as thick leaves it at 90 degrees. Neither has a
+ * continuation, and each child's ring stood on its parent's tip cap, off
+ * the tube's quads: capped. Each twig now goes on past its last node by
+ * SY_MESH_TIP_EXTENSION radii, and both children weld; the bark stays
+ * closed. */
+static void tip_children_of_grid_twigs_weld(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_error err;
+    memset(&s, 0, sizeof s);
+    int32_t prev = -1;
+    for (int i = 0; i <= 6; i++) {
+        float p[3] = {0.19f, 0.1385f, 0.25f * (float)i};
+        prev = sy_skeleton_add(&s, p, 0.04f - 0.002f * (float)i, prev, 0, 0, &err);
+    }
+    /* The 14 cm twig from the trunk node at 1.25 m, as the sapling's. */
+    static const float twig[12][4] = {
+        {0.2244f, 0.1483f, 1.2961f, 0.0115f}, {0.2255f, 0.1581f, 1.3027f, 0.0112f}, {0.2266f, 0.1679f, 1.3092f, 0.0109f},
+        {0.2277f, 0.1777f, 1.3158f, 0.0105f}, {0.2289f, 0.1874f, 1.3223f, 0.0102f}, {0.2300f, 0.1972f, 1.3289f, 0.0098f},
+        {0.2311f, 0.2070f, 1.3354f, 0.0095f}, {0.2378f, 0.2137f, 1.3421f, 0.0077f}, {0.2445f, 0.2205f, 1.3489f, 0.0068f},
+        {0.2445f, 0.2294f, 1.3534f, 0.0058f}, {0.2445f, 0.2384f, 1.3579f, 0.0053f}, {0.2445f, 0.2474f, 1.3623f, 0.0049f}};
+    static const float second[3][4] = {
+        {0.2490f, 0.2474f, 1.3713f, 0.0041f}, {0.2535f, 0.2474f, 1.3803f, 0.0038f}, {0.2580f, 0.2474f, 1.3893f, 0.0035f}};
+    static const float third[3][4] = {
+        {0.2580f, 0.2508f, 1.3893f, 0.0033f}, {0.2625f, 0.2541f, 1.3982f, 0.0031f}, {0.2670f, 0.2575f, 1.4072f, 0.0029f}};
+    prev = 5; /* the trunk node at 1.25 m */
+    for (int i = 0; i < 12; i++) prev = sy_skeleton_add(&s, twig[i], twig[i][3], prev, 1, 1, &err);
+    for (int i = 0; i < 3; i++) prev = sy_skeleton_add(&s, second[i], second[i][3], prev, 2, 2, &err);
+    for (int i = 0; i < 3; i++) prev = sy_skeleton_add(&s, third[i], third[i][3], prev, 3, 3, &err);
+    sy_mesh_options o = sy_mesh_options_default();
+    o.impostor_size = 64;
+    sy_mesh_weld_stats ws;
+    o.weld_stats = &ws;
+    sy_asset a;
+    mesh_tree(&s, NULL, &o, &a);
+    check_mesh_basics_share(bark0(&a), WELD_FOLD_SHARE);
+    printf("children at grid twigs' tips: %zu of %zu junctions welded at LOD0\n", ws.welded[0], ws.junctions[0]);
+    assert_int_equal(ws.junctions[0], 3);
+    assert_int_equal(ws.welded[0], 3);
+    assert_int_equal(check_branches(&s, &a), 3);
+    sy_asset_free(&a);
+    sy_skeleton_free(&s);
+}
+
 /* Over its leaf budget LOD0 keeps a prefix of the seeded order, grown to
  * the same total leaf area; LOD1 halves that prefix. */
 static void leaf_budget_keeps_the_leaf_area(void **state)
@@ -1171,6 +1218,7 @@ int main(void)
         cmocka_unit_test(bent_trunk_branches_sit_on_the_parent),
         cmocka_unit_test(whorl_welds_as_a_band),
         cmocka_unit_test(crowded_and_tip_children_slide_to_weld),
+        cmocka_unit_test(tip_children_of_grid_twigs_weld),
         cmocka_unit_test(curved_branch_keeps_its_curve_at_every_level),
         cmocka_unit_test(random_tree_meets_every_property),
         cmocka_unit_test(leaf_budget_keeps_the_leaf_area),

@@ -430,8 +430,9 @@ sy_code sy_mesh_check(const sy_asset *a, const sy_skeleton *sk, const sy_mesh_ch
     size_t nc = 0;
     for (size_t i = 0; i < sk->n; i++)
         if (sk->parent[i] >= 0) nc++;
-    capsule *caps = malloc((nc + 1) * sizeof *caps);
-    sy_box *boxes = malloc((nc + 1) * sizeof *boxes);
+    /* Room for a tip stretch at every node besides (SY_MESH_TIP_EXTENSION). */
+    capsule *caps = malloc((2 * nc + 1) * sizeof *caps);
+    sy_box *boxes = malloc((2 * nc + 1) * sizeof *boxes);
     if (!caps || !boxes) {
         free(caps), free(boxes);
         return sy_fail(err, SY_EINTERNAL, "mesh check: out of memory");
@@ -496,6 +497,40 @@ sy_code sy_mesh_check(const sy_asset *a, const sy_skeleton *sk, const sy_mesh_ch
         sy_box_add_point(&boxes[nc], hi);
         nc++;
     }
+    /* A chain that ends where children leave goes on past its last node
+     * as the mesher draws it (extend_tip in stages/mesh/stems.c): along its
+     * last segment, by SY_MESH_TIP_EXTENSION radii of the thicker of its
+     * tip and its thickest child there, at its tip radius. */
+    float *tip_child = calloc(sk->n + 1, sizeof *tip_child);
+    if (!tip_child) {
+        free(caps), free(boxes), free(cont), free(trunk);
+        return sy_fail(err, SY_EINTERNAL, "mesh check: out of memory");
+    }
+    for (size_t i = 0; i < sk->n; i++) {
+        int32_t p = sk->parent[i];
+        if (p >= 0 && cont[p] < 0) tip_child[p] = fmaxf(tip_child[p], sk->radius[i]);
+    }
+    for (size_t i = 0; i < sk->n; i++) {
+        int32_t p = sk->parent[i];
+        if (p < 0 || !(tip_child[i] > 0)) continue;
+        double r = fmax(sk->radius[i], o->min_radius), d[3];
+        for (int k = 0; k < 3; k++) d[k] = (double)sk->pos[3 * i + k] - sk->pos[3 * (size_t)p + k];
+        double len = sqrt(sy_v3_dot(d, d));
+        if (!(len > 0)) continue;
+        double ext = SY_MESH_TIP_EXTENSION * fmax(tip_child[i], r);
+        capsule *c = &caps[nc];
+        for (int k = 0; k < 3; k++) c->a[k] = sk->pos[3 * i + k], c->b[k] = c->a[k] + d[k] / len * ext;
+        if (!trunk[i]) c->a[2] = fmax(c->a[2], mesh_ground + r), c->b[2] = fmax(c->b[2], mesh_ground + r);
+        c->ra = c->rb = r;
+        c->len = sy_v3_dist(c->a, c->b);
+        sy_box_empty(&boxes[nc]);
+        double lo[3], hi[3];
+        for (int k = 0; k < 3; k++) lo[k] = fmin(c->a[k], c->b[k]) - r, hi[k] = fmax(c->a[k], c->b[k]) + r;
+        sy_box_add_point(&boxes[nc], lo);
+        sy_box_add_point(&boxes[nc], hi);
+        nc++;
+    }
+    free(tip_child);
     free(cont), free(trunk);
     sy_bvh cb;
     rc = sy_bvh_build(&cb, boxes, nc, err);
