@@ -684,6 +684,25 @@ static void whorl_welds_as_a_band(void **state)
     sy_skeleton_free(&s);
 }
 
+/* Meshes s (no leaves, a small impostor) and asserts its LOD0 has
+ * `junctions` junctions, all welded, and closed bark; frees s. */
+static void assert_lod0_all_welded(sy_skeleton *s, size_t junctions, const char *what)
+{
+    sy_mesh_options o = sy_mesh_options_default();
+    o.impostor_size = 64;
+    sy_mesh_weld_stats ws;
+    o.weld_stats = &ws;
+    sy_asset a;
+    mesh_tree(s, NULL, &o, &a);
+    check_mesh_basics_share(bark0(&a), WELD_FOLD_SHARE);
+    printf("%s: %zu of %zu junctions welded at LOD0\n", what, ws.welded[0], ws.junctions[0]);
+    assert_int_equal(ws.junctions[0], junctions);
+    assert_int_equal(ws.welded[0], junctions);
+    assert_int_equal(check_branches(s, &a), junctions);
+    sy_asset_free(&a);
+    sy_skeleton_free(s);
+}
+
 /* A limb ends in a fork of two twigs turning 75 degrees off it (no
  * continuation), and two limbs leave one trunk node at one azimuth, one
  * level, one rising: the twigs' rings stood partly off the limb's last ring
@@ -723,19 +742,7 @@ static void crowded_and_tip_children_slide_to_weld(void **state)
             prev = sy_skeleton_add(&s, p, 0.05f - 0.008f * (float)i, prev, 1, 4 + k, &err);
         }
     }
-    sy_mesh_options o = sy_mesh_options_default();
-    o.impostor_size = 64;
-    sy_mesh_weld_stats ws;
-    o.weld_stats = &ws;
-    sy_asset a;
-    mesh_tree(&s, NULL, &o, &a);
-    check_mesh_basics_share(bark0(&a), WELD_FOLD_SHARE);
-    printf("tip fork and side-by-side limbs: %zu of %zu junctions welded at LOD0\n", ws.welded[0], ws.junctions[0]);
-    assert_int_equal(ws.junctions[0], 5);
-    assert_int_equal(ws.welded[0], 5);
-    assert_int_equal(check_branches(&s, &a), 5);
-    sy_asset_free(&a);
-    sy_skeleton_free(&s);
+    assert_lod0_all_welded(&s, 5, "tip fork and side-by-side limbs");
 }
 
 /* Twigs grown on a lobe's grid (rTwig's sapling, copied from its run): a
@@ -770,19 +777,7 @@ static void tip_children_of_grid_twigs_weld(void **state)
     for (int i = 0; i < 12; i++) prev = sy_skeleton_add(&s, twig[i], twig[i][3], prev, 1, 1, &err);
     for (int i = 0; i < 3; i++) prev = sy_skeleton_add(&s, second[i], second[i][3], prev, 2, 2, &err);
     for (int i = 0; i < 3; i++) prev = sy_skeleton_add(&s, third[i], third[i][3], prev, 3, 3, &err);
-    sy_mesh_options o = sy_mesh_options_default();
-    o.impostor_size = 64;
-    sy_mesh_weld_stats ws;
-    o.weld_stats = &ws;
-    sy_asset a;
-    mesh_tree(&s, NULL, &o, &a);
-    check_mesh_basics_share(bark0(&a), WELD_FOLD_SHARE);
-    printf("children at grid twigs' tips: %zu of %zu junctions welded at LOD0\n", ws.welded[0], ws.junctions[0]);
-    assert_int_equal(ws.junctions[0], 3);
-    assert_int_equal(ws.welded[0], 3);
-    assert_int_equal(check_branches(&s, &a), 3);
-    sy_asset_free(&a);
-    sy_skeleton_free(&s);
+    assert_lod0_all_welded(&s, 3, "children at grid twigs' tips");
 }
 
 /* Over its leaf budget LOD0 keeps a prefix of the seeded order, grown to
