@@ -16,8 +16,8 @@
  *     by the same measure as Sylva's asset. MASKS.png: the six views' masks
  *     as `sylva eval --png` draws them.
  *   bench_synthesize returns SCAN
- *     The scan's own returns as the asset (a 4 mm tetrahedron at each, then
- *     one as wide as the scan's median spacing), by the same measure: what
+ *     The scan's own returns as the asset (a tetrahedron of 4 mm circumradius
+ *     at each, then one of the scan's median spacing), by the same measure: what
  *     an asset that drew every return and nothing else would score.
  *
  *   bench_synthesize lookglb REFERENCE.glb ASSET.glb

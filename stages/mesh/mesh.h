@@ -21,12 +21,14 @@ extern "C" {
  * avoids both; the mesh check counts them. */
 #define SY_MESH_SLIVER_AREA 5e-9
 #define SY_MESH_NEEDLE_ASPECT 1e-3
-/* A stem whose children all leave its last node (each turning more than
- * the 60 degrees a continuation may) goes on past that node along its last
- * chord by this many radii (the thicker of its tip and its thickest such
- * child), so their base rings land on its quads and weld instead of
- * standing on its tip cap (stems.c, extend_tip; the mesh check draws the
- * same stretch, stages/eval/mesh_check.c). */
+/* A stem with children at its last node, none of them going on as it,
+ * goes on past that node along its last chord by this many radii (the
+ * thicker of its tip and its thickest such child), so their base rings land
+ * on its quads and weld instead of standing on its tip cap (stems.c,
+ * tip_stretch; the mesh check draws the same stretch,
+ * stages/eval/mesh_check.c). The stretch counts in the stem's length (wind,
+ * leaves' places along it); at a coarser level whose budget drops those
+ * children it stays, a stub of two radii. */
 #define SY_MESH_TIP_EXTENSION 2.0f
 
 /* Junctions per mesh level (optional output of sy_mesh_tree): children

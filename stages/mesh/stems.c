@@ -169,7 +169,7 @@ static sy_code order_by_depth(sy_stems *st, sy_error *err)
  * chain node the polyline point it collapsed into (node_pt). */
 static int build_polyline(const sy_skeleton *sk, sy_stem *s, int32_t *node_pt, float min_radius)
 {
-    size_t cap = s->n_nodes + 2; /* the attachment, the chain and a tip extension (extend_tip) */
+    size_t cap = s->n_nodes + 2; /* the attachment, the chain and a tip stretch (extend_tip) */
     s->pts = malloc(cap * 3 * sizeof(float));
     s->rad = malloc(cap * sizeof(float));
     s->pt_s = malloc(cap * sizeof(float));
@@ -200,21 +200,33 @@ static int build_polyline(const sy_skeleton *sk, sy_stem *s, int32_t *node_pt, f
     return 1;
 }
 
-/* A stem whose children leave its last node (a fork whose limbs all turn
- * more than sy_skeleton_continuations lets one go on) ended in its tip cap
- * there: their rings stood on the cap, off the tube's quads, and were capped
- * instead of welded (61 of the 84 such rings on rTwig's sapling, whose LOD0
- * welded 68 % of its junctions). The tube goes on past that node along its
- * last chord by `ext` (SY_MESH_TIP_EXTENSION radii), at its tip radius. */
-static void extend_tip(sy_stem *s, float ext)
+/* A stem with children at its last node, none of them going on as it (each
+ * turning more than the 60 degrees sy_skeleton_continuations allows), ended
+ * in its tip cap there: their rings stood on the cap, off the tube's quads,
+ * and were capped instead of welded (61 of the 84 such rings on rTwig's
+ * sapling, whose LOD0 welded 68 % of its junctions). The tube goes on past
+ * that node by SY_MESH_TIP_EXTENSION radii along `dir`, the stem's last
+ * chord as built (tip_stretch), at its tip radius (extend_tip, after the
+ * base has moved: the single-node guards of reattach_buried and
+ * attach_on_parent count the stem's own points). The mesh check draws the
+ * same stretch (stages/eval/mesh_check.c). */
+static int tip_stretch(const sy_stem *s, float tip_child, float dir[3], float *ext)
 {
     size_t m = s->n_pts;
-    if (m < 2 || !(ext > 0)) return;
+    if (!(tip_child > 0) || m < 2) return 0;
     const float *a = s->pts + 3 * (m - 2), *b = s->pts + 3 * (m - 1);
-    float d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-    float len = sqrtf(sy_dot3(d, d));
-    if (!(len > 0)) return;
-    for (int k = 0; k < 3; k++) s->pts[3 * m + k] = b[k] + d[k] / len * ext;
+    for (int k = 0; k < 3; k++) dir[k] = b[k] - a[k];
+    float len = sqrtf(sy_dot3(dir, dir));
+    if (!(len > 0)) return 0;
+    for (int k = 0; k < 3; k++) dir[k] /= len;
+    *ext = SY_MESH_TIP_EXTENSION * fmaxf(tip_child, s->rad[m - 1]);
+    return 1;
+}
+
+static void extend_tip(sy_stem *s, const float dir[3], float ext)
+{
+    size_t m = s->n_pts;
+    for (int k = 0; k < 3; k++) s->pts[3 * m + k] = s->pts[3 * (m - 1) + k] + dir[k] * ext;
     s->rad[m] = s->rad[m - 1];
     s->n_pts = m + 1;
 }
@@ -741,7 +753,7 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
         return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
     }
     for (size_t i = 0; i < st->n; i++) first_child[i] = -1, placed[i] = 0;
-    /* The thickest child leaving each stem's last node (extend_tip). */
+    /* The thickest child leaving each stem's last node (tip_stretch). */
     float *tip_child = calloc(st->n ? st->n : 1, sizeof *tip_child);
     if (!tip_child) {
         free(first_child);
@@ -763,8 +775,8 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
             sy_stems_free(st);
             return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
         }
-        if (tip_child[st->by_depth[o]] > 0 && s->n_pts >= 2)
-            extend_tip(s, SY_MESH_TIP_EXTENSION * fmaxf(tip_child[st->by_depth[o]], s->rad[s->n_pts - 1]));
+        float tip_dir[3], tip_ext = 0;
+        int stretch = tip_stretch(s, tip_child[st->by_depth[o]], tip_dir, &tip_ext);
         s->r_base = s->rad[0];
         s->r_tip = s->rad[s->n_pts - 1];
         if (s->parent >= 0) {
@@ -779,6 +791,7 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
             for (size_t i = 0; i < s->n_nodes; i++) node_pt[i] = node_pt[i] > 0 ? node_pt[i] - 1 : 0;
         if (s->parent >= 0 && st->s[s->parent].has_geometry)
             fit_on_parent(st, st->by_depth[o], first_child, next_sib, placed);
+        if (stretch && s->n_pts >= 2) extend_tip(s, tip_dir, tip_ext);
         if (s->n_pts >= 2) {
             if (!sample_curve(s, opt, st->ground)) {
                 free(node_pt), free(first_child), free(tip_child);
