@@ -421,6 +421,17 @@ static void nearest_on_branch(const sy_skeleton *sk, const int32_t *cont, int32_
     }
 }
 
+/* A capsule's length and its box (ends grown by the larger radius). */
+static void capsule_close(capsule *c, sy_box *box)
+{
+    c->len = sy_v3_dist(c->a, c->b);
+    double rm = fmax(c->ra, c->rb), lo[3], hi[3];
+    for (int k = 0; k < 3; k++) lo[k] = fmin(c->a[k], c->b[k]) - rm, hi[k] = fmax(c->a[k], c->b[k]) + rm;
+    sy_box_empty(box);
+    sy_box_add_point(box, lo);
+    sy_box_add_point(box, hi);
+}
+
 sy_code sy_mesh_check(const sy_asset *a, const sy_skeleton *sk, const sy_mesh_check_options *o,
                       sy_mesh_check_report *out, sy_error *err)
 {
@@ -485,20 +496,11 @@ sy_code sy_mesh_check(const sy_asset *a, const sy_skeleton *sk, const sy_mesh_ch
             c->a[2] = fmax(c->a[2], mesh_ground + c->ra);
             c->b[2] = fmax(c->b[2], mesh_ground + c->rb);
         }
-        c->len = sy_v3_dist(c->a, c->b);
-        double rm = fmax(c->ra, c->rb);
-        sy_box_empty(&boxes[nc]);
-        double lo[3], hi[3];
-        for (int k = 0; k < 3; k++) {
-            lo[k] = fmin(c->a[k], c->b[k]) - rm;
-            hi[k] = fmax(c->a[k], c->b[k]) + rm;
-        }
-        sy_box_add_point(&boxes[nc], lo);
-        sy_box_add_point(&boxes[nc], hi);
+        capsule_close(c, &boxes[nc]);
         nc++;
     }
     /* A chain that ends where children leave goes on past its last node
-     * as the mesher draws it (extend_tip in stages/mesh/stems.c): along its
+     * as the mesher draws it (tip_stretch in stages/mesh/stems.c): along its
      * last segment, by SY_MESH_TIP_EXTENSION radii of the thicker of its
      * tip and its thickest child there, at its tip radius. */
     float *tip_child = calloc(sk->n + 1, sizeof *tip_child);
@@ -522,12 +524,7 @@ sy_code sy_mesh_check(const sy_asset *a, const sy_skeleton *sk, const sy_mesh_ch
         for (int k = 0; k < 3; k++) c->a[k] = sk->pos[3 * i + k], c->b[k] = c->a[k] + d[k] / len * ext;
         if (!trunk[i]) c->a[2] = fmax(c->a[2], mesh_ground + r), c->b[2] = fmax(c->b[2], mesh_ground + r);
         c->ra = c->rb = r;
-        c->len = sy_v3_dist(c->a, c->b);
-        sy_box_empty(&boxes[nc]);
-        double lo[3], hi[3];
-        for (int k = 0; k < 3; k++) lo[k] = fmin(c->a[k], c->b[k]) - r, hi[k] = fmax(c->a[k], c->b[k]) + r;
-        sy_box_add_point(&boxes[nc], lo);
-        sy_box_add_point(&boxes[nc], hi);
+        capsule_close(c, &boxes[nc]);
         nc++;
     }
     free(tip_child);

@@ -28,7 +28,7 @@ extern "C" {
  * tip_stretch; the mesh check draws the same stretch,
  * stages/eval/mesh_check.c). The stretch counts in the stem's length (wind,
  * leaves' places along it); at a coarser level whose budget drops those
- * children it stays, a stub of two radii. */
+ * children it stays: the tube ends two radii past its last node. */
 #define SY_MESH_TIP_EXTENSION 2.0f
 
 /* Junctions per mesh level (optional output of sy_mesh_tree): children
