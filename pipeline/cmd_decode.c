@@ -50,9 +50,10 @@ int cmd_decode(int argc, char **argv, sy_cli *cli)
             return sy_cli_report(&err);
         }
     }
-    size_t verts = 0, tris = 0, kinds[3] = {0, 0, 0};
+    size_t verts = 0, tris = 0, twigs = 0, kinds[3] = {0, 0, 0};
     for (size_t c = 0; c < cl.n; c++) {
         verts += cl.items[c].n_verts;
+        twigs += cl.items[c].n_twigs;
         tris += cl.items[c].n_tris;
         kinds[cl.items[c].hull]++;
     }
@@ -79,6 +80,7 @@ int cmd_decode(int argc, char **argv, sy_cli *cli)
         sy_json_int(&j, "clusters", (long long)cl.n);
         sy_json_int(&j, "hull_vertices", (long long)verts);
         sy_json_int(&j, "hull_triangles", (long long)tris);
+        sy_json_int(&j, "twig_nodes", (long long)twigs);
         sy_json_object(&j, "hulls");
         sy_json_int(&j, "alpha", (long long)kinds[0]);
         sy_json_int(&j, "convex", (long long)kinds[1]);
@@ -93,8 +95,8 @@ int cmd_decode(int argc, char **argv, sy_cli *cli)
         printf("%s: species %u, seed %llu\n", in[0], (unsigned)meta.species_id, (unsigned long long)meta.seed);
         printf("  skeleton  %zu nodes, %d branches, %.2f m of axes, root radius %.3f m\n", s.n,
                sy_skeleton_branch_count(&s), sy_skeleton_length(&s), s.radius[0]);
-        printf("  clusters  %zu (%zu alpha, %zu convex, %zu box): %zu vertices, %zu triangles\n", cl.n, kinds[0],
-               kinds[1], kinds[2], verts, tris);
+        printf("  clusters  %zu (%zu alpha, %zu convex, %zu box): %zu vertices, %zu triangles, %zu twig nodes\n", cl.n,
+               kinds[0], kinds[1], kinds[2], verts, tris, twigs);
         printf("  grid      %.3g m steps\n", step);
     }
     sy_skeleton_free(&s);

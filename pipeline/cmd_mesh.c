@@ -93,7 +93,7 @@ static int mesh_sylva(const char *path, const char *out_path, const char *specie
     }
     sy_decoded_tree dt;
     double t0 = sy_now();
-    if (!rc) rc = sy_decoded_tree_build(path, buf.data, buf.size, have_species ? &sp : NULL, &dt, &err);
+    if (!rc) rc = sy_decoded_tree_build(path, buf.data, buf.size, have_species ? &sp : NULL, no_leaves, &dt, &err);
     sy_buffer_free(&buf);
     if (!rc) {
         f->seconds_leaves = sy_now() - t0;
@@ -103,6 +103,7 @@ static int mesh_sylva(const char *path, const char *out_path, const char *specie
         o->seed = dt.meta.seed;
         o->keep_leaf_order = 1;
         o->hulls = proxy ? &dt.lobes : NULL;
+        o->lean_radius = sy_decoded_tree_lean_radius(&dt);
         o->source = f->model;
         o->source_format = f->format;
         sy_tree_asset_report rep;

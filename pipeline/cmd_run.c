@@ -47,6 +47,8 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
     sy_json_int(&j, "branches", (long long)r->branches);
     sy_json_int(&j, "clusters", (long long)r->clusters);
     sy_json_int(&j, "cluster_points", (long long)r->cluster_points);
+    sy_json_int(&j, "twig_nodes", (long long)res->hulls.twig_nodes);
+    sy_json_number(&j, "twig_voxel", res->hulls.twig_voxel);
     sy_json_number(&j, "dbh", r->dbh);
     sy_json_bool(&j, "dbh_fitted", r->dbh_fitted);
     sy_json_int(&j, "hairpins", (long long)r->hairpins);

@@ -139,7 +139,17 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
     report->t_clusters = cut.seconds;
     report->t_total += cut.seconds;
     if (!clusters) return SY_OK;
-    ho.triangles = sy_sylva_hull_budget(clusters->n, out->n);
+    /* The twigs the lobes' returns trace, in the room the .sylva has for
+     * them (none for an airborne crown: its returns are its top's shell). */
+    sy_twig_options to = sy_twig_options_default();
+    to.max_nodes = report->stem_unseen ? 0 : sy_sylva_twig_budget(clusters->n, out->n);
+    sy_twig_report twigs;
+    if ((rc = sy_clusters_trace_twigs(clusters, out, c->xyz, &to, &twigs, err))) {
+        sy_clusters_free(clusters);
+        sy_skeleton_free(out);
+        return rc;
+    }
+    ho.triangles = sy_sylva_hull_budget(clusters->n, out->n, twigs.nodes);
     /* An airborne crown, seen from above: the cells under a return are
      * hidden by it, not empty; each lobe's hull reaches in to the node it
      * hangs from and down to the crown's lowest return (what the scanner saw
@@ -172,6 +182,9 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
     if (rc || (rc = sy_clusters_build_hulls(clusters, c->xyz, &ho, hulls, err))) {
         sy_clusters_free(clusters);
         sy_skeleton_free(out);
+    } else if (hulls) {
+        hulls->twig_nodes = twigs.nodes, hulls->twig_voxel = twigs.voxel;
+        hulls->seconds += twigs.seconds;
     }
     free(anchors);
     return rc;
@@ -423,8 +436,9 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
     snprintf(line, sizeof line, "%zu nodes, %zu branches, DBH %.3f m, height %.2f m", sr->nodes, sr->branches,
              sr->dbh, sr->height);
     step(o, "skeleton", sr->t_total - sr->t_clusters, line);
-    snprintf(line, sizeof line, "%zu clusters (%zu alpha, %zu convex, %zu box), %zu points", sr->clusters,
-             r->hulls.alpha, r->hulls.convex, r->hulls.box, sr->cluster_points);
+    snprintf(line, sizeof line, "%zu clusters (%zu alpha, %zu convex, %zu box), %zu points, %zu twig nodes (%.3f m voxels)",
+             sr->clusters, r->hulls.alpha, r->hulls.convex, r->hulls.box, sr->cluster_points, r->hulls.twig_nodes,
+             r->hulls.twig_voxel);
     step(o, "clusters", sr->t_clusters + r->hulls.seconds, line);
 
     /* Everything after the reconstruction reads the .sylva image (the scan's
@@ -437,7 +451,7 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
     int have_tree = 0;
     if (!rc) {
         double t = sy_now();
-        rc = sy_decoded_tree_build(name, r->sylva, r->sylva_size, sp, &dt, err);
+        rc = sy_decoded_tree_build(name, r->sylva, r->sylva_size, sp, o->leaf_off, &dt, err);
         r->t_synth = sy_now() - t;
         have_tree = !rc;
     }
@@ -459,6 +473,7 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
         ao.seed = o->seed;
         ao.keep_leaf_order = 1;
         ao.hulls = o->proxy ? &dt.lobes : NULL;
+        ao.lean_radius = sy_decoded_tree_lean_radius(&dt);
         ao.source = name;
         ao.source_format = "scan";
         /* A leaf-off scan: the synthesised branches without their cards. */

@@ -120,6 +120,9 @@ void sy_tree_asset_root_to_origin(sy_skeleton *s, sy_clusters *hulls)
         for (size_t i = 0; i < h->n_verts; i++)
             for (int k = 0; k < 3; k++)
                 h->verts[3 * i + k] = (float)((s->origin[k] + (double)h->verts[3 * i + k]) - root[k]);
+        for (size_t i = 0; i < h->n_twigs; i++)
+            for (int k = 0; k < 3; k++)
+                h->twig_pos[3 * i + k] = (float)((s->origin[k] + (double)h->twig_pos[3 * i + k]) - root[k]);
     }
     memcpy(s->origin, root, sizeof root);
 }
@@ -272,6 +275,7 @@ sy_code sy_tree_asset_build(const sy_skeleton *skel, const sy_leaves *leaves, co
     /* With hulls the impostor is made after they join the mesh levels. */
     mo.impostor = opt->impostor && !hulls;
     mo.impostor_size = opt->impostor_size;
+    mo.lean_radius = opt->lean_radius;
     mo.seed = opt->seed;
     mo.keep_leaf_order = opt->keep_leaf_order;
     mo.bark_material = bark;

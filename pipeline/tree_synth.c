@@ -21,8 +21,15 @@ void sy_decoded_tree_free(sy_decoded_tree *t)
     memset(t, 0, sizeof *t);
 }
 
+float sy_decoded_tree_lean_radius(const sy_decoded_tree *t)
+{
+    for (size_t c = 0; c < t->lobes.n; c++)
+        if (t->lobes.items[c].n_twigs) return SY_MESH_LEAN_RADIUS;
+    return 0;
+}
+
 sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_t size, const sy_species_params *species,
-                              sy_decoded_tree *t, sy_error *err)
+                              int leaf_off, sy_decoded_tree *t, sy_error *err)
 {
     memset(t, 0, sizeof *t);
     double t0 = sy_now();
@@ -70,6 +77,7 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
                                sy_species_leaf_fit(species, top, SCAN_HEIGHT_SEEN));
     }
     so.leaf_density = ls.leaf_density;
+    so.bare = leaf_off != 0;
     so.max_depth = ls.max_depth;
     if (species && species->ratio_power > 0) so.ratio_power = species->ratio_power;
     for (int l = 0; species && l < 2; l++)

@@ -31,10 +31,16 @@ typedef struct {
 
 /* species (may be NULL): its branchlets (NAME.lsys in the species library's
  * folder, beside its .ini) and leaf size; NULL or a species without an
- * .lsys: the library's default.lsys. name names the image in messages. */
+ * .lsys: the library's default.lsys. leaf_off: a leaf-off tree, whose lobes'
+ * traced twigs are their wood (sy_synth_options.bare); the leaves made for
+ * the other lobes are the caller's to drop. name names the image in
+ * messages. */
 sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_t size, const sy_species_params *species,
-                              sy_decoded_tree *t, sy_error *err);
+                              int leaf_off, sy_decoded_tree *t, sy_error *err);
 void sy_decoded_tree_free(sy_decoded_tree *t);
+/* The mesher's lean radius for t (sy_tree_asset_options.lean_radius):
+ * SY_MESH_LEAN_RADIUS when its lobes have traced twigs, else 0. */
+float sy_decoded_tree_lean_radius(const sy_decoded_tree *t);
 
 /* One line per bare lobe ("lobe 3 (node 12): no room inside its hull ...") to stderr. */
 void sy_decoded_tree_report_bare(const char *command, const sy_decoded_tree *t);

@@ -304,9 +304,98 @@ static void foliage_becomes_clusters(void **state)
     sy_cloud_free(&cloud);
 }
 
+/* Returns every 5 mm along a Y (a 0.5 m stem from the seed, two 0.64 m
+ * arms), jittered by up to 3 mm: the traced twigs run along it. */
+static float *twig_y(size_t *n)
+{
+    const float ends[3][6] = {{0, 0, 1, 0, 0, 1.5f}, {0, 0, 1.5f, 0.4f, 0, 2}, {0, 0, 1.5f, -0.4f, 0, 2}};
+    float *xyz = malloc(3 * 400 * sizeof *xyz);
+    size_t m = 0;
+    uint64_t rng = 7;
+    for (int a = 0; a < 3; a++) {
+        double len = 0;
+        for (int k = 0; k < 3; k++) len += (ends[a][3 + k] - ends[a][k]) * (ends[a][3 + k] - ends[a][k]);
+        int steps = (int)(sqrt(len) / 0.005);
+        for (int i = a ? 1 : 0; i <= steps; i++)
+            for (int k = 0; k < 3; k++) {
+                rng = rng * 6364136223846793005ull + 1442695040888963407ull;
+                double jitter = ((double)(rng >> 11) / 9007199254740992.0 - 0.5) * 0.006;
+                xyz[3 * m + k] = (float)(ends[a][k] + (ends[a][3 + k] - ends[a][k]) * i / steps + jitter);
+                if (k == 2) m++;
+            }
+    }
+    *n = m;
+    return xyz;
+}
+
+/* The twigs a lobe's returns trace: one return per voxel, each node one of
+ * the returns, parents before children, hanging off the seed, the spanning
+ * tree as long as the Y it traces (no chord across its fork); a smaller
+ * budget coarsens the voxel, one no voxel of the ladder meets gives none;
+ * the same input gives the same twigs. */
+static void traced_twigs_follow_the_returns(void **state)
+{
+    (void)state;
+    size_t n;
+    float *xyz = twig_y(&n);
+    sy_skeleton s;
+    sy_error err = {0};
+    assert_int_equal(sy_skeleton_init(&s, 0, &err), SY_OK);
+    const float root[3] = {0, 0, 0}, seed[3] = {0, 0, 1};
+    sy_skeleton_add(&s, root, 0.05f, -1, 0, 0, &err);
+    sy_skeleton_add(&s, seed, 0.03f, 0, 0, 0, &err);
+    sy_cluster c = {0};
+    c.seed = 1;
+    c.points = malloc(n * sizeof *c.points);
+    for (size_t i = 0; i < n; i++) c.points[i] = (uint32_t)i;
+    c.n_points = n;
+    sy_clusters cl = {1, &c};
+    sy_twig_options o = sy_twig_options_default();
+    o.max_nodes = 1000;
+    sy_twig_report r;
+    assert_int_equal(sy_clusters_trace_twigs(&cl, &s, xyz, &o, &r, &err), SY_OK);
+    assert_float_equal(r.voxel, o.voxel_min, 1e-9);
+    assert_int_equal(r.nodes, c.n_twigs);
+    assert_true(c.n_twigs >= 70 && c.n_twigs <= 1000); /* 1.78 m of Y at 2 cm voxels */
+    double length = 0;
+    int off_seed = 0;
+    for (size_t i = 0; i < c.n_twigs; i++) {
+        int found = 0;
+        for (size_t j = 0; j < n && !found; j++) found = !memcmp(c.twig_pos + 3 * i, xyz + 3 * j, 3 * sizeof *xyz);
+        assert_true(found);
+        int32_t p = c.twig_parent[i];
+        assert_true(p >= -1 && p < (int32_t)i);
+        off_seed += p < 0;
+        const float *q = p < 0 ? seed : c.twig_pos + 3 * (size_t)p;
+        double d2 = 0;
+        for (int k = 0; k < 3; k++) d2 += (double)(c.twig_pos[3 * i + k] - q[k]) * (c.twig_pos[3 * i + k] - q[k]);
+        length += sqrt(d2);
+    }
+    assert_int_equal(off_seed, 1);
+    double y = 0.5 + 2 * sqrt(0.4 * 0.4 + 0.5 * 0.5);
+    if (!(length > 0.9 * y && length < 1.2 * y)) fail_msg("twigs %.3f m long over a %.3f m Y", length, y);
+    float *first = malloc(c.n_twigs * 3 * sizeof *first);
+    memcpy(first, c.twig_pos, c.n_twigs * 3 * sizeof *first);
+    size_t n_first = c.n_twigs;
+    assert_int_equal(sy_clusters_trace_twigs(&cl, &s, xyz, &o, &r, &err), SY_OK);
+    assert_int_equal(c.n_twigs, n_first);
+    assert_memory_equal(c.twig_pos, first, n_first * 3 * sizeof *first);
+    o.max_nodes = 30;
+    assert_int_equal(sy_clusters_trace_twigs(&cl, &s, xyz, &o, &r, &err), SY_OK);
+    assert_true(r.voxel > o.voxel_min && c.n_twigs <= 30 && c.n_twigs >= 5);
+    o.max_nodes = 3; /* 1.78 m at 0.25 m voxels is still more than three */
+    assert_int_equal(sy_clusters_trace_twigs(&cl, &s, xyz, &o, &r, &err), SY_OK);
+    assert_int_equal(c.n_twigs, 0);
+    assert_true(r.voxel == 0);
+    sy_cluster_twigs_free(&c);
+    free(first), free(c.points), free(xyz);
+    sy_skeleton_free(&s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(traced_twigs_follow_the_returns),
         cmocka_unit_test(mesh_checks_detect_open_and_flipped),
         cmocka_unit_test(low_confidence_rule),
         cmocka_unit_test(alpha_shape_of_a_ball),

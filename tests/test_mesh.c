@@ -780,6 +780,60 @@ static void tip_children_of_grid_twigs_weld(void **state)
     assert_lod0_all_welded(&s, 3, "children at grid twigs' tips");
 }
 
+/* Twigs as a scan's returns trace them: zigzag chains (40 degrees a node,
+ * a voxel of 6 cm) of 2-9 mm radius with side twigs. Drawn lean (the lean
+ * radius of trees with traced twigs), they take under half the triangles,
+ * the bark stays closed and every branch is drawn, the thickest limb keeps
+ * its sides. */
+static void traced_twigs_are_drawn_lean(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_error err;
+    memset(&s, 0, sizeof s);
+    int32_t prev = -1;
+    for (int i = 0; i <= 8; i++) {
+        float p[3] = {0, 0, 0.3f * (float)i};
+        prev = sy_skeleton_add(&s, p, 0.05f - 0.004f * (float)i, prev, 0, 0, &err);
+    }
+    int32_t branch = 1;
+    for (int t = 0; t < 6; t++) {
+        double az = t * 1.047;
+        int32_t from = 3 + t % 5, node = from;
+        for (int i = 1; i <= 10; i++) {
+            double zig = (i % 2 ? 0.35 : -0.35);
+            float p[3] = {(float)(0.06 * i * cos(az + zig)), (float)(0.06 * i * sin(az + zig)),
+                          (float)(s.pos[3 * from + 2] + 0.03 * i)};
+            node = sy_skeleton_add(&s, p, 0.009f - 0.0007f * (float)i, node, 1, branch, &err);
+            if (i == 4 || i == 7) { /* a side twig of three nodes */
+                int32_t side = node;
+                for (int j = 1; j <= 3; j++) {
+                    float q[3] = {p[0] + (float)(0.05 * j * cos(az + 1.2)), p[1] + (float)(0.05 * j * sin(az + 1.2)),
+                                  p[2] + 0.02f * (float)j};
+                    side = sy_skeleton_add(&s, q, 0.004f - 0.0006f * (float)j, side, 2, branch + 1, &err);
+                }
+                branch += 1;
+            }
+        }
+        branch += 1;
+    }
+    size_t tris[2];
+    for (int lean = 0; lean < 2; lean++) {
+        sy_mesh_options o = sy_mesh_options_default();
+        o.impostor = 0, o.n_lods = 1, o.lod0_max_triangles = 0;
+        o.lean_radius = lean ? SY_MESH_LEAN_RADIUS : 0;
+        sy_asset a;
+        mesh_tree(&s, NULL, &o, &a);
+        check_mesh_basics_share(bark0(&a), WELD_FOLD_SHARE);
+        check_branches(&s, &a);
+        tris[lean] = lod_triangles(&a, &a.lods[0]);
+        sy_asset_free(&a);
+    }
+    printf("traced twigs: %zu triangles drawn as limbs, %zu lean\n", tris[0], tris[1]);
+    assert_true(tris[1] < tris[0] / 2);
+    sy_skeleton_free(&s);
+}
+
 /* Over its leaf budget LOD0 keeps a prefix of the seeded order, grown to
  * the same total leaf area; LOD1 halves that prefix. */
 static void leaf_budget_keeps_the_leaf_area(void **state)
@@ -1214,6 +1268,7 @@ int main(void)
         cmocka_unit_test(whorl_welds_as_a_band),
         cmocka_unit_test(crowded_and_tip_children_slide_to_weld),
         cmocka_unit_test(tip_children_of_grid_twigs_weld),
+        cmocka_unit_test(traced_twigs_are_drawn_lean),
         cmocka_unit_test(curved_branch_keeps_its_curve_at_every_level),
         cmocka_unit_test(random_tree_meets_every_property),
         cmocka_unit_test(leaf_budget_keeps_the_leaf_area),

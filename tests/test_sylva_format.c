@@ -232,7 +232,7 @@ static void version1_files_still_read(void **state)
     (void)state;
     size_t size;
     unsigned char *v2 = tiny_file(&size);
-    assert_int_equal(v2[4], 3);
+    assert_int_equal(v2[4], 4);
     /* Both branches follow the derived rule: each order is stored as 0. */
     assert_int_equal(v2[TINY_ORDERS_AT], 0);
     assert_int_equal(v2[TINY_ORDERS_AT + 1], 0);
@@ -240,10 +240,11 @@ static void version1_files_still_read(void **state)
     memcpy(v1, v2, TINY_ORDERS_AT);
     memcpy(v1 + TINY_ORDERS_AT, v2 + TINY_ORDERS_AT + TINY_BRANCHES, size - TINY_ORDERS_AT - TINY_BRANCHES);
     size_t size1 = size - TINY_BRANCHES;
-    /* Version 3's occupancy (0 0 0: none) before the checksum: version 1 has none. */
-    assert_int_equal(v1[size1 - 7] | v1[size1 - 6] | v1[size1 - 5], 0);
-    memmove(v1 + size1 - 7, v1 + size1 - 4, 4);
-    size1 -= 3;
+    /* Version 3's occupancy (0 0 0: none) and version 4's twig count (0)
+     * before the checksum: version 1 has neither. */
+    assert_int_equal(v1[size1 - 8] | v1[size1 - 7] | v1[size1 - 6] | v1[size1 - 5], 0);
+    memmove(v1 + size1 - 8, v1 + size1 - 4, 4);
+    size1 -= 4;
     v1[4] = 1;
     reseal(v1, size1);
     sy_skeleton a, b;
@@ -269,6 +270,84 @@ static void version1_files_still_read(void **state)
     assert_non_null(strstr(err.msg, "branch order"));
     free(v1);
     free(v2);
+}
+
+/* Version 4: a cluster's traced twigs come back on their grid (a quarter of
+ * their voxel) with the same parents, its occupancy derived from them in
+ * place of the bits it no longer stores, and re-encode to the same bytes;
+ * a parent link past the seed is refused. */
+static void twigs_round_trip(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_error err = {0};
+    assert_int_equal(sy_skeleton_init(&s, 0, &err), SY_OK);
+    float p0[3] = {0, 0, 0}, p1[3] = {0, 0, 1};
+    sy_skeleton_add(&s, p0, 0.1f, -1, 0, 0, &err);
+    sy_skeleton_add(&s, p1, 0.08f, 0, 0, 0, &err);
+    float v[12] = {-0.5f, -0.5f, 1, 0.5f, -0.5f, 1, -0.5f, 0.5f, 1, 0, 0, 2};
+    uint32_t tr[12] = {0, 2, 1, 0, 1, 3, 1, 2, 3, 0, 3, 2};
+    /* A fork: 0 -> 1 -> 2 on one arm, 3 off node 0, 4 off the seed. */
+    float tw[15] = {0.05f, 0, 1.1f, 0.1f, 0.01f, 1.2f, 0.15f, 0, 1.3f, -0.05f, 0.02f, 1.2f, 0, -0.1f, 1.05f};
+    int32_t par[5] = {-1, 0, 1, 0, -1};
+    uint8_t occ[1] = {0xff};
+    sy_cluster cc = {0};
+    cc.seed = 1, cc.verts = v, cc.n_verts = 4, cc.tris = tr, cc.n_tris = 4;
+    cc.occ_dims[0] = cc.occ_dims[1] = cc.occ_dims[2] = 2, cc.occupancy = occ;
+    cc.n_twigs = 5, cc.twig_pos = tw, cc.twig_parent = par, cc.twig_voxel = 0.04f;
+    sy_clusters cl = {1, &cc};
+    unsigned char *a, *b;
+    size_t na, nb;
+    assert_int_equal(sy_encode_mem(&s, &cl, 3, 99, NULL, &a, &na, &err), SY_OK);
+    assert_int_equal(a[4], 4);
+    sy_skeleton d;
+    sy_clusters dc;
+    sy_sylva_meta m;
+    assert_int_equal(sy_decode_mem("t.sylva", a, na, &d, &dc, &m, &err), SY_OK);
+    assert_int_equal(dc.n, 1);
+    const sy_cluster *c = &dc.items[0];
+    assert_int_equal(c->n_twigs, 5);
+    assert_memory_equal(c->twig_parent, par, sizeof par);
+    /* The grid: the largest power-of-two multiple of the position step
+     * under a quarter of the voxel; every node within half a cell a side. */
+    double cell = c->twig_voxel / 4;
+    assert_true(cell <= 0.01 + 1e-9 && cell > 0.005);
+    for (int i = 0; i < 15; i++) assert_float_equal(c->twig_pos[i], tw[i], 0.5 * cell + 1e-6);
+    /* The occupancy comes from the twigs: set where a node lies, nowhere else. */
+    assert_non_null(c->occupancy);
+    size_t cells = (size_t)c->occ_dims[0] * c->occ_dims[1] * c->occ_dims[2], set = 0;
+    for (size_t q = 0; q < cells; q++) set += (c->occupancy[q >> 3] >> (q & 7)) & 1;
+    assert_true(set >= 1 && set < cells);
+    assert_int_equal(sy_encode_mem(&d, &dc, 3, 99, NULL, &b, &nb, &err), SY_OK);
+    assert_int_equal(na, nb);
+    assert_memory_equal(a, b, na);
+    sy_skeleton_free(&d);
+    sy_clusters_free(&dc);
+    /* The same cluster without twigs or bits ends in its empty grid, a zero
+     * twig count and the checksum: with twigs, that count's byte is the
+     * twigs' (5), then their grid's shift and the first node's link (1: the
+     * seed). Made 2, the link reaches before the seed. */
+    cc.n_twigs = 0, cc.occupancy = NULL;
+    unsigned char *bare;
+    size_t nbare;
+    assert_int_equal(sy_encode_mem(&s, &cl, 3, 99, NULL, &bare, &nbare, &err), SY_OK);
+    size_t count_at = nbare - 5;
+    assert_int_equal(bare[count_at], 0);
+    assert_memory_equal(bare, a, count_at);
+    assert_int_equal(a[count_at], 5);
+    assert_int_equal(a[count_at + 2], 1);
+    free(bare);
+    unsigned char *bad = malloc(na);
+    memcpy(bad, a, na);
+    bad[count_at + 2] = 2;
+    reseal(bad, na);
+    sy_code rc = sy_decode_mem("bad.sylva", bad, na, &d, &dc, &m, &err);
+    assert_one_line_input_error(rc, &err, "bad.sylva");
+    assert_non_null(strstr(err.msg, "twig"));
+    free(bad);
+    free(a);
+    free(b);
+    sy_skeleton_free(&s);
 }
 
 /* rTwig's QSM: its segments run fork to fork, so rebuilding orders from
@@ -411,6 +490,7 @@ int main(void)
         cmocka_unit_test(damaged_files_fail_cleanly),
         cmocka_unit_test(encoder_rejects_bad_input),
         cmocka_unit_test(version1_files_still_read),
+        cmocka_unit_test(twigs_round_trip),
         cmocka_unit_test(qsm_branch_orders_round_trip),
         cmocka_unit_test(synthetic_tree_round_trips),
         cmocka_unit_test(real_trees_round_trip_under_40kB),

@@ -422,6 +422,61 @@ static void hidden_limbs_continue_the_seed_limb(void **state)
     sy_branchlets_free(&lib);
 }
 
+/* A lobe's traced twigs become its limbs off the seed: the same nodes, a
+ * little smoothed along their chain, radii by the pipe model (thinning to
+ * the tips, never above the seed's, never under the library's thinnest
+ * patch). A leaf-off tree keeps them as its only wood there, no patches and
+ * no leaves; a leafy one docks the species' patches on them. */
+static void traced_twigs_are_the_lobes_wood(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_clusters cl = {0};
+    make_tree(&s, &cl, 0.6, 0); /* a 1.2 m box above the trunk's end, node 10 at 4 m */
+    sy_cluster *c = &cl.items[0];
+    static const float tw[15] = {0, 0, 4.15f, 0, 0.02f, 4.35f, 0, 0, 4.55f, 0.25f, 0, 4.8f, -0.25f, 0, 4.8f};
+    static const int32_t par[5] = {-1, 0, 1, 2, 2};
+    c->n_twigs = 5;
+    c->twig_pos = malloc(sizeof tw), c->twig_parent = malloc(sizeof par);
+    memcpy(c->twig_pos, tw, sizeof tw), memcpy(c->twig_parent, par, sizeof par);
+    c->twig_voxel = 0.1f;
+    sy_branchlets lib;
+    sy_synth_options o = aspen_options(&lib);
+    double thinnest = INFINITY;
+    for (size_t i = 0; i < lib.n_patches; i++)
+        if (lib.patches[i].thickness > 0) thinnest = fmin(thinnest, lib.patches[i].thickness);
+    sy_skeleton out;
+    sy_leaves lv;
+    sy_synth_report rep;
+    sy_error err = {0};
+    o.bare = 1;
+    assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out, &lv, &rep, &err), SY_OK);
+    assert_int_equal(out.n, s.n + 5);
+    assert_int_equal(rep.patches, 0);
+    assert_int_equal(lv.n, 0);
+    for (int i = 0; i < 5; i++) {
+        size_t g = s.n + (size_t)i;
+        for (int k = 0; k < 3; k++) assert_float_equal(out.pos[3 * g + k], tw[3 * i + k], 0.05);
+        int32_t p = par[i] < 0 ? 10 : (int32_t)s.n + par[i];
+        assert_int_equal(out.parent[g], p);
+        assert_true(out.radius[g] <= out.radius[p] + 1e-7f);
+        assert_true(out.radius[g] >= thinnest - 1e-7);
+    }
+    /* The seed ends the trunk: the twigs' first node goes on in its branch,
+     * at the seed's radius (all of the lobe's nodes beyond it), the tips at
+     * sqrt(1/5) of it. */
+    assert_int_equal(out.branch[s.n], out.branch[10]);
+    assert_float_equal(out.radius[s.n], s.radius[10], 1e-6);
+    assert_float_equal(out.radius[s.n + 3], fmax(thinnest, s.radius[10] * sqrt(0.2)), 1e-6);
+    sy_skeleton_free(&out), sy_leaves_free(&lv);
+    o.bare = 0;
+    assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out, &lv, &rep, &err), SY_OK);
+    assert_true(rep.patches > 0 && lv.n > 0);
+    assert_true(out.n > s.n + 5);
+    sy_skeleton_free(&out), sy_leaves_free(&lv), sy_skeleton_free(&s), sy_clusters_free(&cl);
+    sy_branchlets_free(&lib);
+}
+
 /* Lobes tile a crown: a card's tip may reach from its own lobe into the
  * next one (the crown is the union of the hulls), while its stem stays in
  * its own. Held inside its own lobe, every card near the border turned
@@ -691,6 +746,7 @@ int main(void)
         cmocka_unit_test(grammar_errors_name_the_line),
         cmocka_unit_test(texturing_fills_the_lobe),
         cmocka_unit_test(hidden_limbs_continue_the_seed_limb),
+        cmocka_unit_test(traced_twigs_are_the_lobes_wood),
         cmocka_unit_test(leaf_area_follows_the_density),
         cmocka_unit_test(lobes_without_room_are_reported),
         cmocka_unit_test(lobes_smaller_than_a_patch_get_twigs),

@@ -98,7 +98,7 @@ static int compare(const char *species, uint64_t seed, const char *path)
     sy_decoded_tree dt;
     if (sy_read_file(path, &buf, &err)) rc = 2;
     else {
-        if (sy_decoded_tree_build(path, buf.data, buf.size, &sp, &dt, &err)) rc = 2;
+        if (sy_decoded_tree_build(path, buf.data, buf.size, &sp, 0, &dt, &err)) rc = 2;
         sy_buffer_free(&buf);
     }
     if (rc) fprintf(stderr, "%s\n", err.msg);
@@ -169,7 +169,7 @@ static int decode(const char *path, int reps)
     for (int r = 0; r < reps && !rc; r++) {
         sy_decoded_tree dt;
         double t0 = cpu_now();
-        if (sy_decoded_tree_build(path, buf.data, buf.size, have ? &sp : NULL, &dt, &err)) {
+        if (sy_decoded_tree_build(path, buf.data, buf.size, have ? &sp : NULL, 0, &dt, &err)) {
             fprintf(stderr, "%s\n", err.msg);
             rc = 2;
             break;
@@ -191,6 +191,7 @@ static int decode(const char *path, int reps)
         mo.impostor = 0;
         mo.seed = dt.meta.seed;
         mo.keep_leaf_order = 1;
+        mo.lean_radius = sy_decoded_tree_lean_radius(&dt);
         mo.bark_material = mo.leaf_material = -1;
         if (have) {
             mo.leaf_aspect = sp.leaf_scale_x;

@@ -22,6 +22,7 @@ void sy_clusters_free(sy_clusters *c)
         free(c->items[i].verts);
         free(c->items[i].tris);
         free(c->items[i].occupancy);
+        sy_cluster_twigs_free(&c->items[i]);
     }
     free(c->items);
     memset(c, 0, sizeof *c);

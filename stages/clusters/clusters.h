@@ -38,6 +38,13 @@ typedef struct {
      * falls in that cell (sy_cluster_occupancy). */
     uint8_t occ_dims[3];
     uint8_t *occupancy;  /* ceil(nx ny nz / 8) bytes or NULL */
+    /* The twigs its returns trace (sy_clusters_trace_twigs): n_twigs nodes
+     * in depth-first preorder from the seed, each a return of the lobe;
+     * twig_parent[i] < i, or -1 for a node hanging off the seed. */
+    size_t n_twigs;
+    float *twig_pos;      /* 3 * n_twigs, the skeleton's frame */
+    int32_t *twig_parent;
+    float twig_voxel;     /* the voxel the returns were thinned to, metres (0: no twigs) */
 } sy_cluster;
 
 typedef struct {
@@ -119,6 +126,8 @@ sy_code sy_hull_options_check(const sy_hull_options *o, sy_error *err);
 
 typedef struct {
     size_t alpha, convex, box; /* which hull each cluster got */
+    size_t twig_nodes;         /* traced twigs, when the caller traced them (sy_clusters_trace_twigs) */
+    double twig_voxel;         /* their voxel, metres */
     double seconds;
 } sy_hull_report;
 
@@ -133,8 +142,39 @@ sy_code sy_clusters_build_hulls(sy_clusters *cl, const float *xyz, const sy_hull
  * in its column is occupied too (what an airborne scanner cannot see under
  * the returns it got). */
 sy_code sy_cluster_occupancy(sy_cluster *c, const float *xyz, int cells, int from_above, sy_error *err);
+/* The same grid (8 cells along the longest side) from c's traced twigs, one
+ * return per voxel of its points: what a lobe with twigs stores instead of
+ * its bits (the .sylva keeps its twigs, which hold them). */
+sy_code sy_cluster_occupancy_of_twigs(sy_cluster *c, sy_error *err);
 /* Bytes of c's occupancy bits (0 without). */
 size_t sy_cluster_occupancy_bytes(const sy_cluster *c);
+
+/* ---- The twigs the returns trace (stages/clusters/twigs.c) ---- */
+
+typedef struct {
+    double voxel_min, voxel_max; /* the ladder of voxels tried, metres (0.02, 0.25) */
+    size_t max_nodes;            /* twig nodes over all lobes at most (0: no twigs) */
+} sy_twig_options;
+
+sy_twig_options sy_twig_options_default(void);
+/* SY_EUSAGE naming the field when a value is out of range. */
+sy_code sy_twig_options_check(const sy_twig_options *o, sy_error *err);
+
+typedef struct {
+    size_t nodes;
+    double voxel; /* metres; 0: no voxel of the ladder kept within max_nodes */
+    double seconds;
+} sy_twig_report;
+
+/* Each lobe's twigs: its points thinned to one return per voxel (the one
+ * nearest the voxel's mean) and joined, with its seed node on main, by
+ * their Euclidean minimum spanning tree rooted at the seed. One voxel for
+ * the whole tree, the finest of voxel_min * 1.25^k (up to voxel_max) whose
+ * voxels over all lobes number at most max_nodes; none fits: no twigs.
+ * Replaces any twigs the clusters had. report may be NULL. */
+sy_code sy_clusters_trace_twigs(sy_clusters *cl, const sy_skeleton *main, const float *xyz, const sy_twig_options *o,
+                                sy_twig_report *report, sy_error *err);
+void sy_cluster_twigs_free(sy_cluster *c);
 
 /* Splits the low-confidence groups of a cut (sy_clusters_cut's cluster_of /
  * seed_of over full) into lobes no longer than max_extent metres (largest

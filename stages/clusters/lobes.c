@@ -216,7 +216,10 @@ size_t sy_cluster_occupancy_bytes(const sy_cluster *c)
     return c->occupancy ? (n + 7) / 8 : 0;
 }
 
-sy_code sy_cluster_occupancy(sy_cluster *c, const float *xyz, int cells, int from_above, sy_error *err)
+/* The occupancy of c from n points of xyz: those listed in idx, or (idx
+ * NULL) the first n. */
+static sy_code occupancy_of(sy_cluster *c, const float *xyz, const uint32_t *idx, size_t n, int cells, int from_above,
+                            sy_error *err)
 {
     free(c->occupancy);
     c->occupancy = NULL;
@@ -235,8 +238,8 @@ sy_code sy_cluster_occupancy(sy_cluster *c, const float *xyz, int cells, int fro
     size_t nb = ((size_t)c->occ_dims[0] * c->occ_dims[1] * c->occ_dims[2] + 7) / 8;
     c->occupancy = sy_calloc(nb, 1, err, "occupancy");
     if (!c->occupancy) return SY_EINTERNAL;
-    for (size_t i = 0; i < c->n_points; i++) {
-        const float *p = xyz + 3 * (size_t)c->points[i];
+    for (size_t i = 0; i < n; i++) {
+        const float *p = xyz + 3 * (idx ? (size_t)idx[i] : i);
         int q[3];
         for (int k = 0; k < 3; k++) {
             double t = (p[k] - b[k]) / (b[3 + k] - b[k] > 0 ? b[3 + k] - b[k] : 1) * c->occ_dims[k];
@@ -252,4 +255,14 @@ sy_code sy_cluster_occupancy(sy_cluster *c, const float *xyz, int cells, int fro
         }
     }
     return SY_OK;
+}
+
+sy_code sy_cluster_occupancy(sy_cluster *c, const float *xyz, int cells, int from_above, sy_error *err)
+{
+    return occupancy_of(c, xyz, c->points, c->n_points, cells, from_above, err);
+}
+
+sy_code sy_cluster_occupancy_of_twigs(sy_cluster *c, sy_error *err)
+{
+    return occupancy_of(c, c->twig_pos, NULL, c->n_twigs, 8, 0, err);
 }

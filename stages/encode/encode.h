@@ -26,7 +26,7 @@ extern "C" {
 
 /* Written version; the decoder reads 1 (orders derived from branch starts)
  * and 2 (orders stored per branch); 3 adds each cluster's occupancy grid. */
-#define SY_SYLVA_VERSION 3
+#define SY_SYLVA_VERSION 4
 
 /* The quantisation grid of one file. */
 typedef struct {
@@ -54,9 +54,13 @@ sy_code sy_encode_write(const char *path, const sy_skeleton *skel, const sy_clus
                         uint64_t seed, sy_error *err);
 
 /* Triangles per cluster hull that keep a .sylva file of n_nodes skeleton
- * nodes and n_clusters hulls under its 40 kB target (Pirk 2013 Table 3.2),
- * in [16, 160]; the hull step (sy_hull_options.triangles) takes it. */
-int sy_sylva_hull_budget(size_t n_clusters, size_t n_nodes);
+ * nodes, n_clusters hulls and n_twigs traced twig nodes (all clusters with
+ * twigs, or none) under its 40 kB target (Pirk 2013 Table 3.2), in
+ * [16, 160]; the hull step (sy_hull_options.triangles) takes it. */
+int sy_sylva_hull_budget(size_t n_clusters, size_t n_nodes, size_t n_twigs);
+/* Traced twig nodes (sy_twig_options.max_nodes) such a file has room for
+ * beside hulls of 24 triangles, at most about 16 kB of them; 0: none. */
+size_t sy_sylva_twig_budget(size_t n_clusters, size_t n_nodes);
 
 /* Decodes a file image; path names it in messages. Every malformed,
  * truncated or corrupted input fails with one SY_EINPUT line naming path. */

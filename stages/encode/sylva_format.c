@@ -174,6 +174,17 @@ static int cmp_tri(const void *a, const void *b)
 /* Signed steps as varints: 0, -1, 1, -2, ... -> 0, 1, 2, 3, ... */
 static uint64_t zigzag(int32_t v) { return v < 0 ? ((uint64_t)(-(int64_t)v) << 1) - 1 : (uint64_t)v << 1; }
 static int64_t unzigzag(uint64_t u) { return u & 1 ? -(int64_t)(u >> 1) - 1 : (int64_t)(u >> 1); }
+static uint64_t zigzag64(int64_t v) { return v < 0 ? ((uint64_t)(-(v + 1)) << 1) | 1 : (uint64_t)v << 1; }
+
+/* Twig positions (version 4) lie on a grid of step * 2^shift, about a
+ * quarter of the voxel the returns were thinned to: a step of one voxel
+ * along a twig is a delta of about four, one byte a coordinate. */
+#define TWIG_MAX_SHIFT 40
+static int twig_shift(float voxel, double step)
+{
+    double s = floor(log2((double)voxel / 4 / step) + 1e-9);
+    return !(s > 0) ? 0 : s > TWIG_MAX_SHIFT ? TWIG_MAX_SHIFT : (int)s;
+}
 
 /* Breadth-first order from the root, children by index: order[new] = old. */
 static sy_code bfs(const sy_skeleton *s, int32_t *order, int32_t *newid, sy_error *err)
@@ -322,10 +333,51 @@ sy_code sy_encode_mem(const sy_skeleton *s, const sy_clusters *cl, uint16_t spec
             put_varint(&b, tri[3 * t + 2] - tri[3 * t]);
             prev = tri[3 * t];
         }
-        /* Version 3: the occupancy grid synthesis reads (dims 0 0 0: none). */
-        size_t ob = sy_cluster_occupancy_bytes(C);
+        /* Version 3: the occupancy grid synthesis reads (dims 0 0 0: none);
+         * version 4: none where the cluster has twigs, which hold it (a
+         * decoder derives it from them, sy_cluster_occupancy_of_twigs). */
+        size_t nt = C->twig_pos && C->twig_parent && C->twig_voxel > 0 ? C->n_twigs : 0;
+        size_t ob = nt ? 0 : sy_cluster_occupancy_bytes(C);
         for (int k = 0; k < 3; k++) put_u8(&b, ob ? C->occ_dims[k] : 0);
         if (ob) put(&b, C->occupancy, ob);
+        /* Version 4: the twigs its returns trace, each node as its parent
+         * link and its step from the parent (the seed: its own grid point)
+         * on the twig grid. */
+        put_varint(&b, nt);
+        if (nt) {
+            int sh = twig_shift(C->twig_voxel, step_of(&q));
+            double tq = ldexp(step_of(&q), sh);
+            put_u8(&b, (unsigned)sh);
+            int64_t *tw = sy_calloc(nt + 1, 3 * sizeof *tw, err, "encode");
+            if (!tw) {
+                rc = SY_EINTERNAL;
+                goto done;
+            }
+            uint16_t sq[3];
+            quant_pos(&q, s->pos + 3 * (size_t)C->seed, sq); /* on the grid: the node was written above */
+            for (int k = 0; k < 3; k++)
+                tw[3 * nt + k] = (int64_t)floor(((double)q.box_min[k] + sq[k]) / ldexp(1.0, sh) + 0.5);
+            for (size_t i = 0; i < nt && !rc; i++) {
+                int32_t p = C->twig_parent[i];
+                if (p < -1 || p >= (int32_t)i) {
+                    rc = sy_fail(err, SY_EINPUT, "encode: cluster %zu twig %zu has an invalid parent", c, i);
+                    break;
+                }
+                size_t pi = p < 0 ? nt : (size_t)p;
+                put_varint(&b, i - (size_t)p);
+                for (int k = 0; k < 3 && !rc; k++) {
+                    double t = floor((double)C->twig_pos[3 * i + k] / tq + 0.5);
+                    if (!(fabs(t) < (double)(1ll << 46))) {
+                        rc = sy_fail(err, SY_EINPUT, "encode: cluster %zu twig %zu lies outside the grid", c, i);
+                        break;
+                    }
+                    tw[3 * i + k] = (int64_t)t;
+                    put_varint(&b, zigzag64(tw[3 * i + k] - tw[3 * pi + k]));
+                }
+            }
+            free(tw);
+            if (rc) goto done;
+        }
     }
     if (!b.oom) put_le(&b, crc32(b.p, b.n), 4);
     if (b.oom) {
@@ -389,6 +441,59 @@ static uint64_t get_varint(rbuf *r)
 }
 
 static size_t left(const rbuf *r) { return r->n - r->at; }
+
+/* Cluster c's twigs (version 4), after its occupancy grid; s: the decoded
+ * skeleton its seed lies on. */
+static sy_code decode_twigs(const char *path, rbuf *r, const sy_sylva_quant *q, const sy_skeleton *s, size_t c,
+                            sy_cluster *C, sy_error *err)
+{
+    uint64_t nt = get_varint(r);
+    /* A node takes at least 4 bytes (its link and three steps). */
+    if (r->bad || nt > left(r) / 4 || nt > MAX_NODES)
+        return sy_fail(err, SY_EINPUT, "%s: cluster %zu has a bad twig count", path, c);
+    if (!nt) return SY_OK;
+    unsigned sh = (unsigned)get_le(r, 1);
+    if (r->bad || sh > TWIG_MAX_SHIFT) return sy_fail(err, SY_EINPUT, "%s: cluster %zu has a bad twig grid", path, c);
+    double st = step_of(q), tq = ldexp(st, (int)sh);
+    int64_t *tw = sy_calloc((size_t)nt + 1, 3 * sizeof *tw, err, "decode");
+    C->twig_pos = sy_calloc((size_t)nt, 3 * sizeof *C->twig_pos, err, "decode");
+    C->twig_parent = sy_calloc((size_t)nt, sizeof *C->twig_parent, err, "decode");
+    if (!tw || !C->twig_pos || !C->twig_parent) {
+        free(tw);
+        return SY_EINTERNAL;
+    }
+    C->n_twigs = (size_t)nt;
+    C->twig_voxel = (float)(4 * tq);
+    for (int k = 0; k < 3; k++) {
+        /* The seed's position, in steps, from its decoded float (exact: MAX_BOX). */
+        double g = floor((double)s->pos[3 * (size_t)C->seed + k] / st + 0.5);
+        tw[3 * nt + k] = (int64_t)floor(g / ldexp(1.0, (int)sh) + 0.5);
+    }
+    sy_code rc = SY_OK;
+    for (size_t i = 0; i < nt && !rc; i++) {
+        uint64_t link = get_varint(r);
+        if (r->bad || link == 0 || link > i + 1) {
+            rc = sy_fail(err, SY_EINPUT, "%s: cluster %zu twig %zu has an invalid parent", path, c, i);
+            break;
+        }
+        size_t pi = link == i + 1 ? (size_t)nt : i - (size_t)link;
+        C->twig_parent[i] = link == i + 1 ? -1 : (int32_t)pi;
+        for (int k = 0; k < 3; k++) {
+            int64_t d = unzigzag(get_varint(r)), v = tw[3 * pi + k] + d;
+            double x = (double)v * tq;
+            if (r->bad || d > (1ll << 46) || d < -(1ll << 46) ||
+                !(fabs(x - s->pos[k]) <= 2 * SY_SKELETON_MAX_SPAN)) {
+                rc = sy_fail(err, SY_EINPUT, "%s: cluster %zu twig %zu is truncated or lies more than %g m from the root",
+                             path, c, i, 2 * SY_SKELETON_MAX_SPAN);
+                break;
+            }
+            tw[3 * i + k] = v;
+            C->twig_pos[3 * i + k] = (float)x;
+        }
+    }
+    free(tw);
+    return rc;
+}
 
 sy_code sy_decode_mem(const char *path, const unsigned char *data, size_t size, sy_skeleton *s, sy_clusters *cl,
                       sy_sylva_meta *meta, sy_error *err)
@@ -555,6 +660,8 @@ sy_code sy_decode_mem(const char *path, const unsigned char *data, size_t size, 
                 for (size_t k = 0; k < ob; k++) C->occupancy[k] = (uint8_t)get_le(&r, 1);
             }
         }
+        if (version >= 4 && (rc = decode_twigs(path, &r, q, s, c, C, err))) goto fail;
+        if (C->n_twigs && !C->occupancy && (rc = sy_cluster_occupancy_of_twigs(C, err))) goto fail;
     }
     if (left(&r) != 0) {
         rc = sy_fail(err, SY_EINPUT, "%s: %zu unexpected bytes after the clusters", path, left(&r));
@@ -595,14 +702,33 @@ sy_code sy_decode_read(const char *path, sy_skeleton *skel, sy_clusters *cluster
     return rc;
 }
 
-/* 36 kB minus the skeleton (about 10 bytes a node) shared by the clusters at
- * about 6.5 bytes a triangle (half a 6-byte vertex plus ~3.5 index bytes):
- * what the layout in docs/sylva-format.md costs, measured on the samples. */
-int sy_sylva_hull_budget(size_t n_clusters, size_t n_nodes)
+/* What the layout in docs/sylva-format.md costs, measured on the samples and
+ * the real scans: about 10 bytes a skeleton node, 6.5 a hull triangle (half a
+ * 6-byte vertex plus ~3.5 index bytes), 70 an occupancy grid (8 x 8 x 8 bits
+ * at most), 4.1 a twig node. The file aims at 36 kB, under Pirk 2013's
+ * 40 kB. */
+#define BYTES_TARGET 36000.0
+#define BYTES_NODE 10.0
+#define BYTES_TRIANGLE 6.5
+#define BYTES_OCCUPANCY 70.0
+#define BYTES_TWIG 4.1
+#define TWIG_HULL_TRIANGLES 24 /* what each hull keeps beside twigs */
+#define TWIG_MAX_BYTES 16000.0
+
+size_t sy_sylva_twig_budget(size_t n_clusters, size_t n_nodes)
+{
+    double bytes = BYTES_TARGET - 64 - BYTES_NODE * (double)n_nodes -
+                   BYTES_TRIANGLE * TWIG_HULL_TRIANGLES * (double)n_clusters;
+    if (!n_clusters || !(bytes > 0)) return 0;
+    return (size_t)(fmin(bytes, TWIG_MAX_BYTES) / BYTES_TWIG);
+}
+
+int sy_sylva_hull_budget(size_t n_clusters, size_t n_nodes, size_t n_twigs)
 {
     if (n_clusters == 0) return 160;
-    /* 70 bytes a cluster go to its occupancy grid (8 x 8 x 8 bits at most). */
-    double bytes = 36000.0 - 64 - 10.0 * (double)n_nodes - 70.0 * (double)n_clusters;
-    double t = bytes / (6.5 * (double)n_clusters);
+    /* Clusters with twigs keep no occupancy bits: they are all or none. */
+    double bytes = BYTES_TARGET - 64 - BYTES_NODE * (double)n_nodes -
+                   (n_twigs ? BYTES_TWIG * (double)n_twigs : BYTES_OCCUPANCY * (double)n_clusters);
+    double t = bytes / (BYTES_TRIANGLE * (double)n_clusters);
     return t < 16 ? 16 : t > 160 ? 160 : (int)t;
 }

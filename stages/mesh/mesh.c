@@ -43,6 +43,8 @@ sy_code sy_mesh_options_check(const sy_mesh_options *o, sy_error *err)
         return sy_fail(err, SY_EUSAGE, "mesh: impostor_size %d outside [16, 4096]", o->impostor_size);
     if (!(o->min_radius >= 0) || !isfinite(o->min_radius))
         return sy_fail(err, SY_EUSAGE, "mesh: min_radius %g is not >= 0", o->min_radius);
+    if (!(o->lean_radius >= 0 && o->lean_radius <= 1))
+        return sy_fail(err, SY_EUSAGE, "mesh: lean_radius %g is not in [0, 1] m", o->lean_radius);
     if (!(o->leaf_aspect > 0) || !isfinite(o->leaf_aspect))
         return sy_fail(err, SY_EUSAGE, "mesh: leaf_aspect %g is not positive", o->leaf_aspect);
     return SY_OK;

@@ -29,6 +29,9 @@ extern "C" {
  * stages/eval/mesh_check.c). The stretch counts in the stem's length (wind,
  * leaves' places along it); at a coarser level whose budget drops those
  * children it stays: the tube ends two radii past its last node. */
+/* The lean radius (sy_mesh_options.lean_radius) of trees whose crowns are
+ * the twigs their scan's returns trace (sy_clusters_trace_twigs), metres. */
+#define SY_MESH_LEAN_RADIUS 0.02f
 #define SY_MESH_TIP_EXTENSION 2.0f
 
 /* Junctions per mesh level (optional output of sy_mesh_tree): children
@@ -58,6 +61,9 @@ typedef struct {
     int impostor_size;         /* impostor texture size in pixels (default 512) */
     float min_radius;          /* bark is drawn at least this thick, metres (default 1.5 mm):
                                   thinner twig tips would be sub-pixel slivers */
+    float lean_radius;         /* branches thinner than this at their base are drawn lean, those under
+                                  half of it with three sides (sy_stem_lean in mesh_internal.h),
+                                  metres (default 0: none; SY_MESH_LEAN_RADIUS for traced twigs) */
     float leaf_aspect;         /* leaf card width / length (default 0.6) */
     int leaf_shape;            /* Weber-Penn leafShape, picks the card outline (default 0) */
     uint64_t seed;             /* leaf pruning order */

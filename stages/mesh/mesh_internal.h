@@ -85,6 +85,7 @@ typedef struct {
     int has_geometry;    /* 0: fewer than two distinct points, or buried in its parent */
     int junction;        /* base ring is projected onto the parent's surface */
     int has_children;    /* some stem attaches to it: keeps at least 6 ring vertices */
+    int lean;            /* 1: drawn lean (sy_stem_lean), 2: and with three sides */
     /* Where the base ring lands on the parent (fit_on_parent in stems.c):
      * arc lengths fp_lo..fp_hi, azimuth fp_az +- fp_hw about the parent's
      * frame normal. */
@@ -139,6 +140,15 @@ typedef struct {
     int cap_rings;  /* intermediate rings of the tip hemisphere */
 } sy_lod_params;
 
+/* A lean branch (thinner at its base than sy_mesh_options.lean_radius,
+ * which trees whose crowns are the twigs their scan's returns trace set) is
+ * drawn with rings where it turns 30 degrees (not 10) and none for its taper
+ * alone, as few rings as a leaf-bearing twig, a cone for a tip, and no more
+ * ring vertices than its radius asks for (three under half the lean radius)
+ * even where children leave it. Such a crown holds thousands of twigs:
+ * drawn as limbs are, AdTree's tree1 took 190k triangles, over three times
+ * the LOD0 budget (docs/mesh.md, "Stop 36"). */
+static inline int sy_stem_lean(const sy_stem *s) { return s->lean != 0; }
 int sy_stem_radial(const sy_stem *s, const sy_lod_params *lp);
 /* Intermediate rings of the stem's tip hemisphere at this level. */
 int sy_stem_cap_rings(const sy_stem *s, const sy_lod_params *lp);

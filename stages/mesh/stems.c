@@ -18,6 +18,7 @@
 #define RINGS_PER_STEM 6
 #define TWIG_RINGS 2
 #define MAX_SUBDIV 64
+#define LEAN_MAX_TURN (30.0f * SY_PI / 180.0f) /* a lean branch's rings (sy_stem_lean) */
 /* Ring vertices of a lobed trunk at most (Lobes goes up to 64). */
 #define LOBED_MAX_RADIAL 64
 
@@ -319,15 +320,16 @@ static int sample_curve(sy_stem *s, const sy_mesh_options *opt, float ground)
     radius_slopes(s, chord, slope);
     /* A leaf-bearing twig bends as one piece: two steps give wind its joint
      * and keep the thousands of twigs of a crown inside the LOD0 budget. */
-    int rings = s->has_children || s->parent < 0 ? RINGS_PER_STEM : TWIG_RINGS;
+    int lean = sy_stem_lean(s);
+    int rings = (s->has_children || s->parent < 0) && !lean ? RINGS_PER_STEM : TWIG_RINGS;
     float spacing = opt->segment_length > 0 ? opt->segment_length : total / (float)rings;
     size_t count = 1;
     for (size_t i = 0; i + 1 < n; i++) {
         float c = sy_dot3(tan + 3 * i, tan + 3 * i + 3);
         float turn = acosf(c > 1 ? 1 : c < -1 ? -1 : c);
         float r0 = s->rad[i], r1 = s->rad[i + 1];
-        float k = fmaxf(ceilf(chord[i] / spacing), ceilf(turn / MAX_TURN));
-        k = fmaxf(k, ceilf(fabsf(r1 - r0) / (MAX_RADIUS_STEP * fmaxf(r0, r1))));
+        float k = fmaxf(ceilf(chord[i] / spacing), ceilf(turn / (lean ? LEAN_MAX_TURN : MAX_TURN)));
+        if (!lean) k = fmaxf(k, ceilf(fabsf(r1 - r0) / (MAX_RADIUS_STEP * fmaxf(r0, r1))));
         sub[i] = k < 1 ? 1 : k > MAX_SUBDIV ? MAX_SUBDIV : (int)k;
         count += (size_t)sub[i];
     }
@@ -779,6 +781,7 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
         int stretch = tip_stretch(s, tip_child[st->by_depth[o]], tip_dir, &tip_ext);
         s->r_base = s->rad[0];
         s->r_tip = s->rad[s->n_pts - 1];
+        s->lean = s->parent < 0 || !(s->r_base < opt->lean_radius) ? 0 : s->r_base < 0.5f * opt->lean_radius ? 2 : 1;
         if (s->parent >= 0) {
             s->attach_s = st->node_s[s->attach_node];
             if (reattach_buried(st, s))

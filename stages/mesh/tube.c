@@ -16,7 +16,8 @@
 
 int sy_stem_radial(const sy_stem *s, const sy_lod_params *lp)
 {
-    int p = s->radial >> lp->level, lo = s->has_children ? PARENT_MIN_RADIAL : 3;
+    int p = s->radial >> lp->level, lo = s->has_children && !sy_stem_lean(s) ? PARENT_MIN_RADIAL : 3;
+    if (s->lean == 2) p = 3;
     return p < lo ? lo : p;
 }
 
@@ -24,7 +25,7 @@ int sy_stem_radial(const sy_stem *s, const sy_lod_params *lp)
  * millimetres across. */
 int sy_stem_cap_rings(const sy_stem *s, const sy_lod_params *lp)
 {
-    return s->has_children || s->parent < 0 ? lp->cap_rings : 0;
+    return (s->has_children || s->parent < 0) && !sy_stem_lean(s) ? lp->cap_rings : 0;
 }
 
 /* A coarser level skips LOD0 rings, but never so many that the tube turns

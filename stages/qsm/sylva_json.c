@@ -47,6 +47,16 @@ static void write_cluster(sy_json *j, FILE *fp, const sy_cluster *c, const doubl
             free(hex);
         }
     }
+    if (c->n_twigs) {
+        /* x y z parent per node, parent -1: the seed (docs/sylva-format.md). */
+        sy_json_number(j, "twig_voxel", c->twig_voxel);
+        sy_json_array(j, "twigs");
+        for (size_t i = 0; i < c->n_twigs; i++) {
+            for (int k = 0; k < 3; k++) sy_json_number(j, NULL, origin[k] + (double)c->twig_pos[3 * i + k]);
+            sy_json_int(j, NULL, c->twig_parent[i]);
+        }
+        sy_json_end(j);
+    }
     sy_json_end(j);
 }
 
@@ -138,6 +148,35 @@ static int hull_kind(const char *name)
     return -1;
 }
 
+/* The cluster's traced twigs, if it lists any: x y z parent per node. */
+static sy_code read_twigs(const char *path, const sy_jv *o, const char *where, const sy_skeleton *s, sy_cluster *c,
+                          sy_error *err)
+{
+    const sy_jv *tw = sy_jv_get(o, "twigs"), *vox = sy_jv_get(o, "twig_voxel");
+    double v;
+    if (!tw && !vox) return SY_OK;
+    if (!tw || tw->type != SY_JV_ARRAY || tw->len % 4 || !tw->len)
+        return fail_at(err, path, tw ? tw : o, where, "'twigs' must be x y z parent quadruples beside 'twig_voxel'");
+    if (!vox || !sy_jv_number(vox, &v) || !(v > 0) || v > 1e3)
+        return fail_at(err, path, vox ? vox : o, where, "'twig_voxel' must be a size in metres, > 0");
+    c->twig_voxel = (float)v;
+    c->n_twigs = tw->len / 4;
+    c->twig_pos = sy_calloc(c->n_twigs, 3 * sizeof *c->twig_pos, err, "twigs");
+    c->twig_parent = sy_calloc(c->n_twigs, sizeof *c->twig_parent, err, "twigs");
+    if (!c->twig_pos || !c->twig_parent) return SY_EINTERNAL;
+    for (size_t i = 0; i < c->n_twigs; i++) {
+        for (int k = 0; k < 3; k++) {
+            if (!sy_jv_number(&tw->items[4 * i + k], &v) || fabs(v - s->origin[k]) > 1e6)
+                return fail_at(err, path, &tw->items[4 * i + k], where, "a twig coordinate is not a number within 1000 km");
+            c->twig_pos[3 * i + k] = (float)(v - s->origin[k]);
+        }
+        if (!whole_in(&tw->items[4 * i + 3], -1, (double)i - 1, &v))
+            return fail_at(err, path, &tw->items[4 * i + 3], where, "a twig's parent must be -1 (the seed) or an earlier twig");
+        c->twig_parent[i] = (int32_t)v;
+    }
+    return SY_OK;
+}
+
 /* One cluster object into c (zeroed by the caller). */
 static sy_code read_cluster(const char *path, const sy_jv *o, size_t index, const sy_skeleton *s, sy_cluster *c,
                             sy_error *err)
@@ -175,8 +214,10 @@ static sy_code read_cluster(const char *path, const sy_jv *o, size_t index, cons
             return fail_at(err, path, &tris->items[i], where, "a triangle index is not a vertex of this hull");
         c->tris[i] = (uint32_t)v;
     }
+    sy_code rc = read_twigs(path, o, where, s, c, err);
+    if (rc) return rc;
     const sy_jv *od = sy_jv_get(o, "occupancy_dims"), *occ = sy_jv_get(o, "occupancy");
-    if (!od && !occ) return SY_OK;
+    if (!od && !occ) return c->n_twigs ? sy_cluster_occupancy_of_twigs(c, err) : SY_OK;
     if (!od || od->type != SY_JV_ARRAY || od->len != 3)
         return fail_at(err, path, od ? od : o, where, "'occupancy_dims' must be 3 cell counts 1..8 beside 'occupancy'");
     uint8_t d[3];

@@ -45,6 +45,8 @@ typedef struct {
     float down_angle[2], down_angle_v[2]; /* the species' DownAngle and its variation, levels 1 and 2, degrees:
                                              the angles the hidden limbs branch at (0: 25 to 90) */
     int literal_eq33;       /* 1: eq. 3.3 as printed, max/min thickness ratio x (v_r . v_d), minimised */
+    int bare;               /* 1: a leaf-off tree: a lobe with traced twigs (sy_cluster.n_twigs) gets no
+                               patches, its twigs are its wood (0) */
 } sy_synth_options;
 
 /* What happened to a lobe that got no patch (sy_synth_report.bare_reason), as a phrase. */

@@ -1,0 +1,263 @@
+/* The twigs a lobe's returns trace: the lobe's points thinned to one return
+ * per voxel and joined, with the seed node, by their Euclidean minimum
+ * spanning tree (Prim), rooted at the seed. Where the returns are wood (a
+ * leaf-off crown, the fine twigs the level sets mix), the tree runs along
+ * them: AdTree (Du et al. 2019) draws its branches through every return the
+ * same way, from a spanning tree of the points. The skeleton's level sets
+ * mix several twigs into one node (the cut's mean distances in these crowns
+ * are 2-13 cm on limbs of 0.5-5.6 cm radius), so the main skeleton cannot
+ * keep them; this keeps them at the voxel the .sylva budget allows.
+ * Deterministic: voxels and ties by index, any thread count. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "clusters.h"
+#include "stages/core/parallel.h"
+#include "stages/core/progress.h"
+#include "stages/core/sort.h"
+
+#define VOXEL_BITS 14 /* per axis, from the lobe's lowest corner */
+#define INDEX_BITS 22 /* a lobe's point, in the key's low bits */
+#define VOXEL_STEP 1.25 /* the ladder of voxel sizes tried */
+
+sy_twig_options sy_twig_options_default(void)
+{
+    sy_twig_options o;
+    memset(&o, 0, sizeof o);
+    o.voxel_min = 0.02;
+    o.voxel_max = 0.25;
+    o.max_nodes = 0;
+    return o;
+}
+
+sy_code sy_twig_options_check(const sy_twig_options *o, sy_error *err)
+{
+    if (!(o->voxel_min > 0) || !isfinite(o->voxel_min))
+        return sy_fail(err, SY_EUSAGE, "clusters: twig voxel_min %g must be > 0", o->voxel_min);
+    if (!(o->voxel_max >= o->voxel_min) || !isfinite(o->voxel_max))
+        return sy_fail(err, SY_EUSAGE, "clusters: twig voxel_max %g must be >= voxel_min %g", o->voxel_max,
+                       o->voxel_min);
+    return SY_OK;
+}
+
+/* The lobe's points sorted by voxel of size v: keys (voxel << INDEX_BITS |
+ * the point's place in the lobe's list), written to key (n entries). 0 when
+ * the lobe spans more voxels than the key holds or has more points than
+ * its index bits. */
+static int voxel_keys(const sy_cluster *c, const float *xyz, double v, uint64_t *key)
+{
+    if (c->n_points >= (1u << INDEX_BITS)) return 0;
+    double lo[3] = {INFINITY, INFINITY, INFINITY};
+    for (size_t i = 0; i < c->n_points; i++)
+        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], xyz[3 * (size_t)c->points[i] + k]);
+    for (size_t i = 0; i < c->n_points; i++) {
+        const float *p = xyz + 3 * (size_t)c->points[i];
+        uint64_t q = 0;
+        for (int k = 2; k >= 0; k--) {
+            double t = floor((p[k] - lo[k]) / v);
+            if (!(t >= 0) || t >= (double)(1u << VOXEL_BITS)) return 0;
+            q = q << VOXEL_BITS | (uint64_t)t;
+        }
+        key[i] = q << INDEX_BITS | i;
+    }
+    qsort(key, c->n_points, sizeof *key, sy_cmp_u64);
+    return 1;
+}
+
+/* Distinct voxels of size v over the lobe (SIZE_MAX when v is too fine). */
+static size_t count_voxels(const sy_cluster *c, const float *xyz, double v, uint64_t *key)
+{
+    if (!c->n_points) return 0;
+    if (!voxel_keys(c, xyz, v, key)) return SIZE_MAX;
+    size_t m = 1;
+    for (size_t i = 1; i < c->n_points; i++) m += key[i] >> INDEX_BITS != key[i - 1] >> INDEX_BITS;
+    return m;
+}
+
+typedef struct {
+    const sy_clusters *cl;
+    const sy_skeleton *main;
+    const float *xyz;
+    double v;
+    size_t *count; /* per lobe */
+    sy_code *rc;
+    sy_error *err;
+} twig_job;
+
+static void count_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
+{
+    (void)chunk;
+    twig_job *J = ctx;
+    for (size_t c = begin; c < end; c++) {
+        const sy_cluster *C = &J->cl->items[c];
+        uint64_t *key = malloc((C->n_points + 1) * sizeof *key);
+        J->count[c] = key ? count_voxels(C, J->xyz, J->v, key) : SIZE_MAX;
+        free(key);
+    }
+}
+
+static double dist2(const float *a, const float *b)
+{
+    double d = 0;
+    for (int k = 0; k < 3; k++) d += (double)(a[k] - b[k]) * (a[k] - b[k]);
+    return d;
+}
+
+/* Lobe c's twigs at voxel v: per voxel the return nearest the mean of its
+ * returns (ties: the lower index), then Prim's spanning tree from the
+ * seed, written in depth-first preorder (children by index) so that a
+ * node's parent comes before it. */
+static sy_code trace_lobe(sy_cluster *C, const float seed[3], const float *xyz, double v, sy_error *err)
+{
+    size_t n = C->n_points;
+    uint64_t *key = malloc((n + 1) * sizeof *key);
+    float *rep = malloc((n + 1) * 3 * sizeof *rep);
+    if (!key || !rep) {
+        free(key), free(rep);
+        return sy_fail(err, SY_EINTERNAL, "clusters: out of memory tracing twigs");
+    }
+    size_t m = 0;
+    if (n && voxel_keys(C, xyz, v, key))
+        for (size_t a = 0; a < n;) {
+            size_t b = a;
+            double mean[3] = {0, 0, 0};
+            while (b < n && key[b] >> INDEX_BITS == key[a] >> INDEX_BITS) {
+                const float *p = xyz + 3 * (size_t)C->points[key[b] & ((1u << INDEX_BITS) - 1)];
+                for (int k = 0; k < 3; k++) mean[k] += p[k];
+                b++;
+            }
+            const float mf[3] = {(float)(mean[0] / (double)(b - a)), (float)(mean[1] / (double)(b - a)),
+                                 (float)(mean[2] / (double)(b - a))};
+            double best = INFINITY;
+            size_t bi = 0;
+            for (size_t i = a; i < b; i++) {
+                size_t li = key[i] & ((1u << INDEX_BITS) - 1);
+                double d = dist2(xyz + 3 * (size_t)C->points[li], mf);
+                if (d < best || (d == best && li < bi)) best = d, bi = li;
+            }
+            memcpy(rep + 3 * m++, xyz + 3 * (size_t)C->points[bi], 3 * sizeof *rep);
+            a = b;
+        }
+    free(key);
+    /* Prim over the m representatives and the seed (index m). */
+    double *best = malloc((m + 1) * sizeof *best);
+    int32_t *from = malloc((m + 1) * sizeof *from), *first = malloc((m + 1) * sizeof *first),
+            *next = malloc((m + 1) * sizeof *next), *stack = malloc((m + 1) * sizeof *stack),
+            *place = malloc((m + 1) * sizeof *place);
+    uint8_t *done = calloc(m + 1, 1);
+    C->twig_pos = m ? malloc(m * 3 * sizeof *C->twig_pos) : NULL;
+    C->twig_parent = m ? malloc(m * sizeof *C->twig_parent) : NULL;
+    if (!best || !from || !first || !next || !stack || !place || !done || (m && (!C->twig_pos || !C->twig_parent))) {
+        free(rep), free(best), free(from), free(first), free(next), free(stack), free(place), free(done);
+        return sy_fail(err, SY_EINTERNAL, "clusters: out of memory tracing twigs");
+    }
+    for (size_t i = 0; i < m; i++) best[i] = dist2(rep + 3 * i, seed), from[i] = (int32_t)m;
+    done[m] = 1;
+    for (size_t i = 0; i <= m; i++) first[i] = -1;
+    for (size_t step = 0; step < m; step++) {
+        size_t j = m;
+        for (size_t i = 0; i < m; i++)
+            if (!done[i] && (j == m || best[i] < best[j])) j = i;
+        done[j] = 1;
+        for (size_t i = 0; i < m; i++) {
+            if (done[i]) continue;
+            double d = dist2(rep + 3 * i, rep + 3 * j);
+            if (d < best[i]) best[i] = d, from[i] = (int32_t)j;
+        }
+    }
+    /* Children lists in ascending index; each run pushed on the stack is
+     * reversed so that it pops in that order: preorder from the seed. */
+    for (size_t i = m; i-- > 0;) next[i] = first[from[i]], first[from[i]] = (int32_t)i;
+    size_t top = 0, out = 0;
+    for (int32_t c = first[m]; c >= 0; c = next[c]) stack[top++] = c;
+    for (size_t a = 0, b = top; a + 1 < b; a++, b--) {
+        int32_t t = stack[a];
+        stack[a] = stack[b - 1], stack[b - 1] = t;
+    }
+    while (top) {
+        int32_t j = stack[--top];
+        place[j] = (int32_t)out;
+        memcpy(C->twig_pos + 3 * out, rep + 3 * (size_t)j, 3 * sizeof *rep);
+        C->twig_parent[out] = from[j] == (int32_t)m ? -1 : place[from[j]];
+        out++;
+        size_t run = top;
+        for (int32_t c = first[j]; c >= 0; c = next[c]) stack[top++] = c;
+        for (size_t a = run, b = top; a + 1 < b; a++, b--) {
+            int32_t t = stack[a];
+            stack[a] = stack[b - 1], stack[b - 1] = t;
+        }
+    }
+    C->n_twigs = out;
+    C->twig_voxel = (float)v;
+    free(rep), free(best), free(from), free(first), free(next), free(stack), free(place), free(done);
+    return SY_OK;
+}
+
+static void trace_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
+{
+    (void)chunk;
+    twig_job *J = ctx;
+    for (size_t c = begin; c < end; c++) {
+        sy_cluster *C = &((sy_clusters *)J->cl)->items[c];
+        J->rc[c] = trace_lobe(C, J->main->pos + 3 * (size_t)C->seed, J->xyz, J->v, &J->err[c]);
+    }
+}
+
+void sy_cluster_twigs_free(sy_cluster *c)
+{
+    free(c->twig_pos), free(c->twig_parent);
+    c->twig_pos = NULL, c->twig_parent = NULL;
+    c->n_twigs = 0;
+    c->twig_voxel = 0;
+}
+
+sy_code sy_clusters_trace_twigs(sy_clusters *cl, const sy_skeleton *main, const float *xyz, const sy_twig_options *o,
+                                sy_twig_report *report, sy_error *err)
+{
+    sy_twig_report local;
+    if (!report) report = &local;
+    memset(report, 0, sizeof *report);
+    sy_code rc = sy_twig_options_check(o, err);
+    if (rc) return rc;
+    double t0 = sy_now();
+    for (size_t c = 0; c < cl->n; c++) sy_cluster_twigs_free(&cl->items[c]);
+    if (!cl->n || !o->max_nodes) return SY_OK;
+    twig_job J = {cl, main, xyz, 0, sy_calloc(cl->n, sizeof *J.count, err, "twigs"),
+                  sy_calloc(cl->n, sizeof *J.rc, err, "twigs"), sy_calloc(cl->n, sizeof *J.err, err, "twigs")};
+    if (!J.count || !J.rc || !J.err) {
+        free(J.count), free(J.rc), free(J.err);
+        return SY_EINTERNAL;
+    }
+    /* The finest voxel of the ladder voxel_min * 1.25^k whose voxels over
+     * all lobes stay within the budget (counts fall as voxels grow). */
+    int steps = (int)floor(log(o->voxel_max / o->voxel_min) / log(VOXEL_STEP) + 1e-9);
+    int lo = 0, hi = steps + 1; /* hi: none fits yet */
+    while (lo < hi) {
+        int k = (lo + hi) / 2;
+        J.v = o->voxel_min * pow(VOXEL_STEP, k);
+        sy_parallel_for(cl->n, 1, count_chunk, &J);
+        size_t total = 0;
+        for (size_t c = 0; c < cl->n && total <= o->max_nodes; c++)
+            total = J.count[c] == SIZE_MAX ? SIZE_MAX : total + J.count[c];
+        if (total <= o->max_nodes) hi = k;
+        else lo = k + 1;
+    }
+    if (lo <= steps) {
+        J.v = o->voxel_min * pow(VOXEL_STEP, lo);
+        sy_parallel_for(cl->n, 1, trace_chunk, &J);
+        for (size_t c = 0; c < cl->n; c++) {
+            if (!rc && J.rc[c]) {
+                rc = J.rc[c];
+                if (err) *err = J.err[c];
+            }
+            report->nodes += cl->items[c].n_twigs;
+        }
+        report->voxel = J.v;
+    }
+    free(J.count), free(J.rc), free(J.err);
+    if (rc)
+        for (size_t c = 0; c < cl->n; c++) sy_cluster_twigs_free(&cl->items[c]);
+    report->seconds = sy_now() - t0;
+    return rc;
+}
