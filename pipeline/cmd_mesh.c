@@ -125,7 +125,7 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
     const sy_opt opts[] = {
         {"-o", OPT_STRING, &out_path, "OUT.glb", "output glTF binary"},
         {"--species", OPT_STRING, &species_name, "NAME", "bark, leaf material and leaves of a library species (or an .ini)"},
-        {"--no-leaves", OPT_FLAG, &no_leaves, NULL, "no leaf cards (with --species: its materials only)"},
+        {"--no-leaves", OPT_FLAG, &no_leaves, NULL, "no leaf cards (with --species: its materials only); a .sylva lobe with traced twigs keeps them as its wood"},
         {"--leaf-density", OPT_DOUBLE, &leaf_density, "N", "leaves per metre of twig (default: from the species, else " DEFAULT_LEAVES "'s)"},
         {"--tree", OPT_INT, &tree_index, "I", "which tree of a truth file with several (0-based)"},
         {"--proxy", OPT_FLAG, &proxy, NULL, ".sylva: also draw the lobe hulls as the semi-transparent foliage_proxy mesh"},

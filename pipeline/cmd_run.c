@@ -109,7 +109,7 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
          "library species: its beta/gamma, branchlets, bark and leaf materials (default: the classifier's answer,\n"
          "else default.lsys and plain materials)"},
         {"--proxy", OPT_FLAG, &a.run.proxy, NULL, "also draw the lobe hulls as a semi-transparent foliage_proxy mesh"},
-        {"--leaf-off", OPT_FLAG, &a.run.leaf_off, NULL, "a leaf-off scan (bare branches): the synthesised branches without leaf cards"},
+        {"--leaf-off", OPT_FLAG, &a.run.leaf_off, NULL, "a leaf-off scan (bare branches): lobes with traced twigs keep them as their wood, no leaf cards"},
         {"--lobe-size", OPT_DOUBLE, &a.run.lobe_size, "F",
          "largest lobe as a share of the tree's extent, in [0,1]; 0: one cluster per cut (default 0.1)"},
         {"--model", OPT_STRING, &a.run.model, "MODEL.sjb", "species classifier used without --species (default: the shipped one)"},

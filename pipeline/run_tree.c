@@ -476,7 +476,7 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
         ao.lean_radius = sy_decoded_tree_lean_radius(&dt);
         ao.source = name;
         ao.source_format = "scan";
-        /* A leaf-off scan: the synthesised branches without their cards. */
+        /* A leaf-off scan: its traced twigs and branches without cards. */
         rc = sy_tree_asset_glb(&dt.grown, o->leaf_off ? NULL : &dt.leaves, sp, &ao, name, &r->glb, &r->glb_size,
                                &r->asset, err);
     }

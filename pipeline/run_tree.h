@@ -46,8 +46,9 @@ typedef struct {
                             NAN: the skeleton's default (sy_skeleton_options.return_cap) */
     int sylva;           /* 1: also keep the .sylva file (result->sylva); the asset is always made from it */
     int proxy;           /* 1: also draw the lobe hulls as the semi-transparent foliage_proxy mesh (0) */
-    int leaf_off;        /* 1: a leaf-off scan: synthesised branches without leaf cards (0); the .sylva is
-                            the same, `sylva mesh OUT.sylva --no-leaves` gives the same asset */
+    int leaf_off;        /* 1: a leaf-off scan: no leaf cards, and lobes with traced twigs keep them as
+                            their wood without patches (0); the .sylva is the same, `sylva mesh OUT.sylva
+                            --no-leaves` gives the same asset */
     double lobe_size;    /* largest lobe as a share of the tree's extent, [0, 1] (0.25; 0: one cluster a cut) */
     int classify;        /* 1: without a species, the classifier names one from the cleaned cloud and a
                             confident answer's parameters and materials are used (1) */

@@ -375,11 +375,32 @@ static void traced_twigs_follow_the_returns(void **state)
     double y = 0.5 + 2 * sqrt(0.4 * 0.4 + 0.5 * 0.5);
     if (!(length > 0.9 * y && length < 1.2 * y)) fail_msg("twigs %.3f m long over a %.3f m Y", length, y);
     float *first = malloc(c.n_twigs * 3 * sizeof *first);
+    int32_t *first_parent = malloc(c.n_twigs * sizeof *first_parent);
     memcpy(first, c.twig_pos, c.n_twigs * 3 * sizeof *first);
+    memcpy(first_parent, c.twig_parent, c.n_twigs * sizeof *first_parent);
     size_t n_first = c.n_twigs;
     assert_int_equal(sy_clusters_trace_twigs(&cl, &s, xyz, &o, &r, &err), SY_OK);
     assert_int_equal(c.n_twigs, n_first);
     assert_memory_equal(c.twig_pos, first, n_first * 3 * sizeof *first);
+    assert_memory_equal(c.twig_parent, first_parent, n_first * sizeof *first_parent);
+    /* Beside an empty lobe and a one-point lobe, sharing the budget: those
+     * get none and one (off the seed); the Y keeps its twigs. */
+    sy_cluster three[3] = {c, {0}, {0}};
+    uint32_t one = 5;
+    three[1].seed = three[2].seed = 1;
+    three[2].points = &one, three[2].n_points = 1;
+    sy_clusters cl3 = {3, three};
+    assert_int_equal(sy_clusters_trace_twigs(&cl3, &s, xyz, &o, &r, &err), SY_OK);
+    assert_int_equal(three[0].n_twigs, n_first);
+    assert_int_equal(three[1].n_twigs, 0);
+    assert_true(three[1].twig_voxel == 0);
+    assert_int_equal(three[2].n_twigs, 1);
+    assert_int_equal(three[2].twig_parent[0], -1);
+    assert_memory_equal(three[2].twig_pos, xyz + 15, 3 * sizeof *xyz);
+    assert_int_equal(r.nodes, n_first + 1);
+    c = three[0];
+    sy_cluster_twigs_free(&three[2]);
+    free(first_parent);
     o.max_nodes = 30;
     assert_int_equal(sy_clusters_trace_twigs(&cl, &s, xyz, &o, &r, &err), SY_OK);
     assert_true(r.voxel > o.voxel_min && c.n_twigs <= 30 && c.n_twigs >= 5);

@@ -799,23 +799,22 @@ static void traced_twigs_are_drawn_lean(void **state)
     int32_t branch = 1;
     for (int t = 0; t < 6; t++) {
         double az = t * 1.047;
-        int32_t from = 3 + t % 5, node = from;
+        int32_t from = 3 + t % 5, node = from, twig = branch++;
+        float r0 = t % 2 ? 0.016f : 0.009f; /* half of them lean (1 cm and more), half three-sided */
         for (int i = 1; i <= 10; i++) {
             double zig = (i % 2 ? 0.35 : -0.35);
             float p[3] = {(float)(0.06 * i * cos(az + zig)), (float)(0.06 * i * sin(az + zig)),
                           (float)(s.pos[3 * from + 2] + 0.03 * i)};
-            node = sy_skeleton_add(&s, p, 0.009f - 0.0007f * (float)i, node, 1, branch, &err);
+            node = sy_skeleton_add(&s, p, r0 * (1 - 0.07f * (float)i), node, 1, twig, &err);
             if (i == 4 || i == 7) { /* a side twig of three nodes */
-                int32_t side = node;
+                int32_t side = node, id = branch++;
                 for (int j = 1; j <= 3; j++) {
                     float q[3] = {p[0] + (float)(0.05 * j * cos(az + 1.2)), p[1] + (float)(0.05 * j * sin(az + 1.2)),
                                   p[2] + 0.02f * (float)j};
-                    side = sy_skeleton_add(&s, q, 0.004f - 0.0006f * (float)j, side, 2, branch + 1, &err);
+                    side = sy_skeleton_add(&s, q, 0.004f - 0.0006f * (float)j, side, 2, id, &err);
                 }
-                branch += 1;
             }
         }
-        branch += 1;
     }
     size_t tris[2];
     for (int lean = 0; lean < 2; lean++) {

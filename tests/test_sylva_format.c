@@ -313,10 +313,29 @@ static void twigs_round_trip(void **state)
     double cell = c->twig_voxel / 4;
     assert_true(cell <= 0.01 + 1e-9 && cell > 0.005);
     for (int i = 0; i < 15; i++) assert_float_equal(c->twig_pos[i], tw[i], 0.5 * cell + 1e-6);
-    /* The occupancy comes from the twigs: set where a node lies, nowhere else. */
+    /* The occupancy comes from the twigs: set in every node's own cell, and
+     * not in a cell more than a voxel from every node. */
     assert_non_null(c->occupancy);
     size_t cells = (size_t)c->occ_dims[0] * c->occ_dims[1] * c->occ_dims[2], set = 0;
-    for (size_t q = 0; q < cells; q++) set += (c->occupancy[q >> 3] >> (q & 7)) & 1;
+    float lo[3] = {-0.5f, -0.5f, 1}, hi[3] = {0.5f, 0.5f, 2};
+    for (int z = 0; z < c->occ_dims[2]; z++)
+        for (int y = 0; y < c->occ_dims[1]; y++)
+            for (int x = 0; x < c->occ_dims[0]; x++) {
+                size_t q = (size_t)x + c->occ_dims[0] * ((size_t)y + c->occ_dims[1] * (size_t)z);
+                int bit = (c->occupancy[q >> 3] >> (q & 7)) & 1, idx[3] = {x, y, z}, holds = 0, near = 0;
+                set += bit;
+                for (int i = 0; i < 5; i++) {
+                    int in = 1, close = 1;
+                    for (int k = 0; k < 3; k++) {
+                        double w = (hi[k] - lo[k]) / c->occ_dims[k], a = lo[k] + idx[k] * w, p = c->twig_pos[3 * i + k];
+                        in &= p >= a && p < a + w;
+                        close &= p >= a - c->twig_voxel && p <= a + w + c->twig_voxel;
+                    }
+                    holds |= in, near |= close;
+                }
+                if (holds) assert_true(bit);
+                if (!near) assert_false(bit);
+            }
     assert_true(set >= 1 && set < cells);
     assert_int_equal(sy_encode_mem(&d, &dc, 3, 99, NULL, &b, &nb, &err), SY_OK);
     assert_int_equal(na, nb);

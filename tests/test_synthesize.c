@@ -473,7 +473,29 @@ static void traced_twigs_are_the_lobes_wood(void **state)
     assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out, &lv, &rep, &err), SY_OK);
     assert_true(rep.patches > 0 && lv.n > 0);
     assert_true(out.n > s.n + 5);
-    sy_skeleton_free(&out), sy_leaves_free(&lv), sy_skeleton_free(&s), sy_clusters_free(&cl);
+    for (int i = 0; i < 15; i++) assert_float_equal(out.pos[3 * s.n + (size_t)i], tw[i], 0.05); /* the twigs first */
+    sy_skeleton_free(&out), sy_leaves_free(&lv);
+    /* A second lobe on the seed with three times the twigs: the first one's
+     * share of the twigs beyond the seed is a quarter, its radii half. */
+    sy_clusters two = {0};
+    two.n = 2;
+    two.items = calloc(2, sizeof *two.items);
+    for (int l = 0; l < 2; l++) {
+        sy_cluster *d = &two.items[l];
+        moved_box(d, c, 10, 0, 0, 0, c->n_tris);
+        d->n_twigs = l ? 15 : 5;
+        d->twig_pos = malloc(d->n_twigs * 3 * sizeof *d->twig_pos), d->twig_parent = malloc(d->n_twigs * sizeof *d->twig_parent);
+        for (size_t i = 0; i < d->n_twigs; i++) {
+            memcpy(d->twig_pos + 3 * i, tw + 3 * (i % 5), 3 * sizeof *tw);
+            d->twig_parent[i] = i % 5 == 0 ? -1 : (int32_t)(5 * (i / 5)) + par[i % 5]; /* copies of the fork */
+        }
+        d->twig_voxel = 0.1f;
+    }
+    o.bare = 1;
+    assert_int_equal(sy_synthesize(&s, &two, &lib, &o, &out, &lv, &rep, &err), SY_OK);
+    assert_float_equal(out.radius[s.n], fmax(thinnest, s.radius[10] * 0.5), 1e-6);
+    sy_skeleton_free(&out), sy_leaves_free(&lv), sy_clusters_free(&two);
+    sy_skeleton_free(&s), sy_clusters_free(&cl);
     sy_branchlets_free(&lib);
 }
 

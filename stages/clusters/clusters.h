@@ -143,8 +143,9 @@ sy_code sy_clusters_build_hulls(sy_clusters *cl, const float *xyz, const sy_hull
  * the returns it got). */
 sy_code sy_cluster_occupancy(sy_cluster *c, const float *xyz, int cells, int from_above, sy_error *err);
 /* The same grid (8 cells along the longest side) from c's traced twigs, one
- * return per voxel of its points: what a lobe with twigs stores instead of
- * its bits (the .sylva keeps its twigs, which hold them). */
+ * return per voxel of its points, each marking every cell its voxel's
+ * returns may lie in (a cube of one voxel either side of it): what a lobe
+ * with twigs stores instead of its bits (the .sylva keeps its twigs). */
 sy_code sy_cluster_occupancy_of_twigs(sy_cluster *c, sy_error *err);
 /* Bytes of c's occupancy bits (0 without). */
 size_t sy_cluster_occupancy_bytes(const sy_cluster *c);
@@ -169,9 +170,11 @@ typedef struct {
 /* Each lobe's twigs: its points thinned to one return per voxel (the one
  * nearest the voxel's mean) and joined, with its seed node on main, by
  * their Euclidean minimum spanning tree rooted at the seed. One voxel for
- * the whole tree, the finest of voxel_min * 1.25^k (up to voxel_max) whose
- * voxels over all lobes number at most max_nodes; none fits: no twigs.
- * Replaces any twigs the clusters had. report may be NULL. */
+ * the whole tree: of voxel_min * 1.25^k (up to voxel_max), the finest whose
+ * voxels over all lobes number at most max_nodes, found by bisection (or one
+ * close to it: the counts fall with the voxel nearly always); none fits, or
+ * a lobe of 2^22 points or more: no twigs. Replaces any twigs the clusters
+ * had. report may be NULL. */
 sy_code sy_clusters_trace_twigs(sy_clusters *cl, const sy_skeleton *main, const float *xyz, const sy_twig_options *o,
                                 sy_twig_report *report, sy_error *err);
 void sy_cluster_twigs_free(sy_cluster *c);

@@ -217,9 +217,10 @@ size_t sy_cluster_occupancy_bytes(const sy_cluster *c)
 }
 
 /* The occupancy of c from n points of xyz: those listed in idx, or (idx
- * NULL) the first n. */
-static sy_code occupancy_of(sy_cluster *c, const float *xyz, const uint32_t *idx, size_t n, int cells, int from_above,
-                            sy_error *err)
+ * NULL) the first n; each marks every cell its cube of half-side reach
+ * touches. */
+static sy_code occupancy_of(sy_cluster *c, const float *xyz, const uint32_t *idx, size_t n, double reach, int cells,
+                            int from_above, sy_error *err)
 {
     free(c->occupancy);
     c->occupancy = NULL;
@@ -240,29 +241,41 @@ static sy_code occupancy_of(sy_cluster *c, const float *xyz, const uint32_t *idx
     if (!c->occupancy) return SY_EINTERNAL;
     for (size_t i = 0; i < n; i++) {
         const float *p = xyz + 3 * (idx ? (size_t)idx[i] : i);
-        int q[3];
+        int lo[3], hi[3];
         for (int k = 0; k < 3; k++) {
-            double t = (p[k] - b[k]) / (b[3 + k] - b[k] > 0 ? b[3 + k] - b[k] : 1) * c->occ_dims[k];
-            q[k] = t < 0 ? 0 : t >= c->occ_dims[k] ? c->occ_dims[k] - 1 : (int)t;
+            double e = b[3 + k] - b[k] > 0 ? b[3 + k] - b[k] : 1;
+            for (int side = 0; side < 2; side++) {
+                double t = (p[k] + (side ? reach : -reach) - b[k]) / e * c->occ_dims[k];
+                int q = t < 0 ? 0 : t >= c->occ_dims[k] ? c->occ_dims[k] - 1 : (int)t;
+                if (side) hi[k] = q;
+                else lo[k] = q;
+            }
         }
         /* Seen from above, the cells under a return are hidden by it. An
          * airborne scan's returns lie on the crown's top (the simulated
          * airborne aspen's occupied 12 % of its lobes' cells), and synthesis
          * put leaves only there: a lid on an empty crown. */
-        for (int z = from_above ? 0 : q[2]; z <= q[2]; z++) {
-            size_t bit = (size_t)q[0] + c->occ_dims[0] * ((size_t)q[1] + c->occ_dims[1] * (size_t)z);
-            c->occupancy[bit >> 3] |= (uint8_t)(1u << (bit & 7));
-        }
+        for (int z = from_above ? 0 : lo[2]; z <= hi[2]; z++)
+            for (int y = lo[1]; y <= hi[1]; y++)
+                for (int x = lo[0]; x <= hi[0]; x++) {
+                    size_t bit = (size_t)x + c->occ_dims[0] * ((size_t)y + c->occ_dims[1] * (size_t)z);
+                    c->occupancy[bit >> 3] |= (uint8_t)(1u << (bit & 7));
+                }
     }
     return SY_OK;
 }
 
 sy_code sy_cluster_occupancy(sy_cluster *c, const float *xyz, int cells, int from_above, sy_error *err)
 {
-    return occupancy_of(c, xyz, c->points, c->n_points, cells, from_above, err);
+    return occupancy_of(c, xyz, c->points, c->n_points, 0, cells, from_above, err);
 }
 
 sy_code sy_cluster_occupancy_of_twigs(sy_cluster *c, sy_error *err)
 {
-    return occupancy_of(c, c->twig_pos, NULL, c->n_twigs, 8, 0, err);
+    /* A node stands for the returns of its voxel, which lie within a voxel
+     * of it along each axis: it marks every cell they may fall in. From the
+     * nodes' own cells alone the simulated palm's leaf area against its true
+     * tree fell from 0.83 (its points' bits) to 0.55; this way 0.76 (half a
+     * voxel: 0.75). */
+    return occupancy_of(c, c->twig_pos, NULL, c->n_twigs, c->twig_voxel, 8, 0, err);
 }

@@ -35,9 +35,9 @@ sy_code sy_twig_options_check(const sy_twig_options *o, sy_error *err)
 {
     if (!(o->voxel_min > 0) || !isfinite(o->voxel_min))
         return sy_fail(err, SY_EUSAGE, "clusters: twig voxel_min %g must be > 0", o->voxel_min);
-    if (!(o->voxel_max >= o->voxel_min) || !isfinite(o->voxel_max))
-        return sy_fail(err, SY_EUSAGE, "clusters: twig voxel_max %g must be >= voxel_min %g", o->voxel_max,
-                       o->voxel_min);
+    if (!(o->voxel_max >= o->voxel_min) || !(o->voxel_max <= 1e4 * o->voxel_min))
+        return sy_fail(err, SY_EUSAGE, "clusters: twig voxel_max %g must be within 1 and 10^4 times voxel_min %g",
+                       o->voxel_max, o->voxel_min);
     return SY_OK;
 }
 
@@ -80,7 +80,8 @@ typedef struct {
     const sy_skeleton *main;
     const float *xyz;
     double v;
-    size_t *count; /* per lobe */
+    size_t *count; /* per lobe; SIZE_MAX: too fine a voxel for it */
+    uint8_t *oom;  /* per lobe */
     sy_code *rc;
     sy_error *err;
 } twig_job;
@@ -92,6 +93,7 @@ static void count_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
     for (size_t c = begin; c < end; c++) {
         const sy_cluster *C = &J->cl->items[c];
         uint64_t *key = malloc((C->n_points + 1) * sizeof *key);
+        J->oom[c] = !key;
         J->count[c] = key ? count_voxels(C, J->xyz, J->v, key) : SIZE_MAX;
         free(key);
     }
@@ -189,7 +191,7 @@ static sy_code trace_lobe(sy_cluster *C, const float seed[3], const float *xyz, 
         }
     }
     C->n_twigs = out;
-    C->twig_voxel = (float)v;
+    C->twig_voxel = out ? (float)v : 0;
     free(rep), free(best), free(from), free(first), free(next), free(stack), free(place), free(done);
     return SY_OK;
 }
@@ -223,27 +225,37 @@ sy_code sy_clusters_trace_twigs(sy_clusters *cl, const sy_skeleton *main, const 
     double t0 = sy_now();
     for (size_t c = 0; c < cl->n; c++) sy_cluster_twigs_free(&cl->items[c]);
     if (!cl->n || !o->max_nodes) return SY_OK;
-    twig_job J = {cl, main, xyz, 0, sy_calloc(cl->n, sizeof *J.count, err, "twigs"),
-                  sy_calloc(cl->n, sizeof *J.rc, err, "twigs"), sy_calloc(cl->n, sizeof *J.err, err, "twigs")};
-    if (!J.count || !J.rc || !J.err) {
-        free(J.count), free(J.rc), free(J.err);
+    twig_job J = {cl,
+                  main,
+                  xyz,
+                  0,
+                  sy_calloc(cl->n, sizeof *J.count, err, "twigs"),
+                  sy_calloc(cl->n, 1, err, "twigs"),
+                  sy_calloc(cl->n, sizeof *J.rc, err, "twigs"),
+                  sy_calloc(cl->n, sizeof *J.err, err, "twigs")};
+    if (!J.count || !J.oom || !J.rc || !J.err) {
+        free(J.count), free(J.oom), free(J.rc), free(J.err);
         return SY_EINTERNAL;
     }
-    /* The finest voxel of the ladder voxel_min * 1.25^k whose voxels over
-     * all lobes stay within the budget (counts fall as voxels grow). */
+    /* A voxel of the ladder voxel_min * 1.25^k whose voxels over all lobes
+     * stay within the budget, by bisection: the counts fall as the voxel
+     * grows (nearly always: a coarser grid is not nested in a finer one), so
+     * it is the finest that fits or one close to it. */
     int steps = (int)floor(log(o->voxel_max / o->voxel_min) / log(VOXEL_STEP) + 1e-9);
     int lo = 0, hi = steps + 1; /* hi: none fits yet */
-    while (lo < hi) {
+    while (lo < hi && !rc) {
         int k = (lo + hi) / 2;
         J.v = o->voxel_min * pow(VOXEL_STEP, k);
         sy_parallel_for(cl->n, 1, count_chunk, &J);
         size_t total = 0;
-        for (size_t c = 0; c < cl->n && total <= o->max_nodes; c++)
-            total = J.count[c] == SIZE_MAX ? SIZE_MAX : total + J.count[c];
+        for (size_t c = 0; c < cl->n && total <= o->max_nodes; c++) {
+            if (J.oom[c]) rc = sy_fail(err, SY_EINTERNAL, "clusters: out of memory counting twig voxels");
+            total = J.count[c] == SIZE_MAX || total > SIZE_MAX - J.count[c] ? SIZE_MAX : total + J.count[c];
+        }
         if (total <= o->max_nodes) hi = k;
         else lo = k + 1;
     }
-    if (lo <= steps) {
+    if (!rc && lo <= steps) {
         J.v = o->voxel_min * pow(VOXEL_STEP, lo);
         sy_parallel_for(cl->n, 1, trace_chunk, &J);
         for (size_t c = 0; c < cl->n; c++) {
@@ -255,7 +267,7 @@ sy_code sy_clusters_trace_twigs(sy_clusters *cl, const sy_skeleton *main, const 
         }
         report->voxel = J.v;
     }
-    free(J.count), free(J.rc), free(J.err);
+    free(J.count), free(J.oom), free(J.rc), free(J.err);
     if (rc)
         for (size_t c = 0; c < cl->n; c++) sy_cluster_twigs_free(&cl->items[c]);
     report->seconds = sy_now() - t0;

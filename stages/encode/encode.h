@@ -25,7 +25,8 @@ extern "C" {
 #endif
 
 /* Written version; the decoder reads 1 (orders derived from branch starts)
- * and 2 (orders stored per branch); 3 adds each cluster's occupancy grid. */
+ * and 2 (orders stored per branch); 3 adds each cluster's occupancy grid; 4
+ * its traced twigs, and no grid where it has them (derived from them). */
 #define SY_SYLVA_VERSION 4
 
 /* The quantisation grid of one file. */

@@ -337,6 +337,10 @@ sy_code sy_encode_mem(const sy_skeleton *s, const sy_clusters *cl, uint16_t spec
          * version 4: none where the cluster has twigs, which hold it (a
          * decoder derives it from them, sy_cluster_occupancy_of_twigs). */
         size_t nt = C->twig_pos && C->twig_parent && C->twig_voxel > 0 ? C->n_twigs : 0;
+        if (nt > MAX_NODES) {
+            rc = sy_fail(err, SY_EINPUT, "encode: cluster %zu has %zu twig nodes (at most %u)", c, nt, MAX_NODES);
+            goto done;
+        }
         size_t ob = nt ? 0 : sy_cluster_occupancy_bytes(C);
         for (int k = 0; k < 3; k++) put_u8(&b, ob ? C->occ_dims[k] : 0);
         if (ob) put(&b, C->occupancy, ob);
@@ -367,8 +371,10 @@ sy_code sy_encode_mem(const sy_skeleton *s, const sy_clusters *cl, uint16_t spec
                 put_varint(&b, i - (size_t)p);
                 for (int k = 0; k < 3 && !rc; k++) {
                     double t = floor((double)C->twig_pos[3 * i + k] / tq + 0.5);
-                    if (!(fabs(t) < (double)(1ll << 46))) {
-                        rc = sy_fail(err, SY_EINPUT, "encode: cluster %zu twig %zu lies outside the grid", c, i);
+                    /* What the decoder takes back: within 2 km of the root. */
+                    if (!(fabs(t * tq - s->pos[k]) <= 2 * SY_SKELETON_MAX_SPAN)) {
+                        rc = sy_fail(err, SY_EINPUT, "encode: cluster %zu twig %zu lies more than %g m from the root", c,
+                                     i, 2 * SY_SKELETON_MAX_SPAN);
                         break;
                     }
                     tw[3 * i + k] = (int64_t)t;
@@ -478,10 +484,13 @@ static sy_code decode_twigs(const char *path, rbuf *r, const sy_sylva_quant *q, 
         }
         size_t pi = link == i + 1 ? (size_t)nt : i - (size_t)link;
         C->twig_parent[i] = link == i + 1 ? -1 : (int32_t)pi;
-        for (int k = 0; k < 3; k++) {
-            int64_t d = unzigzag(get_varint(r)), v = tw[3 * pi + k] + d;
+        for (int k = 0; k < 3 && !rc; k++) {
+            int64_t d = unzigzag(get_varint(r));
+            /* Every grid point stays within 2^47 (checked below), so a step
+             * within 2^47 adds without overflow. */
+            int64_t v = r->bad || d > (1ll << 47) || d < -(1ll << 47) ? 0 : tw[3 * pi + k] + d;
             double x = (double)v * tq;
-            if (r->bad || d > (1ll << 46) || d < -(1ll << 46) ||
+            if (r->bad || d > (1ll << 47) || d < -(1ll << 47) || v > (1ll << 47) || v < -(1ll << 47) ||
                 !(fabs(x - s->pos[k]) <= 2 * SY_SKELETON_MAX_SPAN)) {
                 rc = sy_fail(err, SY_EINPUT, "%s: cluster %zu twig %zu is truncated or lies more than %g m from the root",
                              path, c, i, 2 * SY_SKELETON_MAX_SPAN);
@@ -661,7 +670,12 @@ sy_code sy_decode_mem(const char *path, const unsigned char *data, size_t size, 
             }
         }
         if (version >= 4 && (rc = decode_twigs(path, &r, q, s, c, C, err))) goto fail;
-        if (C->n_twigs && !C->occupancy && (rc = sy_cluster_occupancy_of_twigs(C, err))) goto fail;
+        if (C->n_twigs && C->occupancy) {
+            /* The writer stores one or the other: re-encoding would drop the bits. */
+            rc = sy_fail(err, SY_EINPUT, "%s: cluster %zu has both occupancy bits and twigs", path, c);
+            goto fail;
+        }
+        if (C->n_twigs && (rc = sy_cluster_occupancy_of_twigs(C, err))) goto fail;
     }
     if (left(&r) != 0) {
         rc = sy_fail(err, SY_EINPUT, "%s: %zu unexpected bytes after the clusters", path, left(&r));

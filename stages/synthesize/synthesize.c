@@ -1341,7 +1341,7 @@ static sy_code twigs_to_skeleton(const sy_cluster *c, const seed_limb *limb, int
         memcpy(pos, nx, n * 3 * sizeof *nx);
         free(nx);
     }
-    double r0 = (limb->ends ? 1.0 : 0.9) * sk->radius[seed] * sqrt(limb->twig_share), total = cnt[n] > 0 ? cnt[n] : 1;
+    double r0 = (cont[n] >= 0 ? 1.0 : 0.9) * sk->radius[seed] * sqrt(limb->twig_share), total = cnt[n] > 0 ? cnt[n] : 1;
     global[n] = seed;
     sy_code rc = SY_OK;
     for (size_t i = 0; i < n && !rc; i++) {
@@ -1704,16 +1704,24 @@ static sy_code seed_limbs_build(const sy_skeleton *skel, const sy_clusters *lobe
         if (p < 0 || skel->branch[p] != b) base[b] = skel->radius[i];
         len[b] += sy_skeleton_edge_length(skel, i);
     }
-    /* Traced twigs at or beyond each node: each lobe's count added up its
-     * path to the root. */
+    /* Traced twigs at or beyond each node: each lobe's count at its seed,
+     * summed children before parents (the skeleton's breadth-first order
+     * read backwards; parent[i] < i is not given). */
     double *beyond = calloc(skel->n + 1, sizeof *beyond);
-    if (!beyond) {
-        free(len), free(base), free(taker);
+    int32_t *first = malloc((skel->n + 1) * sizeof *first), *sib = malloc((skel->n + 1) * sizeof *sib),
+            *bfs = malloc((skel->n + 1) * sizeof *bfs);
+    if (!beyond || !first || !sib || !bfs) {
+        free(len), free(base), free(taker), free(beyond), free(first), free(sib), free(bfs);
         return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
     }
-    for (size_t c = 0; c < n_lobes; c++)
-        for (int32_t v = lobes->items[c].seed, steps = 0; v >= 0 && steps <= (int32_t)skel->n; v = skel->parent[v], steps++)
-            beyond[v] += (double)lobes->items[c].n_twigs;
+    sy_skeleton_children(skel, first, sib);
+    size_t reached = sy_skeleton_breadth_first(skel, first, sib, bfs);
+    for (size_t c = 0; c < n_lobes; c++) beyond[lobes->items[c].seed] += (double)lobes->items[c].n_twigs;
+    for (size_t k = reached; k-- > 0;) {
+        int32_t v = bfs[k], p = skel->parent[v];
+        if (p >= 0) beyond[p] += beyond[v];
+    }
+    free(first), free(sib), free(bfs);
     for (size_t c = 0; c < n_lobes; c++) {
         int32_t seed = lobes->items[c].seed, b = skel->branch[seed], p = skel->parent[seed];
         seed_limb *l = &out[c];
@@ -1843,10 +1851,18 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
     if (rc) return rc;
     if (!lib || lib->n_patches == 0) return sy_fail(err, SY_EINPUT, "synthesize: the branchlet library is empty");
     if ((rc = sy_skeleton_validate(skel, err))) return rc;
-    for (size_t c = 0; lobes && c < lobes->n; c++)
-        if (lobes->items[c].seed < 0 || (size_t)lobes->items[c].seed >= skel->n)
+    for (size_t c = 0; lobes && c < lobes->n; c++) {
+        const sy_cluster *C = &lobes->items[c];
+        if (C->seed < 0 || (size_t)C->seed >= skel->n)
             return sy_fail(err, SY_EINPUT, "synthesize: lobe %zu hangs off node %d, which the skeleton lacks", c,
-                           (int)lobes->items[c].seed);
+                           (int)C->seed);
+        if (C->n_twigs && (!C->twig_pos || !C->twig_parent))
+            return sy_fail(err, SY_EINPUT, "synthesize: lobe %zu has %zu twigs and no arrays", c, C->n_twigs);
+        for (size_t i = 0; i < C->n_twigs; i++)
+            if (C->twig_parent[i] < -1 || C->twig_parent[i] >= (int32_t)i || !isfinite(C->twig_pos[3 * i]) ||
+                !isfinite(C->twig_pos[3 * i + 1]) || !isfinite(C->twig_pos[3 * i + 2]))
+                return sy_fail(err, SY_EINPUT, "synthesize: lobe %zu twig %zu has a bad parent or position", c, i);
+    }
     if ((rc = copy_skeleton(skel, out, err))) {
         sy_skeleton_free(out);
         return rc;
