@@ -752,17 +752,26 @@ static void crowded_and_tip_children_slide_to_weld(void **state)
  * the tube's quads: capped. Each twig now goes on past its last node by
  * SY_MESH_TIP_EXTENSION radii, and both children weld; the bark stays
  * closed. */
+/* An upright trunk of nodes 0..last at x, y, every step metres, radius r0
+ * less dr a node. */
+static void upright_trunk(sy_skeleton *s, float x, float y, int last, float step, float r0, float dr)
+{
+    sy_error err;
+    memset(s, 0, sizeof *s);
+    for (int i = 0, prev = -1; i <= last; i++) {
+        float p[3] = {x, y, step * (float)i};
+        prev = sy_skeleton_add(s, p, r0 - dr * (float)i, prev, 0, 0, &err);
+        assert_true(prev >= 0);
+    }
+}
+
 static void tip_children_of_grid_twigs_weld(void **state)
 {
     (void)state;
     sy_skeleton s;
     sy_error err;
-    memset(&s, 0, sizeof s);
-    int32_t prev = -1;
-    for (int i = 0; i <= 6; i++) {
-        float p[3] = {0.19f, 0.1385f, 0.25f * (float)i};
-        prev = sy_skeleton_add(&s, p, 0.04f - 0.002f * (float)i, prev, 0, 0, &err);
-    }
+    upright_trunk(&s, 0.19f, 0.1385f, 6, 0.25f, 0.04f, 0.002f);
+    int32_t prev;
     /* The 14 cm twig from the trunk node at 1.25 m, as the sapling's. */
     static const float twig[12][4] = {
         {0.2244f, 0.1483f, 1.2961f, 0.0115f}, {0.2255f, 0.1581f, 1.3027f, 0.0112f}, {0.2266f, 0.1679f, 1.3092f, 0.0109f},
@@ -781,21 +790,16 @@ static void tip_children_of_grid_twigs_weld(void **state)
 }
 
 /* Twigs as a scan's returns trace them: zigzag chains (40 degrees a node,
- * a voxel of 6 cm) of 2-9 mm radius with side twigs. Drawn lean (the lean
- * radius of trees with traced twigs), they take under half the triangles,
- * the bark stays closed and every branch is drawn, the thickest limb keeps
- * its sides. */
+ * a voxel of 6 cm) starting at 9 or 16 mm radius (three-sided and lean),
+ * each with two side twigs. Drawn lean (the lean radius of trees with traced
+ * twigs), they take under half the triangles, and the bark stays closed with
+ * every branch drawn. */
 static void traced_twigs_are_drawn_lean(void **state)
 {
     (void)state;
     sy_skeleton s;
     sy_error err;
-    memset(&s, 0, sizeof s);
-    int32_t prev = -1;
-    for (int i = 0; i <= 8; i++) {
-        float p[3] = {0, 0, 0.3f * (float)i};
-        prev = sy_skeleton_add(&s, p, 0.05f - 0.004f * (float)i, prev, 0, 0, &err);
-    }
+    upright_trunk(&s, 0, 0, 8, 0.3f, 0.05f, 0.004f);
     int32_t branch = 1;
     for (int t = 0; t < 6; t++) {
         double az = t * 1.047;
