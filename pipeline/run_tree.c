@@ -142,7 +142,7 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
     /* The twigs the lobes' returns trace, in the room the .sylva has for
      * them (none for an airborne crown: its returns are its top's shell). */
     sy_twig_options to = sy_twig_options_default();
-    to.max_nodes = report->stem_unseen ? 0 : sy_sylva_twig_budget(clusters->n, out->n);
+    to.max_nodes = report->stem_unseen || o->no_twigs ? 0 : sy_sylva_twig_budget(clusters->n, out->n);
     sy_twig_report twigs;
     if ((rc = sy_clusters_trace_twigs(clusters, out, c->xyz, &to, &twigs, err))) {
         sy_clusters_free(clusters);
@@ -412,6 +412,7 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
     if (sp) {
         so.beta = sp->beta, so.gamma = sp->gamma;
         species_nominal(sp, &so.dbh_per_height, &so.crown_base_share, so.crown_profile);
+        so.no_twigs = !sp->twigs;
     }
     if (!isnan(o->beta)) so.beta = o->beta;
     if (!isnan(o->gamma)) so.gamma = o->gamma;

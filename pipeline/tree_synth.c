@@ -23,7 +23,7 @@ void sy_decoded_tree_free(sy_decoded_tree *t)
 
 float sy_decoded_tree_lean_radius(const sy_decoded_tree *t)
 {
-    for (size_t c = 0; c < t->lobes.n; c++)
+    for (size_t c = 0; c < t->lobes.n && t->twigs; c++)
         if (t->lobes.items[c].n_twigs) return SY_MESH_LEAN_RADIUS;
     return 0;
 }
@@ -78,10 +78,12 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
     }
     so.leaf_density = ls.leaf_density;
     so.bare = leaf_off != 0;
+    so.no_twigs = species && !species->twigs;
     so.max_depth = ls.max_depth;
     if (species && species->ratio_power > 0) so.ratio_power = species->ratio_power;
     for (int l = 0; species && l < 2; l++)
         so.down_angle[l] = species->level[l + 1].down_angle, so.down_angle_v[l] = species->level[l + 1].down_angle_v;
+    t->twigs = !so.no_twigs;
     rc = sy_synthesize(&t->skel, &t->lobes, &lib, &so, &t->grown, &t->leaves, &t->synth, err);
     sy_branchlets_free(&lib);
     if (rc) sy_decoded_tree_free(t);

@@ -26,6 +26,7 @@ typedef struct {
     sy_synth_report synth;
     size_t branchlets, patches; /* the species library used */
     char lsys[512];       /* its file */
+    int twigs;            /* the lobes' traced twigs were drawn (the species has twigs) */
     double seconds_decode, seconds_library;
 } sy_decoded_tree;
 
@@ -39,7 +40,7 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
                               int leaf_off, sy_decoded_tree *t, sy_error *err);
 void sy_decoded_tree_free(sy_decoded_tree *t);
 /* The mesher's lean radius for t (sy_tree_asset_options.lean_radius):
- * SY_MESH_LEAN_RADIUS when its lobes have traced twigs, else 0. */
+ * SY_MESH_LEAN_RADIUS when its lobes' traced twigs were drawn, else 0. */
 float sy_decoded_tree_lean_radius(const sy_decoded_tree *t);
 
 /* One line per bare lobe ("lobe 3 (node 12): no room inside its hull ...") to stderr. */

@@ -101,6 +101,7 @@ static const key_def sylva_keys[] = {
     GEN("beta", K_FLOAT, beta, 0, 10),
     GEN("gamma", K_FLOAT, gamma, 0.1, 5),
     GEN("bark_color", K_VEC3, bark_color, 0, 255),
+    GEN("twigs", K_INT, twigs, 0, 1),
 };
 
 #define N_GENERAL (sizeof general_keys / sizeof general_keys[0])
@@ -149,6 +150,7 @@ sy_species_params sy_species_params_default(void)
     sp->leaf_fill = 1;
     sp->beta = 1;
     sp->gamma = 2;
+    sp->twigs = 1;
     return s;
 }
 

@@ -61,6 +61,8 @@ typedef struct {
     float beta;             /* edge-weight exponent for skeleton reconstruction, default 1 */
     float gamma;            /* allometry exponent (pipe model r^gamma), default 2 */
     float bark_color[3];    /* sRGB 0..255 the bark photo is recoloured to (its pattern kept); negative: its own */
+    int twigs;              /* 1 (default): a scan's traced twigs are its crown's wood; 0: a crown of fronds,
+                               no twigs (the palm): synthesis leaves them out */
 } sy_species_params;
 
 /* Fills every parameter with its Weber-Penn default (docs/species.md). */

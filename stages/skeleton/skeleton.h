@@ -61,6 +61,8 @@ typedef struct {
     float crown_profile[8]; /* the same tree's crown radius in 8 height slabs from its crown base to
                                its top (any scale; all 0: unknown): an airborne crown's lobes narrow
                                as it does below what the scan saw (the pipeline's hulls read it) */
+    int no_twigs;         /* 1: the species' crown has no twigs to trace (a palm's fronds): the
+                             pipeline traces none and keeps the lobes' occupancy bits (0) */
     int unseen_stems;     /* a scan that shows no stem (its lowest return high over the ground, or
                              spacing >= 0.2 m: airborne) gets a trunk from the ground and limbs grown
                              into its returns (1; 0 until stop 25; stem.c, docs/skeleton.md 8d) */

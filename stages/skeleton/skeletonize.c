@@ -59,6 +59,7 @@ sy_code sy_skeleton_options_check(const sy_skeleton_options *o, sy_error *err)
         return sy_fail(err, SY_EUSAGE, "skeleton: gamma %g must be > 0", o->gamma);
     if (!(o->spacing >= 0) || !isfinite(o->spacing))
         return sy_fail(err, SY_EUSAGE, "skeleton: spacing %g must be >= 0", o->spacing);
+    if (o->no_twigs != 0 && o->no_twigs != 1) return sy_fail(err, SY_EUSAGE, "skeleton: no_twigs must be 0 or 1");
     if (o->k < 1 || o->k > 32) return sy_fail(err, SY_EUSAGE, "skeleton: k %d outside [1, 32]", o->k);
     if (!(o->radius_factor > 0) || !(o->bin_factor > 0) || !(o->min_bin >= 0) || !isfinite(o->radius_factor) ||
         !isfinite(o->bin_factor) || !isfinite(o->min_bin))

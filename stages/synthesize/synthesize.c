@@ -51,7 +51,8 @@ sy_code sy_synth_options_check(const sy_synth_options *o, sy_error *err)
     for (int l = 0; l < 2; l++)
         if (!(fabs(o->down_angle[l]) <= 3600 && fabs(o->down_angle_v[l]) <= 3600))
             return sy_fail(err, SY_EUSAGE, "synthesize: down_angle and down_angle_v must be within 3600 degrees");
-    if (o->bare != 0 && o->bare != 1) return sy_fail(err, SY_EUSAGE, "synthesize: bare must be 0 or 1");
+    if ((o->bare != 0 && o->bare != 1) || (o->no_twigs != 0 && o->no_twigs != 1))
+        return sy_fail(err, SY_EUSAGE, "synthesize: bare and no_twigs must be 0 or 1");
 
     return SY_OK;
 }
@@ -1447,7 +1448,8 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     double min_start = sk->radius[seed] * 0.9 < max_thick ? sk->radius[seed] * 0.9 : max_thick;
     size_t lobe_patches = 0;
     size_t scaffold0 = rep->nodes_added;
-    if (!rc && bare_reason < 0 && c->n_twigs)
+    int twigs = c->n_twigs && !o->no_twigs;
+    if (!rc && bare_reason < 0 && twigs)
         rc = twigs_to_skeleton(c, limb, seed, min_thick, so, rep, err);
     else if (!rc && bare_reason < 0)
         rc = grow_scaffold(&g, occ_c, n_occ, seed, reach, max_thick, o, limb, ceiling, ground, so, rep, err);
@@ -1455,7 +1457,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     /* A leaf-off tree's traced twigs are its wood: the species' branchlets
      * would add twigs beside the returns, not on them (AdTree's tree1, IoU
      * against its scan 0.639 with them, 0.692 without). */
-    if (c->n_twigs && o->bare) starts = max_starts;
+    if (twigs && o->bare) starts = max_starts;
     while (!rc && bare_reason < 0 && starts < max_starts && lobe_patches < (size_t)o->max_patches) {
         /* A new start toward the occupied cell with room nearest the seed,
          * from the nearest bark this lobe has (its scaffold, its patches or

@@ -47,6 +47,8 @@ typedef struct {
     int literal_eq33;       /* 1: eq. 3.3 as printed, max/min thickness ratio x (v_r . v_d), minimised */
     int bare;               /* 1: a leaf-off tree: a lobe with traced twigs (sy_cluster.n_twigs) gets no
                                patches, its twigs are its wood (0) */
+    int no_twigs;           /* 1: the lobes' traced twigs are left out (a species without twigs: a palm's
+                               fronds), the scaffold grows instead (0) */
 } sy_synth_options;
 
 /* What happened to a lobe that got no patch (sy_synth_report.bare_reason), as a phrase. */
