@@ -103,7 +103,7 @@ static int mesh_sylva(const char *path, const char *out_path, const char *specie
         o->seed = dt.meta.seed;
         o->keep_leaf_order = 1;
         o->hulls = proxy ? &dt.lobes : NULL;
-        o->lean_radius = sy_decoded_tree_lean_radius(&dt);
+        o->lean_radius = dt.lean_radius;
         o->source = f->model;
         o->source_format = f->format;
         sy_tree_asset_report rep;

@@ -474,7 +474,7 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
         ao.seed = o->seed;
         ao.keep_leaf_order = 1;
         ao.hulls = o->proxy ? &dt.lobes : NULL;
-        ao.lean_radius = sy_decoded_tree_lean_radius(&dt);
+        ao.lean_radius = dt.lean_radius;
         ao.source = name;
         ao.source_format = "scan";
         /* A leaf-off scan: its traced twigs and branches without cards. */

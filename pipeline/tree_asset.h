@@ -34,7 +34,7 @@ typedef struct {
     const sy_clusters *hulls;
     /* Branches thinner than this are drawn lean (sy_mesh_options.lean_radius):
      * SY_MESH_LEAN_RADIUS for a tree with traced twigs
-     * (sy_decoded_tree_lean_radius), 0 (the default) otherwise. */
+     * (sy_decoded_tree.lean_radius), 0 (the default) otherwise. */
     float lean_radius;
     /* Models from files (mesh, run): asset.extras gets "origin", the
      * skeleton's origin (the world position, Z up, of the glb's (0,0,0);

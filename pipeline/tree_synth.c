@@ -21,13 +21,6 @@ void sy_decoded_tree_free(sy_decoded_tree *t)
     memset(t, 0, sizeof *t);
 }
 
-float sy_decoded_tree_lean_radius(const sy_decoded_tree *t)
-{
-    for (size_t c = 0; c < t->lobes.n && t->twigs; c++)
-        if (t->lobes.items[c].n_twigs) return SY_MESH_LEAN_RADIUS;
-    return 0;
-}
-
 sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_t size, const sy_species_params *species,
                               int leaf_off, sy_decoded_tree *t, sy_error *err)
 {
@@ -83,7 +76,8 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
     if (species && species->ratio_power > 0) so.ratio_power = species->ratio_power;
     for (int l = 0; species && l < 2; l++)
         so.down_angle[l] = species->level[l + 1].down_angle, so.down_angle_v[l] = species->level[l + 1].down_angle_v;
-    t->twigs = !so.no_twigs;
+    for (size_t c = 0; c < t->lobes.n && !so.no_twigs && !t->lean_radius; c++)
+        if (t->lobes.items[c].n_twigs) t->lean_radius = SY_MESH_LEAN_RADIUS;
     rc = sy_synthesize(&t->skel, &t->lobes, &lib, &so, &t->grown, &t->leaves, &t->synth, err);
     sy_branchlets_free(&lib);
     if (rc) sy_decoded_tree_free(t);

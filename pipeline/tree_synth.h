@@ -26,7 +26,8 @@ typedef struct {
     sy_synth_report synth;
     size_t branchlets, patches; /* the species library used */
     char lsys[512];       /* its file */
-    int twigs;            /* the lobes' traced twigs were drawn (the species has twigs) */
+    float lean_radius;    /* the mesher's (sy_tree_asset_options.lean_radius): SY_MESH_LEAN_RADIUS where
+                             the lobes' traced twigs were drawn, else 0 */
     double seconds_decode, seconds_library;
 } sy_decoded_tree;
 
@@ -39,9 +40,6 @@ typedef struct {
 sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_t size, const sy_species_params *species,
                               int leaf_off, sy_decoded_tree *t, sy_error *err);
 void sy_decoded_tree_free(sy_decoded_tree *t);
-/* The mesher's lean radius for t (sy_tree_asset_options.lean_radius):
- * SY_MESH_LEAN_RADIUS when its lobes' traced twigs were drawn, else 0. */
-float sy_decoded_tree_lean_radius(const sy_decoded_tree *t);
 
 /* One line per bare lobe ("lobe 3 (node 12): no room inside its hull ...") to stderr. */
 void sy_decoded_tree_report_bare(const char *command, const sy_decoded_tree *t);

@@ -191,7 +191,7 @@ static int decode(const char *path, int reps)
         mo.impostor = 0;
         mo.seed = dt.meta.seed;
         mo.keep_leaf_order = 1;
-        mo.lean_radius = sy_decoded_tree_lean_radius(&dt);
+        mo.lean_radius = dt.lean_radius;
         mo.bark_material = mo.leaf_material = -1;
         if (have) {
             mo.leaf_aspect = sp.leaf_scale_x;

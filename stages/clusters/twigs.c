@@ -16,6 +16,7 @@
 #include "stages/core/parallel.h"
 #include "stages/core/progress.h"
 #include "stages/core/sort.h"
+#include "stages/core/vec3.h"
 
 #define VOXEL_BITS 14 /* per axis, from the lobe's lowest corner */
 #define INDEX_BITS 22 /* a lobe's point, in the key's low bits */
@@ -99,13 +100,6 @@ static void count_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
     }
 }
 
-static double dist2(const float *a, const float *b)
-{
-    double d = 0;
-    for (int k = 0; k < 3; k++) d += (double)(a[k] - b[k]) * (a[k] - b[k]);
-    return d;
-}
-
 /* Lobe c's twigs at voxel v: per voxel the return nearest the mean of its
  * returns (ties: the lower index), then Prim's spanning tree from the
  * seed, written in depth-first preorder (children by index) so that a
@@ -135,7 +129,7 @@ static sy_code trace_lobe(sy_cluster *C, const float seed[3], const float *xyz, 
             size_t bi = 0;
             for (size_t i = a; i < b; i++) {
                 size_t li = key[i] & ((1u << INDEX_BITS) - 1);
-                double d = dist2(xyz + 3 * (size_t)C->points[li], mf);
+                double d = sy_v3f_dist2(xyz + 3 * (size_t)C->points[li], mf);
                 if (d < best || (d == best && li < bi)) best = d, bi = li;
             }
             memcpy(rep + 3 * m++, xyz + 3 * (size_t)C->points[bi], 3 * sizeof *rep);
@@ -154,7 +148,7 @@ static sy_code trace_lobe(sy_cluster *C, const float seed[3], const float *xyz, 
         free(rep), free(best), free(from), free(first), free(next), free(stack), free(place), free(done);
         return sy_fail(err, SY_EINTERNAL, "clusters: out of memory tracing twigs");
     }
-    for (size_t i = 0; i < m; i++) best[i] = dist2(rep + 3 * i, seed), from[i] = (int32_t)m;
+    for (size_t i = 0; i < m; i++) best[i] = sy_v3f_dist2(rep + 3 * i, seed), from[i] = (int32_t)m;
     done[m] = 1;
     for (size_t i = 0; i <= m; i++) first[i] = -1;
     for (size_t step = 0; step < m; step++) {
@@ -164,31 +158,22 @@ static sy_code trace_lobe(sy_cluster *C, const float seed[3], const float *xyz, 
         done[j] = 1;
         for (size_t i = 0; i < m; i++) {
             if (done[i]) continue;
-            double d = dist2(rep + 3 * i, rep + 3 * j);
+            double d = sy_v3f_dist2(rep + 3 * i, rep + 3 * j);
             if (d < best[i]) best[i] = d, from[i] = (int32_t)j;
         }
     }
-    /* Children lists in ascending index; each run pushed on the stack is
-     * reversed so that it pops in that order: preorder from the seed. */
-    for (size_t i = m; i-- > 0;) next[i] = first[from[i]], first[from[i]] = (int32_t)i;
+    /* Children lists in descending index, pushed in that order so that the
+     * stack pops them ascending: preorder from the seed, children by index. */
+    for (size_t i = 0; i < m; i++) next[i] = first[from[i]], first[from[i]] = (int32_t)i;
     size_t top = 0, out = 0;
     for (int32_t c = first[m]; c >= 0; c = next[c]) stack[top++] = c;
-    for (size_t a = 0, b = top; a + 1 < b; a++, b--) {
-        int32_t t = stack[a];
-        stack[a] = stack[b - 1], stack[b - 1] = t;
-    }
     while (top) {
         int32_t j = stack[--top];
         place[j] = (int32_t)out;
         memcpy(C->twig_pos + 3 * out, rep + 3 * (size_t)j, 3 * sizeof *rep);
         C->twig_parent[out] = from[j] == (int32_t)m ? -1 : place[from[j]];
         out++;
-        size_t run = top;
         for (int32_t c = first[j]; c >= 0; c = next[c]) stack[top++] = c;
-        for (size_t a = run, b = top; a + 1 < b; a++, b--) {
-            int32_t t = stack[a];
-            stack[a] = stack[b - 1], stack[b - 1] = t;
-        }
     }
     C->n_twigs = out;
     C->twig_voxel = out ? (float)v : 0;

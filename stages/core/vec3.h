@@ -36,6 +36,14 @@ static inline double sy_v3_dist(const double a[3], const double b[3])
     return sy_v3_len(d);
 }
 
+/* Squared distance of two float points, in double (a kd-tree's or a point
+ * list's own coordinates). */
+static inline double sy_v3f_dist2(const float a[3], const float b[3])
+{
+    double dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
+    return dx * dx + dy * dy + dz * dz;
+}
+
 /* Scales v to unit length; a zero vector stays zero. Returns the old length. */
 static inline double sy_v3_normalize(double v[3])
 {

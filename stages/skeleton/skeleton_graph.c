@@ -16,12 +16,7 @@
 #include "stages/core/kdtree.h"
 #include "stages/core/parallel.h"
 #include "stages/core/sort.h"
-
-static double dist2(const float *a, const float *b)
-{
-    double dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
-    return dx * dx + dy * dy + dz * dz;
-}
+#include "stages/core/vec3.h"
 
 /* Visits the cells whose Chebyshev ring distance from c is exactly r. */
 #define FOR_RING(g, c, r, cell, BODY)                                                                  \
@@ -66,7 +61,7 @@ static int knn_query(const sy_grid *g, const float *xyz, uint32_t q, int need, i
         FOR_RING(g, c, r, cell, {
             for (size_t t = g->cell_start[cell]; t < g->cell_start[cell + 1]; t++) {
                 uint32_t j = g->order[t];
-                if (j != q) cand_insert(list, &len, cap, (float)dist2(xyz + 3 * (size_t)q, xyz + 3 * (size_t)j), j);
+                if (j != q) cand_insert(list, &len, cap, (float)sy_v3f_dist2(xyz + 3 * (size_t)q, xyz + 3 * (size_t)j), j);
             }
         })
         double reach = r * g->h;
@@ -168,11 +163,11 @@ static void knn_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
                  * so farther candidates are never sorted in. */
                 float h2 = (float)(g->h * g->h);
                 for (size_t u = own_start; u < own_end; u++) {
-                    float d2 = (float)dist2(pq, g->pts + 3 * u);
+                    float d2 = (float)sy_v3f_dist2(pq, g->pts + 3 * u);
                     if (u != t && d2 <= h2) cand_insert(list, &len, J->cap, d2, g->order[u]);
                 }
                 for (size_t u = 0; u < nn; u++) {
-                    float d2 = (float)dist2(pq, g->pts + 3 * (size_t)near[u]);
+                    float d2 = (float)sy_v3f_dist2(pq, g->pts + 3 * (size_t)near[u]);
                     if (d2 <= h2) cand_insert(list, &len, J->cap, d2, g->order[near[u]]);
                 }
             }
@@ -219,7 +214,7 @@ static void knn_coarse_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
             if (ok) {
                 for (size_t u = 0; u < nn; u++)
                     if (near[u] != t)
-                        cand_insert(list, &len, J->cap, (float)dist2(g->pts + 3 * t, g->pts + 3 * (size_t)near[u]),
+                        cand_insert(list, &len, J->cap, (float)sy_v3f_dist2(g->pts + 3 * t, g->pts + 3 * (size_t)near[u]),
                                     g->order[near[u]]);
             } else {
                 len = knn_query(g, J->xyz, q, J->k, J->cap, 1, list);
@@ -294,7 +289,7 @@ static void bridge_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
             double md = INFINITY;
             uint32_t mi = bi;
             for (size_t t = 0; t < cnt; t++) {
-                double d2 = dist2(R->xyz + 3 * (size_t)mem[t], R->xyz + 3 * (size_t)bj);
+                double d2 = sy_v3f_dist2(R->xyz + 3 * (size_t)mem[t], R->xyz + 3 * (size_t)bj);
                 if (d2 < md) {
                     md = d2;
                     mi = mem[t];
@@ -511,7 +506,7 @@ sy_code sy_graph_build(const float *xyz, size_t n, int k, double radius, uint32_
     }
     for (size_t i = 0; i < n; i++)
         for (size_t t = G->start[i]; t < G->start[i + 1]; t++)
-            G->len[t] = (float)sqrt(dist2(xyz + 3 * i, xyz + 3 * (size_t)G->adj[t]));
+            G->len[t] = (float)sqrt(sy_v3f_dist2(xyz + 3 * i, xyz + 3 * (size_t)G->adj[t]));
     rc = SY_OK;
 fail: /* the scratch goes either way; the graph only on failure */
     free(J.nbr);
