@@ -469,11 +469,25 @@ static void traced_twigs_are_the_lobes_wood(void **state)
     assert_float_equal(out.radius[s.n], s.radius[10], 1e-6);
     assert_float_equal(out.radius[s.n + 3], fmax(thinnest, s.radius[10] * sqrt(0.2)), 1e-6);
     sy_skeleton_free(&out), sy_leaves_free(&lv);
+    /* Leaf-on: the twigs carry the leaves themselves (each node a return),
+     * at most eight a node, each card's stem within a card's length of its
+     * node; no branchlet docks. */
     o.bare = 0;
     assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out, &lv, &rep, &err), SY_OK);
-    assert_true(rep.patches > 0 && lv.n > 0);
-    assert_true(out.n > s.n + 5);
-    for (int i = 0; i < 15; i++) assert_float_equal(out.pos[3 * s.n + (size_t)i], tw[i], 0.05); /* the twigs first */
+    assert_int_equal(rep.patches, 0);
+    assert_int_equal(out.n, s.n + 5);
+    assert_true(lv.n >= 5);
+    for (int i = 0; i < 15; i++) assert_float_equal(out.pos[3 * s.n + (size_t)i], tw[i], 0.05);
+    int per_node[5] = {0};
+    for (size_t i = 0; i < lv.n; i++) {
+        int32_t v = lv.node[i];
+        assert_true(v >= (int32_t)s.n && v < (int32_t)s.n + 5);
+        assert_true(++per_node[v - (int32_t)s.n] <= 8);
+        double d2 = 0;
+        for (int k = 0; k < 3; k++) d2 += pow(lv.pos[3 * i + k] - out.pos[3 * (size_t)v + k], 2);
+        assert_true(sqrt(d2) <= o.leaf_size + 1e-5);
+        assert_true(lv.scale[i] > 0 && lv.scale[i] <= o.leaf_size + 1e-6);
+    }
     sy_skeleton_free(&out), sy_leaves_free(&lv);
     /* A second lobe on the seed with three times the twigs: the first one's
      * share of the twigs beyond the seed is a quarter, its radii half. */
