@@ -179,7 +179,16 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
         ho.floor.top = ztop;
         memcpy(ho.floor.profile, o->crown_profile, sizeof ho.floor.profile);
     }
-    if (rc || (rc = sy_clusters_build_hulls(clusters, c->xyz, &ho, hulls, err))) {
+    rc = rc ? rc : sy_clusters_build_hulls(clusters, c->xyz, &ho, hulls, err);
+    /* Hulls that kept more triangles than their budget leave less room:
+     * the twigs are traced again, coarser, to fit beside them. */
+    if (!rc && twigs.nodes > sy_sylva_twig_room(clusters, out->n)) {
+        double first = twigs.seconds;
+        to.max_nodes = sy_sylva_twig_room(clusters, out->n);
+        rc = sy_clusters_trace_twigs(clusters, out, c->xyz, &to, &twigs, err);
+        twigs.seconds += first;
+    }
+    if (rc) {
         sy_clusters_free(clusters);
         sy_skeleton_free(out);
     } else if (hulls) {
