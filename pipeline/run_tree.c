@@ -187,6 +187,15 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
         to.max_nodes = sy_sylva_twig_room(clusters, out->n);
         rc = sy_clusters_trace_twigs(clusters, out, c->xyz, &to, &twigs, err);
         twigs.seconds += first;
+        /* None fit even at the coarsest voxel: the tree is one without
+         * twigs, whose clusters store occupancy bits, and its hulls take
+         * that budget. */
+        if (!rc && twigs.nodes == 0) {
+            double built = hulls ? hulls->seconds : 0;
+            ho.triangles = sy_sylva_hull_budget(clusters->n, out->n, 0);
+            rc = sy_clusters_build_hulls(clusters, c->xyz, &ho, hulls, err);
+            if (hulls) hulls->seconds += built;
+        }
     }
     if (rc) {
         sy_clusters_free(clusters);

@@ -161,6 +161,32 @@ static void real_trees_round_trip_under_40kB(void **state)
     }
 }
 
+/* The twigs' room beside the hulls as built: none without clusters or
+ * when the hulls fill the file, less by 6.5 / 4.1 nodes for every triangle
+ * a hull keeps over its budget, at most about 16 kB of nodes. */
+static void twig_room_counts_the_hulls_as_built(void **state)
+{
+    (void)state;
+    assert_int_equal(sy_sylva_twig_room(NULL, 100), 0);
+    sy_clusters none = {0};
+    assert_int_equal(sy_sylva_twig_room(&none, 100), 0);
+    sy_cluster items[100];
+    memset(items, 0, sizeof items);
+    sy_clusters cl = {100, items};
+    for (int c = 0; c < 100; c++) items[c].n_tris = 24;
+    size_t room24 = sy_sylva_twig_room(&cl, 1500);
+    for (int c = 0; c < 100; c++) items[c].n_tris = 32;
+    size_t room32 = sy_sylva_twig_room(&cl, 1500);
+    assert_true(room32 < room24);
+    assert_true(fabs((double)(room24 - room32) - 800 * 6.5 / 4.1) <= 1.5);
+    /* 40 kB of triangles leave nothing; a small tree is capped. */
+    for (int c = 0; c < 100; c++) items[c].n_tris = 62;
+    assert_int_equal(sy_sylva_twig_room(&cl, 600), 0);
+    for (int c = 0; c < 100; c++) items[c].n_tris = 0;
+    assert_int_equal(sy_sylva_twig_room(&cl, 10), (size_t)(16000 / 4.1));
+    assert_true(sy_sylva_twig_room(&cl, 10) <= sy_sylva_twig_budget(1, 10));
+}
+
 static void synthetic_tree_round_trips(void **state)
 {
     (void)state;
@@ -513,6 +539,7 @@ int main(void)
         cmocka_unit_test(qsm_branch_orders_round_trip),
         cmocka_unit_test(synthetic_tree_round_trips),
         cmocka_unit_test(real_trees_round_trip_under_40kB),
+        cmocka_unit_test(twig_room_counts_the_hulls_as_built),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -56,8 +56,12 @@ off=$("$SYLVA" run "$scan" -o "$tmp/off.glb" --sylva "$tmp/off.sylva" --species 
 (( $(key leaves "$off") == 0 && $(key lod0_leaf_instances "$off") == 0 )) || fail "leaves with --leaf-off: $off"
 (( $(key twig_nodes "$out") > 1000 && $(key twig_nodes "$off") == $(key twig_nodes "$out") )) ||
   fail "traced twigs: $(key twig_nodes "$out") leafy, $(key twig_nodes "$off") leaf-off"
-(( $(key patches "$off") == 0 && $(key lod0_bark_triangles "$off") == $(key lod0_bark_triangles "$out") )) ||
-  fail "bark: $(key lod0_bark_triangles "$out") leafy, $(key lod0_bark_triangles "$off") leaf-off triangles (want the same)"
+# The same wood either way, to a few triangles: a stem's reach counts the
+# leaves it carries, and the LOD0 budget drops the stems of least reach
+# first (sy_lod_fit_budget; 1 % allowed).
+a=$(key lod0_bark_triangles "$out"); b=$(key lod0_bark_triangles "$off")
+(( $(key patches "$off") == 0 && b > 0 && 100 * (a > b ? a - b : b - a) <= a )) ||
+  fail "bark: $a leafy, $b leaf-off triangles (want the same within 1 %)"
 cmp -s "$tmp/a.sylva" "$tmp/off.sylva" || fail "--leaf-off changed the .sylva"
 if command -v node >/dev/null; then
   "$SYLVA" mesh "$tmp/a.sylva" -o "$tmp/mo.glb" --no-leaves --quiet || fail "mesh --no-leaves exit $?"

@@ -426,7 +426,7 @@ static void hidden_limbs_continue_the_seed_limb(void **state)
  * little smoothed along their chain, radii by the pipe model (thinning to
  * the tips, never above the seed's, never under the library's thinnest
  * patch). A leaf-off tree keeps them as its only wood there, no patches and
- * no leaves; a leafy one docks the species' patches on them. */
+ * no leaves; a leafy one carries its leaf cards on their nodes. */
 static void traced_twigs_are_the_lobes_wood(void **state)
 {
     (void)state;
@@ -470,8 +470,8 @@ static void traced_twigs_are_the_lobes_wood(void **state)
     assert_float_equal(out.radius[s.n + 3], fmax(thinnest, s.radius[10] * sqrt(0.2)), 1e-6);
     sy_skeleton_free(&out), sy_leaves_free(&lv);
     /* Leaf-on: the twigs carry the leaves themselves (each node a return),
-     * at most eight a node, each card's stem within a card's length of its
-     * node; no branchlet docks. */
+     * at most eight a node, each card's axis through its node (its middle
+     * there, or its end where it slid back to fit); no branchlet docks. */
     o.bare = 0;
     assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out, &lv, &rep, &err), SY_OK);
     assert_int_equal(rep.patches, 0);
@@ -487,6 +487,15 @@ static void traced_twigs_are_the_lobes_wood(void **state)
         for (int k = 0; k < 3; k++) d2 += pow(lv.pos[3 * i + k] - out.pos[3 * (size_t)v + k], 2);
         assert_true(sqrt(d2) <= o.leaf_size + 1e-5);
         assert_true(lv.scale[i] > 0 && lv.scale[i] <= o.leaf_size + 1e-6);
+        /* The card's axis Y (its quaternion's second column) from its stem
+         * passes the node: the node's distance to the segment. */
+        const float *q = lv.rot + 4 * i;
+        double Y[3] = {2 * (q[0] * q[1] - q[3] * q[2]), 1 - 2 * (q[0] * q[0] + q[2] * q[2]), 2 * (q[1] * q[2] + q[3] * q[0])};
+        double along = 0, off = 0;
+        for (int k = 0; k < 3; k++) along += (out.pos[3 * (size_t)v + k] - lv.pos[3 * i + k]) * Y[k];
+        along = fmin(fmax(along, 0), lv.scale[i]);
+        for (int k = 0; k < 3; k++) off += pow(out.pos[3 * (size_t)v + k] - lv.pos[3 * i + k] - along * Y[k], 2);
+        assert_true(sqrt(off) < 1e-3);
     }
     sy_skeleton_free(&out), sy_leaves_free(&lv);
     /* A second lobe on the seed with three times the twigs: the first one's

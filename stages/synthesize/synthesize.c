@@ -888,23 +888,25 @@ static int keys_reserve(synth_out *so, size_t need)
     return 1;
 }
 
-/* Fits a leaf card of length leaf_size whose stem stands at w and which
- * reaches along Y (X across it): a card whose tip would stick out of the
- * lobe turns about its normal to point into it, else slides back along its
- * axis by half its length (its stem then stands off the twig by at most
- * that), else is halved, and is left out when even that sticks out.
- * Before, the cards on a hull's skin stood out from the crown by a card
- * length (the TreeLS pine +30% wide). Returns the card's length (0: left
- * out); its stem in pos, X and Y turned with it. */
-static float fit_card(const lobe_grid *g, const crown_grid *crown, const double w[3], double leaf_size, double X[3],
-                      double Y[3], float pos[3])
+/* Fits a leaf card of length leaf_size that reaches along Y (X across it)
+ * from w (centre 0: its stem at w, a patch's leaf) or across it (centre
+ * 0.5: its middle at w, a twig node's card): a card whose tip would stick
+ * out of the lobe turns about its normal to point into it (about w), else
+ * slides back along its axis by half its length (a patch leaf's stem then
+ * stands off its twig by at most that; a twig card ends on its node), else
+ * is halved, and is left out when even that sticks out. Before, the cards
+ * on a hull's skin stood out from the crown by a card length (the TreeLS
+ * pine +30% wide). Returns the card's length (0: left out); its stem in
+ * pos, X and Y turned with it. */
+static float fit_card(const lobe_grid *g, const crown_grid *crown, const double w[3], double centre, double leaf_size,
+                      double X[3], double Y[3], float pos[3])
 {
     /* Each try: direction, slide back, size (in card lengths). */
     static const float fit[6][3] = {{1, 0, 1}, {-1, 0, 1}, {1, 0.5f, 1}, {-1, 0.5f, 1}, {1, 0, 0.5f}, {-1, 0, 0.5f}};
     for (int t = 0; t < 6; t++) {
         double stem[3], tip[3];
         for (int k = 0; k < 3; k++) {
-            stem[k] = w[k] - fit[t][0] * fit[t][1] * leaf_size * Y[k];
+            stem[k] = w[k] - fit[t][0] * (fit[t][1] + centre * fit[t][2]) * leaf_size * Y[k];
             tip[k] = stem[k] + fit[t][0] * fit[t][2] * leaf_size * Y[k];
         }
         long cs = grid_cell(g, stem), ct = grid_cell(g, tip);
@@ -968,7 +970,7 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
          * not), or where the lobe is already as dense as the species' leaf
          * area density, are pruned. */
         if (c < 0 || !g->inside[c] || !block_has_room(g, c)) continue;
-        float size = fit_card(g, so->crown, w, leaf_size, X, Y, pos);
+        float size = fit_card(g, so->crown, w, 0, leaf_size, X, Y, pos);
         if (!(size > 0)) continue;
         quat_from_basis(X, Y, Z, q);
         rep->leaves_in_hull++; /* its stem passed the exact hull test above */
@@ -1371,8 +1373,10 @@ static sy_code twigs_to_skeleton(const sy_cluster *c, const seed_limb *limb, int
 }
 
 /* Leaves on a lobe's traced twigs (its nodes from node0 on): each twig
- * node holds a return, so a card there draws foliage where the scan saw
- * some, its middle on the return. The lobe takes the leaves its blocks
+ * node stands at a return (smoothed along its chain by up to half a
+ * voxel), so a card there draws foliage where the scan saw some, its
+ * middle on the node (fit_card may slide it to end there instead; its
+ * leaf counts in the node's block). The lobe takes the leaves its blocks
  * hold at the species' leaf area density (the patches' budget, grid_build)
  * in rounds: each round visits the nodes in an order keyed by the lobe's
  * stream and gives each one more card, spaced by the golden angle around
@@ -1419,18 +1423,17 @@ static sy_code leaves_on_twigs(lobe_grid *g, synth_out *so, size_t node0, double
             e2[0] = t[1] * e1[2] - t[2] * e1[1], e2[1] = t[2] * e1[0] - t[0] * e1[2], e2[2] = t[0] * e1[1] - t[1] * e1[0];
             double az = 2 * M_PI * (double)(sy_mix64(rng ^ (uint64_t)i * 0xD1B54A32D192ED03ull) >> 11) * 0x1p-53 +
                         round * GOLDEN_ANGLE;
-            double Y[3], Z[3], X[3], stem[3];
+            double Y[3], Z[3], X[3];
             for (int k = 0; k < 3; k++)
                 Y[k] = cos(TWIG_LEAF_ANGLE) * t[k] + sin(TWIG_LEAF_ANGLE) * (cos(az) * e1[k] + sin(az) * e2[k]);
             sy_v3_normalize(Y);
-            for (int k = 0; k < 3; k++) stem[k] = w[k] - 0.5 * leaf_size * Y[k];
             /* The blade faces up as far as it can (a normal across Y). */
             Z[0] = -Y[2] * Y[0], Z[1] = -Y[2] * Y[1], Z[2] = 1 - Y[2] * Y[2];
             if (sy_v3_len(Z) < 1e-6) memcpy(Z, e1, sizeof Z);
             sy_v3_normalize(Z);
             X[0] = Y[1] * Z[2] - Y[2] * Z[1], X[1] = Y[2] * Z[0] - Y[0] * Z[2], X[2] = Y[0] * Z[1] - Y[1] * Z[0];
             float pos[3], q[4];
-            float size = fit_card(g, so->crown, stem, leaf_size, X, Y, pos);
+            float size = fit_card(g, so->crown, w, 0.5, leaf_size, X, Y, pos);
             if (!(size > 0)) continue;
             quat_from_basis(X, Y, Z, q);
             if (!keys_reserve(so, so->leaves->n + 1)) {
@@ -1440,13 +1443,16 @@ static sy_code leaves_on_twigs(lobe_grid *g, synth_out *so, size_t node0, double
             rep->leaves_in_hull++; /* its stem passed fit_card's hull test */
             if (g->occupied[c]) g->leaves[c]++;
             block_add_leaf(g, c);
-            /* Pruned last: the first rounds' cards, one a node. */
-            so->leaf_key[so->leaves->n] = (float)((round + (double)j / (double)(n + 1)) / TWIG_LEAVES_MAX);
             if (sy_leaves_add(so->leaves, pos, q, size, i, err)) rc = SY_EINTERNAL;
             placed++;
         }
         if (placed == at_start) break; /* no node takes a card any more */
     }
+    /* The pruning order: the cards as placed, spread over (0, 1) as a
+     * patch's leaves are (sy_synthesize sorts every lobe's together), so
+     * each LOD keeps the same share of every lobe, the first round's cards
+     * (one a node) last. */
+    for (size_t k = 0; !rc && k < placed; k++) so->leaf_key[so->leaves->n - placed + k] = (float)((k + 0.5) / (double)placed);
     free(order);
     return rc;
 }

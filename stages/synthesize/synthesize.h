@@ -46,7 +46,8 @@ typedef struct {
                                              the angles the hidden limbs branch at (0: 25 to 90) */
     int literal_eq33;       /* 1: eq. 3.3 as printed, max/min thickness ratio x (v_r . v_d), minimised */
     int bare;               /* 1: a leaf-off tree: a lobe with traced twigs (sy_cluster.n_twigs) gets no
-                               patches, its twigs are its wood (0) */
+                               leaves, its twigs are its wood (0: its leaves hang on its twigs; no lobe with
+                               twigs gets patches either way) */
     int no_twigs;           /* 1: the lobes' traced twigs are left out (a species without twigs: a palm's
                                fronds), the scaffold grows instead (0) */
 } sy_synth_options;
