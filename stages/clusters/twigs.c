@@ -27,7 +27,7 @@ sy_twig_options sy_twig_options_default(void)
     sy_twig_options o;
     memset(&o, 0, sizeof o);
     o.voxel_min = 0.02;
-    o.voxel_max = 0.25;
+    o.voxel_max = 0.4;
     o.max_nodes = 0;
     return o;
 }
