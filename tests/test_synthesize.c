@@ -517,6 +517,35 @@ static void traced_twigs_are_the_lobes_wood(void **state)
     o.bare = 1;
     assert_int_equal(sy_synthesize(&s, &two, &lib, &o, &out, &lv, &rep, &err), SY_OK);
     assert_float_equal(out.radius[s.n], fmax(thinnest, s.radius[10] * 0.5), 1e-6);
+    sy_skeleton_free(&out), sy_leaves_free(&lv);
+    /* Leafy, with the second lobe's fork copied 100 times: the lobes take
+     * their equal budgets in different numbers of rounds (every round for
+     * the 5 nodes, one for the 500). The LOD chain keeps a prefix of the
+     * leaves, and each lobe holds about its share of any prefix (with keys
+     * by round, the 500-node lobe's cards all came first). */
+    sy_cluster *big = &two.items[1];
+    free(big->twig_pos), free(big->twig_parent);
+    big->n_twigs = 500;
+    big->twig_pos = malloc(big->n_twigs * 3 * sizeof *big->twig_pos), big->twig_parent = malloc(big->n_twigs * sizeof *big->twig_parent);
+    for (size_t i = 0; i < big->n_twigs; i++) {
+        memcpy(big->twig_pos + 3 * i, tw + 3 * (i % 5), 3 * sizeof *tw);
+        big->twig_parent[i] = i % 5 == 0 ? -1 : (int32_t)(5 * (i / 5)) + par[i % 5];
+    }
+    o.bare = 0;
+    assert_int_equal(sy_synthesize(&s, &two, &lib, &o, &out, &lv, &rep, &err), SY_OK);
+    size_t total[2] = {0, 0}, first_half[2] = {0, 0};
+    for (size_t i = 0; i < lv.n; i++) {
+        int lobe = lv.node[i] >= (int32_t)s.n + 5;
+        total[lobe]++;
+        first_half[lobe] += i < lv.n / 2;
+    }
+    printf("two twig lobes: %zu and %zu cards, %zu and %zu in the first half\n", total[0], total[1], first_half[0],
+           first_half[1]);
+    for (int l = 0; l < 2; l++) {
+        assert_true(total[l] >= 8);
+        double share = (double)first_half[l] / (double)total[l];
+        assert_true(share > 0.3 && share < 0.7);
+    }
     sy_skeleton_free(&out), sy_leaves_free(&lv), sy_clusters_free(&two);
     sy_skeleton_free(&s), sy_clusters_free(&cl);
     sy_branchlets_free(&lib);
