@@ -182,9 +182,10 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
     rc = rc ? rc : sy_clusters_build_hulls(clusters, c->xyz, &ho, hulls, err);
     /* Hulls that kept more triangles than their budget leave less room:
      * the twigs are traced again, coarser, to fit beside them. */
-    if (!rc && twigs.nodes > sy_sylva_twig_room(clusters, out->n)) {
+    size_t room = rc ? 0 : sy_sylva_twig_room(clusters, out->n);
+    if (!rc && twigs.nodes > room) {
         double first = twigs.seconds;
-        to.max_nodes = sy_sylva_twig_room(clusters, out->n);
+        to.max_nodes = room;
         rc = sy_clusters_trace_twigs(clusters, out, c->xyz, &to, &twigs, err);
         twigs.seconds += first;
         /* None fit even at the coarsest voxel: the tree is one without

@@ -15,11 +15,9 @@
 #include "clusters.h"
 #include "stages/core/parallel.h"
 #include "stages/core/progress.h"
-#include "stages/core/sort.h"
 #include "stages/core/vec3.h"
+#include "stages/core/voxel.h"
 
-#define VOXEL_BITS 14 /* per axis, from the lobe's lowest corner */
-#define INDEX_BITS 22 /* a lobe's point, in the key's low bits */
 #define VOXEL_STEP 1.25 /* the ladder of voxel sizes tried */
 
 sy_twig_options sy_twig_options_default(void)
@@ -42,37 +40,30 @@ sy_code sy_twig_options_check(const sy_twig_options *o, sy_error *err)
     return SY_OK;
 }
 
-/* The lobe's points sorted by voxel of size v: keys (voxel << INDEX_BITS |
- * the point's place in the lobe's list), written to key (n entries). 0 when
- * the lobe spans more voxels than the key holds or has more points than
- * its index bits. */
-static int voxel_keys(const sy_cluster *c, const float *xyz, double v, uint64_t *key)
+/* The lobe's points sorted by voxel of size v from its lowest corner
+ * (e[i].index: the point's place in the lobe's list; n entries). The key
+ * takes the axes as z, y, x, so the voxels, and the twig nodes numbered
+ * from them, come in that order (the files written since version 4). */
+static void voxel_sort(const sy_cluster *c, const float *xyz, double v, sy_voxel_entry *e)
 {
-    if (c->n_points >= (1u << INDEX_BITS)) return 0;
-    double lo[3] = {INFINITY, INFINITY, INFINITY};
+    double lo[3] = {INFINITY, INFINITY, INFINITY}; /* z, y, x */
     for (size_t i = 0; i < c->n_points; i++)
-        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], xyz[3 * (size_t)c->points[i] + k]);
+        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], xyz[3 * (size_t)c->points[i] + 2 - k]);
     for (size_t i = 0; i < c->n_points; i++) {
-        const float *p = xyz + 3 * (size_t)c->points[i];
-        uint64_t q = 0;
-        for (int k = 2; k >= 0; k--) {
-            double t = floor((p[k] - lo[k]) / v);
-            if (!(t >= 0) || t >= (double)(1u << VOXEL_BITS)) return 0;
-            q = q << VOXEL_BITS | (uint64_t)t;
-        }
-        key[i] = q << INDEX_BITS | i;
+        const float *f = xyz + 3 * (size_t)c->points[i];
+        const double p[3] = {f[2], f[1], f[0]};
+        e[i] = (sy_voxel_entry){sy_voxel_key_d(p, lo, v), i};
     }
-    qsort(key, c->n_points, sizeof *key, sy_cmp_u64);
-    return 1;
+    sy_voxel_entries_sort(e, c->n_points);
 }
 
-/* Distinct voxels of size v over the lobe (SIZE_MAX when v is too fine). */
-static size_t count_voxels(const sy_cluster *c, const float *xyz, double v, uint64_t *key)
+/* Distinct voxels of size v over the lobe. */
+static size_t count_voxels(const sy_cluster *c, const float *xyz, double v, sy_voxel_entry *e)
 {
     if (!c->n_points) return 0;
-    if (!voxel_keys(c, xyz, v, key)) return SIZE_MAX;
+    voxel_sort(c, xyz, v, e);
     size_t m = 1;
-    for (size_t i = 1; i < c->n_points; i++) m += key[i] >> INDEX_BITS != key[i - 1] >> INDEX_BITS;
+    for (size_t i = 1; i < c->n_points; i++) m += e[i].key != e[i - 1].key;
     return m;
 }
 
@@ -81,7 +72,7 @@ typedef struct {
     const sy_skeleton *main;
     const float *xyz;
     double v;
-    size_t *count; /* per lobe; SIZE_MAX: too fine a voxel for it */
+    size_t *count; /* per lobe; SIZE_MAX: out of memory */
     uint8_t *oom;  /* per lobe */
     sy_code *rc;
     sy_error *err;
@@ -93,10 +84,10 @@ static void count_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
     twig_job *J = ctx;
     for (size_t c = begin; c < end; c++) {
         const sy_cluster *C = &J->cl->items[c];
-        uint64_t *key = malloc((C->n_points + 1) * sizeof *key);
-        J->oom[c] = !key;
-        J->count[c] = key ? count_voxels(C, J->xyz, J->v, key) : SIZE_MAX;
-        free(key);
+        sy_voxel_entry *e = malloc((C->n_points + 1) * sizeof *e);
+        J->oom[c] = !e;
+        J->count[c] = e ? count_voxels(C, J->xyz, J->v, e) : SIZE_MAX;
+        free(e);
     }
 }
 
@@ -107,35 +98,35 @@ static void count_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
 static sy_code trace_lobe(sy_cluster *C, const float seed[3], const float *xyz, double v, sy_error *err)
 {
     size_t n = C->n_points;
-    uint64_t *key = malloc((n + 1) * sizeof *key);
+    sy_voxel_entry *e = malloc((n + 1) * sizeof *e);
     float *rep = malloc((n + 1) * 3 * sizeof *rep);
-    if (!key || !rep) {
-        free(key), free(rep);
+    if (!e || !rep) {
+        free(e), free(rep);
         return sy_fail(err, SY_EINTERNAL, "clusters: out of memory tracing twigs");
     }
     size_t m = 0;
-    if (n && voxel_keys(C, xyz, v, key))
-        for (size_t a = 0; a < n;) {
-            size_t b = a;
-            double mean[3] = {0, 0, 0};
-            while (b < n && key[b] >> INDEX_BITS == key[a] >> INDEX_BITS) {
-                const float *p = xyz + 3 * (size_t)C->points[key[b] & ((1u << INDEX_BITS) - 1)];
-                for (int k = 0; k < 3; k++) mean[k] += p[k];
-                b++;
-            }
-            const float mf[3] = {(float)(mean[0] / (double)(b - a)), (float)(mean[1] / (double)(b - a)),
-                                 (float)(mean[2] / (double)(b - a))};
-            double best = INFINITY;
-            size_t bi = 0;
-            for (size_t i = a; i < b; i++) {
-                size_t li = key[i] & ((1u << INDEX_BITS) - 1);
-                double d = sy_v3f_dist2(xyz + 3 * (size_t)C->points[li], mf);
-                if (d < best || (d == best && li < bi)) best = d, bi = li;
-            }
-            memcpy(rep + 3 * m++, xyz + 3 * (size_t)C->points[bi], 3 * sizeof *rep);
-            a = b;
+    voxel_sort(C, xyz, v, e);
+    for (size_t a = 0; a < n;) {
+        size_t b = a;
+        double mean[3] = {0, 0, 0};
+        while (b < n && e[b].key == e[a].key) {
+            const float *p = xyz + 3 * (size_t)C->points[e[b].index];
+            for (int k = 0; k < 3; k++) mean[k] += p[k];
+            b++;
         }
-    free(key);
+        const float mf[3] = {(float)(mean[0] / (double)(b - a)), (float)(mean[1] / (double)(b - a)),
+                             (float)(mean[2] / (double)(b - a))};
+        double best = INFINITY;
+        size_t bi = 0;
+        for (size_t i = a; i < b; i++) {
+            size_t li = e[i].index;
+            double d = sy_v3f_dist2(xyz + 3 * (size_t)C->points[li], mf);
+            if (d < best || (d == best && li < bi)) best = d, bi = li;
+        }
+        memcpy(rep + 3 * m++, xyz + 3 * (size_t)C->points[bi], 3 * sizeof *rep);
+        a = b;
+    }
+    free(e);
     /* Prim over the m representatives and the seed (index m). */
     double *best = malloc((m + 1) * sizeof *best);
     int32_t *from = malloc((m + 1) * sizeof *from), *first = malloc((m + 1) * sizeof *first),

@@ -53,6 +53,32 @@ static inline double sy_v3_normalize(double v[3])
     return l;
 }
 
+/* A unit basis e1, e2 across unit direction d (any vector not parallel to
+ * d, crossed with it twice): a twig's radial directions. */
+static inline void sy_v3_basis_across(const double d[3], double e1[3], double e2[3])
+{
+    const double helper[3] = {fabs(d[2]) < 0.9 ? 0 : 1, 0, fabs(d[2]) < 0.9 ? 1 : 0};
+    sy_v3_cross(e1, d, helper);
+    sy_v3_normalize(e1);
+    sy_v3_cross(e2, d, e1);
+}
+
+/* A leaf card's frame for its unit axis Y: its normal Z faces the sky as
+ * far as Y allows (where Y stands within about 0.06 degrees of vertical,
+ * fallback made orthogonal to Y instead), X = Y x Z. */
+static inline void sy_v3_card_frame(const double Y[3], const double fallback[3], double X[3], double Z[3])
+{
+    const double up[3] = {0, 0, 1};
+    double dot = Y[2];
+    for (int k = 0; k < 3; k++) Z[k] = up[k] - dot * Y[k];
+    if (sy_v3_len(Z) < 1e-3) {
+        dot = sy_v3_dot(fallback, Y);
+        for (int k = 0; k < 3; k++) Z[k] = fallback[k] - dot * Y[k];
+    }
+    sy_v3_normalize(Z);
+    sy_v3_cross(X, Y, Z);
+}
+
 #ifdef __cplusplus
 }
 #endif

@@ -172,9 +172,8 @@ static int cmp_tri(const void *a, const void *b)
 }
 
 /* Signed steps as varints: 0, -1, 1, -2, ... -> 0, 1, 2, 3, ... */
-static uint64_t zigzag(int32_t v) { return v < 0 ? ((uint64_t)(-(int64_t)v) << 1) - 1 : (uint64_t)v << 1; }
+static uint64_t zigzag(int64_t v) { return v < 0 ? ((uint64_t)(-(v + 1)) << 1) | 1 : (uint64_t)v << 1; }
 static int64_t unzigzag(uint64_t u) { return u & 1 ? -(int64_t)(u >> 1) - 1 : (int64_t)(u >> 1); }
-static uint64_t zigzag64(int64_t v) { return v < 0 ? ((uint64_t)(-(v + 1)) << 1) | 1 : (uint64_t)v << 1; }
 
 /* Twig positions (version 4) lie on a grid of step * 2^shift, about a
  * quarter of the voxel the returns were thinned to: a step of one voxel
@@ -378,7 +377,7 @@ sy_code sy_encode_mem(const sy_skeleton *s, const sy_clusters *cl, uint16_t spec
                         break;
                     }
                     tw[3 * i + k] = (int64_t)t;
-                    put_varint(&b, zigzag64(tw[3 * i + k] - tw[3 * pi + k]));
+                    put_varint(&b, zigzag(tw[3 * i + k] - tw[3 * pi + k]));
                 }
             }
             free(tw);
@@ -733,21 +732,26 @@ sy_code sy_decode_read(const char *path, sy_skeleton *skel, sy_clusters *cluster
 #define TWIG_HULL_TRIANGLES 24 /* what each hull keeps beside twigs */
 #define TWIG_MAX_BYTES 16000.0
 
+/* Twig nodes that fit in what a file of `bytes` leaves after its header,
+ * n_nodes skeleton nodes and `tris` hull triangles, at most TWIG_MAX_BYTES
+ * of them. */
+static size_t twig_nodes_fitting(double bytes, size_t n_nodes, double tris)
+{
+    double left = bytes - 64 - BYTES_NODE * (double)n_nodes - BYTES_TRIANGLE * tris;
+    return left > 0 ? (size_t)(fmin(left, TWIG_MAX_BYTES) / BYTES_TWIG) : 0;
+}
+
 size_t sy_sylva_twig_budget(size_t n_clusters, size_t n_nodes)
 {
-    double bytes = BYTES_TARGET - 64 - BYTES_NODE * (double)n_nodes -
-                   BYTES_TRIANGLE * TWIG_HULL_TRIANGLES * (double)n_clusters;
-    if (!n_clusters || !(bytes > 0)) return 0;
-    return (size_t)(fmin(bytes, TWIG_MAX_BYTES) / BYTES_TWIG);
+    return n_clusters ? twig_nodes_fitting(BYTES_TARGET, n_nodes, TWIG_HULL_TRIANGLES * (double)n_clusters) : 0;
 }
 
 size_t sy_sylva_twig_room(const sy_clusters *clusters, size_t n_nodes)
 {
+    if (!clusters || !clusters->n) return 0;
     double tris = 0;
-    for (size_t c = 0; clusters && c < clusters->n; c++) tris += (double)clusters->items[c].n_tris;
-    double bytes = BYTES_BOUND - 64 - BYTES_NODE * (double)n_nodes - BYTES_TRIANGLE * tris;
-    if (!clusters || !clusters->n || !(bytes > 0)) return 0;
-    return (size_t)(fmin(bytes, TWIG_MAX_BYTES) / BYTES_TWIG);
+    for (size_t c = 0; c < clusters->n; c++) tris += (double)clusters->items[c].n_tris;
+    return twig_nodes_fitting(BYTES_BOUND, n_nodes, tris);
 }
 
 int sy_sylva_hull_budget(size_t n_clusters, size_t n_nodes, size_t n_twigs)

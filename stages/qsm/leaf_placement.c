@@ -38,14 +38,6 @@ void sy_leaf_placement_fit_tree(sy_leaf_placement *p, const sy_species_params *s
 
 static double unit(uint64_t *state) { return sy_unit53(sy_splitmix64(state)); }
 
-static void normalize(double v[3])
-{
-    double n = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-    for (int k = 0; k < 3; k++) v[k] /= n;
-}
-
-static void cross(const double a[3], const double b[3], double out[3]) { sy_v3_cross(out, a, b); }
-
 /* Unit quaternion (x, y, z, w) of the rotation whose matrix columns are x, y, z. */
 static void quat_from_columns(const double x[3], const double y[3], const double z[3], float q[4])
 {
@@ -73,25 +65,17 @@ static void quat_from_columns(const double x[3], const double y[3], const double
 static sy_code leaf_on_edge(const double a[3], const double b[3], float ra, float rb, const double d[3],
                             double t, uint64_t *rng, float size, int32_t node, sy_leaves *out, sy_error *err)
 {
-    /* A radial basis around d: any vector not parallel to d, crossed twice. */
-    double helper[3] = {fabs(d[2]) < 0.9 ? 0 : 1, 0, fabs(d[2]) < 0.9 ? 1 : 0}, e1[3], e2[3];
-    cross(d, helper, e1);
-    normalize(e1);
-    cross(d, e1, e2);
+    double e1[3], e2[3];
+    sy_v3_basis_across(d, e1, e2);
     double phi = 2 * PI * unit(rng), lean = (30 + 30 * unit(rng)) * PI / 180;
     double radial[3], yaxis[3], zaxis[3], xaxis[3];
     for (int k = 0; k < 3; k++) {
         radial[k] = cos(phi) * e1[k] + sin(phi) * e2[k];
         yaxis[k] = cos(lean) * radial[k] + sin(lean) * d[k];
     }
-    normalize(yaxis);
+    sy_v3_normalize(yaxis);
     /* The blade faces the sky as far as its axis allows. */
-    double up[3] = {0, 0, 1}, dot = yaxis[2];
-    for (int k = 0; k < 3; k++) zaxis[k] = up[k] - dot * yaxis[k];
-    if (sqrt(zaxis[0] * zaxis[0] + zaxis[1] * zaxis[1] + zaxis[2] * zaxis[2]) < 1e-3)
-        for (int k = 0; k < 3; k++) zaxis[k] = radial[k] - (radial[0] * yaxis[0] + radial[1] * yaxis[1] + radial[2] * yaxis[2]) * yaxis[k];
-    normalize(zaxis);
-    cross(yaxis, zaxis, xaxis);
+    sy_v3_card_frame(yaxis, radial, xaxis, zaxis);
     double r = ra + t * (rb - ra);
     float pos[3], q[4];
     for (int k = 0; k < 3; k++) pos[k] = (float)(a[k] + t * (b[k] - a[k]) + r * radial[k]);

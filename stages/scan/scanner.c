@@ -11,6 +11,7 @@
 #include "stages/core/parallel.h"
 #include "stages/core/progress.h"
 #include "stages/core/rng.h"
+#include "stages/core/vec3.h"
 
 #define PI 3.14159265358979323846
 #define DEG (PI / 180)
@@ -421,11 +422,8 @@ static void trace_pulse(const scan_job *j, size_t i, chunk_out *out)
     double dirs[MAX_SUBRAYS][3];
     memcpy(dirs[0], d, sizeof dirs[0]);
     if (k_rays > 1) {
-        double ref[3] = {fabs(d[2]) < 0.9 ? 0 : 1, 0, fabs(d[2]) < 0.9 ? 1 : 0};
-        double u[3] = {d[1] * ref[2] - d[2] * ref[1], d[2] * ref[0] - d[0] * ref[2], d[0] * ref[1] - d[1] * ref[0]};
-        double ul = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
-        for (int c = 0; c < 3; c++) u[c] /= ul;
-        double v[3] = {d[1] * u[2] - d[2] * u[1], d[2] * u[0] - d[0] * u[2], d[0] * u[1] - d[1] * u[0]};
+        double u[3], v[3];
+        sy_v3_basis_across(d, u, v);
         double half = 0.5e-3 * sc->divergence_mrad, phase = 2 * PI * pulse_u01(j->key, i, 0);
         /* A golden-angle spiral fills the footprint disc evenly. */
         for (int k = 1; k < k_rays; k++) {

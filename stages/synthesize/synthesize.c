@@ -1437,21 +1437,15 @@ static sy_code leaves_on_twigs(lobe_grid *g, synth_out *so, size_t node0, double
                 sy_v3_normalize(t);
             }
             /* A basis across the twig, and this round's way round it. */
-            double e1[3], e2[3], a[3] = {fabs(t[2]) < 0.9 ? 0 : 1, 0, fabs(t[2]) < 0.9 ? 1 : 0};
-            e1[0] = t[1] * a[2] - t[2] * a[1], e1[1] = t[2] * a[0] - t[0] * a[2], e1[2] = t[0] * a[1] - t[1] * a[0];
-            sy_v3_normalize(e1);
-            e2[0] = t[1] * e1[2] - t[2] * e1[1], e2[1] = t[2] * e1[0] - t[0] * e1[2], e2[2] = t[0] * e1[1] - t[1] * e1[0];
+            double e1[3], e2[3];
+            sy_v3_basis_across(t, e1, e2);
             double az = 2 * M_PI * (double)(sy_mix64(rng ^ (uint64_t)i * 0xD1B54A32D192ED03ull) >> 11) * 0x1p-53 +
                         round * GOLDEN_ANGLE;
             double Y[3], Z[3], X[3];
             for (int k = 0; k < 3; k++)
                 Y[k] = cos(TWIG_LEAF_ANGLE) * t[k] + sin(TWIG_LEAF_ANGLE) * (cos(az) * e1[k] + sin(az) * e2[k]);
             sy_v3_normalize(Y);
-            /* The blade faces up as far as it can (a normal across Y). */
-            Z[0] = -Y[2] * Y[0], Z[1] = -Y[2] * Y[1], Z[2] = 1 - Y[2] * Y[2];
-            if (sy_v3_len(Z) < 1e-6) memcpy(Z, e1, sizeof Z);
-            sy_v3_normalize(Z);
-            X[0] = Y[1] * Z[2] - Y[2] * Z[1], X[1] = Y[2] * Z[0] - Y[0] * Z[2], X[2] = Y[0] * Z[1] - Y[1] * Z[0];
+            sy_v3_card_frame(Y, e1, X, Z); /* the blade faces up as far as it can */
             float pos[3], q[4];
             float size = tip[i - node0] ? fit_card(g, so->crown, w, TWIG_TIP_CARD, 2, leaf_size, X, Y, pos)
                                         : fit_card(g, so->crown, w, TWIG_CARD, 4, leaf_size, X, Y, pos);
