@@ -403,6 +403,7 @@ sy_code sy_batch_tree(const sy_batch_input *in, const char *out_dir, const sy_ba
         sy_json_int(&j, "nodes", (long long)sk->nodes);
         sy_json_int(&j, "branches", (long long)sk->branches);
         sy_json_int(&j, "clusters", (long long)sk->clusters);
+        sy_json_number(&j, "lobe_size", sk->lobe_size);
         sy_json_int(&j, "leaves", (long long)res.synth.leaves);
         sy_json_int(&j, "glb_bytes", (long long)res.glb_size);
         sy_json_int(&j, "sylva_bytes", (long long)res.sylva_size);

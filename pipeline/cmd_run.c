@@ -46,6 +46,7 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
     sy_json_int(&j, "nodes", (long long)r->nodes);
     sy_json_int(&j, "branches", (long long)r->branches);
     sy_json_int(&j, "clusters", (long long)r->clusters);
+    sy_json_number(&j, "lobe_size", r->lobe_size);
     sy_json_int(&j, "cluster_points", (long long)r->cluster_points);
     sy_json_int(&j, "twig_nodes", (long long)res->hulls.twig_nodes);
     sy_json_number(&j, "twig_voxel", res->hulls.twig_voxel);
@@ -111,7 +112,8 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
         {"--proxy", OPT_FLAG, &a.run.proxy, NULL, "also draw the lobe hulls as a semi-transparent foliage_proxy mesh"},
         {"--leaf-off", OPT_FLAG, &a.run.leaf_off, NULL, "a leaf-off scan (bare branches): lobes with traced twigs keep them as their wood, no leaf cards"},
         {"--lobe-size", OPT_DOUBLE, &a.run.lobe_size, "F",
-         "largest lobe as a share of the tree's extent, in [0,1]; 0: one cluster per cut (default 0.1)"},
+         "largest lobe as a share of the tree's extent, in [0,1]; 0: one cluster per cut (default 0.1; cut "
+         "again larger, up to 0.75, where the .sylva cannot hold that many lobes)"},
         {"--model", OPT_STRING, &a.run.model, "MODEL.sjb", "species classifier used without --species (default: the shipped one)"},
         {"--no-classify", OPT_FLAG, &no_classify, NULL, "without --species, keep the default parameters and materials"},
         {"--beta", OPT_DOUBLE, &a.run.beta, "B", "Dijkstra edge weight |u-v|^B (default: species, else 1)"},

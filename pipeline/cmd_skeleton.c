@@ -32,6 +32,7 @@ static void print_report(const sy_cli *cli, const char *in, const char *out, con
         sy_json_int(&j, "nodes", (long long)r->nodes);
         sy_json_int(&j, "branches", (long long)r->branches);
         sy_json_int(&j, "clusters", (long long)r->clusters);
+        sy_json_number(&j, "lobe_size", r->lobe_size);
         sy_json_int(&j, "skeleton_points", (long long)r->skeleton_points);
         sy_json_int(&j, "cluster_points", (long long)r->cluster_points);
         sy_json_object(&j, "hulls");

@@ -78,6 +78,11 @@ static sy_code name_input(sy_code rc, const char *name, sy_error *err)
     return rc;
 }
 
+/* Each cut again takes lobes this much larger, at most this many times
+ * (a tenth of the cloud's extent up to three quarters). */
+#define LOBE_GROW 1.25
+#define LOBE_GROW_STEPS 9
+
 /* The cut's share of the reconstruction options. */
 static sy_cut_options cut_options(const sy_skeleton_options *o)
 {
@@ -116,6 +121,19 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
     /* The clusters stage: cut, lobes, split, then the hulls. */
     sy_cut_report cut;
     rc = sy_clusters_extract(&full, c->xyz, &co, out, clusters, &cut, err);
+    /* Lobes the .sylva cannot hold at a useful hull each are cut again,
+     * larger: a dense crown (the simulated 250k-point trees) splits into
+     * hundreds of small lobes. docs/synthesize.md "Lobes that fit". */
+    for (int grow = 0; !rc && clusters && co.lobe_size > 0 && grow < LOBE_GROW_STEPS &&
+                       !sy_sylva_lobes_fit(clusters->n, out->n);
+         grow++) {
+        double seconds = cut.seconds;
+        sy_clusters_free(clusters);
+        sy_skeleton_free(out);
+        co.lobe_size = fmin(1, co.lobe_size * LOBE_GROW);
+        rc = sy_clusters_extract(&full, c->xyz, &co, out, clusters, &cut, err);
+        cut.seconds += seconds;
+    }
     sy_full_skeleton_free(&full);
     if (rc) return rc;
     /* Radii the returns bound, on the chains the level sets made (where the
@@ -135,6 +153,7 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
     report->branches = cut.branches;
     report->clusters = cut.clusters;
     report->cluster_points = cut.cluster_points;
+    report->lobe_size = co.lobe_size;
     report->skeleton_points = cut.skeleton_points;
     report->t_clusters = cut.seconds;
     report->t_total += cut.seconds;

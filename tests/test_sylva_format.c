@@ -187,6 +187,27 @@ static void twig_room_counts_the_hulls_as_built(void **state)
     assert_true(sy_sylva_twig_room(&cl, 10) <= sy_sylva_twig_budget(1, 10));
 }
 
+/* Lobes fit while each keeps 24 triangles and its occupancy grid beside
+ * the skeleton under 36 kB: AdTree's tree1 (118 lobes, 486 nodes) and
+ * Lille_11 (133, 528) do; the simulated London plane's first cut (517,
+ * 824) and the Lombardy poplar's at 0.39 (197, 558) do not. */
+static void lobes_fit_at_24_triangles_a_hull(void **state)
+{
+    (void)state;
+    assert_true(sy_sylva_lobes_fit(118, 486));
+    assert_true(sy_sylva_lobes_fit(133, 528));
+    assert_false(sy_sylva_lobes_fit(517, 824));
+    assert_false(sy_sylva_lobes_fit(197, 558));
+    assert_true(sy_sylva_lobes_fit(0, 10));
+    assert_false(sy_sylva_lobes_fit(1, 4000)); /* the skeleton alone fills the file */
+    /* The edge: (36000 - 64 - 10 n_nodes) / (24 x 6.5 + 70) lobes. */
+    size_t edge = (size_t)((36000.0 - 64 - 10 * 500) / (24 * 6.5 + 70));
+    assert_true(sy_sylva_lobes_fit(edge, 500));
+    assert_false(sy_sylva_lobes_fit(edge + 1, 500));
+    /* Lobes that fit leave each hull at least the budget twigs assume. */
+    assert_true(sy_sylva_hull_budget(edge, 500, 0) >= 24);
+}
+
 static void synthetic_tree_round_trips(void **state)
 {
     (void)state;
@@ -540,6 +561,7 @@ int main(void)
         cmocka_unit_test(synthetic_tree_round_trips),
         cmocka_unit_test(real_trees_round_trip_under_40kB),
         cmocka_unit_test(twig_room_counts_the_hulls_as_built),
+        cmocka_unit_test(lobes_fit_at_24_triangles_a_hull),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -93,6 +93,19 @@ size=$(od -An -tu1 -j16 -N8 "$tmp/masks.png" | awk '{ print $3 * 256 + $4, $7 * 
 "$SYLVA" eval --points "$scan" "$tmp/a.sylva" --png "$tmp/x.png" 2>"$tmp/err"; rc=$?
 [[ $rc == 1 && ! -e $tmp/x.png ]] || fail "--png with a .sylva model: exit $rc"
 
+# A dense crown: the simulated aspen at 0.15 degrees (246k returns) cut at
+# a tenth of its extent gave 300 lobes and a 51 kB .sylva. The run cuts
+# again with larger lobes until the file holds them, and says so.
+"$SYLVA" scan quaking_aspen --seed 1 --scanner terrestrial --step 0.15 -o "$tmp/dense.las" --quiet || fail "scan exit $?"
+dense=$("$SYLVA" run "$tmp/dense.las" --species quaking_aspen -o "$tmp/dense.glb" --sylva "$tmp/dense.sylva" --json) ||
+  fail "run (dense) exit $?"
+(( $(key sylva_bytes "$dense") < 40000 )) || fail "dense crown's .sylva too large: $dense"
+awk -v v="$(key lobe_size "$dense")" 'BEGIN { exit !(v > 0.1 && v < 1) }' || fail "lobes not enlarged: $dense"
+(( $(key clusters "$dense") >= 40 )) || fail "too few lobes left: $dense"
+(( $(key leaves "$dense") > 5000 )) || fail "dense crown's leaves: $dense"
+# A sparse scan keeps the lobe size it asked for.
+[[ $(key lobe_size "$out") == 0.1 ]] || fail "lobe size changed on the sample: $out"
+
 # Species that do not exist, a bad grammar: clear errors.
 "$SYLVA" run "$scan" -o "$tmp/x.glb" --species no_such_tree 2>"$tmp/err"; rc=$?
 [[ $rc == 2 ]] || fail "unknown species exit $rc"

@@ -59,6 +59,12 @@ sy_code sy_encode_write(const char *path, const sy_skeleton *skel, const sy_clus
  * twigs, or none) under its 40 kB target (Pirk 2013 Table 3.2), in
  * [16, 160]; the hull step (sy_hull_options.triangles) takes it. */
 int sy_sylva_hull_budget(size_t n_clusters, size_t n_nodes, size_t n_twigs);
+/* 1 when n_clusters hulls of 24 triangles, with their occupancy grids,
+ * fit beside n_nodes skeleton nodes under the 36 kB the file aims at
+ * (below that the hull budget's floor of 16 triangles a hull takes the
+ * file past 40 kB: simulated 250k-point crowns split into 300-500 lobes
+ * came to 50-110 kB). */
+int sy_sylva_lobes_fit(size_t n_clusters, size_t n_nodes);
 /* Traced twig nodes (sy_twig_options.max_nodes) such a file has room for
  * beside hulls of 24 triangles, at most about 16 kB of them; 0: none. */
 size_t sy_sylva_twig_budget(size_t n_clusters, size_t n_nodes);

@@ -754,6 +754,12 @@ size_t sy_sylva_twig_room(const sy_clusters *clusters, size_t n_nodes)
     return twig_nodes_fitting(BYTES_BOUND, n_nodes, tris);
 }
 
+int sy_sylva_lobes_fit(size_t n_clusters, size_t n_nodes)
+{
+    double bytes = BYTES_TARGET - 64 - BYTES_NODE * (double)n_nodes - BYTES_OCCUPANCY * (double)n_clusters;
+    return bytes >= BYTES_TRIANGLE * TWIG_HULL_TRIANGLES * (double)n_clusters;
+}
+
 int sy_sylva_hull_budget(size_t n_clusters, size_t n_nodes, size_t n_twigs)
 {
     if (n_clusters == 0) return 160;

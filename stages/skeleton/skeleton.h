@@ -126,6 +126,9 @@ typedef struct {
      * main skeleton's and the clusters' (the clusters stage's cut). */
     size_t nodes, branches;
     size_t clusters, cluster_points, skeleton_points;
+    double lobe_size;     /* after sy_reconstruct_tree: the lobe size the cut took, as a share of the
+                             cloud's extent (the option's, or larger where the .sylva could not hold
+                             that many lobes) */
     double dbh, dbh_rms, height;
     int dbh_fitted;       /* 1: circle fit at breast height, 0: fallback estimate */
     double d_root;        /* root diameter from which the allometry runs */
