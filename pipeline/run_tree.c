@@ -13,6 +13,7 @@
 #include "stages/core/fileio.h"
 #include "stages/core/parallel.h"
 #include "stages/core/progress.h"
+#include "stages/core/sort.h"
 #include "stages/encode/encode.h"
 #include "stages/eval/eval.h"
 #include "stages/grow/grow.h"
@@ -356,6 +357,132 @@ static void prepare_part(void *ctx, size_t begin, size_t end, size_t chunk)
     else P->rc = clean(P->c, P->name, P->o, P->voxel, P->r, &P->err);
 }
 
+/* The scan's crown base over its height: the lowest of CROWN_SLABS_SCAN
+ * height slabs whose returns spread wider than a tenth of the height (the
+ * 90th percentile of their horizontal distance from the slab's mean),
+ * above a lowest slab (of 10 returns or more) narrower than that: a stem
+ * in view. -1 when the lowest slab is already wide (no stem seen: an airborne crown, a bush) or
+ * no slab is (a pole). */
+#define CROWN_SLABS_SCAN 20
+#define CROWN_SPREAD_SHARE 0.1
+static double scan_crown_base_share(const sy_cloud *c)
+{
+    if (c->n < 100) return -1;
+    float zlo = c->xyz[2], zhi = c->xyz[2];
+    for (size_t i = 1; i < c->n; i++) zlo = fminf(zlo, c->xyz[3 * i + 2]), zhi = fmaxf(zhi, c->xyz[3 * i + 2]);
+    double h = (double)zhi - zlo;
+    if (!(h > 0)) return -1;
+    double sum[CROWN_SLABS_SCAN][3] = {{0}};
+    size_t start[CROWN_SLABS_SCAN + 1] = {0};
+    int *slab = malloc(c->n * sizeof *slab);
+    double *d = malloc(c->n * sizeof *d);
+    if (!slab || !d) {
+        free(slab), free(d);
+        return -1;
+    }
+    for (size_t i = 0; i < c->n; i++) {
+        int k = (int)((c->xyz[3 * i + 2] - zlo) / h * CROWN_SLABS_SCAN);
+        slab[i] = k >= CROWN_SLABS_SCAN ? CROWN_SLABS_SCAN - 1 : k;
+        sum[slab[i]][0] += c->xyz[3 * i], sum[slab[i]][1] += c->xyz[3 * i + 1], sum[slab[i]][2] += 1;
+        start[slab[i] + 1]++;
+    }
+    for (int k = 0; k < CROWN_SLABS_SCAN; k++) start[k + 1] += start[k];
+    size_t fill[CROWN_SLABS_SCAN];
+    memcpy(fill, start, sizeof fill);
+    for (size_t i = 0; i < c->n; i++) {
+        const double *m = sum[slab[i]];
+        d[fill[slab[i]]++] = hypot(c->xyz[3 * i] - m[0] / m[2], c->xyz[3 * i + 1] - m[1] / m[2]);
+    }
+    double share = -1;
+    for (int k = 0, first = 1; k < CROWN_SLABS_SCAN; k++) {
+        size_t m = start[k + 1] - start[k];
+        if (m < 10) continue;
+        qsort(d + start[k], m, sizeof *d, sy_cmp_double);
+        if (d[start[k] + (size_t)(0.9 * (double)(m - 1))] > CROWN_SPREAD_SHARE * h) {
+            if (!first) share = (double)k / CROWN_SLABS_SCAN;
+            break;
+        }
+        first = 0;
+    }
+    free(slab), free(d);
+    return share;
+}
+
+static void species_nominal(const sy_species_params *sp, double *dbh_per_height, double *crown_base_share,
+                            float profile[SY_CROWN_SLABS]);
+
+/* The species' nominal crown base over its height (species_nominal). */
+static double nominal_crown_base(const sy_species_params *sp)
+{
+    double dbh_per_height, base;
+    float profile[SY_CROWN_SLABS];
+    species_nominal(sp, &dbh_per_height, &base, profile);
+    return base;
+}
+
+/* The classifier learnt its species from simulated scans, and a real scan
+ * unlike all of them can still take one with confidence: rTwig's leaf-off
+ * sapling, branched from 0.45 of its height, came out a palm (p 0.97). A
+ * species grown with a bare bole over more than BARE_BOLE_SHARE of its
+ * height (the library's palm: 0.78; the next, the pine, 0.46) is ruled out
+ * for a scan whose crown starts more than BOLE_MARGIN of its height lower
+ * (drooping fronds bring the simulated palm's scan to 0.65), and the most
+ * probable species left is taken. The guess keeps its probabilities and
+ * names what was ruled out. *sp holds the guess's parameters on entry and
+ * the species taken on return; *none: no species is left (unknown). */
+#define BARE_BOLE_SHARE 0.5
+#define BOLE_MARGIN 0.3
+static sy_code rule_out_by_crown_base(const sy_cloud *c, sy_species_guess *g, sy_species_params *sp, int *none,
+                                      sy_error *err)
+{
+    *none = 0;
+    double nominal = nominal_crown_base(sp);
+    if (nominal <= BARE_BOLE_SHARE) return SY_OK;
+    double scan = scan_crown_base_share(c);
+    if (scan < 0 || scan >= nominal - BOLE_MARGIN) return SY_OK;
+    snprintf(g->ruled_out, sizeof g->ruled_out, "%s", g->name);
+    g->crown_base_scan = scan, g->crown_base_species = nominal;
+    sy_library lib;
+    sy_code rc = sy_library_load(NULL, &lib, err);
+    if (rc) return rc;
+    int ruled = g->species.id, taken = -1;
+    for (;;) {
+        int best = -1;
+        for (size_t k = 0; k < g->species.n_classes; k++)
+            if ((int)k != ruled && (int)k != taken && g->species.probabilities[k] > 0 &&
+                (best < 0 || g->species.probabilities[k] > g->species.probabilities[best]))
+                best = (int)k;
+        const sy_library_entry *e = best >= 0 ? sy_library_by_id(&lib, best) : NULL;
+        if (!e) break;
+        sy_species_params cand;
+        if ((rc = sy_library_params(&lib, e, &cand, err))) break;
+        double base = nominal_crown_base(&cand);
+        if (base > BARE_BOLE_SHARE && scan < base - BOLE_MARGIN) {
+            sy_species_params_free(&cand); /* ruled out as well: the next */
+            ruled = best;
+            continue;
+        }
+        sy_species_params_free(sp);
+        *sp = cand;
+        taken = best;
+        break;
+    }
+    if (!rc) {
+        if (taken >= 0) {
+            const sy_library_entry *e = sy_library_by_id(&lib, taken);
+            snprintf(g->name, sizeof g->name, "%s", e->name);
+            snprintf(g->species.name, sizeof g->species.name, "%s", e->name);
+        } else {
+            snprintf(g->name, sizeof g->name, "unknown");
+            g->species.name[0] = 0;
+            *none = 1;
+        }
+        g->species.id = taken;
+    }
+    sy_library_free(&lib);
+    return rc;
+}
+
 static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_options *o,
                            const sy_species_params *sp, sy_run_tree_result *r, sy_error *err)
 {
@@ -382,21 +509,28 @@ static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_opti
     sy_species_params guessed;
     int have_guess = 0;
     if (classify) {
-        char line[200];
+        if (r->guess.species.id >= 0) {
+            if ((rc = sy_species_params_find(r->guess.name, &guessed, err))) return rc;
+            int none;
+            if ((rc = rule_out_by_crown_base(c, &r->guess, &guessed, &none, err))) {
+                sy_species_params_free(&guessed);
+                return rc;
+            }
+            if (none) sy_species_params_free(&guessed);
+            else sp = &guessed, have_guess = 1, r->species_id = r->guess.species.id;
+        }
+        char line[320], ruled[160] = "";
+        if (r->guess.ruled_out[0])
+            snprintf(ruled, sizeof ruled, "; %s ruled out: crown from %.2f of the height, the species' from %.2f",
+                     r->guess.ruled_out, r->guess.crown_base_scan, r->guess.crown_base_species);
         if (r->guess.too_few)
             snprintf(line, sizeof line, "unknown (%zu points: too few to classify, at least %d)", r->guess.too_few,
                      SY_FEATURES_MIN_POINTS);
         else
-            snprintf(line, sizeof line, "%s (%s; best %s p %.2f)", r->guess.name,
+            snprintf(line, sizeof line, "%s (%s; best %s p %.2f%s)", r->guess.name,
                      r->guess.confident ? "confident" : r->guess.novel ? "unlike the training trees" : "not confident",
-                     r->guess.best, r->guess.probability);
+                     r->guess.best, r->guess.probability, ruled);
         step(o, "species", r->guess.seconds, line);
-        if (r->guess.species.id >= 0) {
-            if ((rc = sy_species_params_find(r->guess.name, &guessed, err))) return rc;
-            sp = &guessed;
-            have_guess = 1;
-            r->species_id = r->guess.species.id;
-        }
     }
     rc = reconstruct_with(c, name, o, sp, r, err);
     if (have_guess) sy_species_params_free(&guessed);

@@ -95,4 +95,11 @@ echo "$run" | grep -q '"species":"european_pine"' || fail "run did not classify 
 # came to 40,953 bytes before).
 bytes=$(grep -o '"sylva_bytes":[0-9]*' <<< "$run" | cut -d: -f2)
 (( bytes > 0 && bytes < 40000 )) || fail "the TreeLS pine's .sylva is $bytes bytes (want < 40000)"
+# A palm's scan keeps its palm: the crown base rule (docs/classify.md) rules
+# a palm out only where the crown starts far below the palm's own (this
+# simulated palm's drooping fronds: 0.65 of its height, the species' 0.78).
+run=$("$SYLVA" run "$SYLVA_SOURCE_DIR/samples/palm_tls.las" -o "$TMP/palm.glb" --lods 1 --no-impostor --json) ||
+  fail "run palm exited $?"
+echo "$run" | grep -q '"species":"palm"' || fail "the palm sample is not a palm: $run"
+echo "$run" | grep -q '"ruled_out"' && fail "the palm sample's palm was ruled out: $run"
 echo OK
