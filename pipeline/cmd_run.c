@@ -40,6 +40,7 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
             sy_json_string(&j, "ruled_out", g->ruled_out);
             sy_json_number(&j, "crown_base_scan", g->crown_base_scan);
             sy_json_number(&j, "crown_base_species", g->crown_base_species);
+            sy_json_number(&j, "taken_probability", g->taken_probability);
         }
         sy_json_end(&j);
     }
@@ -118,7 +119,7 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
         {"--leaf-off", OPT_FLAG, &a.run.leaf_off, NULL, "a leaf-off scan (bare branches): lobes with traced twigs keep them as their wood, no leaf cards"},
         {"--lobe-size", OPT_DOUBLE, &a.run.lobe_size, "F",
          "largest lobe as a share of the tree's extent, in [0,1]; 0: one cluster per cut (default 0.1; cut "
-         "again larger, up to 0.75, where the .sylva cannot hold that many lobes)"},
+         "again larger, up to 7.5x and at most 1, where the .sylva cannot hold that many lobes)"},
         {"--model", OPT_STRING, &a.run.model, "MODEL.sjb", "species classifier used without --species (default: the shipped one)"},
         {"--no-classify", OPT_FLAG, &no_classify, NULL, "without --species, keep the default parameters and materials"},
         {"--beta", OPT_DOUBLE, &a.run.beta, "B", "Dijkstra edge weight |u-v|^B (default: species, else 1)"},

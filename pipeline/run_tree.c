@@ -80,7 +80,8 @@ static sy_code name_input(sy_code rc, const char *name, sy_error *err)
 }
 
 /* Each cut again takes lobes this much larger, at most this many times
- * (a tenth of the cloud's extent up to three quarters). */
+ * (1.25^9 = 7.5 times the size asked: a tenth of the cloud's extent up to
+ * three quarters), and never past the whole extent. */
 #define LOBE_GROW 1.25
 #define LOBE_GROW_STEPS 9
 
@@ -124,9 +125,11 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
     rc = sy_clusters_extract(&full, c->xyz, &co, out, clusters, &cut, err);
     /* Lobes the .sylva cannot hold at a useful hull each are cut again,
      * larger: a dense crown (the simulated 250k-point trees) splits into
-     * hundreds of small lobes. docs/synthesize.md "Lobes that fit". */
-    for (int grow = 0; !rc && clusters && co.lobe_size > 0 && grow < LOBE_GROW_STEPS &&
-                       !sy_sylva_lobes_fit(clusters->n, out->n);
+     * hundreds of small lobes. Not where the skeleton alone fills the file
+     * (larger lobes cannot help) or the lobes already span the whole
+     * extent. docs/synthesize.md "Lobes that fit". */
+    for (int grow = 0; !rc && clusters && co.lobe_size > 0 && co.lobe_size < 1 && grow < LOBE_GROW_STEPS &&
+                       clusters->n && sy_sylva_lobes_fit(0, out->n) && !sy_sylva_lobes_fit(clusters->n, out->n);
          grow++) {
         double seconds = cut.seconds;
         sy_clusters_free(clusters);
@@ -445,21 +448,33 @@ static sy_code rule_out_by_crown_base(const sy_cloud *c, sy_species_guess *g, sy
     sy_library lib;
     sy_code rc = sy_library_load(NULL, &lib, err);
     if (rc) return rc;
-    int ruled = g->species.id, taken = -1;
+    /* A species ruled out gets probability 0, so batch's report, which
+     * decides again from the probabilities, cannot bring it back; one whose
+     * file does not load is skipped. Each turn removes a candidate. */
+    uint8_t *skip = sy_calloc(g->species.n_classes + 1, 1, err, "species");
+    if (!skip) {
+        sy_library_free(&lib);
+        return SY_EINTERNAL;
+    }
+    float *p = g->species.probabilities;
+    p[g->species.id] = 0;
+    int taken = -1;
     for (;;) {
         int best = -1;
         for (size_t k = 0; k < g->species.n_classes; k++)
-            if ((int)k != ruled && (int)k != taken && g->species.probabilities[k] > 0 &&
-                (best < 0 || g->species.probabilities[k] > g->species.probabilities[best]))
-                best = (int)k;
-        const sy_library_entry *e = best >= 0 ? sy_library_by_id(&lib, best) : NULL;
-        if (!e) break;
+            if (!skip[k] && p[k] > 0 && (best < 0 || p[k] > p[best])) best = (int)k;
+        if (best < 0) break;
+        const sy_library_entry *e = sy_library_by_id(&lib, best);
         sy_species_params cand;
-        if ((rc = sy_library_params(&lib, e, &cand, err))) break;
+        sy_error e2 = {0};
+        if (!e || sy_library_params(&lib, e, &cand, &e2)) {
+            skip[best] = 1;
+            continue;
+        }
         double base = nominal_crown_base(&cand);
         if (base > BARE_BOLE_SHARE && scan < base - BOLE_MARGIN) {
             sy_species_params_free(&cand); /* ruled out as well: the next */
-            ruled = best;
+            p[best] = 0;
             continue;
         }
         sy_species_params_free(sp);
@@ -467,20 +482,15 @@ static sy_code rule_out_by_crown_base(const sy_cloud *c, sy_species_guess *g, sy
         taken = best;
         break;
     }
-    if (!rc) {
-        if (taken >= 0) {
-            const sy_library_entry *e = sy_library_by_id(&lib, taken);
-            snprintf(g->name, sizeof g->name, "%s", e->name);
-            snprintf(g->species.name, sizeof g->species.name, "%s", e->name);
-        } else {
-            snprintf(g->name, sizeof g->name, "unknown");
-            g->species.name[0] = 0;
-            *none = 1;
-        }
-        g->species.id = taken;
-    }
+    const sy_library_entry *e = taken >= 0 ? sy_library_by_id(&lib, taken) : NULL;
+    snprintf(g->name, sizeof g->name, "%s", e ? e->name : "unknown");
+    snprintf(g->species.name, sizeof g->species.name, "%s", e ? e->name : "");
+    g->species.id = taken;
+    g->taken_probability = taken >= 0 ? p[taken] : 0;
+    *none = taken < 0;
+    free(skip);
     sy_library_free(&lib);
-    return rc;
+    return SY_OK;
 }
 
 static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_options *o,

@@ -81,6 +81,7 @@ typedef struct {
     size_t too_few;     /* the cloud's points when fewer than SY_FEATURES_MIN_POINTS: not classified, unknown */
     char ruled_out[64]; /* the classifier's answer the scan's structure ruled out, "" when none (run_tree.c) */
     double crown_base_scan, crown_base_species; /* ... the crown bases over the height that ruled it out */
+    double taken_probability; /* ... and the probability of the species taken in its place (0: none) */
     double seconds;
 } sy_species_guess;
 

@@ -101,6 +101,18 @@ check "spatial voting: one tree confident, the other two voted to its species (r
     "jq -e '([.trees[] | select(.species_source == \"classifier\" and .confident)] | length) == 1 and ([.trees[] | select(.species_source == \"voted\")] | length) == 2 and ([.trees[].species] | unique | length) == 1' '$tmp/vote/index.json' > /dev/null"
 check "trees.csv marks the voted trees" "[[ \$(awk -F, 'NR > 1 && \$8 == 1' '$tmp/vote/trees.csv' | wc -l) == 2 ]]"
 
+# A species the scan's structure rules out (run_tree.c rule_out_by_crown_base)
+# stays out of the report, which decides again from the probabilities:
+# rTwig's leaf-off sapling, which the classifier calls a palm.
+cloud=$src/../shared/data/real/rtwig/cloud.txt
+if [[ -f $cloud ]]; then
+  "$SYLVA" batch "$cloud" -o "$tmp/rule" --no-thumbnails --no-eval --quiet
+  check "a ruled-out palm is not the batch's species (record, index.json, trees.csv)" \
+      "jq -e '.classification.ruled_out == \"palm\" and .classification.species != \"palm\"' '$tmp'/rule/trees/*.json > /dev/null && jq -e '.trees[0].species != \"palm\"' '$tmp/rule/index.json' > /dev/null && ! grep -q ',palm,' '$tmp/rule/trees.csv'"
+else
+  echo "FAIL: $cloud missing"; fail=1
+fi
+
 # Kills at random moments, then a resume: the same bytes as an uninterrupted run.
 mkdir -p "$tmp/kin"
 cp "$src"/samples/{palm,fir}_als.las "$tmp/kin/"
