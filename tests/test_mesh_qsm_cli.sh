@@ -102,6 +102,20 @@ valid "$tmp/r.glb"
 # and the next species taken (docs/classify.md "Ruled out by the crown base").
 check "the sapling is not reconstructed as a palm" \
   "grep -q '\"ruled_out\":\"palm\"' '$tmp/r.json' && ! grep -q '\"species\":\"palm\"' '$tmp/r.json'"
+# A library where the next species is a bare-bole one too (the aspen grown
+# from the palm's parameters): it is ruled out as well and the one after it
+# taken; the search ends (it once alternated between the two forever).
+# The library beside the executable comes first (species/library.c), so the
+# binaries are copied beside the edited library.
+mkdir -p "$tmp/bin"
+cp "$SYLVA" "$(dirname "$SYLVA")/sylva-pipeline" "$tmp/bin/"
+cp -r "$SYLVA_SOURCE_DIR/species" "$tmp/bin/species"
+sed -i 's/^\(6\tquaking_aspen\t[^\t]*\t[^\t]*\t\)quaking_aspen.ini/\1palm.ini/' "$tmp/bin/species/library.tsv"
+grep -q $'^6\tquaking_aspen\t.*\tpalm.ini,' "$tmp/bin/species/library.tsv" || { echo "FAIL: library edit"; fail=1; }
+timeout 120 "$tmp/bin/$(basename "$SYLVA")" run "$cloud" -o "$tmp/r2.glb" --lods 1 --no-impostor --json > "$tmp/r2.json" 2>/dev/null
+rc=$?
+check "two bare-bole species: both ruled out, the next taken (exit $rc)" \
+  "[[ $rc == 0 ]] && grep -q '\"ruled_out\":\"palm\"' '$tmp/r2.json' && ! grep -q '\"species\":\"palm\"\|\"species\":\"quaking_aspen\"' '$tmp/r2.json'"
 "$SYLVA" eval --points "$cloud" "$tmp/r.glb" --json > "$tmp/er.json" || fail=1
 echo "run glb vs cloud: mean $(key "$tmp/er.json" mean_distance) m, coverage $(key "$tmp/er.json" coverage)"
 check "run glb within 3 cm of the cloud on average" "node -e 'process.exit(($(key "$tmp/er.json" mean_distance)) < 0.03 ? 0 : 1)'"
