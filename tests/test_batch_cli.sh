@@ -104,7 +104,7 @@ check "trees.csv marks the voted trees" "[[ \$(awk -F, 'NR > 1 && \$8 == 1' '$tm
 # A species the scan's structure rules out (run_tree.c rule_out_by_crown_base)
 # stays out of the report, which decides again from the probabilities:
 # rTwig's leaf-off sapling, which the classifier calls a palm.
-cloud=$src/../shared/data/real/rtwig/cloud.txt
+cloud=$SYLVA_DATA_DIR/real/rtwig/cloud.txt
 if [[ -f $cloud ]]; then
   "$SYLVA" batch "$cloud" -o "$tmp/rule" --no-thumbnails --no-eval --quiet
   check "a ruled-out palm is not the batch's species (record, index.json, trees.csv)" \
