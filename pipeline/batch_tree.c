@@ -383,12 +383,7 @@ sy_code sy_batch_tree(const sy_batch_input *in, const char *out_dir, const sy_ba
             sy_json_bool(&j, "confident", g->confident);
             sy_json_bool(&j, "novel", g->novel);
             sy_json_number(&j, "novelty", g->novelty);
-            if (g->ruled_out[0]) { /* its probability below is 0 (run_tree.c rule_out_by_crown_base) */
-                sy_json_string(&j, "ruled_out", g->ruled_out);
-                sy_json_number(&j, "crown_base_scan", g->crown_base_scan);
-                sy_json_number(&j, "crown_base_species", g->crown_base_species);
-                sy_json_number(&j, "taken_probability", g->taken_probability);
-            }
+            sy_species_guess_rule_json(&j, g); /* a ruled-out species' probability below is 0 */
             double pv[256];
             size_t nc = g->species.n_classes < 256 ? g->species.n_classes : 256;
             for (size_t k = 0; k < nc; k++) pv[k] = g->species.probabilities[k];

@@ -36,12 +36,7 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
         sy_json_number(&j, "probability", g->probability);
         sy_json_bool(&j, "confident", g->confident);
         sy_json_number(&j, "novelty", g->novelty);
-        if (g->ruled_out[0]) {
-            sy_json_string(&j, "ruled_out", g->ruled_out);
-            sy_json_number(&j, "crown_base_scan", g->crown_base_scan);
-            sy_json_number(&j, "crown_base_species", g->crown_base_species);
-            sy_json_number(&j, "taken_probability", g->taken_probability);
-        }
+        sy_species_guess_rule_json(&j, g);
         sy_json_end(&j);
     }
     sy_json_int(&j, "points_in", (long long)res->points_in);

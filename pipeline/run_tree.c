@@ -269,8 +269,10 @@ static sy_code clean(sy_cloud *c, const char *name, const sy_run_tree_options *o
     return SY_OK;
 }
 
+typedef struct nominal_tree nominal_tree;
 static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree_options *o,
-                                const sy_species_params *sp, sy_run_tree_result *r, sy_error *err);
+                                const sy_species_params *sp, const nominal_tree *nt, sy_run_tree_result *r,
+                                sy_error *err);
 
 /* Step lines for the thinning and any retry the checks made. */
 static void report_checks(const sy_run_tree_options *o, const sy_tree_checks *k)
@@ -400,8 +402,7 @@ static double scan_crown_base_share(const sy_cloud *c)
     for (int k = 0, first = 1; k < CROWN_SLABS_SCAN; k++) {
         size_t m = start[k + 1] - start[k];
         if (m < 10) continue;
-        qsort(d + start[k], m, sizeof *d, sy_cmp_double);
-        if (d[start[k] + (size_t)(0.9 * (double)(m - 1))] > CROWN_SPREAD_SHARE * h) {
+        if (sy_select_double(d + start[k], m, (size_t)(0.9 * (double)(m - 1))) > CROWN_SPREAD_SHARE * h) {
             if (!first) share = (double)k / CROWN_SLABS_SCAN;
             break;
         }
@@ -411,16 +412,46 @@ static double scan_crown_base_share(const sy_cloud *c)
     return share;
 }
 
-static void species_nominal(const sy_species_params *sp, double *dbh_per_height, double *crown_base_share,
-                            float profile[SY_CROWN_SLABS]);
+/* The species' nominal tree (Weber-Penn, seed 1; a few milliseconds): its
+ * DBH over its height, the allometry (height-diameter curves by species are
+ * how inventories fill in a stem the survey could not measure), and its
+ * crown base over its height; each 0 when it cannot be grown or measured. */
+_Static_assert(sizeof(((sy_skeleton_options *)0)->crown_profile) == SY_CROWN_SLABS * sizeof(float),
+               "the skeleton options carry the clusters stage's crown profile");
 
-/* The species' nominal crown base over its height (species_nominal). */
-static double nominal_crown_base(const sy_species_params *sp)
-{
-    double dbh_per_height, base;
+struct nominal_tree {
+    double dbh_per_height, crown_base_share;
     float profile[SY_CROWN_SLABS];
-    species_nominal(sp, &dbh_per_height, &base, profile);
-    return base;
+};
+
+static void species_nominal(const sy_species_params *sp, nominal_tree *nt)
+{
+    sy_skeleton t;
+    sy_error err = {0};
+    memset(nt, 0, sizeof *nt);
+    if (sy_grow_tree(sp, 1, &t, NULL, &err)) return;
+    double h = sy_skeleton_height(&t), d = sy_skeleton_dbh(&t);
+    /* The crown base: the lowest node off the trunk (Weber-Penn's BaseSize
+     * of the stem bare of branches). */
+    double zb = INFINITY, zt = -INFINITY;
+    for (size_t i = 0; i < t.n; i++) {
+        if (t.order[i] >= 1) zb = fmin(zb, t.pos[3 * i + 2]);
+        zt = fmax(zt, t.pos[3 * i + 2]);
+    }
+    if (t.n && h > 0 && isfinite(zb)) nt->crown_base_share = fmin(fmax((zb - t.pos[2]) / h, 0), 1);
+    /* The crown's profile: per slab from its base to its top, the farthest
+     * branch node from the trunk's foot (the species' own crown shape, as
+     * Weber & Penn's Shape and the branch angles draw it). */
+    if (t.n && isfinite(zb) && zt > zb)
+        for (size_t i = 0; i < t.n; i++) {
+            if (t.order[i] < 1) continue;
+            int k = (int)((t.pos[3 * i + 2] - zb) / (zt - zb) * SY_CROWN_SLABS);
+            k = k < 0 ? 0 : k >= SY_CROWN_SLABS ? SY_CROWN_SLABS - 1 : k;
+            float r = hypotf(t.pos[3 * i] - t.pos[0], t.pos[3 * i + 1] - t.pos[1]);
+            if (r > nt->profile[k]) nt->profile[k] = r;
+        }
+    sy_skeleton_free(&t);
+    if (h > 1.3 && d > 0 && d / h < 1) nt->dbh_per_height = d / h;
 }
 
 /* The classifier learnt its species from simulated scans, and a real scan
@@ -431,15 +462,16 @@ static double nominal_crown_base(const sy_species_params *sp)
  * for a scan whose crown starts more than BOLE_MARGIN of its height lower
  * (drooping fronds bring the simulated palm's scan to 0.65), and the most
  * probable species left is taken. The guess keeps its probabilities and
- * names what was ruled out. *sp holds the guess's parameters on entry and
- * the species taken on return; *none: no species is left (unknown). */
+ * names what was ruled out. *sp and *nt hold the guess's parameters and
+ * nominal tree on entry, the species taken's on return; *none: no species
+ * is left (unknown). */
 #define BARE_BOLE_SHARE 0.5
 #define BOLE_MARGIN 0.3
-static sy_code rule_out_by_crown_base(const sy_cloud *c, sy_species_guess *g, sy_species_params *sp, int *none,
-                                      sy_error *err)
+static sy_code rule_out_by_crown_base(const sy_cloud *c, sy_species_guess *g, sy_species_params *sp,
+                                      nominal_tree *nt, int *none, sy_error *err)
 {
     *none = 0;
-    double nominal = nominal_crown_base(sp);
+    double nominal = nt->crown_base_share;
     if (nominal <= BARE_BOLE_SHARE) return SY_OK;
     double scan = scan_crown_base_share(c);
     if (scan < 0 || scan >= nominal - BOLE_MARGIN) return SY_OK;
@@ -471,14 +503,16 @@ static sy_code rule_out_by_crown_base(const sy_cloud *c, sy_species_guess *g, sy
             skip[best] = 1;
             continue;
         }
-        double base = nominal_crown_base(&cand);
+        nominal_tree cand_nt;
+        species_nominal(&cand, &cand_nt);
+        double base = cand_nt.crown_base_share;
         if (base > BARE_BOLE_SHARE && scan < base - BOLE_MARGIN) {
             sy_species_params_free(&cand); /* ruled out as well: the next */
             p[best] = 0;
             continue;
         }
         sy_species_params_free(sp);
-        *sp = cand;
+        *sp = cand, *nt = cand_nt;
         taken = best;
         break;
     }
@@ -518,11 +552,14 @@ static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_opti
     }
     sy_species_params guessed;
     int have_guess = 0;
+    nominal_tree nt;
+    if (sp) species_nominal(sp, &nt);
     if (classify) {
         if (r->guess.species.id >= 0) {
             if ((rc = sy_species_params_find(r->guess.name, &guessed, err))) return rc;
+            species_nominal(&guessed, &nt);
             int none;
-            if ((rc = rule_out_by_crown_base(c, &r->guess, &guessed, &none, err))) {
+            if ((rc = rule_out_by_crown_base(c, &r->guess, &guessed, &nt, &none, err))) {
                 sy_species_params_free(&guessed);
                 return rc;
             }
@@ -542,58 +579,21 @@ static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_opti
                      r->guess.best, r->guess.probability, ruled);
         step(o, "species", r->guess.seconds, line);
     }
-    rc = reconstruct_with(c, name, o, sp, r, err);
+    rc = reconstruct_with(c, name, o, sp, sp ? &nt : NULL, r, err);
     if (have_guess) sy_species_params_free(&guessed);
     return rc;
 }
 
-/* The species' nominal tree (Weber-Penn, seed 1; a few milliseconds): its
- * DBH over its height, the allometry (height-diameter curves by species are
- * how inventories fill in a stem the survey could not measure), and its
- * crown base over its height; each 0 when it cannot be grown or measured. */
-_Static_assert(sizeof(((sy_skeleton_options *)0)->crown_profile) == SY_CROWN_SLABS * sizeof(float),
-               "the skeleton options carry the clusters stage's crown profile");
-
-static void species_nominal(const sy_species_params *sp, double *dbh_per_height, double *crown_base_share,
-                            float profile[SY_CROWN_SLABS])
-{
-    sy_skeleton t;
-    sy_error err = {0};
-    *dbh_per_height = *crown_base_share = 0;
-    memset(profile, 0, SY_CROWN_SLABS * sizeof *profile);
-    if (sy_grow_tree(sp, 1, &t, NULL, &err)) return;
-    double h = sy_skeleton_height(&t), d = sy_skeleton_dbh(&t);
-    /* The crown base: the lowest node off the trunk (Weber-Penn's BaseSize
-     * of the stem bare of branches). */
-    double zb = INFINITY, zt = -INFINITY;
-    for (size_t i = 0; i < t.n; i++) {
-        if (t.order[i] >= 1) zb = fmin(zb, t.pos[3 * i + 2]);
-        zt = fmax(zt, t.pos[3 * i + 2]);
-    }
-    if (t.n && h > 0 && isfinite(zb)) *crown_base_share = fmin(fmax((zb - t.pos[2]) / h, 0), 1);
-    /* The crown's profile: per slab from its base to its top, the farthest
-     * branch node from the trunk's foot (the species' own crown shape, as
-     * Weber & Penn's Shape and the branch angles draw it). */
-    if (t.n && isfinite(zb) && zt > zb)
-        for (size_t i = 0; i < t.n; i++) {
-            if (t.order[i] < 1) continue;
-            int k = (int)((t.pos[3 * i + 2] - zb) / (zt - zb) * SY_CROWN_SLABS);
-            k = k < 0 ? 0 : k >= SY_CROWN_SLABS ? SY_CROWN_SLABS - 1 : k;
-            float r = hypotf(t.pos[3 * i] - t.pos[0], t.pos[3 * i + 1] - t.pos[1]);
-            if (r > profile[k]) profile[k] = r;
-        }
-    sy_skeleton_free(&t);
-    if (h > 1.3 && d > 0 && d / h < 1) *dbh_per_height = d / h;
-}
-
 static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree_options *o,
-                                const sy_species_params *sp, sy_run_tree_result *r, sy_error *err)
+                                const sy_species_params *sp, const nominal_tree *nt, sy_run_tree_result *r,
+                                sy_error *err)
 {
     sy_code rc;
     sy_skeleton_options so = sy_skeleton_options_default();
     if (sp) {
         so.beta = sp->beta, so.gamma = sp->gamma;
-        species_nominal(sp, &so.dbh_per_height, &so.crown_base_share, so.crown_profile);
+        so.dbh_per_height = nt->dbh_per_height, so.crown_base_share = nt->crown_base_share;
+        memcpy(so.crown_profile, nt->profile, sizeof so.crown_profile);
         so.no_twigs = !sp->twigs;
     }
     if (!isnan(o->beta)) so.beta = o->beta;

@@ -316,3 +316,12 @@ sy_code sy_classify_cloud(const sy_cloud *tree, const char *model_path, sy_speci
 }
 
 void sy_species_guess_free(sy_species_guess *g) { sy_species_free(&g->species); }
+
+void sy_species_guess_rule_json(sy_json *j, const sy_species_guess *g)
+{
+    if (!g->ruled_out[0]) return;
+    sy_json_string(j, "ruled_out", g->ruled_out);
+    sy_json_number(j, "crown_base_scan", g->crown_base_scan);
+    sy_json_number(j, "crown_base_species", g->crown_base_species);
+    sy_json_number(j, "taken_probability", g->taken_probability);
+}

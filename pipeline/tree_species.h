@@ -10,6 +10,7 @@
 #include "classify/classify.h"
 #include "species/species.h"
 #include "stages/core/cloud.h"
+#include "stages/core/json.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -84,6 +85,11 @@ typedef struct {
     double taken_probability; /* ... and the probability of the species taken in its place (0: none) */
     double seconds;
 } sy_species_guess;
+
+/* The rule that overrode the classifier (ruled_out and the crown bases
+ * behind it, and the taken species' probability) as members of the open
+ * JSON object; nothing when none did. */
+void sy_species_guess_rule_json(sy_json *j, const sy_species_guess *g);
 
 sy_code sy_classify_cloud(const sy_cloud *tree, const char *model_path, sy_species_guess *out, sy_error *err);
 void sy_species_guess_free(sy_species_guess *g);

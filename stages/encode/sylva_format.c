@@ -754,18 +754,23 @@ size_t sy_sylva_twig_room(const sy_clusters *clusters, size_t n_nodes)
     return twig_nodes_fitting(BYTES_BOUND, n_nodes, tris);
 }
 
+/* The hull bytes a file under BYTES_TARGET leaves after its header, the
+ * skeleton and either the twigs or, without twigs, the clusters' occupancy
+ * grids (clusters with twigs keep none: they are all or none). */
+static double hull_bytes_left(size_t n_clusters, size_t n_nodes, size_t n_twigs)
+{
+    return BYTES_TARGET - 64 - BYTES_NODE * (double)n_nodes -
+           (n_twigs ? BYTES_TWIG * (double)n_twigs : BYTES_OCCUPANCY * (double)n_clusters);
+}
+
 int sy_sylva_lobes_fit(size_t n_clusters, size_t n_nodes)
 {
-    double bytes = BYTES_TARGET - 64 - BYTES_NODE * (double)n_nodes - BYTES_OCCUPANCY * (double)n_clusters;
-    return bytes >= BYTES_TRIANGLE * TWIG_HULL_TRIANGLES * (double)n_clusters;
+    return hull_bytes_left(n_clusters, n_nodes, 0) >= BYTES_TRIANGLE * TWIG_HULL_TRIANGLES * (double)n_clusters;
 }
 
 int sy_sylva_hull_budget(size_t n_clusters, size_t n_nodes, size_t n_twigs)
 {
     if (n_clusters == 0) return 160;
-    /* Clusters with twigs keep no occupancy bits: they are all or none. */
-    double bytes = BYTES_TARGET - 64 - BYTES_NODE * (double)n_nodes -
-                   (n_twigs ? BYTES_TWIG * (double)n_twigs : BYTES_OCCUPANCY * (double)n_clusters);
-    double t = bytes / (BYTES_TRIANGLE * (double)n_clusters);
+    double t = hull_bytes_left(n_clusters, n_nodes, n_twigs) / (BYTES_TRIANGLE * (double)n_clusters);
     return t < 16 ? 16 : t > 160 ? 160 : (int)t;
 }
