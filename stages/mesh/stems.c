@@ -18,7 +18,12 @@
 #define RINGS_PER_STEM 6
 #define TWIG_RINGS 2
 #define MAX_SUBDIV 64
-#define LEAN_MAX_TURN (30.0f * SY_PI / 180.0f) /* a lean branch's rings (sy_stem_lean) */
+/* A lean branch's rings (sy_stem_lean): one per 45 degrees of turn. Traced
+ * twigs step cell to cell with turns of 60-90 degrees; at 30 (before stop 39)
+ * their rings took the triangles the four-sided lean parents need
+ * (LEAN_PARENT_MIN_RADIAL), and the LOD0 budget dropped a fifth of a
+ * willow's twigs. */
+#define LEAN_MAX_TURN (45.0f * SY_PI / 180.0f)
 /* Ring vertices of a lobed trunk at most (Lobes goes up to 64). */
 #define LOBED_MAX_RADIAL 64
 

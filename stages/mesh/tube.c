@@ -13,10 +13,17 @@
 /* A triangular parent's faces lie at half its radius from the axis, too
  * close for a child's base ring to land on; six sides keep them at 87%. */
 #define PARENT_MIN_RADIAL 6
+/* A lean parent (a traced twig with twigs of its own) keeps four sides, its
+ * faces at 71 %: on three, a strip triangle joining two corners of a row
+ * stands in the ring's plane across the prism (a fin, which the weld
+ * refuses), and rTwig's sapling capped 105 of its 601 junctions. Five or
+ * six sides cost the willows half their twigs under the LOD0 budget
+ * (docs/mesh.md, "Stop 39"). */
+#define LEAN_PARENT_MIN_RADIAL 4
 
 int sy_stem_radial(const sy_stem *s, const sy_lod_params *lp)
 {
-    int p = s->radial >> lp->level, lo = s->has_children && !sy_stem_lean(s) ? PARENT_MIN_RADIAL : 3;
+    int p = s->radial >> lp->level, lo = !s->has_children ? 3 : sy_stem_lean(s) ? LEAN_PARENT_MIN_RADIAL : PARENT_MIN_RADIAL;
     if (s->lean == 2) p = 3;
     return p < lo ? lo : p;
 }
