@@ -80,15 +80,16 @@ done
 # The traced twigs (lean stems, docs/mesh.md "Stop 39"): a lean parent drawn
 # as a triangular prism capped a fifth of its children (the sapling welded
 # 496 of 601, tree1 718 of 770). With four sides and rings every 45 degrees
-# of turn: 543 of 592 and 741 of 770.
+# of turn: 543 of 592 and 741 of 770; with its children's bases no thicker
+# than 0.6 of it: 561 of 592 and 755 of 770.
 w=$(welded "$tmp/tree1.json")
-check "run tree1.xyz: $w of LOD0 junctions welded (>= 0.95)" "awk 'BEGIN { exit !($w >= 0.95) }'"
+check "run tree1.xyz: $w of LOD0 junctions welded (>= 0.97)" "awk 'BEGIN { exit !($w >= 0.97) }'"
 cloud="$SYLVA_DATA_DIR/real/rtwig/cloud.txt"
 "$SYLVA" run "$cloud" -o "$tmp/cloud.glb" --check --json --impostor-size 64 > "$tmp/cloud.json" 2> "$tmp/cloud.err" ||
     { echo "FAIL: run cloud.txt: $(tail -1 "$tmp/cloud.err")"; fail=1; }
 check "run rTwig cloud: mesh checks hold" "assert_quality '$tmp/cloud.json'"
 w=$(welded "$tmp/cloud.json")
-check "run rTwig cloud: $w of LOD0 junctions welded (>= 0.9)" "awk 'BEGIN { exit !($w >= 0.9) }'"
+check "run rTwig cloud: $w of LOD0 junctions welded (>= 0.93)" "awk 'BEGIN { exit !($w >= 0.93) }'"
 # Its bark is closed at every level: junctions welded or capped.
 check "rTwig QSM: closed bark" "jq -e '[.mesh_check[] | .boundary_edges == 0] | all' '$tmp/q.json' > /dev/null"
 exit $fail
