@@ -406,6 +406,8 @@ sy_code sy_batch_tree(const sy_batch_input *in, const char *out_dir, const sy_ba
         sy_json_int(&j, "clusters", (long long)sk->clusters);
         sy_json_number(&j, "lobe_size", sk->lobe_size);
         sy_json_int(&j, "leaves", (long long)res.synth.leaves);
+        sy_json_bool(&j, "leaf_off", res.leaf_off);
+        num_or_null(&j, "returns_on_wood", res.returns_on_wood);
         sy_json_int(&j, "glb_bytes", (long long)res.glb_size);
         sy_json_int(&j, "sylva_bytes", (long long)res.sylva_size);
         sy_json_end(&j);

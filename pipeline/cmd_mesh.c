@@ -107,7 +107,7 @@ static int mesh_sylva(const char *path, const char *out_path, const char *specie
         o->source = f->model;
         o->source_format = f->format;
         sy_tree_asset_report rep;
-        rc = sy_tree_asset_write(out_path, &dt.grown, no_leaves ? NULL : &dt.leaves, have_species ? &sp : NULL, o,
+        rc = sy_tree_asset_write(out_path, &dt.grown, dt.leaf_off ? NULL : &dt.leaves, have_species ? &sp : NULL, o,
                                  &rep, &err);
         if (!rc) print_report(cli, out_path, &rep, f, have_species ? &sp : NULL);
         sy_decoded_tree_free(&dt);
@@ -138,9 +138,10 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
         "Meshing, LODs, impostor and export are those of `sylva grow`. The root is moved to the\n"
         "origin of the glb; its world position is kept in asset.extras.origin. A .sylva is decoded\n"
         "as `sylva run` does: its lobes are filled with the species' branchlets and leaves (the file's\n"
-        "species, or --species; its seed), the same tree `run` wrote; --proxy adds the hulls. Leaf cards go\n"
-        "along the finest branches: --species gives its bark, leaf material and leaf density and size;\n"
-        "without it the default bark and plain green cards at " DEFAULT_LEAVES "'s density and size\n"
+        "species, or --species; its seed), the same tree `run` wrote (a file marked leaf-off gets no cards);\n"
+        "--proxy adds the hulls. Leaf cards go along the finest branches: --species gives its bark,\n"
+        "leaf material and leaf density and size; without it the default bark and plain green cards\n"
+        "at " DEFAULT_LEAVES "'s density and size\n"
         "(a model with hulls has its foliage already and gets none). See docs/qsm-formats.md.",
         opts, 1, 1};
     const char *pos[1];

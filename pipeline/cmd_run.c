@@ -72,6 +72,8 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
     sy_json_int(&j, "lod0_leaf_instances", (long long)res->asset.leaf_cards[0]);
     sy_json_int(&j, "patches", (long long)res->synth.patches);
     sy_json_int(&j, "leaves", (long long)res->synth.leaves);
+    sy_json_bool(&j, "leaf_off", res->leaf_off);
+    if (!isnan(res->returns_on_wood)) sy_json_number(&j, "returns_on_wood", res->returns_on_wood);
     sy_json_number(&j, "leaf_size", res->synth.leaf_size);
     sy_json_int(&j, "lobes_bare", (long long)res->synth.lobes_bare);
     sy_json_number(&j, "lobe_coverage", res->synth.coverage);
@@ -103,7 +105,7 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
     run_args a = {NULL, NULL, sy_run_tree_options_default(), sy_glb_args_default()};
     sy_photo_cli photo;
     memset(&photo, 0, sizeof photo);
-    int no_classify = 0, max_points = SY_POINT_BUDGET;
+    int no_classify = 0, max_points = SY_POINT_BUDGET, leaf_off = 0, leaves = 0;
     const sy_opt opts[] = {
         {"-o", OPT_STRING, &a.out_path, "OUT.glb", "output glTF binary"},
         {"--sylva", OPT_STRING, &a.sylva_path, "OUT.sylva", "also write the compact .sylva file of the reconstruction"},
@@ -111,7 +113,10 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
          "library species: its beta/gamma, branchlets, bark and leaf materials (default: the classifier's answer,\n"
          "else default.lsys and plain materials)"},
         {"--proxy", OPT_FLAG, &a.run.proxy, NULL, "also draw the lobe hulls as a semi-transparent foliage_proxy mesh"},
-        {"--leaf-off", OPT_FLAG, &a.run.leaf_off, NULL, "a leaf-off scan (bare branches): lobes with traced twigs keep them as their wood, no leaf cards"},
+        {"--leaf-off", OPT_FLAG, &leaf_off, NULL,
+         "a leaf-off scan (bare branches): lobes with traced twigs keep them as their wood, no leaf cards (default:\n"
+         "so when at least 80 % of the returns lie within a scan spacing of that wood)"},
+        {"--leaves", OPT_FLAG, &leaves, NULL, "leaf cards whatever the scan (a leaf-off scan dressed in leaves)"},
         {"--lobe-size", OPT_DOUBLE, &a.run.lobe_size, "F",
          "largest lobe as a share of the tree's extent, in [0,1]; 0: one cluster per cut (default 0.1; cut "
          "again larger, up to 7.5x and at most 1, where the .sylva cannot hold that many lobes)"},
@@ -170,6 +175,11 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
         return SY_EUSAGE;
     }
     a.run.max_points = (size_t)max_points;
+    if (leaf_off && leaves) {
+        fprintf(stderr, "sylva run: --leaf-off and --leaves contradict each other\n");
+        return SY_EUSAGE;
+    }
+    a.run.leaf_off = leaf_off ? 1 : leaves ? -1 : 0;
     a.run.seed = cli->seed;
     if (!cli->quiet && !cli->json) a.run.on_step = step_line;
     sy_error err = {0};

@@ -45,6 +45,7 @@ sy_code sy_run_tree_options_check(const sy_run_tree_options *o, sy_error *err)
         return sy_fail(err, SY_EUSAGE, "run: wood_share %g outside [0, 1)", o->wood_share);
     if (!(o->lobe_size >= 0 && o->lobe_size <= 1))
         return sy_fail(err, SY_EUSAGE, "run: lobe_size %g outside [0, 1]", o->lobe_size);
+    if (o->leaf_off < -1 || o->leaf_off > 1) return sy_fail(err, SY_EUSAGE, "run: leaf_off %d is not -1, 0 or 1", o->leaf_off);
     if (!(o->voxel >= 0) || !isfinite(o->voxel))
         return sy_fail(err, SY_EUSAGE, "run: voxel %g must be >= 0 metres", o->voxel);
     if (!isnan(o->fair_sigma) && !(o->fair_sigma >= 0 && isfinite(o->fair_sigma)))
@@ -584,6 +585,31 @@ static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_opti
     return rc;
 }
 
+/* The share of the cloud's returns within spacing of the surface of wood
+ * (each edge a truncated cone): how much of the scan the leaf-off tree
+ * draws as it stands. NaN without returns or a spacing. */
+static sy_code returns_on_wood(const sy_cloud *c, const sy_skeleton *wood, double spacing, double *share,
+                               sy_error *err)
+{
+    *share = NAN;
+    if (!c->n || !(spacing > 0)) return SY_OK;
+    double *pts = malloc(3 * c->n * sizeof *pts), *dist = malloc(c->n * sizeof *dist);
+    if (!pts || !dist) {
+        free(pts), free(dist);
+        return sy_fail(err, SY_EINTERNAL, "run: out of memory");
+    }
+    for (size_t i = 0; i < c->n; i++)
+        for (int k = 0; k < 3; k++) pts[3 * i + k] = c->origin[k] + c->xyz[3 * i + k];
+    /* The model borrows the skeleton: nothing of it is freed here. */
+    sy_eval_tree tree = {.tree_id = -1, .species_id = -1, .skel = *wood};
+    sy_eval_model m = {0};
+    m.skeletons.n_trees = 1, m.skeletons.trees = &tree;
+    sy_code rc = sy_model_distances(&m, pts, c->n, dist, err);
+    if (!rc) *share = sy_coverage(dist, c->n, spacing);
+    free(pts), free(dist);
+    return rc;
+}
+
 static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree_options *o,
                                 const sy_species_params *sp, const nominal_tree *nt, sy_run_tree_result *r,
                                 sy_error *err)
@@ -609,7 +635,6 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
     sy_clusters cl;
     sy_skeleton_report *sr = &r->skeleton;
     rc = sy_reconstruct_tree_checked(c, name, &so, 0, o->max_points, &s, &cl, sr, &r->hulls, &r->checks, err);
-    sy_cloud_free(c);
     if (rc) return name_input(rc, name, err);
     /* Height to the crown's top as scanned, not as the outlier filter left it. */
     if (isfinite(r->top_z) && isfinite(r->clean_top_z) && r->top_z > r->clean_top_z)
@@ -632,15 +657,39 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
     rc = sy_encode_mem(&s, &cl, sid, o->seed, NULL, &r->sylva, &r->sylva_size, err);
     sy_decoded_tree dt;
     int have_tree = 0;
+    r->returns_on_wood = NAN;
     if (!rc) {
         double t = sy_now();
-        rc = sy_decoded_tree_build(name, r->sylva, r->sylva_size, sp, o->leaf_off, &dt, err);
-        r->t_synth = sy_now() - t;
+        /* Decided from the scan: the leaf-off tree first, kept when the
+         * returns lie on its wood. Only lobes with traced twigs can draw
+         * their returns as wood; without any, the lobes' returns (most of a
+         * crown's) lie off it. */
+        int twigs = 0;
+        for (size_t k = 0; k < cl.n && !twigs; k++) twigs = cl.items[k].n_twigs > 0;
+        int test = o->leaf_off == 0 && twigs;
+        rc = sy_decoded_tree_build(name, r->sylva, r->sylva_size, sp, o->leaf_off > 0 || test, &dt, err);
         have_tree = !rc;
+        if (!rc && test) {
+            rc = returns_on_wood(c, &dt.grown, sr->spacing, &r->returns_on_wood, err);
+            if (!rc && !(r->returns_on_wood >= SY_LEAF_OFF_RETURNS)) {
+                sy_decoded_tree_free(&dt);
+                rc = sy_decoded_tree_build(name, r->sylva, r->sylva_size, sp, 0, &dt, err);
+                have_tree = !rc;
+            }
+        }
+        r->t_synth = sy_now() - t;
+        if (!rc && dt.leaf_off) rc = sy_sylva_set_flags(r->sylva, r->sylva_size, SY_SYLVA_LEAF_OFF, err);
     }
+    sy_cloud_free(c);
     if (!rc) {
         r->synth = dt.synth;
-        if (o->leaf_off) r->synth.leaves = r->synth.leaves_in_hull = 0;
+        r->leaf_off = dt.leaf_off;
+        if (dt.leaf_off) r->synth.leaves = r->synth.leaves_in_hull = 0;
+        if (!isnan(r->returns_on_wood)) {
+            snprintf(line, sizeof line, "%s: %.0f %% of the returns lie within %.3f m of the traced wood (leaf-off from %.0f %%)",
+                     dt.leaf_off ? "leaf-off" : "leaves", 100 * r->returns_on_wood, sr->spacing, 100 * SY_LEAF_OFF_RETURNS);
+            step(o, "leaves", 0, line);
+        }
         const char *lsys = strrchr(dt.lsys, '/') ? strrchr(dt.lsys, '/') + 1 : dt.lsys;
         snprintf(line, sizeof line, "%zu patches (%.60s: %zu branchlets, %zu patches), %zu leaves, %zu lobes bare",
                  dt.synth.patches, lsys, dt.branchlets, dt.patches, dt.synth.leaves, dt.synth.lobes_bare);
@@ -660,7 +709,7 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
         ao.source = name;
         ao.source_format = "scan";
         /* A leaf-off scan: its traced twigs and branches without cards. */
-        rc = sy_tree_asset_glb(&dt.grown, o->leaf_off ? NULL : &dt.leaves, sp, &ao, name, &r->glb, &r->glb_size,
+        rc = sy_tree_asset_glb(&dt.grown, dt.leaf_off ? NULL : &dt.leaves, sp, &ao, name, &r->glb, &r->glb_size,
                                &r->asset, err);
     }
     if (have_tree) sy_decoded_tree_free(&dt);

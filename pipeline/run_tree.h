@@ -47,8 +47,11 @@ typedef struct {
     int sylva;           /* 1: also keep the .sylva file (result->sylva); the asset is always made from it */
     int proxy;           /* 1: also draw the lobe hulls as the semi-transparent foliage_proxy mesh (0) */
     int leaf_off;        /* 1: a leaf-off scan: no leaf cards, and lobes with traced twigs keep them as
-                            their wood without patches (0); the .sylva is the same, `sylva mesh OUT.sylva
-                            --no-leaves` gives the same asset */
+                            their wood without patches; 0: decided from the scan, leaf-off when at least
+                            SY_LEAF_OFF_RETURNS of its returns lie within a scan spacing of the wood the
+                            leaf-off tree draws (lobes with traced twigs only); -1: leaf cards whatever the
+                            scan (0). A leaf-off tree's .sylva is marked so (SY_SYLVA_LEAF_OFF): `sylva
+                            mesh OUT.sylva` gives the same asset */
     double lobe_size;    /* largest lobe as a share of the tree's extent, [0, 1] (0.25; 0: one cluster a cut) */
     int classify;        /* 1: without a species, the classifier names one from the cleaned cloud and a
                             confident answer's parameters and materials are used (1) */
@@ -61,6 +64,17 @@ typedef struct {
     void (*on_step)(void *ctx, const char *step, double seconds, const char *detail);
     void *step_ctx;
 } sy_run_tree_options;
+
+/* A scan is leaf-off when this share of its returns lies within a scan
+ * spacing of the wood its leaf-off tree draws (the skeleton and the traced
+ * twigs as cones): rTwig's leaf-off sapling 0.88 and the airborne leaf-off
+ * AHN3 tree 0.95, both drawn closer to their scans without cards; AdTree's
+ * tree7 0.71, its other scans 0.42-0.70, the bundled leafy aspen 0.65, the
+ * TreeLS pine 0.40, PyTLidar's oak 0.19. Twigs traced at voxels much coarser
+ * than the spacing run as chords past their returns: simulated leaf-off
+ * scans of 60k returns (twig voxels 23-29 cm) reach 0.47-0.54 and keep their
+ * cards (docs/synthesize.md, "Stop 39"). */
+#define SY_LEAF_OFF_RETURNS 0.8
 
 sy_run_tree_options sy_run_tree_options_default(void);
 /* SY_EUSAGE naming the field for out-of-range values (fs, wood_share, ...). */
@@ -82,6 +96,9 @@ typedef struct {
     sy_tree_checks checks; /* thinning, retries and the verdict (pipeline/tree_checks.h) */
     sy_tree_asset_report asset;
     sy_synth_report synth; /* the lobes' texturing (docs/synthesize.md) */
+    int leaf_off;          /* 1: the asset carries no leaf cards (asked for, or the scan's returns lie on its wood) */
+    double returns_on_wood; /* share of the returns within a scan spacing of the leaf-off tree's wood; NaN when
+                               not measured (leaf_off given, or no lobe has traced twigs) */
     double t_synth;        /* decode + branchlets + texturing, seconds */
     double t_ingest, t_preprocess; /* seconds; skeleton and mesh times are in the reports */
 } sy_run_tree_result;

@@ -29,6 +29,7 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
     sy_code rc = sy_decode_mem(name, data, size, &t->skel, &t->lobes, &t->meta, err);
     if (rc) return rc;
     sy_tree_asset_root_to_origin(&t->skel, &t->lobes);
+    t->leaf_off = leaf_off || (t->meta.flags & SY_SYLVA_LEAF_OFF);
     t->seconds_decode = sy_now() - t0;
     t0 = sy_now();
     char dir[4096];
@@ -70,7 +71,7 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
                                sy_species_leaf_fit(species, top, SCAN_HEIGHT_SEEN));
     }
     so.leaf_density = ls.leaf_density;
-    so.bare = leaf_off != 0;
+    so.bare = t->leaf_off;
     so.no_twigs = species && !species->twigs;
     so.max_depth = ls.max_depth;
     if (species && species->ratio_power > 0) so.ratio_power = species->ratio_power;

@@ -26,6 +26,7 @@ typedef struct {
     sy_synth_report synth;
     size_t branchlets, patches; /* the species library used */
     char lsys[512];       /* its file */
+    int leaf_off;         /* 1: no leaf cards: asked for, or the file marks a leaf-off tree (SY_SYLVA_LEAF_OFF) */
     float lean_radius;    /* the mesher's (sy_tree_asset_options.lean_radius): SY_MESH_LEAN_RADIUS where
                              the lobes' traced twigs were drawn, else 0 */
     double seconds_decode, seconds_library;
@@ -33,10 +34,11 @@ typedef struct {
 
 /* species (may be NULL): its branchlets (NAME.lsys in the species library's
  * folder, beside its .ini) and leaf size; NULL or a species without an
- * .lsys: the library's default.lsys. leaf_off: a leaf-off tree, whose lobes'
- * traced twigs are their wood (sy_synth_options.bare); the leaves made for
- * the other lobes are the caller's to drop. name names the image in
- * messages. */
+ * .lsys: the library's default.lsys. leaf_off, or the file's
+ * SY_SYLVA_LEAF_OFF flag (t->leaf_off says which holds): a leaf-off tree,
+ * whose lobes' traced twigs are their wood (sy_synth_options.bare); the
+ * leaves made for the other lobes are the caller's to drop. name names the
+ * image in messages. */
 sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_t size, const sy_species_params *species,
                               int leaf_off, sy_decoded_tree *t, sy_error *err);
 void sy_decoded_tree_free(sy_decoded_tree *t);

@@ -526,6 +526,50 @@ static void damaged_files_fail_cleanly(void **state)
     free(good);
 }
 
+/* The header's flags: a leaf-off tree (SY_SYLVA_LEAF_OFF) round-trips with
+ * its checksum rewritten and nothing else changed; a flag readers do not
+ * know is refused, by the setter and, sealed into a file, by the reader. */
+static void leaf_off_flag_round_trips(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_error err = {0};
+    assert_int_equal(sy_skeleton_init(&s, 0, &err), SY_OK);
+    float p0[3] = {0, 0, 0}, p1[3] = {0, 0, 2};
+    sy_skeleton_add(&s, p0, 0.1f, -1, 0, 0, &err);
+    sy_skeleton_add(&s, p1, 0.05f, 0, 0, 0, &err);
+    unsigned char *img, *plain;
+    size_t size, plain_size;
+    assert_int_equal(sy_encode_mem(&s, NULL, 3, 9, NULL, &img, &size, &err), SY_OK);
+    assert_int_equal(sy_encode_mem(&s, NULL, 3, 9, NULL, &plain, &plain_size, &err), SY_OK);
+    sy_skeleton d;
+    sy_clusters cl;
+    sy_sylva_meta meta;
+    assert_int_equal(sy_decode_mem("plain", img, size, &d, &cl, &meta, &err), SY_OK);
+    assert_int_equal(meta.flags, 0);
+    sy_skeleton_free(&d), sy_clusters_free(&cl);
+    assert_int_equal(sy_sylva_set_flags(img, size, SY_SYLVA_LEAF_OFF, &err), SY_OK);
+    assert_int_equal(sy_decode_mem("off", img, size, &d, &cl, &meta, &err), SY_OK);
+    assert_int_equal(meta.flags, SY_SYLVA_LEAF_OFF);
+    assert_int_equal(meta.species_id, 3);
+    assert_int_equal(d.n, 2);
+    sy_skeleton_free(&d), sy_clusters_free(&cl);
+    /* Only byte 5 and the checksum differ. */
+    assert_int_equal(size, plain_size);
+    for (size_t i = 0; i + 4 < size; i++)
+        if (i != 5) assert_int_equal(img[i], plain[i]);
+    /* Unknown bits: refused by the setter (the image unchanged) and by the reader. */
+    assert_int_equal(sy_sylva_set_flags(img, size, 0x80, &err), SY_EINPUT);
+    assert_int_equal(img[5], SY_SYLVA_LEAF_OFF);
+    assert_int_equal(sy_sylva_set_flags(img, 10, SY_SYLVA_LEAF_OFF, &err), SY_EINPUT);
+    img[5] = 0x82;
+    reseal(img, size);
+    assert_one_line_input_error(sy_decode_mem("odd.sylva", img, size, &d, &cl, &meta, &err), &err, "odd.sylva");
+    assert_non_null(strstr(err.msg, "unknown header flags"));
+    free(img), free(plain);
+    sy_skeleton_free(&s);
+}
+
 static void encoder_rejects_bad_input(void **state)
 {
     (void)state;
@@ -562,6 +606,7 @@ int main(void)
         cmocka_unit_test(real_trees_round_trip_under_40kB),
         cmocka_unit_test(twig_room_counts_the_hulls_as_built),
         cmocka_unit_test(lobes_fit_at_24_triangles_a_hull),
+        cmocka_unit_test(leaf_off_flag_round_trips),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

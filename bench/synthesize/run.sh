@@ -80,7 +80,7 @@ adtree_look() {
 
 if [[ $parts == *r* ]]; then
   echo "(r) real scans: sylva run (no --species: the classifier's species) vs its scan; load $(load)"
-  echo "| scan | points | species | IoU mean | IoU min | precision / recall | profile r | height err | width err | LOD0 bark tris | leaf inst. | leaves ≤5 cm of hull | IoU mean/min --leaf-off | AdTree IoU mean/min, precision / recall | returns as the asset, IoU 4 mm / spacing | .sylva B | run CPU s |"
+  echo "| scan | points | species (leaf-off: returns on the traced wood) | IoU mean | IoU min | precision / recall | profile r | height err | width err | LOD0 bark tris | leaf inst. | leaves ≤5 cm of hull | IoU mean/min --leaf-off | AdTree IoU mean/min, precision / recall | returns as the asset, IoU 4 mm / spacing | .sylva B | run CPU s |"
   echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
   for f in $real; do
     in=$data/real/$f
@@ -100,7 +100,10 @@ if [[ $parts == *r* ]]; then
     own=$("$bench" returns "$in" 2>/dev/null)
     own4=$(sed -n 's/^radius=[0-9.]* iou_mean=\([0-9.]*\) .*/\1/p' <<< "$own")
     owns=$(sed -n 's/.* radius=[0-9.]* iou_mean=\([0-9.]*\) .*/\1/p' <<< "$own")
-    echo "| $f | $(key points_preprocessed "$r") | ${sp:-—} | $(f3 "$(key iou_mean "$ev")") | $(f3 "$(key iou_min "$ev")") |" \
+    # Leaf-off when the returns lie on the traced wood (returns_on_wood).
+    lo=""; [[ $(key leaf_off "$r") == true ]] && lo=", leaf-off"
+    row=$(key returns_on_wood "$r"); [[ $row != nan ]] && lo="$lo ($(f3 "$row") on wood)"
+    echo "| $f | $(key points_preprocessed "$r") | ${sp:-—}$lo | $(f3 "$(key iou_mean "$ev")") | $(f3 "$(key iou_min "$ev")") |" \
       "$(f3 "$(key silhouette_precision "$ev")") / $(f3 "$(key silhouette_recall "$ev")") |" \
       "$(f3 "$(key profile_correlation "$ev")") | $(pct "$(key height_error_rel "$ev")") | $(pct "$(key crown_width_error_rel "$ev")") |" \
       "$(key lod0_bark_triangles "$r") | $(key lod0_leaf_instances "$r") | $(f3 "$(key leaves_in_hull "$r")") |" \

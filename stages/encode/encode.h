@@ -36,9 +36,16 @@ typedef struct {
     float log2_rmin, log2_rmax;
 } sy_sylva_quant;
 
+/* Header flags (byte 5). A leaf-off tree: its scan's returns lie on its
+ * wood, so its lobes' traced twigs are their wood and it carries no leaf
+ * cards (docs/sylva-format.md). Readers refuse bits they do not know. */
+#define SY_SYLVA_LEAF_OFF 0x01u
+#define SY_SYLVA_KNOWN_FLAGS SY_SYLVA_LEAF_OFF
+
 /* What a file holds besides the skeleton and clusters. */
 typedef struct {
     uint16_t species_id;
+    uint8_t flags; /* SY_SYLVA_LEAF_OFF */
     uint64_t seed;
     sy_sylva_quant quant;
 } sy_sylva_meta;
@@ -49,6 +56,10 @@ typedef struct {
  * the grid from the data; a given quant must cover the data (SY_EINPUT). */
 sy_code sy_encode_mem(const sy_skeleton *skel, const sy_clusters *clusters, uint16_t species_id, uint64_t seed,
                       const sy_sylva_quant *quant, unsigned char **out, size_t *size, sy_error *err);
+
+/* Sets the header flags of an encoded image and rewrites its checksum
+ * (SY_EINPUT: not a .sylva image, or a flag readers would refuse). */
+sy_code sy_sylva_set_flags(unsigned char *data, size_t size, uint8_t flags, sy_error *err);
 
 /* Writes the file atomically. */
 sy_code sy_encode_write(const char *path, const sy_skeleton *skel, const sy_clusters *clusters, uint16_t species_id,

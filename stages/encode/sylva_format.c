@@ -503,6 +503,17 @@ static sy_code decode_twigs(const char *path, rbuf *r, const sy_sylva_quant *q, 
     return rc;
 }
 
+sy_code sy_sylva_set_flags(unsigned char *data, size_t size, uint8_t flags, sy_error *err)
+{
+    if (size < HEADER_SIZE + 4 || memcmp(data, "SYLV", 4) != 0)
+        return sy_fail(err, SY_EINPUT, "not a .sylva image (%zu bytes)", size);
+    if (flags & ~SY_SYLVA_KNOWN_FLAGS) return sy_fail(err, SY_EINPUT, ".sylva: unknown header flags 0x%02x", (unsigned)flags);
+    data[5] = flags;
+    uint32_t crc = crc32(data, size - 4);
+    for (int i = 0; i < 4; i++) data[size - 4 + (size_t)i] = (unsigned char)(crc >> (8 * i));
+    return SY_OK;
+}
+
 sy_code sy_decode_mem(const char *path, const unsigned char *data, size_t size, sy_skeleton *s, sy_clusters *cl,
                       sy_sylva_meta *meta, sy_error *err)
 {
@@ -518,6 +529,9 @@ sy_code sy_decode_mem(const char *path, const unsigned char *data, size_t size, 
     rbuf tail = {data, size, size - 4, 0};
     if ((uint32_t)get_le(&tail, 4) != crc32(data, size - 4))
         return sy_fail(err, SY_EINPUT, "%s: checksum mismatch (corrupted or truncated)", path);
+    meta->flags = data[5];
+    if (meta->flags & ~SY_SYLVA_KNOWN_FLAGS)
+        return sy_fail(err, SY_EINPUT, "%s: unknown header flags 0x%02x", path, (unsigned)meta->flags);
     r.at = 6;
     meta->species_id = (uint16_t)get_le(&r, 2);
     meta->seed = get_le(&r, 8);
