@@ -73,6 +73,7 @@ int cmd_decode(int argc, char **argv, sy_cli *cli)
         char seed[32]; /* as a string: a 64-bit seed does not fit a JSON double */
         snprintf(seed, sizeof seed, "%llu", (unsigned long long)meta.seed);
         sy_json_string(&j, "seed", seed);
+        sy_json_bool(&j, "leaf_off", (meta.flags & SY_SYLVA_LEAF_OFF) != 0);
         sy_json_int(&j, "nodes", (long long)s.n);
         sy_json_int(&j, "branches", sy_skeleton_branch_count(&s));
         sy_json_number(&j, "skeleton_length", sy_skeleton_length(&s));
@@ -92,7 +93,8 @@ int cmd_decode(int argc, char **argv, sy_cli *cli)
         sy_json_end(&j);
         sy_json_finish(&j);
     } else {
-        printf("%s: species %u, seed %llu\n", in[0], (unsigned)meta.species_id, (unsigned long long)meta.seed);
+        printf("%s: species %u, seed %llu%s\n", in[0], (unsigned)meta.species_id, (unsigned long long)meta.seed,
+               meta.flags & SY_SYLVA_LEAF_OFF ? ", leaf-off" : "");
         printf("  skeleton  %zu nodes, %d branches, %.2f m of axes, root radius %.3f m\n", s.n,
                sy_skeleton_branch_count(&s), sy_skeleton_length(&s), s.radius[0]);
         printf("  clusters  %zu (%zu alpha, %zu convex, %zu box): %zu vertices, %zu triangles, %zu twig nodes\n", cl.n,

@@ -73,6 +73,7 @@ int cmd_encode(int argc, char **argv, sy_cli *cli)
     unsigned char *bytes = NULL;
     size_t size = 0;
     rc = sy_encode_mem(&s, &cl, meta.species_id, meta.seed, has_quant ? &meta.quant : NULL, &bytes, &size, &err);
+    if (!rc && meta.flags) rc = sy_sylva_set_flags(bytes, size, meta.flags, &err);
     if (rc == SY_EINPUT && !strstr(err.msg, in[0])) {
         sy_error e2 = err;
         sy_fail(&err, rc, "%s: %s", in[0], e2.msg);

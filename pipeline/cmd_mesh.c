@@ -188,7 +188,9 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
         if ((rc = sy_species_params_find(species_name, &sp, &err))) goto done;
         have_species = 1;
     }
-    if (!no_leaves && (have_species || !hulls.n)) {
+    /* A .sylva marked leaf-off without lobes (`run --leaf-off` of a tree
+     * with none) is drawn bare, as run drew it. */
+    if (!no_leaves && !info.leaf_off && (have_species || !hulls.n)) {
         sy_species_params leaf_sp;
         if (!have_species && (rc = sy_species_params_find(DEFAULT_LEAVES, &leaf_sp, &err))) goto done;
         sy_leaf_placement lp = sy_leaf_placement_from_species(have_species ? &sp : &leaf_sp, cli->seed);

@@ -587,12 +587,12 @@ static sy_code reconstruct(sy_cloud *c, const char *name, const sy_run_tree_opti
 
 /* The share of the cloud's returns within spacing of the surface of wood
  * (each edge a truncated cone): how much of the scan the leaf-off tree
- * draws as it stands. NaN without returns or a spacing. */
+ * draws as it stands. NaN without returns, a spacing or an edge of wood. */
 static sy_code returns_on_wood(const sy_cloud *c, const sy_skeleton *wood, double spacing, double *share,
                                sy_error *err)
 {
     *share = NAN;
-    if (!c->n || !(spacing > 0)) return SY_OK;
+    if (!c->n || !(spacing > 0) || wood->n < 2) return SY_OK; /* nothing to measure: the cards stay */
     double *pts = malloc(3 * c->n * sizeof *pts), *dist = malloc(c->n * sizeof *dist);
     if (!pts || !dist) {
         free(pts), free(dist);

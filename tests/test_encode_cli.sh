@@ -25,6 +25,22 @@ grep -q '"occupancy":"' "$tmp/a.json" || fail "no occupancy grid in the JSON"
 "$SYLVA" encode --quiet "$tmp/a.json" -o "$tmp/b.sylva" || fail "encode exit $?"
 cmp "$tmp/a.sylva" "$tmp/b.sylva" || fail "sylva -> json -> sylva is not byte-identical"
 
+# The leaf-off flag (header byte 5, docs/sylva-format.md) survives the round
+# trip: a JSON marked leaf_off encodes to a flagged file, which decodes and
+# encodes again byte for byte. Before, the JSON lost it and the tree came
+# back dressed in leaves.
+sed 's/"leaf_off":false/"leaf_off":true/' "$tmp/a.json" > "$tmp/off.json"
+grep -q '"leaf_off":true' "$tmp/off.json" || fail "no leaf_off in the decoded JSON"
+"$SYLVA" encode --quiet "$tmp/off.json" -o "$tmp/off.sylva" || fail "encode of the leaf-off JSON exit $?"
+[[ $(od -An -tu1 -j5 -N1 "$tmp/off.sylva" | tr -d ' ') == 1 ]] || fail "the leaf-off JSON gave an unflagged file"
+"$SYLVA" decode --quiet "$tmp/off.sylva" -o "$tmp/off2.json" >/dev/null || fail "decode of the flagged file"
+"$SYLVA" encode --quiet "$tmp/off2.json" -o "$tmp/off2.sylva" || fail "re-encode of the flagged file"
+cmp "$tmp/off.sylva" "$tmp/off2.sylva" || fail "flagged sylva -> json -> sylva is not byte-identical"
+"$SYLVA" decode --json "$tmp/off.sylva" | grep -q '"leaf_off":true' || fail "decode --json does not say leaf-off"
+sed 's/"leaf_off":false/"leaf_off":1/' "$tmp/a.json" > "$tmp/badoff.json"
+"$SYLVA" encode "$tmp/badoff.json" -o "$tmp/badoff.sylva" 2> "$tmp/err"; rc=$?
+[[ $rc == 2 && ! -e $tmp/badoff.sylva ]] && grep -q "leaf_off" "$tmp/err" || fail "leaf_off 1: exit $rc, $(cat "$tmp/err")"
+
 # An edited JSON (one node moved 1 m) encodes to a different, valid file.
 node -e 'const fs = require("fs"); const d = JSON.parse(fs.readFileSync(process.argv[1]));
   d.nodes[1].x += 1; fs.writeFileSync(process.argv[2], JSON.stringify(d));' "$tmp/a.json" "$tmp/moved.json" ||
@@ -42,6 +58,15 @@ rows=$(($(wc -l < "$qsm") - 1))
 nodes=$("$SYLVA" decode --json "$tmp/q.sylva" | grep -o '"nodes":[0-9]*' | cut -d: -f2)
 # One node per cylinder end: every cylinder adds its end node, each root its start.
 (( nodes > rows && nodes <= rows + 8 )) || fail "QSM with $rows cylinders gave $nodes nodes"
+# A file without lobes is meshed as a skeleton, leaves along its finest
+# branches; marked leaf-off (as `run --leaf-off` marks a tree with no lobes)
+# it is drawn bare.
+"$SYLVA" decode --quiet "$tmp/q.sylva" -o "$tmp/q.json" >/dev/null || fail "decode of the QSM .sylva"
+sed 's/"leaf_off":false/"leaf_off":true/' "$tmp/q.json" > "$tmp/qoff.json"
+"$SYLVA" encode --quiet "$tmp/qoff.json" -o "$tmp/qoff.sylva" || fail "encode of the leaf-off QSM JSON"
+lv=$("$SYLVA" mesh "$tmp/q.sylva" -o "$tmp/q.glb" --impostor-size 64 --json | grep -o '"leaves":[0-9]*' | cut -d: -f2)
+lo=$("$SYLVA" mesh "$tmp/qoff.sylva" -o "$tmp/qoff.glb" --impostor-size 64 --json | grep -o '"leaves":[0-9]*' | cut -d: -f2)
+(( lv > 0 && lo == 0 )) || fail "QSM .sylva leaves: $lv unflagged, $lo flagged leaf-off"
 
 # Bad input: exit 2, one stderr line naming the file, no output.
 check_bad() {

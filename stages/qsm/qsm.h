@@ -48,6 +48,7 @@ typedef struct {
     size_t gap_nodes;     /* cylinders whose start missed their parent's end and got a node */
     int origin_from_file; /* the file named the origin (a "sylva origin" comment) */
     int derived_structure; /* orders and branch ids were computed from the topology */
+    int leaf_off;         /* a .sylva marked leaf-off (SY_SYLVA_LEAF_OFF): drawn without leaf cards */
 } sy_skeleton_read_info;
 
 const char *sy_skel_format_name(sy_skel_format f);

@@ -101,6 +101,7 @@ static sy_code read_sylva(const char *path, const unsigned char *data, size_t si
         info->records = out->n;
         info->input_roots = 1;
         info->origin_from_file = 1;
+        info->leaf_off = (meta.flags & SY_SYLVA_LEAF_OFF) != 0;
     }
     return SY_OK;
 }

@@ -71,6 +71,7 @@ sy_code sy_sylva_json_write(const char *path, const sy_skeleton *s, const sy_clu
     char seed[32]; /* as a string: a 64-bit seed does not fit a JSON double */
     snprintf(seed, sizeof seed, "%llu", (unsigned long long)meta->seed);
     sy_json_string(&j, "seed", seed);
+    sy_json_bool(&j, "leaf_off", (meta->flags & SY_SYLVA_LEAF_OFF) != 0);
     sy_json_object(&j, "quant");
     sy_json_int(&j, "step_log2", meta->quant.step_log2);
     sy_json_array(&j, "box_min");
@@ -117,6 +118,11 @@ static sy_code read_meta(const char *path, const sy_jv *doc, sy_sylva_meta *meta
         if (!t || !end || *end || errno)
             return fail_at(err, path, seed, "seed", "must be a string of decimal digits below 2^64");
         meta->seed = x;
+    }
+    const sy_jv *off = sy_jv_get(doc, "leaf_off");
+    if (off) {
+        if (off->type != SY_JV_BOOL) return fail_at(err, path, off, "leaf_off", "must be true or false");
+        meta->flags = off->boolean ? SY_SYLVA_LEAF_OFF : 0;
     }
     const sy_jv *q = sy_jv_get(doc, "quant");
     *has_quant = q != NULL;
