@@ -115,7 +115,7 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
         {"--proxy", OPT_FLAG, &a.run.proxy, NULL, "also draw the lobe hulls as a semi-transparent foliage_proxy mesh"},
         {"--leaf-off", OPT_FLAG, &leaf_off, NULL,
          "a leaf-off scan (bare branches): lobes with traced twigs keep them as their wood, no leaf cards (default:\n"
-         "so when at least 80 % of the returns lie within a scan spacing of that wood)"},
+         "so when at least 80 % of the returns lie within a scan spacing of that wood, traced at 1.5 spacings or coarser)"},
         {"--leaves", OPT_FLAG, &leaves, NULL, "leaf cards whatever the scan (a leaf-off scan dressed in leaves)"},
         {"--lobe-size", OPT_DOUBLE, &a.run.lobe_size, "F",
          "largest lobe as a share of the tree's extent, in [0,1]; 0: one cluster per cut (default 0.1; cut "

@@ -663,10 +663,12 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
         /* Decided from the scan: the leaf-off tree first, kept when the
          * returns lie on its wood. Only lobes with traced twigs can draw
          * their returns as wood; without any, the lobes' returns (most of a
-         * crown's) lie off it. */
+         * crown's) lie off it. Twigs traced at voxels finer than
+         * SY_LEAF_OFF_MIN_VOXEL spacings run through nearly every return,
+         * leaves or not, and tell nothing. */
         int twigs = 0;
         for (size_t k = 0; k < cl.n && !twigs; k++) twigs = cl.items[k].n_twigs > 0;
-        int test = o->leaf_off == 0 && twigs;
+        int test = o->leaf_off == 0 && twigs && r->hulls.twig_voxel >= SY_LEAF_OFF_MIN_VOXEL * sr->spacing;
         rc = sy_decoded_tree_build(name, r->sylva, r->sylva_size, sp, o->leaf_off > 0 || test, &dt, err);
         have_tree = !rc;
         if (!rc && test) {

@@ -49,7 +49,8 @@ typedef struct {
     int leaf_off;        /* 1: a leaf-off scan: no leaf cards, and lobes with traced twigs keep them as
                             their wood without patches; 0: decided from the scan, leaf-off when at least
                             SY_LEAF_OFF_RETURNS of its returns lie within a scan spacing of the wood the
-                            leaf-off tree draws (lobes with traced twigs only); -1: leaf cards whatever the
+                            leaf-off tree draws (lobes with twigs traced at voxels of at least
+                            SY_LEAF_OFF_MIN_VOXEL spacings only); -1: leaf cards whatever the
                             scan (0). A leaf-off tree's .sylva is marked so (SY_SYLVA_LEAF_OFF): `sylva
                             mesh OUT.sylva` gives the same asset */
     double lobe_size;    /* largest lobe as a share of the tree's extent, [0, 1] (0.25; 0: one cluster a cut) */
@@ -67,14 +68,17 @@ typedef struct {
 
 /* A scan is leaf-off when this share of its returns lies within a scan
  * spacing of the wood its leaf-off tree draws (the skeleton and the traced
- * twigs as cones): rTwig's leaf-off sapling 0.88 and the airborne leaf-off
- * AHN3 tree 0.95, both drawn closer to their scans without cards; AdTree's
- * tree7 0.71, its other scans 0.42-0.70, the bundled leafy aspen 0.65, the
- * TreeLS pine 0.40, PyTLidar's oak 0.19. Twigs traced at voxels much coarser
- * than the spacing run as chords past their returns: simulated leaf-off
- * scans of 60k returns (twig voxels 23-29 cm) reach 0.47-0.54 and keep their
- * cards (docs/synthesize.md, "Stop 39"). */
+ * twigs as cones): rTwig's leaf-off sapling 0.88; AdTree's tree7 0.71, its
+ * other scans 0.42-0.71, the bundled leafy aspen 0.65, the TreeLS pine 0.40,
+ * PyTLidar's oak 0.19. Twigs traced at voxels much coarser than the spacing
+ * run as chords past their returns: simulated leaf-off scans of 11-27k
+ * returns (twig voxels 15-29 cm) reach 0.47-0.63 and keep their cards. Only
+ * judged when the twig voxel is at least SY_LEAF_OFF_MIN_VOXEL spacings:
+ * finer twigs take nearly every return as a node, and a leafy simulated
+ * aspen of 4,388 returns (6 cm voxels, 10 cm spacing) lay 0.94 on its wood,
+ * the airborne AHN3 tree 0.95 (docs/synthesize.md, "Stop 39"). */
 #define SY_LEAF_OFF_RETURNS 0.8
+#define SY_LEAF_OFF_MIN_VOXEL 1.5
 
 sy_run_tree_options sy_run_tree_options_default(void);
 /* SY_EUSAGE naming the field for out-of-range values (fs, wood_share, ...). */
