@@ -335,6 +335,7 @@ typedef struct {
     size_t most;
     double tol;
     float *fit;
+    float *shift; /* 3 per node, or NULL */
     uint8_t *failed; /* per chunk: it ran out of memory */
 } ring_job;
 
@@ -412,17 +413,20 @@ static void ring_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
         if ((double)in < 0.7 * (double)k || r > spread || r < tol) continue;
         if (largest_angle_gap(xy, k, ctr, r, tol, ang) > 0.5 * TWO_PI) continue;
         fit[i] = (float)r;
+        if (J->shift)
+            for (int q = 0; q < 3; q++) J->shift[3 * i + (size_t)q] = (float)(ctr[0] * u[q] + ctr[1] * v[q]);
         }
     free(xy);
     free(ang);
 }
 
-sy_code sy_measure_node_radii(const sy_skeleton *s, const float *xyz, double spacing, float *fit, size_t *fitted_out,
-                              sy_error *err)
+sy_code sy_measure_node_radii(const sy_skeleton *s, const float *xyz, double spacing, float *fit, float *shift,
+                              size_t *fitted_out, sy_error *err)
 {
     *fitted_out = 0;
     size_t m = s->n, fitted = 0;
     for (size_t i = 0; i < m; i++) fit[i] = 0;
+    if (shift) memset(shift, 0, 3 * m * sizeof *shift);
     if (!s->support_start || m < 2) return SY_OK;
     size_t most = 0;
     for (size_t i = 0; i < m; i++)
@@ -442,7 +446,7 @@ sy_code sy_measure_node_radii(const sy_skeleton *s, const float *xyz, double spa
         free(next_sibling);
         return SY_EINTERNAL;
     }
-    ring_job J = {s, xyz, first_child, next_sibling, most, fmax(0.5 * spacing, 0.006), fit, failed};
+    ring_job J = {s, xyz, first_child, next_sibling, most, fmax(0.5 * spacing, 0.006), fit, shift, failed};
     sy_parallel_for(m, 32, ring_chunk, &J);
     free(first_child);
     free(next_sibling);

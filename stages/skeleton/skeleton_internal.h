@@ -29,10 +29,12 @@ sy_code sy_assign_radii(sy_skeleton *s, const float *xyz, const int32_t *node_of
 /* Measured radii: for each node a circle fitted across its local branch axis
  * to its own points and its neighbours' on the branch. fit[i] is the radius
  * where the points lie on a circle (most within the band, round at least half
- * of it, the circle no wider than the points), else 0. *fitted gets how many
- * nodes got one; SY_EINTERNAL when memory ran out (err set). */
-sy_code sy_measure_node_radii(const sy_skeleton *s, const float *xyz, double spacing, float *fit, size_t *fitted,
-                              sy_error *err);
+ * of it, the circle no wider than the points), else 0; shift (3 per node, may
+ * be NULL) the circle's centre less the node, across the axis (0 where no
+ * circle fits). *fitted gets how many nodes got one; SY_EINTERNAL when memory
+ * ran out (err set). */
+sy_code sy_measure_node_radii(const sy_skeleton *s, const float *xyz, double spacing, float *fit, float *shift,
+                              size_t *fitted, sy_error *err);
 
 /* Scales the allometric radii of each branch (trunk excepted) by the median
  * ratio of its measured radii (fit, 0 = none) to the allometric ones;
