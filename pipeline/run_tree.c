@@ -141,12 +141,13 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
     }
     sy_full_skeleton_free(&full);
     if (rc) return rc;
-    /* Radii the returns bound, on the chains the level sets made (where the
-     * returns are centred), before the fairing smooths them along each limb;
-     * the trunk keeps its DBH fit up to breast height. */
+    /* Radii the returns bound, on the chains as the skeleton left them (level
+     * sets, their ringed nodes moved onto their rings), before the fairing
+     * smooths them along each limb; the trunk keeps its DBH fit up to breast
+     * height. */
     double breast_z = out->n ? out->pos[2] + fmin(o->dbh_height, 0.25 * report->height) : 0;
     rc = sy_cap_radii_by_returns(out, c->xyz, o->return_cap, breast_z, &report->radii_capped, err);
-    /* Faired after the cut, which judges the chains as the level sets made
+    /* Faired after the cut, which judges the chains as the skeleton left
      * them (their points' spread about each edge). */
     if (rc || (rc = sy_skeleton_fair_limbs(out, o->fair_sigma, err))) {
         if (clusters) sy_clusters_free(clusters);
@@ -658,6 +659,7 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
     sy_decoded_tree dt;
     int have_tree = 0;
     r->returns_on_wood = NAN;
+    double spacing = 0;
     if (!rc) {
         double t = sy_now();
         /* Decided from the scan: the leaf-off tree first, kept when the
@@ -668,11 +670,13 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
          * leaves or not, and tell nothing. */
         int twigs = 0;
         for (size_t k = 0; k < cl.n && !twigs; k++) twigs = cl.items[k].n_twigs > 0;
-        int test = o->leaf_off == 0 && twigs && r->hulls.twig_voxel >= SY_LEAF_OFF_MIN_VOXEL * sr->spacing;
+        /* The scan's own spacing: a retried reconstruction's (sr->spacing) is doubled. */
+        spacing = sy_estimate_spacing(c->xyz, c->n);
+        int test = o->leaf_off == 0 && twigs && r->hulls.twig_voxel >= SY_LEAF_OFF_MIN_VOXEL * spacing;
         rc = sy_decoded_tree_build(name, r->sylva, r->sylva_size, sp, o->leaf_off > 0 || test, &dt, err);
         have_tree = !rc;
         if (!rc && test) {
-            rc = returns_on_wood(c, &dt.grown, sr->spacing, &r->returns_on_wood, err);
+            rc = returns_on_wood(c, &dt.grown, spacing, &r->returns_on_wood, err);
             if (!rc && !(r->returns_on_wood >= SY_LEAF_OFF_RETURNS)) {
                 sy_decoded_tree_free(&dt);
                 rc = sy_decoded_tree_build(name, r->sylva, r->sylva_size, sp, 0, &dt, err);
@@ -689,7 +693,7 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
         if (dt.leaf_off) r->synth.leaves = r->synth.leaves_in_hull = 0;
         if (!isnan(r->returns_on_wood)) {
             snprintf(line, sizeof line, "%s: %.0f %% of the returns lie within %.3f m of the traced wood (leaf-off from %.0f %%)",
-                     dt.leaf_off ? "leaf-off" : "leaves", 100 * r->returns_on_wood, sr->spacing, 100 * SY_LEAF_OFF_RETURNS);
+                     dt.leaf_off ? "leaf-off" : "leaves", 100 * r->returns_on_wood, spacing, 100 * SY_LEAF_OFF_RETURNS);
             step(o, "leaves", 0, line);
         }
         const char *lsys = strrchr(dt.lsys, '/') ? strrchr(dt.lsys, '/') + 1 : dt.lsys;

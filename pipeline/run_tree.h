@@ -68,9 +68,9 @@ typedef struct {
 
 /* A scan is leaf-off when this share of its returns lies within a scan
  * spacing of the wood its leaf-off tree draws (the skeleton and the traced
- * twigs as cones): rTwig's leaf-off sapling 0.88; AdTree's tree7 0.71, its
- * other scans 0.42-0.71, the bundled leafy aspen 0.65, the TreeLS pine 0.40,
- * PyTLidar's oak 0.19. Twigs traced at voxels much coarser than the spacing
+ * twigs as cones): rTwig's leaf-off sapling 0.89; AdTree's tree7 0.71, its
+ * other scans 0.42-0.71, the bundled leafy aspen 0.65, the TreeLS pine 0.41,
+ * PyTLidar's oak 0.20. Twigs traced at voxels much coarser than the spacing
  * run as chords past their returns: simulated leaf-off scans of 11-27k
  * returns (twig voxels 15-29 cm) reach 0.47-0.63 and keep their cards. Only
  * judged when the twig voxel is at least SY_LEAF_OFF_MIN_VOXEL spacings:

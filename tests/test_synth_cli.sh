@@ -78,7 +78,7 @@ if command -v node >/dev/null; then
 fi
 
 # A leaf-off scan, found without --leaf-off: rTwig's sapling, whose returns
-# lie on its traced twigs (0.88 within a spacing; docs/synthesize.md "Stop
+# lie on its traced twigs (0.89 within a spacing; docs/synthesize.md "Stop
 # 39"). It gets no cards (IoU 0.784 with them, 0.849 without), its .sylva is
 # flagged, and --leaves dresses it in leaves all the same.
 cloud=$SYLVA_DATA_DIR/real/rtwig/cloud.txt
