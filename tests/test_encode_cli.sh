@@ -67,6 +67,9 @@ sed 's/"leaf_off":false/"leaf_off":true/' "$tmp/q.json" > "$tmp/qoff.json"
 lv=$("$SYLVA" mesh "$tmp/q.sylva" -o "$tmp/q.glb" --impostor-size 64 --json | grep -o '"leaves":[0-9]*' | cut -d: -f2)
 lo=$("$SYLVA" mesh "$tmp/qoff.sylva" -o "$tmp/qoff.glb" --impostor-size 64 --json | grep -o '"leaves":[0-9]*' | cut -d: -f2)
 (( lv > 0 && lo == 0 )) || fail "QSM .sylva leaves: $lv unflagged, $lo flagged leaf-off"
+# The JSON itself, meshed as a skeleton, reads the flag the same way.
+lj=$("$SYLVA" mesh "$tmp/qoff.json" -o "$tmp/qoffj.glb" --impostor-size 64 --json | grep -o '"leaves":[0-9]*' | cut -d: -f2)
+(( lj == 0 )) || fail "leaf-off tree.json meshed with $lj leaves"
 
 # Bad input: exit 2, one stderr line naming the file, no output.
 check_bad() {

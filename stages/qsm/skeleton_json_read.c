@@ -238,6 +238,9 @@ sy_code sy_skeleton_from_json(const char *path, const sy_jv *doc, long tree, sy_
     if (!rc && info) {
         info->format = SY_SKEL_JSON;
         info->origin_from_file = has_origin;
+        /* A sylva-tree's leaf-off flag (sylva decode -o), read as the .sylva's is. */
+        const sy_jv *off = sy_jv_get(doc, "leaf_off");
+        info->leaf_off = off && off->type == SY_JV_BOOL && off->boolean;
     }
     return rc;
 }
