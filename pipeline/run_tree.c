@@ -611,6 +611,42 @@ static sy_code returns_on_wood(const sy_cloud *c, const sy_skeleton *wood, doubl
     return rc;
 }
 
+/* The tree from r->sylva: leaf-off when asked (o->leaf_off > 0) or, left to
+ * the scan (0), when its returns lie on the leaf-off tree's wood: decoded
+ * leaf-off first, kept at SY_LEAF_OFF_RETURNS, else decoded again with its
+ * cards. Only lobes with traced twigs can draw their returns as wood (without
+ * any, the lobes' returns, most of a crown's, lie off it), and twigs traced at
+ * voxels finer than SY_LEAF_OFF_MIN_VOXEL spacings run through nearly every
+ * return, leaves or not, and tell nothing. A leaf-off tree's .sylva is
+ * flagged. *spacing gets the scan's own spacing where it was judged (a
+ * retried reconstruction's, sr->spacing, is doubled). On failure dt holds
+ * nothing to free. */
+static sy_code decode_tree(const sy_cloud *c, const sy_clusters *cl, const char *name, const sy_run_tree_options *o,
+                           const sy_species_params *sp, sy_run_tree_result *r, sy_decoded_tree *dt, double *spacing,
+                           sy_error *err)
+{
+    r->returns_on_wood = NAN;
+    int twigs = 0;
+    for (size_t k = 0; k < cl->n && !twigs; k++) twigs = cl->items[k].n_twigs > 0;
+    int test = 0;
+    if (o->leaf_off == 0 && twigs) {
+        *spacing = sy_estimate_spacing(c->xyz, c->n);
+        test = r->hulls.twig_voxel >= SY_LEAF_OFF_MIN_VOXEL * *spacing;
+    }
+    sy_code rc = sy_decoded_tree_build(name, r->sylva, r->sylva_size, sp, o->leaf_off > 0 || test, dt, err);
+    if (rc) return rc;
+    if (test) {
+        rc = returns_on_wood(c, &dt->grown, *spacing, &r->returns_on_wood, err);
+        if (!rc && !(r->returns_on_wood >= SY_LEAF_OFF_RETURNS)) {
+            sy_decoded_tree_free(dt);
+            if ((rc = sy_decoded_tree_build(name, r->sylva, r->sylva_size, sp, 0, dt, err))) return rc;
+        }
+    }
+    if (!rc && dt->leaf_off) rc = sy_sylva_set_flags(r->sylva, r->sylva_size, SY_SYLVA_LEAF_OFF, err);
+    if (rc) sy_decoded_tree_free(dt);
+    return rc;
+}
+
 static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree_options *o,
                                 const sy_species_params *sp, const nominal_tree *nt, sy_run_tree_result *r,
                                 sy_error *err)
@@ -657,35 +693,13 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
     uint16_t sid = (uint16_t)(id >= 0 && id < 65535 ? id + 1 : 0);
     rc = sy_encode_mem(&s, &cl, sid, o->seed, NULL, &r->sylva, &r->sylva_size, err);
     sy_decoded_tree dt;
-    int have_tree = 0;
-    r->returns_on_wood = NAN;
     double spacing = 0;
     if (!rc) {
         double t = sy_now();
-        /* Decided from the scan: the leaf-off tree first, kept when the
-         * returns lie on its wood. Only lobes with traced twigs can draw
-         * their returns as wood; without any, the lobes' returns (most of a
-         * crown's) lie off it. Twigs traced at voxels finer than
-         * SY_LEAF_OFF_MIN_VOXEL spacings run through nearly every return,
-         * leaves or not, and tell nothing. */
-        int twigs = 0;
-        for (size_t k = 0; k < cl.n && !twigs; k++) twigs = cl.items[k].n_twigs > 0;
-        /* The scan's own spacing: a retried reconstruction's (sr->spacing) is doubled. */
-        spacing = sy_estimate_spacing(c->xyz, c->n);
-        int test = o->leaf_off == 0 && twigs && r->hulls.twig_voxel >= SY_LEAF_OFF_MIN_VOXEL * spacing;
-        rc = sy_decoded_tree_build(name, r->sylva, r->sylva_size, sp, o->leaf_off > 0 || test, &dt, err);
-        have_tree = !rc;
-        if (!rc && test) {
-            rc = returns_on_wood(c, &dt.grown, spacing, &r->returns_on_wood, err);
-            if (!rc && !(r->returns_on_wood >= SY_LEAF_OFF_RETURNS)) {
-                sy_decoded_tree_free(&dt);
-                rc = sy_decoded_tree_build(name, r->sylva, r->sylva_size, sp, 0, &dt, err);
-                have_tree = !rc;
-            }
-        }
+        rc = decode_tree(c, &cl, name, o, sp, r, &dt, &spacing, err);
         r->t_synth = sy_now() - t;
-        if (!rc && dt.leaf_off) rc = sy_sylva_set_flags(r->sylva, r->sylva_size, SY_SYLVA_LEAF_OFF, err);
     }
+    int have_tree = !rc;
     sy_cloud_free(c);
     if (!rc) {
         r->synth = dt.synth;
