@@ -72,12 +72,7 @@ int cmd_encode(int argc, char **argv, sy_cli *cli)
     if (species >= 0) meta.species_id = (uint16_t)species;
     unsigned char *bytes = NULL;
     size_t size = 0;
-    rc = sy_encode_mem(&s, &cl, meta.species_id, meta.seed, has_quant ? &meta.quant : NULL, &bytes, &size, &err);
-    if (!rc && meta.flags) rc = sy_sylva_set_flags(bytes, size, meta.flags, &err);
-    if (rc == SY_EINPUT && !strstr(err.msg, in[0])) {
-        sy_error e2 = err;
-        sy_fail(&err, rc, "%s: %s", in[0], e2.msg);
-    }
+    rc = sy_sylva_encode_meta(&s, &cl, &meta, has_quant, in[0], &bytes, &size, &err);
     if (!rc) rc = sy_write_file_atomic(out_path, bytes, size, &err);
     free(bytes);
     if (!rc) {

@@ -16,6 +16,7 @@
 #include "stages/export/export.h"
 #include "stages/qsm/leaf_placement.h"
 #include "stages/qsm/qsm.h"
+#include "stages/qsm/sylva_json.h"
 
 /* Leaf density and size for models that name no species: a common
  * broadleaf (4.3 leaf cards a metre of twig, 0.55 m long on a tree of its
@@ -65,14 +66,13 @@ static void print_report(const sy_cli *cli, const char *out_path, const sy_tree_
     }
 }
 
-/* A .sylva with lobes: decode and synthesise as `sylva run` does, with the
- * file's species (or species_name) and seed. */
-static int mesh_sylva(const char *path, const char *out_path, const char *species_name, int no_leaves, int proxy,
-                      const sy_cli *cli, sy_tree_asset_options *o, mesh_facts *f)
+/* A .sylva image with lobes (path's, or the one its sylva-tree JSON encodes
+ * to): decode and synthesise as `sylva run` does, with the file's species
+ * (or species_name) and seed. Takes buf. */
+static int mesh_sylva(const char *path, sy_buffer buf, const char *out_path, const char *species_name, int no_leaves,
+                      int proxy, const sy_cli *cli, sy_tree_asset_options *o, mesh_facts *f)
 {
     sy_error err = {0};
-    sy_buffer buf;
-    if (sy_read_file(path, &buf, &err)) return sy_cli_report(&err);
     sy_species_params sp;
     int have_species = 0;
     sy_code rc = SY_OK;
@@ -116,6 +116,27 @@ static int mesh_sylva(const char *path, const char *out_path, const char *specie
     return rc ? sy_cli_report(&err) : 0;
 }
 
+/* A "sylva-tree" JSON with lobes (sylva decode -o, edited or not) is the
+ * .sylva it encodes to, and is meshed as that file is: read as a skeleton
+ * alone it lost its lobes and came out a bare skeleton with default cards
+ * (AdTree's tree13: IoU against its scan 0.52 against the .sylva's 0.63).
+ * image->data stays NULL for any other JSON. */
+static sy_code sylva_tree_image(const char *path, sy_buffer *image, sy_error *err)
+{
+    memset(image, 0, sizeof *image);
+    sy_buffer b;
+    sy_code rc = sy_read_file(path, &b, err);
+    if (rc) return rc;
+    sy_jv *doc = NULL;
+    rc = sy_jv_parse(path, (const char *)b.data, b.size, NULL, &doc, err);
+    sy_buffer_free(&b);
+    size_t lobes = 0;
+    if (!rc && sy_sylva_json_is_tree(doc)) rc = sy_sylva_json_encode(path, doc, &image->data, &image->size, &lobes, err);
+    sy_jv_free(doc);
+    if (!rc && !lobes) sy_buffer_free(image); /* a skeleton: meshed as one */
+    return rc;
+}
+
 int cmd_mesh(int argc, char **argv, sy_cli *cli)
 {
     const char *out_path = NULL, *species_name = NULL;
@@ -138,7 +159,8 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
         "Meshing, LODs, impostor and export are those of `sylva grow`. The root is moved to the\n"
         "origin of the glb; its world position is kept in asset.extras.origin. A .sylva is decoded\n"
         "as `sylva run` does: its lobes are filled with the species' branchlets and leaves (the file's\n"
-        "species, or --species; its seed), the same tree `run` wrote (a file marked leaf-off gets no cards);\n"
+        "species, or --species; its seed), the same tree `run` wrote (a file marked leaf-off gets no cards),\n"
+        "and so is its JSON form (sylva decode -o tree.json, edited or not);\n"
         "--proxy adds the hulls. Leaf cards go along the finest branches: --species gives its bark,\n"
         "leaf material and leaf density and size; without it the default bark and plain green cards\n"
         "at " DEFAULT_LEAVES "'s density and size\n"
@@ -173,7 +195,22 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
     if (info.format == SY_SKEL_SYLVA && hulls.n > 0) {
         sy_clusters_free(&hulls);
         sy_skeleton_free(&skel);
-        return mesh_sylva(pos[0], out_path, species_name, no_leaves, proxy, cli, &o, &f);
+        sy_buffer buf;
+        if (sy_read_file(pos[0], &buf, &err)) return sy_cli_report(&err);
+        return mesh_sylva(pos[0], buf, out_path, species_name, no_leaves, proxy, cli, &o, &f);
+    }
+    if (info.format == SY_SKEL_JSON) {
+        sy_buffer image;
+        if ((rc = sylva_tree_image(pos[0], &image, &err))) {
+            sy_clusters_free(&hulls);
+            sy_skeleton_free(&skel);
+            return sy_cli_report(&err);
+        }
+        if (image.data) {
+            sy_clusters_free(&hulls);
+            sy_skeleton_free(&skel);
+            return mesh_sylva(pos[0], image, out_path, species_name, no_leaves, proxy, cli, &o, &f);
+        }
     }
     sy_tree_asset_root_to_origin(&skel, &hulls);
     o.hulls = &hulls;

@@ -49,6 +49,23 @@ node -e 'const fs = require("fs"); const d = JSON.parse(fs.readFileSync(process.
 cmp -s "$tmp/a.sylva" "$tmp/moved.sylva" && fail "edited JSON gave the same file"
 "$SYLVA" decode "$tmp/moved.sylva" >/dev/null || fail "decode of the edited file"
 
+# A sylva-tree JSON with lobes is meshed as the .sylva it encodes to: the
+# glb's binary chunk (bark, leaves, textures) byte for byte, only the
+# source's name differs. Read as a skeleton alone, it lost its lobes and came
+# out a bare skeleton with default cards. An edited one too, and one whose
+# grid no longer covers its nodes is refused as `encode` refuses it.
+glb_bin() { local n; n=$(od -An -tu4 -j12 -N4 "$1" | tr -d ' '); tail -c +$((21 + n)) "$1"; }
+for f in a moved; do
+  "$SYLVA" mesh --quiet "$tmp/$f.sylva" -o "$tmp/$f.glb" --impostor-size 64 || fail "mesh of $f.sylva exit $?"
+  "$SYLVA" mesh --quiet "$tmp/$f.json" -o "$tmp/${f}j.glb" --impostor-size 64 || fail "mesh of $f.json exit $?"
+  cmp -s <(glb_bin "$tmp/$f.glb") <(glb_bin "$tmp/${f}j.glb") || fail "$f.json meshed unlike $f.sylva"
+done
+cmp -s <(glb_bin "$tmp/a.glb") <(glb_bin "$tmp/moved.glb") && fail "the edit did not change the mesh"
+sed 's/"step_log2":-[0-9]*/"step_log2":-30/' "$tmp/a.json" > "$tmp/badgrid.json"
+"$SYLVA" mesh "$tmp/badgrid.json" -o "$tmp/badgrid.glb" 2> "$tmp/err"; rc=$?
+[[ $rc == 2 && ! -e $tmp/badgrid.glb && $(wc -l < "$tmp/err") == 1 ]] && grep -qF "$tmp/badgrid.json" "$tmp/err" ||
+  fail "mesh of a grid too fine: exit $rc, $(cat "$tmp/err")"
+
 # The skeleton-only forms: decode -o .csv, and a QSM to .sylva keeping its topology.
 "$SYLVA" decode --quiet "$tmp/a.sylva" -o "$tmp/a.csv" >/dev/null || fail "decode -o csv"
 qsm="$SYLVA_DATA_DIR/real/rtwig/QSM.csv"

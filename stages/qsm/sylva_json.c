@@ -282,3 +282,38 @@ sy_code sy_sylva_json_from_doc(const char *path, const sy_jv *doc, sy_skeleton *
     }
     return rc;
 }
+
+sy_code sy_sylva_encode_meta(const sy_skeleton *s, const sy_clusters *cl, const sy_sylva_meta *meta, int has_quant,
+                             const char *path, unsigned char **bytes, size_t *size, sy_error *err)
+{
+    *bytes = NULL, *size = 0;
+    sy_code rc = sy_encode_mem(s, cl, meta->species_id, meta->seed, has_quant ? &meta->quant : NULL, bytes, size, err);
+    if (!rc && meta->flags) rc = sy_sylva_set_flags(*bytes, *size, meta->flags, err);
+    if (rc) {
+        free(*bytes), *bytes = NULL, *size = 0;
+        /* The encoder names no file: an edited grid that no longer covers
+         * its nodes is the document's fault. */
+        if (rc == SY_EINPUT && path && !strstr(err->msg, path)) {
+            sy_error e2 = *err;
+            sy_fail(err, rc, "%s: %s", path, e2.msg);
+        }
+    }
+    return rc;
+}
+
+sy_code sy_sylva_json_encode(const char *path, const sy_jv *doc, unsigned char **bytes, size_t *size,
+                             size_t *n_clusters, sy_error *err)
+{
+    sy_skeleton s;
+    sy_clusters cl;
+    sy_sylva_meta meta;
+    int has_quant;
+    *bytes = NULL, *size = 0, *n_clusters = 0;
+    sy_code rc = sy_sylva_json_from_doc(path, doc, &s, &cl, &meta, &has_quant, err);
+    if (rc) return rc;
+    *n_clusters = cl.n;
+    rc = sy_sylva_encode_meta(&s, &cl, &meta, has_quant, path, bytes, size, err);
+    sy_skeleton_free(&s);
+    sy_clusters_free(&cl);
+    return rc;
+}

@@ -28,6 +28,17 @@ sy_code sy_sylva_json_write(const char *path, const sy_skeleton *s, const sy_clu
 sy_code sy_sylva_json_from_doc(const char *path, const sy_jv *doc, sy_skeleton *s, sy_clusters *cl,
                                sy_sylva_meta *meta, int *has_quant, sy_error *err);
 
+/* The .sylva image of s, cl and meta (its grid when has_quant, its flags),
+ * *bytes malloc'd: what `sylva encode` writes. An input error names path. */
+sy_code sy_sylva_encode_meta(const sy_skeleton *s, const sy_clusters *cl, const sy_sylva_meta *meta, int has_quant,
+                             const char *path, unsigned char **bytes, size_t *size, sy_error *err);
+
+/* The .sylva image a "sylva-tree" document encodes to (byte for byte the
+ * file `sylva decode -o` read it from), *bytes malloc'd; *n_clusters gets
+ * its lobe count. */
+sy_code sy_sylva_json_encode(const char *path, const sy_jv *doc, unsigned char **bytes, size_t *size,
+                             size_t *n_clusters, sy_error *err);
+
 /* 1 when doc is a JSON object whose "format" is "sylva-tree". */
 int sy_sylva_json_is_tree(const sy_jv *doc);
 
