@@ -120,20 +120,18 @@ static int mesh_sylva(const char *path, sy_buffer buf, const char *out_path, con
  * .sylva it encodes to, and is meshed as that file is: read as a skeleton
  * alone it lost its lobes and came out a bare skeleton with default cards
  * (AdTree's tree13: IoU against its scan 0.52 against the .sylva's 0.63).
- * image->data stays NULL for any other JSON. */
-static sy_code sylva_tree_image(const char *path, sy_buffer *image, sy_error *err)
+ * image->data stays NULL for any other JSON, and for a document without
+ * lobes (a skeleton, meshed as one). */
+static sy_code sylva_tree_image(const char *path, const sy_buffer *file, sy_buffer *image, sy_error *err)
 {
     memset(image, 0, sizeof *image);
-    sy_buffer b;
-    sy_code rc = sy_read_file(path, &b, err);
-    if (rc) return rc;
     sy_jv *doc = NULL;
-    rc = sy_jv_parse(path, (const char *)b.data, b.size, NULL, &doc, err);
-    sy_buffer_free(&b);
-    size_t lobes = 0;
-    if (!rc && sy_sylva_json_is_tree(doc)) rc = sy_sylva_json_encode(path, doc, &image->data, &image->size, &lobes, err);
+    sy_code rc = sy_jv_parse(path, (const char *)file->data, file->size, NULL, &doc, err);
+    const sy_jv *lobes = rc ? NULL : sy_jv_get(doc, "clusters");
+    size_t n = 0;
+    if (sy_sylva_json_is_tree(doc) && lobes && lobes->type == SY_JV_ARRAY && lobes->len > 0)
+        rc = sy_sylva_json_encode(path, doc, &image->data, &image->size, &n, err);
     sy_jv_free(doc);
-    if (!rc && !lobes) sy_buffer_free(image); /* a skeleton: meshed as one */
     return rc;
 }
 
@@ -183,35 +181,36 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
     sy_clusters hulls; /* a .sylva's: the same foliage proxy `sylva run` draws */
     sy_skeleton_read_info info;
     double t0 = sy_now();
-    if (sy_skeleton_read_model(pos[0], tree_index, &skel, &hulls, &info, &err)) return sy_cli_report(&err);
+    /* Read once: a pipe gives its bytes once. */
+    sy_buffer file;
+    if (sy_read_file(pos[0], &file, &err)) return sy_cli_report(&err);
+    if (sy_skeleton_read_model_mem(pos[0], file.data, file.size, tree_index, &skel, &hulls, &info, &err)) {
+        sy_buffer_free(&file);
+        return sy_cli_report(&err);
+    }
     if (skel.n < 2) {
+        sy_buffer_free(&file);
         sy_clusters_free(&hulls);
         sy_skeleton_free(&skel);
         sy_fail(&err, SY_EINPUT, "%s: a skeleton of one node has no branch to mesh", pos[0]);
         return sy_cli_report(&err);
     }
-    f.seconds_read = sy_now() - t0;
     f.format = sy_skel_format_name(info.format);
-    if (info.format == SY_SKEL_SYLVA && hulls.n > 0) {
+    sy_buffer image = {NULL, 0};
+    if (info.format == SY_SKEL_JSON && (rc = sylva_tree_image(pos[0], &file, &image, &err))) {
+        sy_buffer_free(&file);
         sy_clusters_free(&hulls);
         sy_skeleton_free(&skel);
-        sy_buffer buf;
-        if (sy_read_file(pos[0], &buf, &err)) return sy_cli_report(&err);
-        return mesh_sylva(pos[0], buf, out_path, species_name, no_leaves, proxy, cli, &o, &f);
+        return sy_cli_report(&err);
     }
-    if (info.format == SY_SKEL_JSON) {
-        sy_buffer image;
-        if ((rc = sylva_tree_image(pos[0], &image, &err))) {
-            sy_clusters_free(&hulls);
-            sy_skeleton_free(&skel);
-            return sy_cli_report(&err);
-        }
-        if (image.data) {
-            sy_clusters_free(&hulls);
-            sy_skeleton_free(&skel);
-            return mesh_sylva(pos[0], image, out_path, species_name, no_leaves, proxy, cli, &o, &f);
-        }
+    f.seconds_read = sy_now() - t0;
+    if (image.data || (info.format == SY_SKEL_SYLVA && hulls.n > 0)) {
+        sy_clusters_free(&hulls);
+        sy_skeleton_free(&skel);
+        if (image.data) sy_buffer_free(&file);
+        return mesh_sylva(pos[0], image.data ? image : file, out_path, species_name, no_leaves, proxy, cli, &o, &f);
     }
+    sy_buffer_free(&file);
     sy_tree_asset_root_to_origin(&skel, &hulls);
     o.hulls = &hulls;
     o.source = f.model;

@@ -61,6 +61,9 @@ for f in a moved; do
   cmp -s <(glb_bin "$tmp/$f.glb") <(glb_bin "$tmp/${f}j.glb") || fail "$f.json meshed unlike $f.sylva"
 done
 cmp -s <(glb_bin "$tmp/a.glb") <(glb_bin "$tmp/moved.glb") && fail "the edit did not change the mesh"
+# From a pipe, read once (a second read of the pipe would find it empty).
+"$SYLVA" mesh --quiet /dev/stdin -o "$tmp/ap.glb" --impostor-size 64 < "$tmp/a.json" || fail "mesh of a piped JSON exit $?"
+cmp -s <(glb_bin "$tmp/a.glb") <(glb_bin "$tmp/ap.glb") || fail "a piped tree.json meshed unlike tree.sylva"
 sed 's/"step_log2":-[0-9]*/"step_log2":-30/' "$tmp/a.json" > "$tmp/badgrid.json"
 "$SYLVA" mesh "$tmp/badgrid.json" -o "$tmp/badgrid.glb" 2> "$tmp/err"; rc=$?
 [[ $rc == 2 && ! -e $tmp/badgrid.glb && $(wc -l < "$tmp/err") == 1 ]] && grep -qF "$tmp/badgrid.json" "$tmp/err" ||

@@ -76,6 +76,10 @@ sy_code sy_skeleton_read_tree(const char *path, long tree, sy_skeleton *out, sy_
  * for the skeleton-only formats. Owned by the caller (sy_clusters_free). */
 sy_code sy_skeleton_read_model(const char *path, long tree, sy_skeleton *out, sy_clusters *hulls,
                                sy_skeleton_read_info *info, sy_error *err);
+/* As sy_skeleton_read_model, from the file's bytes already read (a pipe
+ * reads once). */
+sy_code sy_skeleton_read_model_mem(const char *path, const unsigned char *data, size_t size, long tree,
+                                   sy_skeleton *out, sy_clusters *hulls, sy_skeleton_read_info *info, sy_error *err);
 
 /* The individual writers and in-memory readers (path names the file in
  * messages); the readers are what fuzz targets drive. */

@@ -125,45 +125,49 @@ static const struct {
     {SY_SKEL_SYLVA, sy_skeleton_read_sylva_mem},
 };
 
-sy_code sy_skeleton_read_model(const char *path, long tree, sy_skeleton *out, sy_clusters *hulls,
-                               sy_skeleton_read_info *info, sy_error *err)
+sy_code sy_skeleton_read_model_mem(const char *path, const unsigned char *data, size_t size, long tree,
+                                   sy_skeleton *out, sy_clusters *hulls, sy_skeleton_read_info *info, sy_error *err)
 {
     memset(out, 0, sizeof *out);
     if (hulls) memset(hulls, 0, sizeof *hulls);
     sy_skeleton_read_info local;
     if (!info) info = &local;
     memset(info, 0, sizeof *info);
-    sy_buffer buf;
-    sy_code rc = sy_read_file(path, &buf, err);
-    if (rc) return rc;
-    sy_skel_format f = sy_skeleton_sniff(path, buf.data, buf.size);
-    if (tree >= 0 && f == SY_SKEL_JSON) {
-        /* Only truth files hold several trees: the index goes to the JSON reader. */
-        rc = sy_skeleton_read_json_tree(path, buf.data, buf.size, tree, out, info, err);
-        sy_buffer_free(&buf);
-        return rc;
-    }
-    if (tree > 0) {
-        sy_buffer_free(&buf);
+    sy_skel_format f = sy_skeleton_sniff(path, data, size);
+    if (tree >= 0 && f == SY_SKEL_JSON) /* only truth files hold several trees: the index goes to the JSON reader */
+        return sy_skeleton_read_json_tree(path, data, size, tree, out, info, err);
+    if (tree > 0)
         return sy_fail(err, SY_EINPUT, "%s: tree %ld asked for, a %s skeleton file holds one", path, tree,
                        sy_skel_format_name(f));
-    }
-    rc = sy_fail(err, SY_EINPUT,
-                 "%s: not a skeleton file this build reads (PLY, cylinder CSV, TreeQSM text, OBJ, JSON, .sylva)",
-                 path);
+    sy_code rc = sy_fail(err, SY_EINPUT,
+                         "%s: not a skeleton file this build reads (PLY, cylinder CSV, TreeQSM text, OBJ, JSON, .sylva)",
+                         path);
     if (f == SY_SKEL_SYLVA && hulls) {
         /* The one format that holds more than a skeleton: keep the hulls. */
         sy_error_clear(err);
-        rc = read_sylva(path, buf.data, buf.size, out, hulls, info, err);
+        rc = read_sylva(path, data, size, out, hulls, info, err);
     } else
         for (size_t i = 0; i < sizeof READERS / sizeof READERS[0]; i++)
             if (READERS[i].format == f) {
                 sy_error_clear(err);
-                rc = READERS[i].read(path, buf.data, buf.size, out, info, err);
+                rc = READERS[i].read(path, data, size, out, info, err);
                 break;
             }
-    sy_buffer_free(&buf);
     if (rc == SY_OK) info->format = f;
+    return rc;
+}
+
+sy_code sy_skeleton_read_model(const char *path, long tree, sy_skeleton *out, sy_clusters *hulls,
+                               sy_skeleton_read_info *info, sy_error *err)
+{
+    memset(out, 0, sizeof *out);
+    if (hulls) memset(hulls, 0, sizeof *hulls);
+    if (info) memset(info, 0, sizeof *info);
+    sy_buffer buf;
+    sy_code rc = sy_read_file(path, &buf, err);
+    if (rc) return rc;
+    rc = sy_skeleton_read_model_mem(path, buf.data, buf.size, tree, out, hulls, info, err);
+    sy_buffer_free(&buf);
     return rc;
 }
 
