@@ -449,6 +449,8 @@ static int attach_on_parent(const sy_stem *p, sy_stem *s)
  * crossing a sibling's (seed 1; 354 of 355 junctions welded now, 340
  * before; docs/mesh.md "Stop 40"). */
 #define FOOTPRINT_MAX_SLIDE 3.0f
+/* A slide turns the child's first segment by less than 30 degrees. */
+#define SLIDE_MIN_COS 0.866f
 /* A parent with more placed children than this fits the next ones to its
  * tube alone, past no sibling. */
 #define FOOTPRINT_MAX_SIBLINGS 64
@@ -553,6 +555,11 @@ static void fit_on_parent(sy_stems *st, int32_t self, int32_t *first, int32_t *n
                         !footprint_clear(st, self, first, next, a + f.centre - f.half, a + f.centre + f.half, f.az,
                                          f.hw, gap))
                         continue;
+                    /* A place where the child would run along its parent
+                     * (no footprint) or turn more than the slide allows is
+                     * no place: the other side of the sibling may be. */
+                    footprint fa;
+                    if (!footprint_at(p, s, a, &fa) || sy_dot3(fa.d, f0.d) < SLIDE_MIN_COS) continue;
                     best = move, to = a;
                 }
             }
@@ -571,7 +578,7 @@ static void fit_on_parent(sy_stems *st, int32_t self, int32_t *first, int32_t *n
         sy_stem_frame_at(p, NULL, 0, good, c, T, N, &R);
         for (int k = 0; k < 3; k++) w[k] = s->pts[3 + k] - c[k];
         float r = s->rad[0];
-        if (sy_dot3(fg.d, f0.d) >= 0.866f && sy_dot3(w, w) >= 4 * r * r) { /* turned < 30 degrees */
+        if (sy_dot3(fg.d, f0.d) >= SLIDE_MIN_COS && sy_dot3(w, w) >= 4 * r * r) {
             memcpy(s->pts, c, sizeof c);
             s->attach_s = good;
         } else {
