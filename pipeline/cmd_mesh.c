@@ -128,9 +128,8 @@ static sy_code sylva_tree_image(const char *path, const sy_buffer *file, sy_buff
     sy_jv *doc = NULL;
     sy_code rc = sy_jv_parse(path, (const char *)file->data, file->size, NULL, &doc, err);
     const sy_jv *lobes = rc ? NULL : sy_jv_get(doc, "clusters");
-    size_t n = 0;
     if (sy_sylva_json_is_tree(doc) && lobes && lobes->type == SY_JV_ARRAY && lobes->len > 0)
-        rc = sy_sylva_json_encode(path, doc, &image->data, &image->size, &n, err);
+        rc = sy_sylva_json_encode(path, doc, &image->data, &image->size, err);
     sy_jv_free(doc);
     return rc;
 }
@@ -207,8 +206,8 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
     if (image.data || (info.format == SY_SKEL_SYLVA && hulls.n > 0)) {
         sy_clusters_free(&hulls);
         sy_skeleton_free(&skel);
-        if (image.data) sy_buffer_free(&file);
-        return mesh_sylva(pos[0], image.data ? image : file, out_path, species_name, no_leaves, proxy, cli, &o, &f);
+        if (image.data) sy_buffer_free(&file), file = image;
+        return mesh_sylva(pos[0], file, out_path, species_name, no_leaves, proxy, cli, &o, &f);
     }
     sy_buffer_free(&file);
     sy_tree_asset_root_to_origin(&skel, &hulls);

@@ -301,17 +301,15 @@ sy_code sy_sylva_encode_meta(const sy_skeleton *s, const sy_clusters *cl, const 
     return rc;
 }
 
-sy_code sy_sylva_json_encode(const char *path, const sy_jv *doc, unsigned char **bytes, size_t *size,
-                             size_t *n_clusters, sy_error *err)
+sy_code sy_sylva_json_encode(const char *path, const sy_jv *doc, unsigned char **bytes, size_t *size, sy_error *err)
 {
     sy_skeleton s;
     sy_clusters cl;
     sy_sylva_meta meta;
     int has_quant;
-    *bytes = NULL, *size = 0, *n_clusters = 0;
+    *bytes = NULL, *size = 0;
     sy_code rc = sy_sylva_json_from_doc(path, doc, &s, &cl, &meta, &has_quant, err);
     if (rc) return rc;
-    *n_clusters = cl.n;
     rc = sy_sylva_encode_meta(&s, &cl, &meta, has_quant, path, bytes, size, err);
     sy_skeleton_free(&s);
     sy_clusters_free(&cl);

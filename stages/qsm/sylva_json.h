@@ -34,10 +34,8 @@ sy_code sy_sylva_encode_meta(const sy_skeleton *s, const sy_clusters *cl, const 
                              const char *path, unsigned char **bytes, size_t *size, sy_error *err);
 
 /* The .sylva image a "sylva-tree" document encodes to (byte for byte the
- * file `sylva decode -o` read it from), *bytes malloc'd; *n_clusters gets
- * its lobe count. */
-sy_code sy_sylva_json_encode(const char *path, const sy_jv *doc, unsigned char **bytes, size_t *size,
-                             size_t *n_clusters, sy_error *err);
+ * file `sylva decode -o` read it from), *bytes malloc'd. */
+sy_code sy_sylva_json_encode(const char *path, const sy_jv *doc, unsigned char **bytes, size_t *size, sy_error *err);
 
 /* 1 when doc is a JSON object whose "format" is "sylva-tree". */
 int sy_sylva_json_is_tree(const sy_jv *doc);
