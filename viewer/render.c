@@ -25,6 +25,9 @@
 #include "viewer/shaders.h"
 #include "viewer/sky.h"
 
+/* The first view's azimuth, degrees from +X towards +Z. */
+#define DEFAULT_CAMERA_AZ 45.0
+
 /* The shadow map: twice the image's larger side, a power of two from 512 to
  * 2048 (the thesis's 2048 for a window or a 1280 x 720 shot; a 256-pixel
  * batch thumbnail drew and sampled 16 times the texels it could show, most of
@@ -602,11 +605,18 @@ static void setup_points(renderer *r)
     attrib(r->points_vbo[0], 0, 3, p->xyz, p->n);
     attrib(r->points_vbo[1], 1, 3, p->rgb, p->n);
     glBindVertexArray(0);
-    /* Over the first tree, or beside it (one tree width along +X). */
+    /* Over the first tree, or beside it: one tree width to the right as the
+     * first view sees it, at the tree's distance. Along +X, the default
+     * 45-degree view had the scan a third of a width nearer the camera, and
+     * it looked a tenth larger than the tree it was compared with. */
     const gtree *t0 = &r->trees[0];
     const sy_gltf_object *o = &r->in->scenes[r->objs[t0->object].scene].objects[r->objs[t0->object].object];
     for (int c = 0; c < 3; c++) r->points_offset[c] = t0->offset[c];
-    if (r->opt.points_beside) r->points_offset[0] += 1.15 * (o->bounds_max[0] - o->bounds_min[0]) + 0.5;
+    if (r->opt.points_beside) {
+        double az = (r->opt.camera_set ? r->opt.cam_az : DEFAULT_CAMERA_AZ) * M_PI / 180;
+        double w = 1.15 * fmax(o->bounds_max[0] - o->bounds_min[0], o->bounds_max[2] - o->bounds_min[2]) + 0.5;
+        r->points_offset[0] += w * sin(az), r->points_offset[2] -= w * cos(az);
+    }
     for (int c = 0; c < 3; c++) {
         for (size_t i = 0; i < p->n; i++) {
             double v = p->xyz[3 * i + c] + r->points_offset[c];
@@ -1493,7 +1503,7 @@ int sy_view_run(const sy_view_input *in, const sy_view_options *opt)
     }
     camera cam = {0};
     camera_frame(r, &cam);
-    cam.az = 45, cam.el = 12;
+    cam.az = DEFAULT_CAMERA_AZ, cam.el = 12;
     if (opt->camera_set) {
         cam.az = opt->cam_az, cam.el = opt->cam_el;
         if (opt->cam_dist > 0) cam.dist = opt->cam_dist;
