@@ -488,7 +488,7 @@ static void traced_twigs_are_the_lobes_wood(void **state)
     for (size_t i = 0; i < lv.n; i++) {
         int32_t v = lv.node[i];
         assert_true(v >= (int32_t)s.n && v < (int32_t)s.n + 5);
-        assert_true(++per_node[v - (int32_t)s.n] <= (int)ceil(8 / (share * share)));
+        assert_true(++per_node[v - (int32_t)s.n] <= (int)ceil(8 / (share * share) - 1e-3));
         double d2 = 0;
         for (int k = 0; k < 3; k++) d2 += pow(lv.pos[3 * i + k] - out.pos[3 * (size_t)v + k], 2);
         assert_true(sqrt(d2) <= card + 1e-5);
@@ -521,6 +521,24 @@ static void traced_twigs_are_the_lobes_wood(void **state)
            o.leaf_size, area / whole);
     assert_true(n_small > n_whole);
     assert_true(fabs(area / whole - 1) <= 0.25);
+    /* ... also where the lobe's leaf budget, not the count a node carries,
+     * stops them (a twentieth of the density): the budget counts the smaller
+     * cards. */
+    double density = o.leaf_density, small_area[2] = {0, 0};
+    size_t small_n[2] = {0, 0};
+    o.leaf_density = 0.05 * density;
+    for (int v = 0; v < 2; v++) {
+        c->twig_voxel = v ? 10 : 0.1f;
+        assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out, &lv, &rep, &err), SY_OK);
+        small_n[v] = lv.n;
+        for (size_t i = 0; i < lv.n; i++) small_area[v] += (double)lv.scale[i] * lv.scale[i];
+        sy_skeleton_free(&out), sy_leaves_free(&lv);
+    }
+    printf("at a twentieth of the density: %zu and %zu cards, leaf area ratio %.3f\n", small_n[0], small_n[1],
+           small_area[0] / small_area[1]);
+    assert_true(small_n[1] < 5 * 8 && small_n[0] < 5 * (size_t)ceil(8 / (share * share) - 1e-3));
+    assert_true(fabs(small_area[0] / small_area[1] - 1) <= 0.25);
+    o.leaf_density = density;
     c->twig_voxel = 0.1f;
     /* A second lobe on the seed with three times the twigs: the first one's
      * share of the twigs beyond the seed is a quarter, its radii half. */

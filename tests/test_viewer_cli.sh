@@ -129,8 +129,9 @@ check "the scan lands on the asset through asset.extras.origin (bounds within 1 
   let w = 0; for (let k = 0; k < 3; k++) w = Math.max(w, Math.abs(v.points_min[k] - t.bounds_min[k]), Math.abs(v.points_max[k] - t.bounds_max[k]));
   console.log(\"  largest bound difference \" + w.toExponential(2) + \" m\"); process.exit(v.points > 0 && w < 1e-3 ? 0 : 1)'"
 
-# --points-beside: the scan stands one tree width to the side as the first
-# view sees it, at the tree's distance from the camera (along +X, the default
+# --points-beside: the scan stands one tree width to the right as the first
+# view sees it (across < 0: the eye looks back along (cos az, sin az), so
+# screen-right is (sin az, -cos az)), at the tree's distance from the camera (along +X, the default
 # 45-degree view had it a third of a width nearer, and larger on screen).
 for cam in "" "--camera 120,10"; do
   V "$tmp/beam_origin.glb" --points "$tmp/beam_scan.xyz" --points-beside $cam --json --size 64x64 --no-shadows >"$tmp/beside.json"
@@ -138,8 +139,8 @@ for cam in "" "--camera 120,10"; do
     const v = JSON.parse(require(\"fs\").readFileSync(\"$tmp/beside.json\")), t = v.trees[0], az = v.camera[0] * Math.PI / 180;
     const d = [0, 2].map(k => 0.5 * (v.points_min[k] + v.points_max[k] - t.bounds_min[k] - t.bounds_max[k]));
     const along = d[0] * Math.cos(az) + d[1] * Math.sin(az), across = -d[0] * Math.sin(az) + d[1] * Math.cos(az);
-    console.log(\"  toward the camera \" + along.toFixed(4) + \" m, across \" + across.toFixed(3) + \" m\");
-    process.exit(Math.abs(along) < 0.01 * Math.abs(across) && Math.abs(across) > 0.5 ? 0 : 1)'"
+    console.log(\"  toward the camera \" + along.toFixed(4) + \" m, to the right \" + (-across).toFixed(3) + \" m\");
+    process.exit(Math.abs(along) < 0.01 * Math.abs(across) && across < -0.5 ? 0 : 1)'"
 done
 
 # --- animation ---

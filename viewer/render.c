@@ -28,6 +28,15 @@
 /* The first view's azimuth, degrees from +X towards +Z. */
 #define DEFAULT_CAMERA_AZ 45.0
 
+/* The ground-plane direction to the right of the screen for a camera at
+ * azimuth az_deg (its eye at +cos az, +sin az from the target, looking back
+ * at it). */
+static void ground_right(double az_deg, double right[3])
+{
+    double az = az_deg * M_PI / 180;
+    right[0] = sin(az), right[1] = 0, right[2] = -cos(az);
+}
+
 /* The shadow map: twice the image's larger side, a power of two from 512 to
  * 2048 (the thesis's 2048 for a window or a 1280 x 720 shot; a 256-pixel
  * batch thumbnail drew and sampled 16 times the texels it could show, most of
@@ -613,9 +622,9 @@ static void setup_points(renderer *r)
     const sy_gltf_object *o = &r->in->scenes[r->objs[t0->object].scene].objects[r->objs[t0->object].object];
     for (int c = 0; c < 3; c++) r->points_offset[c] = t0->offset[c];
     if (r->opt.points_beside) {
-        double az = (r->opt.camera_set ? r->opt.cam_az : DEFAULT_CAMERA_AZ) * M_PI / 180;
-        double w = 1.15 * fmax(o->bounds_max[0] - o->bounds_min[0], o->bounds_max[2] - o->bounds_min[2]) + 0.5;
-        r->points_offset[0] += w * sin(az), r->points_offset[2] -= w * cos(az);
+        double right[3], w = 1.15 * fmax(o->bounds_max[0] - o->bounds_min[0], o->bounds_max[2] - o->bounds_min[2]) + 0.5;
+        ground_right(r->opt.camera_set ? r->opt.cam_az : DEFAULT_CAMERA_AZ, right);
+        for (int c = 0; c < 3; c++) r->points_offset[c] += w * right[c];
     }
     for (int c = 0; c < 3; c++) {
         for (size_t i = 0; i < p->n; i++) {
@@ -1367,8 +1376,10 @@ static void on_cursor(GLFWwindow *w, double x, double y)
         c->az += dx * 0.3;
         c->el = fmax(-89, fmin(89, c->el + dy * 0.3));
     } else if (u->drag == 2) {
-        double az = c->az * M_PI / 180, k = c->dist * 0.0015;
-        double right[3] = {-sin(az), 0, cos(az)};
+        /* The scene follows the pointer (the right vector pointed left:
+         * it moved against it). */
+        double right[3], k = c->dist * 0.0015;
+        ground_right(c->az, right);
         for (int i = 0; i < 3; i++) c->target[i] -= right[i] * dx * k;
         c->target[1] += dy * k;
     }
@@ -1405,7 +1416,8 @@ static int interactive(renderer *r, camera *c, void *window)
         last = t0;
         /* WASD / arrows move the orbit centre in the view's ground plane; PgUp/PgDn up and down. */
         double az = c->az * M_PI / 180, step = c->dist * 0.6 * dt;
-        double fwd[3] = {-cos(az), 0, -sin(az)}, right[3] = {-sin(az), 0, cos(az)};
+        double fwd[3] = {-cos(az), 0, -sin(az)}, right[3];
+        ground_right(c->az, right); /* D and the right arrow to the right (they went left) */
         int kf = glfwGetKey(w, GLFW_KEY_W) || glfwGetKey(w, GLFW_KEY_UP), kb = glfwGetKey(w, GLFW_KEY_S) || glfwGetKey(w, GLFW_KEY_DOWN);
         int kl = glfwGetKey(w, GLFW_KEY_A) || glfwGetKey(w, GLFW_KEY_LEFT), kr = glfwGetKey(w, GLFW_KEY_D) || glfwGetKey(w, GLFW_KEY_RIGHT);
         for (int i = 0; i < 3; i++) c->target[i] += step * ((kf - kb) * fwd[i] + (kr - kl) * right[i]);

@@ -1422,7 +1422,7 @@ static sy_code twigs_to_skeleton(const sy_cluster *c, const seed_limb *limb, int
 #define TWIG_CARD_MIN_SHARE 0.5
 #define GOLDEN_ANGLE 2.39996322972865332
 static sy_code leaves_on_twigs(lobe_grid *g, synth_out *so, size_t node0, double leaf_size, uint64_t rng,
-                               double per_node, sy_synth_report *rep, sy_error *err)
+                               int per_node, sy_synth_report *rep, sy_error *err)
 {
     const sy_skeleton *sk = so->out;
     size_t n = sk->n > node0 ? sk->n - node0 : 0;
@@ -1594,7 +1594,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     if (twigs) starts = max_starts;
     if (!rc && bare_reason < 0 && twigs && !o->bare)
         rc = leaves_on_twigs(&g, so, lobe_node0, card_share * o->leaf_size, sy_mix64(rng ^ 0x2545F4914F6CDD1Dull),
-                             TWIG_LEAVES_MAX / (card_share * card_share), rep, err);
+                             (int)ceil(TWIG_LEAVES_MAX / (card_share * card_share) - 1e-3), rep, err);
     while (!rc && bare_reason < 0 && starts < max_starts && lobe_patches < (size_t)o->max_patches) {
         /* A new start toward the occupied cell with room nearest the seed,
          * from the nearest bark this lobe has (its scaffold, its patches or
