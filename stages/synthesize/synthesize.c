@@ -290,8 +290,8 @@ static int occ_bit(const sy_cluster *c, const float lo[3], const float hi[3], co
     return (c->occupancy[bit >> 3] >> (bit & 7)) & 1;
 }
 
-static sy_code grid_build(const sy_cluster *c, int cells, double density, double leaf_area, double card_share,
-                          uint64_t key, lobe_grid *g, sy_error *err)
+static sy_code grid_build(const sy_cluster *c, int cells, double density, double leaf_area, uint64_t key, lobe_grid *g,
+                          sy_error *err)
 {
     memset(g, 0, sizeof *g);
     g->hull = c;
@@ -505,11 +505,7 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
      * 2 x 2 x 2 blocks took a card for any share: the leaf area followed the
      * lobe grid, whatever the density (sassafras 3.6 x its true area). */
     double bh = g->bk * g->h;
-    /* Per occupied block, in cards card_share of the species' length: the
-     * same leaf area in more, smaller cards (TWIG_CARD_VOXELS); the block
-     * stays the species' card long, the scale the crown's volume is
-     * counted at. */
-    g->capacity = density * bh * bh * bh / (leaf_area > 1e-6 ? leaf_area : 1e-6) / (card_share * card_share);
+    g->capacity = density * bh * bh * bh / (leaf_area > 1e-6 ? leaf_area : 1e-6); /* per occupied block */
     for (size_t i = 0; i < g->n; i++)
         if (g->occupied[i]) g->block_cap[block_of(g, (long)i)] = (float)g->capacity;
     for (size_t b = 0; b < (size_t)g->bd[0] * g->bd[1] * g->bd[2]; b++) {
@@ -1406,23 +1402,9 @@ static sy_code twigs_to_skeleton(const sy_cluster *c, const seed_limb *limb, int
  * fewer blocks than the patches do). */
 #define TWIG_LEAVES_MAX 8
 #define TWIG_LEAF_ANGLE 0.5 /* radians from the twig's way on */
-/* Cards on traced twigs are at most TWIG_CARD_VOXELS twig voxels long (the
- * voxel as the file reads it back, a half to one of the traced one) and no
- * shorter than TWIG_CARD_MIN_SHARE of the species' card: the same leaf area
- * in more, smaller cards. Twig nodes lie a voxel apart with their returns
- * about them, and a card of the species' length (0.3-0.8 m on the real
- * scans, 2-8 voxels) drew foliage where the scan saw none. Real scans
- * (docs/synthesize.md "Stop 40: leaf cards the size of the traced twigs"):
- * mean IoU against the scan 0.761 -> 0.771, AdTree's tree33 0.697 -> 0.719;
- * PyTLidar's oak, traced at 25 cm, keeps nearly its cards (at half their
- * length 0.844 from 0.885: its nodes lie too far apart for them). The
- * bundled leafy aspen against its true tree: 0.842 -> 0.826, against its
- * scan 0.874 -> 0.892. */
-#define TWIG_CARD_VOXELS 2.0
-#define TWIG_CARD_MIN_SHARE 0.5
 #define GOLDEN_ANGLE 2.39996322972865332
 static sy_code leaves_on_twigs(lobe_grid *g, synth_out *so, size_t node0, double leaf_size, uint64_t rng,
-                               int per_node, sy_synth_report *rep, sy_error *err)
+                               sy_synth_report *rep, sy_error *err)
 {
     const sy_skeleton *sk = so->out;
     size_t n = sk->n > node0 ? sk->n - node0 : 0;
@@ -1442,7 +1424,7 @@ static sy_code leaves_on_twigs(lobe_grid *g, synth_out *so, size_t node0, double
     qsort(order, n, sizeof *order, cmp_ranked);
     sy_code rc = SY_OK;
     size_t placed = 0;
-    for (int round = 0; round < per_node && placed < budget && !rc; round++) {
+    for (int round = 0; round < TWIG_LEAVES_MAX && placed < budget && !rc; round++) {
         size_t at_start = placed;
         for (size_t j = 0; j < n && placed < budget && !rc; j++) {
             int32_t i = (int32_t)order[j].idx, p = sk->parent[i];
@@ -1539,13 +1521,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     double leaf_area = 0.5 * o->leaf_size * o->leaf_size; /* a card about half as wide as long */
     uint64_t rng = o->seed * 0x9E3779B97F4A7C15ull ^ ((uint64_t)lobe_index + 1) * 0xD1B54A32D192ED03ull;
     lobe_grid g;
-    int twigs = c->n_twigs && !o->no_twigs;
-    /* The cards' share of the species' length on traced twigs (TWIG_CARD_VOXELS). */
-    double card_share = 1;
-    if (twigs && c->twig_voxel > 0) {
-        card_share = fmax(TWIG_CARD_MIN_SHARE, fmin(1, TWIG_CARD_VOXELS * c->twig_voxel / o->leaf_size));
-    }
-    sy_code rc = grid_build(c, o->grid, density, leaf_area, card_share, sy_mix64(rng ^ 0x5851F42D4C957F2Dull), &g, err);
+    sy_code rc = grid_build(c, o->grid, density, leaf_area, sy_mix64(rng ^ 0x5851F42D4C957F2Dull), &g, err);
     size_t placed0 = rep->patches;
     int bare_reason = -1;
     if (!rc && g.n_occupied == 0) bare_reason = 0;
@@ -1582,6 +1558,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     double min_start = sk->radius[seed] * 0.9 < max_thick ? sk->radius[seed] * 0.9 : max_thick;
     size_t lobe_patches = 0;
     size_t scaffold0 = rep->nodes_added;
+    int twigs = c->n_twigs && !o->no_twigs;
     if (!rc && bare_reason < 0 && twigs)
         rc = twigs_to_skeleton(c, limb, seed, min_thick, so, rep, err);
     else if (!rc && bare_reason < 0)
@@ -1593,8 +1570,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
      * bare, a leafy one carries its leaves on them (leaves_on_twigs). */
     if (twigs) starts = max_starts;
     if (!rc && bare_reason < 0 && twigs && !o->bare)
-        rc = leaves_on_twigs(&g, so, lobe_node0, card_share * o->leaf_size, sy_mix64(rng ^ 0x2545F4914F6CDD1Dull),
-                             (int)ceil(TWIG_LEAVES_MAX / (card_share * card_share) - 1e-3), rep, err);
+        rc = leaves_on_twigs(&g, so, lobe_node0, o->leaf_size, sy_mix64(rng ^ 0x2545F4914F6CDD1Dull), rep, err);
     while (!rc && bare_reason < 0 && starts < max_starts && lobe_patches < (size_t)o->max_patches) {
         /* A new start toward the occupied cell with room nearest the seed,
          * from the nearest bark this lobe has (its scaffold, its patches or
