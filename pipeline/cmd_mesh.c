@@ -181,8 +181,21 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
     sy_skeleton_read_info info;
     double t0 = sy_now();
     /* Read once: a pipe gives its bytes once. */
-    sy_buffer file;
+    sy_buffer file, image = {NULL, 0};
     if (sy_read_file(pos[0], &file, &err)) return sy_cli_report(&err);
+    /* A sylva-tree JSON with lobes is its .sylva image, read no further as
+     * a skeleton (a --tree past 0 is the reader's to refuse). */
+    sy_skel_format format = sy_skeleton_sniff(pos[0], file.data, file.size);
+    if (format == SY_SKEL_JSON && tree_index <= 0 && (rc = sylva_tree_image(pos[0], &file, &image, &err))) {
+        sy_buffer_free(&file);
+        return sy_cli_report(&err);
+    }
+    if (image.data) {
+        sy_buffer_free(&file);
+        f.format = sy_skel_format_name(format);
+        f.seconds_read = sy_now() - t0;
+        return mesh_sylva(pos[0], image, out_path, species_name, no_leaves, proxy, cli, &o, &f);
+    }
     if (sy_skeleton_read_model_mem(pos[0], file.data, file.size, tree_index, &skel, &hulls, &info, &err)) {
         sy_buffer_free(&file);
         return sy_cli_report(&err);
@@ -194,19 +207,11 @@ int cmd_mesh(int argc, char **argv, sy_cli *cli)
         sy_fail(&err, SY_EINPUT, "%s: a skeleton of one node has no branch to mesh", pos[0]);
         return sy_cli_report(&err);
     }
-    f.format = sy_skel_format_name(info.format);
-    sy_buffer image = {NULL, 0};
-    if (info.format == SY_SKEL_JSON && (rc = sylva_tree_image(pos[0], &file, &image, &err))) {
-        sy_buffer_free(&file);
-        sy_clusters_free(&hulls);
-        sy_skeleton_free(&skel);
-        return sy_cli_report(&err);
-    }
     f.seconds_read = sy_now() - t0;
-    if (image.data || (info.format == SY_SKEL_SYLVA && hulls.n > 0)) {
+    f.format = sy_skel_format_name(info.format);
+    if (info.format == SY_SKEL_SYLVA && hulls.n > 0) {
         sy_clusters_free(&hulls);
         sy_skeleton_free(&skel);
-        if (image.data) sy_buffer_free(&file), file = image;
         return mesh_sylva(pos[0], file, out_path, species_name, no_leaves, proxy, cli, &o, &f);
     }
     sy_buffer_free(&file);

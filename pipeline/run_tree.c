@@ -594,13 +594,11 @@ static sy_code returns_on_wood(const sy_cloud *c, const sy_skeleton *wood, doubl
 {
     *share = NAN;
     if (!c->n || !(spacing > 0) || wood->n < 2) return SY_OK; /* nothing to measure: the cards stay */
-    double *pts = malloc(3 * c->n * sizeof *pts), *dist = malloc(c->n * sizeof *dist);
-    if (!pts || !dist) {
-        free(pts), free(dist);
-        return sy_fail(err, SY_EINTERNAL, "run: out of memory");
+    double *pts = sy_cloud_world_points(c, err), *dist = pts ? sy_calloc(c->n, sizeof *dist, err, "run") : NULL;
+    if (!dist) {
+        free(pts);
+        return SY_EINTERNAL;
     }
-    for (size_t i = 0; i < c->n; i++)
-        for (int k = 0; k < 3; k++) pts[3 * i + k] = c->origin[k] + c->xyz[3 * i + k];
     /* The model borrows the skeleton: nothing of it is freed here. */
     sy_eval_tree tree = {.tree_id = -1, .species_id = -1, .skel = *wood};
     sy_eval_model m = {0};
