@@ -623,6 +623,53 @@ static void test_top_follows_sparse_returns(void **state)
     sy_cloud_free(&c);
 }
 
+/* A scan that stops at the stem's foot (rTwig's sapling, AdTree's trees):
+ * the ground filter's lowest points are a slab of the stem, as tall as it
+ * is wide. That is no terrain: every point is kept, so the stem keeps its
+ * foot. Before the width/thickness test the slab passed as ground (the
+ * plane's median residual and the footprint it covers pass) and was cut. */
+static void test_stem_foot_is_not_ground(void **state)
+{
+    (void)state;
+    const size_t stem = 6000, crown = 6000;
+    sy_cloud c;
+    sy_error err = {0};
+    assert_int_equal(sy_cloud_init(&c, stem + crown, &err), SY_OK);
+    uint64_t rng = 11;
+    size_t i = 0;
+    for (; i < stem; i++) { /* a stem 5 cm in radius, 0 to 3 m up */
+        double a = 2 * M_PI * sy_unit53(sy_splitmix64(&rng)), z = 3 * sy_unit53(sy_splitmix64(&rng));
+        c.xyz[3 * i] = (float)(0.05 * cos(a)), c.xyz[3 * i + 1] = (float)(0.05 * sin(a)), c.xyz[3 * i + 2] = (float)z;
+    }
+    for (; i < stem + crown; i++) /* a crown 2 m wide, 2 to 4 m up */
+        for (int k = 0; k < 3; k++) c.xyz[3 * i + k] = (float)(2 * sy_unit53(sy_splitmix64(&rng)) - (k < 2 ? 1 : -2));
+    sy_preprocess_options o = sy_preprocess_options_default();
+    o.up = SY_UP_Z;
+    o.sor = 0;
+    o.normals = 0;
+    o.remove_ground = 1;
+    sy_preprocess_result r;
+    assert_int_equal(sy_preprocess(&c, &o, &r, &err), SY_OK);
+    printf("stem foot: %s\n", r.steps[4].detail);
+    assert_int_equal(r.ground_points, 0);
+    assert_int_equal(c.n, stem + crown);
+    assert_non_null(strstr(r.steps[4].detail, "no ground"));
+    sy_cloud_free(&c);
+
+    /* The same on rTwig's sapling: its lowest return stays. */
+    if (!load_xyz(data_path("real/rtwig/cloud.txt"), &c)) skip();
+    float low = INFINITY;
+    for (size_t j = 0; j < c.n; j++) low = fminf(low, c.xyz[3 * j + 2]);
+    o.sor = 1;
+    assert_int_equal(sy_preprocess(&c, &o, &r, &err), SY_OK);
+    printf("rTwig sapling: %s\n", r.steps[4].detail);
+    assert_int_equal(r.ground_points, 0);
+    float kept_low = INFINITY;
+    for (size_t j = 0; j < c.n; j++) kept_low = fminf(kept_low, c.xyz[3 * j + 2]);
+    assert_true(kept_low - low < 0.02f); /* the cut took 23 cm of stem */
+    sy_cloud_free(&c);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -633,6 +680,7 @@ int main(void)
         cmocka_unit_test(test_up_real),      cmocka_unit_test(test_pipeline),
         cmocka_unit_test(test_top_before_outliers),
         cmocka_unit_test(test_top_follows_sparse_returns),
+        cmocka_unit_test(test_stem_foot_is_not_ground),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -52,7 +52,7 @@ typedef struct {
     int ran;           /* 0 when switched off */
     size_t before, after;
     double seconds;
-    char detail[160];  /* one human line: what was found or decided */
+    char detail[240];  /* one human line: what was found or decided */
 } sy_preprocess_step;
 
 enum { SY_PREPROCESS_STEPS = 6 };
