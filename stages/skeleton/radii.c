@@ -134,6 +134,22 @@ typedef struct {
     double centre[2]; /* the trunk axis' x y near the slab */
 } trunk_slab;
 
+/* The extent of n points (xy pairs, mean mx, my) along their principal axis. */
+static double slab_span(const double *xy, size_t n, double mx, double my)
+{
+    double cxx = 0, cyy = 0, cxy = 0;
+    for (size_t i = 0; i < n; i++) {
+        double x = xy[2 * i] - mx, y = xy[2 * i + 1] - my;
+        cxx += x * x, cyy += y * y, cxy += x * y;
+    }
+    double a = 0.5 * atan2(2 * cxy, cxx - cyy), ux = cos(a), uy = sin(a), lo = INFINITY, hi = -INFINITY;
+    for (size_t i = 0; i < n; i++) {
+        double t = (xy[2 * i] - mx) * ux + (xy[2 * i + 1] - my) * uy;
+        lo = fmin(lo, t), hi = fmax(hi, t);
+    }
+    return hi - lo;
+}
+
 /* Circle fit to the trunk points of a horizontal slab at height z; 1 when a
  * circle was fitted. xy (2 n doubles) and *k keep the slab's points of the
  * last pass for the caller's fallback. */
@@ -160,10 +176,12 @@ static int fit_trunk_slab(const trunk_slab *q, double z, double *xy, size_t *k, 
             (*k)++;
         }
         if (*k >= 10 && sy_fit_circle(xy, *k, q->tol, 1, c, r, rms) == 0 && *r < q->reach) {
-            /* A fitted centre far outside the slab's points means the arc was
-             * too short to define the circle; the fallback is safer then. */
+            /* A fitted centre far outside the slab's points, or points
+             * spanning less than the radius (an arc under 60 degrees), mean
+             * the arc was too short to define the circle; the fallback is
+             * safer then. AdTree's tree13: a 21 cm stub fitted 27 cm. */
             double mx = sx / (double)*k, my = sy / (double)*k;
-            if (hypot(c[0] - mx, c[1] - my) <= 1.5 * *r) return 1;
+            if (hypot(c[0] - mx, c[1] - my) <= 1.5 * *r && slab_span(xy, *k, mx, my) >= *r) return 1;
         }
     }
     return 0;
