@@ -3,7 +3,7 @@
 # forks about a metre up into a vase of thin stems, and the trunk chain
 # running up its middle took its radius from the pipe model, a pole twice
 # as thick as the returns round it show. With the cap the trunk over 30-70 %
-# of the height is a fifth thinner (mean radius 0.064 -> 0.052 m; its returns
+# of the height was a fifth thinner (mean radius 0.064 -> 0.052 m; its returns
 # lie 0.02-0.04 m from the chain), the trunk below breast height (the DBH
 # fit's) is kept, no radius grows toward a tip, and the asset covers its scan
 # as well as before. --return-cap 0 turns it off; a negative value is a usage
@@ -26,7 +26,13 @@ trunk_r() {
 # The trunk over 30-70 % of the height, mean radius.
 mid() { local t=0; for f in 0.3 0.4 0.5 0.6 0.7; do t=$(awk -v t="$t" -v r="$(trunk_r "$1" $f)" 'BEGIN { print t + r / 5 }'); done; echo "$t"; }
 off=$(mid "$tmp/c0.tree.json"); on=$(mid "$tmp/c2.tree.json")
-check "trunk over 30-70 % of the height: $on m capped, $off m not (at most 0.85 of it)" "$on <= 0.85 * $off"
+# Since the stem's foot is kept (stop 41: the ground filter had cut 25 cm of
+# it) breast height lies below the fork and the DBH fit is 0.105 m, not
+# 0.166: the uncapped chain is 0.043 m there, no longer a pole twice as thick
+# as its returns (median 0.025-0.035 m from it at 30-50 %), and the cap
+# trims less of it (0.037 m; 0.052 m against 0.064 m before).
+check "trunk over 30-70 % of the height: $on m capped, $off m not (at most 0.9 of it, and 0.045 m)" \
+  "$on <= 0.9 * $off && $on <= 0.045"
 # Unfaired (the fairing smooths radii along each limb and would hide both):
 # the trunk below breast height (a quarter of this short tree's height)
 # keeps the DBH fit's radii, and the cap's own pass lets no radius grow
