@@ -240,7 +240,7 @@ static sy_code score(const char *glb, const double *pts, size_t n, tree_eval *e,
     sy_eval_model m = {0};
     rc = sy_eval_model_add_mesh(&m, tri, k, 0, err);
     if (!rc) rc = sy_surface_metrics_compute(&m, pts, n, 0.02, 0.05, &e->s, err);
-    if (!rc) rc = sy_silhouette_metrics_compute(tri, k, &cut, pts, n, &e->sm, NULL, err);
+    if (!rc) rc = sy_silhouette_metrics_compute(tri, k, &cut, pts, NULL, n, &e->sm, NULL, err);
     sy_eval_model_free(&m);
     sy_gltf_cutout_free(&cut);
     free(tri);

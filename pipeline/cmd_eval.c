@@ -163,14 +163,14 @@ static int run_truth(const eval_args *a, const char *model_path, sy_cli *cli)
 /* A reference asset (SCAN given as a .glb, e.g. the true tree's own asset
  * from `sylva grow`) as points: its drawn LOD0 surface (proxy left out,
  * alpha-tested cards where their leaves are) every 2 cm. */
-static sy_code glb_points(const char *path, double **pts, size_t *n, sy_error *err)
+static sy_code glb_points(const char *path, double **pts, double **area, size_t *n, sy_error *err)
 {
     double *tri;
     size_t nt;
     sy_gltf_cutout cut;
     sy_code rc = sy_gltf_read_surface(path, &tri, &nt, &cut, err);
     if (rc) return rc;
-    if (!(*pts = sy_drawn_surface_points(tri, nt, &cut, 0.02, n, err))) rc = SY_EINTERNAL;
+    if (!(*pts = sy_drawn_surface_points(tri, nt, &cut, 0.02, n, area, err))) rc = SY_EINTERNAL;
     sy_gltf_cutout_free(&cut);
     free(tri);
     return rc;
@@ -179,7 +179,7 @@ static sy_code glb_points(const char *path, double **pts, size_t *n, sy_error *e
 /* The asset's look against the scan: the glb's drawn LOD0 surface
  * (sy_gltf_read_surface), against the scan's above-ground points (the cloud
  * preprocessed as `sylva run` does) or a reference asset's surface. */
-static sy_code silhouette(const char *model_path, sy_cloud *c, const double *ref, size_t n_ref,
+static sy_code silhouette(const char *model_path, sy_cloud *c, const double *ref, const double *ref_w, size_t n_ref,
                           sy_silhouette_metrics *m, unsigned char *masks, sy_error *err)
 {
     double *tri = NULL;
@@ -197,7 +197,7 @@ static sy_code silhouette(const char *model_path, sy_cloud *c, const double *ref
         pts = rc ? NULL : sy_cloud_world_points(c, err);
         if (!rc && !pts) rc = SY_EINTERNAL;
     }
-    if (!rc) rc = sy_silhouette_metrics_compute(tri, k, &cut, ref ? ref : pts, ref ? n_ref : c->n, m, masks, err);
+    if (!rc) rc = sy_silhouette_metrics_compute(tri, k, &cut, ref ? ref : pts, ref_w, ref ? n_ref : c->n, m, masks, err);
     sy_gltf_cutout_free(&cut);
     free(pts);
     free(tri);
@@ -217,13 +217,14 @@ static int run_points(const eval_args *a, const char *model_path, sy_cli *cli)
     sy_cloud c;
     memset(&c, 0, sizeof c);
     sy_eval_model model;
-    double *ref = NULL;
+    double *ref = NULL, *ref_w = NULL;
     size_t n_ref = 0;
-    if (is_gltf(a->points_path) ? glb_points(a->points_path, &ref, &n_ref, &err) : sy_read_cloud(a->points_path, &c, &err))
+    if (is_gltf(a->points_path) ? glb_points(a->points_path, &ref, &ref_w, &n_ref, &err)
+                                : sy_read_cloud(a->points_path, &c, &err))
         return sy_cli_report(&err);
     if (sy_eval_load_model(model_path, a->closed_flag, &model, &err)) {
         sy_cloud_free(&c);
-        free(ref);
+        free(ref), free(ref_w);
         return sy_cli_report(&err);
     }
     double *pts = ref ? ref : sy_cloud_world_points(&c, &err);
@@ -238,11 +239,11 @@ static int run_points(const eval_args *a, const char *model_path, sy_cli *cli)
     if (look && a->png_path &&
         !(masks = sy_calloc(SY_SILHOUETTE_VIEWS * SY_SILHOUETTE_RES, SY_SILHOUETTE_RES, &err, "silhouette masks")))
         rc = SY_EINTERNAL;
-    if (look && !rc) rc = silhouette(model_path, &c, ref, n_ref, &sm, masks, &err);
+    if (look && !rc) rc = silhouette(model_path, &c, ref, ref_w, n_ref, &sm, masks, &err);
     if (masks && !rc) rc = sy_silhouette_png(masks, a->png_path, &err);
     free(masks);
     sy_cloud_free(&c);
-    free(ref);
+    free(ref), free(ref_w);
     if (rc) return sy_cli_report(&err);
     report r;
     report_begin(&r, cli->json, "model vs points");

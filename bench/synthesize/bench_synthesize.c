@@ -304,7 +304,7 @@ static int look(const char *scan, const char *obj, const char *png)
     sy_silhouette_metrics m;
     unsigned char *masks = png ? calloc((size_t)SY_SILHOUETTE_VIEWS * SY_SILHOUETTE_RES * SY_SILHOUETTE_RES, 1) : NULL;
     int rc = (png && !masks) || sy_preprocess(&c, &po, &pr, &err) || !(pts = sy_cloud_world_points(&c, &err)) ||
-             sy_silhouette_metrics_compute(tri, nt, NULL, pts, c.n, &m, masks, &err) ||
+             sy_silhouette_metrics_compute(tri, nt, NULL, pts, NULL, c.n, &m, masks, &err) ||
              (png && sy_silhouette_png(masks, png, &err));
     free(masks);
     if (rc) fprintf(stderr, "%s\n", err.msg[0] ? err.msg : "out of memory");
@@ -347,7 +347,7 @@ static int returns(const char *scan)
                         tri[9 * (4 * i + (size_t)f) + 3 * (size_t)v + (size_t)k] =
                             pts[3 * i + (size_t)k] + r / sqrt(3.0) * corner[face[f][v]][k];
         sy_silhouette_metrics m;
-        rc = sy_silhouette_metrics_compute(tri, 4 * c.n, NULL, pts, c.n, &m, NULL, &err);
+        rc = sy_silhouette_metrics_compute(tri, 4 * c.n, NULL, pts, NULL, c.n, &m, NULL, &err);
         if (rc) break;
         printf("%sradius=%.4f iou_mean=%.3f iou_min=%.3f precision=%.3f recall=%.3f", pass ? " " : "", r, m.iou_mean,
                m.iou_min, m.precision, m.recall);
@@ -366,13 +366,13 @@ static int returns(const char *scan)
 static int lookglb(const char *ref, const char *asset)
 {
     sy_error err = {0};
-    double *rt = NULL, *at = NULL, *pts = NULL;
+    double *rt = NULL, *at = NULL, *pts = NULL, *pts_w = NULL;
     size_t nr = 0, na = 0, np = 0;
     sy_gltf_cutout rc_cut = {0}, ac_cut = {0};
     sy_silhouette_metrics sm;
     int rc = sy_gltf_read_surface(ref, &rt, &nr, &rc_cut, &err) || sy_gltf_read_surface(asset, &at, &na, &ac_cut, &err) ||
-             !(pts = sy_drawn_surface_points(rt, nr, &rc_cut, 0.02, &np, &err)) ||
-             sy_silhouette_metrics_compute(at, na, &ac_cut, pts, np, &sm, NULL, &err);
+             !(pts = sy_drawn_surface_points(rt, nr, &rc_cut, 0.02, &np, &pts_w, &err)) ||
+             sy_silhouette_metrics_compute(at, na, &ac_cut, pts, pts_w, np, &sm, NULL, &err);
     if (rc) fprintf(stderr, "%s\n", err.msg);
     else
         printf("iou_mean=%.3f iou_min=%.3f profile_correlation=%.3f height_error_rel=%+.3f crown_width_error_rel=%+.3f\n",
@@ -380,6 +380,7 @@ static int lookglb(const char *ref, const char *asset)
     sy_gltf_cutout_free(&rc_cut);
     sy_gltf_cutout_free(&ac_cut);
     free(pts);
+    free(pts_w);
     free(rt);
     free(at);
     return rc ? 2 : 0;

@@ -109,8 +109,11 @@ double *sy_model_surface_samples(const sy_eval_model *m, double spacing, size_t 
  * disk of the scan's median spacing, the model's surface sampled finer than
  * a pixel), the Pearson correlation of the vertical profiles (40 height
  * bins: scan points against model surface area) and the relative height and
- * crown-width (5-95% extent along x and y, averaged) errors, signed (model -
- * scan) / scan. tri: 9 doubles per triangle, world Z up; pts: 3 per point.
+ * crown-width (5-95% extent along x and y, averaged; the model's by its
+ * drawn area) errors, signed (model - scan) / scan. tri: 9 doubles per
+ * triangle, world Z up; pts: 3 per point; pts_w: NULL (a scan: one each) or
+ * the area each point stands for (a reference mesh's surface points,
+ * sy_drawn_surface_points), counted so in the profile and the width.
  * cut (NULL: every triangle drawn whole) leaves out what a viewer's alpha
  * test discards: an alpha-masked leaf card counts where its leaves are, not
  * as its whole quad (sy_gltf_read_surface). */
@@ -137,7 +140,8 @@ typedef struct {
  * view; each pixel the SY_MASK_SCAN and SY_MASK_MODEL bits it holds. */
 enum { SY_MASK_SCAN = 1, SY_MASK_MODEL = 2 };
 sy_code sy_silhouette_metrics_compute(const double *tri, size_t n_tri, const sy_gltf_cutout *cut, const double *pts,
-                                      size_t n_pts, sy_silhouette_metrics *out, unsigned char *masks, sy_error *err);
+                                      const double *pts_w, size_t n_pts, sy_silhouette_metrics *out, unsigned char *masks,
+                                      sy_error *err);
 /* The six masks as one PNG at path (written whole or not at all), 784 x
  * 548: azimuths 0, 45 and 90 degrees on the top row, 135, top and oblique
  * below, each under a 12-pixel band naming it with its IoU, 4-pixel
@@ -146,9 +150,11 @@ sy_code sy_silhouette_png(const unsigned char *masks, const char *path, sy_error
 
 /* The triangles' drawn surface as points no more than step apart (cut, which
  * may be NULL, leaves out the texels an alpha test discards); 3 doubles
- * each, *n of them (malloc'd; NULL when out of memory). */
+ * each, *n of them (malloc'd; NULL when out of memory). area_out, when not
+ * NULL, gets the surface area each point stands for (malloc'd): every
+ * triangle takes a few points however small, so they are not uniform. */
 double *sy_drawn_surface_points(const double *tri, size_t n_tri, const sy_gltf_cutout *cut, double step, size_t *n,
-                                sy_error *err);
+                                double **area_out, sy_error *err);
 
 /* World coordinates of a cloud as 3n doubles (caller frees). */
 double *sy_cloud_world_points(const sy_cloud *c, sy_error *err);
