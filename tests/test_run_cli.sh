@@ -80,10 +80,10 @@ la=$(key leaf_size "$r")
 awk -v s="$la" 'BEGIN { exit !(s > 0.5499 && s < 0.5501) }' || fail "aspen leaf size $la m, not its full 0.55 m"
 # A scan that stops at the stem's foot keeps it (no ground there, docs/skeleton.md),
 # and a DBH is fitted only to an arc that spans at least its radius: AdTree's
-# tree13 shows a leaning 1.3 m stub, 0.2-0.35 m across, under an occluded stem;
+# tree13 shows a leaning 1.3 m of stem base, 0.2-0.35 m across, under an occluded stem;
 # a 21 cm arc at breast height had fitted a 0.55 m DBH.
 r=$("$SYLVA" run "$data/real/adtree/tree13.xyz" --species weeping_willow -o "$tmp/t13.glb" --lods 1 --no-impostor --json --quiet) ||
   fail "run tree13"
 (( $(key points_preprocessed "$r") == $(key points_in "$r") - 344 )) || fail "tree13 lost more than its 344 outliers: $r"
-awk -v d="$(key dbh "$r")" 'BEGIN { exit !(d > 0.15 && d < 0.40) }' || fail "tree13 DBH $(key dbh "$r") m, its stub is 0.2-0.35 m"
+awk -v d="$(key dbh "$r")" 'BEGIN { exit !(d > 0.15 && d < 0.40) }' || fail "tree13 DBH $(key dbh "$r") m, its stem base is 0.2-0.35 m"
 echo "all run CLI checks passed"
