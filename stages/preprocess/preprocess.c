@@ -10,6 +10,7 @@
 #include "../core/progress.h"
 #include "../core/voxel.h"
 #include "pcl_filters.h"
+#include "stages/core/geometry.h"
 #include "stages/core/sort.h"
 
 /* ---------------------------------------------------------------- options */
@@ -1063,7 +1064,7 @@ static sy_code step_up(sy_cloud *c, const sy_preprocess_options *o, sy_preproces
  * plane's residuals. Terrain is a sheet (measured 3.6 on ahn3_delft's street,
  * 4.2 under the TreeLS pine, 27 on its plot); a scan that stops
  * at the stem's foot gives the filter a slab of stem as tall as it is wide
- * (0.33 on rTwig's sapling, 0.44 on AdTree's tree7) or a stem stub with the
+ * (0.33 on rTwig's sapling, 0.44 on AdTree's tree7) or the base of a stem with the
  * crown's underside (1.2 on tree13), whose removal shortened the stem. */
 #define GROUND_MIN_POINTS 50
 #define GROUND_PLANE_RESIDUAL 0.25
@@ -1124,9 +1125,10 @@ static int ground_is_terrain(const sy_cloud *c, double cell, double *rms_out, do
     double thickness = res[(size_t)(0.9 * (double)(m - 1))];
     free(res);
     /* The narrower principal spread of the ground's footprint: the smaller
-     * eigenvalue of its x, y covariance. */
-    double cxx = sxx / (double)m, cyy = syy / (double)m, cxy = sxy / (double)m;
-    double narrow = sqrt(fmax(0, 0.5 * (cxx + cyy) - sqrt(0.25 * (cxx - cyy) * (cxx - cyy) + cxy * cxy)));
+     * eigenvalue of its x, y covariance (z left out, so the third is 0). */
+    double cov[6] = {sxx / (double)m, sxy / (double)m, 0, syy / (double)m, 0, 0}, l[3], v[9];
+    sy_sym3_eigen(cov, l, v);
+    double narrow = sqrt(l[1]);
     size_t g = 0;
     for (size_t i = 0; i < c->n; i++)
         if (c->classification[i] == 2)

@@ -137,12 +137,13 @@ typedef struct {
 /* The extent of n points (xy pairs, mean mx, my) along their principal axis. */
 static double slab_span(const double *xy, size_t n, double mx, double my)
 {
-    double cxx = 0, cyy = 0, cxy = 0;
+    double c[6] = {0}, l[3], v[9];
     for (size_t i = 0; i < n; i++) {
         double x = xy[2 * i] - mx, y = xy[2 * i + 1] - my;
-        cxx += x * x, cyy += y * y, cxy += x * y;
+        c[0] += x * x, c[1] += x * y, c[3] += y * y;
     }
-    double a = 0.5 * atan2(2 * cxy, cxx - cyy), ux = cos(a), uy = sin(a), lo = INFINITY, hi = -INFINITY;
+    sy_sym3_eigen(c, l, v);
+    double ux = v[0], uy = v[3], lo = INFINITY, hi = -INFINITY;
     for (size_t i = 0; i < n; i++) {
         double t = (xy[2 * i] - mx) * ux + (xy[2 * i + 1] - my) * uy;
         lo = fmin(lo, t), hi = fmax(hi, t);
@@ -179,7 +180,7 @@ static int fit_trunk_slab(const trunk_slab *q, double z, double *xy, size_t *k, 
             /* A fitted centre far outside the slab's points, or points
              * spanning less than the radius (an arc under 60 degrees), mean
              * the arc was too short to define the circle; the fallback is
-             * safer then. AdTree's tree13: a 21 cm stub fitted 27 cm. */
+             * safer then. AdTree's tree13: a 21 cm arc of its stem base fitted 27 cm. */
             double mx = sx / (double)*k, my = sy / (double)*k;
             if (hypot(c[0] - mx, c[1] - my) <= 1.5 * *r && slab_span(xy, *k, mx, my) >= *r) return 1;
         }
