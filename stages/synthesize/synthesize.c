@@ -172,6 +172,7 @@ typedef struct {
     uint32_t *block;     /* leaves per block */
     uint32_t *cell_block; /* each cell's block */
     float *block_cap;    /* whole leaves a block holds (0 when it has no occupied cell) */
+    int16_t *block_box;  /* per block: the box of its occupied cells in cells, x, y, z first and past-last */
     size_t n_occupied, n_blocks, n_filled; /* occupied cells; blocks with room; blocks holding a leaf */
     size_t n_inside;     /* cells inside the hull */
     double capacity;     /* leaves an occupied block holds on average */
@@ -182,7 +183,8 @@ typedef struct {
 
 static void grid_free(lobe_grid *g)
 {
-    free(g->inside), free(g->occupied), free(g->cell), free(g->leaves), free(g->block), free(g->block_cap);
+    free(g->inside), free(g->occupied), free(g->cell), free(g->leaves), free(g->block), free(g->block_cap),
+        free(g->block_box);
     free(g->cell_block), free(g->tri_box);
 }
 
@@ -317,7 +319,9 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
     g->block = sy_calloc((size_t)g->bd[0] * g->bd[1] * g->bd[2], sizeof *g->block, err, "synthesis grid");
     g->block_cap = sy_calloc((size_t)g->bd[0] * g->bd[1] * g->bd[2], sizeof *g->block_cap, err, "synthesis grid");
     g->cell_block = sy_calloc(g->n, sizeof *g->cell_block, err, "synthesis grid");
-    if (!g->inside || !g->occupied || !g->cell || !g->leaves || !g->block || !g->block_cap || !g->cell_block)
+    g->block_box = sy_calloc((size_t)g->bd[0] * g->bd[1] * g->bd[2] * 6, sizeof *g->block_box, err, "synthesis grid");
+    if (!g->inside || !g->occupied || !g->cell || !g->leaves || !g->block || !g->block_cap || !g->cell_block ||
+        !g->block_box)
         return SY_EINTERNAL;
     for (int z = 0, i = 0; z < g->d[2]; z++)
         for (int y = 0; y < g->d[1]; y++) {
@@ -506,9 +510,23 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
      * lobe grid, whatever the density (sassafras 3.6 x its true area). */
     double bh = g->bk * g->h;
     g->capacity = density * bh * bh * bh / (leaf_area > 1e-6 ? leaf_area : 1e-6); /* per occupied block */
-    for (size_t i = 0; i < g->n; i++)
-        if (g->occupied[i]) g->block_cap[block_of(g, (long)i)] = (float)g->capacity;
-    for (size_t b = 0; b < (size_t)g->bd[0] * g->bd[1] * g->bd[2]; b++) {
+    const size_t n_block = (size_t)g->bd[0] * g->bd[1] * g->bd[2];
+    for (size_t b = 0; b < n_block; b++)
+        for (int k = 0; k < 3; k++) g->block_box[6 * b + 2 * k] = INT16_MAX, g->block_box[6 * b + 2 * k + 1] = 0;
+    for (int z = 0, i = 0; z < g->d[2]; z++)
+        for (int y = 0; y < g->d[1]; y++)
+            for (int x = 0; x < g->d[0]; x++, i++) {
+                if (!g->occupied[i]) continue;
+                size_t b = block_of(g, i);
+                g->block_cap[b] = (float)g->capacity;
+                const int q[3] = {x, y, z};
+                int16_t *bb = g->block_box + 6 * b;
+                for (int k = 0; k < 3; k++) {
+                    if (q[k] < bb[2 * k]) bb[2 * k] = (int16_t)q[k];
+                    if (q[k] + 1 > bb[2 * k + 1]) bb[2 * k + 1] = (int16_t)(q[k] + 1);
+                }
+            }
+    for (size_t b = 0; b < n_block; b++) {
         double u = (double)(sy_mix64(key ^ ((uint64_t)b + 1) * 0xD1B54A32D192ED03ull) >> 11) * 0x1p-53;
         g->block_cap[b] = g->block_cap[b] > 0 ? (float)floor(g->block_cap[b] + u) : 0;
         g->n_blocks += g->block_cap[b] > 0;
@@ -532,15 +550,23 @@ static void block_add_leaf(lobe_grid *g, long c)
                 g->cell[(size_t)x + (size_t)g->d[0] * ((size_t)y + (size_t)g->d[1] * (size_t)z)].room = 0;
 }
 
-/* Does a block with room overlap the box of cells within r (metres) of p?
- * A patch placed at p whose every leaf lies within r of it can gain
- * nothing where none does, so a dock in a full region skips its
- * candidates' fits (they would all stop on their gain or fall outside). */
+/* Does an occupied cell of a block with room come within r (metres) of p?
+ * Only such cells have room (block_add_leaf), so a patch placed at p
+ * whose every leaf lies within r of it can gain nothing where none does:
+ * a dock in a full region skips all its candidates' fits, and a dock a
+ * candidate's reach short of any room skips that candidate's (their fits
+ * would all stop on their gain or fall outside; the bytes are the same).
+ * Each block's test is against the box of its occupied cells, with a
+ * margin for the fit's rounding. On black_oak's
+ * simulated scan 86 % of the 1.05 million fits of a decode stopped on
+ * their gain when only the dock was tested, against whole blocks; tested
+ * here, 0.30 million fits are left (synthesis 243 -> 158 ms). */
 static int room_near(const lobe_grid *g, const double p[3], double r)
 {
+    const double reach = r + 1e-4 * g->h, r2 = reach * reach;
     int b0[3], b1[3];
     for (int k = 0; k < 3; k++) {
-        double t0 = floor((p[k] - r - g->lo[k]) / g->h), t1 = floor((p[k] + r - g->lo[k]) / g->h);
+        double t0 = floor((p[k] - reach - g->lo[k]) / g->h), t1 = floor((p[k] + reach - g->lo[k]) / g->h);
         if (!(t1 >= 0) || !(t0 < g->d[k])) return 0; /* the box misses the grid (NaN too) */
         int c0 = t0 < 0 ? 0 : (int)t0, c1 = t1 >= g->d[k] ? g->d[k] - 1 : (int)t1;
         b0[k] = c0 / g->bk, b1[k] = c1 / g->bk;
@@ -549,7 +575,15 @@ static int room_near(const lobe_grid *g, const double p[3], double r)
         for (int y = b0[1]; y <= b1[1]; y++)
             for (int x = b0[0]; x <= b1[0]; x++) {
                 size_t b = (size_t)x + (size_t)g->bd[0] * ((size_t)y + (size_t)g->bd[1] * (size_t)z);
-                if (g->block[b] < g->block_cap[b]) return 1;
+                if (!(g->block[b] < g->block_cap[b])) continue;
+                const int16_t *bb = g->block_box + 6 * b;
+                double d2 = 0;
+                for (int k = 0; k < 3; k++) {
+                    double a = g->lo[k] + bb[2 * k] * g->h, e = g->lo[k] + bb[2 * k + 1] * g->h;
+                    double o = p[k] < a ? a - p[k] : p[k] > e ? p[k] - e : 0;
+                    d2 += o * o;
+                }
+                if (d2 <= r2) return 1;
             }
     return 0;
 }
@@ -1718,6 +1752,10 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
             for (size_t ci = 0; ci < nc; ci++) {
                 const sy_patch *p = &lib->patches[cands[ci].idx];
                 double s = geom_scale(d.thickness / p->thickness), T[9];
+                if (!room_near(&g, d.pos, s * p->extent)) {
+                    full = 1;
+                    continue;
+                }
                 placement_align(p, &d, Rz, T);
                 for (int r = 0; r < o->rolls; r++) {
                     double R[9];
