@@ -423,7 +423,7 @@ static void hidden_limbs_continue_the_seed_limb(void **state)
 }
 
 /* A lobe's traced twigs become its limbs off the seed: the same nodes, a
- * little smoothed along their chain, radii by the pipe model (thinning to
+ * little smoothed along their chain, radii by a pipe model (thinning to
  * the tips, never above the seed's, never under the library's thinnest
  * patch). A leaf-off tree keeps them as its only wood there, no patches and
  * no leaves; a leafy one carries its leaf cards on their nodes. */
@@ -464,10 +464,10 @@ static void traced_twigs_are_the_lobes_wood(void **state)
     }
     /* The seed ends the trunk: the twigs' first node goes on in its branch,
      * at the seed's radius (all of the lobe's nodes beyond it), the tips at
-     * sqrt(1/5) of it. */
+     * (1/5)^0.3 of it (the length beyond a node, to the power 0.3). */
     assert_int_equal(out.branch[s.n], out.branch[10]);
     assert_float_equal(out.radius[s.n], s.radius[10], 1e-6);
-    assert_float_equal(out.radius[s.n + 3], fmax(thinnest, s.radius[10] * sqrt(0.2)), 1e-6);
+    assert_float_equal(out.radius[s.n + 3], fmax(thinnest, s.radius[10] * pow(0.2, 0.3)), 1e-6);
     sy_skeleton_free(&out), sy_leaves_free(&lv);
     /* Leaf-on: the twigs carry the leaves themselves (each node a return),
      * at most eight a node, each card's axis through its node (its middle
