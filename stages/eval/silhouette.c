@@ -357,7 +357,7 @@ sy_code sy_silhouette_metrics_compute(const double *tri, size_t n_tri, const sy_
     double *area = NULL;
     double *smp = sample_triangles(tri, n_tri, cut, step, &n_smp, &area);
     unsigned char *ma = malloc(RES * RES), *mb = malloc(RES * RES);
-    double *tmp = malloc((n_smp > n_pts ? n_smp : n_pts) * sizeof *tmp);
+    double *tmp = malloc(n_pts * sizeof *tmp); /* the scan's unweighted quantiles (the model's are by area) */
     weighted_value *wv = malloc((n_smp > n_pts ? n_smp : n_pts) * sizeof *wv);
     if (!smp || !ma || !mb || !tmp || !wv) {
         free(smp), free(area), free(ma), free(mb), free(tmp), free(wv);

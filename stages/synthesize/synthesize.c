@@ -316,10 +316,11 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
     g->bk = (int)lround(sqrt(2 * leaf_area) / g->h); /* the card's length */
     if (g->bk < 2) g->bk = 2;
     for (int k = 0; k < 3; k++) g->bd[k] = (g->d[k] + g->bk - 1) / g->bk;
-    g->block = sy_calloc((size_t)g->bd[0] * g->bd[1] * g->bd[2], sizeof *g->block, err, "synthesis grid");
-    g->block_cap = sy_calloc((size_t)g->bd[0] * g->bd[1] * g->bd[2], sizeof *g->block_cap, err, "synthesis grid");
+    const size_t n_block = (size_t)g->bd[0] * g->bd[1] * g->bd[2];
+    g->block = sy_calloc(n_block, sizeof *g->block, err, "synthesis grid");
+    g->block_cap = sy_calloc(n_block, sizeof *g->block_cap, err, "synthesis grid");
     g->cell_block = sy_calloc(g->n, sizeof *g->cell_block, err, "synthesis grid");
-    g->block_box = sy_calloc((size_t)g->bd[0] * g->bd[1] * g->bd[2] * 6, sizeof *g->block_box, err, "synthesis grid");
+    g->block_box = sy_calloc(6 * n_block, sizeof *g->block_box, err, "synthesis grid");
     if (!g->inside || !g->occupied || !g->cell || !g->leaves || !g->block || !g->block_cap || !g->cell_block ||
         !g->block_box)
         return SY_EINTERNAL;
@@ -510,7 +511,6 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
      * lobe grid, whatever the density (sassafras 3.6 x its true area). */
     double bh = g->bk * g->h;
     g->capacity = density * bh * bh * bh / (leaf_area > 1e-6 ? leaf_area : 1e-6); /* per occupied block */
-    const size_t n_block = (size_t)g->bd[0] * g->bd[1] * g->bd[2];
     for (size_t b = 0; b < n_block; b++)
         for (int k = 0; k < 3; k++) g->block_box[6 * b + 2 * k] = INT16_MAX, g->block_box[6 * b + 2 * k + 1] = 0;
     for (int z = 0, i = 0; z < g->d[2]; z++)
