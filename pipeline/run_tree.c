@@ -149,7 +149,7 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
     rc = sy_cap_radii_by_returns(out, c->xyz, o->return_cap, breast_z, &report->radii_capped, err);
     /* Faired after the cut, which judges the chains as the skeleton left
      * them (their points' spread about each edge). */
-    if (rc || (rc = sy_skeleton_fair_limbs(out, o->fair_sigma, err))) {
+    if (rc || (rc = sy_skeleton_fair_limbs(out, o->fair_sigma, breast_z, err))) {
         if (clusters) sy_clusters_free(clusters);
         sy_skeleton_free(out);
         return rc;

@@ -91,9 +91,11 @@ sy_code sy_skeleton_options_check(const sy_skeleton_options *o, sy_error *err);
  * sigma_factor x its radius (Laplacian passes, a Gaussian of that width),
  * the radii too within each branch; branches parents first, each bent by
  * as much as its fork moved (in full at its first node, none from
- * sigma_factor x the fork's radius on); the root and the tips stay put. No radius then grows toward a tip.
- * 0 does nothing. Any node order. */
-sy_code sy_skeleton_fair_limbs(sy_skeleton *s, double sigma_factor, sy_error *err);
+ * sigma_factor x the fork's radius on); the root and the tips stay put. The
+ * root's chain keeps its radius at height breast_z (s's frame; NAN: none):
+ * the fairing reshapes the trunk, not its DBH. No radius then grows toward
+ * a tip. 0 does nothing. Any node order. */
+sy_code sy_skeleton_fair_limbs(sy_skeleton *s, double sigma_factor, double breast_z, sy_error *err);
 /* Radii the returns bound (radii.c): each edge of s (a main skeleton with
  * its support) is made no thicker than cap times the median distance from
  * it of the returns nearest to it of all its edges, pooled along its branch
