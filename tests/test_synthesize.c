@@ -285,6 +285,47 @@ static void texturing_fills_the_lobe(void **state)
 
 /* Lobe c: a copy of box moved by (dx, dy, dz), hanging off node seed, with
  * its first n_tris triangles (fewer than 4: degenerate). */
+/* A patch keeps its wood where its leaves fell in full blocks or outside
+ * the hull, and those bare ends stood out of the crown as sticks (the
+ * simulated palm: 3,453 bare nodes, rachises up to a metre past its
+ * foliage). A lobe within a patch's reach of its seed grows no scaffold,
+ * so all its bark is patches and carriers: every tip of it holds a leaf,
+ * and what was dropped is reported. */
+static void bare_patch_ends_are_pruned(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_clusters cl = {0};
+    make_tree(&s, &cl, 0.25, 0);
+    sy_branchlets lib;
+    sy_synth_options o = aspen_options(&lib);
+    sy_skeleton out;
+    sy_leaves lv;
+    sy_synth_report rep;
+    sy_error err = {0};
+    size_t pruned = 0, bare_tips = 0, tips = 0, patches = 0;
+    for (uint64_t seed = 1; seed <= 4; seed++) {
+        o.seed = seed;
+        assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out, &lv, &rep, &err), SY_OK);
+        assert_int_equal(sy_skeleton_validate(&out, &err), SY_OK);
+        uint8_t *has_child = calloc(out.n, 1), *has_leaf = calloc(out.n, 1);
+        assert_true(has_child && has_leaf);
+        for (size_t i = 1; i < out.n; i++) has_child[out.parent[i]] = 1;
+        for (size_t i = 0; i < lv.n; i++) has_leaf[lv.node[i]] = 1;
+        for (size_t i = s.n; i < out.n; i++) tips += !has_child[i], bare_tips += !has_child[i] && !has_leaf[i];
+        pruned += rep.nodes_pruned, patches += rep.patches;
+        free(has_child), free(has_leaf);
+        sy_skeleton_free(&out), sy_leaves_free(&lv);
+    }
+    printf("4 seeds: %zu patches, %zu tips, %zu of them bare; %zu bare nodes pruned\n", patches, tips, bare_tips, pruned);
+    assert_true(patches >= 4 && tips > 20);
+    assert_int_equal(bare_tips, 0);
+    assert_true(pruned > 0);
+    sy_branchlets_free(&lib);
+    sy_clusters_free(&cl);
+    sy_skeleton_free(&s);
+}
+
 static void moved_box(sy_cluster *c, const sy_cluster *box, int32_t seed, float dx, float dy, float dz, size_t n_tris)
 {
     c->seed = seed;
@@ -819,6 +860,7 @@ int main(void)
         cmocka_unit_test(every_species_grows_branchlets),
         cmocka_unit_test(grammar_errors_name_the_line),
         cmocka_unit_test(texturing_fills_the_lobe),
+        cmocka_unit_test(bare_patch_ends_are_pruned),
         cmocka_unit_test(hidden_limbs_continue_the_seed_limb),
         cmocka_unit_test(traced_twigs_are_the_lobes_wood),
         cmocka_unit_test(leaf_area_follows_the_density),

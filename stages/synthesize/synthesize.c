@@ -731,6 +731,7 @@ typedef struct {
     size_t key_cap;
     int32_t next_branch;
     const crown_grid *crown; /* NULL: tips stay in their own lobe */
+    size_t patches_from;     /* nodes from here on are the patches' and their carriers' (merge_lobe prunes them) */
 } synth_out;
 
 /* Eq. 3.3 with a cost that falls as the fit improves (digest §2.3):
@@ -1606,6 +1607,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     else if (!rc && bare_reason < 0)
         rc = grow_scaffold(&g, occ_c, n_occ, seed, reach, max_thick, o, limb, ceiling, ground, so, rep, err);
     int scaffolded = rep->nodes_added > scaffold0;
+    so->patches_from = sk->n;
     /* Traced twigs are the lobe's wood: the species' branchlets would add
      * twigs beside the returns, not on them (AdTree's tree1, IoU against
      * its scan 0.639 with them, 0.692 without). A leaf-off tree keeps them
@@ -1913,6 +1915,7 @@ typedef struct {
     sy_synth_report rep;
     size_t occupied, cells[2];
     int skipped; /* a degenerate hull: bare, not textured */
+    size_t prune_from; /* its patches' and carriers' nodes, where it holds leaves (else 0: none pruned) */
     sy_code rc;
     sy_error err;
 } lobe_work;
@@ -1964,38 +1967,72 @@ static void texture_lobes(void *vctx, size_t begin, size_t end, size_t chunk)
         if (!w->rc) {
             sy_cluster local = *C;
             local.seed = 0;
-            synth_out so = {&w->out, &w->leaves, NULL, 0, x->base_branches, x->crown};
+            synth_out so = {&w->out, &w->leaves, NULL, 0, x->base_branches, x->crown, 0};
             w->rc = texture_lobe(&local, (int32_t)c, x->lib, x->o, &x->limbs[c], density, max_depth, x->max_thick, x->ceiling, x->ground, cands,
                                  &so, &w->rep, &w->occupied, w->cells, &w->err);
             w->leaf_key = so.leaf_key;
             w->next_branch = so.next_branch;
+            w->prune_from = w->leaves.n > 0 ? so.patches_from : 0;
         }
         free(cands);
     }
 }
 
 /* Appends lobe w to so: its node 0 is the skeleton's node seed, its other
- * nodes follow so's, and its own branch ids follow so's count. */
-static sy_code merge_lobe(const lobe_work *w, int32_t seed, int32_t base_branches, synth_out *so, sy_error *err)
+ * nodes follow so's, and its own branch ids follow so's count. Where the
+ * lobe holds leaves, the bark of its patches and their carriers that
+ * carries no leaf anywhere beyond it is dropped: a patch keeps its wood
+ * where its leaves fell in full blocks or outside the hull (stochastic
+ * pruning), and those bare ends stood out of the crown as sticks (the
+ * simulated palm's frond rachises, up to a metre past its foliage). The
+ * scaffold (the limbs the scan hides) and traced twigs (returns) stay, and
+ * a leaf-off lobe keeps all its wood. */
+static sy_code merge_lobe(const lobe_work *w, int32_t seed, int32_t base_branches, synth_out *so, size_t *pruned,
+                          sy_error *err)
 {
     const sy_skeleton *l = &w->out;
-    int32_t n0 = (int32_t)so->out->n, shift = so->next_branch - base_branches;
-    for (size_t i = 1; i < l->n; i++) {
-        int32_t p = l->parent[i], b = l->branch[i];
-        if (sy_skeleton_add(so->out, l->pos + 3 * i, l->radius[i], p == 0 ? seed : n0 + p - 1, l->order[i],
-                            b >= base_branches ? b + shift : b, err) < 0)
-            return SY_EINTERNAL;
+    size_t n_own = (size_t)(w->next_branch - base_branches);
+    /* new_id[i]: node i's index in so (-1: dropped); holds[i]: a leaf hangs
+     * on node i or beyond it. A node's children follow it, so one pass from
+     * the last node marks what the leaves hold up. */
+    int32_t *new_id = malloc((l->n + 1) * sizeof *new_id), *new_branch = malloc((n_own + 1) * sizeof *new_branch);
+    uint8_t *holds = calloc(l->n + 1, 1);
+    if (!new_id || !new_branch || !holds) {
+        free(new_id), free(new_branch), free(holds);
+        return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
     }
-    so->next_branch += w->next_branch - base_branches;
-    if (!keys_reserve(so, so->leaves->n + w->leaves.n)) return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
-    for (size_t i = 0; i < w->leaves.n; i++) {
-        int32_t v = w->leaves.node[i];
+    size_t from = w->prune_from ? w->prune_from : l->n;
+    for (size_t i = 0; i < w->leaves.n; i++) holds[w->leaves.node[i]] = 1;
+    for (size_t i = l->n; i-- > 1;)
+        if (holds[i] || i < from) holds[l->parent[i]] = 1;
+    /* The lobe's own branch ids, renumbered on from so's in the order their
+     * first kept node comes: a branch pruned whole leaves no gap. */
+    for (size_t b = 0; b < n_own; b++) new_branch[b] = -1;
+    new_id[0] = seed;
+    sy_code rc = SY_OK;
+    for (size_t i = 1; i < l->n && !rc; i++) {
+        int32_t b = l->branch[i];
+        new_id[i] = -1;
+        if (i >= from && !holds[i]) {
+            (*pruned)++;
+            continue;
+        }
+        if (b >= base_branches) {
+            if (new_branch[b - base_branches] < 0) new_branch[b - base_branches] = so->next_branch++;
+            b = new_branch[b - base_branches];
+        }
+        new_id[i] = sy_skeleton_add(so->out, l->pos + 3 * i, l->radius[i], new_id[l->parent[i]], l->order[i], b, err);
+        if (new_id[i] < 0) rc = SY_EINTERNAL;
+    }
+    if (!rc && !keys_reserve(so, so->leaves->n + w->leaves.n)) rc = sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+    for (size_t i = 0; !rc && i < w->leaves.n; i++) {
         so->leaf_key[so->leaves->n] = w->leaf_key[i];
         if (sy_leaves_add(so->leaves, w->leaves.pos + 3 * i, w->leaves.rot + 4 * i, w->leaves.scale[i],
-                          v == 0 ? seed : n0 + v - 1, err))
-            return SY_EINTERNAL;
+                          new_id[w->leaves.node[i]], err))
+            rc = SY_EINTERNAL;
     }
-    return SY_OK;
+    free(new_id), free(new_branch), free(holds);
+    return rc;
 }
 
 sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const sy_branchlets *lib,
@@ -2031,7 +2068,7 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
     double max_thick = 0;
     for (size_t i = 0; i < lib->n_patches; i++)
         if (lib->patches[i].thickness > max_thick) max_thick = lib->patches[i].thickness;
-    synth_out so = {out, leaves, NULL, 0, sy_skeleton_branch_count(skel), NULL};
+    synth_out so = {out, leaves, NULL, 0, sy_skeleton_branch_count(skel), NULL, 0};
     size_t occupied = 0, cells[2] = {0, 0};
     size_t n_lobes = lobes ? lobes->n : 0;
     lobe_work *work = n_lobes ? calloc(n_lobes, sizeof *work) : NULL;
@@ -2069,7 +2106,7 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
             *err = w->err;
             break;
         }
-        rc = merge_lobe(w, lobes->items[c].seed, ctx_branches, &so, err);
+        rc = merge_lobe(w, lobes->items[c].seed, ctx_branches, &so, &rep.nodes_pruned, err);
         const sy_synth_report *r = &w->rep;
         if (r->lobes_bare) {
             if (rep.lobes_bare < 8) rep.bare_lobe[rep.lobes_bare] = r->bare_lobe[0], rep.bare_reason[rep.lobes_bare] = r->bare_reason[0];

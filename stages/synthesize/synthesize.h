@@ -65,6 +65,7 @@ typedef struct {
                                  * the lobe's twigs were grown toward its returns (sy_synth_bare_reason) */
     size_t patches, docks_filled, docks_outside, docks_depth, docks_full, docks_rejected;
     size_t nodes_added, leaves;
+    size_t nodes_pruned;        /* added nodes dropped again: bark beyond every leaf of its lobe (merge_lobe) */
     size_t leaves_in_hull;      /* leaves inside their lobe's hull or within 5 cm of it (exact test) */
     double coverage;            /* share of the lobes' occupied blocks (2 x 2 x 2 grid cells) holding a leaf */
     double fill;                /* share of the lobes' inside cells holding scan points (all lobes) */
