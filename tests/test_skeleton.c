@@ -167,6 +167,16 @@ static void radii_follow_the_measured_limbs(void **state)
     sy_cloud_free(&c);
 }
 
+/* A straight limb off the trunk's axis at height z: azimuth az and
+ * elevation el (radians), length len, radius r0 tapering to r1. */
+static void add_limb(syn_tree *t, double z, double az, double el, double len, double r0, double r1)
+{
+    syn_seg limb = {{0, 0, z}, {0, 0, 0}, r0, r1, 0};
+    double d[3] = {cos(el) * cos(az), cos(el) * sin(az), sin(el)};
+    for (int k = 0; k < 3; k++) limb.b[k] = limb.a[k] + len * d[k];
+    t->seg[t->n++] = limb;
+}
+
 /* A bole that tapers below a crown holding most of the tree's length
  * (PyTLidar's tree_1: rings of 0.169 m at 1.3 m, 0.128 m at 4.5 m) is
  * drawn by its rings above breast height, not as a cylinder of its DBH: the
@@ -182,13 +192,7 @@ static void trunk_follows_its_rings(void **state)
     syn_seg trunk = {{0, 0, 0}, {0, 0, 9}, 0.22, 0.04, -1};
     t.seg[t.n++] = trunk;
     const double pi = 3.14159265358979323846;
-    for (int i = 0; i < 24; i++) {
-        double z = 6.0 + 0.1 * i, az = i * 2.39996 + 0.3, el = 40 * pi / 180;
-        syn_seg limb = {{0, 0, z}, {0, 0, 0}, 0.04, 0.01, 0};
-        double d[3] = {cos(el) * cos(az), cos(el) * sin(az), sin(el)};
-        for (int k = 0; k < 3; k++) limb.b[k] = limb.a[k] + 3.0 * d[k];
-        t.seg[t.n++] = limb;
-    }
+    for (int i = 0; i < 24; i++) add_limb(&t, 6.0 + 0.1 * i, i * 2.39996 + 0.3, 40 * pi / 180, 3.0, 0.04, 0.01);
     sy_cloud c;
     sy_skeleton s;
     sy_clusters cl;
@@ -329,13 +333,8 @@ static void dbh_ignores_low_limbs(void **state)
     syn_tree t;
     syn_tree_make(&t, 0, 0);
     const double pi = 3.14159265358979323846;
-    for (int i = 0; i < 8; i++) { /* steep 8 cm limbs from 1.1 m, touching the trunk at 1.3 m */
-        double az = 2 * pi * i / 8, el = 65 * pi / 180;
-        syn_seg limb = {{0, 0, 1.1}, {0, 0, 0}, 0.08, 0.02, 0};
-        double d[3] = {cos(el) * cos(az), cos(el) * sin(az), sin(el)};
-        for (int k = 0; k < 3; k++) limb.b[k] = limb.a[k] + 2.5 * d[k];
-        t.seg[t.n++] = limb;
-    }
+    for (int i = 0; i < 8; i++) /* steep 8 cm limbs from 1.1 m, touching the trunk at 1.3 m */
+        add_limb(&t, 1.1, 2 * pi * i / 8, 65 * pi / 180, 2.5, 0.08, 0.02);
     sy_cloud c;
     sy_skeleton s;
     sy_clusters cl;
@@ -361,13 +360,7 @@ static void low_limbs_do_not_swell_the_butt(void **state)
     syn_tree t;
     syn_tree_make(&t, 0, 0);
     const double pi = 3.14159265358979323846;
-    for (int i = 0; i < 12; i++) {
-        double az = 2 * pi * (i + 0.5) / 12, el = 15 * pi / 180;
-        syn_seg limb = {{0, 0, 0.5}, {0, 0, 0}, 0.05, 0.015, 0};
-        double d[3] = {cos(el) * cos(az), cos(el) * sin(az), sin(el)};
-        for (int k = 0; k < 3; k++) limb.b[k] = limb.a[k] + 4.5 * d[k];
-        t.seg[t.n++] = limb;
-    }
+    for (int i = 0; i < 12; i++) add_limb(&t, 0.5, 2 * pi * (i + 0.5) / 12, 15 * pi / 180, 4.5, 0.05, 0.015);
     sy_cloud c;
     sy_skeleton s;
     sy_clusters cl;
