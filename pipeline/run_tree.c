@@ -145,7 +145,7 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
      * sets, their ringed nodes moved onto their rings), before the fairing
      * smooths them along each limb; the trunk keeps its DBH fit up to breast
      * height. */
-    double breast_z = out->n ? out->pos[2] + fmin(o->dbh_height, 0.25 * report->height) : 0;
+    double breast_z = report->breast_z;
     rc = sy_cap_radii_by_returns(out, c->xyz, o->return_cap, breast_z, &report->radii_capped, err);
     /* Faired after the cut, which judges the chains as the skeleton left
      * them (their points' spread about each edge). */

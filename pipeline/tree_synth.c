@@ -76,8 +76,10 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
         so.leaf_size = (float)(species->leaf_scale / sqrt(species->leaf_quality > 0 ? species->leaf_quality : 1) *
                                sy_species_leaf_fit(species, top, SCAN_HEIGHT_SEEN));
     }
-    /* ... and by the crown's width: the wider of its x and y extents over
-     * the skeleton and the lobes' hulls. */
+    /* Every decoded tree's cards (with a species or the default's, on `run`
+     * and on `mesh` of a .sylva alike) are at most CARD_CROWN_SHARE of the
+     * crown's width: the wider of its x and y extents over the skeleton and
+     * the lobes' hulls. */
     double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
     for (size_t i = 0; i < t->skel.n; i++)
         for (int k = 0; k < 2; k++) lo[k] = fmin(lo[k], t->skel.pos[3 * i + k]), hi[k] = fmax(hi[k], t->skel.pos[3 * i + k]);
@@ -86,7 +88,10 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
             for (int k = 0; k < 2; k++)
                 lo[k] = fmin(lo[k], t->lobes.items[c].verts[3 * i + k]), hi[k] = fmax(hi[k], t->lobes.items[c].verts[3 * i + k]);
     double crown_width = fmax(hi[0] - lo[0], hi[1] - lo[1]);
-    if (crown_width > 0 && so.leaf_size > CARD_CROWN_SHARE * crown_width) so.leaf_size = (float)(CARD_CROWN_SHARE * crown_width);
+    if (crown_width > 0 && so.leaf_size > CARD_CROWN_SHARE * crown_width) {
+        so.block_size = so.leaf_size;
+        so.leaf_size = (float)(CARD_CROWN_SHARE * crown_width);
+    }
     so.leaf_density = ls.leaf_density;
     so.bare = t->leaf_off;
     so.no_twigs = species && !species->twigs;

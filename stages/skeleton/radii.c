@@ -501,11 +501,10 @@ sy_code sy_measure_node_radii(const sy_skeleton *s, const float *xyz, double spa
  * breast height (sy_skeleton_fair_limbs). Trunk nodes are taken in index
  * order: breadth-first along one chain. */
 #define TRUNK_RINGS_MIN 3
-static sy_code trunk_on_rings(sy_skeleton *s, const float *fit, double breast_height, sy_error *err)
+static sy_code trunk_on_rings(sy_skeleton *s, const float *fit, double breast_z, sy_error *err)
 {
     size_t nt = 0;
-    double z0 = s->n ? s->pos[2] : 0;
-    for (size_t i = 0; i < s->n; i++) nt += s->branch[i] == 0 && s->pos[3 * i + 2] - z0 >= breast_height;
+    for (size_t i = 0; i < s->n; i++) nt += s->branch[i] == 0 && s->pos[3 * i + 2] >= breast_z;
     if (nt < TRUNK_RINGS_MIN) return SY_OK;
     size_t *t = sy_calloc(nt, sizeof *t, err, "radii");
     double *q = sy_calloc(nt, sizeof *q, err, "radii");
@@ -515,7 +514,7 @@ static sy_code trunk_on_rings(sy_skeleton *s, const float *fit, double breast_he
     }
     nt = 0;
     for (size_t i = 0; i < s->n; i++)
-        if (s->branch[i] == 0 && s->pos[3 * i + 2] - z0 >= breast_height) t[nt++] = i;
+        if (s->branch[i] == 0 && s->pos[3 * i + 2] >= breast_z) t[nt++] = i;
     /* q < 0: a ring beside a limb's base, not the trunk's. */
     for (size_t i = 0; i < s->n; i++) {
         int32_t p = s->parent[i];
@@ -564,14 +563,14 @@ static sy_code trunk_on_rings(sy_skeleton *s, const float *fit, double breast_he
     return SY_OK;
 }
 
-sy_code sy_calibrate_radii(sy_skeleton *s, const float *fit, double breast_height, sy_error *err)
+sy_code sy_calibrate_radii(sy_skeleton *s, const float *fit, double breast_z, sy_error *err)
 {
     size_t m = s->n;
     int32_t nb = 0;
     for (size_t i = 0; i < m; i++)
         if (s->branch[i] >= nb) nb = s->branch[i] + 1;
     /* The trunk's own scale: its rings (the branches' is below). */
-    sy_code rc = trunk_on_rings(s, fit, breast_height, err);
+    sy_code rc = trunk_on_rings(s, fit, breast_z, err);
     if (rc) return rc;
     if (nb <= 1) {
         for (size_t i = 1; i < m; i++)

@@ -132,6 +132,8 @@ typedef struct {
                              cloud's extent (the option's, or larger where the .sylva could not hold
                              that many lobes) */
     double dbh, dbh_rms, height;
+    double breast_z;      /* the height the DBH stands at, in the skeleton's frame (the ground's, or the
+                             root's, plus 1.3 m or a quarter of a short tree's height) */
     int dbh_fitted;       /* 1: circle fit at breast height, 0: fallback estimate */
     double d_root;        /* root diameter from which the allometry runs */
     size_t radii_measured; /* nodes whose radius a circle fit measured (they rescale their branch) */

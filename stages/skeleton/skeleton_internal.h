@@ -39,10 +39,10 @@ sy_code sy_measure_node_radii(const sy_skeleton *s, const float *xyz, double spa
 /* Scales the allometric radii of each branch (trunk excepted) by the median
  * ratio of its measured radii (fit, 0 = none) to the allometric ones;
  * branches with fewer than two measurements keep the allometry. The trunk
- * above breast_height (metres above the root) thins where its rings show
- * it thinner. Radii stay non-increasing toward the tips. Needs
- * breadth-first order. */
-sy_code sy_calibrate_radii(sy_skeleton *s, const float *fit, double breast_height, sy_error *err);
+ * above breast_z (the height the DBH stands at, in s's frame) thins where
+ * its rings show it thinner. Radii stay non-increasing toward the tips.
+ * Needs breadth-first order. */
+sy_code sy_calibrate_radii(sy_skeleton *s, const float *fit, double breast_z, sy_error *err);
 
 /* The Dijkstra sources: the points of the base slab (z <= ztop) connected to
  * the root within the slab, written to src; mark (n entries) is scratch. */

@@ -913,7 +913,8 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     rc = shift ? sy_measure_node_radii(full, xyz, s, fit, shift, &rep->radii_measured, err) : SY_EINTERNAL;
     if (!rc) recentre_on_rings(full, fit, shift);
     free(shift);
-    if (!rc) rc = sy_calibrate_radii(full, fit, o->dbh_height, err);
+    rep->breast_z = (isfinite(ground) ? ground : full->pos[2]) + ri.dbh_z;
+    if (!rc) rc = sy_calibrate_radii(full, fit, rep->breast_z, err);
     if (rc) goto done;
     rep->dbh = ri.dbh;
     rep->dbh_rms = ri.rms;

@@ -37,6 +37,7 @@ sy_synth_options sy_synth_options_default(void)
 sy_code sy_synth_options_check(const sy_synth_options *o, sy_error *err)
 {
     if (!(o->leaf_size > 0 && o->leaf_size < 10)) return sy_fail(err, SY_EUSAGE, "synthesize: leaf_size must be in (0, 10) m");
+    if (!(o->block_size >= 0 && o->block_size < 10)) return sy_fail(err, SY_EUSAGE, "synthesize: block_size must be in [0, 10) m");
     if (!(o->leaf_density >= 0 && o->leaf_density <= 1000))
         return sy_fail(err, SY_EUSAGE, "synthesize: leaf_density must be in [0, 1000]");
     if (o->max_depth < 0 || o->max_depth > 32) return sy_fail(err, SY_EUSAGE, "synthesize: max_depth must be 0..32");
@@ -292,8 +293,8 @@ static int occ_bit(const sy_cluster *c, const float lo[3], const float hi[3], co
     return (c->occupancy[bit >> 3] >> (bit & 7)) & 1;
 }
 
-static sy_code grid_build(const sy_cluster *c, int cells, double density, double leaf_area, uint64_t key, lobe_grid *g,
-                          sy_error *err)
+static sy_code grid_build(const sy_cluster *c, int cells, double density, double block_len, double leaf_area, uint64_t key,
+                          lobe_grid *g, sy_error *err)
 {
     memset(g, 0, sizeof *g);
     g->hull = c;
@@ -313,7 +314,7 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
     g->occupied = sy_calloc(g->n, 1, err, "synthesis grid");
     g->cell = sy_calloc(g->n, sizeof *g->cell, err, "synthesis grid");
     g->leaves = sy_calloc(g->n, sizeof *g->leaves, err, "synthesis grid");
-    g->bk = (int)lround(sqrt(2 * leaf_area) / g->h); /* the card's length */
+    g->bk = (int)lround(block_len / g->h); /* the card's length, at the species' size */
     if (g->bk < 2) g->bk = 2;
     for (int k = 0; k < 3; k++) g->bd[k] = (g->d[k] + g->bk - 1) / g->bk;
     const size_t n_block = (size_t)g->bd[0] * g->bd[1] * g->bd[2];
@@ -1562,9 +1563,10 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
                             sy_synth_report *rep, size_t *occupied, size_t cells[2], sy_error *err)
 {
     double leaf_area = 0.5 * o->leaf_size * o->leaf_size; /* a card about half as wide as long */
+    double block_len = o->block_size > o->leaf_size ? o->block_size : o->leaf_size;
     uint64_t rng = o->seed * 0x9E3779B97F4A7C15ull ^ ((uint64_t)lobe_index + 1) * 0xD1B54A32D192ED03ull;
     lobe_grid g;
-    sy_code rc = grid_build(c, o->grid, density, leaf_area, sy_mix64(rng ^ 0x5851F42D4C957F2Dull), &g, err);
+    sy_code rc = grid_build(c, o->grid, density, block_len, leaf_area, sy_mix64(rng ^ 0x5851F42D4C957F2Dull), &g, err);
     size_t placed0 = rep->patches;
     int bare_reason = -1;
     if (!rc && g.n_occupied == 0) bare_reason = 0;
@@ -1972,7 +1974,7 @@ static void texture_lobes(void *vctx, size_t begin, size_t end, size_t chunk)
                                  &so, &w->rep, &w->occupied, w->cells, &w->err);
             w->leaf_key = so.leaf_key;
             w->next_branch = so.next_branch;
-            w->prune_from = w->leaves.n > 0 ? so.patches_from : 0;
+            w->prune_from = w->leaves.n > 0 && !x->o->bare ? so.patches_from : 0; /* a leaf-off tree's leaves are not drawn */
         }
         free(cands);
     }
@@ -2004,7 +2006,7 @@ static sy_code merge_lobe(const lobe_work *w, int32_t seed, int32_t base_branche
     size_t from = w->prune_from ? w->prune_from : l->n;
     for (size_t i = 0; i < w->leaves.n; i++) holds[w->leaves.node[i]] = 1;
     for (size_t i = l->n; i-- > 1;)
-        if (holds[i] || i < from) holds[l->parent[i]] = 1;
+        if ((holds[i] || i < from) && l->parent[i] >= 0) holds[l->parent[i]] = 1;
     /* The lobe's own branch ids, renumbered on from so's in the order their
      * first kept node comes: a branch pruned whole leaves no gap. */
     for (size_t b = 0; b < n_own; b++) new_branch[b] = -1;
@@ -2020,6 +2022,12 @@ static sy_code merge_lobe(const lobe_work *w, int32_t seed, int32_t base_branche
         if (b >= base_branches) {
             if (new_branch[b - base_branches] < 0) new_branch[b - base_branches] = so->next_branch++;
             b = new_branch[b - base_branches];
+        }
+        /* A lobe's nodes are appended to what they hang from: a kept node's
+         * parent is kept and already placed. */
+        if (l->parent[i] < 0 || new_id[l->parent[i]] < 0) {
+            rc = sy_fail(err, SY_EINTERNAL, "synthesize: lobe node %zu before its parent", i);
+            break;
         }
         new_id[i] = sy_skeleton_add(so->out, l->pos + 3 * i, l->radius[i], new_id[l->parent[i]], l->order[i], b, err);
         if (new_id[i] < 0) rc = SY_EINTERNAL;

@@ -30,6 +30,9 @@
 typedef struct {
     uint64_t seed;          /* per-lobe random streams derive from it and the lobe's index */
     float leaf_size;        /* leaf card length, metres (> 0) */
+    float block_size;       /* the card length leaf_density counts a crown's volume at, metres (0 or
+                               less than leaf_size: leaf_size): a card shrunk to a narrow crown keeps
+                               its species' blocks, so the crown keeps its leaf area */
     float leaf_density;     /* leaf area density (m^2 of leaf per m^3 of occupied lobe cell) at which a
                                cell is full; 0: 1.5 */
     int max_depth;          /* docking generations per lobe; 0: library's */
@@ -65,7 +68,8 @@ typedef struct {
                                  * the lobe's twigs were grown toward its returns (sy_synth_bare_reason) */
     size_t patches, docks_filled, docks_outside, docks_depth, docks_full, docks_rejected;
     size_t nodes_added, leaves;
-    size_t nodes_pruned;        /* added nodes dropped again: bark beyond every leaf of its lobe (merge_lobe) */
+    size_t nodes_pruned;        /* of nodes_added, those dropped again: bark beyond every leaf of its lobe
+                                 * (merge_lobe); out->n = skel->n + nodes_added - nodes_pruned */
     size_t leaves_in_hull;      /* leaves inside their lobe's hull or within 5 cm of it (exact test) */
     double coverage;            /* share of the lobes' occupied blocks (2 x 2 x 2 grid cells) holding a leaf */
     double fill;                /* share of the lobes' inside cells holding scan points (all lobes) */
