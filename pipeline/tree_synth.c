@@ -11,12 +11,6 @@
 
 /* The share of a tree's height a scan is sure to show (sy_species_leaf_fit). */
 #define SCAN_HEIGHT_SEEN 0.8
-/* A card is at most this share of the crown's width: the library's species
- * grow cards of 1/27 (black oak) to 1/6.3 (palm; Lombardy poplar 1/6.7) of
- * their crowns' width, and a card sized by the height alone overhung a
- * narrow crown (the TreeLS plantation pine: 0.8 m cards on a crown 1.4 m
- * across, its asset's crown width +12.4 %). */
-#define CARD_CROWN_SHARE (1.0 / 6)
 
 void sy_decoded_tree_free(sy_decoded_tree *t)
 {
@@ -75,22 +69,6 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
             for (size_t i = 0; i < t->lobes.items[c].n_verts; i++) top = fmax(top, t->lobes.items[c].verts[3 * i + 2]);
         so.leaf_size = (float)(species->leaf_scale / sqrt(species->leaf_quality > 0 ? species->leaf_quality : 1) *
                                sy_species_leaf_fit(species, top, SCAN_HEIGHT_SEEN));
-    }
-    /* Every decoded tree's cards (with a species or the default's, on `run`
-     * and on `mesh` of a .sylva alike) are at most CARD_CROWN_SHARE of the
-     * crown's width: the wider of its x and y extents over the skeleton and
-     * the lobes' hulls. */
-    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
-    for (size_t i = 0; i < t->skel.n; i++)
-        for (int k = 0; k < 2; k++) lo[k] = fmin(lo[k], t->skel.pos[3 * i + k]), hi[k] = fmax(hi[k], t->skel.pos[3 * i + k]);
-    for (size_t c = 0; c < t->lobes.n; c++)
-        for (size_t i = 0; i < t->lobes.items[c].n_verts; i++)
-            for (int k = 0; k < 2; k++)
-                lo[k] = fmin(lo[k], t->lobes.items[c].verts[3 * i + k]), hi[k] = fmax(hi[k], t->lobes.items[c].verts[3 * i + k]);
-    double crown_width = fmax(hi[0] - lo[0], hi[1] - lo[1]);
-    if (crown_width > 0 && so.leaf_size > CARD_CROWN_SHARE * crown_width) {
-        so.block_size = so.leaf_size;
-        so.leaf_size = (float)(CARD_CROWN_SHARE * crown_width);
     }
     so.leaf_density = ls.leaf_density;
     so.bare = t->leaf_off;

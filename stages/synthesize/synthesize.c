@@ -37,7 +37,6 @@ sy_synth_options sy_synth_options_default(void)
 sy_code sy_synth_options_check(const sy_synth_options *o, sy_error *err)
 {
     if (!(o->leaf_size > 0 && o->leaf_size < 10)) return sy_fail(err, SY_EUSAGE, "synthesize: leaf_size must be in (0, 10) m");
-    if (!(o->block_size >= 0 && o->block_size < 10)) return sy_fail(err, SY_EUSAGE, "synthesize: block_size must be in [0, 10) m");
     if (!(o->leaf_density >= 0 && o->leaf_density <= 1000))
         return sy_fail(err, SY_EUSAGE, "synthesize: leaf_density must be in [0, 1000]");
     if (o->max_depth < 0 || o->max_depth > 32) return sy_fail(err, SY_EUSAGE, "synthesize: max_depth must be 0..32");
@@ -293,8 +292,8 @@ static int occ_bit(const sy_cluster *c, const float lo[3], const float hi[3], co
     return (c->occupancy[bit >> 3] >> (bit & 7)) & 1;
 }
 
-static sy_code grid_build(const sy_cluster *c, int cells, double density, double block_len, double leaf_area, uint64_t key,
-                          lobe_grid *g, sy_error *err)
+static sy_code grid_build(const sy_cluster *c, int cells, double density, double leaf_area, uint64_t key, lobe_grid *g,
+                          sy_error *err)
 {
     memset(g, 0, sizeof *g);
     g->hull = c;
@@ -314,7 +313,7 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
     g->occupied = sy_calloc(g->n, 1, err, "synthesis grid");
     g->cell = sy_calloc(g->n, sizeof *g->cell, err, "synthesis grid");
     g->leaves = sy_calloc(g->n, sizeof *g->leaves, err, "synthesis grid");
-    g->bk = (int)lround(block_len / g->h); /* the card's length, at the species' size */
+    g->bk = (int)lround(sqrt(2 * leaf_area) / g->h); /* the card's length */
     if (g->bk < 2) g->bk = 2;
     for (int k = 0; k < 3; k++) g->bd[k] = (g->d[k] + g->bk - 1) / g->bk;
     const size_t n_block = (size_t)g->bd[0] * g->bd[1] * g->bd[2];
@@ -1563,10 +1562,9 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
                             sy_synth_report *rep, size_t *occupied, size_t cells[2], sy_error *err)
 {
     double leaf_area = 0.5 * o->leaf_size * o->leaf_size; /* a card about half as wide as long */
-    double block_len = o->block_size > o->leaf_size ? o->block_size : o->leaf_size;
     uint64_t rng = o->seed * 0x9E3779B97F4A7C15ull ^ ((uint64_t)lobe_index + 1) * 0xD1B54A32D192ED03ull;
     lobe_grid g;
-    sy_code rc = grid_build(c, o->grid, density, block_len, leaf_area, sy_mix64(rng ^ 0x5851F42D4C957F2Dull), &g, err);
+    sy_code rc = grid_build(c, o->grid, density, leaf_area, sy_mix64(rng ^ 0x5851F42D4C957F2Dull), &g, err);
     size_t placed0 = rep->patches;
     int bare_reason = -1;
     if (!rc && g.n_occupied == 0) bare_reason = 0;

@@ -30,9 +30,6 @@
 typedef struct {
     uint64_t seed;          /* per-lobe random streams derive from it and the lobe's index */
     float leaf_size;        /* leaf card length, metres (> 0) */
-    float block_size;       /* the card length leaf_density counts a crown's volume at, metres (0 or
-                               less than leaf_size: leaf_size): a card shrunk to a narrow crown keeps
-                               its species' blocks, so the crown keeps its leaf area */
     float leaf_density;     /* leaf area density (m^2 of leaf per m^3 of occupied lobe cell) at which a
                                cell is full; 0: 1.5 */
     int max_depth;          /* docking generations per lobe; 0: library's */
