@@ -136,6 +136,19 @@ int32_t sy_skeleton_branch_count(const sy_skeleton *s)
     return m + 1;
 }
 
+double sy_skeleton_radius_at_height(const sy_skeleton *s, const int32_t *path, size_t n, double z, double span[2])
+{
+    for (size_t i = 1; i < n; i++) {
+        double za = s->pos[3 * (size_t)path[i - 1] + 2], zc = s->pos[3 * (size_t)path[i] + 2];
+        if ((za <= z && zc >= z) || (za >= z && zc <= z)) {
+            double t = zc != za ? (z - za) / (zc - za) : 0;
+            if (span) span[0] = za < zc ? za : zc, span[1] = za < zc ? zc : za;
+            return s->radius[path[i - 1]] + t * (s->radius[path[i]] - s->radius[path[i - 1]]);
+        }
+    }
+    return NAN;
+}
+
 double sy_skeleton_height(const sy_skeleton *s)
 {
     if (s->n == 0) return 0;

@@ -60,6 +60,11 @@ int32_t sy_skeleton_branch_count(const sy_skeleton *s);
 double sy_skeleton_height(const sy_skeleton *s);
 /* Total length of all edges in metres. */
 double sy_skeleton_length(const sy_skeleton *s);
+/* The radius where the node path path[0..n) (each node followed by the next
+ * along it: the trunk from the root) first passes height z, interpolated
+ * between the two nodes it passes between; span (may be NULL): their
+ * heights, lower first. NAN when the path does not reach z. */
+double sy_skeleton_radius_at_height(const sy_skeleton *s, const int32_t *path, size_t n, double z, double span[2]);
 /* Child lists (s->n entries each, -1 = none): node i's children are
  * first_child[i], next_sibling[first_child[i]], ... in ascending index order. */
 void sy_skeleton_children(const sy_skeleton *s, int32_t *first_child, int32_t *next_sibling);

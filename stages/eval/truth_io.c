@@ -88,15 +88,7 @@ double sy_skeleton_dbh(const sy_skeleton *s)
     double dbh = NAN;
     if (path) {
         size_t n = trunk_path(s, root, start, children, path);
-        double z0 = s->pos[3 * root + 2], zb = z0 + 1.3;
-        for (size_t i = 1; i < n; i++) {
-            double za = s->pos[3 * path[i - 1] + 2], zc = s->pos[3 * path[i] + 2];
-            if ((za <= zb && zc >= zb) || (za >= zb && zc <= zb)) {
-                double t = zc != za ? (zb - za) / (zc - za) : 0;
-                dbh = 2 * (s->radius[path[i - 1]] + t * (s->radius[path[i]] - s->radius[path[i - 1]]));
-                break;
-            }
-        }
+        dbh = 2 * sy_skeleton_radius_at_height(s, path, n, s->pos[3 * root + 2] + 1.3, NULL);
     }
     free(path);
     free(start);

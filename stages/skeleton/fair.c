@@ -56,20 +56,12 @@ static void fair_chain(sy_skeleton *s, const int32_t *cont, int32_t c0, double s
     }
 }
 
-/* The radius of the root's chain where it passes height z, interpolated
- * between its nodes; NAN when it does not reach z. span (may be NULL): the
- * heights of the two nodes it lies between, lower first. */
-static double trunk_radius_at(const sy_skeleton *s, const int32_t *cont, int32_t root, double z, double span[2])
+/* The root's chain (root, cont[root], ...) into chain; its length. */
+static size_t root_chain(const int32_t *cont, int32_t root, int32_t *chain)
 {
-    for (int32_t a = root, b = cont[root]; b >= 0; a = b, b = cont[b]) {
-        double za = s->pos[3 * (size_t)a + 2], zb = s->pos[3 * (size_t)b + 2];
-        if ((za <= z && z <= zb) || (zb <= z && z <= za)) {
-            double t = zb != za ? (z - za) / (zb - za) : 0;
-            if (span) span[0] = fmin(za, zb), span[1] = fmax(za, zb);
-            return s->radius[a] + t * (s->radius[b] - s->radius[a]);
-        }
-    }
-    return NAN;
+    size_t len = 0;
+    for (int32_t v = root; v >= 0; v = cont[v]) chain[len++] = v;
+    return len;
 }
 
 sy_code sy_skeleton_fair_limbs(sy_skeleton *s, double sigma_factor, double breast_z, sy_error *err)
@@ -94,7 +86,9 @@ sy_code sy_skeleton_fair_limbs(sy_skeleton *s, double sigma_factor, double breas
     size_t m = sy_skeleton_breadth_first(s, first, next, order);
     memcpy(before, s->pos, n * 3 * sizeof *before);
     int32_t root = m ? order[0] : -1;
-    double breast_r = root >= 0 && s->parent[root] < 0 ? trunk_radius_at(s, cont, root, breast_z, NULL) : NAN;
+    double breast_r = root >= 0 && s->parent[root] < 0
+                          ? sy_skeleton_radius_at_height(s, chain, root_chain(cont, root, chain), breast_z, NULL)
+                          : NAN;
     for (size_t h = 0; h < m; h++) {
         int32_t b = order[h], f = s->parent[b];
         if (f >= 0 && s->branch[f] == s->branch[b]) continue; /* not a branch's first node */
@@ -131,15 +125,14 @@ sy_code sy_skeleton_fair_limbs(sy_skeleton *s, double sigma_factor, double breas
      * (0.30 -> 0.35 m at the root of a trunk thinned from 0.30 to 0.20 m at
      * 1.5 m). */
     double span[2];
-    double faired_r = isfinite(breast_r) ? trunk_radius_at(s, cont, root, breast_z, span) : NAN;
+    size_t len = isfinite(breast_r) ? root_chain(cont, root, chain) : 0;
+    double faired_r = len ? sy_skeleton_radius_at_height(s, chain, len, breast_z, span) : NAN;
     if (breast_r > 0 && faired_r > 0) {
         double reach = sigma_factor * breast_r, gain = breast_r / faired_r - 1;
-        size_t len = 0;
-        for (int32_t v = root; v >= 0; v = cont[v]) {
-            double z = s->pos[3 * (size_t)v + 2], off = fmax(0, fmax(span[0] - z, z - span[1]));
+        for (size_t k = 0; k < len; k++) {
+            double z = s->pos[3 * (size_t)chain[k] + 2], off = fmax(0, fmax(span[0] - z, z - span[1]));
             double w = 1 - off / reach;
-            if (w > 0) s->radius[v] = (float)(s->radius[v] * (1 + w * gain));
-            chain[len++] = v;
+            if (w > 0) s->radius[chain[k]] = (float)(s->radius[chain[k]] * (1 + w * gain));
         }
         /* Below breast height the trunk is no thinner than above it (the
          * fairing pulled the butt's nodes down toward the thinner trunk). */

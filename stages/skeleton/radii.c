@@ -535,8 +535,7 @@ static sy_code trunk_on_rings(sy_skeleton *s, const float *fit, double breast_z,
         size_t n = 0;
         for (size_t j = k >= 2 ? k - 2 : 0; j <= k + 2 && j < nt; j++)
             if (fit[t[j]] > 0 && q[j] >= 0) v[n++] = fit[t[j]];
-        qsort(v, n, sizeof *v, sy_cmp_double);
-        double ring = n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+        double ring = sy_quantile_double(v, n, 0.5);
         if (first == nt) first = k, ring_first = ring;
         /* The rings' taper from the lowest, at the allometry's radius
          * there; only ever thinner than the allometry. */
@@ -571,12 +570,7 @@ sy_code sy_calibrate_radii(sy_skeleton *s, const float *fit, double breast_z, sy
         if (s->branch[i] >= nb) nb = s->branch[i] + 1;
     /* The trunk's own scale: its rings (the branches' is below). */
     sy_code rc = trunk_on_rings(s, fit, breast_z, err);
-    if (rc) return rc;
-    if (nb <= 1) {
-        for (size_t i = 1; i < m; i++)
-            if (s->parent[i] >= 0 && s->radius[i] > s->radius[s->parent[i]]) s->radius[i] = s->radius[s->parent[i]];
-        return SY_OK;
-    }
+    if (rc || m == 0) return rc;
     size_t *count = sy_calloc((size_t)nb, sizeof *count, err, "radii");
     size_t *start = sy_calloc((size_t)nb + 1, sizeof *start, err, "radii");
     double *ratio = sy_calloc(m, sizeof *ratio, err, "radii");
