@@ -72,6 +72,7 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
     sy_json_int(&j, "lod0_leaf_instances", (long long)res->asset.leaf_cards[0]);
     sy_json_int(&j, "patches", (long long)res->synth.patches);
     sy_json_int(&j, "leaves", (long long)res->synth.leaves);
+    sy_json_int(&j, "hidden_limb_nodes", (long long)res->synth.scaffold_nodes);
     sy_json_int(&j, "bare_nodes_pruned", (long long)res->synth.nodes_pruned);
     sy_json_bool(&j, "leaf_off", res->leaf_off);
     if (!isnan(res->returns_on_wood)) sy_json_number(&j, "returns_on_wood", res->returns_on_wood);

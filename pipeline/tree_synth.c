@@ -75,6 +75,10 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
     so.no_twigs = species && !species->twigs;
     so.max_depth = ls.max_depth;
     if (species && species->ratio_power > 0) so.ratio_power = species->ratio_power;
+    if (species) {
+        so.levels = species->levels;
+        for (int l = 0; l < SY_SYNTH_WP_LEVELS && l < SY_WP_LEVELS; l++) so.level_length[l] = species->level[l].length;
+    }
     for (int l = 0; species && l < 2; l++)
         so.down_angle[l] = species->level[l + 1].down_angle, so.down_angle_v[l] = species->level[l + 1].down_angle_v;
     for (size_t c = 0; c < t->lobes.n && !so.no_twigs && !t->lean_radius; c++)

@@ -463,6 +463,89 @@ static void hidden_limbs_continue_the_seed_limb(void **state)
     sy_branchlets_free(&lib);
 }
 
+/* A limb's hidden laterals are as thick as the species grows them: a lobe
+ * seeded part-way along a limb hangs from it by its entry limb, and each
+ * lateral off that entry is one of the limb's next-level branches, starting
+ * at Weber & Penn's r_limb (nLength (L - 0.6 offset) / L)^RatioPower for
+ * its place on the limb (at most 0.9 of the entry there). Measured by the
+ * lobe's own length they started at a tenth of the limb or less. */
+static void hidden_laterals_take_the_species_length(void **state)
+{
+    (void)state;
+    sy_error err = {0};
+    sy_skeleton s;
+    sy_clusters one = {0}, cl = {0};
+    make_tree(&s, &one, 3.0, 0); /* only for its 6 m box, set beside the limb below */
+    sy_skeleton_free(&s);
+    assert_int_equal(sy_skeleton_init(&s, 0, &err), SY_OK);
+    for (int i = 0; i <= 8; i++) { /* a trunk 0-4 m */
+        float p[3] = {0, 0, 0.5f * (float)i};
+        assert_true(sy_skeleton_add(&s, p, 0.2f - 0.01f * (float)i, i - 1, 0, 0, &err) >= 0);
+    }
+    const double limb_r = 0.15, limb_len = 12, seed_off = 3;
+    for (int i = 1; i <= 24; i++) { /* a level limb off its top, 12 m; the lobe's seed 3 m along it */
+        float p[3] = {0.5f * (float)i, 0, 4};
+        assert_true(sy_skeleton_add(&s, p, (float)(limb_r * (1 - 0.035 * (i - 1))), i == 1 ? 8 : 8 + i - 1, 1, 1, &err) >= 0);
+    }
+    const int32_t seed = 8 + 6;
+    cl.n = 1;
+    cl.items = calloc(1, sizeof *cl.items);
+    assert_non_null(cl.items);
+    moved_box(&cl.items[0], &one.items[0], seed, 4, 3.5f, -3, one.items[0].n_tris); /* beside the limb: x 1-7, y 0.5-6.5, z 1-7 m */
+    sy_branchlets lib;
+    sy_synth_options o = aspen_options(&lib);
+    float tip_r = 0;
+    for (size_t k = 0; k < lib.n_patches; k++) tip_r = fmaxf(tip_r, lib.patches[k].thickness);
+    o.ratio_power = 1.3f;
+    size_t thick[2] = {0, 0}, checked = 0;
+    for (int wp = 0; wp < 2; wp++) {
+        o.levels = wp ? 3 : 0;
+        o.level_length[1] = 0.45f, o.level_length[2] = 0.4f;
+        sy_skeleton out;
+        sy_leaves lv;
+        sy_synth_report rep;
+        assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out, &lv, &rep, &err), SY_OK);
+        const size_t scaffold_end = s.n + rep.scaffold_nodes; /* one lobe: its hidden limbs come first */
+        /* The entry limb: the branch of the first node hung from the seed. */
+        int32_t entry = -1;
+        for (size_t i = s.n; i < out.n && entry < 0; i++)
+            if (out.parent[i] == seed) entry = out.branch[i];
+        assert_true(entry >= 0);
+        /* Per node its edge's length; along the entry from the seed; per branch its length. */
+        double *edge = calloc(out.n, sizeof *edge), *along = calloc(out.n, sizeof *along);
+        double *blen = calloc((size_t)out.n + 1, sizeof *blen);
+        assert_true(edge && along && blen);
+        for (size_t i = s.n; i < out.n; i++) {
+            int32_t p = out.parent[i];
+            double d[3];
+            for (int k = 0; k < 3; k++) d[k] = (double)out.pos[3 * i + k] - out.pos[3 * p + k];
+            edge[i] = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+            blen[out.branch[i]] += edge[i];
+            if (out.branch[i] == entry) along[i] = along[p] + edge[i];
+        }
+        for (size_t i = s.n; i < out.n; i++) {
+            int32_t p = out.parent[i];
+            if (i >= scaffold_end || (size_t)p < s.n || out.branch[p] != entry || out.branch[i] == entry) continue;
+            thick[wp] += out.radius[i] >= 0.02f;
+            if (!wp) continue;
+            /* Its base radius, tapering to the thickest patch over its length (its first node is a step on). */
+            double off = seed_off + along[p], base = fmax(tip_r, limb_r * pow(0.4 * (limb_len - 0.6 * off) / limb_len, 1.3));
+            double want = fmin(base - (base - tip_r) * edge[i] / blen[out.branch[i]], 0.9 * out.radius[p]);
+            if (!(fabs(out.radius[i] - want) < 1e-4))
+                fail_msg("a lateral %.2f m along the entry starts at %.4f m, not %.4f", along[p], (double)out.radius[i], want);
+            checked++;
+        }
+        free(edge), free(along), free(blen);
+        sy_skeleton_free(&out), sy_leaves_free(&lv);
+    }
+    printf("laterals off the entry limb: %zu checked; >= 2 cm: %zu by the lobe's length, %zu by the species'\n", checked,
+           thick[0], thick[1]);
+    assert_true(checked >= 3 && thick[1] >= 2);
+    sy_branchlets_free(&lib);
+    sy_clusters_free(&cl), sy_clusters_free(&one);
+    sy_skeleton_free(&s);
+}
+
 /* A lobe's traced twigs become its limbs off the seed: the same nodes, a
  * little smoothed along their chain, radii by a pipe model (thinning to
  * the tips, never above the seed's, never under the library's thinnest
@@ -862,6 +945,7 @@ int main(void)
         cmocka_unit_test(texturing_fills_the_lobe),
         cmocka_unit_test(bare_patch_ends_are_pruned),
         cmocka_unit_test(hidden_limbs_continue_the_seed_limb),
+        cmocka_unit_test(hidden_laterals_take_the_species_length),
         cmocka_unit_test(traced_twigs_are_the_lobes_wood),
         cmocka_unit_test(leaf_area_follows_the_density),
         cmocka_unit_test(lobes_without_room_are_reported),

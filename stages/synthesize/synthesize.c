@@ -48,6 +48,11 @@ sy_code sy_synth_options_check(const sy_synth_options *o, sy_error *err)
     /* The species parser's ranges (species/params.c). */
     if (!(o->ratio_power >= 0 && o->ratio_power <= 10))
         return sy_fail(err, SY_EUSAGE, "synthesize: ratio_power must be in [0, 10]");
+    if (o->levels < 0 || o->levels > SY_SYNTH_WP_LEVELS)
+        return sy_fail(err, SY_EUSAGE, "synthesize: levels must be 0..%d", SY_SYNTH_WP_LEVELS);
+    for (int l = 0; l < SY_SYNTH_WP_LEVELS; l++)
+        if (!(o->level_length[l] >= 0 && o->level_length[l] <= 10))
+            return sy_fail(err, SY_EUSAGE, "synthesize: level_length must be in [0, 10]");
     for (int l = 0; l < 2; l++)
         if (!(fabs(o->down_angle[l]) <= 3600 && fabs(o->down_angle_v[l]) <= 3600))
             return sy_fail(err, SY_EUSAGE, "synthesize: down_angle and down_angle_v must be within 3600 degrees");
@@ -1076,7 +1081,22 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
  * thickest patch's thickness, on which patches then dock as on their own
  * twigs. Before, every start drew a straight rod from the seed as thin as a
  * patch: airborne lobes were columns of leaves on bare rods (the airborne
- * oak's IoU against its true tree 0.618, with the scaffold 0.852). */
+ * oak's IoU against its true tree 0.618, with the scaffold 0.852).
+ * L is the length the species grows a branch of that level at that place,
+ * Weber & Penn's nLength (Lp - 0.6 offset), not the part of it one lobe
+ * holds: lobes are a few metres across, so laterals measured in them were a
+ * metre long and started far thinner than the species' own branches (the
+ * simulated beech's: 1.1 m, a tenth of their limb's radius), or thicker
+ * where the species' are short (the pine's: 39 laterals of 2 cm or more off
+ * its limbs, where the grown pine has none). A lobe seeded part-way along a
+ * limb hangs from it by its entry limb, and the laterals off that entry are
+ * the limb's own next-level branches: level, length and offset are the
+ * limb's (the seed's place on it plus the way along the entry). Past the
+ * species' levels (where Weber & Penn hang leaves) and off the trunk, L
+ * stays the lateral's length in the lobe: the species' length off the trunk
+ * (nLength L ShapeRatio) made every lateral of a trunk's lobe a limb, the
+ * pine's and the sassafras' 2 cm branches 2.7 times their trees'.
+ * docs/synthesize.md "Stop 44". */
 #define SCAFFOLD_MAX_NODES 512
 #define SCAFFOLD_MAX_STEPS 64
 #define SCAFFOLD_KILL 0.35   /* kill distance, in the longest patch's lengths (at least two cells) */
@@ -1087,6 +1107,7 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
 /* The limb of the main skeleton a lobe's seed lies on. */
 typedef struct {
     double length, base_radius; /* of the seed's branch */
+    double offset;              /* the seed's distance along its branch from the branch's first node */
     double dir[3];              /* the way the limb runs at the seed (0 at a root) */
     int ends;                   /* the seed is the limb's last node */
     int on_trunk;               /* the seed's limb is the trunk (order 0) */
@@ -1249,9 +1270,11 @@ static double colony_dist(const sy_colony *c, size_t a, size_t b)
  * the limb from the seed starts a branch of its own, unless the seed ends
  * its limb (limb->ends): the lobe then holds that limb's hidden rest, which
  * goes on in the limb's own branch. Radii by Weber & Penn's rule from the
- * seed's branch (its length and base radius), tapering to tip_r. */
+ * seed's branch (its length and base radius), the laterals' lengths the
+ * species' own for their level (o->level_length, o->levels: above),
+ * tapering to tip_r. */
 static sy_code scaffold_to_skeleton(const sy_colony *col, const seed_limb *limb, int32_t seed, double ratio_power,
-                                    double tip_r, synth_out *so, sy_synth_report *rep, sy_error *err)
+                                    double tip_r, const sy_synth_options *o, synth_out *so, sy_synth_report *rep, sy_error *err)
 {
     sy_skeleton *sk = so->out;
     size_t n = col->n;
@@ -1272,16 +1295,23 @@ static sy_code scaffold_to_skeleton(const sy_colony *col, const seed_limb *limb,
         along[j] = (on ? along[p] : 0) + colony_dist(col, j, (size_t)p);
         blen[head[j]] = fmax(blen[head[j]], along[j]);
     }
-    for (size_t j = 1; j < n; j++)
-        if (head[j] == (int32_t)j) {
-            int32_t h = head[col->parent[j]];
-            bbase[j] = blen[h] > 0 ? bbase[h] * pow(fmin(1, blen[j] / blen[h]), ratio_power) : tip_r;
-        }
     global[0] = seed;
     sy_code rc = SY_OK;
     for (size_t j = 1; j < n && !rc; j++) {
         int32_t p = col->parent[j], gp = global[p], h = head[j];
         int on = cont[p] == (int32_t)j;
+        if (h == (int32_t)j) { /* j starts a lateral off branch head[p] */
+            int32_t hp = head[p];
+            int of_limb = hp == 0 || (col->parent[hp] == 0 && !limb->ends);
+            int level = (of_limb ? sk->order[seed] : sk->order[gp]) + 1;
+            double Lp = blen[of_limb ? 0 : hp], rp = bbase[of_limb ? 0 : hp];
+            double off = of_limb ? limb->offset + along[p] - (hp == 0 ? limb->length : 0) : along[p];
+            if (level >= 2 && level < o->levels && o->level_length[level] > 0 && Lp > 0) {
+                double len = o->level_length[level] * fmax(0, Lp - 0.6 * off);
+                bbase[j] = fmax(tip_r, rp * pow(fmin(1, len / Lp), ratio_power));
+            } else
+                bbase[j] = blen[hp] > 0 ? bbase[hp] * pow(fmin(1, blen[j] / blen[hp]), ratio_power) : tip_r;
+        }
         double b = h == 0 ? sk->radius[seed] : bbase[h], e = fmin(b, tip_r);
         double a0 = h == 0 ? limb->length : 0, t = blen[h] > a0 ? (along[j] - a0) / (blen[h] - a0) : 1;
         double r = b + (e - b) * t, cap = (on ? 1.0 : 0.9) * sk->radius[gp];
@@ -1289,7 +1319,7 @@ static sy_code scaffold_to_skeleton(const sy_colony *col, const seed_limb *limb,
         int32_t branch = on ? sk->branch[gp] : so->next_branch++;
         global[j] = sy_skeleton_add(sk, col->pos + 3 * j, (float)(r < cap ? r : cap), gp, order, branch, err);
         if (global[j] < 0) rc = SY_EINTERNAL;
-        else rep->nodes_added++;
+        else rep->nodes_added++, rep->scaffold_nodes++;
     }
     return rc;
 }
@@ -1329,7 +1359,7 @@ static sy_code grow_scaffold(const lobe_grid *g, const double *occ_c, size_t n_o
         rc = sy_colony_grow(&col, sp, 1, att, n_att, &co, err);
         if (!rc && col.n > 1)
             rc = scaffold_to_skeleton(&col, limb, seed, o->ratio_power > 0 ? o->ratio_power : SCAFFOLD_RATIO_POWER,
-                                      tip_r, so, rep, err);
+                                      tip_r, o, so, rep, err);
         sy_colony_free(&col);
     }
     free(att), free(s);
@@ -1870,15 +1900,21 @@ static sy_code seed_limbs_build(const sy_skeleton *skel, const sy_clusters *lobe
     /* Traced twigs at or beyond each node: each lobe's count at its seed,
      * summed children before parents (the skeleton's breadth-first order
      * read backwards; parent[i] < i is not given). */
-    double *beyond = calloc(skel->n + 1, sizeof *beyond);
+    double *beyond = calloc(skel->n + 1, sizeof *beyond), *arc = calloc(skel->n + 1, sizeof *arc);
     int32_t *first = malloc((skel->n + 1) * sizeof *first), *sib = malloc((skel->n + 1) * sizeof *sib),
             *bfs = malloc((skel->n + 1) * sizeof *bfs);
-    if (!beyond || !first || !sib || !bfs) {
-        free(len), free(base), free(taker), free(beyond), free(first), free(sib), free(bfs);
+    if (!beyond || !arc || !first || !sib || !bfs) {
+        free(len), free(base), free(taker), free(beyond), free(arc), free(first), free(sib), free(bfs);
         return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
     }
     sy_skeleton_children(skel, first, sib);
     size_t reached = sy_skeleton_breadth_first(skel, first, sib, bfs);
+    /* Each node's distance along its branch from the branch's first node (a
+     * lobe's seed's offset on its limb, for its laterals' lengths). */
+    for (size_t k = 0; k < reached; k++) {
+        int32_t v = bfs[k], p = skel->parent[v];
+        arc[v] = (p >= 0 && skel->branch[p] == skel->branch[v] ? arc[p] : 0) + (p >= 0 ? sy_skeleton_edge_length(skel, (size_t)v) : 0);
+    }
     for (size_t c = 0; c < n_lobes; c++) beyond[lobes->items[c].seed] += (double)lobes->items[c].n_twigs;
     for (size_t k = reached; k-- > 0;) {
         int32_t v = bfs[k], p = skel->parent[v];
@@ -1890,6 +1926,7 @@ static sy_code seed_limbs_build(const sy_skeleton *skel, const sy_clusters *lobe
         seed_limb *l = &out[c];
         memset(l, 0, sizeof *l);
         l->length = len[b], l->base_radius = base[b], l->on_trunk = skel->order[seed] == 0;
+        l->offset = arc[seed];
         if (l->on_trunk) l->length = fmax(l->length, height);
         l->twig_share = beyond[seed] > 0 ? (double)lobes->items[c].n_twigs / beyond[seed] : 0;
         if (taker[seed] == -2) taker[seed] = (int32_t)c;
@@ -1899,7 +1936,7 @@ static sy_code seed_limbs_build(const sy_skeleton *skel, const sy_clusters *lobe
             sy_v3_normalize(l->dir);
         }
     }
-    free(len), free(base), free(taker), free(beyond);
+    free(len), free(base), free(taker), free(beyond), free(arc);
     return SY_OK;
 }
 
@@ -2121,6 +2158,7 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
         rep.patches += r->patches, rep.docks_filled += r->docks_filled, rep.docks_outside += r->docks_outside;
         rep.docks_depth += r->docks_depth, rep.docks_full += r->docks_full, rep.docks_rejected += r->docks_rejected;
         rep.nodes_added += r->nodes_added, rep.leaves_in_hull += r->leaves_in_hull, rep.coverage += r->coverage;
+        rep.scaffold_nodes += r->scaffold_nodes;
         occupied += w->occupied, cells[0] += w->cells[0], cells[1] += w->cells[1];
     }
     for (size_t c = 0; c < n_lobes; c++) lobe_work_free(&work[c]);

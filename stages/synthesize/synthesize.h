@@ -27,6 +27,8 @@
 #include "stages/core/status.h"
 #include "stages/synthesize/branchlets.h"
 
+#define SY_SYNTH_WP_LEVELS 4 /* Weber & Penn's stem levels, trunk included (species/params.h SY_WP_LEVELS) */
+
 typedef struct {
     uint64_t seed;          /* per-lobe random streams derive from it and the lobe's index */
     float leaf_size;        /* leaf card length, metres (> 0) */
@@ -42,6 +44,9 @@ typedef struct {
                                * beside the scan's points: docs/synthesize.md) */
     int grid;               /* lobe grid cells along its longest side (default 16) */
     float ratio_power;      /* Weber & Penn's RatioPower of the species: the hidden limbs' radii (0: 1.2) */
+    float level_length[SY_SYNTH_WP_LEVELS]; /* Weber & Penn's nLength of the species' stem levels 0..3: how long a
+                                               hidden lateral would grow, so how thick it starts (0: unknown) */
+    int levels;             /* the species' stem levels, Weber & Penn's Levels (0: unknown; the lengths unused) */
     float down_angle[2], down_angle_v[2]; /* the species' DownAngle and its variation, levels 1 and 2, degrees:
                                              the angles the hidden limbs branch at (0: 25 to 90) */
     int literal_eq33;       /* 1: eq. 3.3 as printed, max/min thickness ratio x (v_r . v_d), minimised */
@@ -65,6 +70,7 @@ typedef struct {
                                  * the lobe's twigs were grown toward its returns (sy_synth_bare_reason) */
     size_t patches, docks_filled, docks_outside, docks_depth, docks_full, docks_rejected;
     size_t nodes_added, leaves;
+    size_t scaffold_nodes;      /* of nodes_added, the hidden limbs' (the scaffold; in each lobe its first nodes) */
     size_t nodes_pruned;        /* of nodes_added, those dropped again: bark beyond every leaf of its lobe
                                  * (merge_lobe); out->n = skel->n + nodes_added - nodes_pruned */
     size_t leaves_in_hull;      /* leaves inside their lobe's hull or within 5 cm of it (exact test) */
