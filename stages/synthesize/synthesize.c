@@ -297,8 +297,75 @@ static int occ_bit(const sy_cluster *c, const float lo[3], const float hi[3], co
     return (c->occupancy[bit >> 3] >> (bit & 7)) & 1;
 }
 
-static sy_code grid_build(const sy_cluster *c, int cells, double density, double leaf_area, uint64_t key, lobe_grid *g,
-                          sy_error *err)
+/* Each cell's chamfer distance to the lobe's occupied cells (two passes,
+ * 26 neighbours), on a copy of the grid with a border of unreached cells,
+ * so every cell reads its neighbours without bounds tests (a border cell
+ * never wins: big plus a step rounds to big). */
+static sy_code grid_distances(lobe_grid *g, sy_error *err)
+{
+    const float big = 1e9f;
+    const ptrdiff_t px = 1, py = g->d[0] + 2, pz = (ptrdiff_t)(g->d[0] + 2) * (g->d[1] + 2);
+    float *pad = malloc((size_t)pz * (size_t)(g->d[2] + 2) * sizeof *pad);
+    if (!pad) return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+    for (ptrdiff_t i = 0; i < pz * (g->d[2] + 2); i++) pad[i] = big;
+    for (int z = 0, i = 0; z < g->d[2]; z++)
+        for (int y = 0; y < g->d[1]; y++)
+            for (int x = 0; x < g->d[0]; x++, i++)
+                if (g->occupied[i]) pad[(x + 1) * px + (y + 1) * py + (z + 1) * pz] = 0;
+    /* The 13 neighbours a forward pass has visited before a cell (the
+     * backward pass mirrors them): the index step and the distance to each. */
+    int n_nb = 0;
+    float nb_w[13];
+    ptrdiff_t nb_off[13];
+    for (int dz = -1; dz <= 0; dz++)
+        for (int dy = -1; dy <= 1; dy++)
+            for (int dx = -1; dx <= 1; dx++) {
+                if (dz == 0 && (dy > 0 || (dy == 0 && dx >= 0))) continue;
+                nb_off[n_nb] = dx * px + dy * py + dz * pz;
+                nb_w[n_nb++] = (float)(g->h * sqrt((double)(dx * dx + dy * dy + dz * dz)));
+            }
+    /* Row by row: the 12 neighbours in rows the pass has finished, for the
+     * whole row at once (independent, so the compiler vectorises them),
+     * then the one before each cell in its own row, in the pass's order.
+     * A minimum of the same sums in another order: the same distances. */
+    float *row = malloc((size_t)g->d[0] * sizeof *row);
+    if (!row) {
+        free(pad);
+        return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+    }
+    for (int pass = 0; pass < 2; pass++) {
+        int s = pass ? -1 : 1;
+        for (int zz = 0; zz < g->d[2]; zz++)
+            for (int yy = 0; yy < g->d[1]; yy++) {
+                int y = pass ? g->d[1] - 1 - yy : yy, z = pass ? g->d[2] - 1 - zz : zz;
+                float *r0 = pad + px + (y + 1) * py + (z + 1) * pz; /* the row's cell x = 0 */
+                for (int x = 0; x < g->d[0]; x++) row[x] = r0[x];
+                for (int k = 0; k < n_nb; k++) {
+                    if (nb_off[k] == -px) continue; /* the cell before, in this row: below */
+                    const float *q = r0 + s * nb_off[k], w = nb_w[k];
+                    for (int x = 0; x < g->d[0]; x++) {
+                        float c = q[x] + w;
+                        row[x] = c < row[x] ? c : row[x];
+                    }
+                }
+                const float w = (float)g->h; /* the step to the cell before: one cell */
+                for (int xx = 0; xx < g->d[0]; xx++) {
+                    int x = pass ? g->d[0] - 1 - xx : xx;
+                    float c = r0[x - s] + w;
+                    r0[x] = c < row[x] ? c : row[x];
+                }
+            }
+    }
+    free(row);
+    for (int z = 0, i = 0; z < g->d[2]; z++)
+        for (int y = 0; y < g->d[1]; y++)
+            for (int x = 0; x < g->d[0]; x++, i++) g->cell[i].dist = pad[(x + 1) * px + (y + 1) * py + (z + 1) * pz];
+    free(pad);
+    return SY_OK;
+}
+
+static sy_code grid_build(const sy_cluster *c, int cells, double density, double leaf_area, uint64_t key,
+                          int distances, lobe_grid *g, sy_error *err)
 {
     memset(g, 0, sizeof *g);
     g->hull = c;
@@ -426,68 +493,12 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
             }
     if (g->n_occupied)
         for (int k = 0; k < 3; k++) g->centroid[k] = (float)(cs[k] / (double)g->n_occupied);
-    /* Chamfer distance to the occupied cells (two passes, 26 neighbours), on
-     * a copy of the grid with a border of unreached cells, so every cell
-     * reads its neighbours without bounds tests (a border cell never wins:
-     * big plus a step rounds to big). */
-    const float big = 1e9f;
-    const ptrdiff_t px = 1, py = g->d[0] + 2, pz = (ptrdiff_t)(g->d[0] + 2) * (g->d[1] + 2);
-    float *pad = malloc((size_t)pz * (size_t)(g->d[2] + 2) * sizeof *pad);
-    if (!pad) return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
-    for (ptrdiff_t i = 0; i < pz * (g->d[2] + 2); i++) pad[i] = big;
-    for (int z = 0, i = 0; z < g->d[2]; z++)
-        for (int y = 0; y < g->d[1]; y++)
-            for (int x = 0; x < g->d[0]; x++, i++)
-                if (g->occupied[i]) pad[(x + 1) * px + (y + 1) * py + (z + 1) * pz] = 0;
-    /* The 13 neighbours a forward pass has visited before a cell (the
-     * backward pass mirrors them): the index step and the distance to each. */
-    int n_nb = 0;
-    float nb_w[13];
-    ptrdiff_t nb_off[13];
-    for (int dz = -1; dz <= 0; dz++)
-        for (int dy = -1; dy <= 1; dy++)
-            for (int dx = -1; dx <= 1; dx++) {
-                if (dz == 0 && (dy > 0 || (dy == 0 && dx >= 0))) continue;
-                nb_off[n_nb] = dx * px + dy * py + dz * pz;
-                nb_w[n_nb++] = (float)(g->h * sqrt((double)(dx * dx + dy * dy + dz * dz)));
-            }
-    /* Row by row: the 12 neighbours in rows the pass has finished, for the
-     * whole row at once (independent, so the compiler vectorises them),
-     * then the one before each cell in its own row, in the pass's order.
-     * A minimum of the same sums in another order: the same distances. */
-    float *row = malloc((size_t)g->d[0] * sizeof *row);
-    if (!row) {
-        free(pad);
-        return sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+    /* Only patches read the distances (patch_fit): a lobe whose traced
+     * twigs are its wood gets none, and skips them. */
+    if (distances) {
+        sy_code rc = grid_distances(g, err);
+        if (rc) return rc;
     }
-    for (int pass = 0; pass < 2; pass++) {
-        int s = pass ? -1 : 1;
-        for (int zz = 0; zz < g->d[2]; zz++)
-            for (int yy = 0; yy < g->d[1]; yy++) {
-                int y = pass ? g->d[1] - 1 - yy : yy, z = pass ? g->d[2] - 1 - zz : zz;
-                float *r0 = pad + px + (y + 1) * py + (z + 1) * pz; /* the row's cell x = 0 */
-                for (int x = 0; x < g->d[0]; x++) row[x] = r0[x];
-                for (int k = 0; k < n_nb; k++) {
-                    if (nb_off[k] == -px) continue; /* the cell before, in this row: below */
-                    const float *q = r0 + s * nb_off[k], w = nb_w[k];
-                    for (int x = 0; x < g->d[0]; x++) {
-                        float c = q[x] + w;
-                        row[x] = c < row[x] ? c : row[x];
-                    }
-                }
-                const float w = (float)g->h; /* the step to the cell before: one cell */
-                for (int xx = 0; xx < g->d[0]; xx++) {
-                    int x = pass ? g->d[0] - 1 - xx : xx;
-                    float c = r0[x - s] + w;
-                    r0[x] = c < row[x] ? c : row[x];
-                }
-            }
-    }
-    free(row);
-    for (int z = 0, i = 0; z < g->d[2]; z++)
-        for (int y = 0; y < g->d[1]; y++)
-            for (int x = 0; x < g->d[0]; x++, i++) g->cell[i].dist = pad[(x + 1) * px + (y + 1) * py + (z + 1) * pz];
-    free(pad);
     const size_t sx = 1, sy = (size_t)g->d[0], sz = (size_t)g->d[0] * (size_t)g->d[1];
     /* soft: inside dilated by the 3 x 3 x 3 cube, one axis at a time. */
     uint8_t *tmp = malloc(g->n);
@@ -541,12 +552,14 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
 }
 
 /* A leaf counted in cell c's block; once the block is full, none of its
- * cells has room. */
+ * cells has room (cleared when it fills: a traced twig's cards go on past
+ * its block's capacity, and clearing the block's cells again for each
+ * was a third of the real scans' synthesis). */
 static void block_add_leaf(lobe_grid *g, long c)
 {
     size_t b = block_of(g, c);
     if (g->block[b]++ == 0) g->n_filled++;
-    if (g->block[b] < g->block_cap[b]) return;
+    if (g->block[b] < g->block_cap[b] || g->block[b] - 1 >= g->block_cap[b]) return;
     int bx = (int)(b % (size_t)g->bd[0]), by = (int)(b / (size_t)g->bd[0] % (size_t)g->bd[1]),
         bz = (int)(b / ((size_t)g->bd[0] * (size_t)g->bd[1]));
     for (int z = bz * g->bk; z < (bz + 1) * g->bk && z < g->d[2]; z++)
@@ -1594,7 +1607,8 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     double leaf_area = 0.5 * o->leaf_size * o->leaf_size; /* a card about half as wide as long */
     uint64_t rng = o->seed * 0x9E3779B97F4A7C15ull ^ ((uint64_t)lobe_index + 1) * 0xD1B54A32D192ED03ull;
     lobe_grid g;
-    sy_code rc = grid_build(c, o->grid, density, leaf_area, sy_mix64(rng ^ 0x5851F42D4C957F2Dull), &g, err);
+    int twigs = c->n_twigs && !o->no_twigs; /* its traced twigs are its wood: no patches */
+    sy_code rc = grid_build(c, o->grid, density, leaf_area, sy_mix64(rng ^ 0x5851F42D4C957F2Dull), !twigs, &g, err);
     size_t placed0 = rep->patches;
     int bare_reason = -1;
     if (!rc && g.n_occupied == 0) bare_reason = 0;
@@ -1631,7 +1645,6 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
     double min_start = sk->radius[seed] * 0.9 < max_thick ? sk->radius[seed] * 0.9 : max_thick;
     size_t lobe_patches = 0;
     size_t scaffold0 = rep->nodes_added;
-    int twigs = c->n_twigs && !o->no_twigs;
     if (!rc && bare_reason < 0 && twigs)
         rc = twigs_to_skeleton(c, limb, seed, min_thick, so, rep, err);
     else if (!rc && bare_reason < 0)
