@@ -363,20 +363,25 @@ static int returns(const char *scan)
 
 /* The reference asset's drawn surface every 2 cm against the asset's (as
  * `sylva eval --points REF.glb ASSET.glb`). */
-static int lookglb(const char *ref, const char *asset)
+static int lookglb(const char *ref, const char *asset, const char *png)
 {
     sy_error err = {0};
     double *rt = NULL, *at = NULL, *pts = NULL, *pts_w = NULL;
     size_t nr = 0, na = 0, np = 0;
     sy_gltf_cutout rc_cut = {0}, ac_cut = {0};
     sy_silhouette_metrics sm;
-    int rc = sy_gltf_read_surface(ref, &rt, &nr, &rc_cut, &err) || sy_gltf_read_surface(asset, &at, &na, &ac_cut, &err) ||
+    unsigned char *masks = png ? calloc((size_t)SY_SILHOUETTE_VIEWS * SY_SILHOUETTE_RES * SY_SILHOUETTE_RES, 1) : NULL;
+    int rc = (png && !masks) || sy_gltf_read_surface(ref, &rt, &nr, &rc_cut, &err) ||
+             sy_gltf_read_surface(asset, &at, &na, &ac_cut, &err) ||
              !(pts = sy_drawn_surface_points(rt, nr, &rc_cut, 0.02, &np, &pts_w, &err)) ||
-             sy_silhouette_metrics_compute(at, na, &ac_cut, pts, pts_w, np, &sm, NULL, &err);
-    if (rc) fprintf(stderr, "%s\n", err.msg);
+             sy_silhouette_metrics_compute(at, na, &ac_cut, pts, pts_w, np, &sm, masks, &err) ||
+             (png && sy_silhouette_png(masks, png, &err));
+    if (rc) fprintf(stderr, "%s\n", err.msg[0] ? err.msg : "out of memory");
     else
-        printf("iou_mean=%.3f iou_min=%.3f profile_correlation=%.3f height_error_rel=%+.3f crown_width_error_rel=%+.3f\n",
-               sm.iou_mean, sm.iou_min, sm.profile_correlation, sm.height_error, sm.width_error);
+        printf("iou_mean=%.3f iou_min=%.3f precision=%.3f recall=%.3f profile_correlation=%.3f height_error_rel=%+.3f "
+               "crown_width_error_rel=%+.3f\n",
+               sm.iou_mean, sm.iou_min, sm.precision, sm.recall, sm.profile_correlation, sm.height_error, sm.width_error);
+    free(masks);
     sy_gltf_cutout_free(&rc_cut);
     sy_gltf_cutout_free(&ac_cut);
     free(pts);
@@ -391,9 +396,9 @@ int main(int argc, char **argv)
     sy_set_threads(1);
     if (argc >= 3 && strcmp(argv[1], "decode") == 0) return decode(argv[2], argc > 3 ? atoi(argv[3]) > 0 ? atoi(argv[3]) : 5 : 5);
     if ((argc == 4 || argc == 5) && strcmp(argv[1], "look") == 0) return look(argv[2], argv[3], argc == 5 ? argv[4] : NULL);
-    if (argc == 4 && strcmp(argv[1], "lookglb") == 0) return lookglb(argv[2], argv[3]);
+    if ((argc == 4 || argc == 5) && strcmp(argv[1], "lookglb") == 0) return lookglb(argv[2], argv[3], argc == 5 ? argv[4] : NULL);
     if (argc == 3 && strcmp(argv[1], "returns") == 0) return returns(argv[2]);
     if (argc == 5 && strcmp(argv[1], "compare") == 0) return compare(argv[2], strtoull(argv[3], NULL, 10), argv[4]);
-    fprintf(stderr, "usage: bench_synthesize decode TREE.sylva [REPS] | look SCAN MESH.obj [PNG] | returns SCAN | lookglb REF.glb ASSET.glb | compare SPECIES SEED TREE.sylva\n");
+    fprintf(stderr, "usage: bench_synthesize decode TREE.sylva [REPS] | look SCAN MESH.obj [PNG] | returns SCAN | lookglb REF.glb ASSET.glb [PNG] | compare SPECIES SEED TREE.sylva\n");
     return 2;
 }
