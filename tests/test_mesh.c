@@ -642,6 +642,52 @@ static void bent_trunk_branches_sit_on_the_parent(void **state)
     sy_skeleton_free(&s);
 }
 
+/* The impostor's two cards cross along the trunk, not on a vertical line
+ * through its root: a trunk bowed 0.58 m off the vertical at its first
+ * limbs (3 m) showed twice from between upright cards. Each card row up to
+ * there lies on the trunk's axis to 4 cm (a quarter of its base radius; the
+ * rows' lines read a 0.5 m stretch of a bowed trunk), and the rows above
+ * hold it. */
+static void impostor_cards_follow_a_bowed_trunk(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_error err;
+    int32_t trunk[9], prev;
+    const float bend = 0.6f;
+    add_trunk(&s, bend, 0.15f, 0.012f, trunk);
+    for (int b = 0; b < 2; b++) { /* two limbs at 3 m, the crown's base */
+        prev = trunk[6];
+        for (int i = 1; i <= 3; i++) {
+            float d = b ? -1.0f : 1.0f;
+            float p[3] = {s.pos[3 * trunk[6]] + 0.3f * d * (float)i, 0.3f * (float)i, s.pos[3 * trunk[6] + 2] + 0.3f * (float)i};
+            prev = sy_skeleton_add(&s, p, 0.05f - 0.01f * (float)i, prev, 1, 1 + b, &err);
+        }
+    }
+    sy_mesh_options o = sy_mesh_options_default();
+    o.impostor_size = 64;
+    sy_asset a;
+    mesh_tree(&s, NULL, &o, &a);
+    const sy_mesh *cards = &a.meshes[a.lods[a.n_lods - 1].meshes[0]];
+    assert_string_equal(cards->name, "impostor");
+    const float *root = a.wind[0].anchor;
+    size_t half = cards->n_vertices / 2, checked = 0; /* the first card faces +Z, the second +X */
+    float worst = 0, top_x = 0;
+    for (size_t i = 0; i < cards->n_vertices; i++) {
+        const float *p = cards->position + 3 * i;
+        float h = p[1] - root[1], want_x = root[0] + bend * sinf(0.6f * fminf(h, 3.0f));
+        if (i >= half && h > 0.3f && h <= 3.0f) worst = fmaxf(worst, fabsf(p[0] - want_x)), checked++;
+        if (i >= half && h > 3.5f) top_x = p[0];
+        if (i < half) assert_true(fabsf(p[2] - root[2]) < 0.03f); /* the trunk does not lean in depth */
+    }
+    printf("side card rows on the trunk: %zu, worst %.3f m off its axis; above the crown's base at x %.3f (trunk %.3f)\n",
+           checked, worst, top_x, root[0] + bend * sinf(1.8f));
+    assert_true(checked >= 4 && worst < 0.04f); /* upright cards: 0.58 m at 3 m */
+    assert_true(fabsf(top_x - (root[0] + bend * sinf(1.8f))) < 0.1f);
+    sy_asset_free(&a);
+    sy_skeleton_free(&s);
+}
+
 /* A whorl: four limbs, each 0.59 of the trunk's radius, leave one trunk
  * node about a quarter turn apart. At LOD1 the trunk has eight sides and
  * the limbs' holes overlap all round it, yet one column boundary between
@@ -1094,9 +1140,16 @@ static void random_tree_meets_every_property(void **state)
                 lo[k] = fminf(lo[k], w), hi[k] = fmaxf(hi[k], w);
             }
         }
-    /* card 0 maps x -> u in [0, 0.5], card 1 maps -z -> [0.5, 1]; y -> v */
+    /* card 0 (the first half of the vertices) maps x -> u in [0, 0.5], card
+     * 1 maps -z -> [0.5, 1]; y -> v */
     const float *cp = cards->position;
-    float cx0 = cp[0], cx1 = cp[3], cy0 = cp[1], cy1 = cp[7], cz0 = cp[3 * 4 + 2], cz1 = cp[3 * 5 + 2];
+    float cx0 = INFINITY, cx1 = -INFINITY, cy0 = INFINITY, cy1 = -INFINITY, cz0 = -INFINITY, cz1 = INFINITY;
+    for (size_t i = 0; i < cards->n_vertices; i++) {
+        const float *p = cp + 3 * i;
+        cy0 = fminf(cy0, p[1]), cy1 = fmaxf(cy1, p[1]);
+        if (i < cards->n_vertices / 2) cx0 = fminf(cx0, p[0]), cx1 = fmaxf(cx1, p[0]);
+        else cz0 = fmaxf(cz0, p[2]), cz1 = fminf(cz1, p[2]);
+    }
     for (int tile = 0; tile < 2; tile++) {
         int bx0 = W, bx1 = -1, by0 = H, by1 = -1;
         size_t covered = 0;
@@ -1268,6 +1321,7 @@ int main(void)
         cmocka_unit_test(lobed_trunk_ripples_with_lobes_and_depth),
         cmocka_unit_test(branches_sit_on_a_lobed_trunk),
         cmocka_unit_test(bent_trunk_branches_sit_on_the_parent),
+        cmocka_unit_test(impostor_cards_follow_a_bowed_trunk),
         cmocka_unit_test(whorl_welds_as_a_band),
         cmocka_unit_test(crowded_and_tip_children_slide_to_weld),
         cmocka_unit_test(tip_children_of_grid_twigs_weld),

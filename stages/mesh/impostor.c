@@ -1,4 +1,4 @@
-/* Impostor: two crossed vertical cards through the trunk axis, textured with
+/* Impostor: two crossed cards along the trunk axis, textured with
  * orthographic renders of LOD0 made by a small z-buffered CPU rasteriser:
  * an albedo atlas (bark and leaf colours, the leaf texture's alpha when there
  * is one) and a normal map of the same surfaces in the cards' tangent space,
@@ -283,43 +283,68 @@ static void render_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
     }
 }
 
-/* Two quads: plane z = zc facing +Z (atlas u in [0, 0.5]) and plane x = xc
- * facing +X (u in [0.5, 1], image right = -Z). */
-static sy_code card_mesh(const float lo[3], const float hi[3], float xc, float zc, int material, sy_mesh *m,
-                         sy_error *err)
+/* Rows of the cards: they bend with the trunk between them. */
+#define CARD_ROWS 8
+
+/* Two cards of CARD_ROWS strips: one facing +Z (atlas u in [0, 0.5]), one
+ * facing +X (u in [0.5, 1], image right = -Z), rows at heights lo[1] ..
+ * hi[1]. Row r of the first lies at depth z = zc + off[r][1], of the second
+ * at x = xc + off[r][0], so the two cross on the trunk's axis (trunk_path). */
+static sy_code card_mesh(const float lo[3], const float hi[3], float xc, float zc, const float off[CARD_ROWS + 1][2],
+                         int material, sy_mesh *m, sy_error *err)
 {
     memset(m, 0, sizeof *m);
     snprintf(m->name, sizeof m->name, "impostor");
     m->material = material;
-    m->n_vertices = 8;
-    m->n_indices = 12;
-    m->position = sy_calloc(8, 3 * sizeof(float), err, "impostor");
-    m->normal = sy_calloc(8, 3 * sizeof(float), err, "impostor");
-    m->tangent = sy_calloc(8, 4 * sizeof(float), err, "impostor");
-    m->uv = sy_calloc(8, 2 * sizeof(float), err, "impostor");
-    m->indices = sy_calloc(12, sizeof(uint32_t), err, "impostor");
+    const size_t nv = 4 * (CARD_ROWS + 1), ni = 12 * CARD_ROWS;
+    m->n_vertices = nv;
+    m->n_indices = ni;
+    m->position = sy_calloc(nv, 3 * sizeof(float), err, "impostor");
+    m->normal = sy_calloc(nv, 3 * sizeof(float), err, "impostor");
+    m->tangent = sy_calloc(nv, 4 * sizeof(float), err, "impostor");
+    m->uv = sy_calloc(nv, 2 * sizeof(float), err, "impostor");
+    m->indices = sy_calloc(ni, sizeof(uint32_t), err, "impostor");
     if (!m->position || !m->normal || !m->tangent || !m->uv || !m->indices) {
         sy_mesh_free(m);
         return SY_EINTERNAL;
     }
-    const float pos[8][3] = {{lo[0], lo[1], zc}, {hi[0], lo[1], zc}, {hi[0], hi[1], zc}, {lo[0], hi[1], zc},
-                             {xc, lo[1], hi[2]}, {xc, lo[1], lo[2]}, {xc, hi[1], lo[2]}, {xc, hi[1], hi[2]}};
-    const float uv[8][2] = {{0, 1}, {0.5f, 1}, {0.5f, 0}, {0, 0}, {0.5f, 1}, {1, 1}, {1, 0}, {0.5f, 0}};
-    for (int i = 0; i < 8; i++) {
-        memcpy(m->position + 3 * i, pos[i], sizeof pos[i]);
-        memcpy(m->uv + 2 * i, uv[i], sizeof uv[i]);
-        int side = i >= 4;
-        m->normal[3 * i + (side ? 0 : 2)] = 1;
-        /* +u is +X on the first card and -Z on the second; cross(normal,
-         * tangent) is +Y on both, up the image: w = +1, the bitangent the
-         * normal map's green (glTF's convention, so an engine that derives
-         * its own tangents reads the map the same way). */
-        if (side) m->tangent[4 * i + 2] = -1;
-        else m->tangent[4 * i] = 1;
-        m->tangent[4 * i + 3] = 1;
-    }
-    const uint32_t ix[12] = {0, 1, 2, 0, 2, 3, 4, 5, 6, 4, 6, 7};
-    memcpy(m->indices, ix, sizeof ix);
+    const float dy = (hi[1] - lo[1]) / CARD_ROWS;
+    for (int side = 0; side < 2; side++)
+        for (int r = 0; r <= CARD_ROWS; r++) {
+            /* The card's slope across this row (central where it can), for its normal. */
+            int r0 = r > 0 ? r - 1 : r, r1 = r < CARD_ROWS ? r + 1 : r;
+            float slope = dy > 0 ? (off[r1][side ? 0 : 1] - off[r0][side ? 0 : 1]) / ((float)(r1 - r0) * dy) : 0;
+            float y = r == CARD_ROWS ? hi[1] : lo[1] + (float)r * dy, v = 1 - (float)r / CARD_ROWS;
+            for (int e = 0; e < 2; e++) {
+                size_t i = (size_t)(2 * (CARD_ROWS + 1) * side + 2 * r + e);
+                float *p = m->position + 3 * i, *n = m->normal + 3 * i, *t = m->tangent + 4 * i, *uv = m->uv + 2 * i;
+                float nl = 1 / sqrtf(1 + slope * slope);
+                p[1] = y;
+                if (side) {
+                    p[0] = xc + off[r][0], p[2] = e ? lo[2] : hi[2];
+                    n[0] = nl, n[1] = -slope * nl;
+                    t[2] = -1;
+                } else {
+                    p[0] = e ? hi[0] : lo[0], p[2] = zc + off[r][1];
+                    n[2] = nl, n[1] = -slope * nl;
+                    t[0] = 1;
+                }
+                /* +u is +X on the first card and -Z on the second; cross(normal,
+                 * tangent) is up the image on both: w = +1, the bitangent the
+                 * normal map's green (glTF's convention, so an engine that
+                 * derives its own tangents reads the map the same way). */
+                t[3] = 1;
+                uv[0] = 0.5f * (float)side + 0.5f * (float)e, uv[1] = v;
+            }
+        }
+    uint32_t *ix = m->indices;
+    for (uint32_t side = 0; side < 2; side++)
+        for (uint32_t r = 0; r < CARD_ROWS; r++) {
+            uint32_t a = 2 * (CARD_ROWS + 1) * side + 2 * r; /* a, a + 1 this row; a + 2, a + 3 the next */
+            const uint32_t q[6] = {a, a + 1, a + 3, a, a + 3, a + 2};
+            memcpy(ix, q, sizeof q);
+            ix += 6;
+        }
     return SY_OK;
 }
 
@@ -344,6 +369,61 @@ static void lod_bounds(const sy_asset *a, const sy_lod *l, float lo[3], float hi
     }
 }
 
+/* Where trunk wind branch t runs at each card row (card_mesh), less its
+ * root anchor: the least-squares line x(y), z(y) through its LOD0 bark
+ * vertices within a row of the row's height (its rings' centres lie on the
+ * axis; the line reads a bowed trunk at the row, not at its vertices' mean
+ * height), up to its lowest child's anchor or 30 % of the way to the top,
+ * whichever is higher; rows above hold the last offset (the leader's
+ * meanders in the crown do not bend the cards), rows without trunk
+ * vertices take the row below's, and rows below the root none. Upright
+ * cards through the root showed a leaning or bowed trunk twice from
+ * between them (the front card draws it at the root's depth, the side card
+ * at the root's x): PyTLidar's tree_1, its trunk 0.3 m off the vertical at
+ * its crown, stood on two trunks from 30 degrees. The trunk's chord (its
+ * wind axis) runs on through the crown, 18 m of meandering leader on that
+ * 12.7 m tree, and leaned cards along it the wrong way. */
+static void trunk_path(const sy_asset *a, const sy_lod *lod0, size_t t, const float lo[3], const float hi[3],
+                       float off[CARD_ROWS + 1][2])
+{
+    const float *root = a->wind[t].anchor, dy = (hi[1] - lo[1]) / CARD_ROWS;
+    float first_child = INFINITY;
+    for (size_t i = 0; i < a->n_wind; i++)
+        if (a->wind[i].parent == (int32_t)t) first_child = fminf(first_child, a->wind[i].anchor[1]);
+    float cap = fmaxf(isfinite(first_child) ? first_child : hi[1], root[1] + 0.3f * (hi[1] - root[1]));
+    /* Per row: count, sums of y, y^2, x, xy, z, zy, with y from the row's height. */
+    double S[CARD_ROWS + 1][7];
+    memset(S, 0, sizeof S);
+    for (int k = 0; k < lod0->n_meshes && dy > 0; k++) {
+        const sy_mesh *m = &a->meshes[lod0->meshes[k]];
+        if (!m->wind_branch) continue;
+        for (size_t v = 0; v < m->n_vertices; v++) {
+            const float *p = m->position + 3 * v;
+            if (m->wind_branch[v] != t || p[1] > cap) continue;
+            float f = (p[1] - lo[1]) / dy;
+            for (int r = (int)floorf(f); r <= (int)ceilf(f); r++) {
+                if (r < 0 || r > CARD_ROWS) continue;
+                double y = p[1] - (lo[1] + (float)r * dy), x = p[0] - root[0], z = p[2] - root[2];
+                double *q = S[r];
+                q[0]++, q[1] += y, q[2] += y * y, q[3] += x, q[4] += x * y, q[5] += z, q[6] += z * y;
+            }
+        }
+    }
+    float last[2] = {0, 0};
+    for (int r = 0; r <= CARD_ROWS; r++) {
+        const double *q = S[r];
+        float y = lo[1] + (float)r * dy;
+        if (y > root[1] && y <= cap && q[0] >= 3) {
+            double den = q[0] * q[2] - q[1] * q[1];
+            if (den > 1e-12 * q[0] * q[0]) { /* the lines' values at the row's height */
+                last[0] = (float)((q[3] * q[2] - q[1] * q[4]) / den), last[1] = (float)((q[5] * q[2] - q[1] * q[6]) / den);
+            } else
+                last[0] = (float)(q[3] / q[0]), last[1] = (float)(q[5] / q[0]);
+        }
+        off[r][0] = last[0], off[r][1] = last[1];
+    }
+}
+
 int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
 {
     float lo[3], hi[3];
@@ -356,10 +436,15 @@ int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
         float pad = MARGIN * fmaxf(hi[k] - lo[k], 1e-3f);
         lo[k] -= pad, hi[k] += pad;
     }
-    /* The cards cross on the trunk axis: the root stem's anchor. */
-    float xc = 0.5f * (lo[0] + hi[0]), zc = 0.5f * (lo[2] + hi[2]);
+    /* The cards cross on the trunk axis: through the root stem's anchor,
+     * bending with the trunk below its crown (trunk_path). */
+    float xc = 0.5f * (lo[0] + hi[0]), zc = 0.5f * (lo[2] + hi[2]), off[CARD_ROWS + 1][2];
+    memset(off, 0, sizeof off);
     for (size_t i = 0; i < a->n_wind; i++)
-        if (a->wind[i].parent < 0) xc = a->wind[i].anchor[0], zc = a->wind[i].anchor[2];
+        if (a->wind[i].parent < 0) {
+            xc = a->wind[i].anchor[0], zc = a->wind[i].anchor[2];
+            trunk_path(a, lod0, i, lo, hi, off);
+        }
 
     int W = size, H = size;
     unsigned char *rgba = calloc((size_t)W * (size_t)H, 4), *nrm = malloc((size_t)W * (size_t)H * 3);
@@ -451,7 +536,7 @@ int sy_impostor_build(sy_asset *a, const sy_lod *lod0, int size, sy_error *err)
     int mi = sy_asset_add_material(a, &mat, err);
     if (mi < 0) return -1;
     sy_mesh m;
-    if (card_mesh(lo, hi, xc, zc, mi, &m, err) != SY_OK) return -1;
+    if (card_mesh(lo, hi, xc, zc, off, mi, &m, err) != SY_OK) return -1;
     int idx = sy_asset_add_mesh(a, &m, err);
     if (idx < 0) sy_mesh_free(&m);
     return idx;
