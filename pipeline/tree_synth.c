@@ -77,7 +77,8 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
     if (species && species->ratio_power > 0) so.ratio_power = species->ratio_power;
     if (species) {
         so.levels = species->levels;
-        for (int l = 0; l < SY_SYNTH_WP_LEVELS && l < SY_WP_LEVELS; l++) so.level_length[l] = species->level[l].length;
+        _Static_assert(SY_SYNTH_WP_LEVELS == SY_WP_LEVELS, "synthesis takes every Weber & Penn level's length");
+        for (int l = 0; l < SY_WP_LEVELS; l++) so.level_length[l] = species->level[l].length;
     }
     for (int l = 0; species && l < 2; l++)
         so.down_angle[l] = species->level[l + 1].down_angle, so.down_angle_v[l] = species->level[l + 1].down_angle_v;

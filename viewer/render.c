@@ -324,66 +324,85 @@ static void attrib(GLuint vbo, int loc, int width, const float *data, size_t n)
     glEnableVertexAttribArray((GLuint)loc);
     glVertexAttribPointer((GLuint)loc, width, GL_FLOAT, GL_FALSE, 0, NULL);
 }
-/* Share of the n texels whose alpha (times scale) reaches cutoff (0..1). */
-static double alpha_coverage(const unsigned char *rgba, size_t n, double scale, float cutoff)
+/* The stored alpha of a texel of alpha a (0..255, unrounded) scaled by scale. */
+static double scaled_alpha(double a, double scale)
+{
+    double v = a * scale;
+    return v > 255 ? 255 : floor(v + 0.5);
+}
+
+/* Share of the n alphas (0..255, stride apart) that, scaled and stored,
+ * reach c (the cut-off times 255). */
+static double alpha_coverage(const double *alpha, size_t n, size_t stride, double scale, double c)
 {
     size_t hit = 0;
-    double c = 255.0 * cutoff;
-    for (size_t i = 0; i < n; i++) hit += rgba[4 * i + 3] * scale >= c;
+    for (size_t i = 0; i < n; i++) hit += scaled_alpha(alpha[i * stride], scale) >= c;
     return n ? (double)hit / (double)n : 0;
 }
 
+static double srgb_to_linear(double v) { return v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4); }
+static double linear_to_srgb(double v) { return v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1 / 2.4) - 0.055; }
+
 /* Uploads mip levels 1.. of an 8-bit RGBA alpha-tested texture (level 0
- * bound already) whose alpha keeps level 0's coverage at the cutoff
+ * bound already) whose alpha keeps level 0's coverage at the cut-off
  * (Castano 2010, "Computing alpha mipmaps"; Unity's "Mip Maps Preserve
- * Coverage"): each level is the 2 x 2 box mean of the one before, its alpha
- * scaled by the factor, found by bisection, at which as many texels pass
- * the test as at level 0. With plain box means (glGenerateMipmap) a leaf
- * texture of 15 % opaque texels lost every leaf a few levels down: the
- * weeping willow stood bare at 300 pixels tall, its impostor a green crown.
- * Returns 0, or -1 out of memory (the caller generates plain mips). */
-static int coverage_mips(const unsigned char *base, int w, int h, float cutoff, GLenum internal)
+ * Coverage"): each level is the 2 x 2 box mean of the one before (colour in
+ * linear light when srgb, as GL's own sRGB mips), its alpha scaled by the
+ * factor, found by bisection, at which as many texels pass the test as at
+ * level 0. The test is the shader's: texel alpha times the material's
+ * alpha factor (factor_alpha) against its cut-off (vertex colours, which
+ * no Sylva asset carries, are not counted). With plain box means
+ * (glGenerateMipmap) a leaf texture of 15 % opaque texels lost every leaf a
+ * few levels down: the weeping willow stood bare at 300 pixels tall, its
+ * impostor a green crown. Returns 0, or -1 (out of memory, or nothing can
+ * pass: the caller generates plain mips). */
+static int coverage_mips(const unsigned char *base, int w, int h, int srgb, float cutoff, double factor_alpha,
+                         GLenum internal)
 {
-    double want = alpha_coverage(base, (size_t)w * (size_t)h, 1, cutoff);
-    unsigned char *prev = malloc((size_t)w * (size_t)h * 4), *next = malloc((size_t)w * (size_t)h * 4 + 4),
-                  *scaled = malloc((size_t)w * (size_t)h * 4 + 4);
-    if (!prev || !next || !scaled) {
-        free(prev), free(next), free(scaled);
+    if (!(factor_alpha > 0)) return -1;
+    const double c = 255.0 * ((double)cutoff / factor_alpha);
+    size_t n0 = (size_t)w * (size_t)h;
+    double *prev = malloc(n0 * 4 * sizeof *prev), *next = malloc(n0 * 4 * sizeof *next);
+    unsigned char *level_px = malloc(n0 * 4);
+    if (!prev || !next || !level_px) {
+        free(prev), free(next), free(level_px);
         return -1;
     }
-    memcpy(prev, base, (size_t)w * (size_t)h * 4);
+    for (size_t i = 0; i < 4 * n0; i++) prev[i] = i % 4 < 3 && srgb ? srgb_to_linear(base[i] / 255.0) : base[i];
+    const double want = alpha_coverage(prev + 3, n0, 4, 1, c);
     for (int level = 1; w > 1 || h > 1; level++) {
         int nw = w > 1 ? w / 2 : 1, nh = h > 1 ? h / 2 : 1;
         for (int y = 0; y < nh; y++)
-            for (int x = 0; x < nw; x++)
-                for (int c = 0; c < 4; c++) {
-                    int x0 = 2 * x < w ? 2 * x : w - 1, x1 = 2 * x + 1 < w ? 2 * x + 1 : x0;
-                    int y0 = 2 * y < h ? 2 * y : h - 1, y1 = 2 * y + 1 < h ? 2 * y + 1 : y0;
-                    unsigned sum = prev[4 * ((size_t)y0 * w + x0) + c] + prev[4 * ((size_t)y0 * w + x1) + c] +
-                                   prev[4 * ((size_t)y1 * w + x0) + c] + prev[4 * ((size_t)y1 * w + x1) + c];
-                    next[4 * ((size_t)y * nw + x) + c] = (unsigned char)((sum + 2) / 4);
-                }
+            for (int x = 0; x < nw; x++) {
+                int x0 = 2 * x < w ? 2 * x : w - 1, x1 = 2 * x + 1 < w ? 2 * x + 1 : x0;
+                int y0 = 2 * y < h ? 2 * y : h - 1, y1 = 2 * y + 1 < h ? 2 * y + 1 : y0;
+                for (int k = 0; k < 4; k++)
+                    next[4 * ((size_t)y * nw + x) + k] = (prev[4 * ((size_t)y0 * w + x0) + k] + prev[4 * ((size_t)y0 * w + x1) + k] +
+                                                          prev[4 * ((size_t)y1 * w + x0) + k] + prev[4 * ((size_t)y1 * w + x1) + k]) / 4;
+            }
         size_t n = (size_t)nw * (size_t)nh;
         double lo = 0, hi = 1;
-        while (hi < 64 && alpha_coverage(next, n, hi, cutoff) < want) hi *= 2;
+        while (hi < 64 && alpha_coverage(next + 3, n, 4, hi, c) < want) hi *= 2;
         for (int it = 0; it < 16; it++) {
             double mid = 0.5 * (lo + hi);
-            if (alpha_coverage(next, n, mid, cutoff) < want) lo = mid;
+            if (alpha_coverage(next + 3, n, 4, mid, c) < want) lo = mid;
             else hi = mid;
         }
-        memcpy(scaled, next, n * 4);
         for (size_t i = 0; i < n; i++) {
-            double a = scaled[4 * i + 3] * hi;
-            scaled[4 * i + 3] = (unsigned char)(a > 255 ? 255 : a + 0.5);
+            for (int k = 0; k < 3; k++) {
+                double v = next[4 * i + k];
+                v = srgb ? 255 * linear_to_srgb(v) : v;
+                level_px[4 * i + k] = (unsigned char)(v < 0 ? 0 : v > 255 ? 255 : v + 0.5);
+            }
+            level_px[4 * i + 3] = (unsigned char)scaled_alpha(next[4 * i + 3], hi);
         }
-        glTexImage2D(GL_TEXTURE_2D, level, (GLint)internal, nw, nh, 0, GL_RGBA, GL_UNSIGNED_BYTE, scaled);
-        unsigned char *t = prev;
+        glTexImage2D(GL_TEXTURE_2D, level, (GLint)internal, nw, nh, 0, GL_RGBA, GL_UNSIGNED_BYTE, level_px);
+        double *t = prev;
         prev = next, next = t, w = nw, h = nh; /* the next level averages this one's unscaled alpha */
     }
-    free(prev), free(next), free(scaled);
+    free(prev), free(next), free(level_px);
     return 0;
 }
-
 
 static int upload_scene(renderer *r, gscene *g)
 {
@@ -398,9 +417,11 @@ static int upload_scene(renderer *r, gscene *g)
     /* Colour textures are sRGB-encoded (glTF 2.0 §3.9.2); data textures (normals, roughness,
      * HL2 coefficients, transmission factors) are linear. */
     char *srgb = calloc(s->n_textures + 1, 1);
-    float *cutoff = malloc((s->n_textures + 1) * sizeof *cutoff); /* alpha-tested base colours: their cutoff, else -1 */
-    if (!srgb || !cutoff) {
-        free(srgb), free(cutoff);
+    /* Alpha-tested base colours: their cut-off (else -1) and alpha factor. A texture that
+     * several materials share takes the first MASK one's; its levels serve the others too. */
+    float *cutoff = malloc((s->n_textures + 1) * sizeof *cutoff), *factor_a = malloc((s->n_textures + 1) * sizeof *factor_a);
+    if (!srgb || !cutoff || !factor_a) {
+        free(srgb), free(cutoff), free(factor_a);
         return -1;
     }
     for (size_t i = 0; i < s->n_textures; i++) cutoff[i] = -1;
@@ -409,14 +430,14 @@ static int upload_scene(renderer *r, gscene *g)
         if (m->base_color_texture >= 0) srgb[m->base_color_texture] = 1;
         if (m->diffuse_transmission_color_texture >= 0) srgb[m->diffuse_transmission_color_texture] = 1;
         if (m->base_color_texture >= 0 && m->alpha_mode == SY_GLTF_MASK && cutoff[m->base_color_texture] < 0)
-            cutoff[m->base_color_texture] = m->alpha_cutoff;
+            cutoff[m->base_color_texture] = m->alpha_cutoff, factor_a[m->base_color_texture] = m->base_color[3];
     }
     for (size_t i = 0; i < s->n_textures; i++) {
         const sy_gltf_texture *t = &s->textures[i];
         const sy_gltf_image *im = &s->images[t->image];
         if (im->width > max_tex || im->height > max_tex) {
             snprintf(r->msg, sizeof r->msg, "image %d is %dx%d, larger than this GL's %d", t->image, im->width, im->height, max_tex);
-            free(srgb), free(cutoff);
+            free(srgb), free(cutoff), free(factor_a);
             return -2;
         }
         glGenTextures(1, &g->textures[i]);
@@ -425,14 +446,15 @@ static int upload_scene(renderer *r, gscene *g)
         GLenum internal = srgb[i] ? GL_SRGB8_ALPHA8 : im->bits == 16 ? GL_RGBA16 : GL_RGBA8;
         glTexImage2D(GL_TEXTURE_2D, 0, internal, im->width, im->height, 0, GL_RGBA,
                      im->bits == 16 ? GL_UNSIGNED_SHORT : GL_UNSIGNED_BYTE, im->pixels);
-        if (cutoff[i] < 0 || im->bits != 8 || coverage_mips(im->pixels, im->width, im->height, cutoff[i], internal))
+        if (cutoff[i] < 0 || im->bits != 8 ||
+            coverage_mips(im->pixels, im->width, im->height, srgb[i], cutoff[i], factor_a[i], internal))
             glGenerateMipmap(GL_TEXTURE_2D);
         glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, t->wrap_s);
         glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, t->wrap_t);
         glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, t->min_filter > 0 ? t->min_filter : GL_LINEAR_MIPMAP_LINEAR);
         glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, t->mag_filter > 0 ? t->mag_filter : GL_LINEAR);
     }
-    free(srgb), free(cutoff);
+    free(srgb), free(cutoff), free(factor_a);
     for (size_t i = 0; i < s->n_primitives; i++) {
         const sy_gltf_primitive *p = &s->primitives[i];
         gprim *q = &g->prims[i];

@@ -20,10 +20,11 @@
  *     at each, then one of the scan's median spacing), by the same measure: what
  *     an asset that drew every return and nothing else would score.
  *
- *   bench_synthesize lookglb REFERENCE.glb ASSET.glb
+ *   bench_synthesize lookglb REFERENCE.glb ASSET.glb [MASKS.png]
  *     `sylva eval --points REFERENCE.glb ASSET.glb`'s silhouette figures
  *     alone (the same calls: LOD0 without proxy, the reference sampled every
- *     2 cm), without its distance metrics, which cost minutes on a grown tree.
+ *     2 cm), precision and recall with them, without its distance metrics,
+ *     which cost minutes on a grown tree. MASKS.png as for look.
  *   bench_synthesize compare SPECIES SEED TREE.sylva
  *     The asset decoded from TREE.sylva (a `sylva run --species SPECIES` of
  *     a simulated scan of that tree) against the true tree (`sylva grow`'s,
@@ -284,6 +285,26 @@ static int read_obj(const char *path, double **tri, size_t *n_tri)
     return 0;
 }
 
+/* The silhouette measure of triangles tri (cut: their cut-outs, or NULL)
+ * against points pts (weights w, or NULL); with png, the six views' masks
+ * drawn there as `sylva eval --png` draws them. Nonzero on failure (err). */
+static int silhouettes(const double *tri, size_t nt, const sy_gltf_cutout *cut, const double *pts, const double *w,
+                       size_t np, const char *png, sy_silhouette_metrics *m, sy_error *err)
+{
+    unsigned char *masks = png ? calloc((size_t)SY_SILHOUETTE_VIEWS * SY_SILHOUETTE_RES * SY_SILHOUETTE_RES, 1) : NULL;
+    if (png && !masks) return sy_fail(err, SY_EINTERNAL, "out of memory"), 1;
+    int rc = sy_silhouette_metrics_compute(tri, nt, cut, pts, w, np, m, masks, err) || (png && sy_silhouette_png(masks, png, err));
+    free(masks);
+    return rc;
+}
+
+static void print_silhouettes(const sy_silhouette_metrics *m)
+{
+    printf("iou_mean=%.3f iou_min=%.3f precision=%.3f recall=%.3f profile_correlation=%.3f height_error_rel=%+.3f "
+           "crown_width_error_rel=%+.3f\n",
+           m->iou_mean, m->iou_min, m->precision, m->recall, m->profile_correlation, m->height_error, m->width_error);
+}
+
 static int look(const char *scan, const char *obj, const char *png)
 {
     sy_error err = {0};
@@ -302,16 +323,13 @@ static int look(const char *scan, const char *obj, const char *png)
     sy_preprocess_result pr;
     double *pts = NULL;
     sy_silhouette_metrics m;
-    unsigned char *masks = png ? calloc((size_t)SY_SILHOUETTE_VIEWS * SY_SILHOUETTE_RES * SY_SILHOUETTE_RES, 1) : NULL;
-    int rc = (png && !masks) || sy_preprocess(&c, &po, &pr, &err) || !(pts = sy_cloud_world_points(&c, &err)) ||
-             sy_silhouette_metrics_compute(tri, nt, NULL, pts, NULL, c.n, &m, masks, &err) ||
-             (png && sy_silhouette_png(masks, png, &err));
-    free(masks);
+    int rc = sy_preprocess(&c, &po, &pr, &err) || !(pts = sy_cloud_world_points(&c, &err)) ||
+             silhouettes(tri, nt, NULL, pts, NULL, c.n, png, &m, &err);
     if (rc) fprintf(stderr, "%s\n", err.msg[0] ? err.msg : "out of memory");
-    else
-        printf("triangles=%zu iou_mean=%.3f iou_min=%.3f precision=%.3f recall=%.3f profile_correlation=%.3f "
-               "height_error_rel=%+.3f crown_width_error_rel=%+.3f\n",
-               nt, m.iou_mean, m.iou_min, m.precision, m.recall, m.profile_correlation, m.height_error, m.width_error);
+    else {
+        printf("triangles=%zu ", nt);
+        print_silhouettes(&m);
+    }
     free(pts);
     free(tri);
     sy_cloud_free(&c);
@@ -370,18 +388,11 @@ static int lookglb(const char *ref, const char *asset, const char *png)
     size_t nr = 0, na = 0, np = 0;
     sy_gltf_cutout rc_cut = {0}, ac_cut = {0};
     sy_silhouette_metrics sm;
-    unsigned char *masks = png ? calloc((size_t)SY_SILHOUETTE_VIEWS * SY_SILHOUETTE_RES * SY_SILHOUETTE_RES, 1) : NULL;
-    int rc = (png && !masks) || sy_gltf_read_surface(ref, &rt, &nr, &rc_cut, &err) ||
-             sy_gltf_read_surface(asset, &at, &na, &ac_cut, &err) ||
+    int rc = sy_gltf_read_surface(ref, &rt, &nr, &rc_cut, &err) || sy_gltf_read_surface(asset, &at, &na, &ac_cut, &err) ||
              !(pts = sy_drawn_surface_points(rt, nr, &rc_cut, 0.02, &np, &pts_w, &err)) ||
-             sy_silhouette_metrics_compute(at, na, &ac_cut, pts, pts_w, np, &sm, masks, &err) ||
-             (png && sy_silhouette_png(masks, png, &err));
+             silhouettes(at, na, &ac_cut, pts, pts_w, np, png, &sm, &err);
     if (rc) fprintf(stderr, "%s\n", err.msg[0] ? err.msg : "out of memory");
-    else
-        printf("iou_mean=%.3f iou_min=%.3f precision=%.3f recall=%.3f profile_correlation=%.3f height_error_rel=%+.3f "
-               "crown_width_error_rel=%+.3f\n",
-               sm.iou_mean, sm.iou_min, sm.precision, sm.recall, sm.profile_correlation, sm.height_error, sm.width_error);
-    free(masks);
+    else print_silhouettes(&sm);
     sy_gltf_cutout_free(&rc_cut);
     sy_gltf_cutout_free(&ac_cut);
     free(pts);

@@ -395,6 +395,7 @@ static void trunk_path(const sy_asset *a, const sy_lod *lod0, size_t t, const fl
     double S[CARD_ROWS + 1][7];
     memset(S, 0, sizeof S);
     for (int k = 0; k < lod0->n_meshes && dy > 0; k++) {
+        /* The level's meshes with wind branches are its bark tubes (leaves are instances). */
         const sy_mesh *m = &a->meshes[lod0->meshes[k]];
         if (!m->wind_branch) continue;
         for (size_t v = 0; v < m->n_vertices; v++) {

@@ -158,7 +158,7 @@ static void quat_from_basis(const double X[3], const double Y[3], const double Z
 /* ---- The lobe's grid ---- */
 /* What patch_fit reads of a cell, side by side. */
 typedef struct {
-    float dist;   /* distance (metres) to the nearest occupied cell */
+    float dist;   /* distance (metres) to the nearest occupied cell; 0 in a lobe with traced twigs (never read) */
     uint8_t soft; /* inside, or next to an inside cell: the hull as a soft constraint */
     uint8_t room; /* occupied, and its block holds fewer leaves than its cap (block_has_room) */
 } lobe_cell;
@@ -559,7 +559,7 @@ static void block_add_leaf(lobe_grid *g, long c)
 {
     size_t b = block_of(g, c);
     if (g->block[b]++ == 0) g->n_filled++;
-    if (g->block[b] < g->block_cap[b] || g->block[b] - 1 >= g->block_cap[b]) return;
+    if ((float)g->block[b] != g->block_cap[b]) return; /* block_cap is a whole number */
     int bx = (int)(b % (size_t)g->bd[0]), by = (int)(b / (size_t)g->bd[0] % (size_t)g->bd[1]),
         bz = (int)(b / ((size_t)g->bd[0] * (size_t)g->bd[1]));
     for (int z = bz * g->bk; z < (bz + 1) * g->bk && z < g->d[2]; z++)
@@ -1104,9 +1104,11 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
  * its limbs, where the grown pine has none). A lobe seeded part-way along a
  * limb hangs from it by its entry limb, and the laterals off that entry are
  * the limb's own next-level branches: level, length and offset are the
- * limb's (the seed's place on it plus the way along the entry). Past the
- * species' levels (where Weber & Penn hang leaves) and off the trunk, L
- * stays the lateral's length in the lobe: the species' length off the trunk
+ * limb's (the seed's place on it plus the way along the entry); a lateral
+ * off a lateral is a level further, its parent's length the one its radius
+ * stands for. Past the species' levels (where Weber & Penn hang leaves) and
+ * off the trunk, L stays the lateral's length in the lobe: the species'
+ * length off the trunk
  * (nLength L ShapeRatio) made every lateral of a trunk's lobe a limb, the
  * pine's and the sassafras' 2 cm branches 2.7 times their trees'.
  * docs/synthesize.md "Stop 44". */
@@ -1120,7 +1122,7 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
 /* The limb of the main skeleton a lobe's seed lies on. */
 typedef struct {
     double length, base_radius; /* of the seed's branch */
-    double offset;              /* the seed's distance along its branch from the branch's first node */
+    double offset;              /* the seed's distance along its branch from where the branch leaves its parent */
     double dir[3];              /* the way the limb runs at the seed (0 at a root) */
     int ends;                   /* the seed is the limb's last node */
     int on_trunk;               /* the seed's limb is the trunk (order 0) */
@@ -1293,6 +1295,8 @@ static sy_code scaffold_to_skeleton(const sy_colony *col, const seed_limb *limb,
     size_t n = col->n;
     int32_t cont[SCAFFOLD_MAX_NODES], head[SCAFFOLD_MAX_NODES], global[SCAFFOLD_MAX_NODES];
     double along[SCAFFOLD_MAX_NODES], blen[SCAFFOLD_MAX_NODES] = {0}, bbase[SCAFFOLD_MAX_NODES] = {0};
+    double wlen[SCAFFOLD_MAX_NODES]; /* per branch head: the length its radius stands for (the species' or its own) */
+    int level[SCAFFOLD_MAX_NODES];   /* per branch head: its Weber & Penn level */
     for (size_t j = 0; j < n; j++) {
         cont[j] = -1;
         if (j == 0 && !limb->ends) continue;
@@ -1309,6 +1313,7 @@ static sy_code scaffold_to_skeleton(const sy_colony *col, const seed_limb *limb,
         blen[head[j]] = fmax(blen[head[j]], along[j]);
     }
     global[0] = seed;
+    wlen[0] = blen[0], level[0] = sk->order[seed];
     sy_code rc = SY_OK;
     for (size_t j = 1; j < n && !rc; j++) {
         int32_t p = col->parent[j], gp = global[p], h = head[j];
@@ -1316,14 +1321,16 @@ static sy_code scaffold_to_skeleton(const sy_colony *col, const seed_limb *limb,
         if (h == (int32_t)j) { /* j starts a lateral off branch head[p] */
             int32_t hp = head[p];
             int of_limb = hp == 0 || (col->parent[hp] == 0 && !limb->ends);
-            int level = (of_limb ? sk->order[seed] : sk->order[gp]) + 1;
-            double Lp = blen[of_limb ? 0 : hp], rp = bbase[of_limb ? 0 : hp];
+            int lv = level[j] = (of_limb ? level[0] : level[hp]) + 1;
+            double Lp = of_limb ? blen[0] : wlen[hp], rp = bbase[of_limb ? 0 : hp];
             double off = of_limb ? limb->offset + along[p] - (hp == 0 ? limb->length : 0) : along[p];
-            if (level >= 2 && level < o->levels && o->level_length[level] > 0 && Lp > 0) {
-                double len = o->level_length[level] * fmax(0, Lp - 0.6 * off);
-                bbase[j] = fmax(tip_r, rp * pow(fmin(1, len / Lp), ratio_power));
-            } else
+            if (lv >= 2 && lv < o->levels && o->level_length[lv] > 0 && Lp > 0) {
+                wlen[j] = o->level_length[lv] * fmax(0, Lp - 0.6 * off);
+                bbase[j] = fmax(tip_r, rp * pow(fmin(1, wlen[j] / Lp), ratio_power));
+            } else {
+                wlen[j] = blen[j];
                 bbase[j] = blen[hp] > 0 ? bbase[hp] * pow(fmin(1, blen[j] / blen[hp]), ratio_power) : tip_r;
+            }
         }
         double b = h == 0 ? sk->radius[seed] : bbase[h], e = fmin(b, tip_r);
         double a0 = h == 0 ? limb->length : 0, t = blen[h] > a0 ? (along[j] - a0) / (blen[h] - a0) : 1;
@@ -1922,8 +1929,9 @@ static sy_code seed_limbs_build(const sy_skeleton *skel, const sy_clusters *lobe
     }
     sy_skeleton_children(skel, first, sib);
     size_t reached = sy_skeleton_breadth_first(skel, first, sib, bfs);
-    /* Each node's distance along its branch from the branch's first node (a
-     * lobe's seed's offset on its limb, for its laterals' lengths). */
+    /* Each node's distance along its branch from where the branch leaves its
+     * parent, as len[] counts it (a lobe's seed's offset on its limb, for its
+     * laterals' lengths). */
     for (size_t k = 0; k < reached; k++) {
         int32_t v = bfs[k], p = skel->parent[v];
         arc[v] = (p >= 0 && skel->branch[p] == skel->branch[v] ? arc[p] : 0) + (p >= 0 ? sy_skeleton_edge_length(skel, (size_t)v) : 0);

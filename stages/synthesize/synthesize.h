@@ -70,7 +70,8 @@ typedef struct {
                                  * the lobe's twigs were grown toward its returns (sy_synth_bare_reason) */
     size_t patches, docks_filled, docks_outside, docks_depth, docks_full, docks_rejected;
     size_t nodes_added, leaves;
-    size_t scaffold_nodes;      /* of nodes_added, the hidden limbs' (the scaffold; in each lobe its first nodes) */
+    size_t scaffold_nodes;      /* of nodes_added, the hidden limbs' (the scaffold; in a lobe without patches also
+                                 * the small colony grown toward its returns instead) */
     size_t nodes_pruned;        /* of nodes_added, those dropped again: bark beyond every leaf of its lobe
                                  * (merge_lobe); out->n = skel->n + nodes_added - nodes_pruned */
     size_t leaves_in_hull;      /* leaves inside their lobe's hull or within 5 cm of it (exact test) */
