@@ -553,8 +553,8 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
 
 /* A leaf counted in cell c's block; once the block is full, none of its
  * cells has room (cleared when it fills: a traced twig's cards go on past
- * its block's capacity, and clearing the block's cells again for each
- * was a third of the real scans' synthesis). */
+ * its block's capacity, and clearing the block's cells again for each was
+ * a tenth of tree13's synthesis). */
 static void block_add_leaf(lobe_grid *g, long c)
 {
     size_t b = block_of(g, c);
@@ -1097,21 +1097,20 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
  * oak's IoU against its true tree 0.618, with the scaffold 0.852).
  * L is the length the species grows a branch of that level at that place,
  * Weber & Penn's nLength (Lp - 0.6 offset), not the part of it one lobe
- * holds: lobes are a few metres across, so laterals measured in them were a
- * metre long and started far thinner than the species' own branches (the
- * simulated beech's: 1.1 m, a tenth of their limb's radius), or thicker
- * where the species' are short (the pine's: 39 laterals of 2 cm or more off
- * its limbs, where the grown pine has none). A lobe seeded part-way along a
- * limb hangs from it by its entry limb, and the laterals off that entry are
- * the limb's own next-level branches: level, length and offset are the
- * limb's (the seed's place on it plus the way along the entry); a lateral
- * off a lateral is a level further, its parent's length the one its radius
- * stands for. Past the species' levels (where Weber & Penn hang leaves) and
- * off the trunk, L stays the lateral's length in the lobe: the species'
- * length off the trunk
- * (nLength L ShapeRatio) made every lateral of a trunk's lobe a limb, the
- * pine's and the sassafras' 2 cm branches 2.7 times their trees'.
- * docs/synthesize.md "Stop 44". */
+ * holds: lobes are a few metres across, so laterals measured in them were
+ * about a metre long and started far thinner than the species' own branches
+ * (the simulated beech's: 0.6-1.6 m, a tenth of their limb's radius), or
+ * thicker where the species' are short (the pine's: 39 laterals of 2 cm or
+ * more off its limbs, where the grown pine has none). A lobe seeded
+ * part-way along a limb hangs from it by its entry limb, and the laterals
+ * off that entry are the limb's own next-level branches: level, length and
+ * offset are the limb's (the seed's place on it plus the way along the
+ * entry); a lateral off a lateral is a level further, its parent's length
+ * the one its radius stands for. Past the species' levels (where Weber &
+ * Penn hang leaves) and off the trunk, L stays the lateral's length in the
+ * lobe: the species' length off the trunk (nLength L ShapeRatio) made every
+ * lateral of a trunk's lobe a limb, the pine's and the sassafras' 2 cm
+ * branches 2.7 times their trees'. docs/synthesize.md "Stop 44". */
 #define SCAFFOLD_MAX_NODES 512
 #define SCAFFOLD_MAX_STEPS 64
 #define SCAFFOLD_KILL 0.35   /* kill distance, in the longest patch's lengths (at least two cells) */
