@@ -20,6 +20,7 @@
 #include <stb_easy_font.h>
 #include <stb_image_write.h>
 
+#include "stages/core/color.h"
 #include "stages/core/fileio.h"
 #include "viewer/motion.h"
 #include "viewer/shaders.h"
@@ -340,9 +341,6 @@ static double alpha_coverage(const double *alpha, size_t n, size_t stride, doubl
     return n ? (double)hit / (double)n : 0;
 }
 
-static double srgb_to_linear(double v) { return v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4); }
-static double linear_to_srgb(double v) { return v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1 / 2.4) - 0.055; }
-
 /* Uploads mip levels 1.. of an 8-bit RGBA alpha-tested texture (level 0
  * bound already) whose alpha keeps level 0's coverage at the cut-off
  * (Castano 2010, "Computing alpha mipmaps"; Unity's "Mip Maps Preserve
@@ -368,7 +366,9 @@ static int coverage_mips(const unsigned char *base, int w, int h, int srgb, floa
         free(prev), free(next), free(level_px);
         return -1;
     }
-    for (size_t i = 0; i < 4 * n0; i++) prev[i] = i % 4 < 3 && srgb ? srgb_to_linear(base[i] / 255.0) : base[i];
+    double linear[256]; /* an 8-bit sRGB value in linear light */
+    for (int v = 0; v < 256; v++) linear[v] = sy_srgb_to_linear(v / 255.0);
+    for (size_t i = 0; i < 4 * n0; i++) prev[i] = i % 4 < 3 && srgb ? linear[base[i]] : base[i];
     const double want = alpha_coverage(prev + 3, n0, 4, 1, c);
     for (int level = 1; w > 1 || h > 1; level++) {
         int nw = w > 1 ? w / 2 : 1, nh = h > 1 ? h / 2 : 1;
@@ -391,7 +391,7 @@ static int coverage_mips(const unsigned char *base, int w, int h, int srgb, floa
         for (size_t i = 0; i < n; i++) {
             for (int k = 0; k < 3; k++) {
                 double v = next[4 * i + k];
-                v = srgb ? 255 * linear_to_srgb(v) : v;
+                v = srgb ? 255 * sy_linear_to_srgb(v) : v;
                 level_px[4 * i + k] = (unsigned char)(v < 0 ? 0 : v > 255 ? 255 : v + 0.5);
             }
             level_px[4 * i + 3] = (unsigned char)scaled_alpha(next[4 * i + 3], hi);
