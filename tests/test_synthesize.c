@@ -197,7 +197,8 @@ static void texturing_fills_the_lobe(void **state)
     assert_true((double)near >= 0.95 * (double)lv.n);
     /* Cards reach into the lobe, not out of it: each card's tip (its stem
      * plus its length along the leaf's +Y) lies within two grid cells of the
-     * box (the tip test runs on the 16-cell grid's hull-or-next-to-it cells).
+     * box (the tip test runs on the 16-cell grid's cells inside the hull;
+     * card_tips_stay_in_the_hull tests a hull the grid's cells do not fit).
      * Full-size 0.55 m cards on the box's skin reached 0.55 m out. */
     double cell = 2.0 / o.grid, worst = 0;
     for (size_t i = 0; i < lv.n; i++) {
@@ -977,6 +978,67 @@ static void winding_number_of_a_box(void **state)
     sy_skeleton_free(&s);
 }
 
+/* A card's tip ends inside the hull, not in the grid's cells next to it.
+ * The lobe is make_tree's 2 m box turned 45 degrees about the vertical,
+ * so its axis-aligned grid has cells beside each slanted face that lie
+ * outside the hull: a tip allowed there stood up to a cell and a half out
+ * of the crown (the simulated Lombardy poplar's halo of cards, precision
+ * 0.806 against its true tree). A tip must now fall in a cell whose centre
+ * is inside (at most half a cell's diagonal out) or in the crown grid. */
+static void card_tips_stay_in_the_hull(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_clusters cl = {0};
+    make_tree(&s, &cl, 1.0, 0);
+    sy_cluster *c = &cl.items[0];
+    const double h = sqrt(0.5);
+    for (size_t v = 0; v < c->n_verts; v++) {
+        double x = c->verts[3 * v], y = c->verts[3 * v + 1];
+        c->verts[3 * v] = (float)(h * (x - y));
+        c->verts[3 * v + 1] = (float)(h * (x + y));
+    }
+    sy_branchlets lib;
+    sy_synth_options o = aspen_options(&lib);
+    const double cell = 2 * sqrt(2.0) / o.grid; /* the turned box's x and y extent over the grid's cells */
+    double worst = 0;
+    size_t leaves = 0, out_half = 0;
+    for (uint64_t seed = 1; seed <= 3; seed++) {
+        o.seed = seed;
+        sy_skeleton out;
+        sy_leaves lv;
+        sy_error err = {0};
+        assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out, &lv, NULL, &err), SY_OK);
+        for (size_t i = 0; i < lv.n; i++) {
+            const float *p = lv.pos + 3 * i, *q = lv.rot + 4 * i;
+            double x = q[0], y = q[1], z = q[2], w = q[3];
+            double Y[3] = {2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x)};
+            double tip[3] = {p[0] + lv.scale[i] * Y[0], p[1] + lv.scale[i] * Y[1], p[2] + lv.scale[i] * Y[2]};
+            /* Back into the box's own frame, where its distance is exact. */
+            float t[3] = {(float)(h * (tip[0] + tip[1])), (float)(h * (tip[1] - tip[0])), (float)tip[2]};
+            float box_lo_hi[2][3] = {{-1, -1, 4}, {1, 1, 6}};
+            double d2 = 0;
+            for (int k = 0; k < 3; k++) {
+                double e = t[k] < box_lo_hi[0][k] ? box_lo_hi[0][k] - t[k] : t[k] > box_lo_hi[1][k] ? t[k] - box_lo_hi[1][k] : 0;
+                d2 += e * e;
+            }
+            worst = fmax(worst, sqrt(d2));
+            out_half += sqrt(d2) > 0.5 * cell;
+        }
+        leaves += lv.n;
+        sy_skeleton_free(&out);
+        sy_leaves_free(&lv);
+    }
+    printf("turned box: %zu leaves over three seeds, farthest tip %.3f m out, %zu more than half a cell (%.3f m) out\n",
+           leaves, worst, out_half, 0.5 * cell);
+    assert_true(leaves > 300);
+    /* Half a cell's diagonal across the slanted face (the cell's centre inside). */
+    if (!(worst <= sqrt(2.0) * 0.5 * cell + 1e-3)) fail_msg("a card's tip %.3f m outside the hull (cell %.3f m)", worst, cell);
+    sy_branchlets_free(&lib);
+    sy_clusters_free(&cl);
+    sy_skeleton_free(&s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -992,6 +1054,7 @@ int main(void)
         cmocka_unit_test(lobes_smaller_than_a_patch_get_twigs),
         cmocka_unit_test(lobes_in_parallel_give_the_same_tree),
         cmocka_unit_test(cards_reach_across_lobe_borders),
+        cmocka_unit_test(card_tips_stay_in_the_hull),
         cmocka_unit_test(starts_leave_the_bark_apart),
         cmocka_unit_test(winding_number_of_a_box),
     };

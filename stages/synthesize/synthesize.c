@@ -963,8 +963,11 @@ static const card_try TWIG_TIP_CARD[2] = {{0, -1, 1}, {0, -1, 0.5f}};
 /* Fits a leaf card of length leaf_size reaching along Y (X across it) at
  * anchor w by the first of n tries whose stem lies in the lobe (its soft
  * hull, and within LEAF_HULL_TOL of the hull itself) and whose tip lies in
- * the lobe or the crown. Returns the card's length (0: left out); its stem
- * in pos, X and Y turned with it. */
+ * the lobe (a cell whose centre is inside the hull) or the crown. A tip in
+ * the soft hull's outer ring of cells stood up to a cell and a half out of
+ * the crown: a halo of cards round the simulated Lombardy poplar (precision
+ * 0.806 against its true tree; 0.843 with the tip inside). Returns the
+ * card's length (0: left out); its stem in pos, X and Y turned with it. */
 static float fit_card(const lobe_grid *g, const crown_grid *crown, const double w[3], const card_try *tries, int n,
                       double leaf_size, double X[3], double Y[3], float pos[3])
 {
@@ -975,7 +978,7 @@ static float fit_card(const lobe_grid *g, const crown_grid *crown, const double 
             tip[k] = stem[k] + tries[t].d * tries[t].z * leaf_size * Y[k];
         }
         long cs = grid_cell(g, stem), ct = grid_cell(g, tip);
-        if (cs < 0 || !g->cell[cs].soft || !((ct >= 0 && g->cell[ct].soft) || crown_holds(crown, tip)) ||
+        if (cs < 0 || !g->cell[cs].soft || !((ct >= 0 && g->inside[ct]) || crown_holds(crown, tip)) ||
             !near_hull(g, stem, LEAF_HULL_TOL))
             continue;
         for (int k = 0; k < 3; k++) {
