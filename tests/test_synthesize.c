@@ -133,18 +133,41 @@ static void make_tree(sy_skeleton *s, sy_clusters *cl, double radius, int flat)
     memcpy(c->tris, tris, sizeof tris);
 }
 
-static double dist_to_box(const float *p, const sy_cluster *c)
+/* Distance from p to the axis-aligned box [lo, hi] (0 inside). */
+static double dist_to_aabb(const double p[3], const double lo[3], const double hi[3])
 {
-    float lo[3], hi[3];
-    for (int k = 0; k < 3; k++) lo[k] = hi[k] = c->verts[k];
-    for (size_t v = 1; v < c->n_verts; v++)
-        for (int k = 0; k < 3; k++) lo[k] = fminf(lo[k], c->verts[3 * v + k]), hi[k] = fmaxf(hi[k], c->verts[3 * v + k]);
     double d2 = 0;
     for (int k = 0; k < 3; k++) {
         double e = p[k] < lo[k] ? lo[k] - p[k] : p[k] > hi[k] ? p[k] - hi[k] : 0;
         d2 += e * e;
     }
     return sqrt(d2);
+}
+
+/* Distance from p to the box of lobe c's hull vertices. */
+static double dist_to_box(const double p[3], const sy_cluster *c)
+{
+    double lo[3], hi[3];
+    for (int k = 0; k < 3; k++) lo[k] = hi[k] = c->verts[k];
+    for (size_t v = 1; v < c->n_verts; v++)
+        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], c->verts[3 * v + k]), hi[k] = fmax(hi[k], c->verts[3 * v + k]);
+    return dist_to_aabb(p, lo, hi);
+}
+
+/* Leaf i's card axis: local +Y turned by its unit quaternion (x, y, z, w). */
+static void card_axis(const sy_leaves *lv, size_t i, double Y[3])
+{
+    const float *q = lv->rot + 4 * i;
+    double x = q[0], y = q[1], z = q[2], w = q[3];
+    Y[0] = 2 * (x * y - w * z), Y[1] = 1 - 2 * (x * x + z * z), Y[2] = 2 * (y * z + w * x);
+}
+
+/* Leaf i's tip: its stem (position) plus its length along its axis. */
+static void card_tip(const sy_leaves *lv, size_t i, double tip[3])
+{
+    double Y[3];
+    card_axis(lv, i, Y);
+    for (int k = 0; k < 3; k++) tip[k] = lv->pos[3 * i + k] + lv->scale[i] * Y[k];
 }
 
 static void load_lib(const char *name, sy_branchlets *b, sy_lsystem *ls)
@@ -193,7 +216,10 @@ static void texturing_fills_the_lobe(void **state)
     for (size_t i = s.n; i < out.n; i++) assert_true(out.radius[i] <= out.radius[out.parent[i]] + 1e-7f);
     /* >= 95% of the leaves within 5 cm of the lobe's hull (the box). */
     size_t near = 0;
-    for (size_t i = 0; i < lv.n; i++) near += dist_to_box(lv.pos + 3 * i, &cl.items[0]) <= 0.05;
+    for (size_t i = 0; i < lv.n; i++) {
+        double stem[3] = {lv.pos[3 * i], lv.pos[3 * i + 1], lv.pos[3 * i + 2]};
+        near += dist_to_box(stem, &cl.items[0]) <= 0.05;
+    }
     assert_true((double)near >= 0.95 * (double)lv.n);
     /* Cards reach into the lobe, not out of it: each card's tip (its stem
      * plus its length along the leaf's +Y) lies within two grid cells of the
@@ -202,10 +228,8 @@ static void texturing_fills_the_lobe(void **state)
      * Full-size 0.55 m cards on the box's skin reached 0.55 m out. */
     double cell = 2.0 / o.grid, worst = 0;
     for (size_t i = 0; i < lv.n; i++) {
-        const float *q = lv.rot + 4 * i;
-        float Y[3] = {2 * (q[0] * q[1] - q[2] * q[3]), 1 - 2 * (q[0] * q[0] + q[2] * q[2]), 2 * (q[1] * q[2] + q[0] * q[3])};
-        float tip[3];
-        for (int k = 0; k < 3; k++) tip[k] = lv.pos[3 * i + k] + lv.scale[i] * Y[k];
+        double tip[3];
+        card_tip(&lv, i, tip);
         worst = fmax(worst, dist_to_box(tip, &cl.items[0]));
     }
     printf("farthest card tip %.3f m outside the lobe (grid cell %.3f m)\n", worst, cell);
@@ -654,9 +678,8 @@ static void traced_twigs_are_the_lobes_wood(void **state)
         assert_true(lv.scale[i] > 0 && lv.scale[i] <= o.leaf_size + 1e-6);
         /* The card's axis Y (its quaternion's second column) from its stem
          * passes the node: the node's distance to the segment. */
-        const float *q = lv.rot + 4 * i;
-        double Y[3] = {2 * (q[0] * q[1] - q[3] * q[2]), 1 - 2 * (q[0] * q[0] + q[2] * q[2]), 2 * (q[1] * q[2] + q[3] * q[0])};
-        double along = 0, off = 0;
+        double Y[3], along = 0, off = 0;
+        card_axis(&lv, i, Y);
         for (int k = 0; k < 3; k++) along += (out.pos[3 * (size_t)v + k] - lv.pos[3 * i + k]) * Y[k];
         along = fmin(fmax(along, 0), lv.scale[i]);
         for (int k = 0; k < 3; k++) off += pow(out.pos[3 * (size_t)v + k] - lv.pos[3 * i + k] - along * Y[k], 2);
@@ -744,19 +767,14 @@ static void cards_reach_across_lobe_borders(void **state)
     size_t across = 0, out_far = 0;
     double worst = 0;
     for (size_t i = 0; i < lv.n; i++) {
-        const float *p = lv.pos + 3 * i, *q = lv.rot + 4 * i;
-        /* The card's axis: local +Y turned by the unit quaternion (x, y, z, w). */
-        double x = q[0], y = q[1], z = q[2], w = q[3];
-        double Y[3] = {2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x)};
-        double tip[3] = {p[0] + lv.scale[i] * Y[0], p[1] + lv.scale[i] * Y[1], p[2] + lv.scale[i] * Y[2]};
+        const float *p = lv.pos + 3 * i;
+        double tip[3];
+        card_tip(&lv, i, tip);
         if ((p[0] < 0 && tip[0] > cell) || (p[0] > 0 && tip[0] < -cell)) across++;
-        double lo[3] = {-1.2, -0.6, 4.0}, hi[3] = {1.2, 0.6, 5.2}, d2 = 0;
-        for (int k = 0; k < 3; k++) {
-            double e = tip[k] < lo[k] ? lo[k] - tip[k] : tip[k] > hi[k] ? tip[k] - hi[k] : 0;
-            d2 += e * e;
-        }
-        worst = fmax(worst, sqrt(d2));
-        out_far += sqrt(d2) > cell + 2 * crown_cell;
+        static const double lo[3] = {-1.2, -0.6, 4.0}, hi[3] = {1.2, 0.6, 5.2};
+        double d = dist_to_aabb(tip, lo, hi);
+        worst = fmax(worst, d);
+        out_far += d > cell + 2 * crown_cell;
     }
     printf("two lobes: %zu leaves, %zu reach more than a lobe cell across the border, tips at most %.3f m out\n",
            lv.n, across, worst);
@@ -875,7 +893,8 @@ static void lobes_smaller_than_a_patch_get_twigs(void **state)
     /* The twigs reach into the lobe and stay in it (the grid's cells are 1 cm). */
     double top = 0;
     for (size_t i = s.n; i < out.n; i++) {
-        double d = dist_to_box(out.pos + 3 * i, &cl.items[0]);
+        double p[3] = {out.pos[3 * i], out.pos[3 * i + 1], out.pos[3 * i + 2]};
+        double d = dist_to_box(p, &cl.items[0]);
         if (!(d < 0.03)) fail_msg("twig node %zu is %.3f m outside its 16 cm lobe", i, d);
         top = fmax(top, out.pos[3 * i + 2]);
     }
@@ -1010,20 +1029,14 @@ static void card_tips_stay_in_the_hull(void **state)
         sy_error err = {0};
         assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out, &lv, NULL, &err), SY_OK);
         for (size_t i = 0; i < lv.n; i++) {
-            const float *p = lv.pos + 3 * i, *q = lv.rot + 4 * i;
-            double x = q[0], y = q[1], z = q[2], w = q[3];
-            double Y[3] = {2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x)};
-            double tip[3] = {p[0] + lv.scale[i] * Y[0], p[1] + lv.scale[i] * Y[1], p[2] + lv.scale[i] * Y[2]};
+            double tip[3];
+            card_tip(&lv, i, tip);
             /* Back into the box's own frame, where its distance is exact. */
-            float t[3] = {(float)(h * (tip[0] + tip[1])), (float)(h * (tip[1] - tip[0])), (float)tip[2]};
-            float box_lo_hi[2][3] = {{-1, -1, 4}, {1, 1, 6}};
-            double d2 = 0;
-            for (int k = 0; k < 3; k++) {
-                double e = t[k] < box_lo_hi[0][k] ? box_lo_hi[0][k] - t[k] : t[k] > box_lo_hi[1][k] ? t[k] - box_lo_hi[1][k] : 0;
-                d2 += e * e;
-            }
-            worst = fmax(worst, sqrt(d2));
-            out_half += sqrt(d2) > 0.5 * cell;
+            double t[3] = {h * (tip[0] + tip[1]), h * (tip[1] - tip[0]), tip[2]};
+            static const double lo[3] = {-1, -1, 4}, hi[3] = {1, 1, 6};
+            double d = dist_to_aabb(t, lo, hi);
+            worst = fmax(worst, d);
+            out_half += d > 0.5 * cell;
         }
         leaves += lv.n;
         sy_skeleton_free(&out);
