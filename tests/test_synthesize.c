@@ -1002,7 +1002,7 @@ static void winding_number_of_a_box(void **state)
  * so its axis-aligned grid has cells beside each slanted face that lie
  * outside the hull: a tip allowed there stood up to a cell and a half out
  * of the crown (the simulated Lombardy poplar's halo of cards, precision
- * 0.806 against its true tree). A tip must now fall in a cell whose centre
+ * 0.799 against its true tree). A tip must now fall in a cell whose centre
  * is inside (at most half a cell's diagonal out) or in the crown grid. */
 static void card_tips_stay_in_the_hull(void **state)
 {

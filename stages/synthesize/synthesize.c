@@ -966,7 +966,7 @@ static const card_try TWIG_TIP_CARD[2] = {{0, -1, 1}, {0, -1, 0.5f}};
  * the lobe (a cell whose centre is inside the hull) or the crown. A tip in
  * the soft hull's outer ring of cells stood up to a cell and a half out of
  * the crown: a halo of cards round the simulated Lombardy poplar (precision
- * 0.806 against its true tree; 0.843 with the tip inside). Returns the
+ * 0.799 against its true tree; 0.836 with the tip inside). Returns the
  * card's length (0: left out); its stem in pos, X and Y turned with it. */
 static float fit_card(const lobe_grid *g, const crown_grid *crown, const double w[3], const card_try *tries, int n,
                       double leaf_size, double X[3], double Y[3], float pos[3])
