@@ -79,9 +79,9 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
         so.levels = species->levels;
         _Static_assert(SY_SYNTH_WP_LEVELS == SY_WP_LEVELS, "synthesis takes every Weber & Penn level's length");
         for (int l = 0; l < SY_WP_LEVELS; l++) so.level_length[l] = species->level[l].length;
+        for (int l = 0; l < 2; l++)
+            so.down_angle[l] = species->level[l + 1].down_angle, so.down_angle_v[l] = species->level[l + 1].down_angle_v;
     }
-    for (int l = 0; species && l < 2; l++)
-        so.down_angle[l] = species->level[l + 1].down_angle, so.down_angle_v[l] = species->level[l + 1].down_angle_v;
     for (size_t c = 0; c < t->lobes.n && !so.no_twigs && !t->lean_radius; c++)
         if (t->lobes.items[c].n_twigs) t->lean_radius = SY_MESH_LEAN_RADIUS;
     rc = sy_synthesize(&t->skel, &t->lobes, &lib, &so, &t->grown, &t->leaves, &t->synth, err);

@@ -1917,7 +1917,6 @@ static sy_code seed_limbs_build(const sy_skeleton *skel, const sy_clusters *lobe
         if (p >= 0 && skel->branch[p] == b) taker[p] = -1; /* the limb goes on past p */
         if (b < 0) continue;
         if (p < 0 || skel->branch[p] != b) base[b] = skel->radius[i];
-        len[b] += sy_skeleton_edge_length(skel, i);
     }
     /* Traced twigs at or beyond each node: each lobe's count at its seed,
      * summed children before parents (the skeleton's breadth-first order
@@ -1932,11 +1931,12 @@ static sy_code seed_limbs_build(const sy_skeleton *skel, const sy_clusters *lobe
     sy_skeleton_children(skel, first, sib);
     size_t reached = sy_skeleton_breadth_first(skel, first, sib, bfs);
     /* Each node's distance along its branch from where the branch leaves its
-     * parent, as len[] counts it (a lobe's seed's offset on its limb, for its
-     * laterals' lengths). */
+     * parent (a lobe's seed's offset on its limb, for its laterals' lengths);
+     * the farthest is the branch's length. */
     for (size_t k = 0; k < reached; k++) {
-        int32_t v = bfs[k], p = skel->parent[v];
-        arc[v] = (p >= 0 && skel->branch[p] == skel->branch[v] ? arc[p] : 0) + (p >= 0 ? sy_skeleton_edge_length(skel, (size_t)v) : 0);
+        int32_t v = bfs[k], p = skel->parent[v], b = skel->branch[v];
+        arc[v] = (p >= 0 && skel->branch[p] == b ? arc[p] : 0) + (p >= 0 ? sy_skeleton_edge_length(skel, (size_t)v) : 0);
+        if (b >= 0) len[b] = fmax(len[b], arc[v]);
     }
     for (size_t c = 0; c < n_lobes; c++) beyond[lobes->items[c].seed] += (double)lobes->items[c].n_twigs;
     for (size_t k = reached; k-- > 0;) {
