@@ -146,8 +146,23 @@ static sy_code build_chains(const sy_skeleton *sk, sy_stems *st, sy_error *err)
     return SY_OK;
 }
 
-/* Depth of every stem and the parents-first order. */
-static sy_code order_by_depth(sy_stems *st, sy_error *err)
+/* Depth of every stem and the parents-first order; siblings' order, thicker
+ * first within a depth (fit_on_parent): the thinner child slides past the thicker one, not
+ * the other way round. By index, a twig listed before the limb beside it
+ * kept its place and the limb, unable to slide past it, crossed its ring. */
+typedef struct {
+    float radius;
+    int32_t stem;
+} depth_key;
+
+static int cmp_depth_key(const void *a, const void *b)
+{
+    const depth_key *x = a, *y = b;
+    if (x->radius != y->radius) return x->radius > y->radius ? -1 : 1;
+    return (x->stem > y->stem) - (x->stem < y->stem);
+}
+
+static sy_code order_by_depth(const sy_skeleton *sk, sy_stems *st, sy_error *err)
 {
     st->by_depth = malloc((st->n ? st->n : 1) * sizeof *st->by_depth);
     size_t *count = calloc(st->n + 1, sizeof *count);
@@ -166,6 +181,17 @@ static sy_code order_by_depth(sy_stems *st, sy_error *err)
     for (int d = 1; d <= max_depth; d++) count[d] += count[d - 1];
     for (size_t k = 0; k < st->n; k++) st->by_depth[count[st->s[k].depth]++] = (int32_t)k;
     free(count);
+    depth_key *key = malloc((st->n ? st->n : 1) * sizeof *key);
+    if (!key) return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
+    for (size_t a = 0; a < st->n;) {
+        size_t b = a;
+        while (b < st->n && st->s[st->by_depth[b]].depth == st->s[st->by_depth[a]].depth) b++;
+        for (size_t k = a; k < b; k++) key[k] = (depth_key){sk->radius[st->s[st->by_depth[k]].nodes[0]], st->by_depth[k]};
+        qsort(key + a, b - a, sizeof *key, cmp_depth_key);
+        for (size_t k = a; k < b; k++) st->by_depth[k] = key[k].stem;
+        a = b;
+    }
+    free(key);
     return SY_OK;
 }
 
@@ -480,22 +506,39 @@ typedef struct {
 
 /* The footprint of s's base ring if s left parent p at arc length as,
  * its first segment running from there to its first own point. 0 when
- * that segment has no direction or runs within 25 degrees of the parent's
- * axis (a continuation, carried through by sy_skeleton_continuations). */
-static int footprint_at(const sy_stem *p, const sy_stem *s, float as, footprint *f)
+ * that segment has no direction or, unless clamp, runs within 25 degrees of
+ * the parent's axis (a continuation, carried through by
+ * sy_skeleton_continuations); with clamp such a segment counts as 25
+ * degrees off the axis. */
+static int footprint_at(const sy_stem *p, const sy_stem *s, float as, int clamp, footprint *f)
 {
     float c[3], T[3], N[3], B[3], R;
     sy_stem_frame_at(p, NULL, 0, as, c, T, N, &R);
     for (int k = 0; k < 3; k++) f->d[k] = s->pts[3 + k] - c[k];
     if (sy_normalize3(f->d) < DEDUPE_EPS || R <= 0) return 0;
     float ct = sy_dot3(f->d, T), st2 = 1 - ct * ct;
-    if (st2 < 0.1786f) return 0; /* sin^2 25 degrees */
+    if (st2 < 0.1786f) { /* sin^2 25 degrees */
+        if (!clamp) return 0;
+        st2 = 0.1786f, ct = ct < 0 ? -sqrtf(1 - st2) : sqrtf(1 - st2);
+    }
     float sn = sqrtf(st2), r = s->rad[0];
     f->centre = R * ct / sn, f->half = FOOTPRINT_SLACK * r / sn;
     f->lo = p->ss[0] + f->half - f->centre, f->hi = p->ss[p->n_samp - 1] - f->half - f->centre;
     sy_cross3(T, N, B);
     f->az = atan2f(sy_dot3(f->d, B), sy_dot3(f->d, N)), f->hw = asinf(fminf(1.0f, r / R));
     return 1;
+}
+
+/* Records child self's footprint f, leaving its parent at arc length as,
+ * and lists it among the parent's placed children. */
+static void list_footprint(sy_stems *st, int32_t self, int32_t *first, int32_t *next, int32_t *placed, float as,
+                           const footprint *f)
+{
+    sy_stem *s = &st->s[self];
+    s->fp_lo = as + f->centre - f->half, s->fp_hi = as + f->centre + f->half;
+    s->fp_az = f->az, s->fp_hw = f->hw;
+    next[self] = first[s->parent], first[s->parent] = self;
+    placed[s->parent]++;
 }
 
 /* A junction welds only where the child's base ring lands on the parent's
@@ -523,7 +566,17 @@ static void fit_on_parent(sy_stems *st, int32_t self, int32_t *first, int32_t *n
     sy_stem *s = &st->s[self];
     const sy_stem *p = &st->s[s->parent];
     footprint f0, f, fg;
-    if (p->n_samp < 2 || s->n_pts < 2 || !footprint_at(p, s, s->attach_s, &f0)) return;
+    if (p->n_samp < 2 || s->n_pts < 2) return;
+    if (!footprint_at(p, s, s->attach_s, 0, &f0)) {
+        /* A child running within 25 degrees of its parent keeps its place,
+         * but the siblings placed after it must clear the long ring it lays
+         * along the parent: its footprint is listed as if it left at 25
+         * degrees (a bound its ring exceeds). Unlisted, the siblings beside
+         * it kept their places and their rings crossed its own (a fifth of
+         * the grown trees' capped LOD0 junctions). */
+        if (footprint_at(p, s, s->attach_s, 1, &f0)) list_footprint(st, self, first, next, placed, s->attach_s, &f0);
+        return;
+    }
     fg = f0;
     float gap = FOOTPRINT_GAP * s->rad[0], as = s->attach_s, good = NAN;
     /* Past this many placed siblings a slot is rarely found and the search
@@ -533,7 +586,7 @@ static void fit_on_parent(sy_stems *st, int32_t self, int32_t *first, int32_t *n
      * a few rounds settle it, and the last place found clear on the tube
      * (judged by its own footprint) is kept. */
     for (int round = 0; round <= 4; round++) {
-        if (!footprint_at(p, s, as, &f) || f.lo > f.hi) break;
+        if (!footprint_at(p, s, as, 0, &f) || f.lo > f.hi) break;
         int on_tube = as >= f.lo - 0.1f * f.half && as <= f.hi + 0.1f * f.half;
         if (on_tube && (crowd || footprint_clear(st, self, first, next, as + f.centre - f.half,
                                                  as + f.centre + f.half, f.az, f.hw, gap)))
@@ -559,7 +612,7 @@ static void fit_on_parent(sy_stems *st, int32_t self, int32_t *first, int32_t *n
                      * (no footprint) or turn more than the slide allows is
                      * no place: the other side of the sibling may be. */
                     footprint fa;
-                    if (!footprint_at(p, s, a, &fa) || sy_dot3(fa.d, f0.d) < SLIDE_MIN_COS) continue;
+                    if (!footprint_at(p, s, a, 0, &fa) || sy_dot3(fa.d, f0.d) < SLIDE_MIN_COS) continue;
                     best = move, to = a;
                 }
             }
@@ -570,7 +623,7 @@ static void fit_on_parent(sy_stems *st, int32_t self, int32_t *first, int32_t *n
     /* Where no place was judged clear, the last one tried still welds
      * more often than not (the footprint is a bound, not the ring). */
     if (isnan(good)) {
-        if (footprint_at(p, s, as, &fg)) good = as;
+        if (footprint_at(p, s, as, 0, &fg)) good = as;
         else good = s->attach_s, fg = f0;
     }
     if (good != s->attach_s) {
@@ -585,10 +638,7 @@ static void fit_on_parent(sy_stems *st, int32_t self, int32_t *first, int32_t *n
             good = s->attach_s, fg = f0;
         }
     }
-    s->fp_lo = good + fg.centre - fg.half, s->fp_hi = good + fg.centre + fg.half;
-    s->fp_az = fg.az, s->fp_hw = fg.hw;
-    next[self] = first[s->parent], first[s->parent] = self;
-    placed[s->parent]++;
+    list_footprint(st, self, first, next, placed, good, &fg);
 }
 
 /* A child of a lean parent (a traced twig off a traced twig) starts no
@@ -771,7 +821,7 @@ sy_code sy_stems_build(const sy_skeleton *sk, const sy_mesh_options *opt, sy_ste
     memset(st, 0, sizeof *st);
     st->root = -1;
     sy_code rc = build_chains(sk, st, err);
-    if (rc == SY_OK) rc = order_by_depth(st, err);
+    if (rc == SY_OK) rc = order_by_depth(sk, st, err);
     if (rc != SY_OK) {
         sy_stems_free(st);
         return rc;
