@@ -1821,18 +1821,27 @@ static sy_code weld_junctions(const sy_stems *st, const sy_lod_params *lp, const
              * strip, then taking them where a needle alone refused it: a
              * strip's needles beside a thin twig (the mesh check's
              * slivers) mostly have a needle-free strip one column wider,
-             * and a weld with needles still beats a cap. */
+             * and a weld with needles still beats a cap. Last, the ring's
+             * rectangle a row taller at each end, whose strip has room
+             * to run round the ring without folding where the ring nears
+             * its rows' ends (rTwig's QSM welded 64 of its 72 LOD0
+             * junctions, now 69; its cloud's run 505 of 540, now 509; the
+             * grown library gains none). */
             int needled[2] = {0, 0};
-            for (int attempt = 0; attempt < 4 && !ok; attempt++) {
-                int wide = attempt & 1, no_needles = attempt < 2;
-                if (!no_needles && !needled[wide]) continue;
+            for (int attempt = 0; attempt < 5 && !ok; attempt++) {
+                int wide = attempt & 1, no_needles = attempt < 2, tall = attempt == 4;
+                if (!tall && !no_needles && !needled[wide]) continue;
                 weld_rect u = rect[j];
                 if (wide) {
                     weld_footprint(st, (size_t)jobs[j].stem, lp, out, vo, idx, WELD_SIDE_MARGIN, &u);
                     if (u.c0 == rect[j].c0 && u.c1 == rect[j].c1) continue;
                 }
+                if (tall) {
+                    if (!u.ok || u.q0 < 1 || u.q1 + 1 > (long)np - 2) continue;
+                    u.q0--, u.q1++;
+                }
                 ok = u.ok && u.q0 >= 0;
-                if (!ok && wide) continue;
+                if (!ok && (wide || tall)) continue;
                 if (!ok) break;
                 size_t ng = 0;
                 member_job[ng] = j;
