@@ -65,6 +65,9 @@ static void print_json(const char *in, const run_args *a, const sy_run_tree_resu
     sy_json_bool(&j, "crown_regrown", r->crown_regrown);
     sy_json_number(&j, "trunk_meander", r->trunk_meander);
     sy_json_number(&j, "crown_fill", r->crown_fill);
+    sy_json_number(&j, "roof_gap", r->roof_gap);
+    sy_json_number(&j, "roof_gap_species", r->roof_gap_species);
+    sy_json_bool(&j, "roofed", r->roofed);
     if (r->crown_regrown) sy_json_number(&j, "crown_base", r->crown_base);
     sy_json_number(&j, "height", r->height);
     sy_json_int(&j, "hull_triangles", (long long)res->asset.hull_triangles);
@@ -108,6 +111,7 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
     sy_photo_cli photo;
     memset(&photo, 0, sizeof photo);
     int no_classify = 0, max_points = SY_POINT_BUDGET, leaf_off = 0, leaves = 0;
+    const char *roof = "auto";
     const sy_opt opts[] = {
         {"-o", OPT_STRING, &a.out_path, "OUT.glb", "output glTF binary"},
         {"--sylva", OPT_STRING, &a.sylva_path, "OUT.sylva", "also write the compact .sylva file of the reconstruction"},
@@ -119,6 +123,9 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
          "a leaf-off scan (bare branches): lobes with traced twigs keep them as their wood, no leaf cards (default:\n"
          "so when at least 80 % of the returns lie within a scan spacing of that wood, traced at 1.5 spacings or coarser)"},
         {"--leaves", OPT_FLAG, &leaves, NULL, "leaf cards whatever the scan (a leaf-off scan dressed in leaves)"},
+        {"--roof", OPT_STRING, &roof, "auto|on|off",
+         "lobes reach up to the crown's roof, the top the stations saw through the lower crown (default auto:\n"
+         "a terrestrial scan whose top stands 1.3 times further under its roof than its species' own crown)"},
         {"--lobe-size", OPT_DOUBLE, &a.run.lobe_size, "F",
          "largest lobe as a share of the tree's extent, in [0,1]; 0: one cluster per cut (default 0.1; cut "
          "again larger, up to 7.5x and at most 1, where the .sylva cannot hold that many lobes)"},
@@ -182,6 +189,11 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
         return SY_EUSAGE;
     }
     a.run.leaf_off = leaf_off ? 1 : leaves ? -1 : 0;
+    if (strcmp(roof, "auto") && strcmp(roof, "on") && strcmp(roof, "off")) {
+        fprintf(stderr, "sylva run: --roof must be auto, on or off, not '%s'\n", roof);
+        return SY_EUSAGE;
+    }
+    a.run.roof = !strcmp(roof, "on") ? 1 : !strcmp(roof, "off") ? 0 : -1;
     a.run.seed = cli->seed;
     if (!cli->quiet && !cli->json) a.run.on_step = step_line;
     sy_error err = {0};

@@ -28,6 +28,7 @@ sy_run_tree_options sy_run_tree_options_default(void)
     o.fs = 1;
     o.seed = 1;
     o.lobe_size = 0.1;
+    o.roof = -1;
     o.classify = 1;
     o.max_points = SY_POINT_BUDGET;
     o.asset = sy_tree_asset_options_default();
@@ -43,6 +44,7 @@ sy_code sy_run_tree_options_check(const sy_run_tree_options *o, sy_error *err)
     if (!(o->fs > 0 && o->fs <= 1)) return sy_fail(err, SY_EUSAGE, "run: fs %g outside (0, 1]", o->fs);
     if (!(o->wood_share >= 0 && o->wood_share < 1))
         return sy_fail(err, SY_EUSAGE, "run: wood_share %g outside [0, 1)", o->wood_share);
+    if (o->roof < -1 || o->roof > 1) return sy_fail(err, SY_EUSAGE, "run: roof %d must be -1, 0 or 1", o->roof);
     if (!(o->lobe_size >= 0 && o->lobe_size <= 1))
         return sy_fail(err, SY_EUSAGE, "run: lobe_size %g outside [0, 1]", o->lobe_size);
     if (o->leaf_off < -1 || o->leaf_off > 1) return sy_fail(err, SY_EUSAGE, "run: leaf_off %d is not -1, 0 or 1", o->leaf_off);
@@ -204,6 +206,19 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
         ho.floor.top = ztop;
         memcpy(ho.floor.profile, o->crown_profile, sizeof ho.floor.profile);
     }
+    /* A terrestrial crown whose top the stations saw through its lower
+     * crown: its lobes reach up to the crown's roof where its top stands
+     * further under it than its species' own crown does (docs/synthesize.md
+     * "Stop 46"). */
+    sy_crown_roof roof;
+    memset(&roof, 0, sizeof roof);
+    if (!rc && !report->stem_unseen && clusters->n && o->crown_roof != 0) {
+        rc = sy_crown_roof_build(c->xyz, c->n, SY_ROOF_CELLS, SY_ROOF_LIFT, &roof, err);
+        report->roof_gap = rc ? 0 : sy_crown_roof_gap(&roof), report->roof_gap_species = o->crown_roof_gap;
+        report->roofed = o->crown_roof == 1 ||
+                         (o->crown_roof_gap > 0 && report->roof_gap > SY_ROOF_GAP_RATIO * o->crown_roof_gap);
+        if (report->roofed) ho.roof = &roof;
+    }
     rc = rc ? rc : sy_clusters_build_hulls(clusters, c->xyz, &ho, hulls, err);
     /* Hulls that kept more triangles than their budget leave less room:
      * the twigs are traced again, coarser, to fit beside them. */
@@ -231,6 +246,7 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
         hulls->seconds += twigs.seconds;
     }
     free(anchors);
+    sy_crown_roof_free(&roof);
     return rc;
 }
 
@@ -422,7 +438,7 @@ _Static_assert(sizeof(((sy_skeleton_options *)0)->crown_profile) == SY_CROWN_SLA
                "the skeleton options carry the clusters stage's crown profile");
 
 struct nominal_tree {
-    double dbh_per_height, crown_base_share;
+    double dbh_per_height, crown_base_share, roof_gap;
     float profile[SY_CROWN_SLABS];
 };
 
@@ -452,6 +468,19 @@ static void species_nominal(const sy_species_params *sp, nominal_tree *nt)
             float r = hypotf(t.pos[3 * i] - t.pos[0], t.pos[3 * i + 1] - t.pos[1]);
             if (r > nt->profile[k]) nt->profile[k] = r;
         }
+    /* How far its crown's top stands under its roof, from its branch nodes
+     * (as a scan's from its returns). */
+    float *crown = t.n ? malloc(3 * t.n * sizeof *crown) : NULL;
+    if (crown) {
+        size_t m = 0;
+        for (size_t i = 0; i < t.n; i++)
+            if (t.order[i] >= 1) memcpy(crown + 3 * m++, t.pos + 3 * i, 3 * sizeof *crown);
+        sy_crown_roof roof;
+        if (m && !sy_crown_roof_build(crown, m, SY_ROOF_CELLS, SY_ROOF_LIFT, &roof, &err))
+            nt->roof_gap = sy_crown_roof_gap(&roof);
+        sy_crown_roof_free(&roof);
+        free(crown);
+    }
     sy_skeleton_free(&t);
     if (h > 1.3 && d > 0 && d / h < 1) nt->dbh_per_height = d / h;
 }
@@ -655,6 +684,7 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
         so.beta = sp->beta, so.gamma = sp->gamma;
         so.dbh_per_height = nt->dbh_per_height, so.crown_base_share = nt->crown_base_share;
         memcpy(so.crown_profile, nt->profile, sizeof so.crown_profile);
+        so.crown_roof_gap = nt->roof_gap;
         so.no_twigs = !sp->twigs;
     }
     if (!isnan(o->beta)) so.beta = o->beta;
@@ -666,6 +696,7 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
     if (!isnan(o->fair_sigma)) so.fair_sigma = o->fair_sigma;
     if (!isnan(o->return_cap)) so.return_cap = o->return_cap;
     so.lobe_size = o->lobe_size;
+    so.crown_roof = o->roof;
     sy_skeleton s;
     sy_clusters cl;
     sy_skeleton_report *sr = &r->skeleton;

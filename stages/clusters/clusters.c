@@ -543,9 +543,94 @@ static double floor_keep(const sy_hull_floor *f, double z)
     return at > 0 && base < at ? base / at : 1;
 }
 
-sy_code sy_cluster_build_hull(sy_cluster *c, const float *xyz, double alpha_scale, int target_tris, double tol,
-                              const float *anchor, const sy_hull_floor *base, sy_error *err)
+void sy_crown_roof_free(sy_crown_roof *r)
 {
+    free(r->top);
+    free(r->roof);
+    r->top = r->roof = NULL;
+}
+
+sy_code sy_crown_roof_build(const float *xyz, size_t n, int cells, double lift, sy_crown_roof *r, sy_error *err)
+{
+    memset(r, 0, sizeof *r);
+    if (!n || cells < 1) return SY_OK;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], xyz[3 * i + k]), hi[k] = fmax(hi[k], xyz[3 * i + k]);
+    double cell = fmax(hi[0] - lo[0], hi[1] - lo[1]) / cells;
+    if (!(cell > 0)) return SY_OK;
+    r->cell = cell, r->x0 = lo[0], r->y0 = lo[1], r->z0 = lo[2], r->height = hi[2] - lo[2];
+    r->lift_min = lift * r->height;
+    r->nx = (int)floor((hi[0] - lo[0]) / cell) + 1, r->ny = (int)floor((hi[1] - lo[1]) / cell) + 1;
+    size_t nc = (size_t)r->nx * (size_t)r->ny;
+    r->top = sy_calloc(nc, sizeof *r->top, err, "roof");
+    r->roof = sy_calloc(nc, sizeof *r->roof, err, "roof");
+    if (!r->top || !r->roof) {
+        sy_crown_roof_free(r);
+        return SY_EINTERNAL;
+    }
+    for (size_t c = 0; c < nc; c++) r->top[c] = NAN;
+    for (size_t i = 0; i < n; i++) {
+        int x = (int)((xyz[3 * i] - r->x0) / cell), y = (int)((xyz[3 * i + 1] - r->y0) / cell);
+        x = x < 0 ? 0 : x >= r->nx ? r->nx - 1 : x, y = y < 0 ? 0 : y >= r->ny ? r->ny - 1 : y;
+        float *t = &r->top[(size_t)y * r->nx + x];
+        if (isnan(*t) || xyz[3 * i + 2] > *t) *t = xyz[3 * i + 2];
+    }
+    memcpy(r->roof, r->top, nc * sizeof *r->roof);
+    /* Midpoint concavity along rows, columns and both diagonals, repeated
+     * until it holds: each cell at least the mean of every pair of cells
+     * that holds returns symmetric about it. */
+    static const int dir[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
+    int span = r->nx > r->ny ? r->nx : r->ny;
+    for (int pass = 0, changed = 1; changed && pass < 64; pass++) {
+        changed = 0;
+        for (int y = 0; y < r->ny; y++)
+            for (int x = 0; x < r->nx; x++) {
+                float *z = &r->roof[(size_t)y * r->nx + x];
+                if (isnan(*z)) continue;
+                for (int d = 0; d < 4; d++)
+                    for (int k = 1; k < span; k++) {
+                        int ax = x - k * dir[d][0], ay = y - k * dir[d][1], bx = x + k * dir[d][0], by = y + k * dir[d][1];
+                        if (ax < 0 || ax >= r->nx || ay < 0 || ay >= r->ny || bx < 0 || bx >= r->nx || by < 0 ||
+                            by >= r->ny)
+                            break;
+                        float za = r->roof[(size_t)ay * r->nx + ax], zb = r->roof[(size_t)by * r->nx + bx];
+                        if (isnan(za) || isnan(zb)) continue;
+                        float m = 0.5f * (za + zb);
+                        if (m > *z + 1e-4f) *z = m, changed = 1;
+                    }
+            }
+    }
+    return SY_OK;
+}
+
+double sy_crown_roof_gap(const sy_crown_roof *r)
+{
+    if (!r->top || !(r->height > 0)) return 0;
+    double sum = 0;
+    size_t n = 0;
+    for (size_t q = 0; q < (size_t)r->nx * (size_t)r->ny; q++)
+        if (r->roof[q] > r->z0 + 0.5 * r->height) sum += (r->roof[q] - r->top[q]) / r->height, n++;
+    return n ? sum / (double)n : 0;
+}
+
+double sy_crown_roof_lift(const sy_crown_roof *r, const float p[3])
+{
+    if (!r || !r->top) return NAN;
+    int cx = (int)floor((p[0] - r->x0) / r->cell), cy = (int)floor((p[1] - r->y0) / r->cell);
+    if (cx < 0 || cy < 0 || cx >= r->nx || cy >= r->ny) return NAN;
+    size_t q = (size_t)cy * r->nx + cx;
+    /* Only a return at its cell's top (within a cell's side): the ones
+     * under it are inside the crown, not under its roof. */
+    if (!(p[2] >= r->top[q] - r->cell) || !(r->roof[q] - p[2] > r->lift_min)) return NAN;
+    return r->roof[q];
+}
+
+sy_code sy_cluster_build_hull(sy_cluster *c, const float *xyz, double alpha_scale, int target_tris, double tol,
+                              const float *anchor, const sy_hull_floor *base, const sy_crown_roof *roof,
+                              int *lifted, sy_error *err)
+{
+    if (lifted) *lifted = 0;
     free(c->verts);
     free(c->tris);
     c->verts = NULL;
@@ -554,7 +639,7 @@ sy_code sy_cluster_build_hull(sy_cluster *c, const float *xyz, double alpha_scal
     if (target_tris < 12) target_tris = 12;
     if (c->n_points >= 4) {
         size_t cap = c->n_points < HULL_MAX_POINTS ? c->n_points : HULL_MAX_POINTS;
-        float *p = sy_calloc(2 * cap + 1, 3 * sizeof(float), err, "hull");
+        float *p = sy_calloc(3 * cap + 1, 3 * sizeof(float), err, "hull");
         if (!p) return SY_EINTERNAL;
         size_t m = thin_points(xyz, c->points, c->n_points, HULL_MAX_POINTS, p);
         if (base && isfinite(base->z)) {
@@ -567,6 +652,16 @@ sy_code sy_cluster_build_hull(sy_cluster *c, const float *xyz, double alpha_scal
                     p[3 * m + 2] = (float)base->z;
                     m++;
                 }
+        }
+        if (roof && roof->top) {
+            size_t m0 = m;
+            for (size_t i = 0; i < m0; i++) {
+                double up = sy_crown_roof_lift(roof, p + 3 * i);
+                if (isnan(up)) continue;
+                p[3 * m] = p[3 * i], p[3 * m + 1] = p[3 * i + 1], p[3 * m + 2] = (float)up;
+                m++;
+                if (lifted) (*lifted)++;
+            }
         }
         if (anchor) memcpy(p + 3 * m++, anchor, 3 * sizeof *p);
         /* The alpha shape first, then the convex hull (infinite alpha). A
@@ -625,10 +720,14 @@ static void hull_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
     hull_job *J = ctx;
     for (size_t c = begin; c < end; c++) {
         sy_cluster *C = &J->cl->items[c];
+        int lifted = 0;
         J->rc[c] = sy_cluster_build_hull(C, J->xyz, J->o->alpha_scale, J->o->triangles, J->o->tol,
-                                         J->o->anchors ? J->o->anchors + 3 * c : NULL, &J->o->floor, &J->err[c]);
+                                         J->o->anchors ? J->o->anchors + 3 * c : NULL, &J->o->floor, J->o->roof,
+                                         &lifted, &J->err[c]);
         /* What synthesis reads on decode. */
-        if (!J->rc[c]) J->rc[c] = sy_cluster_occupancy(C, J->xyz, 8, J->o->seen_from_above, &J->err[c]);
+        if (!J->rc[c])
+            J->rc[c] = sy_cluster_occupancy(C, J->xyz, 8, J->o->seen_from_above, lifted ? J->o->roof : NULL,
+                                            &J->err[c]);
     }
 }
 

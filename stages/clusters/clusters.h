@@ -95,14 +95,55 @@ typedef struct {
     float profile[SY_CROWN_SLABS];   /* the crown's radius per slab, any scale */
 } sy_hull_floor;
 
+/* The crown's roof, for a scan seen from below (terrestrial stations): the
+ * lower crown hides the top from them. A dome's top quarter holds a third
+ * of its leaves and returns 1-4 % of the points (docs/synthesize.md
+ * "Stop 32"), and between those few returns the crown's top looks notched.
+ * The roof is the crown's highest point per cell of a grid over its
+ * footprint, raised to the least surface over it that is concave along the
+ * grid's rows, columns and diagonals (the crown's upper hull, read per
+ * cell). A lobe's point that stands at its cell's top, more than lift_min
+ * under the roof, reaches up to it (sy_crown_roof_lift). */
+typedef struct {
+    double x0, y0, cell; /* the grid's corner and cell side, metres */
+    int nx, ny;
+    float *top;          /* nx * ny: the highest point per cell (NaN: none) */
+    float *roof;         /* nx * ny: the roof over the cells that hold points (NaN: none) */
+    double z0, height;   /* the points' lowest z and their height */
+    double lift_min;     /* metres */
+} sy_crown_roof;
+
+/* The roof's grid: cells along the footprint's wider side; a point reaches
+ * up to the roof more than this share of the height under it; a scan's
+ * crown is roofed when its top stands more than SY_ROOF_GAP_RATIO times
+ * further under its roof than its species' own (the pipeline's rule). */
+#define SY_ROOF_CELLS 24
+#define SY_ROOF_LIFT 0.05
+#define SY_ROOF_GAP_RATIO 1.5
+
+/* The roof of the n points xyz (a whole tree): `cells` cells along the
+ * wider side of its footprint, lift_min = lift times its height. */
+sy_code sy_crown_roof_build(const float *xyz, size_t n, int cells, double lift, sy_crown_roof *r, sy_error *err);
+void sy_crown_roof_free(sy_crown_roof *r);
+/* The height point p reaches up to under roof r (NaN: it does not: no
+ * roof, off its grid, under its cell's top, or within lift_min of it). */
+double sy_crown_roof_lift(const sy_crown_roof *r, const float p[3]);
+/* How far the crown's top stands under its roof: over the cells whose roof
+ * lies in the upper half of the height, the mean of (roof - top) / height.
+ * A closed dome's is small, a notched top's larger (0: no roof). */
+double sy_crown_roof_gap(const sy_crown_roof *r);
+
 /* Builds the hull of c from its points: the alpha shape of (a thinned copy
  * of) the points with alpha = alpha_scale * alpha_min, simplified towards
  * target_tris; it falls back to the convex hull and finally an oriented box
  * so that the result is always closed, outward and holds >= 95% of the points
  * within tol metres. anchor (3 floats, or NULL): a point the hull also holds;
- * base (NULL: none): the floor the hull also reaches down to. */
+ * base (NULL: none): the floor the hull also reaches down to; roof (NULL:
+ * none): the roof its points at their cells' tops reach up to, how many of
+ * the (thinned) points did in *lifted (may be NULL). */
 sy_code sy_cluster_build_hull(sy_cluster *c, const float *xyz, double alpha_scale, int target_tris, double tol,
-                              const float *anchor, const sy_hull_floor *base, sy_error *err);
+                              const float *anchor, const sy_hull_floor *base, const sy_crown_roof *roof,
+                              int *lifted, sy_error *err);
 
 /* Options of the hull step: the alpha shape's scale (alpha = alpha_scale *
  * alpha_min, both CGAL squared radii), the triangle budget per hull (the
@@ -116,6 +157,9 @@ typedef struct {
                             a return is occluded, not empty, and counts as occupied (0) */
     sy_hull_floor floor; /* floor.z NaN (default), or every hull reaches down to this floor (an
                             airborne crown's lobes reach down to its lowest return, or its crown base) */
+    const sy_crown_roof *roof; /* NULL (default), or hulls reach up to this roof (a terrestrial crown's
+                                  top, hidden from the stations) and their occupancy counts the cells
+                                  above a return as occupied */
     const float *anchors; /* 3 per cluster or NULL: a point each hull also holds (an airborne crown's
                              lobes reach in to the skeleton node they hang from) */
 } sy_hull_options;
@@ -140,8 +184,11 @@ sy_code sy_clusters_build_hulls(sy_clusters *cl, const float *xyz, const sy_hull
  * side of the hull's box gets `cells` (1..8) cells, the others as many as
  * keep cells near cubic. With from_above, every cell under an occupied one
  * in its column is occupied too (what an airborne scanner cannot see under
- * the returns it got). */
-sy_code sy_cluster_occupancy(sy_cluster *c, const float *xyz, int cells, int from_above, sy_error *err);
+ * the returns it got); with a roof (NULL: none), every cell from a point
+ * that reaches up to it (sy_crown_roof_lift) to the roof over it (what
+ * terrestrial stations cannot see over the crown's top). */
+sy_code sy_cluster_occupancy(sy_cluster *c, const float *xyz, int cells, int from_above, const sy_crown_roof *roof,
+                             sy_error *err);
 /* The same grid (8 cells along the longest side) from c's traced twigs, one
  * return per voxel of its points, each marking every cell its voxel's
  * returns may lie in (a cube of one voxel either side of it): what a lobe

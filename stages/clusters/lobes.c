@@ -220,7 +220,7 @@ size_t sy_cluster_occupancy_bytes(const sy_cluster *c)
  * NULL) the first n; each marks every cell its cube of half-side reach
  * touches. */
 static sy_code occupancy_of(sy_cluster *c, const float *xyz, const uint32_t *idx, size_t n, double reach, int cells,
-                            int from_above, sy_error *err)
+                            int from_above, const sy_crown_roof *roof, sy_error *err)
 {
     free(c->occupancy);
     c->occupancy = NULL;
@@ -255,6 +255,14 @@ static sy_code occupancy_of(sy_cluster *c, const float *xyz, const uint32_t *idx
          * airborne scan's returns lie on the crown's top (the simulated
          * airborne aspen's occupied 12 % of its lobes' cells), and synthesis
          * put leaves only there: a lid on an empty crown. */
+        /* Seen from below, the cells between a return at the crown's top
+         * and the roof over it are hidden by the crown under them. */
+        double up = sy_crown_roof_lift(roof, p);
+        if (!isnan(up)) {
+            double e = b[5] - b[2] > 0 ? b[5] - b[2] : 1, t = (up + reach - b[2]) / e * c->occ_dims[2];
+            int q = t < 0 ? 0 : t >= c->occ_dims[2] ? c->occ_dims[2] - 1 : (int)t;
+            if (q > hi[2]) hi[2] = q;
+        }
         for (int z = from_above ? 0 : lo[2]; z <= hi[2]; z++)
             for (int y = lo[1]; y <= hi[1]; y++)
                 for (int x = lo[0]; x <= hi[0]; x++) {
@@ -265,9 +273,10 @@ static sy_code occupancy_of(sy_cluster *c, const float *xyz, const uint32_t *idx
     return SY_OK;
 }
 
-sy_code sy_cluster_occupancy(sy_cluster *c, const float *xyz, int cells, int from_above, sy_error *err)
+sy_code sy_cluster_occupancy(sy_cluster *c, const float *xyz, int cells, int from_above, const sy_crown_roof *roof,
+                             sy_error *err)
 {
-    return occupancy_of(c, xyz, c->points, c->n_points, 0, cells, from_above, err);
+    return occupancy_of(c, xyz, c->points, c->n_points, 0, cells, from_above, roof, err);
 }
 
 sy_code sy_cluster_occupancy_of_twigs(sy_cluster *c, sy_error *err)
@@ -277,5 +286,5 @@ sy_code sy_cluster_occupancy_of_twigs(sy_cluster *c, sy_error *err)
      * nodes' own cells alone the simulated palm's leaf area against its true
      * tree fell from 0.83 (its points' bits) to 0.55; this way 0.76 (half a
      * voxel: 0.75). */
-    return occupancy_of(c, c->twig_pos, NULL, c->n_twigs, c->twig_voxel, 8, 0, err);
+    return occupancy_of(c, c->twig_pos, NULL, c->n_twigs, c->twig_voxel, 8, 0, NULL, err);
 }

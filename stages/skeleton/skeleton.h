@@ -61,6 +61,12 @@ typedef struct {
     float crown_profile[8]; /* the same tree's crown radius in 8 height slabs from its crown base to
                                its top (any scale; all 0: unknown): an airborne crown's lobes narrow
                                as it does below what the scan saw (the pipeline's hulls read it) */
+    double crown_roof_gap; /* the species' own crown top under its roof (sy_crown_roof_gap of its nominal
+                              tree's branch nodes; 0: unknown): a terrestrial scan whose top stands
+                              further under its roof than SY_ROOF_GAP_RATIO times this gets its lobes
+                              roofed (the pipeline's hulls read it) */
+    int crown_roof;       /* -1: roofed so when the species is known (default); 0: never; 1: always
+                             (terrestrial scans) */
     int no_twigs;         /* 1: the species' crown has no twigs to trace (a palm's fronds): the
                              pipeline traces none and keeps the lobes' occupancy bits (0) */
     int unseen_stems;     /* a scan that shows no stem (its lowest return high over the ground, or
@@ -149,6 +155,9 @@ typedef struct {
     int stem_unseen;      /* 1: the lowest return stood crown_gap metres over the ground (an airborne
                              scan): a trunk from the ground, limbs grown into the crown (step 8d) */
     double crown_gap;
+    double roof_gap, roof_gap_species; /* the scan's crown top under its roof (sy_crown_roof_gap; 0: not
+                                          measured), and its species' (crown_roof_gap) */
+    int roofed;           /* 1: the lobes reach up to the crown's roof */
     double t_graph, t_dijkstra, t_levels, t_radii, t_clusters, t_total; /* seconds */
 } sy_skeleton_report;
 

@@ -38,6 +38,7 @@ sy_skeleton_options sy_skeleton_options_default(void)
     o->wood_share = 0;
     o->spread_around = 0;
     o->lobe_size = 0.25;
+    o->crown_roof = -1;
     o->unfold_hairpins = 1;
     o->fork_domed_stems = 1;
     /* A real trunk, however crooked, has a path near its reach; chains that
@@ -60,6 +61,10 @@ sy_code sy_skeleton_options_check(const sy_skeleton_options *o, sy_error *err)
     if (!(o->spacing >= 0) || !isfinite(o->spacing))
         return sy_fail(err, SY_EUSAGE, "skeleton: spacing %g must be >= 0", o->spacing);
     if (o->no_twigs != 0 && o->no_twigs != 1) return sy_fail(err, SY_EUSAGE, "skeleton: no_twigs must be 0 or 1");
+    if (o->crown_roof < -1 || o->crown_roof > 1)
+        return sy_fail(err, SY_EUSAGE, "skeleton: crown_roof %d must be -1, 0 or 1", o->crown_roof);
+    if (!(o->crown_roof_gap >= 0) || !isfinite(o->crown_roof_gap))
+        return sy_fail(err, SY_EUSAGE, "skeleton: crown_roof_gap %g must be >= 0", o->crown_roof_gap);
     if (o->k < 1 || o->k > 32) return sy_fail(err, SY_EUSAGE, "skeleton: k %d outside [1, 32]", o->k);
     if (!(o->radius_factor > 0) || !(o->bin_factor > 0) || !(o->min_bin >= 0) || !isfinite(o->radius_factor) ||
         !isfinite(o->bin_factor) || !isfinite(o->min_bin))
