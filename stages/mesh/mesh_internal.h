@@ -123,6 +123,15 @@ typedef struct {
 
 sy_code sy_stems_build(const sy_skeleton *skel, const sy_mesh_options *opt, sy_stems *out, sy_error *err);
 void sy_stems_free(sy_stems *st);
+
+/* A stem and its base radius, ordered thickest first, then by index
+ * (qsort): stems.c places each depth's stems so, tube.c welds each
+ * parent's children so. */
+typedef struct {
+    int32_t stem;
+    float r_base;
+} sy_stem_by_radius;
+int sy_stem_by_radius_cmp(const void *x, const void *y);
 /* Fills st->reach from the stems' polylines and the leaves lv (may be NULL). */
 sy_code sy_stems_reach(sy_stems *st, const sy_leaves *lv, sy_error *err);
 

@@ -146,22 +146,17 @@ static sy_code build_chains(const sy_skeleton *sk, sy_stems *st, sy_error *err)
     return SY_OK;
 }
 
-/* Depth of every stem and the parents-first order; siblings' order, thicker
- * first within a depth (fit_on_parent): the thinner child slides past the thicker one, not
- * the other way round. By index, a twig listed before the limb beside it
- * kept its place and the limb, unable to slide past it, crossed its ring. */
-typedef struct {
-    float radius;
-    int32_t stem;
-} depth_key;
-
-static int cmp_depth_key(const void *a, const void *b)
+int sy_stem_by_radius_cmp(const void *x, const void *y)
 {
-    const depth_key *x = a, *y = b;
-    if (x->radius != y->radius) return x->radius > y->radius ? -1 : 1;
-    return (x->stem > y->stem) - (x->stem < y->stem);
+    const sy_stem_by_radius *a = x, *b = y;
+    if (a->r_base != b->r_base) return a->r_base > b->r_base ? -1 : 1;
+    return (a->stem > b->stem) - (a->stem < b->stem);
 }
 
+/* Depth of every stem and the parents-first order, thickest first within a
+ * depth (fit_on_parent): the thinner child slides past the thicker one, not
+ * the other way round. By index, a twig listed before the limb beside it
+ * kept its place and the limb, unable to slide past it, crossed its ring. */
 static sy_code order_by_depth(const sy_skeleton *sk, sy_stems *st, sy_error *err)
 {
     st->by_depth = malloc((st->n ? st->n : 1) * sizeof *st->by_depth);
@@ -181,13 +176,14 @@ static sy_code order_by_depth(const sy_skeleton *sk, sy_stems *st, sy_error *err
     for (int d = 1; d <= max_depth; d++) count[d] += count[d - 1];
     for (size_t k = 0; k < st->n; k++) st->by_depth[count[st->s[k].depth]++] = (int32_t)k;
     free(count);
-    depth_key *key = malloc((st->n ? st->n : 1) * sizeof *key);
+    sy_stem_by_radius *key = malloc((st->n ? st->n : 1) * sizeof *key);
     if (!key) return sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
     for (size_t a = 0; a < st->n;) {
         size_t b = a;
         while (b < st->n && st->s[st->by_depth[b]].depth == st->s[st->by_depth[a]].depth) b++;
-        for (size_t k = a; k < b; k++) key[k] = (depth_key){sk->radius[st->s[st->by_depth[k]].nodes[0]], st->by_depth[k]};
-        qsort(key + a, b - a, sizeof *key, cmp_depth_key);
+        for (size_t k = a; k < b; k++)
+            key[k] = (sy_stem_by_radius){st->by_depth[k], sk->radius[st->s[st->by_depth[k]].nodes[0]]};
+        qsort(key + a, b - a, sizeof *key, sy_stem_by_radius_cmp);
         for (size_t k = a; k < b; k++) st->by_depth[k] = key[k].stem;
         a = b;
     }

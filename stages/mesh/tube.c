@@ -353,17 +353,7 @@ void sy_tube_emit(const sy_stems *st, size_t stem, const sy_lod_params *lp, sy_m
  * parent's quads and closes each ring with a cap inside the parent, so the
  * bark has no open edge either way. */
 
-typedef struct {
-    int32_t stem;
-    float r_base;
-} weld_job;
-
-static int cmp_weld(const void *x, const void *y)
-{
-    const weld_job *a = x, *b = y;
-    if (a->r_base != b->r_base) return a->r_base > b->r_base ? -1 : 1;
-    return (a->stem > b->stem) - (a->stem < b->stem);
-}
+typedef sy_stem_by_radius weld_job; /* a child to weld into its parent */
 
 #define WELD_MAX_LOOP 1024
 #define WELD_MAX_GROUP 64 /* children in one hole */
@@ -1644,7 +1634,7 @@ static int cmp_weld_parent(const void *x, const void *y, const sy_stems *st)
     const weld_job *a = x, *b = y;
     int32_t pa = st->s[a->stem].parent, pb = st->s[b->stem].parent;
     if (pa != pb) return pa < pb ? -1 : 1;
-    return cmp_weld(x, y);
+    return sy_stem_by_radius_cmp(x, y);
 }
 
 /* Appends t triangles from extra to the growing strips buffer. */
