@@ -125,7 +125,8 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
         {"--leaves", OPT_FLAG, &leaves, NULL, "leaf cards whatever the scan (a leaf-off scan dressed in leaves)"},
         {"--roof", OPT_STRING, &roof, "auto|on|off",
          "lobes reach up to the crown's roof, the top the stations saw through the lower crown (default auto:\n"
-         "a terrestrial scan whose top stands 1.3 times further under its roof than its species' own crown)"},
+         "a terrestrial scan whose top stands 1.5 times, and 3 % of its height, further under its roof than its\n"
+         "species' own crown)"},
         {"--lobe-size", OPT_DOUBLE, &a.run.lobe_size, "F",
          "largest lobe as a share of the tree's extent, in [0,1]; 0: one cluster per cut (default 0.1; cut "
          "again larger, up to 7.5x and at most 1, where the .sylva cannot hold that many lobes)"},

@@ -216,7 +216,8 @@ sy_code sy_reconstruct_tree(const sy_cloud *c, const sy_skeleton_options *o, dou
         rc = sy_crown_roof_build(c->xyz, c->n, SY_ROOF_CELLS, SY_ROOF_LIFT, &roof, err);
         report->roof_gap = rc ? 0 : sy_crown_roof_gap(&roof), report->roof_gap_species = o->crown_roof_gap;
         report->roofed = o->crown_roof == 1 ||
-                         (o->crown_roof_gap > 0 && report->roof_gap > SY_ROOF_GAP_RATIO * o->crown_roof_gap);
+                         (o->crown_roof_gap > 0 && report->roof_gap > SY_ROOF_GAP_RATIO * o->crown_roof_gap &&
+                          report->roof_gap > o->crown_roof_gap + SY_ROOF_GAP_MARGIN);
         if (report->roofed) ho.roof = &roof;
     }
     rc = rc ? rc : sy_clusters_build_hulls(clusters, c->xyz, &ho, hulls, err);

@@ -54,9 +54,9 @@ typedef struct {
                             scan (0). A leaf-off tree's .sylva is marked so (SY_SYLVA_LEAF_OFF): `sylva
                             mesh OUT.sylva` gives the same asset */
     int roof;            /* lobes reach up to the crown's roof (sy_crown_roof): -1 when the scan's top
-                            stands SY_ROOF_GAP_RATIO times further under it than its species' own
-                            crown's (a terrestrial scan of a known species; default), 0 never, 1 always
-                            (a terrestrial scan) */
+                            stands SY_ROOF_GAP_RATIO times (and SY_ROOF_GAP_MARGIN of the height) further
+                            under it than its species' own crown's (a terrestrial scan of a known
+                            species; default), 0 never, 1 always (a terrestrial scan) */
     double lobe_size;    /* largest lobe as a share of the tree's extent, [0, 1] (0.25; 0: one cluster a cut) */
     int classify;        /* 1: without a species, the classifier names one from the cleaned cloud and a
                             confident answer's parameters and materials are used (1) */

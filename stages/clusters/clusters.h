@@ -115,11 +115,14 @@ typedef struct {
 
 /* The roof's grid: cells along the footprint's wider side; a point reaches
  * up to the roof more than this share of the height under it; a scan's
- * crown is roofed when its top stands more than SY_ROOF_GAP_RATIO times
- * further under its roof than its species' own (the pipeline's rule). */
+ * crown is roofed when its top stands SY_ROOF_GAP_RATIO times further under
+ * its roof than its species' own, and at least SY_ROOF_GAP_MARGIN of its
+ * height further (the pipeline's rule: a palm's rosette stands 0.03 of its
+ * height under its roof, and its bundled scan's 0.046 is 1.51 times that). */
 #define SY_ROOF_CELLS 24
 #define SY_ROOF_LIFT 0.05
 #define SY_ROOF_GAP_RATIO 1.5
+#define SY_ROOF_GAP_MARGIN 0.03
 
 /* The roof of the n points xyz (a whole tree): `cells` cells along the
  * wider side of its footprint, lift_min = lift times its height. */

@@ -63,8 +63,8 @@ typedef struct {
                                as it does below what the scan saw (the pipeline's hulls read it) */
     double crown_roof_gap; /* the species' own crown top under its roof (sy_crown_roof_gap of its nominal
                               tree's branch nodes; 0: unknown): a terrestrial scan whose top stands
-                              further under its roof than SY_ROOF_GAP_RATIO times this gets its lobes
-                              roofed (the pipeline's hulls read it) */
+                              SY_ROOF_GAP_RATIO times this under its roof, and SY_ROOF_GAP_MARGIN more,
+                              gets its lobes roofed (the pipeline's hulls read it) */
     int crown_roof;       /* -1: roofed so when the species is known (default); 0: never; 1: always
                              (terrestrial scans) */
     int no_twigs;         /* 1: the species' crown has no twigs to trace (a palm's fronds): the
