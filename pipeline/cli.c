@@ -26,7 +26,13 @@ static void print_opts(const sy_opt *opts)
     for (const sy_opt *o = opts; o && o->name; o++) {
         char left[64];
         snprintf(left, sizeof left, "%s%s%s", o->name, o->metavar ? " " : "", o->metavar ? o->metavar : "");
-        printf("  %-24s %s\n", left, o->help);
+        /* A help text's later lines line up under its first. */
+        printf("  %-24s ", left);
+        for (const char *h = o->help; *h; h++) {
+            putchar(*h);
+            if (*h == '\n') printf("%27s", "");
+        }
+        putchar('\n');
     }
 }
 
