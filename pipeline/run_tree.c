@@ -477,6 +477,7 @@ static void species_nominal(const sy_species_params *sp, nominal_tree *nt)
         for (size_t i = 0; i < t.n; i++)
             if (t.order[i] >= 1) memcpy(crown + 3 * m++, t.pos + 3 * i, 3 * sizeof *crown);
         sy_crown_roof roof;
+        memset(&roof, 0, sizeof roof);
         if (m && !sy_crown_roof_build(crown, m, SY_ROOF_CELLS, SY_ROOF_LIFT, &roof, &err))
             nt->roof_gap = sy_crown_roof_gap(&roof);
         sy_crown_roof_free(&roof);

@@ -162,7 +162,7 @@ typedef struct {
                             airborne crown's lobes reach down to its lowest return, or its crown base) */
     const sy_crown_roof *roof; /* NULL (default), or hulls reach up to this roof (a terrestrial crown's
                                   top, hidden from the stations) and their occupancy counts the cells
-                                  above a return as occupied */
+                                  between a return and the roof it reaches up to as occupied */
     const float *anchors; /* 3 per cluster or NULL: a point each hull also holds (an airborne crown's
                              lobes reach in to the skeleton node they hang from) */
 } sy_hull_options;

@@ -241,11 +241,15 @@ static sy_code occupancy_of(sy_cluster *c, const float *xyz, const uint32_t *idx
     if (!c->occupancy) return SY_EINTERNAL;
     for (size_t i = 0; i < n; i++) {
         const float *p = xyz + 3 * (idx ? (size_t)idx[i] : i);
+        /* Seen from below, the cells between a return at the crown's top
+         * and the roof over it are hidden by the crown under them. */
+        double up = sy_crown_roof_lift(roof, p);
         int lo[3], hi[3];
         for (int k = 0; k < 3; k++) {
             double e = b[3 + k] - b[k] > 0 ? b[3 + k] - b[k] : 1;
             for (int side = 0; side < 2; side++) {
-                double t = (p[k] + (side ? reach : -reach) - b[k]) / e * c->occ_dims[k];
+                double v = side ? (k == 2 && !isnan(up) ? up : p[k]) + reach : p[k] - reach;
+                double t = (v - b[k]) / e * c->occ_dims[k];
                 int q = t < 0 ? 0 : t >= c->occ_dims[k] ? c->occ_dims[k] - 1 : (int)t;
                 if (side) hi[k] = q;
                 else lo[k] = q;
@@ -255,14 +259,6 @@ static sy_code occupancy_of(sy_cluster *c, const float *xyz, const uint32_t *idx
          * airborne scan's returns lie on the crown's top (the simulated
          * airborne aspen's occupied 12 % of its lobes' cells), and synthesis
          * put leaves only there: a lid on an empty crown. */
-        /* Seen from below, the cells between a return at the crown's top
-         * and the roof over it are hidden by the crown under them. */
-        double up = sy_crown_roof_lift(roof, p);
-        if (!isnan(up)) {
-            double e = b[5] - b[2] > 0 ? b[5] - b[2] : 1, t = (up + reach - b[2]) / e * c->occ_dims[2];
-            int q = t < 0 ? 0 : t >= c->occ_dims[2] ? c->occ_dims[2] - 1 : (int)t;
-            if (q > hi[2]) hi[2] = q;
-        }
         for (int z = from_above ? 0 : lo[2]; z <= hi[2]; z++)
             for (int y = lo[1]; y <= hi[1]; y++)
                 for (int x = lo[0]; x <= hi[0]; x++) {
