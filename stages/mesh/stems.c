@@ -502,27 +502,26 @@ typedef struct {
 
 /* The footprint of s's base ring if s left parent p at arc length as,
  * its first segment running from there to its first own point. 0 when
- * that segment has no direction or, unless clamp, runs within 25 degrees of
- * the parent's axis (a continuation, carried through by
- * sy_skeleton_continuations); with clamp such a segment counts as 25
- * degrees off the axis. */
-static int footprint_at(const sy_stem *p, const sy_stem *s, float as, int clamp, footprint *f)
+ * that segment has no direction; FOOTPRINT_ALONG when it runs within 25
+ * degrees of the parent's axis (a continuation, carried through by
+ * sy_skeleton_continuations), the footprint then drawn as if at 25 degrees;
+ * else 1. */
+#define FOOTPRINT_ALONG 2
+static int footprint_at(const sy_stem *p, const sy_stem *s, float as, footprint *f)
 {
     float c[3], T[3], N[3], B[3], R;
     sy_stem_frame_at(p, NULL, 0, as, c, T, N, &R);
     for (int k = 0; k < 3; k++) f->d[k] = s->pts[3 + k] - c[k];
     if (sy_normalize3(f->d) < DEDUPE_EPS || R <= 0) return 0;
     float ct = sy_dot3(f->d, T), st2 = 1 - ct * ct;
-    if (st2 < 0.1786f) { /* sin^2 25 degrees */
-        if (!clamp) return 0;
-        st2 = 0.1786f, ct = ct < 0 ? -sqrtf(1 - st2) : sqrtf(1 - st2);
-    }
+    int along = st2 < 0.1786f; /* sin^2 25 degrees */
+    if (along) st2 = 0.1786f, ct = ct < 0 ? -sqrtf(1 - st2) : sqrtf(1 - st2);
     float sn = sqrtf(st2), r = s->rad[0];
     f->centre = R * ct / sn, f->half = FOOTPRINT_SLACK * r / sn;
     f->lo = p->ss[0] + f->half - f->centre, f->hi = p->ss[p->n_samp - 1] - f->half - f->centre;
     sy_cross3(T, N, B);
     f->az = atan2f(sy_dot3(f->d, B), sy_dot3(f->d, N)), f->hw = asinf(fminf(1.0f, r / R));
-    return 1;
+    return along ? FOOTPRINT_ALONG : 1;
 }
 
 /* Records child self's footprint f, leaving its parent at arc length as,
@@ -563,14 +562,15 @@ static void fit_on_parent(sy_stems *st, int32_t self, int32_t *first, int32_t *n
     const sy_stem *p = &st->s[s->parent];
     footprint f0, f, fg;
     if (p->n_samp < 2 || s->n_pts < 2) return;
-    if (!footprint_at(p, s, s->attach_s, 0, &f0)) {
+    int fit = footprint_at(p, s, s->attach_s, &f0);
+    if (fit != 1) {
         /* A child running within 25 degrees of its parent keeps its place,
          * but the siblings placed after it must clear the long ring it lays
          * along the parent: its footprint is listed as if it left at 25
          * degrees (a bound its ring exceeds). Unlisted, the siblings beside
          * it kept their places and their rings crossed its own (a fifth of
          * the grown trees' capped LOD0 junctions). */
-        if (footprint_at(p, s, s->attach_s, 1, &f0)) list_footprint(st, self, first, next, placed, s->attach_s, &f0);
+        if (fit == FOOTPRINT_ALONG) list_footprint(st, self, first, next, placed, s->attach_s, &f0);
         return;
     }
     fg = f0;
@@ -582,7 +582,7 @@ static void fit_on_parent(sy_stems *st, int32_t self, int32_t *first, int32_t *n
      * a few rounds settle it, and the last place found clear on the tube
      * (judged by its own footprint) is kept. */
     for (int round = 0; round <= 4; round++) {
-        if (!footprint_at(p, s, as, 0, &f) || f.lo > f.hi) break;
+        if (footprint_at(p, s, as, &f) != 1 || f.lo > f.hi) break;
         int on_tube = as >= f.lo - 0.1f * f.half && as <= f.hi + 0.1f * f.half;
         if (on_tube && (crowd || footprint_clear(st, self, first, next, as + f.centre - f.half,
                                                  as + f.centre + f.half, f.az, f.hw, gap)))
@@ -608,7 +608,7 @@ static void fit_on_parent(sy_stems *st, int32_t self, int32_t *first, int32_t *n
                      * (no footprint) or turn more than the slide allows is
                      * no place: the other side of the sibling may be. */
                     footprint fa;
-                    if (!footprint_at(p, s, a, 0, &fa) || sy_dot3(fa.d, f0.d) < SLIDE_MIN_COS) continue;
+                    if (footprint_at(p, s, a, &fa) != 1 || sy_dot3(fa.d, f0.d) < SLIDE_MIN_COS) continue;
                     best = move, to = a;
                 }
             }
@@ -619,7 +619,7 @@ static void fit_on_parent(sy_stems *st, int32_t self, int32_t *first, int32_t *n
     /* Where no place was judged clear, the last one tried still welds
      * more often than not (the footprint is a bound, not the ring). */
     if (isnan(good)) {
-        if (footprint_at(p, s, as, 0, &fg)) good = as;
+        if (footprint_at(p, s, as, &fg) == 1) good = as;
         else good = s->attach_s, fg = f0;
     }
     if (good != s->attach_s) {
