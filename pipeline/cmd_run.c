@@ -128,8 +128,8 @@ int cmd_run(int argc, char **argv, sy_cli *cli)
          "a terrestrial scan whose top stands 1.5 times, and 3 % of its height, further under its roof than its\n"
          "species' own crown)"},
         {"--lobe-size", OPT_DOUBLE, &a.run.lobe_size, "F",
-         "largest lobe as a share of the tree's extent, in [0,1]; 0: one cluster per cut (default 0.1; cut "
-         "again larger, up to 7.5x and at most 1, where the .sylva cannot hold that many lobes)"},
+         "largest lobe as a share of the tree's extent, in [0,1]; 0: one cluster per cut (default 0.1, a crown\n"
+         "of fronds 1; cut again larger, up to 7.5x and at most 1, where the .sylva cannot hold that many lobes)"},
         {"--model", OPT_STRING, &a.run.model, "MODEL.sjb", "species classifier used without --species (default: the shipped one)"},
         {"--no-classify", OPT_FLAG, &no_classify, NULL, "without --species, keep the default parameters and materials"},
         {"--beta", OPT_DOUBLE, &a.run.beta, "B", "Dijkstra edge weight |u-v|^B (default: species, else 1)"},

@@ -27,7 +27,7 @@ sy_run_tree_options sy_run_tree_options_default(void)
     o.beta = o.gamma = o.fair_sigma = o.return_cap = NAN;
     o.fs = 1;
     o.seed = 1;
-    o.lobe_size = 0.1;
+    o.lobe_size = -1;
     o.roof = -1;
     o.classify = 1;
     o.max_points = SY_POINT_BUDGET;
@@ -45,8 +45,8 @@ sy_code sy_run_tree_options_check(const sy_run_tree_options *o, sy_error *err)
     if (!(o->wood_share >= 0 && o->wood_share < 1))
         return sy_fail(err, SY_EUSAGE, "run: wood_share %g outside [0, 1)", o->wood_share);
     if (o->roof < -1 || o->roof > 1) return sy_fail(err, SY_EUSAGE, "run: roof %d must be -1, 0 or 1", o->roof);
-    if (!(o->lobe_size >= 0 && o->lobe_size <= 1))
-        return sy_fail(err, SY_EUSAGE, "run: lobe_size %g outside [0, 1]", o->lobe_size);
+    if (!(o->lobe_size == -1 || (o->lobe_size >= 0 && o->lobe_size <= 1)))
+        return sy_fail(err, SY_EUSAGE, "run: lobe_size %g outside [0, 1] (or -1: the species')", o->lobe_size);
     if (o->leaf_off < -1 || o->leaf_off > 1) return sy_fail(err, SY_EUSAGE, "run: leaf_off %d is not -1, 0 or 1", o->leaf_off);
     if (!(o->voxel >= 0) || !isfinite(o->voxel))
         return sy_fail(err, SY_EUSAGE, "run: voxel %g must be >= 0 metres", o->voxel);
@@ -697,7 +697,11 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
     so.unfold_hairpins = !o->keep_hairpins;
     if (!isnan(o->fair_sigma)) so.fair_sigma = o->fair_sigma;
     if (!isnan(o->return_cap)) so.return_cap = o->return_cap;
-    so.lobe_size = o->lobe_size;
+    /* A crown of fronds is one rosette on the stem's apex: one lobe, whose
+     * fronds all leave the apex (synthesis's fronds). Cut into a tenth of
+     * the crown, a palm drew a frond per few returns: 1,211 rachises on the
+     * bundled palm, a broom. */
+    so.lobe_size = o->lobe_size >= 0 ? o->lobe_size : so.no_twigs ? 1 : SY_RUN_LOBE_SIZE;
     so.crown_roof = o->roof;
     sy_skeleton s;
     sy_clusters cl;

@@ -29,6 +29,8 @@
 extern "C" {
 #endif
 
+#define SY_RUN_LOBE_SIZE 0.1 /* sylva run's lobes: a tenth of the tree's extent */
+
 typedef struct {
     const char *species; /* library name or .ini path: its beta/gamma, bark and leaf materials and .sylva
                             species id; NULL: none (default materials, species id 0) */
@@ -57,7 +59,9 @@ typedef struct {
                             stands SY_ROOF_GAP_RATIO times (and SY_ROOF_GAP_MARGIN of the height) further
                             under it than its species' own crown's (a terrestrial scan of a known
                             species; default), 0 never, 1 always (a terrestrial scan) */
-    double lobe_size;    /* largest lobe as a share of the tree's extent, [0, 1] (0.25; 0: one cluster a cut) */
+    double lobe_size;    /* largest lobe as a share of the tree's extent, [0, 1] (0: one cluster a cut);
+                            -1: the species' (default): 1 for a crown of fronds (species twigs = 0),
+                            else SY_RUN_LOBE_SIZE */
     int classify;        /* 1: without a species, the classifier names one from the cleaned cloud and a
                             confident answer's parameters and materials are used (1) */
     const char *model;   /* classifier model; NULL: the library's classifier.sjb */

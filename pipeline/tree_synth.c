@@ -72,7 +72,9 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
     }
     so.leaf_density = ls.leaf_density;
     so.bare = t->leaf_off;
-    so.no_twigs = species && !species->twigs;
+    /* A crown of fronds: as many as the species' stem carries (Weber &
+     * Penn's 1Branches; the palm's 24). */
+    if (species && !species->twigs) so.fronds = species->level[1].branches >= 1 ? (int)lround(species->level[1].branches) : 1;
     so.max_depth = ls.max_depth;
     if (species && species->ratio_power > 0) so.ratio_power = species->ratio_power;
     if (species) {
@@ -82,7 +84,7 @@ sy_code sy_decoded_tree_build(const char *name, const unsigned char *data, size_
         for (int l = 0; l < 2; l++)
             so.down_angle[l] = species->level[l + 1].down_angle, so.down_angle_v[l] = species->level[l + 1].down_angle_v;
     }
-    for (size_t c = 0; c < t->lobes.n && !so.no_twigs && !t->lean_radius; c++)
+    for (size_t c = 0; c < t->lobes.n && !so.fronds && !t->lean_radius; c++)
         if (t->lobes.items[c].n_twigs) t->lean_radius = SY_MESH_LEAN_RADIUS;
     rc = sy_synthesize(&t->skel, &t->lobes, &lib, &so, &t->grown, &t->leaves, &t->synth, err);
     sy_branchlets_free(&lib);

@@ -1052,6 +1052,65 @@ static void card_tips_stay_in_the_hull(void **state)
     sy_skeleton_free(&s);
 }
 
+/* A crown of fronds (a palm): a lobe beside the crown, hung off a node
+ * half way up the stem, is filled by fronds that each leave the stem's top
+ * metre (nodes 8-10 of make_tree's trunk, the apex at 4 m), spread over
+ * those nodes; no hidden limb grows, and every leaflet lies in the lobe.
+ * Without fronds, the same lobe's bark leaves from its seed. */
+static void fronds_leave_the_stem_top(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_clusters one = {0}, cl = {0};
+    tree_with_lobes(&s, &one, &cl, 1);
+    moved_box(&cl.items[0], &one.items[0], 5, 1.6f, 0, -0.6f, one.items[0].n_tris);
+    sy_branchlets lib;
+    sy_lsystem ls;
+    load_lib("palm", &lib, &ls);
+    sy_synth_options o = sy_synth_options_default();
+    o.leaf_size = 0.6f;
+    o.leaf_density = ls.leaf_density;
+    o.max_depth = ls.max_depth;
+    sy_error err = {0};
+    for (int fronds = 0; fronds <= 24; fronds += 24) {
+        o.fronds = fronds;
+        size_t from_top[3] = {0, 0, 0}, from_seed = 0, in_box = 0;
+        sy_skeleton out;
+        sy_leaves lv;
+        sy_synth_report rep;
+        assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out, &lv, &rep, &err), SY_OK);
+        for (size_t i = s.n; i < out.n; i++) {
+            int32_t p = out.parent[i];
+            if (p >= 8 && p <= 10) from_top[p - 8]++;
+            from_seed += p == 5;
+            assert_true(p >= (int32_t)s.n || (p >= 8 && p <= 10) || p == 5);
+        }
+        for (size_t i = 0; i < lv.n; i++) {
+            double p[3] = {lv.pos[3 * i], lv.pos[3 * i + 1], lv.pos[3 * i + 2]};
+            in_box += dist_to_box(p, &cl.items[0]) <= 0.05 + 1e-6;
+        }
+        printf("fronds %d: %zu patches, %zu hidden-limb nodes, stems from nodes 8/9/10: %zu/%zu/%zu, from the seed "
+               "%zu; %zu leaves (%zu in the lobe)\n", fronds, rep.patches, rep.scaffold_nodes, from_top[0], from_top[1],
+               from_top[2], from_seed, lv.n, in_box);
+        if (fronds) {
+            assert_int_equal(from_seed, 0);
+            assert_int_equal(rep.scaffold_nodes, 0);
+            assert_true(from_top[0] >= 1 && from_top[1] >= 1 && from_top[2] >= 1);
+            assert_true(from_top[0] + from_top[1] + from_top[2] <= rep.patches);
+            assert_true(rep.patches >= 3 && rep.patches <= 3 * 24);
+            assert_true(lv.n > 20);
+            assert_int_equal(in_box, lv.n);
+        } else {
+            assert_int_equal(from_top[0] + from_top[1] + from_top[2], 0);
+            assert_true(from_seed >= 1);
+        }
+        sy_skeleton_free(&out), sy_leaves_free(&lv);
+    }
+    sy_branchlets_free(&lib);
+    sy_clusters_free(&cl), sy_clusters_free(&one);
+    sy_skeleton_free(&s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1070,6 +1129,7 @@ int main(void)
         cmocka_unit_test(card_tips_stay_in_the_hull),
         cmocka_unit_test(starts_leave_the_bark_apart),
         cmocka_unit_test(winding_number_of_a_box),
+        cmocka_unit_test(fronds_leave_the_stem_top),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

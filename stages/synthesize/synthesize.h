@@ -53,8 +53,9 @@ typedef struct {
     int bare;               /* 1: a leaf-off tree: a lobe with traced twigs (sy_cluster.n_twigs) gets no
                                leaves, its twigs are its wood (0: its leaves hang on its twigs; no lobe with
                                twigs gets patches either way) */
-    int no_twigs;           /* 1: the lobes' traced twigs are left out (a species without twigs: a palm's
-                               fronds), the scaffold grows instead (0) */
+    int fronds;             /* > 0: a crown of this many fronds (a palm): no traced twigs, no hidden limbs;
+                               every lobe hangs off the stem's top, and each frond, one whole branchlet,
+                               reaches from there to the crown's edge in its own direction (0: none) */
 } sy_synth_options;
 
 /* What happened to a lobe that got no patch (sy_synth_report.bare_reason), as a phrase. */
