@@ -1718,8 +1718,9 @@ static sy_code lay_frond(lobe_grid *g, int32_t from, const double to[3], double 
  * they left: each toward the occupied cell with room farthest from the
  * apex, laid where FROND_GAIN of its leaflets find room. The aimed fronds
  * end at the crown's spikes; the others fill between them (the simulated
- * palm, seed 1: IoU against its true tree 0.772 with the aimed ones alone,
- * 0.819 with both; docs/synthesize.md stop 47). */
+ * palm, seeds 1-3: IoU against its true tree 0.748-0.773 with the aimed
+ * ones alone, a third of its leaf area; 0.798-0.825 with both;
+ * docs/synthesize.md stop 47). */
 #define FROND_GAIN 0.3
 static sy_code lay_fronds(lobe_grid *g, int32_t lobe_index, const frond_aim *aims, size_t n_aims, int32_t top,
                           const sy_branchlets *lib, const sy_synth_options *o, double max_thick, double ceiling,
