@@ -1714,15 +1714,15 @@ static sy_code lay_frond(lobe_grid *g, int32_t from, const double to[3], double 
 /* Lays lobe g's fronds from its shaft, local nodes 0..top (the apex); the
  * k-th leaves shaft node top - k mod (top + 1), from the apex down. First
  * those aimed at it (aims, n_aims of them: every lobe's; fronds_aim), then
- * up to twice as many again where its returns hold room for leaflets that
- * they left: each toward the occupied cell with room farthest from the
- * apex, laid where FROND_GAIN of its leaflets find room. The aimed fronds
+ * up to `between` more (fronds_between) where its returns hold room for
+ * leaflets that they left: each toward the occupied cell with room
+ * farthest from the apex, laid where FROND_GAIN of its leaflets find room. The aimed fronds
  * end at the crown's spikes; the others fill between them (the simulated
  * palm, seeds 1-3: IoU against its true tree 0.748-0.773 with the aimed
- * ones alone, a third of its leaf area; 0.798-0.825 with both;
+ * ones alone, a third of its leaf area; 0.802-0.825 with both;
  * docs/synthesize.md stop 47). */
 #define FROND_GAIN 0.3
-static sy_code lay_fronds(lobe_grid *g, int32_t lobe_index, const frond_aim *aims, size_t n_aims, int32_t top,
+static sy_code lay_fronds(lobe_grid *g, int32_t lobe_index, const frond_aim *aims, size_t n_aims, int between, int32_t top,
                           const sy_branchlets *lib, const sy_synth_options *o, double max_thick, double ceiling,
                           double ext, ranked *cands, synth_out *so, sy_synth_report *rep, sy_error *err)
 {
@@ -1737,7 +1737,7 @@ static sy_code lay_fronds(lobe_grid *g, int32_t lobe_index, const frond_aim *aim
     uint8_t *tried = calloc(g->n + 1, 1);
     if (!tried) return rc ? rc : sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
     const double ap[3] = {so->out->pos[3 * top], so->out->pos[3 * top + 1], so->out->pos[3 * top + 2]};
-    for (int extra = 0, tries = 0, most = 2 * k; !rc && extra < most && tries < 8 * most; tries++) {
+    for (int extra = 0, tries = 0; !rc && extra < between && tries < 8 * between; tries++) {
         long far_i = -1;
         double far_d = -1, far_c[3] = {0, 0, 0};
         for (int z = 0; z < g->d[2]; z++)
@@ -1760,7 +1760,8 @@ static sy_code lay_fronds(lobe_grid *g, int32_t lobe_index, const frond_aim *aim
 }
 
 static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_branchlets *lib, const sy_synth_options *o,
-                            const seed_limb *limb, const frond_aim *aims, size_t n_aims, double density, int max_depth,
+                            const seed_limb *limb, const frond_aim *aims, size_t n_aims, int between, double density,
+                            int max_depth,
                             double max_thick, double ceiling, double ground, ranked *cands, synth_out *so,
                             sy_synth_report *rep, size_t *occupied, size_t cells[2], sy_error *err)
 {
@@ -1817,8 +1818,8 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
      * bare, a leafy one carries its leaves on them (leaves_on_twigs). */
     if (twigs || o->fronds) starts = max_starts;
     if (!rc && bare_reason < 0 && o->fronds)
-        rc = lay_fronds(&g, lobe_index, aims, n_aims, seed, lib, o, max_thick, ceiling, lobe_ext > 0 ? lobe_ext : 1, cands,
-                        so, rep, err);
+        rc = lay_fronds(&g, lobe_index, aims, n_aims, between, seed, lib, o, max_thick, ceiling,
+                        lobe_ext > 0 ? lobe_ext : 1, cands, so, rep, err);
     if (!rc && bare_reason < 0 && twigs && !o->bare)
         rc = leaves_on_twigs(&g, so, lobe_node0, o->leaf_size, sy_mix64(rng ^ 0x2545F4914F6CDD1Dull), rep, err);
     while (!rc && bare_reason < 0 && starts < max_starts && lobe_patches < (size_t)o->max_patches) {
@@ -2152,6 +2153,7 @@ typedef struct {
     int n_shaft;
     const frond_aim *aims;    /* a crown of fronds: where each frond reaches, and in which lobe */
     size_t n_aims;
+    const int *between;       /* a crown of fronds: per lobe, the fronds that fill it after the aimed ones */
 } lobe_ctx;
 
 static void lobe_work_free(lobe_work *w)
@@ -2189,7 +2191,8 @@ static void texture_lobes(void *vctx, size_t begin, size_t end, size_t chunk)
             sy_cluster local = *C;
             local.seed = n_base - 1;
             synth_out so = {&w->out, &w->leaves, NULL, 0, x->base_branches, x->crown, 0};
-            w->rc = texture_lobe(&local, (int32_t)c, x->lib, x->o, &x->limbs[c], x->aims, x->n_aims, density, max_depth,
+            w->rc = texture_lobe(&local, (int32_t)c, x->lib, x->o, &x->limbs[c], x->aims, x->n_aims,
+                                 x->between ? x->between[c] : 0, density, max_depth,
                                  x->max_thick, x->ceiling, x->ground, cands,
                                  &so, &w->rep, &w->occupied, w->cells, &w->err);
             w->leaf_key = so.leaf_key;
@@ -2311,6 +2314,31 @@ static int cmp_farthest(const void *a, const void *b)
     return x->vert < y->vert ? -1 : x->vert > y->vert;
 }
 
+/* The volume lobe c's returns occupy: its occupied cells (sy_cluster's
+ * occupancy bits) times a cell's volume, else its hull's box. */
+static double occupied_volume(const sy_cluster *c)
+{
+    float lo[3], hi[3];
+    hull_box(c, lo, hi);
+    double box = (double)(hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]);
+    size_t cells = (size_t)c->occ_dims[0] * c->occ_dims[1] * c->occ_dims[2], set = 0;
+    if (!c->occupancy || !cells) return box;
+    for (size_t i = 0; i < cells; i++) set += (c->occupancy[i >> 3] >> (i & 7)) & 1;
+    return box * (double)set / (double)cells;
+}
+
+/* How many fronds fill each lobe after the aimed ones (lay_fronds): twice
+ * as many as were aimed, shared among the lobes by the volume their
+ * returns occupy. Per lobe by its own aims, a lobe that drew none stayed
+ * bare. between: one per lobe. */
+static void fronds_between(const sy_clusters *lobes, size_t n_aims, int *between)
+{
+    double total = 0;
+    for (size_t c = 0; c < lobes->n; c++) total += occupied_volume(&lobes->items[c]);
+    for (size_t c = 0; c < lobes->n; c++)
+        between[c] = total > 0 ? (int)lround(2.0 * (double)n_aims * occupied_volume(&lobes->items[c]) / total) : 0;
+}
+
 static sy_code fronds_aim(const sy_skeleton *skel, int32_t apex, const sy_clusters *lobes, const sy_synth_options *o,
                           frond_aim **aims, size_t *n_aims, sy_error *err)
 {
@@ -2394,7 +2422,13 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
     int n_shaft = o->fronds ? stem_shaft(skel, shaft) : 0;
     frond_aim *aims = NULL;
     size_t n_aims = 0;
+    int *between = NULL;
     if (!rc && n_shaft) rc = fronds_aim(skel, shaft[n_shaft - 1], lobes, o, &aims, &n_aims, err);
+    if (!rc && n_shaft && n_lobes) {
+        between = malloc(n_lobes * sizeof *between);
+        if (between) fronds_between(lobes, n_aims, between);
+        else rc = sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
+    }
     if (!rc) {
         /* The scan's top: the highest skeleton node or lobe hull vertex (the
          * hulls enclose the returns). A willow's branchlets docked near the
@@ -2410,7 +2444,7 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
         if (!rc) rc = seed_limbs_build(skel, lobes, ceiling - ground, limbs, err);
         if (!rc) {
             lobe_ctx ctx = {skel, lobes, lib, o, max_thick, ceiling, ground, ctx_branches, work, &crown, limbs,
-                            n_shaft ? shaft : NULL, n_shaft, aims, n_aims};
+                            n_shaft ? shaft : NULL, n_shaft, aims, n_aims, between};
             sy_parallel_for(n_lobes, 1, texture_lobes, &ctx);
         }
         free(crown.inside), free(limbs);
@@ -2442,7 +2476,7 @@ sy_code sy_synthesize(const sy_skeleton *skel, const sy_clusters *lobes, const s
         occupied += w->occupied, cells[0] += w->cells[0], cells[1] += w->cells[1];
     }
     for (size_t c = 0; c < n_lobes; c++) lobe_work_free(&work[c]);
-    free(work), free(aims);
+    free(work), free(aims), free(between);
     rep.lobes = lobes ? lobes->n : 0;
     rep.coverage = occupied ? rep.coverage / (double)occupied : 0;
     /* How much of the hulls the scan's points fill: thin bare limbs leave
