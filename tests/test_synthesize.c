@@ -1106,6 +1106,26 @@ static void fronds_leave_the_stem_top(void **state)
         }
         sy_skeleton_free(&out), sy_leaves_free(&lv);
     }
+    /* Two lobes either side of the stem and a crown of one frond: its aim
+     * goes to one lobe, and the fronds between are shared by the volume the
+     * lobes' returns occupy, so the other lobe gets one too. */
+    sy_clusters two = {0};
+    two.n = 2;
+    two.items = calloc(2, sizeof *two.items);
+    assert_non_null(two.items);
+    moved_box(&two.items[0], &one.items[0], 5, 1.6f, 0, -0.6f, one.items[0].n_tris);
+    moved_box(&two.items[1], &one.items[0], 5, -1.5f, 0, -0.6f, one.items[0].n_tris);
+    o.fronds = 1;
+    sy_skeleton out;
+    sy_leaves lv;
+    sy_synth_report rep;
+    assert_int_equal(sy_synthesize(&s, &two, &lib, &o, &out, &lv, &rep, &err), SY_OK);
+    size_t side[2] = {0, 0};
+    for (size_t i = 0; i < lv.n; i++) side[lv.pos[3 * i] > 0]++;
+    printf("one frond aimed, two lobes: %zu patches, leaves %zu on -x, %zu on +x\n", rep.patches, side[0], side[1]);
+    assert_true(rep.patches >= 2 && rep.patches <= 3);
+    assert_true(side[0] > 0 && side[1] > 0);
+    sy_skeleton_free(&out), sy_leaves_free(&lv), sy_clusters_free(&two);
     sy_branchlets_free(&lib);
     sy_clusters_free(&cl), sy_clusters_free(&one);
     sy_skeleton_free(&s);
