@@ -697,10 +697,10 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
     so.unfold_hairpins = !o->keep_hairpins;
     if (!isnan(o->fair_sigma)) so.fair_sigma = o->fair_sigma;
     if (!isnan(o->return_cap)) so.return_cap = o->return_cap;
-    /* A crown of fronds is one rosette on the stem's apex: one lobe, whose
-     * fronds all leave the apex (synthesis's fronds). Cut into a tenth of
-     * the crown, a palm drew a frond per few returns: 1,211 rachises on the
-     * bundled palm, a broom. */
+    /* A crown of fronds is one rosette on the stem's top: one lobe, whose
+     * fronds all leave the stem's top metre (sy_synth_options.fronds). Cut
+     * into lobes of a tenth of the tree, fronds from there drew a frond per
+     * few returns: 1,211 rachises on the bundled palm, a broom. */
     so.lobe_size = o->lobe_size >= 0 ? o->lobe_size : so.no_twigs ? 1 : SY_RUN_LOBE_SIZE;
     so.crown_roof = o->roof;
     sy_skeleton s;
