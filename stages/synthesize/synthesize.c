@@ -807,13 +807,18 @@ static void placement_turn(const dock *d, double Rz[9])
     mat_axis(zax, az, Rz);
 }
 
-static void placement_align(const sy_patch *p, const dock *d, const double Rz[9], double T[9])
+/* T for a patch whose direction dir (its own frame) is laid on the dock's. */
+static void placement_align_dir(const float dir[3], const dock *d, const double Rz[9], double T[9])
 {
     double A[9], v[3];
-    float pd[3] = {p->dir[0], p->dir[1], p->dir[2]};
-    rot_apply(Rz, pd, v);
+    rot_apply(Rz, dir, v);
     mat_align(v, d->dir, A);
     mat_mul(A, Rz, T);
+}
+
+static void placement_align(const sy_patch *p, const dock *d, const double Rz[9], double T[9])
+{
+    placement_align_dir(p->dir, d, Rz, T);
 }
 
 /* A frond's chord: the unit direction from its root to its farthest node
@@ -833,11 +838,8 @@ static double patch_chord(const sy_patch *p, double chord[3])
 /* As placement_align, with the patch's chord on the dock's direction. */
 static void placement_align_chord(const double chord[3], const dock *d, const double Rz[9], double T[9])
 {
-    double A[9], v[3];
-    float c[3] = {(float)chord[0], (float)chord[1], (float)chord[2]};
-    rot_apply(Rz, c, v);
-    mat_align(v, d->dir, A);
-    mat_mul(A, Rz, T);
+    const float c[3] = {(float)chord[0], (float)chord[1], (float)chord[2]};
+    placement_align_dir(c, d, Rz, T);
 }
 
 /* The best k of n candidates (cmp_ranked order: cost, then index, a total
