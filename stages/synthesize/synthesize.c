@@ -1642,12 +1642,31 @@ static const start_leaving *start_crowding(const start_leaving *earlier, int n, 
     return NULL;
 }
 
-/* A crown of fronds' frond k, to be laid in lobe `lobe` from the shaft
+/* Of a lobe's occupied cells (occ, their centres occ_c, in index order),
+ * the one with room and not yet tried nearest p, or with farthest the one
+ * farthest from it (the first in index order of equals): its cell index
+ * (-1: none), its centre in c and its squared distance in *d2. */
+static long cell_with_room(const lobe_grid *g, const size_t *occ, const double *occ_c, size_t n_occ,
+                           const uint8_t *tried, const double p[3], int farthest, double c[3], double *d2)
+{
+    long best_i = -1;
+    double best = farthest ? -1 : INFINITY;
+    for (size_t o = 0; o < n_occ; o++) {
+        size_t i = occ[o];
+        if (tried[i] || !g->cell[i].room) continue;
+        const double *q = occ_c + 3 * o;
+        double dd = (q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]) + (q[2] - p[2]) * (q[2] - p[2]);
+        if (farthest ? dd > best : dd < best) best = dd, best_i = (long)i, memcpy(c, q, 3 * sizeof *c);
+    }
+    *d2 = best;
+    return best_i;
+}
+
+/* A crown of fronds' frond, to be laid in lobe `lobe` from the shaft
  * toward `to` (fronds_aim). */
 typedef struct {
     float to[3];
     int32_t lobe;
-    int k;
 } frond_aim;
 
 /* Lays one frond in lobe g from shaft node `from` toward `to`: the species
@@ -1724,7 +1743,8 @@ static sy_code lay_frond(lobe_grid *g, int32_t from, const double to[3], double 
  * ones alone, a third of its leaf area; 0.802-0.825 with both;
  * docs/synthesize.md stop 47). */
 #define FROND_GAIN 0.3
-static sy_code lay_fronds(lobe_grid *g, int32_t lobe_index, const frond_aim *aims, size_t n_aims, int between, int32_t top,
+static sy_code lay_fronds(lobe_grid *g, const size_t *occ, const double *occ_c, size_t n_occ, uint8_t *tried,
+                          int32_t lobe_index, const frond_aim *aims, size_t n_aims, int between, int32_t top,
                           const sy_branchlets *lib, const sy_synth_options *o, double max_thick, double ceiling,
                           double ext, ranked *cands, synth_out *so, sy_synth_report *rep, sy_error *err)
 {
@@ -1736,28 +1756,16 @@ static sy_code lay_fronds(lobe_grid *g, int32_t lobe_index, const frond_aim *aim
         rc = lay_frond(g, top - k % (top + 1), to, 0, lib, o, max_thick, ceiling, ext, cands, so, rep, &laid, err);
         k++;
     }
-    uint8_t *tried = calloc(g->n + 1, 1);
-    if (!tried) return rc ? rc : sy_fail(err, SY_EINTERNAL, "synthesize: out of memory");
     const double ap[3] = {so->out->pos[3 * top], so->out->pos[3 * top + 1], so->out->pos[3 * top + 2]};
     for (int extra = 0, tries = 0; !rc && extra < between && tries < 8 * between; tries++) {
-        long far_i = -1;
-        double far_d = -1, far_c[3] = {0, 0, 0};
-        for (int z = 0; z < g->d[2]; z++)
-            for (int y = 0; y < g->d[1]; y++)
-                for (int x = 0; x < g->d[0]; x++) {
-                    size_t i = (size_t)x + (size_t)g->d[0] * ((size_t)y + (size_t)g->d[1] * (size_t)z);
-                    if (!g->occupied[i] || !g->cell[i].room || tried[i]) continue;
-                    double c[3] = {g->lo[0] + (x + 0.5) * g->h, g->lo[1] + (y + 0.5) * g->h, g->lo[2] + (z + 0.5) * g->h};
-                    double dd = (c[0] - ap[0]) * (c[0] - ap[0]) + (c[1] - ap[1]) * (c[1] - ap[1]) + (c[2] - ap[2]) * (c[2] - ap[2]);
-                    if (dd > far_d) far_d = dd, far_i = (long)i, memcpy(far_c, c, sizeof far_c);
-                }
+        double far_c[3], far_d;
+        long far_i = cell_with_room(g, occ, occ_c, n_occ, tried, ap, 1, far_c, &far_d);
         if (far_i < 0) break;
         tried[far_i] = 1;
         rc = lay_frond(g, top - k % (top + 1), far_c, FROND_GAIN, lib, o, max_thick, ceiling, ext, cands, so, rep, &laid,
                        err);
         if (laid) k++, extra++;
     }
-    free(tried);
     return rc;
 }
 
@@ -1820,7 +1828,7 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
      * bare, a leafy one carries its leaves on them (leaves_on_twigs). */
     if (twigs || o->fronds) starts = max_starts;
     if (!rc && bare_reason < 0 && o->fronds)
-        rc = lay_fronds(&g, lobe_index, aims, n_aims, between, seed, lib, o, max_thick, ceiling,
+        rc = lay_fronds(&g, occ, occ_c, n_occ, tried, lobe_index, aims, n_aims, between, seed, lib, o, max_thick, ceiling,
                         lobe_ext > 0 ? lobe_ext : 1, cands, so, rep, err);
     if (!rc && bare_reason < 0 && twigs && !o->bare)
         rc = leaves_on_twigs(&g, so, lobe_node0, o->leaf_size, sy_mix64(rng ^ 0x2545F4914F6CDD1Dull), rep, err);
@@ -1830,16 +1838,9 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
          * the seed): where that lies farther than a cell and a half, a
          * straight carrier limb bridges the gap and the first patch docks
          * at its end. */
-        double target[3] = {0, 0, 0}, cnt = 0, near[3] = {0, 0, 0}, near_d = INFINITY;
-        const float ss[3] = {sk->pos[3 * seed], sk->pos[3 * seed + 1], sk->pos[3 * seed + 2]};
-        long near_i = -1;
-        for (size_t o = 0; o < n_occ; o++) {
-            size_t i = occ[o];
-            if (tried[i] || !g.cell[i].room) continue; /* occ: occupied cells */
-            const double *c = occ_c + 3 * o;
-            double dd = (c[0] - ss[0]) * (c[0] - ss[0]) + (c[1] - ss[1]) * (c[1] - ss[1]) + (c[2] - ss[2]) * (c[2] - ss[2]);
-            if (dd < near_d) near_d = dd, memcpy(near, c, sizeof near), near_i = (long)i;
-        }
+        double target[3] = {0, 0, 0}, cnt = 0, near[3] = {0, 0, 0}, near_d;
+        const double ss[3] = {sk->pos[3 * seed], sk->pos[3 * seed + 1], sk->pos[3 * seed + 2]};
+        long near_i = cell_with_room(&g, occ, occ_c, n_occ, tried, ss, 0, near, &near_d);
         if (near_i < 0) break;
         tried[near_i] = 1;
         /* Aim at the empty occupied cells around it (within a large patch's reach). */
@@ -2373,7 +2374,7 @@ static sy_code fronds_aim(const sy_skeleton *skel, int32_t apex, const sy_cluste
         while (j < n && u[0] * dir[3 * j] + u[1] * dir[3 * j + 1] + u[2] * dir[3 * j + 2] < apart) j++;
         if (j < n) continue;
         memcpy(dir + 3 * n, u, sizeof u);
-        a[n] = (frond_aim){{q[0], q[1], q[2]}, v[i].lobe, (int)n};
+        a[n] = (frond_aim){{q[0], q[1], q[2]}, v[i].lobe};
         n++;
     }
     free(v), free(dir);
