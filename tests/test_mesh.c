@@ -914,6 +914,57 @@ static void leaf_budget_keeps_the_leaf_area(void **state)
     sy_leaves_free(&lv);
 }
 
+/* Each coarser level keeps half the leaves and grows them to the whole
+ * leaf area; a narrow card (a palm's leaflet) widens to a square before it
+ * grows longer, so it fills the gap its pruned neighbours left instead of
+ * hanging into a curtain. LOD0 keeps the leaf's shape. */
+static void coarse_levels_widen_narrow_leaves(void **state)
+{
+    (void)state;
+    sy_skeleton s;
+    sy_leaves lv;
+    assert_int_equal(tg_tree(7, 3, 11, 1, 8.0f, &s, &lv), 0);
+    sy_mesh_options o = sy_mesh_options_default();
+    o.impostor = 0;
+    o.leaf_aspect = 0.3f;
+    sy_asset a;
+    mesh_tree(&s, &lv, &o, &a);
+    const sy_instances *l0 = &a.lods[0].instances[0];
+    double all = 0;
+    for (size_t i = 0; i < l0->n; i++) {
+        assert_float_equal(l0->scale[3 * i], l0->scale[3 * i + 1], 0);
+        all += (double)l0->scale[3 * i] * l0->scale[3 * i];
+    }
+    size_t widened = 0;
+    for (size_t k = 1; k < a.n_lods && a.lods[k].n_instances; k++) {
+        const sy_instances *in = &a.lods[k].instances[0];
+        double area = 0, across = 0, along = 0;
+        size_t j = 0;
+        for (size_t i = 0; i < in->n; i++) {
+            while (j < l0->n && memcmp(l0->translation + 3 * j, in->translation + 3 * i, 12)) j++;
+            assert_true(j < l0->n);
+            double x = in->scale[3 * i] / l0->scale[3 * j], y = in->scale[3 * i + 1] / l0->scale[3 * j];
+            if (i == 0) across = x, along = y;
+            assert_float_equal(x, across, 1e-5 * across); /* one growth per level */
+            assert_float_equal(y, along, 1e-5 * along);
+            area += (double)in->scale[3 * i] * in->scale[3 * i + 1];
+            j++;
+        }
+        printf("LOD%zu: %zu of %zu leaves, grown %.2f across and %.2f along, area %.3f of LOD0's\n", k, in->n, l0->n,
+               across, along, area / all);
+        assert_float_equal(area, all, 0.01 * all);
+        /* Widened first, to a square at most; longer only past the square. */
+        double g = across * along, widen = fmin(g, 1 / 0.3);
+        assert_float_equal(across / along, widen, 1e-3 * widen);
+        assert_float_equal(along, sqrt(g / widen), 1e-3);
+        widened += across > along;
+    }
+    assert_true(widened >= 2);
+    sy_asset_free(&a);
+    sy_skeleton_free(&s);
+    sy_leaves_free(&lv);
+}
+
 /* A leaf whose twig the LOD0 triangle budget leaves out stays where it is
  * when its petiole is within reach of the drawn bark (the card depicts the
  * twig), and otherwise comes in only to that reach: moved to the drawn
@@ -1329,6 +1380,7 @@ int main(void)
         cmocka_unit_test(curved_branch_keeps_its_curve_at_every_level),
         cmocka_unit_test(random_tree_meets_every_property),
         cmocka_unit_test(leaf_budget_keeps_the_leaf_area),
+        cmocka_unit_test(coarse_levels_widen_narrow_leaves),
         cmocka_unit_test(budget_leaves_stay_by_their_twigs),
         cmocka_unit_test(wind_table_keeps_levels_0_to_3),
         cmocka_unit_test(bad_input_is_refused_with_a_message),

@@ -241,8 +241,19 @@ static void nearest_centre(const sy_stem *s, const float p[3], float out[3], flo
  * bark even on a three-sided tube, whose faces stand half a radius in. */
 #define LEAF_REACH 0.75f
 
+float sy_card_lowest(const sy_leaves *lv, uint32_t l, float aspect, sy_card_growth g, float z)
+{
+    const float *q = lv->rot + 4 * l;
+    float n = sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    if (!(n > 0)) return z;
+    float x = q[0] / n, y = q[1] / n, qz = q[2] / n, w = q[3] / n, s = lv->scale[l];
+    /* Z row of the rotation matrix: the z of local +X and +Y. */
+    float zx = 2 * (x * qz - w * y), zy = 2 * (y * qz + w * x);
+    return z + s * (g.along * fminf(0, zy) - 0.5f * aspect * g.across * fabsf(zx));
+}
+
 sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint8_t *keep, float aspect,
-                          const uint32_t *list, size_t n, float grow, int mesh, sy_instances *out, sy_error *err)
+                          const uint32_t *list, size_t n, sy_card_growth g, int mesh, sy_instances *out, sy_error *err)
 {
     memset(out, 0, sizeof *out);
     out->mesh = mesh;
@@ -273,18 +284,12 @@ sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint8_t
                  * drawn bark stays, the cards depicting the twig; farther ones
                  * come in to that distance. */
                 float d[3] = {at[0] - c[0], at[1] - c[1], at[2] - c[2]}, dl = sqrtf(sy_dot3(d, d));
-                float reach = 0.5f * cr + LEAF_REACH * lv->scale[l] * grow;
+                float reach = 0.5f * cr + LEAF_REACH * lv->scale[l] * g.along;
                 if (dl > reach)
                     for (int q = 0; q < 3; q++) at[q] = c[q] + d[q] * (reach / dl);
                 /* Moved near the ground, the card may not reach under it. */
-                const float *q = lv->rot + 4 * l;
-                float qn = sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-                if (qn > 0) {
-                    float x = q[0] / qn, y = q[1] / qn, z = q[2] / qn, w = q[3] / qn, sc = lv->scale[l] * grow;
-                    float zx = 2 * (x * z - w * y), zy = 2 * (y * z + w * x);
-                    float low = at[2] + sc * (fminf(0, zy) - 0.5f * aspect * fabsf(zx));
-                    if (low < st->ground) at[2] += st->ground - low;
-                }
+                float low = sy_card_lowest(lv, l, aspect, g, at[2]);
+                if (low < st->ground) at[2] += st->ground - low;
             }
         }
         sy_to_yup(at, out->translation + 3 * i);
@@ -297,8 +302,9 @@ sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint8_t
         quat_mul(to_yup, q, r);
         len = sqrtf(r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3]);
         for (int k = 0; k < 4; k++) r[k] /= len;
-        float s = lv->scale[l] * grow;
-        out->scale[3 * i] = out->scale[3 * i + 1] = out->scale[3 * i + 2] = s;
+        float s = lv->scale[l];
+        out->scale[3 * i] = s * g.across;
+        out->scale[3 * i + 1] = out->scale[3 * i + 2] = s * g.along;
         const sy_stem *stem = &st->s[st->node_stem[lv->node[l]]];
         out->wind_branch[i] = (uint16_t)stem->wind_index;
         memcpy(out->wind_w + 4 * i, stem->wind_w, 4 * sizeof(float));

@@ -102,42 +102,44 @@ static sy_code add_materials(sy_asset *a, const sy_mesh_options *o, int want_lea
     return SY_OK;
 }
 
-/* Whether leaf l's card (the box |x| <= aspect/2, 0 <= y <= 1 of its local
- * frame, scaled) reaches below z = ground. */
-static int card_below(const sy_leaves *lv, uint32_t l, float aspect, float grow, float ground)
-{
-    const float *q = lv->rot + 4 * l, *p = lv->pos + 3 * l;
-    float n = sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-    if (!(n > 0)) return p[2] < ground;
-    float x = q[0] / n, y = q[1] / n, z = q[2] / n, w = q[3] / n, s = lv->scale[l] * grow;
-    /* Z row of the rotation matrix: the z of local +X and +Y. */
-    float zx = 2 * (x * z - w * y), zy = 2 * (y * z + w * x);
-    float lowest = p[2] + s * (fminf(0, zy) - 0.5f * aspect * fabsf(zx));
-    return lowest < ground;
-}
-
 typedef struct {
     uint32_t *list; /* leaves this level keeps, a subsequence of the previous level's */
     size_t n;
 } leaf_level;
 
+/* Growth for cards that must carry `area` times their own area. LOD0 keeps
+ * the leaf's shape. A coarser level, seen from farther away, first widens a
+ * narrow card up to a square and only then lengthens it: a long leaflet
+ * grown in length alone hangs into a shaggy curtain (a palm's metre-long
+ * leaflets stood 2.8 times as long at LOD3), while widening fills the gaps
+ * its pruned neighbours left beside it. */
+static sy_card_growth card_growth(double area, float aspect, int level)
+{
+    double across = 1;
+    if (level > 0 && aspect < 1) across = fmin(area, 1 / (double)aspect);
+    double along = sqrt(area / across);
+    return (sy_card_growth){(float)(across * along), (float)along};
+}
+
 /* Grows the cards of list so that their total area matches all of level 0's
- * (at most 4x), keeping the crown's coverage roughly constant as leaves are
+ * (at most 16x), keeping the crown's coverage roughly constant as leaves are
  * pruned; cards that would then reach below the ground are left out.
  * Returns the growth. */
-static float grow_to_full_area(const sy_leaves *lv, const leaf_level *all, float aspect, float ground,
-                               leaf_level *list)
+static sy_card_growth grow_to_full_area(const sy_leaves *lv, const leaf_level *all, float aspect, int level,
+                                        float ground, leaf_level *list)
 {
     double ref = 0, kept = 0;
     for (size_t i = 0; i < all->n; i++) ref += (double)lv->scale[all->list[i]] * lv->scale[all->list[i]];
     for (size_t i = 0; i < list->n; i++) kept += (double)lv->scale[list->list[i]] * lv->scale[list->list[i]];
-    double g = kept > 0 ? sqrt(ref / kept) : 1;
-    float grow = (float)(g < 1 ? 1 : g > 4 ? 4 : g);
+    double area = kept > 0 ? ref / kept : 1;
+    sy_card_growth g = card_growth(area < 1 ? 1 : area > 16 ? 16 : area, aspect, level);
     size_t n = 0;
-    for (size_t i = 0; i < list->n; i++)
-        if (!card_below(lv, list->list[i], aspect, grow, ground)) list->list[n++] = list->list[i];
+    for (size_t i = 0; i < list->n; i++) {
+        uint32_t l = list->list[i];
+        if (sy_card_lowest(lv, l, aspect, g, lv->pos[3 * l + 2]) >= ground) list->list[n++] = l;
+    }
     list->n = n;
-    return grow;
+    return g;
 }
 
 /* The next level keeps the first half of the previous level's leaves (a
@@ -146,12 +148,12 @@ static float grow_to_full_area(const sy_leaves *lv, const leaf_level *all, float
  * foliage, and they keep swaying with it because every wind entry survives.
  * Dropping them instead left the coarse levels bare (LOD3 of a 20k-leaf tree
  * kept none). Returns the growth. */
-static float next_leaf_level(const sy_leaves *lv, const leaf_level *prev, const leaf_level *all, float aspect,
-                             float ground, leaf_level *next)
+static sy_card_growth next_leaf_level(const sy_leaves *lv, const leaf_level *prev, const leaf_level *all,
+                                      float aspect, int level, float ground, leaf_level *next)
 {
     next->n = 0;
     for (size_t i = 0; i < prev->n / 2; i++) next->list[next->n++] = prev->list[i];
-    return grow_to_full_area(lv, all, aspect, ground, next);
+    return grow_to_full_area(lv, all, aspect, level, ground, next);
 }
 
 /* One level of the chain: chosen in order (each level's stems and leaves
@@ -161,7 +163,8 @@ static float next_leaf_level(const sy_leaves *lv, const leaf_level *prev, const 
 typedef struct {
     sy_lod_params lp; /* lp.keep: this level's own copy */
     leaf_level leaves;
-    float grow, coverage;
+    sy_card_growth grow;
+    float coverage;
     sy_mesh bark;
     sy_instances cards;
     int built, has_cards;
@@ -298,17 +301,19 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
     /* Nothing below the ground: a card that would dip under it is left out. */
     size_t kept = 0;
     for (size_t i = 0; i < lv->n; i++)
-        if (!card_below(lv, all.list[i], opt->leaf_aspect, 1, st.ground)) all.list[kept++] = all.list[i];
+        if (sy_card_lowest(lv, all.list[i], opt->leaf_aspect, (sy_card_growth){1, 1}, lv->pos[3 * all.list[i] + 2]) >=
+            st.ground)
+            all.list[kept++] = all.list[i];
     all.n = kept;
     level_job *l0 = &jobs[0];
     memcpy(l0->leaves.list, all.list, kept * sizeof(uint32_t));
     l0->leaves.n = kept;
     /* Over the leaf budget LOD0 keeps a prefix of the seeded order (stochastic
      * pruning, Cook et al. 2007), grown to the total area of all leaves. */
-    l0->grow = 1.0f, l0->coverage = 0.5f;
+    l0->grow = (sy_card_growth){1, 1}, l0->coverage = 0.5f;
     if (opt->lod0_max_leaves > 0 && l0->leaves.n > (size_t)opt->lod0_max_leaves) {
         l0->leaves.n = (size_t)opt->lod0_max_leaves;
-        l0->grow = grow_to_full_area(lv, &all, opt->leaf_aspect, st.ground, &l0->leaves);
+        l0->grow = grow_to_full_area(lv, &all, opt->leaf_aspect, 0, st.ground, &l0->leaves);
     }
     memset(l0->lp.keep, 1, st.n);
     size_t tris = sy_lod_bark_triangles(&st, &l0->lp);
@@ -334,7 +339,7 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
             free(jb->lp.keep), free(jb->leaves.list);
             break; /* no coarser level can halve the triangles: the chain ends */
         }
-        jb->grow = next_leaf_level(lv, &prev->leaves, &all, opt->leaf_aspect, st.ground, &jb->leaves);
+        jb->grow = next_leaf_level(lv, &prev->leaves, &all, opt->leaf_aspect, level, st.ground, &jb->leaves);
         jb->coverage = 0.5f * prev->coverage;
         n_levels++;
         tris = next_tris;

@@ -220,13 +220,21 @@ sy_code sy_wind_build(sy_stems *st, sy_asset *asset, sy_error *err);
 /* The leaf card mesh for a shape and aspect (local: stem at origin, +Y to
  * the tip, +Z normal). */
 sy_code sy_leaf_card(int shape, float aspect, int material, sy_mesh *out, sy_error *err);
+/* How much a level's leaf cards grow: across the leaf (card x) and along it
+ * (card y, the petiole to the tip). */
+typedef struct {
+    float across, along;
+} sy_card_growth;
+/* The lowest z that leaf card l (the box |x| <= aspect/2, 0 <= y <= 1 of
+ * its local frame, scaled by its size and g) reaches when hung at height z. */
+float sy_card_lowest(const sy_leaves *lv, uint32_t l, float aspect, sy_card_growth g, float z);
 /* Instances of the leaves list[0..n) (indices into lv) in glTF's frame, their
- * size multiplied by grow, with the wind data of the stem each hangs on.
+ * size multiplied by g, with the wind data of the stem each hangs on.
  * keep (per stem, may be NULL): a leaf whose stem is not drawn moves to the
  * nearest ring centre of its closest drawn ancestor (raised, if its card of
  * width aspect would reach below the ground there). */
 sy_code sy_leaf_instances(const sy_leaves *lv, const sy_stems *st, const uint8_t *keep, float aspect,
-                          const uint32_t *list, size_t n, float grow, int mesh, sy_instances *out, sy_error *err);
+                          const uint32_t *list, size_t n, sy_card_growth g, int mesh, sy_instances *out, sy_error *err);
 
 /* ---- impostor (impostor.c) ---- */
 /* Renders the LOD0 meshes and instances of lod0 from two orthogonal
