@@ -905,7 +905,7 @@ static void leaf_budget_keeps_the_leaf_area(void **state)
            all);
     assert_true(l0->n <= 100 && l0->n >= 95); /* a few enlarged cards may reach under the ground */
     assert_true(fabs(kept / all - 1) < 0.06);
-    assert_true(a.lods[1].n_instances == 1 && 2 * a.lods[1].instances[0].n <= l0->n);
+    assert_true(a.lods[1].n_instances == 1 && a.lods[1].instances[0].n <= l0->n);
     sy_asset_free(&a);
     o.lod0_max_leaves = -1;
     sy_error err;
@@ -923,7 +923,7 @@ static void coarse_levels_widen_narrow_leaves(void **state)
     (void)state;
     sy_skeleton s;
     sy_leaves lv;
-    assert_int_equal(tg_tree(7, 3, 11, 1, 8.0f, &s, &lv), 0);
+    assert_int_equal(tg_tree(7, 3, 11, 40, 8.0f, &s, &lv), 0);
     sy_mesh_options o = sy_mesh_options_default();
     o.impostor = 0;
     o.leaf_aspect = 0.3f;
@@ -963,6 +963,46 @@ static void coarse_levels_widen_narrow_leaves(void **state)
     sy_asset_free(&a);
     sy_skeleton_free(&s);
     sy_leaves_free(&lv);
+}
+
+/* A level's cards take up to half its triangles, the bark lending them
+ * what keeping more than half the previous level's leaves costs: a sparse
+ * crown (cards a small share of the triangles) keeps its cards, a leafy one
+ * halves them; either way each level has 25-50 % of the previous level's
+ * triangles. Halved on a sparse scanned crown, the grown cards lost its
+ * silhouette (AdTree's tree1: LOD1 0.809 against LOD0, 0.865 now). */
+static void sparse_crowns_keep_their_cards(void **state)
+{
+    (void)state;
+    for (int leaves_per_node = 1; leaves_per_node <= 40; leaves_per_node += 39) {
+        sy_skeleton s;
+        sy_leaves lv;
+        assert_int_equal(tg_tree(7, 3, 11, leaves_per_node, 8.0f, &s, &lv), 0);
+        sy_mesh_options o = sy_mesh_options_default();
+        o.impostor = 0;
+        sy_asset a;
+        mesh_tree(&s, &lv, &o, &a);
+        const sy_lod *l0 = &a.lods[0], *l1 = &a.lods[1];
+        size_t n0 = l0->instances[0].n, n1 = l1->instances[0].n;
+        size_t t0 = lod_triangles(&a, l0), t1 = lod_triangles(&a, l1);
+        size_t cards0 = t0 - a.meshes[l0->meshes[0]].n_indices / 3;
+        printf("%d leaves a node: cards %.1f %% of LOD0's triangles; LOD1 keeps %zu of %zu leaves, %.3f of the "
+               "triangles\n", leaves_per_node, 100.0 * (double)cards0 / (double)t0, n1, n0, (double)t1 / (double)t0);
+        if (leaves_per_node == 1) {
+            assert_true(10 * cards0 < t0);
+            assert_int_equal(n1, n0);
+        } else {
+            assert_true(3 * cards0 > t0);
+            assert_true(n1 <= n0 / 2);
+        }
+        for (size_t k = 1; k < a.n_lods && a.lods[k].n_meshes; k++) {
+            size_t prev = lod_triangles(&a, &a.lods[k - 1]), t = lod_triangles(&a, &a.lods[k]);
+            assert_true(2 * t <= prev && 4 * t >= prev);
+        }
+        sy_asset_free(&a);
+        sy_skeleton_free(&s);
+        sy_leaves_free(&lv);
+    }
 }
 
 /* A leaf whose twig the LOD0 triangle budget leaves out stays where it is
@@ -1114,7 +1154,9 @@ static void random_tree_meets_every_property(void **state)
     for (size_t k = 1; k < a.n_lods; k++) assert_true(a.lods[k].screen_coverage < a.lods[k - 1].screen_coverage);
 
     /* Leaves: LOD0 has all, unit quaternions; each level is a subsequence of
-     * a prefix (at most half) of the level before. */
+     * the level before (a prefix of it, less cards that would reach under
+     * the ground), at least half of it less those (the card triangles
+     * bark lends are within the ratios above). */
     const sy_instances *l0 = &a.lods[0].instances[0];
     assert_int_equal(a.lods[0].n_instances, 1);
     assert_int_equal(l0->n, lv.n);
@@ -1126,14 +1168,11 @@ static void random_tree_meets_every_property(void **state)
     const sy_instances *prev = l0;
     for (size_t k = 1; k + 1 < a.n_lods && a.lods[k].n_instances; k++) {
         const sy_instances *in = &a.lods[k].instances[0];
-        /* Leaves of dropped twigs go with them, so a coarse level may have
-         * none left; level 1 must keep some. */
-        assert_true(2 * in->n <= prev->n);
-        if (k == 1) assert_true(in->n > 0);
+        assert_true(in->n <= prev->n && 2 * in->n + 8 >= prev->n);
         size_t j = 0;
         for (size_t i = 0; i < in->n; i++) {
-            while (j < prev->n / 2 && memcmp(prev->translation + 3 * j, in->translation + 3 * i, 12)) j++;
-            assert_true(j < prev->n / 2);
+            while (j < prev->n && memcmp(prev->translation + 3 * j, in->translation + 3 * i, 12)) j++;
+            assert_true(j < prev->n);
             assert_memory_equal(prev->rotation + 4 * j, in->rotation + 4 * i, 16);
             assert_true(in->scale[3 * i] >= prev->scale[3 * j]);
             j++;
@@ -1381,6 +1420,7 @@ int main(void)
         cmocka_unit_test(random_tree_meets_every_property),
         cmocka_unit_test(leaf_budget_keeps_the_leaf_area),
         cmocka_unit_test(coarse_levels_widen_narrow_leaves),
+        cmocka_unit_test(sparse_crowns_keep_their_cards),
         cmocka_unit_test(budget_leaves_stay_by_their_twigs),
         cmocka_unit_test(wind_table_keeps_levels_0_to_3),
         cmocka_unit_test(bad_input_is_refused_with_a_message),

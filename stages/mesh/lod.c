@@ -117,9 +117,8 @@ int sy_lod_restore(const sy_stems *st, const uint8_t *prev_keep, sy_lod_params *
     return 1;
 }
 
-#define WELD_MARGIN 0.42
-
-int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris, sy_lod_params *lp, size_t *tris)
+int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris, size_t lent, sy_lod_params *lp,
+                  size_t *tris)
 {
     float grow = ldexpf(1.0f, lp->level - 1);
     float r_min = DROP_RADIUS * grow * st->trunk_radius, l_min = DROP_LENGTH * grow * st->height;
@@ -129,12 +128,11 @@ int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris
         int big = s->parent < 0 || (s->r_base >= r_min && s->length >= l_min);
         lp->keep[i] = prev_keep[i] && big && (s->parent < 0 || lp->keep[s->parent]);
     }
-    /* Half the previous level's bark, less the share the junction strips may
-     * add after selection (welding a level adds up to ~8 % of its
-     * triangles with the Steiner points of a wide ring, the caps it replaces
-     * fewer): the level's drawn triangles stay within half of the previous
+    /* SY_LOD_SHARE of the previous level's bark, less what it lends the
+     * cards: the level's drawn triangles stay within half of the previous
      * level's. */
-    size_t count = sy_lod_bark_triangles(st, lp), budget = (size_t)(WELD_MARGIN * (double)prev_tris);
+    size_t count = sy_lod_bark_triangles(st, lp), budget = (size_t)(SY_LOD_SHARE * (double)prev_tris);
+    budget = budget > lent ? budget - lent : 0;
     if (count > budget && !sy_lod_fit_budget(st, lp, &count, budget)) return 0;
     /* No cliffs: when the thresholds dropped so much that the level has under
      * a quarter of the previous one's triangles, the most important dropped

@@ -142,18 +142,41 @@ static sy_card_growth grow_to_full_area(const sy_leaves *lv, const leaf_level *a
     return g;
 }
 
-/* The next level keeps the first half of the previous level's leaves (a
+/* The next level keeps the first n_keep of the previous level's leaves (a
  * prefix of the stored seeded order), grown to level 0's leaf area. Leaves
  * of twigs the level drops stay: at a distance they stand in for the twig's
  * foliage, and they keep swaying with it because every wind entry survives.
  * Dropping them instead left the coarse levels bare (LOD3 of a 20k-leaf tree
  * kept none). Returns the growth. */
-static sy_card_growth next_leaf_level(const sy_leaves *lv, const leaf_level *prev, const leaf_level *all,
-                                      float aspect, int level, float ground, leaf_level *next)
+static sy_card_growth next_leaf_level(const sy_leaves *lv, const leaf_level *prev, size_t n_keep,
+                                      const leaf_level *all, float aspect, int level, float ground, leaf_level *next)
 {
     next->n = 0;
-    for (size_t i = 0; i < prev->n / 2; i++) next->list[next->n++] = prev->list[i];
+    for (size_t i = 0; i < n_keep && i < prev->n; i++) next->list[next->n++] = prev->list[i];
     return grow_to_full_area(lv, all, aspect, level, ground, next);
+}
+
+/* How many of the previous level's leaves the next keeps, and how many
+ * triangles the level's bark lends its cards for them (*lent). The level
+ * has as many triangles as halving the cards and taking SY_LOD_SHARE of
+ * the bark (prev_bark, before welding) would give; the cards take up to
+ * CARD_SHARE of them, at least half the previous level's leaves, and the
+ * bark pays for those past half. A scanned tree's crown of a few thousand
+ * cards halved at every level lost its silhouette (AdTree's tree1, 2,000
+ * leaves: LOD3 0.571 against LOD0) while the cards were a tenth of its
+ * triangles: the kept cards grow to the same area and fill as many pixels,
+ * so pruning them bought few triangles at a large cost in shape. */
+#define CARD_SHARE 0.5
+static size_t leaves_to_keep(size_t prev_leaves, size_t prev_bark, size_t card_tris, size_t *lent)
+{
+    size_t half = prev_leaves / 2;
+    *lent = 0;
+    if (card_tris == 0) return half;
+    double level = SY_LOD_SHARE * (double)prev_bark + (double)(card_tris * half);
+    double fit = floor(CARD_SHARE * level / (double)card_tris);
+    size_t keep = fit <= (double)half ? half : fit >= (double)prev_leaves ? prev_leaves : (size_t)fit;
+    *lent = (keep - half) * card_tris;
+    return keep;
 }
 
 /* One level of the chain: chosen in order (each level's stems and leaves
@@ -323,23 +346,25 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
         goto done;
     }
     /* The chain, level by level: each keeps a subset of the previous one's
-     * stems and half its leaves. */
+     * stems and at least half its leaves. */
+    size_t card_tris = card >= 0 ? out->meshes[card].n_indices / 3 : 0;
     for (int level = 1; level < opt->n_lods; level++) {
         const level_job *prev = &jobs[level - 1];
         level_job *jb = &jobs[level];
         jb->lp = (sy_lod_params){level, 1 << level, malloc(st.n + 1), 0};
-        jb->leaves.list = malloc((prev->leaves.n / 2 + 1) * sizeof(uint32_t));
+        jb->leaves.list = malloc((prev->leaves.n + 1) * sizeof(uint32_t));
         if (!jb->lp.keep || !jb->leaves.list) {
             free(jb->lp.keep), free(jb->leaves.list);
             rc = sy_fail(err, SY_EINTERNAL, "mesh: out of memory");
             goto done;
         }
-        size_t next_tris;
-        if (!sy_lod_select(&st, prev->lp.keep, tris, &jb->lp, &next_tris)) {
+        size_t next_tris, lent;
+        size_t n_keep = leaves_to_keep(prev->leaves.n, tris, card_tris, &lent);
+        if (!sy_lod_select(&st, prev->lp.keep, tris, lent, &jb->lp, &next_tris)) {
             free(jb->lp.keep), free(jb->leaves.list);
             break; /* no coarser level can halve the triangles: the chain ends */
         }
-        jb->grow = next_leaf_level(lv, &prev->leaves, &all, opt->leaf_aspect, level, st.ground, &jb->leaves);
+        jb->grow = next_leaf_level(lv, &prev->leaves, n_keep, &all, opt->leaf_aspect, level, st.ground, &jb->leaves);
         jb->coverage = 0.5f * prev->coverage;
         n_levels++;
         tris = next_tris;

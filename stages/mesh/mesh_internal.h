@@ -179,11 +179,17 @@ int sy_lod_fit_budget(const sy_stems *st, sy_lod_params *lp, size_t *count, size
  * *count holds the level's triangles on entry and after. Returns 1, or 0
  * when out of memory. */
 int sy_lod_restore(const sy_stems *st, const uint8_t *prev_keep, sy_lod_params *lp, size_t *count, size_t target);
+/* The share of the previous level's triangles a level's selection aims at:
+ * half, less what the junction strips may add after selection (welding a
+ * level adds up to ~8 % of its triangles with the Steiner points of a wide
+ * ring, the caps it replaces fewer), so the drawn level stays within half. */
+#define SY_LOD_SHARE 0.42
 /* Chooses the stems level lp->level keeps (lp->keep), a subset of prev_keep:
  * thin and short stems go first (thresholds double per level), children with
- * their parents, then the least important until the bark has at most half of
- * prev_tris triangles. Returns 0 when even the trunk alone is too many. */
-int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris, sy_lod_params *lp,
+ * their parents, then the least important until the bark has at most
+ * SY_LOD_SHARE of prev_tris triangles less `lent` (lent to the level's leaf
+ * cards). Returns 0 when even the trunk alone is too many. */
+int sy_lod_select(const sy_stems *st, const uint8_t *prev_keep, size_t prev_tris, size_t lent, sy_lod_params *lp,
                   size_t *tris);
 /* Bark triangles of the kept stems at a level. */
 size_t sy_lod_bark_triangles(const sy_stems *st, const sy_lod_params *lp);
