@@ -60,12 +60,12 @@
 #define LEAF_GAP_MAX 1.0        /* petiole to LOD0 bark, in leaf lengths */
 #define RATIO_MIN 0.25          /* each level's triangles over the previous level's */
 #define RATIO_MAX 0.5
-#define IOU_LOD1 0.75           /* silhouette vs LOD0 (measured >= 0.80, the sassafras and the willow;
-                                   >= 0.72 before narrow cards widened first, stop 48; the weeping
-                                   willow was 0.56 until stop 21, its LOD1 dropping the thin hanging
-                                   twigs) */
-#define IOU_ANY 0.58            /* (measured >= 0.62, the sassafras's LOD3; the palm's was 0.54 with
-                                   its leaflets grown in length, stop 48) */
+#define IOU_LOD1 0.75           /* silhouette vs LOD0 (measured >= 0.805, the willow; >= 0.77 before
+                                   narrow cards widened first and bark lent cards triangles, stop 48;
+                                   the weeping willow was 0.56 until stop 21, its LOD1 dropping the
+                                   thin hanging twigs) */
+#define IOU_ANY 0.6             /* (measured >= 0.653, the palm's LOD3; 0.54 with its leaflets grown
+                                   in length and halved at every level, stop 48) */
 
 /* Junctions and welds over every species, LOD0 and the coarser levels. */
 typedef struct {
