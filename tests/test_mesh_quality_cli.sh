@@ -9,7 +9,12 @@
 # whose edge flip would make an edge that exists), no edge far
 # across the branches it runs by (max_across, docs/mesh.md "Stop 28": LOD0
 # measured <= 11.4, coarser <= 23.7), few sails and slivers, LOD0 leaves within a leaf length of bark,
-# each LOD level 25-50 % of the previous one's triangles.
+# each LOD level 25-50 % of the previous one's triangles, and each level's
+# silhouette close to LOD0's (sylva's own masks, `silhouette_iou`): LOD1 at
+# least 0.83 and every level 0.55. Measured at stop 48: LOD1 >= 0.865 (tree1),
+# every level >= 0.584 (tree1's LOD3). Before coarse levels widened narrow
+# cards and kept the cards the bark can pay for, LOD1 read 0.743 on the QSM
+# and 0.809 on tree1, and LOD3 0.499 on the QSM and 0.599 on palm_tls.
 set -u
 source "$SYLVA_SOURCE_DIR/tests/glb_cli_common.sh"
 samples="$SYLVA_SOURCE_DIR/samples"
@@ -35,7 +40,8 @@ assert_quality() {
       $l0.sails <= 0.005 * $l0.bark_triangles and $l0.slivers <= 0.001 * $l0.bark_triangles and
       $l0.bark_triangles <= 60000 and $l0.leaves_far == 0 and
       $l0.max_across <= 16 and ([$c[] | .max_across <= 40] | all) and
-      ([$c[1:][] | .ratio >= 0.25 and .ratio <= 0.5] | all)' "$1" > /dev/null
+      ([$c[1:][] | .ratio >= 0.25 and .ratio <= 0.5] | all) and
+      $c[1].silhouette_iou >= 0.83 and ([$c[1:][] | .silhouette_iou >= '"${2:-0.55}"'] | all)' "$1" > /dev/null
 }
 for s in aspen_tls fir_tls palm_tls aspen_als fir_als palm_als; do
     if "$SYLVA" run "$samples/$s.las" -o "$tmp/$s.glb" --check --json --impostor-size 64 > "$tmp/$s.json" 2> "$tmp/$s.err"; then
@@ -87,7 +93,10 @@ check "run tree1.xyz: $w of LOD0 junctions welded (>= 0.97)" "awk 'BEGIN { exit 
 cloud="$SYLVA_DATA_DIR/real/rtwig/cloud.txt"
 "$SYLVA" run "$cloud" -o "$tmp/cloud.glb" --check --json --impostor-size 64 > "$tmp/cloud.json" 2> "$tmp/cloud.err" ||
     { echo "FAIL: run cloud.txt: $(tail -1 "$tmp/cloud.err")"; fail=1; }
-check "run rTwig cloud: mesh checks hold" "assert_quality '$tmp/cloud.json'"
+# The leaf-off sapling is bark alone: its coarse levels drop the twigs that
+# draw its silhouette and no cards stand in for them (LOD1 / LOD2 / LOD3
+# 0.873 / 0.685 / 0.457 at stop 48), so its levels are held to 0.45.
+check "run rTwig cloud: mesh checks hold" "assert_quality '$tmp/cloud.json' 0.45"
 w=$(welded "$tmp/cloud.json")
 check "run rTwig cloud: $w of LOD0 junctions welded (>= 0.93)" "awk 'BEGIN { exit !($w >= 0.93) }'"
 # Its bark is closed at every level: junctions welded or capped.
