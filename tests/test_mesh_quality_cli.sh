@@ -94,9 +94,11 @@ cloud="$SYLVA_DATA_DIR/real/rtwig/cloud.txt"
 "$SYLVA" run "$cloud" -o "$tmp/cloud.glb" --check --json --impostor-size 64 > "$tmp/cloud.json" 2> "$tmp/cloud.err" ||
     { echo "FAIL: run cloud.txt: $(tail -1 "$tmp/cloud.err")"; fail=1; }
 # The leaf-off sapling is bark alone: its coarse levels drop the twigs that
-# draw its silhouette and no cards stand in for them (LOD1 / LOD2 / LOD3
-# 0.873 / 0.685 / 0.457 at stop 48), so its levels are held to 0.45.
-check "run rTwig cloud: mesh checks hold" "assert_quality '$tmp/cloud.json' 0.45"
+# draw its silhouette and no cards stand in for them, so its levels are held
+# to 0.5 (LOD1 / LOD2 / LOD3 0.933 / 0.766 / 0.532 at stop 48; 0.873 / 0.685 /
+# 0.457 while levels also dropped every stem shorter than 3 % of the tree,
+# its traced twigs' chains with them).
+check "run rTwig cloud: mesh checks hold" "assert_quality '$tmp/cloud.json' 0.5"
 w=$(welded "$tmp/cloud.json")
 check "run rTwig cloud: $w of LOD0 junctions welded (>= 0.93)" "awk 'BEGIN { exit !($w >= 0.93) }'"
 # Its bark is closed at every level: junctions welded or capped.

@@ -185,7 +185,7 @@ int sy_lod_restore(const sy_stems *st, const uint8_t *prev_keep, sy_lod_params *
  * ring, the caps it replaces fewer), so the drawn level stays within half. */
 #define SY_LOD_SHARE 0.42
 /* Chooses the stems level lp->level keeps (lp->keep), a subset of prev_keep:
- * thin and short stems go first (thresholds double per level), children with
+ * thin stems go first (the threshold doubles per level), children with
  * their parents, then the least important until the bark has at most
  * SY_LOD_SHARE of prev_tris triangles less `lent` (lent to the level's leaf
  * cards). Returns 0 when even the trunk alone is too many. */
