@@ -28,6 +28,15 @@ static void mesh_tree(const sy_skeleton *s, const sy_leaves *lv, const sy_mesh_o
 
 static const sy_mesh *bark0(const sy_asset *a) { return &a->meshes[a->lods[0].meshes[0]]; }
 
+/* The generated test tree (tree_gen.h, seed 7: ~200 branches, 8 m) with
+ * leaves_per_node leaves a node, meshed with o (impostor off). */
+static void mesh_generated(int leaves_per_node, sy_mesh_options o, sy_skeleton *s, sy_leaves *lv, sy_asset *a)
+{
+    assert_int_equal(tg_tree(7, 3, 11, leaves_per_node, 8.0f, s, lv), 0);
+    o.impostor = 0;
+    mesh_tree(s, lv, &o, a);
+}
+
 static void assert_finite(const float *v, size_t n)
 {
     for (size_t i = 0; i < n; i++) assert_true(isfinite(v[i]));
@@ -884,19 +893,17 @@ static void traced_twigs_are_drawn_lean(void **state)
 }
 
 /* Over its leaf budget LOD0 keeps a prefix of the seeded order, grown to
- * the same total leaf area; LOD1 halves that prefix. */
+ * the same total leaf area; LOD1 keeps at most that prefix. */
 static void leaf_budget_keeps_the_leaf_area(void **state)
 {
     (void)state;
     sy_skeleton s;
     sy_leaves lv;
-    assert_int_equal(tg_tree(7, 3, 11, 1, 8.0f, &s, &lv), 0);
-    assert_true(lv.n > 300);
     sy_mesh_options o = sy_mesh_options_default();
-    o.impostor = 0;
     o.lod0_max_leaves = 100;
     sy_asset a;
-    mesh_tree(&s, &lv, &o, &a);
+    mesh_generated(1, o, &s, &lv, &a);
+    assert_true(lv.n > 300);
     const sy_instances *l0 = &a.lods[0].instances[0];
     double all = 0, kept = 0;
     for (size_t i = 0; i < lv.n; i++) all += (double)lv.scale[i] * lv.scale[i];
@@ -914,8 +921,8 @@ static void leaf_budget_keeps_the_leaf_area(void **state)
     sy_leaves_free(&lv);
 }
 
-/* Each coarser level keeps half the leaves and grows them to the whole
- * leaf area; a narrow card (a palm's leaflet) widens to a square before it
+/* Each coarser level keeps half a leafy tree's leaves and grows them to the
+ * whole leaf area; a narrow card (a palm's leaflet) widens to a square before it
  * grows longer, so it fills the gap its pruned neighbours left instead of
  * hanging into a curtain. LOD0 keeps the leaf's shape. */
 static void coarse_levels_widen_narrow_leaves(void **state)
@@ -923,12 +930,10 @@ static void coarse_levels_widen_narrow_leaves(void **state)
     (void)state;
     sy_skeleton s;
     sy_leaves lv;
-    assert_int_equal(tg_tree(7, 3, 11, 40, 8.0f, &s, &lv), 0);
     sy_mesh_options o = sy_mesh_options_default();
-    o.impostor = 0;
     o.leaf_aspect = 0.3f;
     sy_asset a;
-    mesh_tree(&s, &lv, &o, &a);
+    mesh_generated(40, o, &s, &lv, &a);
     const sy_instances *l0 = &a.lods[0].instances[0];
     double all = 0;
     for (size_t i = 0; i < l0->n; i++) {
@@ -977,11 +982,8 @@ static void sparse_crowns_keep_their_cards(void **state)
     for (int leaves_per_node = 1; leaves_per_node <= 40; leaves_per_node += 39) {
         sy_skeleton s;
         sy_leaves lv;
-        assert_int_equal(tg_tree(7, 3, 11, leaves_per_node, 8.0f, &s, &lv), 0);
-        sy_mesh_options o = sy_mesh_options_default();
-        o.impostor = 0;
         sy_asset a;
-        mesh_tree(&s, &lv, &o, &a);
+        mesh_generated(leaves_per_node, sy_mesh_options_default(), &s, &lv, &a);
         const sy_lod *l0 = &a.lods[0], *l1 = &a.lods[1];
         size_t n0 = l0->instances[0].n, n1 = l1->instances[0].n;
         size_t t0 = lod_triangles(&a, l0), t1 = lod_triangles(&a, l1);
