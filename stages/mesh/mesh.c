@@ -360,7 +360,14 @@ sy_code sy_mesh_tree(const sy_skeleton *skel, const sy_leaves *leaves, const sy_
         }
         size_t next_tris, lent;
         size_t n_keep = leaves_to_keep(prev->leaves.n, tris, card_tris, &lent);
-        if (!sy_lod_select(&st, prev->lp.keep, tris, lent, &jb->lp, &next_tris)) {
+        /* A trunk too thick for the bark left after lending keeps the chain
+         * going with half the cards, as it would have without them. */
+        int selected = sy_lod_select(&st, prev->lp.keep, tris, lent, &jb->lp, &next_tris);
+        if (!selected && lent > 0) {
+            n_keep = prev->leaves.n / 2;
+            selected = sy_lod_select(&st, prev->lp.keep, tris, 0, &jb->lp, &next_tris);
+        }
+        if (!selected) {
             free(jb->lp.keep), free(jb->leaves.list);
             break; /* no coarser level can halve the triangles: the chain ends */
         }
