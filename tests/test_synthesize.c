@@ -1055,7 +1055,8 @@ static void card_tips_stay_in_the_hull(void **state)
 /* A crown of fronds (a palm): a lobe beside the crown, hung off a node
  * half way up the stem, is filled by fronds that each leave the stem's top
  * metre (nodes 8-10 of make_tree's trunk, the apex at 4 m), spread over
- * those nodes; no hidden limb grows, and every leaflet lies in the lobe.
+ * those nodes, a second round from the midpoints below them; no hidden
+ * limb grows, and every leaflet lies in the lobe.
  * Without fronds, the same lobe's bark leaves from its seed. */
 static void fronds_leave_the_stem_top(void **state)
 {
@@ -1074,7 +1075,7 @@ static void fronds_leave_the_stem_top(void **state)
     sy_error err = {0};
     for (int fronds = 0; fronds <= 24; fronds += 24) {
         o.fronds = fronds;
-        size_t from_top[3] = {0, 0, 0}, from_seed = 0, in_box = 0;
+        size_t from_top[3] = {0, 0, 0}, from_seed = 0, in_box = 0, mid = 0;
         sy_skeleton out;
         sy_leaves lv;
         sy_synth_report rep;
@@ -1082,6 +1083,16 @@ static void fronds_leave_the_stem_top(void **state)
         for (size_t i = s.n; i < out.n; i++) {
             int32_t p = out.parent[i];
             if (p >= 8 && p <= 10) from_top[p - 8]++;
+            /* A second round of fronds leaves the midpoints below the nodes. */
+            if (p >= 9 && p <= 10) {
+                double to_mid = 0, to_node = 0;
+                for (int k = 0; k < 3; k++) {
+                    double m = 0.5 * ((double)out.pos[3 * p + k] + out.pos[3 * (p - 1) + k]) - out.pos[3 * i + k];
+                    double n = (double)out.pos[3 * p + k] - out.pos[3 * i + k];
+                    to_mid += m * m, to_node += n * n;
+                }
+                mid += to_mid < to_node;
+            }
             from_seed += p == 5;
             assert_true(p >= (int32_t)s.n || (p >= 8 && p <= 10) || p == 5);
         }
@@ -1090,12 +1101,13 @@ static void fronds_leave_the_stem_top(void **state)
             in_box += dist_to_box(p, &cl.items[0]) <= 0.05 + 1e-6;
         }
         printf("fronds %d: %zu patches, %zu hidden-limb nodes, stems from nodes 8/9/10: %zu/%zu/%zu, from the seed "
-               "%zu; %zu leaves (%zu in the lobe)\n", fronds, rep.patches, rep.scaffold_nodes, from_top[0], from_top[1],
-               from_top[2], from_seed, lv.n, in_box);
+               "%zu; %zu leaves (%zu in the lobe); %zu from a segment's midpoint\n", fronds, rep.patches,
+               rep.scaffold_nodes, from_top[0], from_top[1], from_top[2], from_seed, lv.n, in_box, mid);
         if (fronds) {
             assert_int_equal(from_seed, 0);
             assert_int_equal(rep.scaffold_nodes, 0);
             assert_true(from_top[0] >= 1 && from_top[1] >= 1 && from_top[2] >= 1);
+            if (rep.patches > 3) assert_true(mid >= 1);
             assert_true(from_top[0] + from_top[1] + from_top[2] <= rep.patches);
             assert_true(rep.patches >= 3 && rep.patches <= 3 * 24);
             assert_true(lv.n > 20);
