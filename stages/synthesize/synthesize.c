@@ -1736,17 +1736,6 @@ static sy_code lay_frond(lobe_grid *g, int32_t from, double down, const double t
     return rc;
 }
 
-/* Lays lobe g's fronds from its shaft, local nodes 0..top (the apex); the
- * k-th leaves where frond_base puts it, from the apex down. First
- * those aimed at it (aims, n_aims of them: every lobe's; fronds_aim), then
- * up to `between` more (fronds_between) where its returns hold room for
- * leaflets that they left: each toward the occupied cell with room
- * farthest from the apex, laid where FROND_GAIN of its leaflets find room. The aimed fronds
- * end at the crown's spikes; the others fill between them (the simulated
- * palm, seeds 1-3: IoU against its true tree 0.748-0.773 with the aimed
- * ones alone, a third of its leaf area; 0.802-0.825 with both;
- * docs/synthesize.md stop 47). */
-#define FROND_GAIN 0.3
 /* Where the k-th frond leaves a shaft of local nodes 0..top: a round of
  * fronds from its nodes, apex down, then a round from the midpoints of the
  * segments below them, and so on in turn (*node, and *down the share of the
@@ -1761,6 +1750,17 @@ static void frond_base(int32_t top, int k, int32_t *node, double *down)
     *down = top > 0 && (k / (top + 1)) % 2 ? 0.5 : 0;
 }
 
+/* Lays lobe g's fronds from its shaft, local nodes 0..top (the apex); the
+ * k-th leaves where frond_base puts it, from the apex down. First
+ * those aimed at it (aims, n_aims of them: every lobe's; fronds_aim), then
+ * up to `between` more (fronds_between) where its returns hold room for
+ * leaflets that they left: each toward the occupied cell with room
+ * farthest from the apex, laid where FROND_GAIN of its leaflets find room. The aimed fronds
+ * end at the crown's spikes; the others fill between them (the simulated
+ * palm, seeds 1-3: IoU against its true tree 0.748-0.773 with the aimed
+ * ones alone, a third of its leaf area; 0.802-0.825 with both;
+ * docs/synthesize.md stop 47). */
+#define FROND_GAIN 0.3
 static sy_code lay_fronds(lobe_grid *g, const size_t *occ, const double *occ_c, size_t n_occ, uint8_t *tried,
                           int32_t lobe_index, const frond_aim *aims, size_t n_aims, int between, int32_t top,
                           const sy_branchlets *lib, const sy_synth_options *o, double max_thick, double ceiling,
