@@ -822,24 +822,19 @@ static void placement_align(const sy_patch *p, const dock *d, const double Rz[9]
 }
 
 /* A frond's chord: the unit direction from its root to its farthest node
- * (its own frame, azimuth 0); returns the chord's length. */
-static double patch_chord(const sy_patch *p, double chord[3])
+ * (its own frame, azimuth 0), to lay on a dock's direction with
+ * placement_align_dir; returns the chord's length. */
+static double patch_chord(const sy_patch *p, float chord[3])
 {
     double best = 0;
-    chord[0] = p->dir[0], chord[1] = p->dir[1], chord[2] = p->dir[2];
+    memcpy(chord, p->dir, 3 * sizeof *chord);
     for (size_t i = 0; i < p->n_nodes; i++) {
         const float *v = p->pos + 3 * i;
         double l = sqrt((double)v[0] * v[0] + (double)v[1] * v[1] + (double)v[2] * v[2]);
-        if (l > best) best = l, chord[0] = v[0] / l, chord[1] = v[1] / l, chord[2] = v[2] / l;
+        if (l > best)
+            best = l, chord[0] = (float)(v[0] / l), chord[1] = (float)(v[1] / l), chord[2] = (float)(v[2] / l);
     }
     return best;
-}
-
-/* As placement_align, with the patch's chord on the dock's direction. */
-static void placement_align_chord(const double chord[3], const dock *d, const double Rz[9], double T[9])
-{
-    const float c[3] = {(float)chord[0], (float)chord[1], (float)chord[2]};
-    placement_align_dir(c, d, Rz, T);
 }
 
 /* The best k of n candidates (cmp_ranked order: cost, then index, a total
@@ -858,6 +853,30 @@ static void best_k(ranked *c, size_t n, size_t k)
         }
         c[j] = x;
     }
+}
+
+/* The library's patches for dock d ranked by eq. 3.3 (only those that dock
+ * further ones, terminal 0, or only those that do not, 1; -1 all), the
+ * best k of them moved to the front of cands in order. Returns how many
+ * are there. */
+static size_t rank_candidates(const sy_branchlets *lib, const dock *d, const sy_synth_options *o, int terminal,
+                              size_t k, ranked *cands)
+{
+    double ed = dock_elevation(d), ce = cos(ed), se = sin(ed);
+    size_t nc = 0;
+    for (size_t i = 0; i < lib->n_patches; i++) {
+        const sy_patch *p = &lib->patches[i];
+        if (!(p->thickness > 0) || p->n_nodes == 0 || (terminal >= 0 && (p->n_docks == 0) != terminal)) continue;
+        cands[nc].idx = i;
+        cands[nc].key = eq33(p, d, ce, se, o->literal_eq33);
+        nc++;
+    }
+    if (nc > k) {
+        best_k(cands, nc, k);
+        return k;
+    }
+    best_k(cands, nc, nc);
+    return nc;
 }
 
 typedef struct {
@@ -1697,26 +1716,19 @@ static sy_code lay_frond(lobe_grid *g, int32_t from, double down, const double t
     double reach_to = sy_v3_len(d.dir);
     if (!(reach_to > 1e-6)) return SY_OK;
     sy_v3_normalize(d.dir);
-    double ed = dock_elevation(&d), ce = cos(ed), se = sin(ed), Rz[9], Rr[3][9];
+    double Rz[9], Rr[3][9];
     placement_turn(&d, Rz);
     for (int r = 0; r < 3; r++) mat_axis(d.dir, (r - 1) * FROND_ROLL, Rr[r]);
-    size_t nc = 0;
-    for (size_t i = 0; i < lib->n_patches; i++) {
-        const sy_patch *p = &lib->patches[i];
-        if (!(p->thickness > 0) || p->n_nodes == 0) continue;
-        cands[nc].idx = i, cands[nc].key = eq33(p, &d, ce, se, o->literal_eq33);
-        nc++;
-    }
-    if (nc > (size_t)o->candidates) best_k(cands, nc, (size_t)o->candidates), nc = (size_t)o->candidates;
-    else best_k(cands, nc, nc);
+    size_t nc = rank_candidates(lib, &d, o, -1, (size_t)o->candidates, cands);
     double best = INFINITY, best_gain = 0, bestR[9] = {0}, best_s = 1;
     size_t best_i = 0;
     for (size_t ci = 0; ci < nc; ci++) {
         const sy_patch *p = &lib->patches[cands[ci].idx];
-        double chord[3], len = patch_chord(p, chord), T[9];
+        float chord[3];
+        double len = patch_chord(p, chord), T[9];
         double sc = len > 0 ? reach_to / len : 1;
         sc = sc < 0.35 ? 0.35 : sc > 3 ? 3 : sc;
-        placement_align_chord(chord, &d, Rz, T);
+        placement_align_dir(chord, &d, Rz, T);
         for (int r = 0; r < 3; r++) {
             double R[9];
             mat_mul(Rr[r], T, R);
@@ -1956,24 +1968,9 @@ static sy_code texture_lobe(const sy_cluster *c, int32_t lobe_index, const sy_br
              * further ones and the best half among terminal ones, so a dock
              * in open space can continue the structure and one in a full
              * region can end it. */
-            size_t nc = 0, half = (size_t)(o->candidates + 1) / 2;
-            double ed = dock_elevation(&d), ce = cos(ed), se = sin(ed);
-            for (int terminal = 0; terminal < 2; terminal++) {
-                size_t n0 = nc;
-                for (size_t i = 0; i < lib->n_patches; i++) {
-                    const sy_patch *p = &lib->patches[i];
-                    if (!(p->thickness > 0) || p->n_nodes == 0 || (p->n_docks == 0) != terminal) continue;
-                    cands[nc].idx = i;
-                    cands[nc].key = eq33(p, &d, ce, se, o->literal_eq33);
-                    nc++;
-                }
-                if (nc - n0 > half) {
-                    best_k(cands + n0, nc - n0, half);
-                    nc = n0 + half;
-                } else {
-                    best_k(cands + n0, nc - n0, nc - n0);
-                }
-            }
+            size_t half = (size_t)(o->candidates + 1) / 2;
+            size_t nc = rank_candidates(lib, &d, o, 0, half, cands);
+            nc += rank_candidates(lib, &d, o, 1, half, cands + nc);
             double phi0 = 2 * M_PI * sy_synth_uniform(&rng);
             double Rz[9], Rr[SY_SYNTH_MAX_ROLLS][9];
             placement_turn(&d, Rz);
