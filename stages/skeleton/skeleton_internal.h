@@ -106,12 +106,13 @@ sy_code sy_regrow_meandering_crown(sy_skeleton *s, const float *xyz, size_t n, i
  * replaced by a vertical trunk from the ground under the crown's returns:
  * to the top of a cone-shaped crown, every return on its nearest trunk
  * node; or into a domed one as far as its widest part, with limbs grown
- * from that fork by space colonisation into the returns. s comes back as
+ * from that fork by space colonisation into the returns (none where limbs
+ * is 0: a crown of fronds, whose stem carries no limbs). s comes back as
  * from sy_rebuild_occluded_stem, info->stem_unseen and info->rebuilt set,
  * the radius from the species' allometry or the slenderness
  * (sy_apply_stem_radius). */
 sy_code sy_rebuild_unseen_stem(sy_skeleton *s, const float *xyz, size_t n, int32_t *point_node, const uint8_t *wood,
-                               double w, double spacing, double ground, sy_stem_info *info, sy_error *err);
+                               double w, double spacing, double ground, int limbs, sy_stem_info *info, sy_error *err);
 /* Space colonisation (colonize.c, Runions et al. 2007): from the n_seed
  * nodes at seed, grows nodes one step at a time toward the attraction points
  * (pts thinned to one per step-sized voxel) until each is within kill of a

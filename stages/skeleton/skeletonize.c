@@ -858,7 +858,7 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     memset(&stem, 0, sizeof stem);
     /* A crown over a stem the scan never saw (airborne): a trunk from the
      * ground and limbs grown into the crown. */
-    if (o->unseen_stems) rc = sy_rebuild_unseen_stem(full, xyz, n, point_node, wood, w, s, ground, &stem, err);
+    if (o->unseen_stems) rc = sy_rebuild_unseen_stem(full, xyz, n, point_node, wood, w, s, ground, !o->no_twigs, &stem, err);
     if (!rc && !stem.rebuilt)
         rc = sy_rebuild_occluded_stem(full, xyz, n, point_node, wood, w, s, o->fork_domed_stems, &stem, err);
     /* A decurrent crown's chain that follows its foliage shell: regrow the

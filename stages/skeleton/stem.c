@@ -692,7 +692,7 @@ sy_code sy_regrow_meandering_crown(sy_skeleton *s, const float *xyz, size_t n, i
 }
 
 sy_code sy_rebuild_unseen_stem(sy_skeleton *s, const float *xyz, size_t n, int32_t *point_node, const uint8_t *wood,
-                               double w, double spacing, double ground, sy_stem_info *info, sy_error *err)
+                               double w, double spacing, double ground, int limbs, sy_stem_info *info, sy_error *err)
 {
     if (n < 16) return SY_OK;
     double zlo = INFINITY, ztop = -INFINITY;
@@ -778,8 +778,11 @@ sy_code sy_rebuild_unseen_stem(sy_skeleton *s, const float *xyz, size_t n, int32
      * Limbs only from the fork, where the trunk divides: sprouting from
      * every trunk node in a crown that reaches down to the bole (the
      * airborne black oak's, 0.5 m over the ground), they stood off it as a
-     * comb of level rods (IoU 0.650 with the comb, 0.632 without). */
-    size_t sprout = info->fork > 0 ? K - 1 : K;
+     * comb of level rods (IoU 0.650 with the comb, 0.632 without).
+     * A crown of fronds grows none: a palm's stem carries no limbs, and
+     * colonised ones stood as 7-10 cm stubs round the airborne palm's
+     * crown, under the fronds that synthesis lays from the stem's top. */
+    size_t sprout = info->fork > 0 && limbs ? K - 1 : K;
     sy_code rc = regrow_from_trunk(s, tpos, K, sprout, xyz, n, -INFINITY, point_node, wood,
                                    UNSEEN_LIMB_STEP * info->crown_radius, err);
     free(tpos);
