@@ -413,6 +413,42 @@ static void traced_twigs_follow_the_returns(void **state)
     sy_skeleton_free(&s);
 }
 
+/* A twig ends where its returns do: returns every 5 mm along x from the
+ * seed to 0.995 m, traced at 10 cm voxels. Its tip is the last voxel's
+ * return farthest from the node it hangs from (stop 49); the return
+ * nearest the voxel's middle stood 4.5 cm short, at 0.950 m. */
+static void traced_twig_tips_reach_the_last_return(void **state)
+{
+    (void)state;
+    size_t n = 200;
+    float *xyz = malloc(3 * n * sizeof *xyz);
+    for (size_t i = 0; i < n; i++) xyz[3 * i] = 0.005f * (float)i, xyz[3 * i + 1] = 0.001f, xyz[3 * i + 2] = 1;
+    sy_skeleton s;
+    sy_error err = {0};
+    assert_int_equal(sy_skeleton_init(&s, 0, &err), SY_OK);
+    sy_skeleton_add(&s, (float[3]){0, 0, 0}, 0.05f, -1, 0, 0, &err);
+    sy_skeleton_add(&s, (float[3]){0, 0, 1}, 0.03f, 0, 0, 0, &err);
+    sy_cluster c = {0};
+    c.seed = 1;
+    c.points = malloc(n * sizeof *c.points);
+    for (size_t i = 0; i < n; i++) c.points[i] = (uint32_t)i;
+    c.n_points = n;
+    sy_clusters cl = {1, &c};
+    sy_twig_options o = sy_twig_options_default();
+    o.voxel_min = o.voxel_max = 0.1;
+    o.max_nodes = 100;
+    sy_twig_report r;
+    assert_int_equal(sy_clusters_trace_twigs(&cl, &s, xyz, &o, &r, &err), SY_OK);
+    assert_int_equal(c.n_twigs, 10);
+    double far = 0;
+    for (size_t i = 0; i < c.n_twigs; i++) far = fmax(far, c.twig_pos[3 * i]);
+    printf("# the twig reaches x = %.3f m, its last return 0.995 m\n", far);
+    assert_float_equal(far, 0.995, 1e-6);
+    sy_cluster_twigs_free(&c);
+    free(c.points), free(xyz);
+    sy_skeleton_free(&s);
+}
+
 /* A terrestrial crown's hidden top (docs/synthesize.md "Stop 46"): a dome
  * of returns 4-6 m up whose top quadrant x, y > 0 the stations missed
  * below 5 m (a notch 1-1.5 m deep). The roof closes the notch to within a
@@ -477,6 +513,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(traced_twigs_follow_the_returns),
+        cmocka_unit_test(traced_twig_tips_reach_the_last_return),
         cmocka_unit_test(mesh_checks_detect_open_and_flipped),
         cmocka_unit_test(low_confidence_rule),
         cmocka_unit_test(alpha_shape_of_a_ball),

@@ -93,8 +93,9 @@ static void count_chunk(void *ctx, size_t begin, size_t end, size_t chunk)
 
 /* Lobe c's twigs at voxel v: per voxel the return nearest the mean of its
  * returns (ties: the lower index), then Prim's spanning tree from the
- * seed, written in depth-first preorder (children by index) so that a
- * node's parent comes before it. */
+ * seed, its tips moved to their voxels' farthest returns, written in
+ * depth-first preorder (children by index) so that a node's parent comes
+ * before it. */
 static sy_code trace_lobe(sy_cluster *C, const float seed[3], const float *xyz, double v, sy_error *err)
 {
     size_t n = C->n_points;
@@ -105,8 +106,14 @@ static sy_code trace_lobe(sy_cluster *C, const float seed[3], const float *xyz, 
         return sy_fail(err, SY_EINTERNAL, "clusters: out of memory tracing twigs");
     }
     size_t m = 0;
+    size_t *lo = malloc((n + 1) * sizeof *lo); /* rep i's returns: e[lo[i]] .. e[lo[i + 1]) */
+    if (!lo) {
+        free(e), free(rep);
+        return sy_fail(err, SY_EINTERNAL, "clusters: out of memory tracing twigs");
+    }
     voxel_sort(C, xyz, v, e);
     for (size_t a = 0; a < n;) {
+        lo[m] = a;
         size_t b = a;
         double mean[3] = {0, 0, 0};
         while (b < n && e[b].key == e[a].key) {
@@ -126,7 +133,7 @@ static sy_code trace_lobe(sy_cluster *C, const float seed[3], const float *xyz, 
         memcpy(rep + 3 * m++, xyz + 3 * (size_t)C->points[bi], 3 * sizeof *rep);
         a = b;
     }
-    free(e);
+    lo[m] = n;
     /* Prim over the m representatives and the seed (index m). */
     double *best = malloc((m + 1) * sizeof *best);
     int32_t *from = malloc((m + 1) * sizeof *from), *first = malloc((m + 1) * sizeof *first),
@@ -136,7 +143,7 @@ static sy_code trace_lobe(sy_cluster *C, const float seed[3], const float *xyz, 
     C->twig_pos = m ? malloc(m * 3 * sizeof *C->twig_pos) : NULL;
     C->twig_parent = m ? malloc(m * sizeof *C->twig_parent) : NULL;
     if (!best || !from || !first || !next || !stack || !place || !done || (m && (!C->twig_pos || !C->twig_parent))) {
-        free(rep), free(best), free(from), free(first), free(next), free(stack), free(place), free(done);
+        free(e), free(lo), free(rep), free(best), free(from), free(first), free(next), free(stack), free(place), free(done);
         return sy_fail(err, SY_EINTERNAL, "clusters: out of memory tracing twigs");
     }
     for (size_t i = 0; i < m; i++) best[i] = sy_v3f_dist2(rep + 3 * i, seed), from[i] = (int32_t)m;
@@ -156,6 +163,22 @@ static sy_code trace_lobe(sy_cluster *C, const float seed[3], const float *xyz, 
     /* Children lists in descending index, pushed in that order so that the
      * stack pops them ascending: preorder from the seed, children by index. */
     for (size_t i = 0; i < m; i++) next[i] = first[from[i]], first[from[i]] = (int32_t)i;
+    /* A tip reaches its voxel's farthest return from the node it hangs
+     * from, not the return nearest the voxel's middle: the twig ends where
+     * the scan saw it end, up to a voxel further out. */
+    for (size_t i = 0; i < m; i++) {
+        if (first[i] >= 0) continue;
+        const float *f = from[i] == (int32_t)m ? seed : rep + 3 * (size_t)from[i];
+        double far = -1;
+        size_t fi = 0;
+        for (size_t k = lo[i]; k < lo[i + 1]; k++) {
+            size_t li = e[k].index;
+            double d = sy_v3f_dist2(xyz + 3 * (size_t)C->points[li], f);
+            if (d > far || (d == far && li < fi)) far = d, fi = li;
+        }
+        memcpy(rep + 3 * i, xyz + 3 * (size_t)C->points[fi], 3 * sizeof *rep);
+    }
+    free(e), free(lo);
     size_t top = 0, out = 0;
     for (int32_t c = first[m]; c >= 0; c = next[c]) stack[top++] = c;
     while (top) {
