@@ -688,6 +688,7 @@ static sy_code reconstruct_with(sy_cloud *c, const char *name, const sy_run_tree
         memcpy(so.crown_profile, nt->profile, sizeof so.crown_profile);
         so.crown_roof_gap = nt->roof_gap;
         so.no_twigs = !sp->twigs;
+        so.stem_taper = sp->level[0].taper < 1 ? sp->level[0].taper : 1;
     }
     if (!isnan(o->beta)) so.beta = o->beta;
     if (!isnan(o->gamma)) so.gamma = o->gamma;

@@ -68,7 +68,10 @@ typedef struct {
     int crown_roof;       /* -1: roofed so when the species is known (default); 0: never; 1: always
                              (terrestrial scans) */
     int no_twigs;         /* 1: the species' crown has no twigs to trace (a palm's fronds): the
-                             pipeline traces none and keeps the lobes' occupancy bits (0) */
+                             pipeline traces none and keeps the lobes' occupancy bits (0); an
+                             unseen stem then grows no limbs and tapers by stem_taper */
+    double stem_taper;    /* the species' trunk taper (Weber & Penn's 0Taper, [0, 1]: the radius falls
+                             linearly by this share from the foot to the top; 0: a cylinder) */
     int unseen_stems;     /* a scan that shows no stem (its lowest return high over the ground, or
                              spacing >= 0.2 m: airborne) gets a trunk from the ground and limbs grown
                              into its returns (1; 0 until stop 25; stem.c, docs/skeleton.md 8d) */

@@ -77,6 +77,8 @@ typedef struct {
     double crown_base;   /* that crown base's height above the root, metres */
     int stem_unseen;     /* 1: no return on the stem (an airborne scan): trunk drawn from the ground */
     double crown_gap;    /* the lowest return's height above the ground, metres (0: ground unknown) */
+    int columnar;        /* 1: a crown of fronds' stem, rebuilt without limbs: tapered linearly, not by
+                            the pipe model (sy_apply_stem_radius) */
 } sy_stem_info;
 
 /* Rebuilds the trunk of s (branch ids assigned, breadth-first, support
@@ -122,8 +124,11 @@ sy_code sy_colonize(const float *seed, size_t n_seed, const float *pts, size_t n
                     size_t max_nodes, float **pos_out, int32_t **parent_out, size_t *n_out, sy_error *err);
 /* After sy_assign_radii on a rebuilt stem: the allometry runs from the
  * measured stem circle (or the slenderness estimate) instead of the
- * breast-height slab fit, which on such scans rings the lowest branches. */
-void sy_apply_stem_radius(sy_skeleton *s, const sy_stem_info *stem, double gamma, double spacing, sy_radii_info *ri);
+ * breast-height slab fit, which on such scans rings the lowest branches.
+ * A columnar stem (info->columnar) tapers linearly by taper from its foot
+ * to its top instead. */
+void sy_apply_stem_radius(sy_skeleton *s, const sy_stem_info *stem, double gamma, double taper, double spacing,
+                          sy_radii_info *ri);
 
 #ifdef __cplusplus
 }

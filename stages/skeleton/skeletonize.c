@@ -61,6 +61,8 @@ sy_code sy_skeleton_options_check(const sy_skeleton_options *o, sy_error *err)
     if (!(o->spacing >= 0) || !isfinite(o->spacing))
         return sy_fail(err, SY_EUSAGE, "skeleton: spacing %g must be >= 0", o->spacing);
     if (o->no_twigs != 0 && o->no_twigs != 1) return sy_fail(err, SY_EUSAGE, "skeleton: no_twigs must be 0 or 1");
+    if (!(o->stem_taper >= 0 && o->stem_taper <= 1))
+        return sy_fail(err, SY_EUSAGE, "skeleton: stem_taper %g outside [0, 1]", o->stem_taper);
     if (o->crown_roof < -1 || o->crown_roof > 1)
         return sy_fail(err, SY_EUSAGE, "skeleton: crown_roof %d must be -1, 0 or 1", o->crown_roof);
     if (!(o->crown_roof_gap >= 0) || !isfinite(o->crown_roof_gap))
@@ -903,7 +905,7 @@ sy_code sy_reconstruct_skeleton(const sy_cloud *cloud, const sy_skeleton_options
     if (!rc)
         rc = sy_assign_radii(full, xyz, point_node, n, o->gamma, s, ground, o->dbh_height, o->dbh_slab,
                              o->dbh_per_height, &ri, err);
-    if (!rc) sy_apply_stem_radius(full, &stem, o->gamma, s, &ri);
+    if (!rc) sy_apply_stem_radius(full, &stem, o->gamma, o->stem_taper, s, &ri);
     free(l);
     if (rc) goto done;
     /* Where the scan shows a limb as a ring of returns, its measured radius

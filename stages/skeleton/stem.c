@@ -516,7 +516,8 @@ sy_code sy_rebuild_occluded_stem(sy_skeleton *s, const float *xyz, size_t n, int
     return SY_OK;
 }
 
-void sy_apply_stem_radius(sy_skeleton *s, const sy_stem_info *stem, double gamma, double spacing, sy_radii_info *ri)
+void sy_apply_stem_radius(sy_skeleton *s, const sy_stem_info *stem, double gamma, double taper, double spacing,
+                          sy_radii_info *ri)
 {
     if (!stem->rebuilt || !(gamma > 0)) return;
     size_t m = s->n;
@@ -530,6 +531,23 @@ void sy_apply_stem_radius(sy_skeleton *s, const sy_stem_info *stem, double gamma
         if (s->branch[i] != 0) continue;
         if (fabs(s->pos[3 * i + 2] - zm) < fabs(s->pos[3 * um + 2] - zm)) um = i;
         if (fabs(s->pos[3 * i + 2] - zb) < fabs(s->pos[3 * ub + 2] - zb)) ub = i;
+    }
+    /* A crown of fronds' stem carries its whole crown at its top: a palm
+     * has no secondary growth and its stem barely narrows, by the species'
+     * own taper. The pipe model over the stem alone, whose length above a
+     * node falls to nothing at its top, thinned the airborne palm's stem
+     * from 0.17 m at its foot to 0.07 m at its crown, where its true tree's
+     * goes from 0.16 m to 0.12 m. As a length, l[i] / l0 = (1 - taper t)^gamma
+     * at the share t of the stem's height gives that linear taper. */
+    if (stem->columnar) {
+        double top = s->pos[2];
+        for (size_t i = 0; i < m; i++)
+            if (s->branch[i] == 0) top = fmax(top, s->pos[3 * i + 2]);
+        double L = top - s->pos[2] > 0 ? top - s->pos[2] : 1;
+        for (size_t i = 0; i < m; i++) {
+            double t = fmin(fmax((s->pos[3 * i + 2] - s->pos[2]) / L, 0), 1);
+            l[i] = l[0] * pow(1 - taper * t, gamma);
+        }
     }
     double inv = 1.0 / gamma, l0 = l[0] > 0 ? l[0] : 1;
     double at_ub = pow(fmax(l[ub] / l0, 1e-9), inv); /* breast height's share of the root's diameter */
@@ -783,6 +801,7 @@ sy_code sy_rebuild_unseen_stem(sy_skeleton *s, const float *xyz, size_t n, int32
      * colonised ones stood as 7-10 cm stubs round the airborne palm's
      * crown, under the fronds that synthesis lays from the stem's top. */
     size_t sprout = info->fork > 0 && limbs ? K - 1 : K;
+    info->columnar = !limbs;
     sy_code rc = regrow_from_trunk(s, tpos, K, sprout, xyz, n, -INFINITY, point_node, wood,
                                    UNSEEN_LIMB_STEP * info->crown_radius, err);
     free(tpos);
