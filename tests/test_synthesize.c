@@ -825,6 +825,72 @@ static void leaf_area_follows_the_density(void **state)
     sy_clusters_free(&cl);
 }
 
+/* The leaf area and the halved cards (a quarter of a card's area, their
+ * tips kept in the crown) that traced twigs carry in a 2 x 2 m slab lobe
+ * from z = 4 to top, threaded by 13 x 13 upright twigs of three nodes
+ * from z0, dz apart, at the given density. */
+static double slab_twig_area(float top, float z0, float dz, double density, size_t *halved)
+{
+    sy_skeleton s;
+    sy_clusters cl = {0};
+    make_tree(&s, &cl, 1.0, 0);
+    sy_cluster *c = &cl.items[0];
+    for (size_t v = 0; v < c->n_verts; v++) c->verts[3 * v + 2] = c->verts[3 * v + 2] > 5 ? top : 4.0f;
+    c->n_twigs = 13 * 13 * 3;
+    c->twig_pos = malloc(c->n_twigs * 3 * sizeof *c->twig_pos);
+    c->twig_parent = malloc(c->n_twigs * sizeof *c->twig_parent);
+    size_t m = 0;
+    for (int b = 0; b < 13; b++)
+        for (int a = 0; a < 13; a++)
+            for (int i = 0; i < 3; i++, m++) {
+                c->twig_pos[3 * m] = -0.9f + 0.15f * (float)a;
+                c->twig_pos[3 * m + 1] = -0.9f + 0.15f * (float)b;
+                c->twig_pos[3 * m + 2] = z0 + dz * (float)i;
+                c->twig_parent[m] = i == 0 ? -1 : (int32_t)m - 1;
+            }
+    c->twig_voxel = 0.1f;
+    sy_branchlets lib;
+    sy_synth_options o = aspen_options(&lib);
+    o.seed = 42;
+    o.leaf_density = density;
+    sy_skeleton out;
+    sy_leaves lv;
+    sy_error err = {0};
+    assert_int_equal(sy_synthesize(&s, &cl, &lib, &o, &out, &lv, NULL, &err), SY_OK);
+    double area = 0;
+    *halved = 0;
+    for (size_t i = 0; i < lv.n; i++) {
+        area += 0.5 * lv.scale[i] * lv.scale[i];
+        *halved += lv.scale[i] < 0.75 * o.leaf_size;
+    }
+    sy_skeleton_free(&out), sy_leaves_free(&lv);
+    sy_branchlets_free(&lib);
+    sy_skeleton_free(&s);
+    sy_clusters_free(&cl);
+    return area;
+}
+
+/* Cards on traced twigs fill a lobe to the density's leaf area even where
+ * most are halved: a slab 0.16 m thick, thinner than a card (0.29 m), holds
+ * as much card area as one 0.3 m thick over the same blocks (one layer of
+ * card-sized blocks either way), where few are halved. Each block counts
+ * the area its cards hold, not the cards (stop 49): counted as whole
+ * cards, the thin slab held 0.73 of the thick one's area. */
+static void twig_cards_hold_the_density_area(void **state)
+{
+    (void)state;
+    for (int k = 1; k <= 2; k++) {
+        size_t h_thick, h_thin;
+        double thick = slab_twig_area(4.3f, 4.05f, 0.1f, k, &h_thick);
+        double thin = slab_twig_area(4.16f, 4.04f, 0.04f, k, &h_thin);
+        printf("density %d: the 0.3 m slab %.2f m2 (%zu halved), the 0.16 m slab %.2f m2 (%zu halved)\n", k, thick,
+               h_thick, thin, h_thin);
+        assert_true(h_thin >= 10 && h_thin > 3 * h_thick);
+        if (!(thin >= 0.85 * thick && thin <= 1.15 * thick))
+            fail_msg("density %d: the thin slab holds %.2f m2, the thick one %.2f", k, thin, thick);
+    }
+}
+
 /* A flat lobe, a tiny one and a single point: reported bare, never a crash. */
 static void lobes_without_room_are_reported(void **state)
 {
@@ -1154,6 +1220,7 @@ int main(void)
         cmocka_unit_test(hidden_laterals_take_the_species_length),
         cmocka_unit_test(traced_twigs_are_the_lobes_wood),
         cmocka_unit_test(leaf_area_follows_the_density),
+        cmocka_unit_test(twig_cards_hold_the_density_area),
         cmocka_unit_test(lobes_without_room_are_reported),
         cmocka_unit_test(lobes_smaller_than_a_patch_get_twigs),
         cmocka_unit_test(lobes_in_parallel_give_the_same_tree),

@@ -174,7 +174,7 @@ typedef struct {
     uint16_t *leaves;    /* leaves placed per cell */
     int bk;              /* a block's edge in cells: about a card's length */
     int bd[3];           /* blocks of bk x bk x bk cells, where fullness is counted */
-    uint32_t *block;     /* leaves per block */
+    float *block;        /* leaf area per block, in whole cards of the species' size */
     uint32_t *cell_block; /* each cell's block */
     float *block_cap;    /* whole leaves a block holds (0 when it has no occupied cell) */
     int16_t *block_box;  /* per block: the box of its occupied cells in cells, x, y, z first and past-last */
@@ -551,15 +551,22 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
     return SY_OK;
 }
 
-/* A leaf counted in cell c's block; once the block is full, none of its
- * cells has room (cleared when it fills: a traced twig's cards go on past
- * its block's capacity, and clearing the block's cells again for each was
- * a tenth of tree13's synthesis). */
-static void block_add_leaf(lobe_grid *g, long c)
+/* A card of share (its area over a whole card's) counted in cell c's
+ * block; once the block is full, none of its cells has room (cleared when
+ * it fills: a traced twig's cards go on past its block's capacity, and
+ * clearing the block's cells again for each was a tenth of tree13's
+ * synthesis). The block holds leaf area, not cards: a card halved to keep
+ * its tip in the crown (fit_card) has a quarter of the area, and counted
+ * as a whole card the species' density fell short wherever cards were
+ * halved (the simulated Lombardy poplar's leaf area 0.762 -> 0.746 of its
+ * true tree's when the halving came in). */
+static void block_add_leaf(lobe_grid *g, long c, float share)
 {
     size_t b = block_of(g, c);
-    if (g->block[b]++ == 0) g->n_filled++;
-    if ((float)g->block[b] != g->block_cap[b]) return; /* block_cap is a whole number */
+    float before = g->block[b];
+    g->block[b] += share;
+    if (before == 0) g->n_filled++;
+    if (!(before < g->block_cap[b] && g->block[b] >= g->block_cap[b])) return; /* it fills now */
     int bx = (int)(b % (size_t)g->bd[0]), by = (int)(b / (size_t)g->bd[0] % (size_t)g->bd[1]),
         bz = (int)(b / ((size_t)g->bd[0] * (size_t)g->bd[1]));
     for (int z = bz * g->bk; z < (bz + 1) * g->bk && z < g->d[2]; z++)
@@ -1095,7 +1102,7 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
         quat_from_basis(X, Y, Z, q);
         rep->leaves_in_hull++; /* its stem passed the exact hull test above */
         if (g->occupied[c]) g->leaves[c]++;
-        block_add_leaf(g, c);
+        block_add_leaf(g, c, (size / (float)leaf_size) * (size / (float)leaf_size));
         so->leaf_key[so->leaves->n] = (float)((i + 0.5) / (double)p->n_leaves);
         if (sy_leaves_add(so->leaves, pos, q, size, ids[p->leaf_node[i]], err)) {
             free(ids);
@@ -1571,9 +1578,10 @@ static sy_code leaves_on_twigs(lobe_grid *g, synth_out *so, size_t node0, double
     qsort(order, n, sizeof *order, cmp_ranked);
     sy_code rc = SY_OK;
     size_t placed = 0;
-    for (int round = 0; round < TWIG_LEAVES_MAX && placed < budget && !rc; round++) {
+    double held = 0; /* their area, in whole cards (block_add_leaf) */
+    for (int round = 0; round < TWIG_LEAVES_MAX && held < budget && !rc; round++) {
         size_t at_start = placed;
-        for (size_t j = 0; j < n && placed < budget && !rc; j++) {
+        for (size_t j = 0; j < n && held < budget && !rc; j++) {
             int32_t i = (int32_t)order[j].idx, p = sk->parent[i];
             double w[3] = {sk->pos[3 * i], sk->pos[3 * i + 1], sk->pos[3 * i + 2]}, t[3] = {0, 0, 1};
             long c = grid_cell(g, w);
@@ -1604,9 +1612,10 @@ static sy_code leaves_on_twigs(lobe_grid *g, synth_out *so, size_t node0, double
             }
             rep->leaves_in_hull++; /* its stem passed fit_card's hull test */
             if (g->occupied[c]) g->leaves[c]++;
-            block_add_leaf(g, c);
+            float share = (size / (float)leaf_size) * (size / (float)leaf_size);
+            block_add_leaf(g, c, share);
             if (sy_leaves_add(so->leaves, pos, q, size, i, err)) rc = SY_EINTERNAL;
-            placed++;
+            placed++, held += share;
         }
         if (placed == at_start) break; /* no node takes a card any more */
     }
