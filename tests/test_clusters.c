@@ -328,6 +328,21 @@ static float *twig_y(size_t *n)
     return xyz;
 }
 
+/* A root at the origin, the seed node 1 m above it, and one lobe on the
+ * seed holding points 0..n-1 (no hull: the twigs read only its points). */
+static void root_and_lobe(size_t n, sy_skeleton *s, sy_cluster *c)
+{
+    sy_error err = {0};
+    assert_int_equal(sy_skeleton_init(s, 0, &err), SY_OK);
+    sy_skeleton_add(s, (float[3]){0, 0, 0}, 0.05f, -1, 0, 0, &err);
+    sy_skeleton_add(s, (float[3]){0, 0, 1}, 0.03f, 0, 0, 0, &err);
+    memset(c, 0, sizeof *c);
+    c->seed = 1;
+    c->points = malloc(n * sizeof *c->points);
+    for (size_t i = 0; i < n; i++) c->points[i] = (uint32_t)i;
+    c->n_points = n;
+}
+
 /* The twigs a lobe's returns trace: one return per voxel, each node one of
  * the returns, parents before children, hanging off the seed, the spanning
  * tree as long as the Y it traces (no chord across its fork); a smaller
@@ -338,17 +353,11 @@ static void traced_twigs_follow_the_returns(void **state)
     (void)state;
     size_t n;
     float *xyz = twig_y(&n);
+    const float seed[3] = {0, 0, 1};
     sy_skeleton s;
+    sy_cluster c;
     sy_error err = {0};
-    assert_int_equal(sy_skeleton_init(&s, 0, &err), SY_OK);
-    const float root[3] = {0, 0, 0}, seed[3] = {0, 0, 1};
-    sy_skeleton_add(&s, root, 0.05f, -1, 0, 0, &err);
-    sy_skeleton_add(&s, seed, 0.03f, 0, 0, 0, &err);
-    sy_cluster c = {0};
-    c.seed = 1;
-    c.points = malloc(n * sizeof *c.points);
-    for (size_t i = 0; i < n; i++) c.points[i] = (uint32_t)i;
-    c.n_points = n;
+    root_and_lobe(n, &s, &c);
     sy_clusters cl = {1, &c};
     sy_twig_options o = sy_twig_options_default();
     o.max_nodes = 1000;
@@ -424,15 +433,9 @@ static void traced_twig_tips_reach_the_last_return(void **state)
     float *xyz = malloc(3 * n * sizeof *xyz);
     for (size_t i = 0; i < n; i++) xyz[3 * i] = 0.005f * (float)i, xyz[3 * i + 1] = 0.001f, xyz[3 * i + 2] = 1;
     sy_skeleton s;
+    sy_cluster c;
     sy_error err = {0};
-    assert_int_equal(sy_skeleton_init(&s, 0, &err), SY_OK);
-    sy_skeleton_add(&s, (float[3]){0, 0, 0}, 0.05f, -1, 0, 0, &err);
-    sy_skeleton_add(&s, (float[3]){0, 0, 1}, 0.03f, 0, 0, 0, &err);
-    sy_cluster c = {0};
-    c.seed = 1;
-    c.points = malloc(n * sizeof *c.points);
-    for (size_t i = 0; i < n; i++) c.points[i] = (uint32_t)i;
-    c.n_points = n;
+    root_and_lobe(n, &s, &c);
     sy_clusters cl = {1, &c};
     sy_twig_options o = sy_twig_options_default();
     o.voxel_min = o.voxel_max = 0.1;

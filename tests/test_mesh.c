@@ -446,6 +446,20 @@ static double max_chord_turn(const sy_stem *t, const sy_lod_params *lp, int32_t 
     return worst;
 }
 
+/* A 4 m trunk (radius 0.2 m) and one limb of radius r through the n points
+ * limb[] from its top, as stems. */
+static void trunk_and_limb(const float (*limb)[3], int n, float r, sy_skeleton *s, sy_stems *st)
+{
+    sy_error err;
+    memset(s, 0, sizeof *s);
+    int32_t prev = -1;
+    for (int i = 0; i <= 4; i++) prev = sy_skeleton_add(s, (float[3]){0, 0, (float)i}, 0.2f, prev, 0, 0, &err);
+    int32_t at = prev;
+    for (int i = 0; i < n; i++) at = sy_skeleton_add(s, limb[i], r, i == 0 ? prev : at, 1, 1, &err);
+    sy_mesh_options o = sy_mesh_options_default();
+    assert_int_equal(sy_stems_build(s, &o, st, &err), SY_OK);
+}
+
 /* A branch bent through a half circle keeps its curve at every level: the
  * coarse levels skip LOD0 rings (10 degrees a step) only where the tube
  * turns little, never the square "staple" bends of every stride-th ring
@@ -453,20 +467,15 @@ static double max_chord_turn(const sy_stem *t, const sy_lod_params *lp, int32_t 
 static void curved_branch_keeps_its_curve_at_every_level(void **state)
 {
     (void)state;
-    sy_skeleton s;
-    sy_error err;
-    memset(&s, 0, sizeof s);
-    int32_t prev = -1;
-    for (int i = 0; i <= 4; i++) prev = sy_skeleton_add(&s, (float[3]){0, 0, (float)i}, 0.2f, prev, 0, 0, &err);
-    int32_t at = prev;
-    /* A half circle of radius 1 m from the trunk's top, sampled at 6 nodes. */
+    /* A half circle of radius 1 m from the trunk's top, sampled at 7 nodes. */
+    float limb[7][3];
     for (int i = 0; i <= 6; i++) {
         float th = (float)PI * (float)i / 6.0f;
-        at = sy_skeleton_add(&s, (float[3]){1 - cosf(th), 0, 4 + sinf(th)}, 0.05f, i == 0 ? prev : at, 1, 1, &err);
+        limb[i][0] = 1 - cosf(th), limb[i][1] = 0, limb[i][2] = 4 + sinf(th);
     }
-    sy_mesh_options o = sy_mesh_options_default();
+    sy_skeleton s;
     sy_stems st;
-    assert_int_equal(sy_stems_build(&s, &o, &st, &err), SY_OK);
+    trunk_and_limb(limb, 7, 0.05f, &s, &st);
     int32_t *idx = malloc(2 * 4096 * sizeof *idx);
     uint8_t keep[8] = {1, 1, 1, 1, 1, 1, 1, 1};
     for (size_t i = 0; i < st.n; i++) {
@@ -518,20 +527,14 @@ static double max_ring_bow(const sy_stem *t, const sy_lod_params *lp, int32_t *i
 static void gently_bowed_twig_keeps_its_curve(void **state)
 {
     (void)state;
-    sy_skeleton s;
-    sy_error err;
-    memset(&s, 0, sizeof s);
-    int32_t prev = -1;
-    for (int i = 0; i <= 4; i++) prev = sy_skeleton_add(&s, (float[3]){0, 0, (float)i}, 0.2f, prev, 0, 0, &err);
-    int32_t at = prev;
+    float limb[9][3];
     for (int i = 0; i <= 8; i++) {
         float th = (float)PI / 180 * 3 * (float)i;
-        at = sy_skeleton_add(&s, (float[3]){12 * sinf(th), 0, 4 + 12 * (1 - cosf(th))}, 0.012f, i == 0 ? prev : at, 1,
-                             1, &err);
+        limb[i][0] = 12 * sinf(th), limb[i][1] = 0, limb[i][2] = 4 + 12 * (1 - cosf(th));
     }
-    sy_mesh_options o = sy_mesh_options_default();
+    sy_skeleton s;
     sy_stems st;
-    assert_int_equal(sy_stems_build(&s, &o, &st, &err), SY_OK);
+    trunk_and_limb(limb, 9, 0.012f, &s, &st);
     int32_t *idx = malloc(2 * 4096 * sizeof *idx);
     uint8_t keep[8] = {1, 1, 1, 1, 1, 1, 1, 1};
     int limbs = 0;
