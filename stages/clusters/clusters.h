@@ -220,7 +220,8 @@ typedef struct {
 
 /* Each lobe's twigs: its points thinned to one return per voxel (the one
  * nearest the voxel's mean) and joined, with its seed node on main, by
- * their Euclidean minimum spanning tree rooted at the seed. One voxel for
+ * their Euclidean minimum spanning tree rooted at the seed; each tip then
+ * stands at its voxel's return farthest from the node it hangs from. One voxel for
  * the whole tree: of voxel_min * 1.25^k (up to voxel_max), the finest whose
  * voxels over all lobes number at most max_nodes, found by bisection (or one
  * close to it: the counts fall with the voxel nearly always); none fits, or

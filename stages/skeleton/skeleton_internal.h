@@ -109,7 +109,8 @@ sy_code sy_regrow_meandering_crown(sy_skeleton *s, const float *xyz, size_t n, i
  * to the top of a cone-shaped crown, every return on its nearest trunk
  * node; or into a domed one as far as its widest part, with limbs grown
  * from that fork by space colonisation into the returns (none where limbs
- * is 0: a crown of fronds, whose stem carries no limbs). s comes back as
+ * is 0: a crown of fronds, whose stem carries no limbs; info->columnar is
+ * then set, for sy_apply_stem_radius). s comes back as
  * from sy_rebuild_occluded_stem, info->stem_unseen and info->rebuilt set,
  * the radius from the species' allometry or the slenderness
  * (sy_apply_stem_radius). */
@@ -125,7 +126,7 @@ sy_code sy_colonize(const float *seed, size_t n_seed, const float *pts, size_t n
 /* After sy_assign_radii on a rebuilt stem: the allometry runs from the
  * measured stem circle (or the slenderness estimate) instead of the
  * breast-height slab fit, which on such scans rings the lowest branches.
- * A columnar stem (info->columnar) tapers linearly by taper from its foot
+ * A columnar stem (stem->columnar) tapers linearly by taper from its foot
  * to its top instead. */
 void sy_apply_stem_radius(sy_skeleton *s, const sy_stem_info *stem, double gamma, double taper, double spacing,
                           sy_radii_info *ri);

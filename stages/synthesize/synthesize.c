@@ -160,7 +160,7 @@ static void quat_from_basis(const double X[3], const double Y[3], const double Z
 typedef struct {
     float dist;   /* distance (metres) to the nearest occupied cell; 0 in a lobe with traced twigs (never read) */
     uint8_t soft; /* inside, or next to an inside cell: the hull as a soft constraint */
-    uint8_t room; /* occupied, and its block holds fewer leaves than its cap (block_has_room) */
+    uint8_t room; /* occupied, and its block holds less leaf area than its cap (block_has_room) */
 } lobe_cell;
 
 typedef struct {
@@ -176,7 +176,8 @@ typedef struct {
     int bd[3];           /* blocks of bk x bk x bk cells, where fullness is counted */
     float *block;        /* leaf area per block, in whole cards of the species' size */
     uint32_t *cell_block; /* each cell's block */
-    float *block_cap;    /* whole leaves a block holds (0 when it has no occupied cell) */
+    float *block_cap;    /* leaf area a block holds, in whole cards, a whole number (0 when it has no
+                            occupied cell) */
     int16_t *block_box;  /* per block: the box of its occupied cells in cells, x, y, z first and past-last */
     size_t n_occupied, n_blocks, n_filled; /* occupied cells; blocks with room; blocks holding a leaf */
     size_t n_inside;     /* cells inside the hull */
