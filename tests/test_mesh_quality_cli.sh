@@ -28,7 +28,7 @@ samples="$SYLVA_SOURCE_DIR/samples"
 # its shoot counted as sails across that gap (palm_tls 0.60 %, the airborne
 # fir 0.97 %), and the bound here was 0.7 %.
 # At the coarser levels, sails are at most 2 % of each level's bark:
-# measured <= 0.72 % (palm_tls's LOD3, 4 of 552) since stop 49 bounded how
+# measured <= 0.73 % (palm_tls's LOD3, 4 of 546) since stop 49 bounded how
 # far a coarse level's chord may leave the rings it skips; before, palm_tls's
 # LOD3 flagged 187 of its 600 triangles, palm_als's 52 of 416 and fir_tls's
 # 86 of 1,666 (long chords across gently bowed rachises and shoots).
