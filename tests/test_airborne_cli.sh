@@ -32,7 +32,7 @@ for sp in quaking_aspen:aspen balsam_fir:fir palm:palm; do
     check "${name}_als DBH $d m within 25% of the true $D m" "$d >= 0.75 * $D && $d <= 1.25 * $D"
     check "${name}_als has leaves ($leaves >= 300)" "$leaves >= 300"
     # A crown of fronds: the palm's unseen stem grows no limbs (stop 49).
-    # Colonised ones stood as four 7-10 cm stubs round its crown, 6 of its 63
+    # Colonised ones stood as four 7-10 cm stumps round its crown, 6 of its 63
     # LOD0 junctions unwelded, under the fronds laid from the stem's top. The
     # stem tapers by the species' 0Taper (0.3), as its true tree's does
     # (0.157 m at 0.9 m, 0.118 m at 8.6 m): the pipe model over a stem with

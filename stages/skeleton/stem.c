@@ -798,7 +798,7 @@ sy_code sy_rebuild_unseen_stem(sy_skeleton *s, const float *xyz, size_t n, int32
      * airborne black oak's, 0.5 m over the ground), they stood off it as a
      * comb of level rods (IoU 0.650 with the comb, 0.632 without).
      * A crown of fronds grows none: a palm's stem carries no limbs, and
-     * colonised ones stood as 7-10 cm stubs round the airborne palm's
+     * colonised ones stood as 7-10 cm stumps round the airborne palm's
      * crown, under the fronds that synthesis lays from the stem's top. */
     size_t sprout = info->fork > 0 && limbs ? K - 1 : K;
     info->columnar = !limbs;

@@ -552,6 +552,13 @@ static sy_code grid_build(const sy_cluster *c, int cells, double density, double
     return SY_OK;
 }
 
+/* A card of this length's area over a whole card's (leaf_size long). */
+static float card_share(float size, double leaf_size)
+{
+    float q = size / (float)leaf_size;
+    return q * q;
+}
+
 /* A card of share (its area over a whole card's) counted in cell c's
  * block; once the block is full, none of its cells has room (cleared when
  * it fills: a traced twig's cards go on past its block's capacity, and
@@ -1103,7 +1110,7 @@ static sy_code place(const sy_patch *p, const dock *d, const double R[9], double
         quat_from_basis(X, Y, Z, q);
         rep->leaves_in_hull++; /* its stem passed the exact hull test above */
         if (g->occupied[c]) g->leaves[c]++;
-        block_add_leaf(g, c, (size / (float)leaf_size) * (size / (float)leaf_size));
+        block_add_leaf(g, c, card_share(size, leaf_size));
         so->leaf_key[so->leaves->n] = (float)((i + 0.5) / (double)p->n_leaves);
         if (sy_leaves_add(so->leaves, pos, q, size, ids[p->leaf_node[i]], err)) {
             free(ids);
@@ -1613,7 +1620,7 @@ static sy_code leaves_on_twigs(lobe_grid *g, synth_out *so, size_t node0, double
             }
             rep->leaves_in_hull++; /* its stem passed fit_card's hull test */
             if (g->occupied[c]) g->leaves[c]++;
-            float share = (size / (float)leaf_size) * (size / (float)leaf_size);
+            float share = card_share(size, leaf_size);
             block_add_leaf(g, c, share);
             if (sy_leaves_add(so->leaves, pos, q, size, i, err)) rc = SY_EINTERNAL;
             placed++, held += share;
