@@ -518,6 +518,55 @@ static double max_ring_bow(const sy_stem *t, const sy_lod_params *lp, int32_t *i
     return worst;
 }
 
+
+/* A twig that leaves a limb and turns up along it: its base ring runs
+ * nearly parallel to the limb's axis, and that ring's exit from the limb's
+ * infinite cylinder came metres on, so the junction trim dropped every ring
+ * but the tip's and the twig was drawn as one straight segment (AdTree's
+ * tree7: twigs 0.15-0.48 m long, their own twigs then capped in its one quad
+ * row). Rings already clear of the limb's tube stay. */
+static void twig_along_its_limb_keeps_its_rings(void **state)
+{
+    (void)state;
+    sy_error err;
+    sy_skeleton s;
+    memset(&s, 0, sizeof s);
+    int32_t prev = -1, at = -1;
+    for (int i = 0; i <= 8; i++) {
+        prev = sy_skeleton_add(&s, (float[3]){0, 0, 0.5f * (float)i}, 0.05f, prev, 0, 0, &err);
+        if (i == 4) at = prev;
+    }
+    /* Out to the limb's surface, then up beside it, leaving it slowly. */
+    const float twig[][3] = {{0.015f, 0, 2.0f},  {0.016f, 0, 2.2f}, {0.017f, 0, 2.4f}, {0.06f, 0, 2.55f},
+                             {0.1f, 0, 2.7f}, {0.15f, 0, 2.85f}, {0.2f, 0, 3.0f}};
+    for (int i = 0; i < 7; i++) at = sy_skeleton_add(&s, twig[i], 0.004f, at, 1, 1, &err);
+    sy_mesh_options o = sy_mesh_options_default();
+    sy_stems st;
+    assert_int_equal(sy_stems_build(&s, &o, &st, &err), SY_OK);
+    assert_int_equal(st.n, 2);
+    const sy_stem *t = st.s[0].parent < 0 ? &st.s[1] : &st.s[0];
+    assert_true(t->has_geometry && t->junction);
+    /* The drawn axis (its rings' centres, joined) passes every node of the
+     * twig clear of the limb within two of its radii. */
+    double worst = 0;
+    for (int i = 3; i < 7; i++) {
+        double best = INFINITY;
+        for (size_t j = 0; j + 1 < t->n_samp; j++) {
+            const float *a = t->sp + 3 * j, *b = a + 3;
+            double d[3], w[3], dd = 0, wd = 0;
+            for (int k = 0; k < 3; k++) d[k] = b[k] - a[k], w[k] = twig[i][k] - a[k], dd += d[k] * d[k], wd += w[k] * d[k];
+            double u = dd > 0 ? fmin(1, fmax(0, wd / dd)) : 0, e = 0;
+            for (int k = 0; k < 3; k++) e += (w[k] - u * d[k]) * (w[k] - u * d[k]);
+            best = fmin(best, sqrt(e));
+        }
+        worst = fmax(worst, best);
+    }
+    printf("# twig: %zu rings from %.3f m along it, its nodes at most %.1f radii off its drawn axis\n", t->n_samp,
+           t->ss[0], worst / 0.004);
+    assert_true(worst < 2 * 0.004);
+    sy_stems_free(&st);
+    sy_skeleton_free(&s);
+}
 /* A thin limb bowed gently (a 12 m radius: it turns 24 degrees over 5 m)
  * keeps its curve at the coarse levels: the chords that skip LOD0 rings
  * stay within two of its radii of them. Skipping by the turn alone drew it
@@ -1491,6 +1540,7 @@ int main(void)
         cmocka_unit_test(traced_twigs_are_drawn_lean),
         cmocka_unit_test(curved_branch_keeps_its_curve_at_every_level),
         cmocka_unit_test(gently_bowed_twig_keeps_its_curve),
+        cmocka_unit_test(twig_along_its_limb_keeps_its_rings),
         cmocka_unit_test(random_tree_meets_every_property),
         cmocka_unit_test(leaf_budget_keeps_the_leaf_area),
         cmocka_unit_test(coarse_levels_widen_narrow_leaves),

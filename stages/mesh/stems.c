@@ -757,9 +757,33 @@ static int cylinder_exit(const float w[3], const float d[3], const float a[3], f
     return 1;
 }
 
+/* Whether child s's ring j lies wholly outside parent p's tube: its centre
+ * is at least the two radii from the parent's axis at the axis point
+ * nearest it (a few Newton steps along the parent from arc length q). */
+static int ring_clears(const sy_stem *p, const sy_stem *s, size_t j, float q)
+{
+    const float *x = s->sp + 3 * j;
+    float c[3], T[3], N[3], R, w[3];
+    for (int it = 0; it < 4; it++) {
+        sy_stem_frame_at(p, NULL, 0, q, c, T, N, &R);
+        for (int k = 0; k < 3; k++) w[k] = x[k] - c[k];
+        q += sy_dot3(w, T);
+    }
+    sy_stem_frame_at(p, NULL, 0, q, c, T, N, &R);
+    for (int k = 0; k < 3; k++) w[k] = x[k] - c[k];
+    float along = sy_dot3(w, T), d2 = sy_dot3(w, w) - along * along, need = R + s->sr[j];
+    return d2 >= need * need;
+}
+
 /* Starts a child's tube where its axis leaves the parent's cylinder and drops
- * the rings its projected base ring would pass (those lie inside the parent).
- * A child whose tip stays inside the parent is buried and draws nothing. */
+ * the rings its projected base ring would pass (those lie inside the parent),
+ * but none past the first ring that already stands clear of the parent's
+ * tube: the base ring of a child that turns along its parent runs nearly
+ * parallel to the parent's axis, and its exit from the infinite cylinder
+ * came metres on (AdTree's tree7: twigs 0.15-0.48 m long cut to one
+ * straight segment, their own twigs then crowded into one quad row of it
+ * and capped, not welded). A child whose tip stays inside the parent is
+ * buried and draws nothing. */
 static void trim_junction(sy_stems *st, sy_stem *s)
 {
     const sy_stem *p = &st->s[s->parent];
@@ -778,6 +802,11 @@ static void trim_junction(sy_stems *st, sy_stem *s)
         if (cylinder_exit(q, t0, a, R, &lam) && lam > adv) adv = lam;
     }
     float cut = s0 + 1.15f * adv + 1e-4f;
+    for (size_t j = 1; j < s->n_samp && s->ss[j] <= cut; j++)
+        if (s->ss[j] > s0 && ring_clears(p, s, j, s->attach_s)) {
+            cut = s->ss[j] - 1e-4f;
+            break;
+        }
     /* Buried: the tip centre is inside the parent's cylinder. */
     const float *tip = s->sp + 3 * (s->n_samp - 1);
     float wt[3] = {tip[0] - c[0], tip[1] - c[1], tip[2] - c[2]}, ta = sy_dot3(wt, a);
