@@ -759,19 +759,22 @@ static int cylinder_exit(const float w[3], const float d[3], const float a[3], f
 
 /* Whether child s's ring j lies wholly outside parent p's tube: its centre
  * is at least the two radii from the parent's axis at the axis point
- * nearest it (a few Newton steps along the parent from arc length q). */
-static int ring_clears(const sy_stem *p, const sy_stem *s, size_t j, float q)
+ * nearest it (Newton steps along the parent from arc length *q, which is
+ * left there for the next ring), the parent's radius grown by its lobes'
+ * depth on a lobed trunk. */
+static int ring_clears(const sy_stem *p, const sy_stem *s, size_t j, float *q)
 {
     const float *x = s->sp + 3 * j;
     float c[3], T[3], N[3], R, w[3];
     for (int it = 0; it < 4; it++) {
-        sy_stem_frame_at(p, NULL, 0, q, c, T, N, &R);
+        sy_stem_frame_at(p, NULL, 0, *q, c, T, N, &R);
         for (int k = 0; k < 3; k++) w[k] = x[k] - c[k];
-        q += sy_dot3(w, T);
+        *q += sy_dot3(w, T);
     }
-    sy_stem_frame_at(p, NULL, 0, q, c, T, N, &R);
+    sy_stem_frame_at(p, NULL, 0, *q, c, T, N, &R);
     for (int k = 0; k < 3; k++) w[k] = x[k] - c[k];
-    float along = sy_dot3(w, T), d2 = sy_dot3(w, w) - along * along, need = R + s->sr[j];
+    float along = sy_dot3(w, T), d2 = sy_dot3(w, w) - along * along;
+    float need = R * (1 + (p->lobes > 0 ? p->lobe_depth : 0)) + s->sr[j];
     return d2 >= need * need;
 }
 
@@ -801,10 +804,14 @@ static void trim_junction(sy_stems *st, sy_stem *s)
         for (int k = 0; k < 3; k++) q[k] = c0[k] + r0 * (cosf(th) * n0[k] + sinf(th) * b0[k]) - c[k];
         if (cylinder_exit(q, t0, a, R, &lam) && lam > adv) adv = lam;
     }
-    float cut = s0 + 1.15f * adv + 1e-4f;
+    float cut = s0 + 1.15f * adv + 1e-4f, q = s->attach_s;
+    /* Never a ring the base ring's vertices may be pushed past (tube.c
+     * pushes them along the child's tangent by up to 2 (r + R)): the
+     * first row would fold back. */
+    float floor_cut = fminf(cut, s0 + 2 * (s->r_base + p->r_base) + 1e-4f);
     for (size_t j = 1; j < s->n_samp && s->ss[j] <= cut; j++)
-        if (s->ss[j] > s0 && ring_clears(p, s, j, s->attach_s)) {
-            cut = s->ss[j] - 1e-4f;
+        if (s->ss[j] > floor_cut && ring_clears(p, s, j, &q)) {
+            cut = s->ss[j] - 1e-4f > floor_cut ? s->ss[j] - 1e-4f : floor_cut;
             break;
         }
     /* Buried: the tip centre is inside the parent's cylinder. */
