@@ -518,13 +518,12 @@ static double max_ring_bow(const sy_stem *t, const sy_lod_params *lp, int32_t *i
     return worst;
 }
 
-
 /* A twig that leaves a limb and turns up along it: its base ring runs
  * nearly parallel to the limb's axis, and that ring's exit from the limb's
  * infinite cylinder came metres on, so the junction trim dropped every ring
  * but the tip's and the twig was drawn as one straight segment (AdTree's
- * tree7: twigs 0.15-0.48 m long, their own twigs then capped in its one quad
- * row). Rings already clear of the limb's tube stay. */
+ * tree7: a 0.48 m twig, its own twigs then capped in its one quad row).
+ * Rings already clear of the limb's tube stay. */
 static void twig_along_its_limb_keeps_its_rings(void **state)
 {
     (void)state;
@@ -536,7 +535,8 @@ static void twig_along_its_limb_keeps_its_rings(void **state)
         prev = sy_skeleton_add(&s, (float[3]){0, 0, 0.5f * (float)i}, 0.05f, prev, 0, 0, &err);
         if (i == 4) at = prev;
     }
-    /* Out to the limb's surface, then up beside it, leaving it slowly. */
+    /* 1.5 cm out from the limb's axis, up inside the 5 cm limb for 0.4 m,
+     * then out of it. */
     const float twig[][3] = {{0.015f, 0, 2.0f},  {0.016f, 0, 2.2f}, {0.017f, 0, 2.4f}, {0.06f, 0, 2.55f},
                              {0.1f, 0, 2.7f}, {0.15f, 0, 2.85f}, {0.2f, 0, 3.0f}};
     for (int i = 0; i < 7; i++) at = sy_skeleton_add(&s, twig[i], 0.004f, at, 1, 1, &err);
@@ -571,6 +571,7 @@ static void twig_along_its_limb_keeps_its_rings(void **state)
     sy_stems_free(&st);
     sy_skeleton_free(&s);
 }
+
 /* A thin limb bowed gently (a 12 m radius: it turns 24 degrees over 5 m)
  * keeps its curve at the coarse levels: the chords that skip LOD0 rings
  * stay within two of its radii of them. Skipping by the turn alone drew it

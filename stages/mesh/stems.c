@@ -781,12 +781,12 @@ static int ring_clears(const sy_stem *p, const sy_stem *s, size_t j, float *q)
 /* Starts a child's tube where its axis leaves the parent's cylinder and drops
  * the rings its projected base ring would pass (those lie inside the parent),
  * but none past the first ring that already stands clear of the parent's
- * tube: the base ring of a child that turns along its parent runs nearly
- * parallel to the parent's axis, and its exit from the infinite cylinder
- * came metres on (AdTree's tree7: twigs 0.15-0.48 m long cut to one
- * straight segment, their own twigs then crowded into one quad row of it
- * and capped, not welded). A child whose tip stays inside the parent is
- * buried and draws nothing. */
+ * tube, once past the base ring's push: the base ring of a child that turns
+ * along its parent runs nearly parallel to the parent's axis, and its exit
+ * from the infinite cylinder came metres on (AdTree's tree7: a 0.48 m twig
+ * cut to one straight segment, its own three twigs then crowded into its
+ * one quad row and capped, not welded). A child whose tip stays inside the
+ * parent is buried and draws nothing. */
 static void trim_junction(sy_stems *st, sy_stem *s)
 {
     const sy_stem *p = &st->s[s->parent];
