@@ -175,11 +175,13 @@ static float section_reach(const sy_stem *p, int P, float R, const float u[2])
 
 /* Moves q along unit d onto the polygonal tube of stem p as drawn at this
  * level (P-gon cross-sections through the rings pidx, lobed on a grown
- * trunk), iterating the local frame so a curved parent is followed. Falls
- * back to the radial projection when the line misses the tube. Returns the
- * signed distance along d. */
+ * trunk), iterating the local frame so a curved parent is followed, by at
+ * most `limit` back and `ahead` on. Falls back to the radial projection
+ * when the line misses the tube (or its crossing is out of that range).
+ * Returns the signed distance along d. */
+#define RING_AHEAD 0.9f
 static float project_to_parent(const sy_stem *p, const int32_t *pidx, size_t np, int P, const float q[3],
-                               const float d[3], float s_est, float limit, float out[3])
+                               const float d[3], float s_est, float limit, float ahead, float out[3])
 {
     float lam = 0;
     for (int iter = 0; iter < 4; iter++) {
@@ -188,7 +190,7 @@ static float project_to_parent(const sy_stem *p, const int32_t *pidx, size_t np,
         sy_cross3(T, N, B);
         float w[3] = {q[0] - c[0], q[1] - c[1], q[2] - c[2]};
         float w2[2] = {sy_dot3(w, N), sy_dot3(w, B)}, d2[2] = {sy_dot3(d, N), sy_dot3(d, B)}, best = 0;
-        if (section_exit(p, P, R, w2, d2, &best) && fabsf(best) <= limit) {
+        if (section_exit(p, P, R, w2, d2, &best) && best >= -limit && best <= ahead) {
             lam = best;
             for (int k = 0; k < 3; k++) out[k] = q[k] + lam * d[k];
         } else {
@@ -206,7 +208,7 @@ static float project_to_parent(const sy_stem *p, const int32_t *pidx, size_t np,
             /* Prefer where the line leaves the circumscribed circle: the snap
              * onto the polygon is then at most its sagitta. */
             if (dd > 1e-12f && disc >= 0) l0 = (-bb + sqrtf(disc)) / dd;
-            l0 = l0 > limit ? limit : l0 < -limit ? -limit : l0;
+            l0 = l0 > ahead ? ahead : l0 < -limit ? -limit : l0;
             for (int k = 0; k < 3; k++) w[k] += l0 * d[k];
             w2[0] += l0 * d2[0], w2[1] += l0 * d2[1];
             float len = hypotf(w2[0], w2[1]), f = 0;
@@ -297,7 +299,13 @@ void sy_tube_emit(const sy_stems *st, size_t stem, const sy_lod_params *lp, sy_m
                  * that a child running along its parent drags its base ring
                  * metres down the stem (a sail). */
                 float limit = 2 * (s->r_base + st->s[s->parent].r_base), out[3];
-                arc += project_to_parent(par, pidx, npr, Pp, pos, T, s->attach_s, limit, out);
+                /* Nor past RING_AHEAD of the way to the next ring: a vertex
+                 * pushed that far folds the first row back over itself (96
+                 * over the grown library, seeds 1 and 2, now 12; the trim keeps the
+                 * next ring clear of the push the parent's straight cylinder
+                 * predicts, and the drawn parent can take it farther). */
+                float ahead = nr > 1 ? RING_AHEAD * (s->ss[idx[1]] - s->ss[idx[0]]) : limit;
+                arc += project_to_parent(par, pidx, npr, Pp, pos, T, s->attach_s, limit, ahead < limit ? ahead : limit, out);
                 memcpy(pos, out, sizeof pos);
             }
             if (j == 0) memcpy(first_pos, pos, sizeof pos), first_arc = arc;
