@@ -183,7 +183,7 @@ static void species_assets_survive_a_close_look(void **state)
         sy_leaves lv;
         assert_int_equal(sy_grow_tree(&sp, seed, &sk, &lv, &err), SY_OK);
         size_t folds = first_row_folds(&sk);
-        printf("%s seed %d: %zu base-ring vertices pushed past the next ring\n", name, (int)seed, folds);
+        printf("%s seed %d: %zu base-ring vertices pushed as far as their next ring\n", name, (int)seed, folds);
         assert_true(folds <= FIRST_ROW_FOLDS_MAX);
         sy_tree_asset_options o = sy_tree_asset_options_default();
         o.impostor = 0; /* not checked; its CPU render is a third of the build */

@@ -173,13 +173,16 @@ static float section_reach(const sy_stem *p, int P, float R, const float u[2])
     return best;
 }
 
+/* How far along the way to its tube's next ring a base-ring vertex may be
+ * pushed onto its parent (sy_tube_emit). */
+#define RING_AHEAD 0.9f
+
 /* Moves q along unit d onto the polygonal tube of stem p as drawn at this
  * level (P-gon cross-sections through the rings pidx, lobed on a grown
- * trunk), iterating the local frame so a curved parent is followed, by at
- * most `limit` back and `ahead` on. Falls back to the radial projection
- * when the line misses the tube (or its crossing is out of that range).
- * Returns the signed distance along d. */
-#define RING_AHEAD 0.9f
+ * trunk), iterating the local frame so a curved parent is followed. Takes
+ * the line's crossing only within [-limit, ahead] along d; otherwise falls
+ * back to the radial projection, whose snap onto the polygon may carry the
+ * vertex a little farther along d. Returns the signed distance along d. */
 static float project_to_parent(const sy_stem *p, const int32_t *pidx, size_t np, int P, const float q[3],
                                const float d[3], float s_est, float limit, float ahead, float out[3])
 {
@@ -194,9 +197,10 @@ static float project_to_parent(const sy_stem *p, const int32_t *pidx, size_t np,
             lam = best;
             for (int k = 0; k < 3; k++) out[k] = q[k] + lam * d[k];
         } else {
-            /* The line misses the tube: take its closest approach to the
-             * parent's axis, then scale that point's cross-section offset
-             * onto the polygon, so the vertex still moves mostly along d. */
+            /* The line misses the tube (or crosses it out of range): take
+             * its closest approach to the parent's axis, within range, then
+             * scale that point's cross-section offset onto the polygon, so
+             * the vertex still moves mostly along d. */
             float Rc = 0, v[2];
             for (int j = 0; j < P; j++) {
                 section_vertex(p, P, R, j, v);
@@ -305,7 +309,8 @@ void sy_tube_emit(const sy_stems *st, size_t stem, const sy_lod_params *lp, sy_m
                  * next ring clear of the push the parent's straight cylinder
                  * predicts, and the drawn parent can take it farther). */
                 float ahead = nr > 1 ? RING_AHEAD * (s->ss[idx[1]] - s->ss[idx[0]]) : limit;
-                arc += project_to_parent(par, pidx, npr, Pp, pos, T, s->attach_s, limit, ahead < limit ? ahead : limit, out);
+                if (ahead > limit) ahead = limit;
+                arc += project_to_parent(par, pidx, npr, Pp, pos, T, s->attach_s, limit, ahead, out);
                 memcpy(pos, out, sizeof pos);
             }
             if (j == 0) memcpy(first_pos, pos, sizeof pos), first_arc = arc;
