@@ -9,6 +9,7 @@
 
 #include <stb_image.h>
 
+#include "stages/core/geometry.h"
 #include "stages/mesh/mesh.h"
 #include "stages/mesh/mesh_internal.h"
 #include "tree_gen.h"
@@ -550,14 +551,11 @@ static void twig_along_its_limb_keeps_its_rings(void **state)
      * twig clear of the limb within two of its radii (the old trim: 14). */
     double worst = 0;
     for (int i = 3; i < 7; i++) {
-        double best = INFINITY;
+        double best = INFINITY, x[3] = {twig[i][0], twig[i][1], twig[i][2]};
         for (size_t j = 0; j + 1 < t->n_samp; j++) {
             const float *a = t->sp + 3 * j, *b = a + 3;
-            double d[3], w[3], dd = 0, wd = 0;
-            for (int k = 0; k < 3; k++) d[k] = b[k] - a[k], w[k] = twig[i][k] - a[k], dd += d[k] * d[k], wd += w[k] * d[k];
-            double u = dd > 0 ? fmin(1, fmax(0, wd / dd)) : 0, e = 0;
-            for (int k = 0; k < 3; k++) e += (w[k] - u * d[k]) * (w[k] - u * d[k]);
-            best = fmin(best, sqrt(e));
+            double ad[3] = {a[0], a[1], a[2]}, bd[3] = {b[0], b[1], b[2]};
+            best = fmin(best, sy_point_segment_distance(x, ad, bd, NULL));
         }
         worst = fmax(worst, best);
     }

@@ -140,6 +140,12 @@ sy_code sy_stems_reach(sy_stems *st, const sy_leaves *lv, sy_error *err);
  * normal N orthogonal to T, radius R. */
 void sy_stem_frame_at(const sy_stem *s, const int32_t *idx, size_t n_idx, float q, float c[3], float T[3],
                       float N[3], float *R);
+/* The point c of stem s's axis (rings idx, or every sample with NULL)
+ * closest to x (the Z-up frame), by `iters` Newton steps along the axis
+ * from arc length s_hint; its frame (T, N) and radius come with it.
+ * Returns its arc length. */
+float sy_stem_closest_on_axis(const sy_stem *s, const int32_t *idx, size_t n_idx, const float x[3], float s_hint,
+                              int iters, float c[3], float T[3], float N[3], float *R);
 
 /* ---- LOD selection and tube emission (lod.c, tube.c) ---- */
 typedef struct {

@@ -740,6 +740,20 @@ void sy_stem_frame_at(const sy_stem *s, const int32_t *idx, size_t n_idx, float 
     *R = s->sr[a] + f * (s->sr[b] - s->sr[a]);
 }
 
+float sy_stem_closest_on_axis(const sy_stem *s, const int32_t *idx, size_t n_idx, const float x[3], float s_hint,
+                              int iters, float c[3], float T[3], float N[3], float *R)
+{
+    float q = s_hint;
+    for (int it = 0; it < iters; it++) {
+        sy_stem_frame_at(s, idx, n_idx, q, c, T, N, R);
+        float w[3] = {x[0] - c[0], x[1] - c[1], x[2] - c[2]}, dq = sy_dot3(w, T);
+        q += dq;
+        if (fabsf(dq) < 1e-6f) break;
+    }
+    sy_stem_frame_at(s, idx, n_idx, q, c, T, N, R);
+    return q;
+}
+
 /* Where the ray from w (relative to a point on the axis) along d leaves the
  * infinite cylinder of radius R around unit axis a; 0 when it misses. */
 static int cylinder_exit(const float w[3], const float d[3], const float a[3], float R, float *lam)
@@ -759,21 +773,14 @@ static int cylinder_exit(const float w[3], const float d[3], const float a[3], f
 
 /* Whether child s's ring j lies wholly outside parent p's tube: its centre
  * is at least the two radii from the parent's axis at the axis point
- * nearest it (Newton steps along the parent from arc length *q, which is
- * left there for the next ring), the parent's radius grown by its lobes'
- * depth on a lobed trunk. */
+ * nearest it (found from arc length *q, which is left there for the next
+ * ring), the parent's radius grown by its lobes' depth on a lobed trunk. */
 static int ring_clears(const sy_stem *p, const sy_stem *s, size_t j, float *q)
 {
     const float *x = s->sp + 3 * j;
-    float c[3], T[3], N[3], R, w[3];
-    for (int it = 0; it < 4; it++) {
-        sy_stem_frame_at(p, NULL, 0, *q, c, T, N, &R);
-        for (int k = 0; k < 3; k++) w[k] = x[k] - c[k];
-        *q += sy_dot3(w, T);
-    }
-    sy_stem_frame_at(p, NULL, 0, *q, c, T, N, &R);
-    for (int k = 0; k < 3; k++) w[k] = x[k] - c[k];
-    float along = sy_dot3(w, T), d2 = sy_dot3(w, w) - along * along;
+    float c[3], T[3], N[3], R;
+    *q = sy_stem_closest_on_axis(p, NULL, 0, x, *q, 4, c, T, N, &R);
+    float w[3] = {x[0] - c[0], x[1] - c[1], x[2] - c[2]}, along = sy_dot3(w, T), d2 = sy_dot3(w, w) - along * along;
     float need = R * (1 + (p->lobes > 0 ? p->lobe_depth : 0)) + s->sr[j];
     return d2 >= need * need;
 }
@@ -811,7 +818,7 @@ static void trim_junction(sy_stems *st, sy_stem *s)
     float floor_cut = fminf(cut, s0 + 2 * (s->r_base + p->r_base) + 1e-4f);
     for (size_t j = 1; j < s->n_samp && s->ss[j] <= cut; j++)
         if (s->ss[j] > floor_cut && ring_clears(p, s, j, &q)) {
-            cut = s->ss[j] - 1e-4f > floor_cut ? s->ss[j] - 1e-4f : floor_cut;
+            cut = fmaxf(s->ss[j] - 1e-4f, floor_cut);
             break;
         }
     /* Buried: the tip centre is inside the parent's cylinder. */

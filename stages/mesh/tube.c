@@ -407,23 +407,6 @@ typedef struct {
     int ok;      /* the rectangle lies in the parent's tube and leaves it a band */
 } weld_rect;
 
-/* The point c of parent p's axis (rings pidx) closest to x (the Z-up frame),
- * by `iters` Newton steps along the axis from arc length s_hint; its frame
- * (T, N), radius and arc length come with it. */
-static float closest_on_axis(const sy_stem *p, const int32_t *pidx, size_t np, const float x[3], float s_hint,
-                             int iters, float c[3], float T[3], float N[3], float *R)
-{
-    float s_est = s_hint;
-    for (int it = 0; it < iters; it++) {
-        sy_stem_frame_at(p, pidx, np, s_est, c, T, N, R);
-        float w[3] = {x[0] - c[0], x[1] - c[1], x[2] - c[2]}, ds = sy_dot3(w, T);
-        s_est += ds;
-        if (fabsf(ds) < 1e-6f) break;
-    }
-    sy_stem_frame_at(p, pidx, np, s_est, c, T, N, R);
-    return s_est;
-}
-
 /* Where point x (glTF frame) sits on parent p's grid at this level: arc
  * length s along the parent, fractional ring row (-1 beyond the tube's
  * rings) and fractional column in [0, P), plus the radius there. */
@@ -431,7 +414,7 @@ static void grid_coords(const sy_stem *p, const int32_t *pidx, size_t np, int P,
                         float *s_out, float *row, float *col, float *R_out)
 {
     float x[3] = {xy[0], -xy[2], xy[1]}, c[3], T[3], N[3], R;
-    float s_est = closest_on_axis(p, pidx, np, x, s_hint, 4, c, T, N, &R);
+    float s_est = sy_stem_closest_on_axis(p, pidx, np, x, s_hint, 4, c, T, N, &R);
     float B[3], w[3] = {x[0] - c[0], x[1] - c[1], x[2] - c[2]};
     sy_cross3(T, N, B);
     float th = atan2f(sy_dot3(w, B), sy_dot3(w, N));
@@ -1188,7 +1171,7 @@ static void parent_radial(const sy_stem *p, const int32_t *pidx, size_t np, cons
                           float out[3])
 {
     float x[3] = {xy[0], -xy[2], xy[1]}, c[3], T[3], N[3], R;
-    closest_on_axis(p, pidx, np, x, s_hint, 6, c, T, N, &R);
+    sy_stem_closest_on_axis(p, pidx, np, x, s_hint, 6, c, T, N, &R);
     float w[3] = {x[0] - c[0], x[1] - c[1], x[2] - c[2]}, d = sy_dot3(w, T);
     for (int k = 0; k < 3; k++) w[k] -= d * T[k];
     sy_to_yup(w, out);
