@@ -201,6 +201,44 @@ static void species_assets_survive_a_close_look(void **state)
     sy_species_params_free(&sp);
 }
 
+/* A limb drooping under the ground: the mesher lifts its samples onto it
+ * (sample_curve), drawing the limb down to the ground and along it, and
+ * the check's capsules follow it there. Lifting a segment's lower end
+ * alone drew it as one slant above the drawn limb: its quads came out as
+ * sails (the grown Norway spruce's skirt, 123 at LOD0, all within 0.3 m of
+ * the ground). */
+static void limb_along_the_ground_is_no_sail(void **state)
+{
+    (void)state;
+    sy_skeleton sk;
+    sy_leaves lv;
+    sy_error err = {0};
+    memset(&lv, 0, sizeof lv);
+    assert_int_equal(sy_skeleton_init(&sk, 0, &err), SY_OK);
+    static const float trunk[4][4] = {{0, 0, 0, 0.12f}, {0, 0, 1, 0.1f}, {0, 0, 2, 0.08f}, {0, 0, 3, 0.05f}};
+    static const float limb[4][4] = {{1, 0, 0.8f, 0.03f}, {2, 0, 0.3f, 0.025f}, {3, 0, -0.9f, 0.02f}, {4, 0, -1, 0.015f}};
+    int32_t p = -1;
+    for (int i = 0; i < 4; i++) p = sy_skeleton_add(&sk, trunk[i], trunk[i][3], p, 0, 0, &err);
+    p = 1;
+    for (int i = 0; i < 4; i++) p = sy_skeleton_add(&sk, limb[i], limb[i][3], p, 1, 1, &err);
+    assert_true(p >= 0);
+    sy_tree_asset_options o = sy_tree_asset_options_default();
+    o.impostor = 0, o.texture_size = 64, o.check = 1;
+    sy_asset a;
+    sy_tree_asset_report rep;
+    assert_int_equal(sy_tree_asset_build(&sk, &lv, NULL, &o, &a, &rep, &err), SY_OK);
+    for (size_t l = 0; l < rep.check.n_levels; l++) {
+        const sy_mesh_check_level *v = &rep.check.level[l];
+        printf("LOD%zu: %zu sails of %zu bark triangles, %.2f radii off at most, %zu vertices below the ground\n", v->lod,
+               v->sails, v->bark_triangles, v->max_off_surface, v->below_ground);
+        assert_int_equal(v->below_ground, 0);
+        assert_int_equal(v->sails, 0);
+        assert_true(v->max_off_surface < 2);
+    }
+    sy_asset_free(&a);
+    sy_skeleton_free(&sk);
+}
+
 /* Runs after every species (cmocka keeps the order). */
 static void library_welds(void **state)
 {
@@ -221,11 +259,12 @@ int main(void)
     sy_error err = {0};
     if (sy_library_load(NULL, &lib, &err) != SY_OK) return fprintf(stderr, "%s\n", err.msg), 1;
     size_t n = lib.n < 64 ? lib.n : 64;
-    struct CMUnitTest tests[65];
+    struct CMUnitTest tests[66];
     for (size_t i = 0; i < n; i++)
         tests[i] = (struct CMUnitTest){lib.entries[i].name, species_assets_survive_a_close_look, NULL, NULL,
                                        (void *)lib.entries[i].name};
     tests[n++] = (struct CMUnitTest){"library_welds", library_welds, NULL, NULL, NULL};
+    tests[n++] = (struct CMUnitTest){"limb_along_the_ground_is_no_sail", limb_along_the_ground_is_no_sail, NULL, NULL, NULL};
     int rc = _cmocka_run_group_tests("mesh_quality", tests, n, NULL, NULL);
     sy_library_free(&lib);
     return rc;

@@ -322,6 +322,71 @@ static int alloc_samples(sy_stem *s, size_t n)
     return s->sp && s->st && s->sn && s->sr && s->ss && s->sdr;
 }
 
+/* Segment i of stem s as sample_curve draws it: the Hermite slopes m0, m1
+ * (shortened at sharp polyline corners, below) and the radius at t. */
+static void segment_slopes(const sy_stem *s, size_t i, const float *chord, const float *tan, float m0[3], float m1[3])
+{
+    /* Hermite slopes of the chord's length overshoot where the tangent
+     * leaves the chord at a sharp polyline corner (a noisy reconstructed
+     * twig bulged up to 10 radii off its skeleton, the run outputs'
+     * "sails"): each is shortened by the cosine of its angle to the chord
+     * (at least 0.3), which keeps its direction, so the curve stays G1, and
+     * keeps straight runs as they were. */
+    const float *p0 = s->pts + 3 * i, *p1 = p0 + 3;
+    float cd[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
+    float inv = chord[i] > 0 ? 1.0f / chord[i] : 0;
+    float k0 = fmaxf(0.3f, sy_dot3(tan + 3 * i, cd) * inv), k1 = fmaxf(0.3f, sy_dot3(tan + 3 * i + 3, cd) * inv);
+    for (int k = 0; k < 3; k++) {
+        m0[k] = k0 * chord[i] * tan[3 * i + k];
+        m1[k] = k1 * chord[i] * tan[3 * i + 3 + k];
+    }
+}
+
+/* Radius of segment i at t (cubic Hermite with slopes scaled to the
+ * segment) and its derivative in t. */
+static float segment_radius(const sy_stem *s, size_t i, const float *chord, const float *slope, float t, float *drdt)
+{
+    float t2 = t * t, t3 = t2 * t;
+    float ra = s->rad[i], rb = s->rad[i + 1], ma = slope[i] * chord[i], mb = slope[i + 1] * chord[i];
+    *drdt = (6 * t2 - 6 * t) * ra + (3 * t2 - 4 * t + 1) * ma + (-6 * t2 + 6 * t) * rb + (3 * t2 - 2 * t) * mb;
+    return (2 * t3 - 3 * t2 + 1) * ra + (t3 - 2 * t2 + t) * ma + (-2 * t3 + 3 * t2) * rb + (t3 - t2) * mb;
+}
+
+/* Where segment i's axis meets the ground (its height less the radius
+ * there crosses `ground`), at most GROUND_CROSSINGS of them in (0, 1), in
+ * order: found on GROUND_SCAN steps and bisected. A branch that droops
+ * under the ground is drawn resting on it (sample_curve lifts its rings);
+ * a ring at each contact draws the bend there, where the rings either side
+ * of it cut across it (a limb's quads 10 cm above its path on the ground,
+ * the mesh check's sails). */
+#define GROUND_CROSSINGS 2
+#define GROUND_SCAN 16
+static int ground_crossings(const sy_stem *s, size_t i, const float *chord, const float *tan, const float *slope,
+                            float ground, float cross[GROUND_CROSSINGS])
+{
+    float m0[3], m1[3], x[3], der[3], dr;
+    segment_slopes(s, i, chord, tan, m0, m1);
+    const float *p0 = s->pts + 3 * i, *p1 = p0 + 3;
+#define GROUND_GAP(t) (sy_hermite(p0, m0, p1, m1, (t), x, der), x[2] - ground - segment_radius(s, i, chord, slope, (t), &dr))
+    int n = 0;
+    float prev = GROUND_GAP(0.0f);
+    for (int k = 1; k <= GROUND_SCAN && n < GROUND_CROSSINGS; k++) {
+        float lo = (float)(k - 1) / GROUND_SCAN, hi = (float)k / GROUND_SCAN, g = GROUND_GAP(hi);
+        if ((prev < 0) != (g < 0) && k < GROUND_SCAN) {
+            int below = prev < 0;
+            for (int it = 0; it < 20; it++) {
+                float mid = 0.5f * (lo + hi);
+                if ((GROUND_GAP(mid) < 0) == below) lo = mid;
+                else hi = mid;
+            }
+            cross[n++] = 0.5f * (lo + hi);
+        }
+        prev = g;
+    }
+#undef GROUND_GAP
+    return n;
+}
+
 /* Samples the curve: every segment is split so that no ring step turns more
  * than MAX_TURN, changes the radius by more than MAX_RADIUS_STEP of itself, or
  * exceeds the target spacing (segment_length, or a sixth of the stem so that
@@ -351,6 +416,12 @@ static int sample_curve(sy_stem *s, const sy_mesh_options *opt, float ground)
     int rings = (s->has_children || s->parent < 0) && !lean ? RINGS_PER_STEM : TWIG_RINGS;
     float spacing = opt->segment_length > 0 ? opt->segment_length : total / (float)rings;
     size_t count = 1;
+    float *cross = malloc(n * GROUND_CROSSINGS * sizeof *cross);
+    int *n_cross = calloc(n, sizeof *n_cross);
+    if (!cross || !n_cross) {
+        free(chord), free(tan), free(slope), free(sub), free(cross), free(n_cross);
+        return 0;
+    }
     for (size_t i = 0; i + 1 < n; i++) {
         float c = sy_dot3(tan + 3 * i, tan + 3 * i + 3);
         float turn = acosf(c > 1 ? 1 : c < -1 ? -1 : c);
@@ -359,30 +430,33 @@ static int sample_curve(sy_stem *s, const sy_mesh_options *opt, float ground)
         if (!lean) k = fmaxf(k, ceilf(fabsf(r1 - r0) / (MAX_RADIUS_STEP * fmaxf(r0, r1))));
         sub[i] = k < 1 ? 1 : k > MAX_SUBDIV ? MAX_SUBDIV : (int)k;
         count += (size_t)sub[i];
+        /* Ground contacts a tenth of a step or more from the even steps
+         * (one nearer is drawn by that step's ring). */
+        float *ci = cross + GROUND_CROSSINGS * i;
+        int found = s->parent >= 0 ? ground_crossings(s, i, chord, tan, slope, ground, ci) : 0;
+        for (int q = 0; q < found; q++) {
+            float f = ci[q] * (float)sub[i];
+            if (fabsf(f - roundf(f)) >= 0.1f) ci[n_cross[i]++] = ci[q];
+        }
+        count += (size_t)n_cross[i];
     }
     if (!alloc_samples(s, count)) {
-        free(chord), free(tan), free(slope), free(sub);
+        free(chord), free(tan), free(slope), free(sub), free(cross), free(n_cross);
         return 0;
     }
     size_t j = 0;
     for (size_t i = 0; i + 1 < n; i++) {
         const float *p0 = s->pts + 3 * i, *p1 = p0 + 3;
-        /* Hermite slopes of the chord's length overshoot where the
-         * tangent leaves the chord at a sharp polyline corner (a noisy
-         * reconstructed twig bulged up to 10 radii off its skeleton, the
-         * run outputs' "sails"): each is shortened by the cosine of its
-         * angle to the chord (at least 0.3), which keeps its direction, so
-         * the curve stays G1, and keeps straight runs as they were. */
-        float m0[3], m1[3], cd[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
-        float inv = chord[i] > 0 ? 1.0f / chord[i] : 0;
-        float k0 = fmaxf(0.3f, sy_dot3(tan + 3 * i, cd) * inv), k1 = fmaxf(0.3f, sy_dot3(tan + 3 * i + 3, cd) * inv);
-        for (int k = 0; k < 3; k++) {
-            m0[k] = k0 * chord[i] * tan[3 * i + k];
-            m1[k] = k1 * chord[i] * tan[3 * i + 3 + k];
-        }
-        int last = i + 2 == n;
-        for (int k = 0; k < sub[i] + last; k++) {
-            float t = (float)k / (float)sub[i], der[3];
+        float m0[3], m1[3];
+        segment_slopes(s, i, chord, tan, m0, m1);
+        /* The even steps, and the ground contacts among them, in order. */
+        int last = i + 2 == n, steps = sub[i] + last + n_cross[i];
+        const float *ci = cross + GROUND_CROSSINGS * i;
+        for (int k = 0, even = 0, c = 0; k < steps; k++) {
+            float te = (float)even / (float)sub[i], der[3];
+            int contact = c < n_cross[i] && (even > sub[i] - 1 + last || ci[c] < te);
+            float t = contact ? ci[c++] : te;
+            even += !contact;
             sy_hermite(p0, m0, p1, m1, t, s->sp + 3 * j, der);
             float speed = sy_normalize3(der);
             if (speed < 1e-9f) {
@@ -391,11 +465,7 @@ static int sample_curve(sy_stem *s, const sy_mesh_options *opt, float ground)
                 speed = chord[i];
             }
             memcpy(s->st + 3 * j, der, sizeof der);
-            /* Radius: cubic Hermite in t with slopes scaled to the segment. */
-            float t2 = t * t, t3 = t2 * t;
-            float ra = s->rad[i], rb = s->rad[i + 1], ma = slope[i] * chord[i], mb = slope[i + 1] * chord[i];
-            float r = (2 * t3 - 3 * t2 + 1) * ra + (t3 - 2 * t2 + t) * ma + (-2 * t3 + 3 * t2) * rb + (t3 - t2) * mb;
-            float drdt = (6 * t2 - 6 * t) * ra + (3 * t2 - 4 * t + 1) * ma + (-6 * t2 + 6 * t) * rb + (3 * t2 - 2 * t) * mb;
+            float drdt, r = segment_radius(s, i, chord, slope, t, &drdt);
             s->sr[j] = fmaxf(r, 1e-5f);
             /* A branch that droops to the ground rests on it instead of
              * passing below (the trunk's base ring sits on it already). */
@@ -415,7 +485,7 @@ static int sample_curve(sy_stem *s, const sy_mesh_options *opt, float ground)
     s->n_samp = j;
     s->pt_s[n - 1] = s->ss[j - 1];
     s->length = s->ss[j - 1];
-    free(chord), free(tan), free(slope), free(sub);
+    free(chord), free(tan), free(slope), free(sub), free(cross), free(n_cross);
     return 1;
 }
 
