@@ -354,32 +354,40 @@ static float segment_radius(const sy_stem *s, size_t i, const float *chord, cons
 
 /* Where segment i's axis meets the ground (its height less the radius
  * there crosses `ground`), at most GROUND_CROSSINGS of them in (0, 1), in
- * order: found on GROUND_SCAN steps and bisected. A branch that droops
- * under the ground is drawn resting on it (sample_curve lifts its rings);
- * a ring at each contact draws the bend there, where the rings either side
- * of it cut across it (a limb's quads 10 cm above its path on the ground,
- * the mesh check's sails). */
+ * order, none within a tenth of a step of the segment's sub even steps
+ * (that step's ring draws it): found on GROUND_SCAN steps and bisected. A
+ * branch that droops under the ground is drawn resting on it (sample_curve
+ * lifts its rings); a ring at each contact draws the bend there, where the
+ * rings either side of it cut across it (a limb's quads 10 cm above its
+ * path on the ground, the mesh check's sails). */
 #define GROUND_CROSSINGS 2
 #define GROUND_SCAN 16
 static int ground_crossings(const sy_stem *s, size_t i, const float *chord, const float *tan, const float *slope,
-                            float ground, float cross[GROUND_CROSSINGS])
+                            float ground, int sub, float cross[GROUND_CROSSINGS])
 {
     float m0[3], m1[3], x[3], der[3], dr;
     segment_slopes(s, i, chord, tan, m0, m1);
     const float *p0 = s->pts + 3 * i, *p1 = p0 + 3;
+    /* Clear of the ground throughout: the curve's Bezier heights (p0,
+     * p0 + m0 / 3, p1 - m1 / 3, p1) bound it below, the radius's above. */
+    float ra = s->rad[i], rb = s->rad[i + 1], ma = slope[i] * chord[i], mb = slope[i + 1] * chord[i];
+    float zlo = fminf(fminf(p0[2], p0[2] + m0[2] / 3), fminf(p1[2] - m1[2] / 3, p1[2]));
+    float rhi = fmaxf(fmaxf(ra, ra + ma / 3), fmaxf(rb - mb / 3, rb));
+    if (zlo - rhi > ground) return 0;
 #define GROUND_GAP(t) (sy_hermite(p0, m0, p1, m1, (t), x, der), x[2] - ground - segment_radius(s, i, chord, slope, (t), &dr))
     int n = 0;
     float prev = GROUND_GAP(0.0f);
     for (int k = 1; k <= GROUND_SCAN && n < GROUND_CROSSINGS; k++) {
         float lo = (float)(k - 1) / GROUND_SCAN, hi = (float)k / GROUND_SCAN, g = GROUND_GAP(hi);
-        if ((prev < 0) != (g < 0) && k < GROUND_SCAN) {
+        if ((prev < 0) != (g < 0)) {
             int below = prev < 0;
             for (int it = 0; it < 20; it++) {
                 float mid = 0.5f * (lo + hi);
                 if ((GROUND_GAP(mid) < 0) == below) lo = mid;
                 else hi = mid;
             }
-            cross[n++] = 0.5f * (lo + hi);
+            float t = 0.5f * (lo + hi), f = t * (float)sub;
+            if (fabsf(f - roundf(f)) >= 0.1f) cross[n++] = t;
         }
         prev = g;
     }
@@ -430,14 +438,7 @@ static int sample_curve(sy_stem *s, const sy_mesh_options *opt, float ground)
         if (!lean) k = fmaxf(k, ceilf(fabsf(r1 - r0) / (MAX_RADIUS_STEP * fmaxf(r0, r1))));
         sub[i] = k < 1 ? 1 : k > MAX_SUBDIV ? MAX_SUBDIV : (int)k;
         count += (size_t)sub[i];
-        /* Ground contacts a tenth of a step or more from the even steps
-         * (one nearer is drawn by that step's ring). */
-        float *ci = cross + GROUND_CROSSINGS * i;
-        int found = s->parent >= 0 ? ground_crossings(s, i, chord, tan, slope, ground, ci) : 0;
-        for (int q = 0; q < found; q++) {
-            float f = ci[q] * (float)sub[i];
-            if (fabsf(f - roundf(f)) >= 0.1f) ci[n_cross[i]++] = ci[q];
-        }
+        if (s->parent >= 0) n_cross[i] = ground_crossings(s, i, chord, tan, slope, ground, sub[i], cross + GROUND_CROSSINGS * i);
         count += (size_t)n_cross[i];
     }
     if (!alloc_samples(s, count)) {

@@ -1502,7 +1502,7 @@ static sy_code twigs_to_skeleton(const sy_cluster *c, const seed_limb *limb, int
      * rings on every turn (two passes: tree1's LOD0 bark before the budget
      * 63k -> 53k triangles, its IoU 0.685 -> 0.696). A fork is smoothed
      * along its continuation (the child leading to most nodes), its side
-     * twigs moving with it: kept at its return, the chain kinked there by
+     * twigs starting where it goes: kept at its return, the chain kinked there by
      * up to 94 degrees between two rings, the parent's tube folded on the
      * inside of the kink, and the side twig it carries could not be welded
      * (AdTree's tree13 welded 954 of its 978 LOD0 junctions, now 1,058 of
