@@ -495,10 +495,10 @@ sy_code sy_mesh_check(const sy_asset *a, const sy_skeleton *sk, const sy_mesh_ch
          * (sample_curve in stages/mesh/stems.c): so do its capsules. A
          * segment that goes under it (or comes up out of it) is split where
          * its axis meets it: the mesher draws it down to there and along
-         * the ground after (a ring at the contact). Lifting
-         * the lower end alone drew the segment as one slant above the
-         * drawn twig (the grown Norway spruce's skirt: 123 sails, all
-         * within 0.3 m of the ground). */
+         * the ground after (a ring at the contact). Lifting the lower end
+         * alone drew the segment as one slant above the drawn twig (the
+         * grown Norway spruce's skirt: 123 sails, all within 0.3 m of the
+         * ground). */
         if (!trunk[i]) {
             double za = c->a[2] - (mesh_ground + c->ra), zb = c->b[2] - (mesh_ground + c->rb);
             if ((za < 0) != (zb < 0) && sy_v3_dist(c->a, c->b) > 1e-6) {

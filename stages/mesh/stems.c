@@ -362,10 +362,19 @@ static float segment_radius(const sy_stem *s, size_t i, const float *chord, cons
  * path on the ground, the mesh check's sails). */
 #define GROUND_CROSSINGS 2
 #define GROUND_SCAN 16
+/* Height of segment i's axis at t above `ground` plus its radius there. */
+static float ground_gap(const sy_stem *s, size_t i, const float *chord, const float *slope, const float m0[3],
+                        const float m1[3], float ground, float t)
+{
+    float x[3], der[3], dr;
+    sy_hermite(s->pts + 3 * i, m0, s->pts + 3 * i + 3, m1, t, x, der);
+    return x[2] - ground - segment_radius(s, i, chord, slope, t, &dr);
+}
+
 static int ground_crossings(const sy_stem *s, size_t i, const float *chord, const float *tan, const float *slope,
                             float ground, int sub, float cross[GROUND_CROSSINGS])
 {
-    float m0[3], m1[3], x[3], der[3], dr;
+    float m0[3], m1[3];
     segment_slopes(s, i, chord, tan, m0, m1);
     const float *p0 = s->pts + 3 * i, *p1 = p0 + 3;
     /* Clear of the ground throughout: the curve's Bezier heights (p0,
@@ -374,16 +383,16 @@ static int ground_crossings(const sy_stem *s, size_t i, const float *chord, cons
     float zlo = fminf(fminf(p0[2], p0[2] + m0[2] / 3), fminf(p1[2] - m1[2] / 3, p1[2]));
     float rhi = fmaxf(fmaxf(ra, ra + ma / 3), fmaxf(rb - mb / 3, rb));
     if (zlo - rhi > ground) return 0;
-#define GROUND_GAP(t) (sy_hermite(p0, m0, p1, m1, (t), x, der), x[2] - ground - segment_radius(s, i, chord, slope, (t), &dr))
     int n = 0;
-    float prev = GROUND_GAP(0.0f);
+    float prev = ground_gap(s, i, chord, slope, m0, m1, ground, 0);
     for (int k = 1; k <= GROUND_SCAN && n < GROUND_CROSSINGS; k++) {
-        float lo = (float)(k - 1) / GROUND_SCAN, hi = (float)k / GROUND_SCAN, g = GROUND_GAP(hi);
+        float lo = (float)(k - 1) / GROUND_SCAN, hi = (float)k / GROUND_SCAN;
+        float g = ground_gap(s, i, chord, slope, m0, m1, ground, hi);
         if ((prev < 0) != (g < 0)) {
             int below = prev < 0;
             for (int it = 0; it < 20; it++) {
                 float mid = 0.5f * (lo + hi);
-                if ((GROUND_GAP(mid) < 0) == below) lo = mid;
+                if ((ground_gap(s, i, chord, slope, m0, m1, ground, mid) < 0) == below) lo = mid;
                 else hi = mid;
             }
             float t = 0.5f * (lo + hi), f = t * (float)sub;
@@ -391,7 +400,6 @@ static int ground_crossings(const sy_stem *s, size_t i, const float *chord, cons
         }
         prev = g;
     }
-#undef GROUND_GAP
     return n;
 }
 
